@@ -1,0 +1,523 @@
+//! The camera model of spec/DATASET.md: pinhole, no skew, OpenCV-order distortion.
+//!
+//! ## Model
+//!
+//! For a point `p = (xc, yc, zc)` in the camera frame:
+//!
+//! ```text
+//! xn = xc / zc,  yn = yc / zc,  r2 = xn^2 + yn^2
+//! radial = 1 + k1 r2 + k2 r2^2 + k3 r2^3
+//! xd = xn radial + 2 p1 xn yn + p2 (r2 + 2 xn^2)
+//! yd = yn radial + p1 (r2 + 2 yn^2) + 2 p2 xn yn
+//! u = fu xd + u0,  v = fv yd + v0
+//! ```
+//!
+//! Distortion coefficients are stored as `[k1, k2, p1, p2, k3]` for every model; the
+//! [`DistortionModel`] says which of them a calibration may estimate (the others stay
+//! as given, normally 0).
+//!
+//! Camera parameters, where a vector of them is used (Jacobians, adjustment), are in the
+//! order [`PARAM_NAMES`]: `fu, fv, u0, v0, k1, k2, p1, p2, k3`.
+//!
+//! Pixel coordinates: the centre of the top-left pixel is `(0, 0)`.
+
+use nalgebra::{Matrix2, Matrix2x3, SMatrix, Vector2, Vector3};
+
+use crate::error::{Error, Result};
+
+/// Names of the camera parameters, in the order of every parameter vector.
+pub const PARAM_NAMES: [&str; 9] = ["fu", "fv", "u0", "v0", "k1", "k2", "p1", "p2", "k3"];
+
+/// Which distortion coefficients a model estimates.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default)]
+pub enum DistortionModel {
+    /// `k1` only: the paper's model.
+    #[default]
+    Radial1,
+    /// `k1, k2`.
+    Radial2,
+    /// `k1, k2, p1, p2, k3` (OpenCV's five-coefficient model).
+    OpenCv5,
+}
+
+impl DistortionModel {
+    /// The name used in files: `radial1`, `radial2` or `opencv5`.
+    pub fn name(self) -> &'static str {
+        match self {
+            DistortionModel::Radial1 => "radial1",
+            DistortionModel::Radial2 => "radial2",
+            DistortionModel::OpenCv5 => "opencv5",
+        }
+    }
+
+    /// Parses a model name (`radial1`, `radial2`, `opencv5`).
+    pub fn from_name(s: &str) -> Result<Self> {
+        match s {
+            "radial1" => Ok(DistortionModel::Radial1),
+            "radial2" => Ok(DistortionModel::Radial2),
+            "opencv5" => Ok(DistortionModel::OpenCv5),
+            other => Err(Error::InvalidInput(format!(
+                "unknown distortion model {other:?}: expected \"radial1\", \"radial2\" or \"opencv5\""
+            ))),
+        }
+    }
+
+    /// Which of `[k1, k2, p1, p2, k3]` the model estimates.
+    pub fn free_coefficients(self) -> [bool; 5] {
+        match self {
+            DistortionModel::Radial1 => [true, false, false, false, false],
+            DistortionModel::Radial2 => [true, true, false, false, false],
+            DistortionModel::OpenCv5 => [true; 5],
+        }
+    }
+}
+
+impl std::fmt::Display for DistortionModel {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+/// A calibrated camera: image size, intrinsics and distortion.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Camera {
+    /// Image width in pixels (columns).
+    pub width: u32,
+    /// Image height in pixels (rows).
+    pub height: u32,
+    /// Focal length along u, in pixels.
+    pub fu: f64,
+    /// Focal length along v, in pixels.
+    pub fv: f64,
+    /// Principal point, u (pixels).
+    pub u0: f64,
+    /// Principal point, v (pixels).
+    pub v0: f64,
+    /// The distortion model (which coefficients are estimated).
+    pub model: DistortionModel,
+    /// `[k1, k2, p1, p2, k3]`.
+    pub distortion: [f64; 5],
+}
+
+/// Maximum Newton iterations of [`Camera::undistort`].
+const UNDISTORT_MAX_ITER: usize = 30;
+/// Convergence tolerance of [`Camera::undistort`] in normalised coordinates
+/// (1e-14 is ~1e-11 px for a 1000 px focal length).
+const UNDISTORT_TOL: f64 = 1e-14;
+
+impl Camera {
+    /// A camera with checked values (positive size and focal lengths, finite numbers).
+    #[allow(clippy::too_many_arguments)]
+    pub fn new(
+        width: u32,
+        height: u32,
+        fu: f64,
+        fv: f64,
+        u0: f64,
+        v0: f64,
+        model: DistortionModel,
+        distortion: [f64; 5],
+    ) -> Result<Camera> {
+        let cam = Camera {
+            width,
+            height,
+            fu,
+            fv,
+            u0,
+            v0,
+            model,
+            distortion,
+        };
+        cam.validate()?;
+        Ok(cam)
+    }
+
+    /// Checks the invariants [`Camera::new`] enforces.
+    pub fn validate(&self) -> Result<()> {
+        if self.width == 0 || self.height == 0 {
+            return Err(Error::InvalidInput(format!(
+                "camera size {}x{} must be positive",
+                self.width, self.height
+            )));
+        }
+        if !(self.fu.is_finite() && self.fu > 0.0 && self.fv.is_finite() && self.fv > 0.0) {
+            return Err(Error::InvalidInput(format!(
+                "focal lengths fu = {}, fv = {} must be positive and finite",
+                self.fu, self.fv
+            )));
+        }
+        if !(self.u0.is_finite() && self.v0.is_finite())
+            || self.distortion.iter().any(|k| !k.is_finite())
+        {
+            return Err(Error::InvalidInput(
+                "principal point and distortion must be finite".into(),
+            ));
+        }
+        Ok(())
+    }
+
+    /// The parameter vector `[fu, fv, u0, v0, k1, k2, p1, p2, k3]`.
+    pub fn params(&self) -> [f64; 9] {
+        let k = self.distortion;
+        [
+            self.fu, self.fv, self.u0, self.v0, k[0], k[1], k[2], k[3], k[4],
+        ]
+    }
+
+    /// A copy of this camera with parameters from a vector in [`PARAM_NAMES`] order.
+    pub fn with_params(&self, p: &[f64; 9]) -> Camera {
+        Camera {
+            fu: p[0],
+            fv: p[1],
+            u0: p[2],
+            v0: p[3],
+            distortion: [p[4], p[5], p[6], p[7], p[8]],
+            ..self.clone()
+        }
+    }
+
+    /// Applies the distortion to normalised coordinates.
+    #[inline]
+    pub fn distort(&self, xn: f64, yn: f64) -> (f64, f64) {
+        let [k1, k2, p1, p2, k3] = self.distortion;
+        let r2 = xn * xn + yn * yn;
+        let radial = 1.0 + r2 * (k1 + r2 * (k2 + r2 * k3));
+        let xd = xn * radial + 2.0 * p1 * xn * yn + p2 * (r2 + 2.0 * xn * xn);
+        let yd = yn * radial + p1 * (r2 + 2.0 * yn * yn) + 2.0 * p2 * xn * yn;
+        (xd, yd)
+    }
+
+    /// The distortion and its 2x2 Jacobian with respect to `(xn, yn)`.
+    #[inline]
+    pub fn distort_with_jacobian(&self, xn: f64, yn: f64) -> ((f64, f64), Matrix2<f64>) {
+        let [k1, k2, p1, p2, k3] = self.distortion;
+        let r2 = xn * xn + yn * yn;
+        let radial = 1.0 + r2 * (k1 + r2 * (k2 + r2 * k3));
+        let dradial = k1 + r2 * (2.0 * k2 + 3.0 * k3 * r2);
+        let xd = xn * radial + 2.0 * p1 * xn * yn + p2 * (r2 + 2.0 * xn * xn);
+        let yd = yn * radial + p1 * (r2 + 2.0 * yn * yn) + 2.0 * p2 * xn * yn;
+        let cross = 2.0 * xn * yn * dradial + 2.0 * p1 * xn + 2.0 * p2 * yn;
+        let j = Matrix2::new(
+            radial + 2.0 * xn * xn * dradial + 2.0 * p1 * yn + 6.0 * p2 * xn,
+            cross,
+            cross,
+            radial + 2.0 * yn * yn * dradial + 6.0 * p1 * yn + 2.0 * p2 * xn,
+        );
+        ((xd, yd), j)
+    }
+
+    /// Normalised coordinates of a point in the camera frame; error if `zc <= 0`.
+    #[inline]
+    pub fn normalize(p: &Vector3<f64>) -> Result<(f64, f64)> {
+        if !(p.z > 0.0) {
+            return Err(Error::Degenerate(format!(
+                "point ({:.4}, {:.4}, {:.4}) is not in front of the camera",
+                p.x, p.y, p.z
+            )));
+        }
+        Ok((p.x / p.z, p.y / p.z))
+    }
+
+    /// Pixel of distorted normalised coordinates.
+    #[inline]
+    pub fn to_pixel(&self, xd: f64, yd: f64) -> Vector2<f64> {
+        Vector2::new(self.fu * xd + self.u0, self.fv * yd + self.v0)
+    }
+
+    /// Distorted normalised coordinates of a pixel.
+    #[inline]
+    pub fn from_pixel(&self, uv: &Vector2<f64>) -> (f64, f64) {
+        ((uv.x - self.u0) / self.fu, (uv.y - self.v0) / self.fv)
+    }
+
+    /// Projects a point in the camera frame to pixels; error if it is not in front.
+    #[inline]
+    pub fn project(&self, p: &Vector3<f64>) -> Result<Vector2<f64>> {
+        let (xn, yn) = Self::normalize(p)?;
+        let (xd, yd) = self.distort(xn, yn);
+        Ok(self.to_pixel(xd, yd))
+    }
+
+    /// Inverts the distortion by Newton's method.
+    ///
+    /// Errors with [`Error::NotConverged`] when the iteration does not reach 1e-14 in
+    /// 30 steps, and with [`Error::Degenerate`] where the distortion folds (its
+    /// Jacobian is singular or orientation-reversing: outside the model's valid zone).
+    pub fn undistort(&self, xd: f64, yd: f64) -> Result<(f64, f64)> {
+        self.undistort_from(xd, yd, xd, yd)
+    }
+
+    /// [`Camera::undistort`] starting from the guess `(x0, y0)` (a neighbouring
+    /// solution makes it converge in one or two steps).
+    pub fn undistort_from(&self, xd: f64, yd: f64, x0: f64, y0: f64) -> Result<(f64, f64)> {
+        if !(xd.is_finite() && yd.is_finite()) {
+            return Err(Error::InvalidInput(
+                "cannot undistort a non-finite point".into(),
+            ));
+        }
+        let (mut x, mut y) = (x0, y0);
+        let mut res = f64::INFINITY;
+        for _ in 0..UNDISTORT_MAX_ITER {
+            let ((fx, fy), j) = self.distort_with_jacobian(x, y);
+            let (ex, ey) = (fx - xd, fy - yd);
+            res = ex.abs().max(ey.abs());
+            if res < UNDISTORT_TOL {
+                return if j.determinant() > 0.0 {
+                    Ok((x, y))
+                } else {
+                    Err(Error::Degenerate(format!(
+                        "distorted point ({xd:.6}, {yd:.6}) lies where the distortion model folds"
+                    )))
+                };
+            }
+            let det = j.determinant();
+            if !(det.is_finite() && det > 1e-12) {
+                return Err(Error::Degenerate(format!(
+                    "distorted point ({xd:.6}, {yd:.6}) lies where the distortion model folds \
+                     (Jacobian determinant {det:.3e})"
+                )));
+            }
+            // Solve J * delta = e.
+            let dx = (j[(1, 1)] * ex - j[(0, 1)] * ey) / det;
+            let dy = (-j[(1, 0)] * ex + j[(0, 0)] * ey) / det;
+            x -= dx;
+            y -= dy;
+            if !(x.is_finite() && y.is_finite()) {
+                break;
+            }
+        }
+        Err(Error::NotConverged {
+            what: "undistortion",
+            iterations: UNDISTORT_MAX_ITER,
+            residual: res,
+        })
+    }
+
+    /// The viewing ray of a pixel: `(xn, yn, 1)` in the camera frame (not unit length).
+    pub fn unproject(&self, uv: &Vector2<f64>) -> Result<Vector3<f64>> {
+        let (xd, yd) = self.from_pixel(uv);
+        let (xn, yn) = self.undistort(xd, yd)?;
+        Ok(Vector3::new(xn, yn, 1.0))
+    }
+
+    /// Projection with its Jacobians: the pixel, d(u,v)/d(point) (2x3) and
+    /// d(u,v)/d(params) (2x9, columns in [`PARAM_NAMES`] order).
+    pub fn project_with_jacobians(
+        &self,
+        p: &Vector3<f64>,
+    ) -> Result<(Vector2<f64>, Matrix2x3<f64>, SMatrix<f64, 2, 9>)> {
+        let (xn, yn) = Self::normalize(p)?;
+        let ((xd, yd), jd) = self.distort_with_jacobian(xn, yn);
+        let uv = self.to_pixel(xd, yd);
+        let iz = 1.0 / p.z;
+        // d(xn, yn)/d(p)
+        let jn = Matrix2x3::new(iz, 0.0, -xn * iz, 0.0, iz, -yn * iz);
+        let f = Matrix2::new(self.fu, 0.0, 0.0, self.fv);
+        let jp = f * jd * jn;
+        let r2 = xn * xn + yn * yn;
+        let r4 = r2 * r2;
+        let mut jc = SMatrix::<f64, 2, 9>::zeros();
+        jc[(0, 0)] = xd;
+        jc[(1, 1)] = yd;
+        jc[(0, 2)] = 1.0;
+        jc[(1, 3)] = 1.0;
+        // k1, k2, p1, p2, k3
+        let dxd = [
+            xn * r2,
+            xn * r4,
+            2.0 * xn * yn,
+            r2 + 2.0 * xn * xn,
+            xn * r4 * r2,
+        ];
+        let dyd = [
+            yn * r2,
+            yn * r4,
+            r2 + 2.0 * yn * yn,
+            2.0 * xn * yn,
+            yn * r4 * r2,
+        ];
+        for i in 0..5 {
+            jc[(0, 4 + i)] = self.fu * dxd[i];
+            jc[(1, 4 + i)] = self.fv * dyd[i];
+        }
+        Ok((uv, jp, jc))
+    }
+
+    /// Whether a pixel position lies inside the image (pixel centres from 0 to size-1,
+    /// the image area from -0.5 to size-0.5).
+    pub fn contains(&self, uv: &Vector2<f64>, margin: f64) -> bool {
+        uv.x >= -0.5 + margin
+            && uv.y >= -0.5 + margin
+            && uv.x <= self.width as f64 - 0.5 - margin
+            && uv.y <= self.height as f64 - 0.5 - margin
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn cameras() -> Vec<Camera> {
+        let base = Camera::new(
+            768,
+            576,
+            1271.65,
+            1322.52,
+            346.14,
+            262.60,
+            DistortionModel::Radial1,
+            [0.0002, 0.0, 0.0, 0.0, 0.0],
+        )
+        .unwrap();
+        vec![
+            base.clone(),
+            Camera {
+                distortion: [-0.3, 0.0, 0.0, 0.0, 0.0],
+                ..base.clone()
+            },
+            Camera {
+                model: DistortionModel::Radial2,
+                distortion: [-0.3, 0.1, 0.0, 0.0, 0.0],
+                ..base.clone()
+            },
+            Camera {
+                model: DistortionModel::OpenCv5,
+                distortion: [-0.3, 0.1, 1e-3, 1e-3, 0.02],
+                ..base.clone()
+            },
+            // wide-angle short focal length: strong distortion reaches far into the corners
+            Camera {
+                fu: 500.0,
+                fv: 500.0,
+                model: DistortionModel::OpenCv5,
+                distortion: [-0.3, 0.1, 1e-3, 1e-3, -0.01],
+                ..base
+            },
+        ]
+    }
+
+    #[test]
+    fn project_unproject_round_trip_over_the_whole_image() {
+        for cam in cameras() {
+            let mut worst: f64 = 0.0;
+            for iv in 0..=48 {
+                for iu in 0..=64 {
+                    let uv = Vector2::new(
+                        -0.5 + iu as f64 * cam.width as f64 / 64.0,
+                        -0.5 + iv as f64 * cam.height as f64 / 48.0,
+                    );
+                    let ray = cam.unproject(&uv).unwrap();
+                    let back = cam.project(&(ray * 137.0)).unwrap();
+                    worst = worst.max((back - uv).norm());
+                }
+            }
+            assert!(
+                worst < 1e-6,
+                "{:?}: round trip {worst:e} px",
+                cam.distortion
+            );
+        }
+    }
+
+    #[test]
+    fn jacobians_match_central_differences() {
+        for cam in cameras() {
+            for p in [
+                Vector3::new(12.0, -7.0, 100.0),
+                Vector3::new(-40.0, 30.0, 95.0),
+                Vector3::new(1.0, 2.0, 300.0),
+            ] {
+                let (_, jp, jc) = cam.project_with_jacobians(&p).unwrap();
+                for k in 0..3 {
+                    let h = 1e-4 * p.norm();
+                    let (mut a, mut b) = (p, p);
+                    a[k] += h;
+                    b[k] -= h;
+                    let fd = (cam.project(&a).unwrap() - cam.project(&b).unwrap()) / (2.0 * h);
+                    for r in 0..2 {
+                        let rel = (fd[r] - jp[(r, k)]).abs() / jp.column(k).norm().max(1e-12);
+                        assert!(rel < 1e-6, "d/dp{k} row {r}: {} vs {}", jp[(r, k)], fd[r]);
+                    }
+                }
+                let params = cam.params();
+                for k in 0..9 {
+                    // u, v are linear in each distortion coefficient: a finite step is exact there.
+                    let h = if k < 4 { 1e-6 * params[k].abs() } else { 1e-4 };
+                    let (mut a, mut b) = (params, params);
+                    a[k] += h;
+                    b[k] -= h;
+                    let fd = (cam.with_params(&a).project(&p).unwrap()
+                        - cam.with_params(&b).project(&p).unwrap())
+                        / (2.0 * h);
+                    for r in 0..2 {
+                        let scale = jc.column(k).norm().max(1e-9);
+                        let rel = (fd[r] - jc[(r, k)]).abs() / scale;
+                        assert!(
+                            rel < 1e-6,
+                            "d/d{} row {r}: {} vs {}",
+                            PARAM_NAMES[k],
+                            jc[(r, k)],
+                            fd[r]
+                        );
+                    }
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn undistort_refuses_where_the_model_folds() {
+        let cam = Camera::new(
+            100,
+            100,
+            100.0,
+            100.0,
+            50.0,
+            50.0,
+            DistortionModel::Radial1,
+            [-0.5, 0.0, 0.0, 0.0, 0.0],
+        )
+        .unwrap();
+        // max of r (1 - 0.5 r^2) is at r = sqrt(2/3) giving 0.544: beyond it no solution
+        assert!(cam.undistort(0.7, 0.0).is_err());
+        assert!(cam.project(&Vector3::new(0.0, 0.0, -1.0)).is_err());
+    }
+
+    #[test]
+    fn invalid_cameras_are_rejected() {
+        assert!(Camera::new(
+            0,
+            10,
+            1.0,
+            1.0,
+            0.0,
+            0.0,
+            DistortionModel::Radial1,
+            [0.0; 5]
+        )
+        .is_err());
+        assert!(Camera::new(
+            10,
+            10,
+            -1.0,
+            1.0,
+            0.0,
+            0.0,
+            DistortionModel::Radial1,
+            [0.0; 5]
+        )
+        .is_err());
+        assert!(Camera::new(
+            10,
+            10,
+            1.0,
+            1.0,
+            f64::NAN,
+            0.0,
+            DistortionModel::Radial1,
+            [0.0; 5]
+        )
+        .is_err());
+        assert!(DistortionModel::from_name("fisheye").is_err());
+    }
+}

@@ -1,0 +1,69 @@
+//! The one error type of the core crate.
+//!
+//! Every public fallible function returns [`Result`]. Variants say *where* (file, line,
+//! key, view) and *what* was expected, so a user can fix the input without reading code.
+
+use std::path::PathBuf;
+
+/// Errors of the stripecal core crate.
+#[derive(Debug, thiserror::Error)]
+pub enum Error {
+    /// An operating-system level failure reading or writing a file.
+    #[error("{path}: {source}")]
+    Io {
+        path: PathBuf,
+        #[source]
+        source: std::io::Error,
+    },
+    /// A file whose content does not follow spec/DATASET.md. `location` is a line
+    /// (`line 3`), a column (`line 3, column q2`) or a JSON key path (`board.rows`).
+    #[error("{path}: {location}: {message}")]
+    Format {
+        path: PathBuf,
+        location: String,
+        message: String,
+    },
+    /// An image that cannot be decoded or exceeds the decoder limits.
+    #[error("{path}: cannot read image: {message}")]
+    Image { path: PathBuf, message: String },
+    /// An argument outside the domain of a function (wrong length, NaN, non-positive size...).
+    #[error("invalid input: {0}")]
+    InvalidInput(String),
+    /// An iterative method that did not reach its tolerance.
+    #[error("{what} did not converge after {iterations} iterations (residual {residual:.3e})")]
+    NotConverged {
+        what: &'static str,
+        iterations: usize,
+        residual: f64,
+    },
+    /// A geometric configuration where the requested quantity does not exist
+    /// (a point behind the camera, a ray parallel to a plane...).
+    #[error("degenerate geometry: {0}")]
+    Degenerate(String),
+}
+
+/// `Result` with the crate's [`Error`].
+pub type Result<T> = std::result::Result<T, Error>;
+
+impl Error {
+    /// Shorthand for a [`Error::Format`] error.
+    pub fn format(
+        path: impl Into<PathBuf>,
+        location: impl Into<String>,
+        message: impl Into<String>,
+    ) -> Self {
+        Error::Format {
+            path: path.into(),
+            location: location.into(),
+            message: message.into(),
+        }
+    }
+
+    /// Shorthand for a [`Error::Io`] error.
+    pub fn io(path: impl Into<PathBuf>, source: std::io::Error) -> Self {
+        Error::Io {
+            path: path.into(),
+            source,
+        }
+    }
+}

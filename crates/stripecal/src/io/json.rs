@@ -1,0 +1,1 @@
+//! JSON helpers (io helper implements).
