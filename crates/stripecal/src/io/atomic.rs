@@ -1,7 +1,118 @@
-use crate::error::Result;
-use std::path::Path;
-/// TEMPORARY signature stub (io helper implements).
+//! Atomic file writes and checked file reads.
+//!
+//! [`write_atomic`] writes a temporary file next to the target, flushes it to disk and
+//! renames it over the target, so a reader (or a crash) never sees a half-written file.
+
+use std::fs::{self, File, OpenOptions};
+use std::io::{self, Write};
+use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicU64, Ordering};
+
+use crate::error::{Error, Result};
+
+/// Distinguishes temporary files of concurrent writes from one process.
+static TMP_COUNTER: AtomicU64 = AtomicU64::new(0);
+
+/// How many temporary names are tried before giving up (a name can only be taken by a
+/// stale file of an earlier process with the same pid).
+const TMP_ATTEMPTS: usize = 16;
+
+/// Writes `bytes` to `path` atomically: a temporary file `.{name}.tmp-{pid}-{n}` is
+/// created in the target's folder, written, synced (`fsync`) and renamed over the
+/// target. On any error the temporary file is removed and [`Error::Io`] names the
+/// target. The target's folder must exist (it is not created).
 pub fn write_atomic(path: impl AsRef<Path>, bytes: &[u8]) -> Result<()> {
     let path = path.as_ref();
-    std::fs::write(path, bytes).map_err(|e| crate::Error::io(path, e))
+    let Some(name) = path.file_name() else {
+        return Err(Error::io(
+            path,
+            io::Error::new(io::ErrorKind::InvalidInput, "path does not name a file"),
+        ));
+    };
+    let parent = match path.parent() {
+        Some(p) if !p.as_os_str().is_empty() => p,
+        _ => Path::new("."),
+    };
+    if !parent.is_dir() {
+        return Err(Error::io(
+            path,
+            io::Error::new(
+                io::ErrorKind::NotFound,
+                format!("folder {} does not exist", parent.display()),
+            ),
+        ));
+    }
+
+    let (tmp_path, file) = create_temp(parent, &name.to_string_lossy()).map_err(|e| {
+        Error::io(
+            path,
+            io::Error::new(e.kind(), format!("cannot create a temporary file: {e}")),
+        )
+    })?;
+    let result = write_sync(file, bytes).and_then(|()| fs::rename(&tmp_path, path));
+    if let Err(e) = result {
+        // Best effort: the original error is the one worth reporting.
+        let _ = fs::remove_file(&tmp_path);
+        return Err(Error::io(path, e));
+    }
+    sync_dir(parent);
+    Ok(())
+}
+
+fn create_temp(dir: &Path, name: &str) -> io::Result<(PathBuf, File)> {
+    let pid = std::process::id();
+    let mut last_err = None;
+    for _ in 0..TMP_ATTEMPTS {
+        let n = TMP_COUNTER.fetch_add(1, Ordering::Relaxed);
+        let tmp = dir.join(format!(".{name}.tmp-{pid}-{n}"));
+        match OpenOptions::new().write(true).create_new(true).open(&tmp) {
+            Ok(f) => return Ok((tmp, f)),
+            Err(e) if e.kind() == io::ErrorKind::AlreadyExists => last_err = Some(e),
+            Err(e) => return Err(e),
+        }
+    }
+    Err(last_err
+        .unwrap_or_else(|| io::Error::new(io::ErrorKind::AlreadyExists, "no free name found")))
+}
+
+fn write_sync(mut file: File, bytes: &[u8]) -> io::Result<()> {
+    file.write_all(bytes)?;
+    file.sync_all()
+}
+
+/// Makes the rename durable on Unix (syncs the folder entry); best effort elsewhere.
+fn sync_dir(dir: &Path) {
+    #[cfg(unix)]
+    {
+        if let Ok(d) = File::open(dir) {
+            let _ = d.sync_all();
+        }
+    }
+    #[cfg(not(unix))]
+    {
+        let _ = dir;
+    }
+}
+
+/// Reads a whole text file: [`Error::Io`] when it cannot be read, [`Error::Format`]
+/// (naming the line) when it is not UTF-8. A leading UTF-8 byte-order mark is dropped.
+pub(super) fn read_text(path: &Path) -> Result<String> {
+    let bytes = fs::read(path).map_err(|e| Error::io(path, e))?;
+    match String::from_utf8(bytes) {
+        Ok(mut s) => {
+            if s.starts_with('\u{feff}') {
+                s.drain(..'\u{feff}'.len_utf8());
+            }
+            Ok(s)
+        }
+        Err(e) => {
+            let at = e.utf8_error().valid_up_to();
+            let line = 1 + e.as_bytes()[..at].iter().filter(|&&b| b == b'\n').count();
+            Err(Error::format(
+                path,
+                format!("line {line}"),
+                format!("not valid UTF-8 text (byte offset {at})"),
+            ))
+        }
+    }
 }

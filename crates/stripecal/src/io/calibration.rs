@@ -1,36 +1,426 @@
-use super::{Calibration, SphereFit, Truth};
-use crate::error::{Error, Result};
+//! `calibration.json` (`stripecal/calibration@1`), `truth.json` (`stripecal/truth@1`)
+//! and sphere fit results.
+
 use std::path::Path;
-fn todo() -> Error {
-    Error::InvalidInput("not yet implemented".into())
+
+use serde_json::{Map, Value};
+
+use super::atomic::{read_text, write_atomic};
+use super::json::{
+    append_extra, invalid_message, num, parse, pose_value, to_pretty, vec3_value, Obj,
+};
+use super::rig::{distortion_model_from, robot_from, robot_value};
+use super::{Calibration, Quality, Sphere, SphereFit, Truth};
+use crate::camera::Camera;
+use crate::error::{Error, Result};
+use crate::geometry::{Iso3, Plane};
+use crate::kinematics::Robot;
+
+/// The `format` value of calibration.json.
+pub(super) const CALIBRATION_FORMAT: &str = "stripecal/calibration@1";
+/// The `format` value of truth.json.
+pub(super) const TRUTH_FORMAT: &str = "stripecal/truth@1";
+
+/// How far from 1 the norm of a laser-plane normal in a file may be (files written
+/// with rounded numbers); the normal is renormalised on reading.
+const NORMAL_TOL: f64 = 1e-3;
+
+const CALIBRATION_KEYS: [&str; 8] = [
+    "format",
+    "camera",
+    "laser_plane",
+    "hand_cam",
+    "base_board",
+    "robot",
+    "quality",
+    "uncertainty",
+];
+
+const TRUTH_KEYS: [&str; 8] = [
+    "format",
+    "camera",
+    "laser_plane",
+    "hand_cam",
+    "base_board",
+    "robot",
+    "sphere",
+    "working_range_mm",
+];
+
+const SPHERE_FIT_KEYS: [&str; 5] = ["diameter_mm", "center_mm", "rms_mm", "points", "outliers"];
+
+// ---------------------------------------------------------------- shared parts
+
+fn camera_from(c: &Obj<'_>) -> Result<Camera> {
+    let width = c.positive_u32("width")?;
+    let height = c.positive_u32("height")?;
+    let fu = c.positive_f64("fu")?;
+    let fv = c.positive_f64("fv")?;
+    let u0 = c.f64("u0")?;
+    let v0 = c.f64("v0")?;
+    let model = distortion_model_from(&c.req("distortion_model")?)?;
+    let distortion = c.req("distortion")?.f64_array::<5>()?;
+    let cam = Camera {
+        width,
+        height,
+        fu,
+        fv,
+        u0,
+        v0,
+        model,
+        distortion,
+    };
+    cam.validate().map_err(|e| c.err(invalid_message(e)))?;
+    Ok(cam)
 }
-pub fn calibration_from_json(_path: &Path, _text: &str) -> Result<Calibration> {
-    Err(todo())
+
+fn camera_value(c: &Camera) -> Value {
+    let mut m = Map::new();
+    m.insert("width".into(), Value::from(c.width));
+    m.insert("height".into(), Value::from(c.height));
+    m.insert("fu".into(), num(c.fu));
+    m.insert("fv".into(), num(c.fv));
+    m.insert("u0".into(), num(c.u0));
+    m.insert("v0".into(), num(c.v0));
+    m.insert("distortion_model".into(), Value::from(c.model.name()));
+    m.insert(
+        "distortion".into(),
+        Value::Array(c.distortion.iter().map(|&k| num(k)).collect()),
+    );
+    Value::Object(m)
 }
-pub fn calibration_to_json(_c: &Calibration) -> String {
-    String::new()
+
+fn plane_from(p: &Obj<'_>) -> Result<Plane> {
+    let nv = p.req("normal")?;
+    let n = nv.vec3()?;
+    if (n.norm() - 1.0).abs() > NORMAL_TOL {
+        return Err(nv.err(format!(
+            "expected a unit vector, got one of norm {}",
+            n.norm()
+        )));
+    }
+    let dv = p.req("d_mm")?;
+    let d = dv.f64()?;
+    if d <= 0.0 {
+        return Err(dv.err(format!(
+            "expected a positive distance (n . p = d with d > 0: the plane is in front of the camera), got {d}"
+        )));
+    }
+    Plane::new(n, d).map_err(|e| p.err(invalid_message(e)))
 }
-pub fn read_calibration(_p: impl AsRef<Path>) -> Result<Calibration> {
-    Err(todo())
+
+fn plane_value(p: &Plane) -> Value {
+    let mut m = Map::new();
+    m.insert("normal".into(), vec3_value(&p.normal));
+    m.insert("d_mm".into(), num(p.d));
+    Value::Object(m)
 }
-pub fn write_calibration(_p: impl AsRef<Path>, _c: &Calibration) -> Result<()> {
-    Err(todo())
+
+/// The parts calibration.json and truth.json share.
+struct Common {
+    camera: Camera,
+    laser_plane: Plane,
+    hand_cam: Iso3,
+    base_board: Iso3,
+    robot: Option<Robot>,
 }
-pub fn truth_from_json(_path: &Path, _text: &str) -> Result<Truth> {
-    Err(todo())
+
+fn common_from(root: &Obj<'_>) -> Result<Common> {
+    Ok(Common {
+        camera: camera_from(&root.obj("camera")?)?,
+        laser_plane: plane_from(&root.obj("laser_plane")?)?,
+        hand_cam: root.obj("hand_cam")?.pose()?,
+        base_board: root.obj("base_board")?.pose()?,
+        robot: root.opt_obj("robot")?.map(|r| robot_from(&r)).transpose()?,
+    })
 }
-pub fn truth_to_json(_t: &Truth) -> String {
-    String::new()
+
+fn common_value(
+    m: &mut Map<String, Value>,
+    camera: &Camera,
+    plane: &Plane,
+    hand_cam: &Iso3,
+    base_board: &Iso3,
+    robot: Option<&Robot>,
+) {
+    m.insert("camera".into(), camera_value(camera));
+    m.insert("laser_plane".into(), plane_value(plane));
+    m.insert("hand_cam".into(), pose_value(hand_cam));
+    m.insert("base_board".into(), pose_value(base_board));
+    if let Some(r) = robot {
+        m.insert("robot".into(), robot_value(r));
+    }
 }
-pub fn read_truth(_p: impl AsRef<Path>) -> Result<Truth> {
-    Err(todo())
+
+/// Checks what a writer is about to write can be read back (finite, valid values).
+fn check_common(
+    what: &str,
+    camera: &Camera,
+    plane: &Plane,
+    poses: [(&str, &Iso3); 2],
+    robot: Option<&Robot>,
+) -> Result<()> {
+    let bad = |m: String| Error::InvalidInput(format!("{what}: {m}"));
+    camera.validate().map_err(|e| bad(invalid_message(e)))?;
+    let n = plane.normal.norm();
+    if !(plane.d.is_finite() && plane.d > 0.0 && (n - 1.0).abs() <= NORMAL_TOL) {
+        return Err(bad(format!(
+            "laser plane normal {:?} (norm {n}) / d {} must be a unit vector and a positive distance",
+            plane.normal, plane.d
+        )));
+    }
+    for (name, t) in poses {
+        let finite = t.translation.vector.iter().all(|x| x.is_finite())
+            && t.rotation.coords.iter().all(|x| x.is_finite());
+        if !finite {
+            return Err(bad(format!("{name} has non-finite values")));
+        }
+    }
+    if let Some(r) = robot {
+        r.validate().map_err(|e| bad(invalid_message(e)))?;
+    }
+    Ok(())
 }
-pub fn write_truth(_p: impl AsRef<Path>, _t: &Truth) -> Result<()> {
-    Err(todo())
+
+// ---------------------------------------------------------------- calibration.json
+
+/// Parses calibration.json text; `path` is used in error messages only.
+///
+/// Required: `format`, `camera` (all of `width, height, fu, fv, u0, v0,
+/// distortion_model, distortion[5]`), `laser_plane` (`normal` of norm 1 within 1e-3,
+/// renormalised; `d_mm > 0`), `hand_cam`, `base_board`, `quality`. Optional: `robot`,
+/// `uncertainty` (any object). Other top-level keys are kept in `extra`.
+pub fn calibration_from_json(path: &Path, text: &str) -> Result<Calibration> {
+    let doc = parse(path, text)?;
+    let root = Obj::root(path, &doc)?;
+    root.check_format(CALIBRATION_FORMAT)?;
+    let c = common_from(&root)?;
+    let q = root.obj("quality")?;
+    let quality = Quality {
+        circle_rms_px: q.nonneg_f64("circle_rms_px")?,
+        stripe_rms_px: q.nonneg_f64("stripe_rms_px")?,
+        views_used: q.count("views_used")?,
+    };
+    let uncertainty = root
+        .opt_obj("uncertainty")?
+        .map(|u| u.map().clone())
+        .unwrap_or_default();
+    Ok(Calibration {
+        camera: c.camera,
+        laser_plane: c.laser_plane,
+        hand_cam: c.hand_cam,
+        base_board: c.base_board,
+        robot: c.robot,
+        quality,
+        uncertainty,
+        extra: root.extra(&CALIBRATION_KEYS),
+    })
 }
-pub fn read_sphere_fit(_p: impl AsRef<Path>) -> Result<SphereFit> {
-    Err(todo())
+
+/// calibration.json text (pretty-printed, 2-space indent, final newline). Keys of
+/// `extra` that collide with the fixed keys are dropped.
+pub fn calibration_to_json(c: &Calibration) -> String {
+    let mut m = Map::new();
+    m.insert("format".into(), Value::from(CALIBRATION_FORMAT));
+    common_value(
+        &mut m,
+        &c.camera,
+        &c.laser_plane,
+        &c.hand_cam,
+        &c.base_board,
+        c.robot.as_ref(),
+    );
+    let mut q = Map::new();
+    q.insert("circle_rms_px".into(), num(c.quality.circle_rms_px));
+    q.insert("stripe_rms_px".into(), num(c.quality.stripe_rms_px));
+    q.insert("views_used".into(), Value::from(c.quality.views_used));
+    m.insert("quality".into(), Value::Object(q));
+    m.insert("uncertainty".into(), Value::Object(c.uncertainty.clone()));
+    append_extra(&mut m, &c.extra);
+    to_pretty(&Value::Object(m))
 }
-pub fn write_sphere_fit(_p: impl AsRef<Path>, _s: &SphereFit) -> Result<()> {
-    Err(todo())
+
+/// Reads `calibration.json`.
+pub fn read_calibration(p: impl AsRef<Path>) -> Result<Calibration> {
+    let path = p.as_ref();
+    calibration_from_json(path, &read_text(path)?)
+}
+
+/// Writes `calibration.json` atomically, after checking every value is valid and
+/// finite (so the file can be read back).
+pub fn write_calibration(p: impl AsRef<Path>, c: &Calibration) -> Result<()> {
+    check_common(
+        "calibration",
+        &c.camera,
+        &c.laser_plane,
+        [("hand_cam", &c.hand_cam), ("base_board", &c.base_board)],
+        c.robot.as_ref(),
+    )?;
+    let q = &c.quality;
+    if !(q.circle_rms_px.is_finite()
+        && q.circle_rms_px >= 0.0
+        && q.stripe_rms_px.is_finite()
+        && q.stripe_rms_px >= 0.0)
+    {
+        return Err(Error::InvalidInput(format!(
+            "calibration: quality RMS values {} / {} must be finite and non-negative",
+            q.circle_rms_px, q.stripe_rms_px
+        )));
+    }
+    write_atomic(p, calibration_to_json(c).as_bytes())
+}
+
+// ---------------------------------------------------------------- truth.json
+
+/// Parses truth.json text; `path` is used in error messages only.
+///
+/// Same required keys as calibration.json except `quality`; optional `robot`,
+/// `sphere {center_mm, diameter_mm > 0}`, `working_range_mm [near, far]`
+/// (`0 <= near < far`). Other top-level keys (per-image truth...) are kept in `extra`.
+pub fn truth_from_json(path: &Path, text: &str) -> Result<Truth> {
+    let doc = parse(path, text)?;
+    let root = Obj::root(path, &doc)?;
+    root.check_format(TRUTH_FORMAT)?;
+    let c = common_from(&root)?;
+    let sphere = match root.opt_obj("sphere")? {
+        None => None,
+        Some(s) => Some(Sphere {
+            center_mm: s.vec3("center_mm")?,
+            diameter_mm: s.positive_f64("diameter_mm")?,
+        }),
+    };
+    let working_range_mm = match root.opt("working_range_mm") {
+        None => None,
+        Some(v) => {
+            let [near, far] = v.f64_array::<2>()?;
+            if !(near >= 0.0 && near < far) {
+                return Err(v.err(format!(
+                    "expected [near, far] with 0 <= near < far, got [{near}, {far}]"
+                )));
+            }
+            Some([near, far])
+        }
+    };
+    Ok(Truth {
+        camera: c.camera,
+        laser_plane: c.laser_plane,
+        hand_cam: c.hand_cam,
+        base_board: c.base_board,
+        robot: c.robot,
+        sphere,
+        working_range_mm,
+        extra: root.extra(&TRUTH_KEYS),
+    })
+}
+
+/// truth.json text (pretty-printed, 2-space indent, final newline). Keys of `extra`
+/// that collide with the fixed keys are dropped.
+pub fn truth_to_json(t: &Truth) -> String {
+    let mut m = Map::new();
+    m.insert("format".into(), Value::from(TRUTH_FORMAT));
+    common_value(
+        &mut m,
+        &t.camera,
+        &t.laser_plane,
+        &t.hand_cam,
+        &t.base_board,
+        t.robot.as_ref(),
+    );
+    if let Some(s) = &t.sphere {
+        let mut sm = Map::new();
+        sm.insert("center_mm".into(), vec3_value(&s.center_mm));
+        sm.insert("diameter_mm".into(), num(s.diameter_mm));
+        m.insert("sphere".into(), Value::Object(sm));
+    }
+    if let Some([near, far]) = t.working_range_mm {
+        m.insert(
+            "working_range_mm".into(),
+            Value::Array(vec![num(near), num(far)]),
+        );
+    }
+    append_extra(&mut m, &t.extra);
+    to_pretty(&Value::Object(m))
+}
+
+/// Reads `truth.json`.
+pub fn read_truth(p: impl AsRef<Path>) -> Result<Truth> {
+    let path = p.as_ref();
+    truth_from_json(path, &read_text(path)?)
+}
+
+/// Writes `truth.json` atomically, after checking every value is valid and finite.
+pub fn write_truth(p: impl AsRef<Path>, t: &Truth) -> Result<()> {
+    check_common(
+        "truth",
+        &t.camera,
+        &t.laser_plane,
+        [("hand_cam", &t.hand_cam), ("base_board", &t.base_board)],
+        t.robot.as_ref(),
+    )?;
+    if let Some(s) = &t.sphere {
+        if !(s.center_mm.iter().all(|x| x.is_finite())
+            && s.diameter_mm.is_finite()
+            && s.diameter_mm > 0.0)
+        {
+            return Err(Error::InvalidInput(format!(
+                "truth: sphere centre {:?} / diameter {} must be finite and positive",
+                s.center_mm, s.diameter_mm
+            )));
+        }
+    }
+    if let Some([near, far]) = t.working_range_mm {
+        if !(near >= 0.0 && near < far && far.is_finite()) {
+            return Err(Error::InvalidInput(format!(
+                "truth: working range [{near}, {far}] must satisfy 0 <= near < far"
+            )));
+        }
+    }
+    write_atomic(p, truth_to_json(t).as_bytes())
+}
+
+// ---------------------------------------------------------------- sphere fit
+
+/// Reads a sphere fit `{"diameter_mm", "center_mm": [x, y, z], "rms_mm", "points",
+/// "outliers"}`; other keys are kept in `extra`.
+pub fn read_sphere_fit(p: impl AsRef<Path>) -> Result<SphereFit> {
+    let path = p.as_ref();
+    let text = read_text(path)?;
+    let doc = parse(path, &text)?;
+    let root = Obj::root(path, &doc)?;
+    Ok(SphereFit {
+        diameter_mm: root.positive_f64("diameter_mm")?,
+        center_mm: root.vec3("center_mm")?,
+        rms_mm: root.nonneg_f64("rms_mm")?,
+        points: root.count("points")?,
+        outliers: root.count("outliers")?,
+        extra: root.extra(&SPHERE_FIT_KEYS),
+    })
+}
+
+/// The sphere fit's JSON text (pretty-printed, final newline).
+pub fn sphere_fit_to_json(s: &SphereFit) -> String {
+    let mut m = Map::new();
+    m.insert("diameter_mm".into(), num(s.diameter_mm));
+    m.insert("center_mm".into(), vec3_value(&s.center_mm));
+    m.insert("rms_mm".into(), num(s.rms_mm));
+    m.insert("points".into(), Value::from(s.points));
+    m.insert("outliers".into(), Value::from(s.outliers));
+    append_extra(&mut m, &s.extra);
+    to_pretty(&Value::Object(m))
+}
+
+/// Writes a sphere fit atomically (values must be finite, the diameter positive).
+pub fn write_sphere_fit(p: impl AsRef<Path>, s: &SphereFit) -> Result<()> {
+    let ok = s.diameter_mm.is_finite()
+        && s.diameter_mm > 0.0
+        && s.center_mm.iter().all(|x| x.is_finite())
+        && s.rms_mm.is_finite()
+        && s.rms_mm >= 0.0;
+    if !ok {
+        return Err(Error::InvalidInput(format!(
+            "sphere fit: diameter {} / centre {:?} / rms {} must be finite (diameter > 0, rms >= 0)",
+            s.diameter_mm, s.center_mm, s.rms_mm
+        )));
+    }
+    write_atomic(p, sphere_fit_to_json(s).as_bytes())
 }

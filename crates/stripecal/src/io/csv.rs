@@ -1,19 +1,410 @@
-use super::{ScanFrame, View};
+//! `views.csv` and `scan.csv`.
+//!
+//! A header line, then one row per pose. The leading columns name images
+//! (`board_image,laser_image` or `image`), the rest are either encoder readings
+//! `q1,...,qN` (degrees) or the flange pose `x_mm,y_mm,z_mm,qw,qx,qy,qz`.
+//!
+//! Fields are separated by commas and trimmed; CRLF line ends, a UTF-8 byte-order mark
+//! and trailing empty lines are accepted. There is no quoting: a `"` anywhere is an
+//! error (image names may not contain commas or quotes).
+
+use std::fmt::Write as _;
+use std::path::{Path, PathBuf};
+
+use nalgebra::{Quaternion, Translation3, UnitQuaternion};
+
+use super::atomic::{read_text, write_atomic};
+use super::{RobotReading, ScanFrame, View};
 use crate::error::{Error, Result};
+use crate::geometry::Iso3;
 use crate::kinematics::Robot;
-use std::path::Path;
-fn todo() -> Error {
-    Error::InvalidInput("not yet implemented".into())
+
+/// The flange-pose columns.
+const POSE_COLUMNS: [&str; 7] = ["x_mm", "y_mm", "z_mm", "qw", "qx", "qy", "qz"];
+
+/// How far from 1 the norm of a flange-pose quaternion may be; it is then normalised.
+const QUATERNION_TOL: f64 = 1e-3;
+
+const VIEW_NAME_COLUMNS: [&str; 2] = ["board_image", "laser_image"];
+const SCAN_NAME_COLUMNS: [&str; 1] = ["image"];
+
+/// What follows the image columns.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Layout {
+    /// `q1..qN`.
+    Joints(usize),
+    /// `x_mm,y_mm,z_mm,qw,qx,qy,qz`.
+    Pose,
 }
-pub fn read_views_csv(_p: impl AsRef<Path>, _robot: Option<&Robot>) -> Result<Vec<View>> {
-    Err(todo())
+
+impl Layout {
+    fn of(r: &RobotReading) -> Layout {
+        match r {
+            RobotReading::Joints(q) => Layout::Joints(q.len()),
+            RobotReading::FlangePose(_) => Layout::Pose,
+        }
+    }
+
+    fn column_names(self) -> Vec<String> {
+        match self {
+            Layout::Joints(n) => (1..=n).map(|i| format!("q{i}")).collect(),
+            Layout::Pose => POSE_COLUMNS.iter().map(|s| s.to_string()).collect(),
+        }
+    }
 }
-pub fn write_views_csv(_p: impl AsRef<Path>, _views: &[View]) -> Result<()> {
-    Err(todo())
+
+/// One parsed data row: image names (trimmed, possibly empty) and the reading.
+struct Row {
+    line: usize,
+    names: Vec<String>,
+    reading: RobotReading,
 }
-pub fn read_scan_csv(_p: impl AsRef<Path>, _robot: Option<&Robot>) -> Result<Vec<ScanFrame>> {
-    Err(todo())
+
+fn expected_header(names: &[&str]) -> String {
+    let n = names.join(",");
+    format!("`{n},q1,...,qN` or `{n},{}`", POSE_COLUMNS.join(","))
 }
-pub fn write_scan_csv(_p: impl AsRef<Path>, _frames: &[ScanFrame]) -> Result<()> {
-    Err(todo())
+
+fn reject_quotes(path: &Path, line_no: usize, line: &str) -> Result<()> {
+    if line.contains('"') {
+        return Err(Error::format(
+            path,
+            format!("line {line_no}"),
+            "quoted fields are not supported (image names may not contain commas or quotes)",
+        ));
+    }
+    Ok(())
+}
+
+fn parse_header(
+    path: &Path,
+    header: &str,
+    names: &[&str],
+    robot: Option<&Robot>,
+) -> Result<Layout> {
+    let at = |msg: String| Error::format(path, "line 1", msg);
+    let expected = expected_header(names);
+    if header.trim().is_empty() {
+        return Err(at(format!("empty header: expected {expected}")));
+    }
+    reject_quotes(path, 1, header)?;
+    let fields: Vec<&str> = header.split(',').map(str::trim).collect();
+    for (i, name) in names.iter().enumerate() {
+        match fields.get(i) {
+            Some(f) if f == name => {}
+            Some(f) => {
+                return Err(at(format!(
+                    "header column {} is `{f}`, expected `{name}` (the header must be {expected})",
+                    i + 1
+                )))
+            }
+            None => return Err(at(format!("header is too short: expected {expected}"))),
+        }
+    }
+    let rest = &fields[names.len()..];
+    let layout = match rest.first() {
+        None => {
+            return Err(at(format!(
+                "header has no joint or pose columns: expected {expected}"
+            )))
+        }
+        Some(&"x_mm") => Layout::Pose,
+        Some(&"q1") => Layout::Joints(rest.len()),
+        Some(f) => {
+            return Err(at(format!(
+            "header column {} is `{f}`, expected `q1` or `x_mm` (the header must be {expected})",
+            names.len() + 1
+        )))
+        }
+    };
+    let want = layout.column_names();
+    if layout == Layout::Pose && rest.len() != want.len() {
+        return Err(at(format!(
+            "flange-pose header has {} columns after the image columns, expected {} (`{}`)",
+            rest.len(),
+            want.len(),
+            POSE_COLUMNS.join(",")
+        )));
+    }
+    for (i, (got, want)) in rest.iter().zip(&want).enumerate() {
+        if got != want {
+            return Err(at(format!(
+                "header column {} is `{got}`, expected `{want}`",
+                names.len() + i + 1
+            )));
+        }
+    }
+    if let (Layout::Joints(n), Some(r)) = (layout, robot) {
+        if n != r.dof() {
+            return Err(at(format!(
+                "header has {n} joint columns, robot has {} joints",
+                r.dof()
+            )));
+        }
+    }
+    Ok(layout)
+}
+
+fn parse_number(path: &Path, line_no: usize, column: &str, raw: &str) -> Result<f64> {
+    match raw.parse::<f64>() {
+        Ok(x) if x.is_finite() => Ok(x),
+        _ => Err(Error::format(
+            path,
+            format!("line {line_no}, column {column}"),
+            format!("{column} = {raw:?} is not a finite number"),
+        )),
+    }
+}
+
+/// Parses a whole table. `names` are the leading image columns.
+fn parse_table(path: &Path, text: &str, names: &[&str], robot: Option<&Robot>) -> Result<Vec<Row>> {
+    let lines: Vec<&str> = text
+        .split('\n')
+        .map(|l| l.strip_suffix('\r').unwrap_or(l))
+        .collect();
+    let layout = parse_header(path, lines.first().copied().unwrap_or(""), names, robot)?;
+    let value_columns = layout.column_names();
+    let ncols = names.len() + value_columns.len();
+    // Trailing empty lines are allowed; empty lines before the last row are not.
+    let last = lines
+        .iter()
+        .rposition(|l| !l.trim().is_empty())
+        .unwrap_or(0);
+
+    let mut rows = Vec::with_capacity(last);
+    for (i, line) in lines.iter().enumerate().take(last + 1).skip(1) {
+        let line_no = i + 1;
+        if line.trim().is_empty() {
+            return Err(Error::format(
+                path,
+                format!("line {line_no}"),
+                "empty line (only trailing empty lines are allowed)",
+            ));
+        }
+        reject_quotes(path, line_no, line)?;
+        let fields: Vec<&str> = line.split(',').map(str::trim).collect();
+        if fields.len() != ncols {
+            return Err(Error::format(
+                path,
+                format!("line {line_no}"),
+                format!("expected {ncols} columns, found {}", fields.len()),
+            ));
+        }
+        let row_names: Vec<String> = fields[..names.len()]
+            .iter()
+            .map(|s| s.to_string())
+            .collect();
+        // The first image column is always required.
+        if row_names[0].is_empty() {
+            return Err(Error::format(
+                path,
+                format!("line {line_no}, column {}", names[0]),
+                format!("{} is empty", names[0]),
+            ));
+        }
+        let mut values = Vec::with_capacity(value_columns.len());
+        for (raw, col) in fields[names.len()..].iter().zip(&value_columns) {
+            values.push(parse_number(path, line_no, col, raw)?);
+        }
+        let reading = match layout {
+            Layout::Joints(_) => RobotReading::Joints(values),
+            Layout::Pose => RobotReading::FlangePose(pose_from_row(path, line_no, &values)?),
+        };
+        rows.push(Row {
+            line: line_no,
+            names: row_names,
+            reading,
+        });
+    }
+    Ok(rows)
+}
+
+fn pose_from_row(path: &Path, line_no: usize, v: &[f64]) -> Result<Iso3> {
+    let q = Quaternion::new(v[3], v[4], v[5], v[6]);
+    let norm = q.norm();
+    if (norm - 1.0).abs() > QUATERNION_TOL {
+        return Err(Error::format(
+            path,
+            format!("line {line_no}, columns qw..qz"),
+            format!(
+                "quaternion (qw, qx, qy, qz) = ({}, {}, {}, {}) has norm {norm}, expected 1 (within {QUATERNION_TOL})",
+                v[3], v[4], v[5], v[6]
+            ),
+        ));
+    }
+    Ok(Iso3::from_parts(
+        Translation3::new(v[0], v[1], v[2]),
+        UnitQuaternion::from_quaternion(q),
+    ))
+}
+
+/// Reads views.csv: header `board_image,laser_image,q1,...,qN` or
+/// `board_image,laser_image,x_mm,y_mm,z_mm,qw,qx,qy,qz`. With `robot`, N must equal its
+/// number of joints. An empty `laser_image` gives `None`.
+pub fn read_views_csv(p: impl AsRef<Path>, robot: Option<&Robot>) -> Result<Vec<View>> {
+    let path = p.as_ref();
+    let text = read_text(path)?;
+    let rows = parse_table(path, &text, &VIEW_NAME_COLUMNS, robot)?;
+    Ok(rows
+        .into_iter()
+        .map(|mut r| {
+            let laser = std::mem::take(&mut r.names[1]);
+            View {
+                line: r.line,
+                board_image: PathBuf::from(std::mem::take(&mut r.names[0])),
+                laser_image: (!laser.is_empty()).then(|| PathBuf::from(laser)),
+                reading: r.reading,
+            }
+        })
+        .collect())
+}
+
+/// Reads scan.csv: header `image,q1,...,qN` or `image,x_mm,y_mm,z_mm,qw,qx,qy,qz`.
+/// With `robot`, N must equal its number of joints.
+pub fn read_scan_csv(p: impl AsRef<Path>, robot: Option<&Robot>) -> Result<Vec<ScanFrame>> {
+    let path = p.as_ref();
+    let text = read_text(path)?;
+    let rows = parse_table(path, &text, &SCAN_NAME_COLUMNS, robot)?;
+    Ok(rows
+        .into_iter()
+        .map(|mut r| ScanFrame {
+            line: r.line,
+            image: PathBuf::from(std::mem::take(&mut r.names[0])),
+            reading: r.reading,
+        })
+        .collect())
+}
+
+// ---------------------------------------------------------------- writers
+
+/// An image name as it can be written: UTF-8, no commas, quotes, line breaks or
+/// surrounding spaces (the reader trims fields).
+fn name_field(what: &str, row: usize, p: Option<&Path>, required: bool) -> Result<String> {
+    let Some(p) = p else {
+        return if required {
+            Err(Error::InvalidInput(format!(
+                "{what} of row {row} is missing"
+            )))
+        } else {
+            Ok(String::new())
+        };
+    };
+    let s = p.to_str().ok_or_else(|| {
+        Error::InvalidInput(format!(
+            "{what} of row {row} ({}) is not valid UTF-8",
+            p.display()
+        ))
+    })?;
+    if s.is_empty() && required {
+        return Err(Error::InvalidInput(format!("{what} of row {row} is empty")));
+    }
+    if s.contains([',', '"', '\n', '\r']) || s.trim() != s {
+        return Err(Error::InvalidInput(format!(
+            "{what} of row {row} ({s:?}) cannot be written to CSV: it contains a comma, quote, line break or surrounding spaces"
+        )));
+    }
+    Ok(s.to_string())
+}
+
+fn push_reading(out: &mut String, row: usize, r: &RobotReading) -> Result<()> {
+    let values: Vec<f64> = match r {
+        RobotReading::Joints(q) => q.clone(),
+        RobotReading::FlangePose(t) => {
+            let v = t.translation.vector;
+            let q = t.rotation.quaternion();
+            vec![v.x, v.y, v.z, q.w, q.i, q.j, q.k]
+        }
+    };
+    for x in values {
+        if !x.is_finite() {
+            return Err(Error::InvalidInput(format!(
+                "row {row} has a non-finite robot value ({x})"
+            )));
+        }
+        // `{}` of an f64 prints the shortest text that parses back to the same value.
+        let _ = write!(out, ",{x}");
+    }
+    out.push('\n');
+    Ok(())
+}
+
+/// The common layout of all rows (error when rows differ or there are none).
+fn common_layout<'a>(
+    what: &str,
+    readings: impl Iterator<Item = &'a RobotReading>,
+) -> Result<Layout> {
+    let mut layout = None;
+    for (i, r) in readings.enumerate() {
+        let l = Layout::of(r);
+        match layout {
+            None => {
+                if l == Layout::Joints(0) {
+                    return Err(Error::InvalidInput(format!(
+                        "{what} row 1 has no joint readings"
+                    )));
+                }
+                layout = Some(l);
+            }
+            Some(first) if first != l => {
+                return Err(Error::InvalidInput(format!(
+                    "{what} row {} has {}, row 1 has {}: all rows must use the same columns",
+                    i + 1,
+                    describe_layout(l),
+                    describe_layout(first)
+                )))
+            }
+            Some(_) => {}
+        }
+    }
+    layout.ok_or_else(|| {
+        Error::InvalidInput(format!(
+            "no {what} rows to write (the header depends on the rows)"
+        ))
+    })
+}
+
+fn describe_layout(l: Layout) -> String {
+    match l {
+        Layout::Joints(n) => format!("{n} joint readings"),
+        Layout::Pose => "a flange pose".into(),
+    }
+}
+
+fn header_line(names: &[&str], layout: Layout) -> String {
+    let mut cols: Vec<String> = names.iter().map(|s| s.to_string()).collect();
+    cols.extend(layout.column_names());
+    let mut h = cols.join(",");
+    h.push('\n');
+    h
+}
+
+/// Writes views.csv atomically in the format [`read_views_csv`] reads. All views must
+/// use the same columns (same joint count, or all flange poses). `View::line` is
+/// ignored.
+pub fn write_views_csv(p: impl AsRef<Path>, views: &[View]) -> Result<()> {
+    let layout = common_layout("views.csv", views.iter().map(|v| &v.reading))?;
+    let mut out = header_line(&VIEW_NAME_COLUMNS, layout);
+    for (i, v) in views.iter().enumerate() {
+        let row = i + 1;
+        let board = name_field("board_image", row, Some(&v.board_image), true)?;
+        let laser = name_field("laser_image", row, v.laser_image.as_deref(), false)?;
+        out.push_str(&board);
+        out.push(',');
+        out.push_str(&laser);
+        push_reading(&mut out, row, &v.reading)?;
+    }
+    write_atomic(p, out.as_bytes())
+}
+
+/// Writes scan.csv atomically in the format [`read_scan_csv`] reads. All frames must
+/// use the same columns. `ScanFrame::line` is ignored.
+pub fn write_scan_csv(p: impl AsRef<Path>, frames: &[ScanFrame]) -> Result<()> {
+    let layout = common_layout("scan.csv", frames.iter().map(|f| &f.reading))?;
+    let mut out = header_line(&SCAN_NAME_COLUMNS, layout);
+    for (i, f) in frames.iter().enumerate() {
+        let row = i + 1;
+        out.push_str(&name_field("image", row, Some(&f.image), true)?);
+        push_reading(&mut out, row, &f.reading)?;
+    }
+    write_atomic(p, out.as_bytes())
 }

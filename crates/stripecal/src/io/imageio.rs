@@ -1,14 +1,133 @@
-use crate::error::{Error, Result};
-use crate::image::AnyGray;
+//! Grayscale image files (PNG, TIFF) through the `image` crate, with decoder limits.
+
+use std::io::Cursor;
 use std::path::Path;
+
+use image::codecs::png::PngEncoder;
+use image::{DynamicImage, ExtendedColorType, ImageEncoder, ImageFormat, ImageReader, Limits};
+
+use super::atomic::write_atomic;
+use crate::error::{Error, Result};
+use crate::image::{AnyGray, GrayImage};
+
+/// The largest image width or height [`load_gray`] accepts (pixels).
 pub const MAX_IMAGE_SIDE: u32 = 32768;
+/// The most memory (bytes) the decoder may allocate for one image.
 pub const MAX_IMAGE_BYTES: u64 = 1 << 30;
-fn todo() -> Error {
-    Error::InvalidInput("not yet implemented".into())
+
+fn image_err(path: &Path, message: impl Into<String>) -> Error {
+    Error::Image {
+        path: path.to_path_buf(),
+        message: message.into(),
+    }
 }
-pub fn load_gray(_p: impl AsRef<Path>) -> Result<AnyGray> {
-    Err(todo())
+
+/// Loads a PNG or TIFF image as grayscale.
+///
+/// 8-bit gray gives [`AnyGray::U8`], 16-bit gray [`AnyGray::U16`]; colour (and
+/// gray + alpha) images are converted to luma at their bit depth, alpha dropped.
+/// Float images and other formats are [`Error::Image`]; a file that cannot be opened
+/// is [`Error::Io`]. The decoder is limited to [`MAX_IMAGE_SIDE`] pixels per side and
+/// [`MAX_IMAGE_BYTES`] of memory, so a hostile header cannot make it allocate more.
+pub fn load_gray(p: impl AsRef<Path>) -> Result<AnyGray> {
+    let path = p.as_ref();
+    let mut reader = ImageReader::open(path)
+        .map_err(|e| Error::io(path, e))?
+        .with_guessed_format()
+        .map_err(|e| Error::io(path, e))?;
+    match reader.format() {
+        Some(ImageFormat::Png | ImageFormat::Tiff) => {}
+        Some(other) => {
+            return Err(image_err(
+                path,
+                format!("unsupported image format {other:?}: expected PNG or TIFF"),
+            ))
+        }
+        None => {
+            return Err(image_err(
+                path,
+                "not a PNG or TIFF file (unrecognised content)",
+            ))
+        }
+    }
+    let mut limits = Limits::default();
+    limits.max_image_width = Some(MAX_IMAGE_SIDE);
+    limits.max_image_height = Some(MAX_IMAGE_SIDE);
+    limits.max_alloc = Some(MAX_IMAGE_BYTES);
+    reader.limits(limits);
+    let img = reader
+        .decode()
+        .map_err(|e| image_err(path, e.to_string()))?;
+    to_gray(path, img)
 }
-pub fn save_gray_png(_p: impl AsRef<Path>, _img: &AnyGray) -> Result<()> {
-    Err(todo())
+
+fn to_gray(path: &Path, img: DynamicImage) -> Result<AnyGray> {
+    let (w, h) = (img.width() as usize, img.height() as usize);
+    let u8_image = |data: Vec<u8>| {
+        AnyGray::U8(GrayImage {
+            width: w,
+            height: h,
+            data,
+        })
+    };
+    let u16_image = |data: Vec<u16>| {
+        AnyGray::U16(GrayImage {
+            width: w,
+            height: h,
+            data,
+        })
+    };
+    Ok(match img {
+        DynamicImage::ImageLuma8(b) => u8_image(b.into_raw()),
+        DynamicImage::ImageLuma16(b) => u16_image(b.into_raw()),
+        DynamicImage::ImageLumaA8(_) | DynamicImage::ImageRgb8(_) | DynamicImage::ImageRgba8(_) => {
+            u8_image(img.into_luma8().into_raw())
+        }
+        DynamicImage::ImageLumaA16(_)
+        | DynamicImage::ImageRgb16(_)
+        | DynamicImage::ImageRgba16(_) => u16_image(img.into_luma16().into_raw()),
+        other => {
+            return Err(image_err(
+                path,
+                format!(
+                    "unsupported colour type {:?}: expected 8- or 16-bit gray or colour",
+                    other.color()
+                ),
+            ))
+        }
+    })
+}
+
+/// Writes an 8- or 16-bit grayscale PNG atomically (encoded in memory, then
+/// [`super::write_atomic`]). Errors when the buffer does not match the size.
+pub fn save_gray_png(p: impl AsRef<Path>, img: &AnyGray) -> Result<()> {
+    let path = p.as_ref();
+    let (w, h) = img.size();
+    let len = match img {
+        AnyGray::U8(i) => i.data.len(),
+        AnyGray::U16(i) => i.data.len(),
+    };
+    let (Ok(w32), Ok(h32)) = (u32::try_from(w), u32::try_from(h)) else {
+        return Err(Error::InvalidInput(format!(
+            "image size {w}x{h} is too large for PNG"
+        )));
+    };
+    if w == 0 || h == 0 || w.checked_mul(h) != Some(len) {
+        return Err(Error::InvalidInput(format!(
+            "image size {w}x{h} does not match its {len} pixels (or is empty)"
+        )));
+    }
+    let mut buf = Vec::new();
+    let encoder = PngEncoder::new(Cursor::new(&mut buf));
+    let result = match img {
+        AnyGray::U8(i) => encoder.write_image(&i.data, w32, h32, ExtendedColorType::L8),
+        AnyGray::U16(i) => {
+            // `write_image` takes 16-bit samples in native byte order.
+            let bytes: Vec<u8> = i.data.iter().flat_map(|v| v.to_ne_bytes()).collect();
+            encoder.write_image(&bytes, w32, h32, ExtendedColorType::L16)
+        }
+    };
+    result
+        .map_err(|e| Error::InvalidInput(format!("{}: cannot encode PNG: {e}", path.display())))?;
+    write_atomic(path, &buf)
 }

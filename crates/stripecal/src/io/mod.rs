@@ -23,7 +23,8 @@ mod rig;
 pub use atomic::write_atomic;
 pub use calibration::{
     calibration_from_json, calibration_to_json, read_calibration, read_sphere_fit, read_truth,
-    truth_from_json, truth_to_json, write_calibration, write_sphere_fit, write_truth,
+    sphere_fit_to_json, truth_from_json, truth_to_json, write_calibration, write_sphere_fit,
+    write_truth,
 };
 pub use csv::{read_scan_csv, read_views_csv, write_scan_csv, write_views_csv};
 pub use imageio::{load_gray, save_gray_png, MAX_IMAGE_BYTES, MAX_IMAGE_SIDE};
@@ -157,6 +158,21 @@ impl Dataset {
         let rig = read_rig(root.join("rig.json"))?;
         let views_path = root.join("views.csv");
         let views = read_views_csv(&views_path, rig.robot.as_ref())?;
+        if views.is_empty() {
+            return Err(Error::format(
+                &views_path,
+                "line 2",
+                "views.csv has no views",
+            ));
+        }
+        if rig.robot.is_none() && matches!(views[0].reading, RobotReading::Joints(_)) {
+            return Err(Error::format(
+                &views_path,
+                "line 1",
+                "joint columns q1..qN need a robot (DH table) in rig.json; \
+                 without one, use the flange-pose columns x_mm,y_mm,z_mm,qw,qx,qy,qz",
+            ));
+        }
         for v in &views {
             check_image_exists(&root, &views_path, v.line, &v.board_image)?;
             if let Some(l) = &v.laser_image {

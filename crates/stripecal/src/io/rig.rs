@@ -1,18 +1,267 @@
-use super::Rig;
-use crate::error::{Error, Result};
+//! `rig.json` (format `stripecal/rig@1`): camera size, board, robot, stripe hint.
+
 use std::path::Path;
-fn todo() -> Error {
-    Error::InvalidInput("not yet implemented".into())
+
+use serde_json::{Map, Value};
+
+use super::atomic::{read_text, write_atomic};
+use super::json::{invalid_message, num, parse, to_pretty, Obj, Val};
+use super::{Rig, StripeDirection};
+use crate::board::{Board, BoardKind};
+use crate::camera::DistortionModel;
+use crate::error::{Error, Result};
+use crate::kinematics::{DhJoint, Robot};
+
+/// The `format` value of rig.json.
+pub(super) const RIG_FORMAT: &str = "stripecal/rig@1";
+
+/// Parses rig.json text; `path` is used in error messages only.
+///
+/// Required: `format`, `camera.width`, `camera.height`, `board.rows`, `board.cols`, and
+/// for circle boards `board.pitch_mm`, `board.circle_diameter_mm`,
+/// `board.marker_diameter_mm`; for chessboards (`"kind": "chessboard"`)
+/// `board.square_mm` (the pitch; the circle diameters default to it and are unused).
+/// Unknown keys are ignored.
+pub fn rig_from_json(path: &Path, text: &str) -> Result<Rig> {
+    let doc = parse(path, text)?;
+    let root = Obj::root(path, &doc)?;
+    root.check_format(RIG_FORMAT)?;
+
+    let cam = root.obj("camera")?;
+    let width = cam.positive_u32("width")?;
+    let height = cam.positive_u32("height")?;
+    let distortion_model = match cam.opt("distortion_model") {
+        None => DistortionModel::default(),
+        Some(v) => distortion_model_from(&v)?,
+    };
+
+    let board = board_from(&root.obj("board")?)?;
+
+    let robot = match root.opt_obj("robot")? {
+        None => None,
+        Some(r) => Some(robot_from(&r)?),
+    };
+
+    let stripe_direction = match root.opt_obj("stripe")? {
+        None => StripeDirection::default(),
+        Some(s) => match s.opt("direction") {
+            None => StripeDirection::default(),
+            Some(v) => StripeDirection::from_name(v.str()?).map_err(|_| {
+                v.err(format!(
+                    "expected \"auto\", \"rows\" or \"cols\", got {:?}",
+                    v.str().unwrap_or_default()
+                ))
+            })?,
+        },
+    };
+
+    Ok(Rig {
+        width,
+        height,
+        distortion_model,
+        board,
+        robot,
+        stripe_direction,
+    })
 }
-pub fn rig_from_json(_path: &Path, _text: &str) -> Result<Rig> {
-    Err(todo())
+
+/// A distortion model name (`radial1`, `radial2`, `opencv5`).
+pub(super) fn distortion_model_from(v: &Val<'_>) -> Result<DistortionModel> {
+    let s = v.str()?;
+    DistortionModel::from_name(s).map_err(|_| {
+        v.err(format!(
+            "expected \"radial1\", \"radial2\" or \"opencv5\", got {s:?}"
+        ))
+    })
 }
-pub fn rig_to_json(_r: &Rig) -> String {
-    String::new()
+
+fn board_from(b: &Obj<'_>) -> Result<Board> {
+    let kind = match b.opt("kind") {
+        None => BoardKind::Circles,
+        Some(v) => match v.str()? {
+            "circles" => BoardKind::Circles,
+            "chessboard" => BoardKind::Chessboard,
+            other => {
+                return Err(v.err(format!(
+                    "expected \"circles\" or \"chessboard\", got {other:?}"
+                )))
+            }
+        },
+    };
+    let rows = b.positive_usize("rows")?;
+    let cols = b.positive_usize("cols")?;
+    let (pitch_mm, circle_diameter_mm, marker_diameter_mm, square_mm) = match kind {
+        BoardKind::Circles => (
+            b.positive_f64("pitch_mm")?,
+            b.positive_f64("circle_diameter_mm")?,
+            b.positive_f64("marker_diameter_mm")?,
+            b.opt_positive_f64("square_mm")?,
+        ),
+        BoardKind::Chessboard => {
+            let square = b.positive_f64("square_mm")?;
+            let pitch = b.opt_positive_f64("pitch_mm")?.unwrap_or(square);
+            if pitch != square {
+                return Err(b.err(format!(
+                    "a chessboard's pitch_mm ({pitch}) must equal its square_mm ({square})"
+                )));
+            }
+            (
+                pitch,
+                b.opt_positive_f64("circle_diameter_mm")?.unwrap_or(square),
+                b.opt_positive_f64("marker_diameter_mm")?.unwrap_or(square),
+                Some(square),
+            )
+        }
+    };
+    let markers = match b.opt("markers") {
+        None => Board::default_markers(),
+        Some(v) => {
+            let mut markers = Vec::new();
+            for item in v.arr()? {
+                let pair = item.arr()?;
+                if pair.len() != 2 {
+                    return Err(item.err(format!(
+                        "expected a [row, col] pair, got an array of {} items",
+                        pair.len()
+                    )));
+                }
+                markers.push([pair[0].count()?, pair[1].count()?]);
+            }
+            markers
+        }
+    };
+    let dark_circles = b.opt_bool("dark_circles")?.unwrap_or(true);
+    let board = Board {
+        kind,
+        rows,
+        cols,
+        pitch_mm,
+        circle_diameter_mm,
+        marker_diameter_mm,
+        markers,
+        dark_circles,
+        square_mm,
+    };
+    board.validate().map_err(|e| b.err(invalid_message(e)))?;
+    Ok(board)
 }
-pub fn read_rig(_p: impl AsRef<Path>) -> Result<Rig> {
-    Err(todo())
+
+/// A robot `{"name": ..., "joints": [{theta0_deg, alpha_deg, a_mm, d_mm}, ...]}`.
+/// `name` is optional (default empty).
+pub(super) fn robot_from(r: &Obj<'_>) -> Result<Robot> {
+    let name = r.opt_str("name")?.unwrap_or_default().to_string();
+    let joints_val = r.req("joints")?;
+    let items = joints_val.arr()?;
+    if items.is_empty() {
+        return Err(joints_val.err("expected at least one DH row, got an empty array"));
+    }
+    let mut joints = Vec::with_capacity(items.len());
+    for item in &items {
+        let j = item.obj()?;
+        joints.push(DhJoint {
+            theta0_deg: j.f64("theta0_deg")?,
+            alpha_deg: j.f64("alpha_deg")?,
+            a_mm: j.f64("a_mm")?,
+            d_mm: j.f64("d_mm")?,
+        });
+    }
+    let robot = Robot { name, joints };
+    robot.validate().map_err(|e| r.err(invalid_message(e)))?;
+    Ok(robot)
 }
-pub fn write_rig(_p: impl AsRef<Path>, _r: &Rig) -> Result<()> {
-    Err(todo())
+
+/// The JSON object of a robot.
+pub(super) fn robot_value(r: &Robot) -> Value {
+    let joints = r
+        .joints
+        .iter()
+        .map(|j| {
+            let mut m = Map::new();
+            m.insert("theta0_deg".into(), num(j.theta0_deg));
+            m.insert("alpha_deg".into(), num(j.alpha_deg));
+            m.insert("a_mm".into(), num(j.a_mm));
+            m.insert("d_mm".into(), num(j.d_mm));
+            Value::Object(m)
+        })
+        .collect();
+    let mut m = Map::new();
+    m.insert("name".into(), Value::from(r.name.clone()));
+    m.insert("joints".into(), Value::Array(joints));
+    Value::Object(m)
+}
+
+fn board_value(b: &Board) -> Value {
+    let mut m = Map::new();
+    let kind = match b.kind {
+        BoardKind::Circles => "circles",
+        BoardKind::Chessboard => "chessboard",
+    };
+    m.insert("kind".into(), Value::from(kind));
+    m.insert("rows".into(), Value::from(b.rows));
+    m.insert("cols".into(), Value::from(b.cols));
+    m.insert("pitch_mm".into(), num(b.pitch_mm));
+    m.insert("circle_diameter_mm".into(), num(b.circle_diameter_mm));
+    m.insert("marker_diameter_mm".into(), num(b.marker_diameter_mm));
+    if let Some(s) = b.square_mm {
+        m.insert("square_mm".into(), num(s));
+    }
+    let markers = b
+        .markers
+        .iter()
+        .map(|[r, c]| Value::Array(vec![Value::from(*r), Value::from(*c)]))
+        .collect();
+    m.insert("markers".into(), Value::Array(markers));
+    m.insert("dark_circles".into(), Value::from(b.dark_circles));
+    Value::Object(m)
+}
+
+/// rig.json text (pretty-printed, 2-space indent, final newline). The `robot` key is
+/// left out when the rig has none.
+pub fn rig_to_json(r: &Rig) -> String {
+    let mut cam = Map::new();
+    cam.insert("width".into(), Value::from(r.width));
+    cam.insert("height".into(), Value::from(r.height));
+    cam.insert(
+        "distortion_model".into(),
+        Value::from(r.distortion_model.name()),
+    );
+    let mut m = Map::new();
+    m.insert("format".into(), Value::from(RIG_FORMAT));
+    m.insert("camera".into(), Value::Object(cam));
+    m.insert("board".into(), board_value(&r.board));
+    if let Some(robot) = &r.robot {
+        m.insert("robot".into(), robot_value(robot));
+    }
+    let mut stripe = Map::new();
+    stripe.insert("direction".into(), Value::from(r.stripe_direction.name()));
+    m.insert("stripe".into(), Value::Object(stripe));
+    to_pretty(&Value::Object(m))
+}
+
+/// Reads and checks `rig.json`.
+pub fn read_rig(p: impl AsRef<Path>) -> Result<Rig> {
+    let path = p.as_ref();
+    let text = read_text(path)?;
+    rig_from_json(path, &text)
+}
+
+/// Writes `rig.json` atomically. The rig is checked first (board, robot, size) so the
+/// file written can always be read back.
+pub fn write_rig(p: impl AsRef<Path>, r: &Rig) -> Result<()> {
+    if r.width == 0 || r.height == 0 {
+        return Err(Error::InvalidInput(format!(
+            "rig camera size {}x{} must be positive",
+            r.width, r.height
+        )));
+    }
+    r.board.validate()?;
+    if r.board.kind == BoardKind::Chessboard && r.board.square_mm != Some(r.board.pitch_mm) {
+        return Err(Error::InvalidInput(
+            "a chessboard needs square_mm equal to pitch_mm".into(),
+        ));
+    }
+    if let Some(robot) = &r.robot {
+        robot.validate()?;
+    }
+    write_atomic(p, rig_to_json(r).as_bytes())
 }
