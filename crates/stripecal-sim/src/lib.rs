@@ -1,1 +1,52 @@
-//! placeholder
+//! # stripecal-sim — the digital twin
+//!
+//! Renders calibration datasets and ball scans of a robot-carried laser-stripe sensor
+//! with known truth, in the files of spec/DATASET.md, as the test bed of stripecal and
+//! the data behind `stripecal demo`.
+//!
+//! ## What is modelled
+//!
+//! - Geometry: the true camera (pinhole + distortion), the true robot (nominal DH plus
+//!   optional errors), hand-eye X, robot-world Z, a circle board on a plate lying on a
+//!   table, a sphere on the table, a laser sheet with Gaussian thickness.
+//! - Rendering ([`render`]): ray casting from every pixel with >= 4 x 4 supersampling
+//!   (4x finer on edge pixels) through the exact inverse distortion.
+//! - Image formation ([`imaging`]): ambient x reflectance, vignetting, laser radiance
+//!   with incidence, fall-off and shadows, speckle, Gaussian PSF, photon and read
+//!   noise, clipping, 8/16-bit quantisation.
+//! - Truth ([`truth`]): imaged circle centres (outline centroids) and stripe centre
+//!   lines per image, plus the true parameters.
+//!
+//! ## Conventions
+//!
+//! Those of the core crate (`stripecal`): mm, degrees in files, `T_a_b` maps b to a,
+//! pixel centres at integer coordinates.
+
+pub mod config;
+pub mod dataset;
+pub mod imaging;
+pub mod poses;
+pub mod render;
+pub mod rng;
+pub mod scene;
+pub mod truth;
+
+pub use config::{SimConfig, PRESETS};
+pub use dataset::{DatasetSummary, Twin, ViewRender};
+
+/// Errors of the twin.
+#[derive(Debug, thiserror::Error)]
+pub enum SimError {
+    /// A knob with an invalid value (the message names it).
+    #[error("configuration: {0}")]
+    Config(String),
+    /// No pose set satisfies the constraints.
+    #[error("poses: {0}")]
+    Poses(String),
+    /// Rendering failed (e.g. a pixel outside the distortion model's valid zone).
+    #[error("render: {0}")]
+    Render(String),
+    /// Writing the dataset failed.
+    #[error(transparent)]
+    Core(#[from] stripecal::Error),
+}

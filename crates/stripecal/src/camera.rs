@@ -209,7 +209,7 @@ impl Camera {
     /// Normalised coordinates of a point in the camera frame; error if `zc <= 0`.
     #[inline]
     pub fn normalize(p: &Vector3<f64>) -> Result<(f64, f64)> {
-        if !(p.z > 0.0) {
+        if p.z.is_nan() || p.z <= 0.0 {
             return Err(Error::Degenerate(format!(
                 "point ({:.4}, {:.4}, {:.4}) is not in front of the camera",
                 p.x, p.y, p.z

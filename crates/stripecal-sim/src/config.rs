@@ -1,0 +1,608 @@
+//! Every knob of the twin, as one serialisable configuration.
+//!
+//! A configuration is plain data (JSON from Python or the CLI): a preset gives all
+//! values, and [`SimConfig::with_overrides`] merges a partial JSON object over it, so
+//! `{"imaging": {"noise_gray": 2.0}}` changes one knob and keeps the rest. Unknown keys
+//! are an error (a misspelt knob must not be silently ignored).
+//!
+//! Units: mm, degrees (angles in files), radians for rotation vectors, pixels,
+//! gray levels of the 8-bit scale for noise (scaled by 257 for 16-bit images).
+
+use nalgebra::Vector3;
+use serde::{Deserialize, Serialize};
+
+use stripecal::geometry::{iso_from_rotvec, iso_to_rotvec, Iso3, Plane};
+use stripecal::{Board, BoardKind, Camera, DhJoint, DistortionModel, Robot};
+
+use crate::SimError;
+
+/// The camera (true values).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct CameraCfg {
+    pub width: u32,
+    pub height: u32,
+    pub fu: f64,
+    pub fv: f64,
+    pub u0: f64,
+    pub v0: f64,
+    /// `radial1`, `radial2` or `opencv5`: the model written to rig.json.
+    pub distortion_model: String,
+    /// `[k1, k2, p1, p2, k3]`.
+    pub distortion: [f64; 5],
+}
+
+/// A rigid transform as in the spec's files.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct PoseCfg {
+    /// Radians.
+    pub rotation_vector: [f64; 3],
+    pub translation_mm: [f64; 3],
+}
+
+/// The laser plane `n . p = d` in the camera frame.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct PlaneCfg {
+    pub normal: [f64; 3],
+    pub d_mm: f64,
+}
+
+/// One DH row.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct DhCfg {
+    pub theta0_deg: f64,
+    pub alpha_deg: f64,
+    pub a_mm: f64,
+    pub d_mm: f64,
+}
+
+/// The robot's nominal DH table (written to rig.json).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct RobotCfg {
+    pub name: String,
+    pub joints: Vec<DhCfg>,
+}
+
+/// The target.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct BoardCfg {
+    pub rows: usize,
+    pub cols: usize,
+    pub pitch_mm: f64,
+    pub circle_diameter_mm: f64,
+    pub marker_diameter_mm: f64,
+    pub markers: Vec<[usize; 2]>,
+    pub dark_circles: bool,
+    /// Plate beyond the outer circle centres, mm (each side).
+    pub plate_margin_mm: f64,
+}
+
+/// How calibration poses are chosen.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct PosesCfg {
+    /// Number of calibration views.
+    pub count: usize,
+    /// Encoder readings (deg) of the home pose around which poses are sampled.
+    pub home_q_deg: Vec<f64>,
+    /// Stand-off range: distance from the camera centre to the board plane along the
+    /// optical axis, mm.
+    pub standoff_mm: [f64; 2],
+    /// Largest angle between the optical axis and the board normal, degrees.
+    pub max_tilt_deg: f64,
+    /// Largest rotation about the optical axis away from the board's upright view, deg.
+    pub max_roll_deg: f64,
+    /// Largest joint excursion from home, degrees.
+    pub max_joint_delta_deg: f64,
+    /// Every circle must be at least this far inside the image, px.
+    pub margin_px: f64,
+    /// Largest angle of incidence of the laser sheet on the board (at the stripe's
+    /// middle), degrees: a grazing stripe is wide and faint.
+    pub max_laser_incidence_deg: f64,
+    /// Explicit encoder readings (deg) per view; when given, no sampling happens.
+    pub explicit_q_deg: Option<Vec<Vec<f64>>>,
+}
+
+/// Image formation.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ImagingCfg {
+    /// 8 or 16.
+    pub bit_depth: u8,
+    /// Samples per pixel side (>= 4); pixels on a reflectance edge get 4x more per side.
+    pub supersample: usize,
+    /// Ambient illumination of board images (fraction of full scale on a reflectance-1 surface).
+    pub ambient: f64,
+    /// Ambient of laser images (dimmed), same unit.
+    pub laser_ambient: f64,
+    /// One image per view holding both circles and stripe.
+    pub single_image: bool,
+    /// Ambient of single images.
+    pub single_image_ambient: f64,
+    pub plate_reflectance: f64,
+    pub circle_reflectance: f64,
+    pub table_reflectance: f64,
+    pub sphere_reflectance: f64,
+    /// Relative fall-off at the image corners (0 = none): `1 - v * (r / r_corner)^2`.
+    pub vignetting: f64,
+    /// Gaussian PSF sigma, px (0 = none).
+    pub psf_sigma_px: f64,
+    /// Read noise sigma in gray levels of the 8-bit scale (x257 for 16-bit).
+    pub noise_gray: f64,
+    /// Full-well capacity in electrons for photon (shot) noise; 0 disables it.
+    pub full_well_e: f64,
+    /// Laser peak radiance on a reflectance-1 surface at normal incidence, fraction of
+    /// full scale (> 1 saturates).
+    pub laser_peak: f64,
+    /// Gaussian sigma of the laser sheet's thickness, mm.
+    pub laser_sigma_mm: f64,
+    /// Laser emitter position in the camera frame (on the laser plane); `None` puts it
+    /// at the foot of the perpendicular from the camera centre to the plane.
+    pub laser_emitter_mm: Option<[f64; 3]>,
+    /// Speckle contrast (std of the multiplicative factor), 0 = none.
+    pub speckle_contrast: f64,
+    /// Speckle grain size (Gaussian correlation sigma), px.
+    pub speckle_grain_px: f64,
+}
+
+/// The ball scan.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ScanCfg {
+    /// Render a scan at all.
+    pub enabled: bool,
+    pub sphere_diameter_mm: f64,
+    /// Sphere position on the table relative to the board centre, along the board's x
+    /// and y axes, mm.
+    pub sphere_offset_mm: [f64; 2],
+    /// Sensor translation between frames, mm.
+    pub step_mm: f64,
+    /// Extra travel before and after the ball, mm (along the sweep).
+    pub margin_mm: f64,
+    /// Depth (camera z) of the ball's top at the middle of the sweep, mm.
+    pub top_depth_mm: f64,
+    /// Cap on the number of frames (0 = no cap): the sweep is shortened symmetrically.
+    pub max_frames: usize,
+}
+
+/// Everything the twin needs.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SimConfig {
+    pub preset: String,
+    pub seed: u64,
+    pub camera: CameraCfg,
+    pub laser_plane: PlaneCfg,
+    pub hand_cam: PoseCfg,
+    /// `T_base_board`; `None` places the board on the table where the home pose sees
+    /// it at the middle of the stand-off range.
+    pub base_board: Option<PoseCfg>,
+    /// Nominal robot (rig.json).
+    pub robot: RobotCfg,
+    /// True-minus-nominal DH errors per joint `[d_theta0_deg, d_alpha_deg, d_a_mm, d_d_mm]`;
+    /// empty = none.
+    pub dh_errors: Vec<[f64; 4]>,
+    pub board: BoardCfg,
+    pub poses: PosesCfg,
+    pub imaging: ImagingCfg,
+    pub scan: ScanCfg,
+    /// Stand-offs the rig is meant for (truth.json `working_range_mm`).
+    pub working_range_mm: [f64; 2],
+    /// rig.json `stripe.direction` hint: `auto`, `rows` or `cols`.
+    pub stripe_direction: String,
+}
+
+/// Names of the built-in presets.
+pub const PRESETS: [&str; 2] = ["hp3-paper", "hp3-wide"];
+
+impl SimConfig {
+    /// A built-in preset by name.
+    pub fn preset(name: &str) -> Result<SimConfig, SimError> {
+        match name {
+            "hp3-paper" => Ok(Self::hp3_paper()),
+            "hp3-wide" => Ok(Self::hp3_wide()),
+            other => Err(SimError::Config(format!(
+                "unknown preset {other:?}; presets: {}",
+                PRESETS.join(", ")
+            ))),
+        }
+    }
+
+    /// The paper's rig: camera, laser plane and hand-eye X from Table 2 (read as
+    /// ERRATA.md says), Table 1's robot, 5 poses, the 8 x 11 board, the 44.8614 mm ball.
+    pub fn hp3_paper() -> SimConfig {
+        let hp3 = Robot::hp3();
+        SimConfig {
+            preset: "hp3-paper".into(),
+            seed: 0,
+            camera: CameraCfg {
+                width: 768,
+                height: 576,
+                fu: 1271.65,
+                fv: 1322.52,
+                u0: 346.14,
+                v0: 262.60,
+                distortion_model: "radial1".into(),
+                distortion: [0.0002, 0.0, 0.0, 0.0, 0.0],
+            },
+            laser_plane: PlaneCfg {
+                normal: [0.6290, -0.0492, 0.7759],
+                d_mm: 79.8728,
+            },
+            hand_cam: PoseCfg {
+                rotation_vector: [-0.3087, 0.2362, 3.0369],
+                translation_mm: [29.19, 5.37, 62.64],
+            },
+            base_board: None,
+            robot: RobotCfg {
+                name: hp3.name.clone(),
+                joints: hp3
+                    .joints
+                    .iter()
+                    .map(|j| DhCfg {
+                        theta0_deg: j.theta0_deg,
+                        alpha_deg: j.alpha_deg,
+                        a_mm: j.a_mm,
+                        d_mm: j.d_mm,
+                    })
+                    .collect(),
+            },
+            dh_errors: vec![],
+            board: BoardCfg {
+                rows: 8,
+                cols: 11,
+                pitch_mm: 5.0,
+                circle_diameter_mm: 2.5,
+                marker_diameter_mm: 3.5,
+                markers: Board::default_markers(),
+                dark_circles: true,
+                plate_margin_mm: 4.0,
+            },
+            poses: PosesCfg {
+                count: 5,
+                home_q_deg: vec![0.0, 0.0, 0.0, 0.0, -90.0, 0.0],
+                standoff_mm: [100.0, 125.0],
+                max_tilt_deg: 30.0,
+                max_roll_deg: 10.0,
+                max_joint_delta_deg: 60.0,
+                margin_px: 12.0,
+                max_laser_incidence_deg: 65.0,
+                explicit_q_deg: None,
+            },
+            imaging: ImagingCfg {
+                bit_depth: 8,
+                supersample: 4,
+                ambient: 0.8,
+                laser_ambient: 0.08,
+                single_image: false,
+                single_image_ambient: 0.4,
+                plate_reflectance: 0.9,
+                circle_reflectance: 0.08,
+                table_reflectance: 0.35,
+                sphere_reflectance: 0.7,
+                vignetting: 0.15,
+                psf_sigma_px: 0.7,
+                noise_gray: 1.0,
+                full_well_e: 0.0,
+                laser_peak: 0.85,
+                laser_sigma_mm: 0.12,
+                laser_emitter_mm: None,
+                speckle_contrast: 0.0,
+                speckle_grain_px: 1.0,
+            },
+            scan: ScanCfg {
+                enabled: true,
+                sphere_diameter_mm: 44.8614,
+                sphere_offset_mm: [0.0, 90.0],
+                step_mm: 0.5,
+                margin_mm: 3.0,
+                top_depth_mm: 88.0,
+                max_frames: 0,
+            },
+            working_range_mm: [80.0, 130.0],
+            stripe_direction: "auto".into(),
+        }
+    }
+
+    /// The same robot with a wider-angle, more distorted camera and 15 poses: a
+    /// different lens for tests that must not be tuned to the paper's camera.
+    pub fn hp3_wide() -> SimConfig {
+        let mut c = Self::hp3_paper();
+        c.preset = "hp3-wide".into();
+        c.camera = CameraCfg {
+            width: 1024,
+            height: 768,
+            fu: 900.0,
+            fv: 900.5,
+            u0: 515.3,
+            v0: 380.8,
+            distortion_model: "radial2".into(),
+            distortion: [-0.25, 0.12, 0.0, 0.0, 0.0],
+        };
+        c.poses.count = 15;
+        c.poses.standoff_mm = [95.0, 125.0];
+        c
+    }
+
+    /// Merges a partial JSON object over this configuration (nested objects merge,
+    /// everything else replaces); unknown keys are an error.
+    pub fn with_overrides(&self, overrides: &serde_json::Value) -> Result<SimConfig, SimError> {
+        let mut base = serde_json::to_value(self).map_err(|e| SimError::Config(e.to_string()))?;
+        merge(&mut base, overrides, "")?;
+        let cfg: SimConfig = serde_json::from_value(base)
+            .map_err(|e| SimError::Config(format!("invalid configuration: {e}")))?;
+        cfg.validate()?;
+        Ok(cfg)
+    }
+
+    /// Checks every value; the message names the knob.
+    pub fn validate(&self) -> Result<(), SimError> {
+        let bad = |k: &str, m: String| Err(SimError::Config(format!("{k}: {m}")));
+        self.camera_model()?;
+        self.board_model()?;
+        self.robot_nominal()?;
+        self.laser_plane_model()?;
+        if !self.dh_errors.is_empty() && self.dh_errors.len() != self.robot.joints.len() {
+            return bad(
+                "dh_errors",
+                format!(
+                    "{} rows given, robot has {} joints",
+                    self.dh_errors.len(),
+                    self.robot.joints.len()
+                ),
+            );
+        }
+        if self.poses.home_q_deg.len() != self.robot.joints.len() {
+            return bad(
+                "poses.home_q_deg",
+                format!(
+                    "{} values given, robot has {} joints",
+                    self.poses.home_q_deg.len(),
+                    self.robot.joints.len()
+                ),
+            );
+        }
+        if let Some(ex) = &self.poses.explicit_q_deg {
+            if let Some((i, q)) = ex
+                .iter()
+                .enumerate()
+                .find(|(_, q)| q.len() != self.robot.joints.len())
+            {
+                return bad(
+                    "poses.explicit_q_deg",
+                    format!(
+                        "view {i} has {} values, robot has {} joints",
+                        q.len(),
+                        self.robot.joints.len()
+                    ),
+                );
+            }
+        } else if self.poses.count < 1 {
+            return bad("poses.count", "must be at least 1".into());
+        }
+        let [a, b] = self.poses.standoff_mm;
+        if !(a > 0.0 && b >= a) {
+            return bad(
+                "poses.standoff_mm",
+                format!("[{a}, {b}] is not a range of positive distances"),
+            );
+        }
+        let im = &self.imaging;
+        if im.bit_depth != 8 && im.bit_depth != 16 {
+            return bad(
+                "imaging.bit_depth",
+                format!("{} (expected 8 or 16)", im.bit_depth),
+            );
+        }
+        if im.supersample < 4 || im.supersample > 32 {
+            return bad(
+                "imaging.supersample",
+                format!("{} (expected 4..=32)", im.supersample),
+            );
+        }
+        for (k, v) in [
+            ("imaging.psf_sigma_px", im.psf_sigma_px),
+            ("imaging.noise_gray", im.noise_gray),
+            ("imaging.full_well_e", im.full_well_e),
+            ("imaging.speckle_contrast", im.speckle_contrast),
+            ("imaging.ambient", im.ambient),
+            ("imaging.laser_ambient", im.laser_ambient),
+            ("imaging.laser_peak", im.laser_peak),
+            ("imaging.vignetting", im.vignetting),
+        ] {
+            if !(v.is_finite() && v >= 0.0) {
+                return bad(k, format!("{v} must be finite and >= 0"));
+            }
+        }
+        if im.laser_sigma_mm.is_nan() || im.laser_sigma_mm <= 0.0 || im.speckle_grain_px.is_nan() || im.speckle_grain_px <= 0.0 {
+            return bad(
+                "imaging.laser_sigma_mm",
+                "laser sigma and speckle grain must be > 0".into(),
+            );
+        }
+        if im.vignetting >= 1.0 {
+            return bad(
+                "imaging.vignetting",
+                format!("{} must be < 1", im.vignetting),
+            );
+        }
+        if self.scan.enabled && !(self.scan.step_mm > 0.0 && self.scan.sphere_diameter_mm > 0.0) {
+            return bad("scan", "step_mm and sphere_diameter_mm must be > 0".into());
+        }
+        stripecal::io::StripeDirection::from_name(&self.stripe_direction)
+            .map_err(|e| SimError::Config(format!("stripe_direction: {e}")))?;
+        Ok(())
+    }
+
+    /// The true camera.
+    pub fn camera_model(&self) -> Result<Camera, SimError> {
+        let c = &self.camera;
+        let model = DistortionModel::from_name(&c.distortion_model)
+            .map_err(|e| SimError::Config(format!("camera.distortion_model: {e}")))?;
+        Camera::new(
+            c.width,
+            c.height,
+            c.fu,
+            c.fv,
+            c.u0,
+            c.v0,
+            model,
+            c.distortion,
+        )
+        .map_err(|e| SimError::Config(format!("camera: {e}")))
+    }
+
+    /// The true laser plane (camera frame).
+    pub fn laser_plane_model(&self) -> Result<Plane, SimError> {
+        let p = &self.laser_plane;
+        Plane::new(Vector3::from(p.normal), p.d_mm)
+            .map_err(|e| SimError::Config(format!("laser_plane: {e}")))
+    }
+
+    /// The true hand-eye `T_hand_cam`.
+    pub fn hand_cam_model(&self) -> Iso3 {
+        pose_model(&self.hand_cam)
+    }
+
+    /// The board.
+    pub fn board_model(&self) -> Result<Board, SimError> {
+        let b = &self.board;
+        let board = Board {
+            kind: BoardKind::Circles,
+            rows: b.rows,
+            cols: b.cols,
+            pitch_mm: b.pitch_mm,
+            circle_diameter_mm: b.circle_diameter_mm,
+            marker_diameter_mm: b.marker_diameter_mm,
+            markers: b.markers.clone(),
+            dark_circles: b.dark_circles,
+            square_mm: None,
+        };
+        board
+            .validate()
+            .map_err(|e| SimError::Config(format!("board: {e}")))?;
+        if !(b.plate_margin_mm.is_finite()
+            && b.plate_margin_mm >= 0.5 * b.marker_diameter_mm.max(b.circle_diameter_mm))
+        {
+            return Err(SimError::Config(format!(
+                "board.plate_margin_mm: {} must cover the outer circles (>= half a diameter)",
+                b.plate_margin_mm
+            )));
+        }
+        Ok(board)
+    }
+
+    /// The nominal robot (rig.json).
+    pub fn robot_nominal(&self) -> Result<Robot, SimError> {
+        let joints = self
+            .robot
+            .joints
+            .iter()
+            .map(|j| DhJoint {
+                theta0_deg: j.theta0_deg,
+                alpha_deg: j.alpha_deg,
+                a_mm: j.a_mm,
+                d_mm: j.d_mm,
+            })
+            .collect();
+        Robot::new(self.robot.name.clone(), joints)
+            .map_err(|e| SimError::Config(format!("robot: {e}")))
+    }
+
+    /// The true robot: nominal plus `dh_errors`.
+    pub fn robot_true(&self) -> Result<Robot, SimError> {
+        let mut r = self.robot_nominal()?;
+        for (j, e) in r.joints.iter_mut().zip(&self.dh_errors) {
+            j.theta0_deg += e[0];
+            j.alpha_deg += e[1];
+            j.a_mm += e[2];
+            j.d_mm += e[3];
+        }
+        Ok(r)
+    }
+}
+
+/// A pose from its file form.
+pub fn pose_model(p: &PoseCfg) -> Iso3 {
+    iso_from_rotvec(
+        &Vector3::from(p.rotation_vector),
+        &Vector3::from(p.translation_mm),
+    )
+}
+
+/// The file form of a pose.
+pub fn pose_cfg(t: &Iso3) -> PoseCfg {
+    let (r, tr) = iso_to_rotvec(t);
+    PoseCfg {
+        rotation_vector: [r.x, r.y, r.z],
+        translation_mm: [tr.x, tr.y, tr.z],
+    }
+}
+
+fn merge(
+    base: &mut serde_json::Value,
+    over: &serde_json::Value,
+    path: &str,
+) -> Result<(), SimError> {
+    match (base, over) {
+        (serde_json::Value::Object(b), serde_json::Value::Object(o)) => {
+            for (k, v) in o {
+                let p = if path.is_empty() {
+                    k.clone()
+                } else {
+                    format!("{path}.{k}")
+                };
+                match b.get_mut(k) {
+                    Some(slot) if slot.is_object() && v.is_object() => merge(slot, v, &p)?,
+                    Some(slot) => *slot = v.clone(),
+                    None => {
+                        return Err(SimError::Config(format!(
+                            "unknown knob `{p}`; known keys here: {}",
+                            b.keys().cloned().collect::<Vec<_>>().join(", ")
+                        )))
+                    }
+                }
+            }
+            Ok(())
+        }
+        (_, _) => Err(SimError::Config(format!(
+            "overrides must be a JSON object{}",
+            if path.is_empty() {
+                String::new()
+            } else {
+                format!(" at `{path}`")
+            }
+        ))),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn presets_validate_and_overrides_merge() {
+        for p in PRESETS {
+            SimConfig::preset(p).unwrap().validate().unwrap();
+        }
+        let c = SimConfig::hp3_paper()
+            .with_overrides(&serde_json::json!({"imaging": {"noise_gray": 2.5}, "seed": 9}))
+            .unwrap();
+        assert_eq!(c.imaging.noise_gray, 2.5);
+        assert_eq!(c.seed, 9);
+        assert_eq!(c.imaging.psf_sigma_px, 0.7);
+        let e = SimConfig::hp3_paper()
+            .with_overrides(&serde_json::json!({"imaging": {"nosie": 1}}))
+            .unwrap_err();
+        assert!(e.to_string().contains("imaging.nosie"), "{e}");
+        let e = SimConfig::hp3_paper()
+            .with_overrides(&serde_json::json!({"imaging": {"bit_depth": 12}}))
+            .unwrap_err();
+        assert!(e.to_string().contains("bit_depth"), "{e}");
+    }
+}

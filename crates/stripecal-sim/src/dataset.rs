@@ -1,0 +1,615 @@
+//! The twin as a whole: true parameters, poses, rendering of views and scan frames,
+//! and writing datasets in the files of spec/DATASET.md.
+
+use std::path::{Path, PathBuf};
+use std::sync::OnceLock;
+
+use nalgebra::{Point3, Vector3};
+use serde_json::{json, Value};
+
+use stripecal::geometry::{Iso3, Plane};
+use stripecal::image::AnyGray;
+use stripecal::io::{
+    self, Calibration, Rig, RobotReading, ScanFrame, Sphere, StripeDirection, Truth, View,
+};
+use stripecal::kinematics::IkOptions;
+use stripecal::{Board, Camera, DistortionModel, Robot};
+
+use crate::config::{pose_cfg, pose_model, SimConfig};
+use crate::imaging::{form_image, Exposure};
+use crate::poses::{PoseInfo, PoseProblem};
+use crate::render::{LinearImage, Renderer};
+use crate::scene::{ImageScene, Laser, World};
+use crate::truth::{circle_truth, stripe_direction, stripe_truth, CircleTruth, StripePointTruth};
+use crate::SimError;
+
+/// Plate thickness: the table lies this far behind the board surface, mm.
+pub const PLATE_THICKNESS_MM: f64 = 3.0;
+
+/// The digital twin of one rig.
+pub struct Twin {
+    pub cfg: SimConfig,
+    pub camera: Camera,
+    pub laser_plane: Plane,
+    /// Laser emitter in the camera frame, mm.
+    pub emitter: Vector3<f64>,
+    /// `T_hand_cam` (true).
+    pub hand_cam: Iso3,
+    /// `T_base_board` (true).
+    pub base_board: Iso3,
+    pub robot_nominal: Robot,
+    pub robot_true: Robot,
+    pub board: Board,
+    /// The ball of the scan (base frame), if scans are enabled.
+    pub sphere: Option<Sphere>,
+    /// The direction the stripe runs in the images.
+    pub direction: StripeDirection,
+    calib_world: World,
+    scan_world: World,
+    renderer: OnceLock<Result<Renderer, String>>,
+}
+
+/// One rendered view (or scan frame) with its truth.
+pub struct ViewRender {
+    /// Board image (laser off); in single-image mode the one image.
+    pub board_image: Option<AnyGray>,
+    /// Laser image; `None` in single-image mode (the board image holds the stripe).
+    pub laser_image: Option<AnyGray>,
+    /// Imaged circle centres (empty for scan frames).
+    pub circles: Vec<CircleTruth>,
+    /// True stripe centre line.
+    pub stripe: Vec<StripePointTruth>,
+    /// `T_base_cam` of the view.
+    pub base_cam: Iso3,
+}
+
+/// What a written dataset contains.
+#[derive(Debug, Clone)]
+pub struct DatasetSummary {
+    pub calib_dir: PathBuf,
+    pub scan_dir: Option<PathBuf>,
+    pub views: Vec<PoseInfo>,
+    /// Per view: circles fully visible, stripe truth points on the board.
+    pub view_circles: Vec<usize>,
+    pub view_stripe_points: Vec<usize>,
+    pub scan_frames: usize,
+    pub scan_sphere_points: usize,
+    pub direction: StripeDirection,
+}
+
+impl Twin {
+    /// A twin from a configuration (validated).
+    pub fn new(cfg: SimConfig) -> Result<Twin, SimError> {
+        cfg.validate()?;
+        let camera = cfg.camera_model()?;
+        let laser_plane = cfg.laser_plane_model()?;
+        let hand_cam = cfg.hand_cam_model();
+        let robot_nominal = cfg.robot_nominal()?;
+        let robot_true = cfg.robot_true()?;
+        let board = cfg.board_model()?;
+        let emitter = match cfg.imaging.laser_emitter_mm {
+            Some(e) => {
+                let e = Vector3::from(e);
+                if laser_plane.signed_distance(&e).abs() > 1e-6 {
+                    return Err(SimError::Config(format!(
+                        "imaging.laser_emitter_mm {e:?} is not on the laser plane ({:.3} mm off)",
+                        laser_plane.signed_distance(&e)
+                    )));
+                }
+                e
+            }
+            None => laser_plane.normal * laser_plane.d,
+        };
+        let base_board = match &cfg.base_board {
+            Some(p) => pose_model(p),
+            None => auto_base_board(&cfg, &robot_true, &hand_cam, &board)?,
+        };
+        let (plate, circle) = if board.dark_circles {
+            (
+                cfg.imaging.plate_reflectance,
+                cfg.imaging.circle_reflectance,
+            )
+        } else {
+            (
+                cfg.imaging.circle_reflectance,
+                cfg.imaging.plate_reflectance,
+            )
+        };
+        let calib_world = World {
+            board: board.clone(),
+            plate_margin_mm: cfg.board.plate_margin_mm,
+            base_board,
+            plate_thickness_mm: PLATE_THICKNESS_MM,
+            sphere: None,
+            plate_reflectance: plate,
+            circle_reflectance: circle,
+            table_reflectance: cfg.imaging.table_reflectance,
+            sphere_reflectance: cfg.imaging.sphere_reflectance,
+        };
+        let sphere = cfg.scan.enabled.then(|| {
+            let r = 0.5 * cfg.scan.sphere_diameter_mm;
+            let c_board = Point3::new(
+                0.5 * (board.cols - 1) as f64 * board.pitch_mm + cfg.scan.sphere_offset_mm[0],
+                0.5 * (board.rows - 1) as f64 * board.pitch_mm + cfg.scan.sphere_offset_mm[1],
+                PLATE_THICKNESS_MM - r,
+            );
+            Sphere {
+                center_mm: (base_board * c_board).coords,
+                diameter_mm: cfg.scan.sphere_diameter_mm,
+            }
+        });
+        let scan_world = World {
+            sphere: sphere.map(|s| (s.center_mm, 0.5 * s.diameter_mm)),
+            ..calib_world.clone()
+        };
+        let mut twin = Twin {
+            cfg,
+            camera,
+            laser_plane,
+            emitter,
+            hand_cam,
+            base_board,
+            robot_nominal,
+            robot_true,
+            board,
+            sphere,
+            direction: StripeDirection::Cols,
+            calib_world,
+            scan_world,
+            renderer: OnceLock::new(),
+        };
+        let mid = 0.5 * (twin.cfg.working_range_mm[0] + twin.cfg.working_range_mm[1]);
+        let probe = twin
+            .calib_world
+            .image_scene(&Iso3::identity(), twin.laser());
+        twin.direction = stripe_direction(&probe, &twin.camera, mid);
+        Ok(twin)
+    }
+
+    /// The laser sheet in the camera frame.
+    pub fn laser(&self) -> Laser {
+        Laser {
+            plane: self.laser_plane,
+            emitter: self.emitter,
+            sigma_mm: self.cfg.imaging.laser_sigma_mm,
+            peak: self.cfg.imaging.laser_peak,
+        }
+    }
+
+    fn renderer(&self) -> Result<&Renderer, SimError> {
+        self.renderer
+            .get_or_init(|| {
+                Renderer::new(&self.camera, self.cfg.imaging.supersample).map_err(|e| e.to_string())
+            })
+            .as_ref()
+            .map_err(|e| SimError::Render(e.clone()))
+    }
+
+    /// `T_base_cam` for encoder readings on the TRUE robot.
+    pub fn base_cam(&self, q_deg: &[f64]) -> Result<Iso3, SimError> {
+        Ok(self.robot_true.forward(q_deg)? * self.hand_cam)
+    }
+
+    /// The camera-frame scene of a pose (`with_sphere` for scan frames).
+    pub fn scene(&self, q_deg: &[f64], with_sphere: bool) -> Result<ImageScene, SimError> {
+        let world = if with_sphere {
+            &self.scan_world
+        } else {
+            &self.calib_world
+        };
+        Ok(world.image_scene(&self.base_cam(q_deg)?, self.laser()))
+    }
+
+    fn pose_problem<'a>(
+        &'a self,
+        scene: &'a (dyn Fn(&Iso3) -> ImageScene + Sync),
+    ) -> PoseProblem<'a> {
+        let p = &self.cfg.poses;
+        PoseProblem {
+            robot: &self.robot_true,
+            camera: &self.camera,
+            hand_cam: &self.hand_cam,
+            base_board: &self.base_board,
+            home_q: &p.home_q_deg,
+            standoff: p.standoff_mm,
+            max_tilt_deg: p.max_tilt_deg,
+            max_roll_deg: p.max_roll_deg,
+            max_joint_delta_deg: p.max_joint_delta_deg,
+            margin_px: p.margin_px,
+            max_laser_incidence_deg: p.max_laser_incidence_deg,
+            scene,
+        }
+    }
+
+    /// The calibration poses: explicit ones (checked) or sampled by seed.
+    pub fn calibration_poses(&self) -> Result<Vec<PoseInfo>, SimError> {
+        let laser = self.laser();
+        let scene_fn = move |t: &Iso3| self.calib_world.image_scene(t, laser);
+        let problem = self.pose_problem(&scene_fn);
+        match &self.cfg.poses.explicit_q_deg {
+            Some(list) => list
+                .iter()
+                .enumerate()
+                .map(|(i, q)| {
+                    problem
+                        .check(q)
+                        .map_err(|e| SimError::Poses(format!("poses.explicit_q_deg[{i}]: {e}")))
+                })
+                .collect(),
+            None => problem.sample(self.cfg.poses.count, self.cfg.seed),
+        }
+    }
+
+    /// Encoder readings of the scan: a straight sweep of the sensor over the ball.
+    pub fn scan_poses(&self) -> Result<Vec<Vec<f64>>, SimError> {
+        let Some(sphere) = self.sphere else {
+            return Ok(vec![]);
+        };
+        let sc = &self.cfg.scan;
+        let home = &self.cfg.poses.home_q_deg;
+        let home_cam = self.base_cam(home)?;
+        let rot = home_cam.rotation;
+        let r = 0.5 * sphere.diameter_mm;
+        let up = self.base_board.rotation * -Vector3::z();
+        let top = sphere.center_mm + up * r;
+        let n_base = rot * self.laser_plane.normal;
+        let sweep = n_base - up * n_base.dot(&up);
+        if sweep.norm() < 1e-6 {
+            return Err(SimError::Poses(
+                "the laser plane is parallel to the table: no sweep direction".into(),
+            ));
+        }
+        let sweep = sweep.normalize();
+        let origin = crate::poses::scan_origin(
+            &rot,
+            &self.laser_plane.normal,
+            self.laser_plane.d,
+            &sphere.center_mm,
+            &top,
+            sc.top_depth_mm,
+            &sweep,
+        )
+        .ok_or_else(|| {
+            SimError::Poses("cannot place the scan sweep (degenerate geometry)".into())
+        })?;
+        let rate = n_base.dot(&sweep).abs();
+        let half = (r + sc.margin_mm) / rate;
+        let mut n = (2.0 * half / sc.step_mm).floor() as usize + 1;
+        if sc.max_frames > 0 && n > sc.max_frames {
+            n = sc.max_frames;
+        }
+        let start = -0.5 * (n - 1) as f64 * sc.step_mm;
+        let x_inv = self.hand_cam.inverse();
+        let mut q = home.clone();
+        let mut out = Vec::with_capacity(n);
+        for k in 0..n {
+            let t = start + k as f64 * sc.step_mm;
+            let cam = Iso3::from_parts((origin + sweep * t).into(), rot);
+            let hand = cam * x_inv;
+            q = self
+                .robot_true
+                .inverse(&hand, &q, &IkOptions::default())
+                .map_err(|e| {
+                    SimError::Poses(format!(
+                        "scan frame {k}: the robot cannot reach the sweep: {e}"
+                    ))
+                })?;
+            out.push(q.clone());
+        }
+        Ok(out)
+    }
+
+    /// Linear radiance of a pose (for fidelity tests): `(image, scene)`.
+    pub fn render_linear(
+        &self,
+        q_deg: &[f64],
+        with_sphere: bool,
+    ) -> Result<(LinearImage, ImageScene), SimError> {
+        let scene = self.scene(q_deg, with_sphere)?;
+        Ok((self.renderer()?.render(&scene), scene))
+    }
+
+    /// Renders calibration view `index` at `q_deg`: board (and laser) image with truth.
+    pub fn render_view(&self, q_deg: &[f64], index: usize) -> Result<ViewRender, SimError> {
+        let (lin, scene) = self.render_linear(q_deg, false)?;
+        let im = &self.cfg.imaging;
+        let seed = self.cfg.seed;
+        let (board_image, laser_image) = if im.single_image {
+            (
+                form_image(
+                    &lin,
+                    &self.camera,
+                    im,
+                    Exposure::Single,
+                    seed,
+                    3 * index as u64,
+                ),
+                None,
+            )
+        } else {
+            (
+                form_image(
+                    &lin,
+                    &self.camera,
+                    im,
+                    Exposure::Board,
+                    seed,
+                    3 * index as u64,
+                ),
+                Some(form_image(
+                    &lin,
+                    &self.camera,
+                    im,
+                    Exposure::Laser,
+                    seed,
+                    3 * index as u64 + 1,
+                )),
+            )
+        };
+        Ok(ViewRender {
+            board_image: Some(board_image),
+            laser_image,
+            circles: circle_truth(&scene, &self.camera, 0.0),
+            stripe: stripe_truth(&scene, &self.camera, self.direction),
+            base_cam: self.base_cam(q_deg)?,
+        })
+    }
+
+    /// Renders scan frame `index` at `q_deg` (stripe image only) with its truth.
+    pub fn render_scan_frame(&self, q_deg: &[f64], index: usize) -> Result<ViewRender, SimError> {
+        let (lin, scene) = self.render_linear(q_deg, true)?;
+        let img = form_image(
+            &lin,
+            &self.camera,
+            &self.cfg.imaging,
+            Exposure::Laser,
+            self.cfg.seed,
+            1_000_000 + index as u64,
+        );
+        Ok(ViewRender {
+            board_image: None,
+            laser_image: Some(img),
+            circles: vec![],
+            stripe: stripe_truth(&scene, &self.camera, self.direction),
+            base_cam: self.base_cam(q_deg)?,
+        })
+    }
+
+    /// The rig description written to rig.json (nominal robot).
+    pub fn rig(&self) -> Result<Rig, SimError> {
+        Ok(Rig {
+            width: self.camera.width,
+            height: self.camera.height,
+            distortion_model: DistortionModel::from_name(&self.cfg.camera.distortion_model)?,
+            board: self.board.clone(),
+            robot: Some(self.robot_nominal.clone()),
+            stripe_direction: StripeDirection::from_name(&self.cfg.stripe_direction)?,
+        })
+    }
+
+    /// The true parameters as a Truth (no per-image keys).
+    pub fn truth(&self, with_sphere: bool) -> Truth {
+        let mut extra = serde_json::Map::new();
+        extra.insert(
+            "laser_emitter_mm".into(),
+            json!([self.emitter.x, self.emitter.y, self.emitter.z]),
+        );
+        extra.insert("stripe_direction".into(), json!(self.direction.name()));
+        extra.insert(
+            "sim_config".into(),
+            serde_json::to_value(&self.cfg).unwrap_or(Value::Null),
+        );
+        Truth {
+            camera: self.camera.clone(),
+            laser_plane: self.laser_plane,
+            hand_cam: self.hand_cam,
+            base_board: self.base_board,
+            robot: Some(self.robot_true.clone()),
+            sphere: if with_sphere { self.sphere } else { None },
+            working_range_mm: Some(self.cfg.working_range_mm),
+            extra,
+        }
+    }
+
+    /// Renders and writes `out/calib` (and `out/scan` when scans are enabled).
+    /// Each folder is written under a temporary name and renamed when complete.
+    /// `progress(stage, done, total)` is called on the calling thread.
+    pub fn write(
+        &self,
+        out: &Path,
+        progress: &mut dyn FnMut(&str, usize, usize),
+    ) -> Result<DatasetSummary, SimError> {
+        std::fs::create_dir_all(out).map_err(|e| stripecal::Error::io(out, e))?;
+        let poses = self.calibration_poses()?;
+        let rig = self.rig()?;
+        // --- calibration dataset
+        let calib_dir = out.join("calib");
+        let tmp = staging_dir(out, "calib")?;
+        let img_dir = tmp.join("images");
+        std::fs::create_dir_all(&img_dir).map_err(|e| stripecal::Error::io(&img_dir, e))?;
+        let mut views = Vec::new();
+        let mut per_image = Vec::new();
+        let mut view_circles = Vec::new();
+        let mut view_stripe = Vec::new();
+        for (i, pose) in poses.iter().enumerate() {
+            progress("calibration views", i, poses.len());
+            let r = self.render_view(&pose.q_deg, i)?;
+            let board_name = format!("images/view_{i:03}_board.png");
+            let laser_name = if self.cfg.imaging.single_image {
+                board_name.clone()
+            } else {
+                format!("images/view_{i:03}_laser.png")
+            };
+            if let Some(b) = &r.board_image {
+                io::save_gray_png(tmp.join(&board_name), b)?;
+            }
+            if let Some(l) = &r.laser_image {
+                io::save_gray_png(tmp.join(&laser_name), l)?;
+            }
+            views.push(View {
+                line: i + 2,
+                board_image: board_name.clone().into(),
+                laser_image: Some(laser_name.clone().into()),
+                reading: RobotReading::Joints(pose.q_deg.clone()),
+            });
+            view_circles.push(r.circles.len());
+            view_stripe.push(r.stripe.iter().filter(|p| p.surface == "board").count());
+            per_image.push(json!({
+                "board_image": board_name,
+                "laser_image": laser_name,
+                "q_deg": pose.q_deg,
+                "standoff_mm": pose.standoff_mm,
+                "tilt_deg": pose.tilt_deg,
+                "base_cam": pose_cfg(&r.base_cam),
+                "circles": r.circles,
+                "stripe": stripe_json(&r.stripe, self.direction, false),
+            }));
+        }
+        progress("calibration views", poses.len(), poses.len());
+        io::write_rig(tmp.join("rig.json"), &rig)?;
+        io::write_views_csv(tmp.join("views.csv"), &views)?;
+        let mut truth = self.truth(false);
+        truth.extra.insert("images".into(), Value::Array(per_image));
+        io::write_truth(tmp.join("truth.json"), &truth)?;
+        replace_dir(&tmp, &calib_dir)?;
+        // --- scan
+        let mut scan_dir = None;
+        let mut frames_n = 0;
+        let mut sphere_pts = 0;
+        if self.sphere.is_some() {
+            let qs = self.scan_poses()?;
+            let dir = out.join("scan");
+            let tmp = staging_dir(out, "scan")?;
+            let img_dir = tmp.join("images");
+            std::fs::create_dir_all(&img_dir).map_err(|e| stripecal::Error::io(&img_dir, e))?;
+            let mut frames = Vec::new();
+            let mut per_image = Vec::new();
+            for (k, q) in qs.iter().enumerate() {
+                progress("scan frames", k, qs.len());
+                let r = self.render_scan_frame(q, k)?;
+                let name = format!("images/scan_{k:04}.png");
+                if let Some(img) = &r.laser_image {
+                    io::save_gray_png(tmp.join(&name), img)?;
+                }
+                sphere_pts += r.stripe.iter().filter(|p| p.surface == "sphere").count();
+                frames.push(ScanFrame {
+                    line: k + 2,
+                    image: name.clone().into(),
+                    reading: RobotReading::Joints(q.clone()),
+                });
+                per_image.push(
+                    json!({"image": name, "stripe": stripe_json(&r.stripe, self.direction, true)}),
+                );
+            }
+            progress("scan frames", qs.len(), qs.len());
+            frames_n = qs.len();
+            io::write_rig(tmp.join("rig.json"), &rig)?;
+            io::write_scan_csv(tmp.join("scan.csv"), &frames)?;
+            let mut truth = self.truth(true);
+            truth.extra.insert("images".into(), Value::Array(per_image));
+            io::write_truth(tmp.join("truth.json"), &truth)?;
+            replace_dir(&tmp, &dir)?;
+            scan_dir = Some(dir);
+        }
+        Ok(DatasetSummary {
+            calib_dir,
+            scan_dir,
+            views: poses,
+            view_circles,
+            view_stripe_points: view_stripe,
+            scan_frames: frames_n,
+            scan_sphere_points: sphere_pts,
+            direction: self.direction,
+        })
+    }
+
+    /// A calibration holding the TRUE parameters (for tests that reconstruct with truth).
+    pub fn true_calibration(&self) -> Calibration {
+        Calibration {
+            camera: self.camera.clone(),
+            laser_plane: self.laser_plane,
+            hand_cam: self.hand_cam,
+            base_board: self.base_board,
+            robot: Some(self.robot_true.clone()),
+            quality: Default::default(),
+            uncertainty: Default::default(),
+            extra: Default::default(),
+        }
+    }
+}
+
+/// Stripe truth as JSON. `compact` (scans): `[u, v, surface, incidence_deg, view_deg,
+/// edge_mm]` rows; otherwise one object per point.
+fn stripe_json(pts: &[StripePointTruth], dir: StripeDirection, compact: bool) -> Value {
+    let r9 = |x: f64| (x * 1e9).round() / 1e9;
+    let r3 = |x: f64| (x * 1e3).round() / 1e3;
+    if compact {
+        let rows: Vec<Value> = pts
+            .iter()
+            .map(|p| {
+                json!([
+                    r9(p.u),
+                    r9(p.v),
+                    p.surface,
+                    r3(p.incidence_deg),
+                    r3(p.view_deg),
+                    r3(p.edge_mm)
+                ])
+            })
+            .collect();
+        json!({"direction": dir.name(), "columns": ["u", "v", "surface", "incidence_deg", "view_deg", "edge_mm"], "points": rows})
+    } else {
+        json!({"direction": dir.name(), "points": pts})
+    }
+}
+
+fn staging_dir(out: &Path, name: &str) -> Result<PathBuf, SimError> {
+    let tmp = out.join(format!(".{name}.partial-{}", std::process::id()));
+    if tmp.exists() {
+        std::fs::remove_dir_all(&tmp).map_err(|e| stripecal::Error::io(&tmp, e))?;
+    }
+    std::fs::create_dir_all(&tmp).map_err(|e| stripecal::Error::io(&tmp, e))?;
+    Ok(tmp)
+}
+
+fn replace_dir(tmp: &Path, target: &Path) -> Result<(), SimError> {
+    if target.exists() {
+        std::fs::remove_dir_all(target).map_err(|e| stripecal::Error::io(target, e))?;
+    }
+    std::fs::rename(tmp, target).map_err(|e| stripecal::Error::io(target, e))?;
+    Ok(())
+}
+
+/// Places the board flat on the table where the home pose sees its centre at the
+/// middle of the stand-off range, upright in the image.
+fn auto_base_board(
+    cfg: &SimConfig,
+    robot: &Robot,
+    hand_cam: &Iso3,
+    board: &Board,
+) -> Result<Iso3, SimError> {
+    let cam = robot.forward(&cfg.poses.home_q_deg)? * hand_cam;
+    let a = cam.rotation * Vector3::z();
+    let o = cam.translation.vector;
+    let s = 0.5 * (cfg.poses.standoff_mm[0] + cfg.poses.standoff_mm[1]);
+    // table is horizontal (normal +z in base); the camera must look down
+    if a.z > -0.2 {
+        return Err(SimError::Config(
+            "the camera does not look down at the home pose; give base_board explicitly".into(),
+        ));
+    }
+    let zb = -Vector3::z();
+    // distance along the axis to the horizontal plane is s
+    let target = o + a * s;
+    let xc = cam.rotation * Vector3::x();
+    let xb = (xc - zb * xc.dot(&zb)).normalize();
+    let yb = zb.cross(&xb);
+    let r = nalgebra::Matrix3::from_columns(&[xb, yb, zb]);
+    let c_board = Vector3::new(
+        0.5 * (board.cols - 1) as f64 * board.pitch_mm,
+        0.5 * (board.rows - 1) as f64 * board.pitch_mm,
+        0.0,
+    );
+    let t = target - r * c_board;
+    Ok(stripecal::geometry::iso_from_parts(&r, &t))
+}

@@ -1,0 +1,301 @@
+//! Robot poses of the twin: calibration views around a home pose and straight-line
+//! scan sweeps, solved by inverse kinematics on the TRUE robot (the readings are what
+//! its encoders would report).
+
+use nalgebra::{Matrix3, Point3, Rotation3, Unit, UnitQuaternion, Vector3};
+
+use stripecal::geometry::Iso3;
+use stripecal::kinematics::IkOptions;
+use stripecal::{Camera, Robot};
+
+use crate::rng::Rng;
+use crate::scene::ImageScene;
+use crate::SimError;
+
+/// Facts about one calibration pose.
+#[derive(Debug, Clone, PartialEq)]
+pub struct PoseInfo {
+    /// Encoder readings, degrees.
+    pub q_deg: Vec<f64>,
+    /// Distance from the camera centre to the board plane along the optical axis, mm.
+    pub standoff_mm: f64,
+    /// Angle between the optical axis and the board normal, degrees.
+    pub tilt_deg: f64,
+    /// Length of the stripe's chord across the circle grid, mm.
+    pub stripe_chord_mm: f64,
+}
+
+/// Everything pose sampling needs.
+pub struct PoseProblem<'a> {
+    pub robot: &'a Robot,
+    pub camera: &'a Camera,
+    pub hand_cam: &'a Iso3,
+    pub base_board: &'a Iso3,
+    pub home_q: &'a [f64],
+    pub standoff: [f64; 2],
+    pub max_tilt_deg: f64,
+    pub max_roll_deg: f64,
+    pub max_joint_delta_deg: f64,
+    pub margin_px: f64,
+    pub max_laser_incidence_deg: f64,
+    /// Builds the camera-frame scene for `T_base_cam` (for visibility checks).
+    pub scene: &'a (dyn Fn(&Iso3) -> ImageScene + Sync),
+}
+
+impl PoseProblem<'_> {
+    /// Checks a pose (encoder readings) against every constraint; the facts if it passes.
+    pub fn check(&self, q: &[f64]) -> Result<PoseInfo, String> {
+        let board = {
+            let s = (self.scene)(&Iso3::identity());
+            s.board().clone()
+        };
+        for (i, (a, b)) in q.iter().zip(self.home_q).enumerate() {
+            if (a - b).abs() > self.max_joint_delta_deg {
+                return Err(format!("joint {} moves {:.1} deg from home", i + 1, a - b));
+            }
+        }
+        let base_cam = self.robot.forward(q).map_err(|e| e.to_string())? * self.hand_cam;
+        let scene = (self.scene)(&base_cam);
+        let (pn, pd) = scene.plate_plane();
+        // plate plane n.p = d, optical axis p = s z: s = d / n_z
+        if pn.z <= 1e-9 {
+            return Err("board seen from behind".into());
+        }
+        let standoff = pd / pn.z;
+        let tilt = pn.z.clamp(-1.0, 1.0).acos().to_degrees();
+        if standoff < self.standoff[0] - 1e-9 || standoff > self.standoff[1] + 1e-9 {
+            return Err(format!("stand-off {standoff:.1} mm out of range"));
+        }
+        if tilt > self.max_tilt_deg + 1e-9 {
+            return Err(format!("tilt {tilt:.1} deg too large"));
+        }
+        let circles = circle_truth_quick(&scene, self.camera, self.margin_px);
+        if circles < board.len() {
+            return Err(format!(
+                "only {circles} of {} circles inside the image margin",
+                board.len()
+            ));
+        }
+        let (chord, mid) = stripe_chord(&scene);
+        let need = 0.5 * (board.rows.min(board.cols) - 1) as f64 * board.pitch_mm;
+        if chord < need {
+            return Err(format!("stripe crosses the grid over {chord:.1} mm only"));
+        }
+        // incidence of the laser at the chord's middle
+        let p = (scene.cam_board * Point3::new(mid.0, mid.1, 0.0)).coords;
+        let to_e = (scene.laser.emitter - p).normalize();
+        let inc = (-pn).dot(&to_e).clamp(-1.0, 1.0).acos().to_degrees();
+        if inc > self.max_laser_incidence_deg {
+            return Err(format!(
+                "laser incidence {inc:.1} deg on the board is too grazing"
+            ));
+        }
+        Ok(PoseInfo {
+            q_deg: q.to_vec(),
+            standoff_mm: standoff,
+            tilt_deg: tilt,
+            stripe_chord_mm: chord,
+        })
+    }
+
+    /// Samples `count` poses, deterministic by `seed`, spread in orientation.
+    pub fn sample(&self, count: usize, seed: u64) -> Result<Vec<PoseInfo>, SimError> {
+        let board = (self.scene)(&Iso3::identity()).board().clone();
+        let center = Vector3::new(
+            0.5 * (board.cols - 1) as f64 * board.pitch_mm,
+            0.5 * (board.rows - 1) as f64 * board.pitch_mm,
+            0.0,
+        );
+        let want = (count * 8).max(count + 8);
+        let mut rng = Rng::new(seed, 0x905e5);
+        let mut pool: Vec<(PoseInfo, UnitQuaternion<f64>)> = Vec::new();
+        let mut last_reason = String::new();
+        let max_attempts = 4000 + 400 * count;
+        for _ in 0..max_attempts {
+            if pool.len() >= want {
+                break;
+            }
+            let tilt = self.max_tilt_deg.to_radians() * rng.uniform().sqrt();
+            let az = rng.range(0.0, std::f64::consts::TAU);
+            let roll = rng.range(-1.0, 1.0) * self.max_roll_deg.to_radians();
+            let s = rng.range(self.standoff[0], self.standoff[1]);
+            let look = center
+                + Vector3::new(rng.range(-1.0, 1.0), rng.range(-1.0, 1.0), 0.0)
+                    * board.pitch_mm
+                    * 0.5;
+            let axis = Unit::new_normalize(Vector3::new(az.cos(), az.sin(), 0.0));
+            let z = Rotation3::from_axis_angle(&axis, tilt) * Vector3::z();
+            let x0 = Vector3::x() - z * z.x;
+            let x0 = Rotation3::from_axis_angle(&Unit::new_normalize(z), roll) * x0.normalize();
+            let y0 = z.cross(&x0);
+            let r = Matrix3::from_columns(&[x0, y0, z]);
+            // distance along the axis to the board plane (z_board = 0) is s: position
+            let o = look - z * s;
+            let board_cam = stripecal::geometry::iso_from_parts(&r, &o);
+            let base_hand = self.base_board * board_cam * self.hand_cam.inverse();
+            let q = match self
+                .robot
+                .inverse(&base_hand, self.home_q, &IkOptions::default())
+            {
+                Ok(q) => q,
+                Err(e) => {
+                    last_reason = e.to_string();
+                    continue;
+                }
+            };
+            match self.check(&q) {
+                Ok(info) => {
+                    let rot = self.robot.forward_unchecked(&q).rotation;
+                    pool.push((info, rot));
+                }
+                Err(e) => last_reason = e,
+            }
+        }
+        if pool.len() < count {
+            return Err(SimError::Poses(format!(
+                "found {} valid poses of the {count} requested after {max_attempts} attempts (last rejection: \
+                 {last_reason}); widen poses.standoff_mm / max_tilt_deg or reduce margin_px",
+                pool.len()
+            )));
+        }
+        // Farthest-point selection in orientation: diverse rotation axes for hand-eye.
+        let mut chosen: Vec<usize> = vec![0];
+        while chosen.len() < count {
+            let mut best = (0usize, -1.0f64);
+            for (i, (_, qi)) in pool.iter().enumerate() {
+                if chosen.contains(&i) {
+                    continue;
+                }
+                let dmin = chosen
+                    .iter()
+                    .map(|&j| qi.angle_to(&pool[j].1))
+                    .fold(f64::INFINITY, f64::min);
+                if dmin > best.1 {
+                    best = (i, dmin);
+                }
+            }
+            chosen.push(best.0);
+        }
+        let rots: Vec<UnitQuaternion<f64>> = chosen.iter().map(|&i| pool[i].1).collect();
+        if count >= 3 {
+            let spread = axis_spread(&rots);
+            if spread < 0.02 {
+                return Err(SimError::Poses(format!(
+                    "the sampled poses rotate about nearly parallel axes (axis spread {spread:.3}); \
+                     increase poses.max_tilt_deg or max_roll_deg"
+                )));
+            }
+        }
+        Ok(chosen.into_iter().map(|i| pool[i].0.clone()).collect())
+    }
+}
+
+/// Smallest-to-largest eigenvalue ratio of the scatter of relative rotation axes
+/// (weighted by angle): near 0 when all relative rotations share one axis.
+pub fn axis_spread(rots: &[UnitQuaternion<f64>]) -> f64 {
+    let mut m = Matrix3::zeros();
+    for i in 0..rots.len() {
+        for j in i + 1..rots.len() {
+            let rel = rots[i].inverse() * rots[j];
+            if let Some((axis, angle)) = rel.axis_angle() {
+                let a = axis.into_inner() * angle;
+                m += a * a.transpose();
+            }
+        }
+    }
+    let ev = m.symmetric_eigenvalues();
+    let max = ev.max();
+    if max <= 0.0 {
+        return 0.0;
+    }
+    ev.min() / max
+}
+
+fn circle_truth_quick(scene: &ImageScene, cam: &Camera, margin: f64) -> usize {
+    // A coarse version of circle_truth: 32 boundary points per circle are enough to
+    // decide visibility with a margin.
+    let board = scene.board();
+    let t = scene.cam_board;
+    board
+        .indices()
+        .filter(|&(r, c)| {
+            let ctr = board.center(r, c);
+            let rad = 0.5 * board.diameter(r, c);
+            (0..32).all(|k| {
+                let a = std::f64::consts::TAU * k as f64 / 32.0;
+                let pb = Point3::new(ctr.x + rad * a.cos(), ctr.y + rad * a.sin(), 0.0);
+                matches!(cam.project(&(t * pb).coords), Ok(uv) if cam.contains(&uv, margin))
+            })
+        })
+        .count()
+}
+
+/// Length of the laser line's chord across the rectangle spanned by the circle centres,
+/// and the chord's middle (board coordinates).
+pub fn stripe_chord(scene: &ImageScene) -> (f64, (f64, f64)) {
+    let b = scene.board();
+    let t = scene.cam_board;
+    // Laser plane in board coordinates.
+    let lp = scene.laser.plane.transformed(&t.inverse());
+    let (n, d) = (lp.normal, lp.d);
+    // Line n.x x + n.y y = d in the board plane z = 0.
+    let (w, h) = (
+        (b.cols - 1) as f64 * b.pitch_mm,
+        (b.rows - 1) as f64 * b.pitch_mm,
+    );
+    let mut pts: Vec<(f64, f64)> = Vec::new();
+    if n.y.abs() > 1e-12 {
+        for x in [0.0, w] {
+            let y = (d - n.x * x) / n.y;
+            if (0.0..=h).contains(&y) {
+                pts.push((x, y));
+            }
+        }
+    }
+    if n.x.abs() > 1e-12 {
+        for y in [0.0, h] {
+            let x = (d - n.y * y) / n.x;
+            if (0.0..=w).contains(&x) {
+                pts.push((x, y));
+            }
+        }
+    }
+    let mut best = (0.0, (0.0, 0.0));
+    for i in 0..pts.len() {
+        for j in i + 1..pts.len() {
+            let len = ((pts[i].0 - pts[j].0).powi(2) + (pts[i].1 - pts[j].1).powi(2)).sqrt();
+            if len > best.0 {
+                best = (
+                    len,
+                    (0.5 * (pts[i].0 + pts[j].0), 0.5 * (pts[i].1 + pts[j].1)),
+                );
+            }
+        }
+    }
+    best
+}
+
+/// Where `T_base_cam` must be so that the laser plane passes through `point` with the
+/// optical axis `depth_mm` from `top` (both base frame), the camera keeping rotation
+/// `rot`, and `point` centred across the sweep. Returns the camera origin.
+pub fn scan_origin(
+    rot: &UnitQuaternion<f64>,
+    plane_n_cam: &Vector3<f64>,
+    plane_d: f64,
+    point: &Vector3<f64>,
+    top: &Vector3<f64>,
+    depth_mm: f64,
+    sweep_dir: &Vector3<f64>,
+) -> Option<Vector3<f64>> {
+    let a = rot * Vector3::z();
+    let n = rot * plane_n_cam;
+    let side = a.cross(sweep_dir);
+    // a.o = a.top - depth ; n.o = n.point - d ; side.o = side.point
+    let m = Matrix3::from_rows(&[a.transpose(), n.transpose(), side.transpose()]);
+    let rhs = Vector3::new(
+        a.dot(top) - depth_mm,
+        n.dot(point) - plane_d,
+        side.dot(point),
+    );
+    m.try_inverse().map(|mi| mi * rhs)
+}

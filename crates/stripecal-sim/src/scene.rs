@@ -1,0 +1,402 @@
+//! The scene: the board plate lying on a table, an optional sphere on the table, and
+//! the laser sheet; ray casting and shading in the camera frame of one image.
+//!
+//! Geometry is exact: a ray hits the plate plane, the point's board coordinates decide
+//! circle membership exactly (so imaged circle edges are exact ellipses under
+//! perspective and distortion, up to anti-aliasing), the sphere is an exact quadric.
+//!
+//! Shading (linear radiance, 1.0 = full scale):
+//! - ambient part: surface reflectance (the illumination level is applied later);
+//! - laser part: `peak * reflectance * cos(incidence) * (100 mm / r) *
+//!   exp(-dist^2 / (2 sigma^2))`, with `dist` the distance of the surface point from the
+//!   laser plane, `r` its distance from the emitter, and the sphere casting shadows.
+
+use nalgebra::{Matrix3, Vector3};
+
+use stripecal::geometry::{Iso3, Plane};
+use stripecal::Board;
+
+/// Surface ids used in materials and truth.
+pub const SURF_NONE: u32 = 0;
+pub const SURF_PLATE: u32 = 1;
+pub const SURF_TABLE: u32 = 2;
+pub const SURF_SPHERE: u32 = 3;
+/// Circle materials are `SURF_CIRCLE0 + row * cols + col`.
+pub const SURF_CIRCLE0: u32 = 16;
+
+/// Reference distance of the laser fall-off law, mm.
+pub const LASER_REF_DISTANCE_MM: f64 = 100.0;
+
+/// The world in the robot base frame.
+#[derive(Debug, Clone)]
+pub struct World {
+    pub board: Board,
+    pub plate_margin_mm: f64,
+    /// `T_base_board`.
+    pub base_board: Iso3,
+    /// Plate thickness: the table surface lies this far behind the plate surface.
+    pub plate_thickness_mm: f64,
+    /// Sphere centre (base frame) and radius, if any.
+    pub sphere: Option<(Vector3<f64>, f64)>,
+    pub plate_reflectance: f64,
+    pub circle_reflectance: f64,
+    pub table_reflectance: f64,
+    pub sphere_reflectance: f64,
+}
+
+/// Laser sheet parameters in the camera frame.
+#[derive(Debug, Clone, Copy)]
+pub struct Laser {
+    pub plane: Plane,
+    pub emitter: Vector3<f64>,
+    pub sigma_mm: f64,
+    pub peak: f64,
+}
+
+/// The scene as seen by one camera pose, everything in the camera frame.
+#[derive(Debug, Clone)]
+pub struct ImageScene {
+    board: Board,
+    /// Rows 0 and 1 of `R_board_cam` and the translation (board x, y of a camera point).
+    bx: Vector3<f64>,
+    by: Vector3<f64>,
+    bt: Vector3<f64>,
+    /// Plate plane `n . p = d` (n points into the plate, away from the camera).
+    plate_n: Vector3<f64>,
+    plate_d: f64,
+    table_d: f64,
+    extent: [f64; 4],
+    sphere: Option<(Vector3<f64>, f64)>,
+    pub laser: Laser,
+    refl: [f64; 4],
+    /// `T_cam_board`, kept for truth computations.
+    pub cam_board: Iso3,
+}
+
+/// How a pixel's footprint must be integrated (see [`ImageScene::classify`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Footprint {
+    Uniform(Hit),
+    Smooth,
+    Edge,
+}
+
+/// What one ray sees.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Hit {
+    /// Surface / circle id (`SURF_*`).
+    pub material: u32,
+    /// Ray parameter: the point is `s * dir`.
+    pub s: f64,
+    pub reflectance: f64,
+    /// Laser radiance at the point.
+    pub laser: f64,
+}
+
+impl World {
+    /// The scene in the camera frame for `T_base_cam`.
+    pub fn image_scene(&self, base_cam: &Iso3, laser: Laser) -> ImageScene {
+        let cam_board = base_cam.inverse() * self.base_board;
+        let board_cam = cam_board.inverse();
+        let rbc: Matrix3<f64> = board_cam.rotation.to_rotation_matrix().into_inner();
+        let bt = board_cam.translation.vector;
+        let plate_n = cam_board.rotation * Vector3::z();
+        let plate_d = plate_n.dot(&cam_board.translation.vector);
+        let b = &self.board;
+        let m = self.plate_margin_mm;
+        let extent = [
+            -m,
+            (b.cols - 1) as f64 * b.pitch_mm + m,
+            -m,
+            (b.rows - 1) as f64 * b.pitch_mm + m,
+        ];
+        let cam_base = base_cam.inverse();
+        ImageScene {
+            board: self.board.clone(),
+            bx: rbc.row(0).transpose(),
+            by: rbc.row(1).transpose(),
+            bt,
+            plate_n,
+            plate_d,
+            table_d: plate_d + self.plate_thickness_mm,
+            extent,
+            sphere: self
+                .sphere
+                .map(|(c, r)| ((cam_base * nalgebra::Point3::from(c)).coords, r)),
+            laser,
+            refl: [
+                self.plate_reflectance,
+                self.circle_reflectance,
+                self.table_reflectance,
+                self.sphere_reflectance,
+            ],
+            cam_board,
+        }
+    }
+}
+
+impl ImageScene {
+    /// The board the scene shows.
+    pub fn board(&self) -> &Board {
+        &self.board
+    }
+
+    /// Board coordinates (x, y) of a camera-frame point on the plate plane.
+    #[inline]
+    pub fn board_xy(&self, p: &Vector3<f64>) -> (f64, f64) {
+        (self.bx.dot(p) + self.bt.x, self.by.dot(p) + self.bt.y)
+    }
+
+    /// Whether board point (x, y) lies on the plate.
+    #[inline]
+    pub fn on_plate(&self, x: f64, y: f64) -> bool {
+        x >= self.extent[0] && x <= self.extent[1] && y >= self.extent[2] && y <= self.extent[3]
+    }
+
+    /// Plate extent in board coordinates `[x0, x1, y0, y1]`.
+    pub fn plate_extent(&self) -> [f64; 4] {
+        self.extent
+    }
+
+    /// Plate plane in the camera frame (normal into the plate).
+    pub fn plate_plane(&self) -> (Vector3<f64>, f64) {
+        (self.plate_n, self.plate_d)
+    }
+
+    /// Table plane in the camera frame (normal into the table).
+    pub fn table_plane(&self) -> (Vector3<f64>, f64) {
+        (self.plate_n, self.table_d)
+    }
+
+    /// Sphere in the camera frame.
+    pub fn sphere(&self) -> Option<(Vector3<f64>, f64)> {
+        self.sphere
+    }
+
+    /// The first surface a ray `s * dir` (s > 0) hits: `(surface, s)` with surface
+    /// `SURF_PLATE` (plate, circles not distinguished), `SURF_TABLE` or `SURF_SPHERE`.
+    #[inline]
+    pub fn first_hit(&self, dir: &Vector3<f64>) -> Option<(u32, f64)> {
+        let mut best: Option<(u32, f64)> = None;
+        let den = self.plate_n.dot(dir);
+        if den > 1e-12 {
+            let s = self.plate_d / den;
+            if s > 0.0 {
+                let p = dir * s;
+                let (x, y) = self.board_xy(&p);
+                if self.on_plate(x, y) {
+                    best = Some((SURF_PLATE, s));
+                }
+                if best.is_none() {
+                    let st = self.table_d / den;
+                    if st > 0.0 {
+                        best = Some((SURF_TABLE, st));
+                    }
+                }
+            }
+        }
+        if let Some((c, r)) = self.sphere {
+            // |s dir - c|^2 = r^2
+            let a = dir.norm_squared();
+            let b = dir.dot(&c);
+            let cc = c.norm_squared() - r * r;
+            let disc = b * b - a * cc;
+            if disc >= 0.0 {
+                let s = (b - disc.sqrt()) / a;
+                if s > 0.0 && best.is_none_or(|(_, sb)| s < sb) {
+                    best = Some((SURF_SPHERE, s));
+                }
+            }
+        }
+        best
+    }
+
+    /// Outward (towards the camera side) unit normal of a surface at point p.
+    #[inline]
+    pub fn normal_at(&self, surface: u32, p: &Vector3<f64>) -> Vector3<f64> {
+        match (surface, self.sphere) {
+            (SURF_SPHERE, Some((c, r))) => (p - c) / r,
+            _ => -self.plate_n,
+        }
+    }
+
+    /// Whether the emitter sees point p (on `surface`): faces the emitter, no sphere
+    /// in between.
+    #[inline]
+    pub fn lit(&self, surface: u32, p: &Vector3<f64>) -> bool {
+        let e = self.laser.emitter;
+        let to_e = e - p;
+        if self.normal_at(surface, p).dot(&to_e) <= 0.0 {
+            return false;
+        }
+        if surface != SURF_SPHERE {
+            if let Some((c, r)) = self.sphere {
+                // segment p -> e against the sphere
+                let dir = to_e;
+                let oc = p - c;
+                let a = dir.norm_squared();
+                let b = oc.dot(&dir);
+                let cc = oc.norm_squared() - r * r;
+                let disc = b * b - a * cc;
+                if disc > 0.0 {
+                    let sq = disc.sqrt();
+                    let t1 = (-b - sq) / a;
+                    let t2 = (-b + sq) / a;
+                    if (t1 > 1e-9 && t1 < 1.0) || (t2 > 1e-9 && t2 < 1.0) {
+                        return false;
+                    }
+                }
+            }
+        }
+        true
+    }
+
+    /// Laser radiance at point p of `surface` with reflectance `refl`.
+    #[inline]
+    pub fn laser_radiance(&self, surface: u32, p: &Vector3<f64>, refl: f64) -> f64 {
+        let l = &self.laser;
+        let dist = l.plane.signed_distance(p);
+        let z = dist / l.sigma_mm;
+        if z.abs() > 7.0 || l.peak == 0.0 {
+            return 0.0;
+        }
+        if !self.lit(surface, p) {
+            return 0.0;
+        }
+        let to_e = l.emitter - p;
+        let r = to_e.norm();
+        let cos_inc = self.normal_at(surface, p).dot(&to_e) / r;
+        l.peak * refl * cos_inc * (LASER_REF_DISTANCE_MM / r) * (-0.5 * z * z).exp()
+    }
+
+    /// Distance in board coordinates from plate point (x, y) to the nearest reflectance
+    /// edge: a circle border or the plate's edge.
+    pub fn plate_edge_distance(&self, x: f64, y: f64) -> f64 {
+        let b = &self.board;
+        let e = self.extent;
+        let mut d = (x - e[0]).min(e[1] - x).min(y - e[2]).min(e[3] - y);
+        let c0 = (x / b.pitch_mm).round() as i64;
+        let r0 = (y / b.pitch_mm).round() as i64;
+        for r in r0 - 1..=r0 + 1 {
+            for c in c0 - 1..=c0 + 1 {
+                if r < 0 || c < 0 || r >= b.rows as i64 || c >= b.cols as i64 {
+                    continue;
+                }
+                let ctr = b.center(r as usize, c as usize);
+                let rad = 0.5 * b.diameter(r as usize, c as usize);
+                let dist = ((x - ctr.x).powi(2) + (y - ctr.y).powi(2)).sqrt();
+                d = d.min((dist - rad).abs());
+            }
+        }
+        d
+    }
+
+    /// Classifies the footprint of a pixel whose rays all lie within angle `alpha`
+    /// (radians, an upper bound) of its central ray `dir`:
+    /// - [`Footprint::Uniform`]: every ray provably sees the same material with
+    ///   constant reflectance and no laser light, so the pixel's integral equals this
+    ///   one sample exactly;
+    /// - [`Footprint::Edge`]: a material edge, the plate's outline or a silhouette may
+    ///   cross the footprint (needs fine sampling);
+    /// - [`Footprint::Smooth`]: one material, but the laser sheet is near (smooth
+    ///   integrand: regular supersampling is accurate).
+    #[inline]
+    pub fn classify(&self, dir: &Vector3<f64>, alpha: f64) -> Footprint {
+        let Some((surface, s)) = self.first_hit(dir) else {
+            return Footprint::Edge;
+        };
+        let p = dir * s;
+        let range = p.norm();
+        let cos_view = self.normal_at(surface, &p).dot(&(-p / range));
+        if cos_view < 0.1 {
+            return Footprint::Edge;
+        }
+        // Footprint radius on the surface.
+        let rho = range * alpha / cos_view;
+        if let Some((c, r)) = self.sphere {
+            let cn = c.norm();
+            if cn <= r {
+                return Footprint::Edge;
+            }
+            let beta = dir.angle(&c);
+            let gamma = (r / cn).asin();
+            if (beta - gamma).abs() < 1.5 * alpha {
+                return Footprint::Edge;
+            }
+        }
+        match surface {
+            SURF_PLATE => {
+                let (x, y) = self.board_xy(&p);
+                if self.plate_edge_distance(x, y) <= 1.5 * rho {
+                    return Footprint::Edge;
+                }
+            }
+            SURF_TABLE => {
+                // The plate's outline (an occlusion edge) must be outside the footprint.
+                let den = self.plate_n.dot(dir);
+                if den > 1e-12 {
+                    let q = dir * (self.plate_d / den);
+                    let (x, y) = self.board_xy(&q);
+                    let e = self.extent;
+                    let dx = (e[0] - x).max(x - e[1]);
+                    let dy = (e[2] - y).max(y - e[3]);
+                    let outside = if dx > 0.0 && dy > 0.0 {
+                        (dx * dx + dy * dy).sqrt()
+                    } else {
+                        dx.max(dy)
+                    };
+                    let rho_plate = q.norm() * alpha / cos_view;
+                    if outside <= 1.5 * rho_plate {
+                        return Footprint::Edge;
+                    }
+                }
+            }
+            _ => {}
+        }
+        if self.laser.peak > 0.0
+            && self.laser.plane.signed_distance(&p).abs() < 7.0 * self.laser.sigma_mm + 2.0 * rho
+        {
+            return Footprint::Smooth;
+        }
+        let hit = self.shade(dir);
+        if hit.laser == 0.0 {
+            Footprint::Uniform(hit)
+        } else {
+            Footprint::Smooth
+        }
+    }
+
+    /// Shades one ray.
+    #[inline]
+    pub fn shade(&self, dir: &Vector3<f64>) -> Hit {
+        let Some((surface, s)) = self.first_hit(dir) else {
+            return Hit {
+                material: SURF_NONE,
+                s: f64::INFINITY,
+                reflectance: 0.0,
+                laser: 0.0,
+            };
+        };
+        let p = dir * s;
+        let (material, refl) = match surface {
+            SURF_PLATE => {
+                let (x, y) = self.board_xy(&p);
+                match self.board.circle_at(x, y) {
+                    Some((r, c)) => (
+                        SURF_CIRCLE0 + (r * self.board.cols + c) as u32,
+                        self.refl[1],
+                    ),
+                    None => (SURF_PLATE, self.refl[0]),
+                }
+            }
+            SURF_TABLE => (SURF_TABLE, self.refl[2]),
+            _ => (SURF_SPHERE, self.refl[3]),
+        };
+        Hit {
+            material,
+            s,
+            reflectance: refl,
+            laser: self.laser_radiance(surface, &p, refl),
+        }
+    }
+}
