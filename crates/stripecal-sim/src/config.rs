@@ -419,7 +419,11 @@ impl SimConfig {
                 return bad(k, format!("{v} must be finite and >= 0"));
             }
         }
-        if im.laser_sigma_mm.is_nan() || im.laser_sigma_mm <= 0.0 || im.speckle_grain_px.is_nan() || im.speckle_grain_px <= 0.0 {
+        if im.laser_sigma_mm.is_nan()
+            || im.laser_sigma_mm <= 0.0
+            || im.speckle_grain_px.is_nan()
+            || im.speckle_grain_px <= 0.0
+        {
             return bad(
                 "imaging.laser_sigma_mm",
                 "laser sigma and speckle grain must be > 0".into(),

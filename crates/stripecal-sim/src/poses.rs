@@ -179,7 +179,7 @@ impl PoseProblem<'_> {
         let rots: Vec<UnitQuaternion<f64>> = chosen.iter().map(|&i| pool[i].1).collect();
         if count >= 3 {
             let spread = axis_spread(&rots);
-            if spread < 0.02 {
+            if spread < 0.05 {
                 return Err(SimError::Poses(format!(
                     "the sampled poses rotate about nearly parallel axes (axis spread {spread:.3}); \
                      increase poses.max_tilt_deg or max_roll_deg"
@@ -190,8 +190,9 @@ impl PoseProblem<'_> {
     }
 }
 
-/// Smallest-to-largest eigenvalue ratio of the scatter of relative rotation axes
-/// (weighted by angle): near 0 when all relative rotations share one axis.
+/// Middle-to-largest eigenvalue ratio of the scatter of relative rotation axes
+/// (weighted by angle): near 0 when all relative rotations share one axis, which
+/// leaves hand-eye calibration unsolvable.
 pub fn axis_spread(rots: &[UnitQuaternion<f64>]) -> f64 {
     let mut m = Matrix3::zeros();
     for i in 0..rots.len() {
@@ -203,12 +204,12 @@ pub fn axis_spread(rots: &[UnitQuaternion<f64>]) -> f64 {
             }
         }
     }
-    let ev = m.symmetric_eigenvalues();
-    let max = ev.max();
-    if max <= 0.0 {
+    let mut ev: Vec<f64> = m.symmetric_eigenvalues().iter().copied().collect();
+    ev.sort_by(|a, b| b.total_cmp(a));
+    if ev[0] <= 0.0 {
         return 0.0;
     }
-    ev.min() / max
+    ev[1] / ev[0]
 }
 
 fn circle_truth_quick(scene: &ImageScene, cam: &Camera, margin: f64) -> usize {
