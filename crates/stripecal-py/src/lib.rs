@@ -1,1 +1,65 @@
-//! placeholder
+//! Python bindings of stripecal (`stripecal._core`): conversions, GIL release and error
+//! mapping only; every number is computed by the `stripecal` crate.
+//!
+//! Array arguments accept array-likes of real numbers (copied to Rust memory before the
+//! GIL is released); array results are new float64 numpy arrays. Core errors map to
+//! Python exceptions as described in [`errors`].
+
+mod board;
+mod camera;
+mod convert;
+mod errors;
+mod files;
+mod geometry;
+mod results;
+mod rig;
+mod robot;
+
+use pyo3::prelude::*;
+
+pub use board::PyBoard;
+pub use camera::PyCamera;
+pub use errors::{map_err, map_err_at};
+pub use results::{PyCalibration, PySphereFit, PyTruth};
+pub use rig::{PyDataset, PyRig, PyScan};
+pub use robot::PyRobot;
+
+#[pymodule]
+fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    m.setattr("__version__", env!("CARGO_PKG_VERSION"))?;
+    errors::register(m)?;
+    m.add(
+        "CAMERA_PARAM_NAMES",
+        pyo3::types::PyTuple::new(m.py(), stripecal::camera::PARAM_NAMES)?,
+    )?;
+
+    m.add_class::<PyCamera>()?;
+    m.add_class::<PyRobot>()?;
+    m.add_class::<PyBoard>()?;
+    m.add_class::<PyRig>()?;
+    m.add_class::<PyDataset>()?;
+    m.add_class::<PyScan>()?;
+    m.add_class::<PyCalibration>()?;
+    m.add_class::<PyTruth>()?;
+    m.add_class::<PySphereFit>()?;
+
+    m.add_function(wrap_pyfunction!(files::load_rig, m)?)?;
+    m.add_function(wrap_pyfunction!(files::save_rig, m)?)?;
+    m.add_function(wrap_pyfunction!(files::load_dataset, m)?)?;
+    m.add_function(wrap_pyfunction!(files::load_scan, m)?)?;
+    m.add_function(wrap_pyfunction!(files::load_calibration, m)?)?;
+    m.add_function(wrap_pyfunction!(files::save_calibration, m)?)?;
+    m.add_function(wrap_pyfunction!(files::load_truth, m)?)?;
+    m.add_function(wrap_pyfunction!(files::save_truth, m)?)?;
+    m.add_function(wrap_pyfunction!(files::load_sphere_fit, m)?)?;
+    m.add_function(wrap_pyfunction!(files::save_sphere_fit, m)?)?;
+    m.add_function(wrap_pyfunction!(files::read_ply_py, m)?)?;
+    m.add_function(wrap_pyfunction!(files::write_ply_py, m)?)?;
+    m.add_function(wrap_pyfunction!(files::load_image, m)?)?;
+    m.add_function(wrap_pyfunction!(files::save_image, m)?)?;
+
+    m.add_function(wrap_pyfunction!(geometry::rotvec_to_matrix, m)?)?;
+    m.add_function(wrap_pyfunction!(geometry::matrix_to_rotvec, m)?)?;
+    m.add_function(wrap_pyfunction!(geometry::nearest_rotation, m)?)?;
+    Ok(())
+}

@@ -1,0 +1,195 @@
+//! `stripecal.Board`.
+
+use pyo3::prelude::*;
+use stripecal::board::{Board, BoardKind};
+
+use crate::convert::{nd, non_negative};
+use crate::errors::{invalid_input, ResultExt};
+
+/// The calibration target: a `rows x cols` grid of circles, circle (row, col) centred
+/// at board coordinates `(col * pitch_mm, row * pitch_mm, 0)`; board z points into the
+/// plate. `markers` (default the L `(0, 0), (0, 1), (1, 0)`) have the larger
+/// `marker_diameter_mm`.
+#[pyclass(name = "Board", module = "stripecal", frozen, eq)]
+#[derive(Debug, Clone, PartialEq)]
+pub struct PyBoard {
+    pub inner: Board,
+}
+
+impl PyBoard {
+    pub fn new_py(inner: Board) -> Self {
+        PyBoard { inner }
+    }
+}
+
+fn kind_name(k: BoardKind) -> &'static str {
+    match k {
+        BoardKind::Circles => "circles",
+        BoardKind::Chessboard => "chessboard",
+    }
+}
+
+#[pymethods]
+impl PyBoard {
+    #[new]
+    #[pyo3(signature = (rows, cols, pitch_mm, circle_diameter_mm, marker_diameter_mm, markers = None, dark_circles = true, kind = "circles", square_mm = None))]
+    #[allow(clippy::too_many_arguments)]
+    fn new(
+        py: Python<'_>,
+        rows: i64,
+        cols: i64,
+        pitch_mm: f64,
+        circle_diameter_mm: f64,
+        marker_diameter_mm: f64,
+        markers: Option<Vec<(i64, i64)>>,
+        dark_circles: bool,
+        kind: &str,
+        square_mm: Option<f64>,
+    ) -> PyResult<Self> {
+        let kind = match kind {
+            "circles" => BoardKind::Circles,
+            "chessboard" => BoardKind::Chessboard,
+            other => {
+                return Err(invalid_input(
+                    py,
+                    format!("unknown board kind {other:?}: expected \"circles\" or \"chessboard\""),
+                ))
+            }
+        };
+        let markers = match markers {
+            None => Board::default_markers(),
+            Some(ms) => ms
+                .into_iter()
+                .map(|(r, c)| {
+                    Ok([
+                        non_negative(py, r, "marker row")?,
+                        non_negative(py, c, "marker column")?,
+                    ])
+                })
+                .collect::<PyResult<Vec<_>>>()?,
+        };
+        let b = Board {
+            kind,
+            rows: non_negative(py, rows, "rows")?,
+            cols: non_negative(py, cols, "cols")?,
+            pitch_mm,
+            circle_diameter_mm,
+            marker_diameter_mm,
+            markers,
+            dark_circles,
+            square_mm,
+        };
+        b.validate().py_err(py)?;
+        Ok(PyBoard::new_py(b))
+    }
+
+    /// The 8 x 11 board of the `hp3-paper` preset (pitch 5, circles 2.5, markers 3.5 mm).
+    #[staticmethod]
+    fn hp3_paper() -> Self {
+        PyBoard::new_py(Board::hp3_paper())
+    }
+
+    /// `"circles"` or `"chessboard"` (reserved).
+    #[getter]
+    fn kind(&self) -> &'static str {
+        kind_name(self.inner.kind)
+    }
+
+    /// Grid rows (circles along board y).
+    #[getter]
+    fn rows(&self) -> usize {
+        self.inner.rows
+    }
+
+    /// Grid columns (circles along board x).
+    #[getter]
+    fn cols(&self) -> usize {
+        self.inner.cols
+    }
+
+    /// Centre-to-centre distance, mm.
+    #[getter]
+    fn pitch_mm(&self) -> f64 {
+        self.inner.pitch_mm
+    }
+
+    /// Diameter of ordinary circles, mm.
+    #[getter]
+    fn circle_diameter_mm(&self) -> f64 {
+        self.inner.circle_diameter_mm
+    }
+
+    /// Diameter of marker circles, mm.
+    #[getter]
+    fn marker_diameter_mm(&self) -> f64 {
+        self.inner.marker_diameter_mm
+    }
+
+    /// Marker circles as `(row, col)`.
+    #[getter]
+    fn markers(&self) -> Vec<(usize, usize)> {
+        self.inner.markers.iter().map(|m| (m[0], m[1])).collect()
+    }
+
+    /// Dark circles on a light plate (True) or light on dark.
+    #[getter]
+    fn dark_circles(&self) -> bool {
+        self.inner.dark_circles
+    }
+
+    /// Chessboard square size in mm (chessboards only).
+    #[getter]
+    fn square_mm(&self) -> Option<f64> {
+        self.inner.square_mm
+    }
+
+    /// Circle centres in board coordinates (mm), shape (rows * cols, 3), row-major.
+    fn centers<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
+        let b = &self.inner;
+        let data = b
+            .indices()
+            .flat_map(|(r, c)| {
+                let p = b.center(r, c);
+                [p.x, p.y, p.z]
+            })
+            .collect();
+        nd(py, &[b.len(), 3], data)
+    }
+
+    /// `(row, col)` of every circle, shape (rows * cols, 2), int64, same order as
+    /// `centers()`.
+    fn indices<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
+        let b = &self.inner;
+        let data: Vec<i64> = b
+            .indices()
+            .flat_map(|(r, c)| [r as i64, c as i64])
+            .collect();
+        nd(py, &[b.len(), 2], data)
+    }
+
+    /// Circle diameters (mm), shape (rows * cols,), same order as `centers()`.
+    fn diameters<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
+        let b = &self.inner;
+        let data = b.indices().map(|(r, c)| b.diameter(r, c)).collect();
+        nd(py, &[b.len()], data)
+    }
+
+    fn __len__(&self) -> usize {
+        self.inner.len()
+    }
+
+    fn __repr__(&self) -> String {
+        let b = &self.inner;
+        format!(
+            "Board(rows={}, cols={}, pitch_mm={:?}, circle_diameter_mm={:?}, marker_diameter_mm={:?}, markers={:?}, dark_circles={}, kind='{}')",
+            b.rows,
+            b.cols,
+            b.pitch_mm,
+            b.circle_diameter_mm,
+            b.marker_diameter_mm,
+            self.markers(),
+            if b.dark_circles { "True" } else { "False" },
+            kind_name(b.kind)
+        )
+    }
+}

@@ -1,0 +1,428 @@
+//! `stripecal.Calibration`, `stripecal.Truth`, `stripecal.SphereFit`.
+
+use std::path::{Path, PathBuf};
+
+use nalgebra::Vector3;
+use pyo3::exceptions::PyTypeError;
+use pyo3::prelude::*;
+use pyo3::types::{PyDict, PyTuple};
+use stripecal::geometry::Plane;
+use stripecal::io::{
+    calibration_from_json, calibration_to_json, truth_from_json, truth_to_json, write_calibration,
+    write_sphere_fit, write_truth, Calibration, Quality, Sphere, SphereFit, Truth,
+};
+
+use crate::camera::PyCamera;
+use crate::convert::{fixed, iso_to_py, map_to_py, nd, opt_dict_to_map, py_to_iso};
+use crate::errors::{invalid_input, ResultExt};
+use crate::robot::PyRobot;
+
+/// `(normal, d_mm)` -> a plane (normalised, `d >= 0`).
+fn plane_from_py(py: Python<'_>, obj: &Bound<'_, PyAny>) -> PyResult<Plane> {
+    let t = obj
+        .cast::<PyTuple>()
+        .ok()
+        .filter(|t| t.len() == 2)
+        .ok_or_else(|| {
+            PyTypeError::new_err(
+                "laser_plane must be a tuple (normal (3,), d_mm) with n . p = d_mm",
+            )
+        })?;
+    let n = fixed::<3>(&t.get_item(0)?, "laser_plane normal")?;
+    let d: f64 = t.get_item(1)?.extract()?;
+    Plane::new(Vector3::from(n), d).py_err(py)
+}
+
+fn plane_to_py<'py>(py: Python<'py>, p: &Plane) -> PyResult<Bound<'py, PyTuple>> {
+    let n = nd(py, &[3], vec![p.normal.x, p.normal.y, p.normal.z])?;
+    PyTuple::new(py, [n, p.d.into_pyobject(py)?.into_any()])
+}
+
+fn quality_from_py(py: Python<'_>, d: Option<&Bound<'_, PyDict>>) -> PyResult<Quality> {
+    let mut q = Quality::default();
+    let Some(d) = d else { return Ok(q) };
+    for (k, v) in d.iter() {
+        let key: String = k.extract()?;
+        match key.as_str() {
+            "circle_rms_px" => q.circle_rms_px = v.extract()?,
+            "stripe_rms_px" => q.stripe_rms_px = v.extract()?,
+            "views_used" => q.views_used = v.extract()?,
+            other => {
+                return Err(invalid_input(
+                    py,
+                    format!(
+                        "quality: unknown key {other:?} (expected circle_rms_px, stripe_rms_px, views_used)"
+                    ),
+                ))
+            }
+        }
+    }
+    Ok(q)
+}
+
+fn quality_to_py<'py>(py: Python<'py>, q: &Quality) -> PyResult<Bound<'py, PyDict>> {
+    let d = PyDict::new(py);
+    d.set_item("circle_rms_px", q.circle_rms_px)?;
+    d.set_item("stripe_rms_px", q.stripe_rms_px)?;
+    d.set_item("views_used", q.views_used)?;
+    Ok(d)
+}
+
+/// A calibration result (calibration.json): camera, laser plane `n . p = d_mm` in the
+/// camera frame, `T_hand_cam` (X), `T_base_board` (Z), the robot used, quality figures
+/// and one-sigma uncertainties.
+#[pyclass(name = "Calibration", module = "stripecal", frozen, eq)]
+#[derive(Debug, Clone, PartialEq)]
+pub struct PyCalibration {
+    pub inner: Calibration,
+}
+
+#[pymethods]
+impl PyCalibration {
+    #[new]
+    #[pyo3(signature = (camera, laser_plane, hand_cam, base_board, robot = None, quality = None, uncertainty = None, extra = None))]
+    #[allow(clippy::too_many_arguments)]
+    fn new(
+        py: Python<'_>,
+        camera: &Bound<'_, PyCamera>,
+        laser_plane: &Bound<'_, PyAny>,
+        hand_cam: &Bound<'_, PyAny>,
+        base_board: &Bound<'_, PyAny>,
+        robot: Option<&Bound<'_, PyRobot>>,
+        quality: Option<&Bound<'_, PyDict>>,
+        uncertainty: Option<&Bound<'_, PyDict>>,
+        extra: Option<&Bound<'_, PyDict>>,
+    ) -> PyResult<Self> {
+        Ok(PyCalibration {
+            inner: Calibration {
+                camera: camera.get().inner.clone(),
+                laser_plane: plane_from_py(py, laser_plane)?,
+                hand_cam: py_to_iso(hand_cam, "hand_cam")?,
+                base_board: py_to_iso(base_board, "base_board")?,
+                robot: robot.map(|r| r.get().inner.clone()),
+                quality: quality_from_py(py, quality)?,
+                uncertainty: opt_dict_to_map(uncertainty, "uncertainty")?,
+                extra: opt_dict_to_map(extra, "extra")?,
+            },
+        })
+    }
+
+    /// The calibrated camera.
+    #[getter]
+    fn camera(&self) -> PyCamera {
+        PyCamera::new_py(self.inner.camera.clone())
+    }
+
+    /// `(normal (3,), d_mm)`: the laser plane `normal . p = d_mm` in the camera frame.
+    #[getter]
+    fn laser_plane<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyTuple>> {
+        plane_to_py(py, &self.inner.laser_plane)
+    }
+
+    /// `T_hand_cam` (the paper's X), shape (4, 4), mm.
+    #[getter]
+    fn hand_cam<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
+        iso_to_py(py, &self.inner.hand_cam)
+    }
+
+    /// `T_base_board` (the paper's Z), shape (4, 4), mm.
+    #[getter]
+    fn base_board<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
+        iso_to_py(py, &self.inner.base_board)
+    }
+
+    /// The DH table used (refined if the robot was calibrated), or None.
+    #[getter]
+    fn robot(&self) -> Option<PyRobot> {
+        self.inner.robot.clone().map(PyRobot::new_py)
+    }
+
+    /// `{"circle_rms_px": float, "stripe_rms_px": float, "views_used": int}`.
+    #[getter]
+    fn quality<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
+        quality_to_py(py, &self.inner.quality)
+    }
+
+    /// One-sigma values, mirroring the estimated values' keys (JSON-like dict).
+    #[getter]
+    fn uncertainty<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
+        map_to_py(py, &self.inner.uncertainty)
+    }
+
+    /// Other top-level keys of calibration.json (JSON-like dict).
+    #[getter]
+    fn extra<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
+        map_to_py(py, &self.inner.extra)
+    }
+
+    /// Writes calibration.json (atomically).
+    fn save(&self, py: Python<'_>, path: PathBuf) -> PyResult<()> {
+        let c = &self.inner;
+        py.detach(|| write_calibration(&path, c)).py_err(py)
+    }
+
+    /// The calibration.json text.
+    fn to_json(&self) -> String {
+        calibration_to_json(&self.inner)
+    }
+
+    /// A calibration from calibration.json text (errors name `<string>` as the file).
+    #[staticmethod]
+    fn from_json(py: Python<'_>, text: &str) -> PyResult<Self> {
+        calibration_from_json(Path::new("<string>"), text)
+            .py_err(py)
+            .map(|inner| PyCalibration { inner })
+    }
+
+    fn __repr__(&self) -> String {
+        let c = &self.inner;
+        format!(
+            "Calibration(camera={}x{} fu={:.3} fv={:.3}, laser_plane d_mm={:.3}, circle_rms_px={:.4}, views_used={})",
+            c.camera.width,
+            c.camera.height,
+            c.camera.fu,
+            c.camera.fv,
+            c.laser_plane.d,
+            c.quality.circle_rms_px,
+            c.quality.views_used
+        )
+    }
+}
+
+fn sphere_from_py(py: Python<'_>, d: Option<&Bound<'_, PyDict>>) -> PyResult<Option<Sphere>> {
+    let Some(d) = d else { return Ok(None) };
+    let (Some(c), Some(dia)) = (d.get_item("center_mm")?, d.get_item("diameter_mm")?) else {
+        return Err(invalid_input(
+            py,
+            "sphere must be a dict {\"center_mm\": (3,), \"diameter_mm\": float}",
+        ));
+    };
+    if d.len() != 2 {
+        return Err(invalid_input(
+            py,
+            "sphere must have exactly the keys center_mm and diameter_mm",
+        ));
+    }
+    Ok(Some(Sphere {
+        center_mm: Vector3::from(fixed::<3>(&c, "sphere center_mm")?),
+        diameter_mm: dia.extract()?,
+    }))
+}
+
+fn sphere_to_py<'py>(py: Python<'py>, s: &Sphere) -> PyResult<Bound<'py, PyDict>> {
+    let d = PyDict::new(py);
+    d.set_item(
+        "center_mm",
+        nd(py, &[3], vec![s.center_mm.x, s.center_mm.y, s.center_mm.z])?,
+    )?;
+    d.set_item("diameter_mm", s.diameter_mm)?;
+    Ok(d)
+}
+
+/// Ground truth written by simulators (truth.json): the true camera, laser plane,
+/// `T_hand_cam`, `T_base_board`, robot, and for scans the sphere.
+#[pyclass(name = "Truth", module = "stripecal", frozen, eq)]
+#[derive(Debug, Clone, PartialEq)]
+pub struct PyTruth {
+    pub inner: Truth,
+}
+
+#[pymethods]
+impl PyTruth {
+    #[new]
+    #[pyo3(signature = (camera, laser_plane, hand_cam, base_board, robot = None, sphere = None, working_range_mm = None, extra = None))]
+    #[allow(clippy::too_many_arguments)]
+    fn new(
+        py: Python<'_>,
+        camera: &Bound<'_, PyCamera>,
+        laser_plane: &Bound<'_, PyAny>,
+        hand_cam: &Bound<'_, PyAny>,
+        base_board: &Bound<'_, PyAny>,
+        robot: Option<&Bound<'_, PyRobot>>,
+        sphere: Option<&Bound<'_, PyDict>>,
+        working_range_mm: Option<(f64, f64)>,
+        extra: Option<&Bound<'_, PyDict>>,
+    ) -> PyResult<Self> {
+        Ok(PyTruth {
+            inner: Truth {
+                camera: camera.get().inner.clone(),
+                laser_plane: plane_from_py(py, laser_plane)?,
+                hand_cam: py_to_iso(hand_cam, "hand_cam")?,
+                base_board: py_to_iso(base_board, "base_board")?,
+                robot: robot.map(|r| r.get().inner.clone()),
+                sphere: sphere_from_py(py, sphere)?,
+                working_range_mm: working_range_mm.map(|(a, b)| [a, b]),
+                extra: opt_dict_to_map(extra, "extra")?,
+            },
+        })
+    }
+
+    /// The true camera.
+    #[getter]
+    fn camera(&self) -> PyCamera {
+        PyCamera::new_py(self.inner.camera.clone())
+    }
+
+    /// `(normal (3,), d_mm)` in the camera frame.
+    #[getter]
+    fn laser_plane<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyTuple>> {
+        plane_to_py(py, &self.inner.laser_plane)
+    }
+
+    /// True `T_hand_cam`, shape (4, 4).
+    #[getter]
+    fn hand_cam<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
+        iso_to_py(py, &self.inner.hand_cam)
+    }
+
+    /// True `T_base_board`, shape (4, 4).
+    #[getter]
+    fn base_board<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
+        iso_to_py(py, &self.inner.base_board)
+    }
+
+    /// The robot's TRUE DH table, or None.
+    #[getter]
+    fn robot(&self) -> Option<PyRobot> {
+        self.inner.robot.clone().map(PyRobot::new_py)
+    }
+
+    /// `{"center_mm": (3,), "diameter_mm": float}` for scans, else None.
+    #[getter]
+    fn sphere<'py>(&self, py: Python<'py>) -> PyResult<Option<Bound<'py, PyDict>>> {
+        self.inner
+            .sphere
+            .as_ref()
+            .map(|s| sphere_to_py(py, s))
+            .transpose()
+    }
+
+    /// `(near, far)` stand-offs in mm the rig is meant for, or None.
+    #[getter]
+    fn working_range_mm(&self) -> Option<(f64, f64)> {
+        self.inner.working_range_mm.map(|[a, b]| (a, b))
+    }
+
+    /// Simulator-specific keys (JSON-like dict).
+    #[getter]
+    fn extra<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
+        map_to_py(py, &self.inner.extra)
+    }
+
+    /// Writes truth.json (atomically).
+    fn save(&self, py: Python<'_>, path: PathBuf) -> PyResult<()> {
+        let t = &self.inner;
+        py.detach(|| write_truth(&path, t)).py_err(py)
+    }
+
+    /// The truth.json text.
+    fn to_json(&self) -> String {
+        truth_to_json(&self.inner)
+    }
+
+    /// Truth from truth.json text (errors name `<string>` as the file).
+    #[staticmethod]
+    fn from_json(py: Python<'_>, text: &str) -> PyResult<Self> {
+        truth_from_json(Path::new("<string>"), text)
+            .py_err(py)
+            .map(|inner| PyTruth { inner })
+    }
+
+    fn __repr__(&self) -> String {
+        let t = &self.inner;
+        format!(
+            "Truth(camera={}x{} fu={:.3} fv={:.3}, laser_plane d_mm={:.3}, sphere={})",
+            t.camera.width,
+            t.camera.height,
+            t.camera.fu,
+            t.camera.fv,
+            t.laser_plane.d,
+            t.sphere
+                .map(|s| format!("diameter_mm={:.4}", s.diameter_mm))
+                .unwrap_or_else(|| "None".into())
+        )
+    }
+}
+
+/// A sphere fit: diameter, centre, RMS residual (mm), inliers used and outliers.
+#[pyclass(name = "SphereFit", module = "stripecal", frozen, eq)]
+#[derive(Debug, Clone, PartialEq)]
+pub struct PySphereFit {
+    pub inner: SphereFit,
+}
+
+#[pymethods]
+impl PySphereFit {
+    #[new]
+    #[pyo3(signature = (diameter_mm, center_mm, rms_mm, points, outliers, extra = None))]
+    fn new(
+        diameter_mm: f64,
+        center_mm: &Bound<'_, PyAny>,
+        rms_mm: f64,
+        points: usize,
+        outliers: usize,
+        extra: Option<&Bound<'_, PyDict>>,
+    ) -> PyResult<Self> {
+        Ok(PySphereFit {
+            inner: SphereFit {
+                diameter_mm,
+                center_mm: Vector3::from(fixed::<3>(center_mm, "center_mm")?),
+                rms_mm,
+                points,
+                outliers,
+                extra: opt_dict_to_map(extra, "extra")?,
+            },
+        })
+    }
+
+    /// Fitted diameter, mm.
+    #[getter]
+    fn diameter_mm(&self) -> f64 {
+        self.inner.diameter_mm
+    }
+
+    /// Fitted centre, shape (3,), mm.
+    #[getter]
+    fn center_mm<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
+        let c = self.inner.center_mm;
+        nd(py, &[3], vec![c.x, c.y, c.z])
+    }
+
+    /// RMS of the radial residuals of the inliers, mm.
+    #[getter]
+    fn rms_mm(&self) -> f64 {
+        self.inner.rms_mm
+    }
+
+    /// Number of inliers the fit used.
+    #[getter]
+    fn points(&self) -> usize {
+        self.inner.points
+    }
+
+    /// Number of points rejected as outliers.
+    #[getter]
+    fn outliers(&self) -> usize {
+        self.inner.outliers
+    }
+
+    /// Other keys (JSON-like dict).
+    #[getter]
+    fn extra<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
+        map_to_py(py, &self.inner.extra)
+    }
+
+    /// Writes the sphere fit JSON (atomically).
+    fn save(&self, py: Python<'_>, path: PathBuf) -> PyResult<()> {
+        let s = &self.inner;
+        py.detach(|| write_sphere_fit(&path, s)).py_err(py)
+    }
+
+    fn __repr__(&self) -> String {
+        let s = &self.inner;
+        format!(
+            "SphereFit(diameter_mm={:?}, center_mm=[{:?}, {:?}, {:?}], rms_mm={:?}, points={}, outliers={})",
+            s.diameter_mm, s.center_mm.x, s.center_mm.y, s.center_mm.z, s.rms_mm, s.points, s.outliers
+        )
+    }
+}

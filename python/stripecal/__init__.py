@@ -1,0 +1,91 @@
+"""stripecal: calibration and measurement for a robot-mounted laser-stripe sensor.
+
+One camera and one laser plane carried by a 6-axis robot: calibrate the camera, the laser
+plane, the hand-eye transform ``T_hand_cam`` and the robot-world transform
+``T_base_board`` from images of a circle board, then turn stripe images and joint
+readings into 3D points in the robot base frame.
+
+All numerics run in the Rust core (``stripecal._core``); this package re-exports its
+API. Conventions (frames, units, pixel centres, camera model, laser plane, DH): see
+docs/conventions.md. In short: lengths in mm, angles in degrees (rotation vectors in
+radians), ``T_a_b`` maps frame b to frame a, the top-left pixel's centre is (0, 0).
+
+Errors: ``StripecalError`` is the base class of the library's own errors;
+``FormatError`` (bad file), ``InvalidInputError`` (bad argument) and
+``DegenerateError`` (impossible geometry) are also ``ValueError``;
+``ConvergenceError`` is also ``RuntimeError``. File-system failures raise the builtin
+``OSError`` subclasses (``FileNotFoundError``...). Array arguments of the wrong type
+raise ``TypeError``.
+"""
+
+from stripecal._core import (
+    CAMERA_PARAM_NAMES,
+    Board,
+    Calibration,
+    Camera,
+    ConvergenceError,
+    Dataset,
+    DegenerateError,
+    FormatError,
+    InvalidInputError,
+    Rig,
+    Robot,
+    Scan,
+    SphereFit,
+    StripecalError,
+    Truth,
+    __version__,
+    load_calibration,
+    load_dataset,
+    load_image,
+    load_rig,
+    load_scan,
+    load_sphere_fit,
+    load_truth,
+    matrix_to_rotvec,
+    nearest_rotation,
+    read_ply,
+    rotvec_to_matrix,
+    save_calibration,
+    save_image,
+    save_rig,
+    save_sphere_fit,
+    save_truth,
+    write_ply,
+)
+
+__all__ = [
+    "CAMERA_PARAM_NAMES",
+    "Board",
+    "Calibration",
+    "Camera",
+    "ConvergenceError",
+    "Dataset",
+    "DegenerateError",
+    "FormatError",
+    "InvalidInputError",
+    "Rig",
+    "Robot",
+    "Scan",
+    "SphereFit",
+    "StripecalError",
+    "Truth",
+    "__version__",
+    "load_calibration",
+    "load_dataset",
+    "load_image",
+    "load_rig",
+    "load_scan",
+    "load_sphere_fit",
+    "load_truth",
+    "matrix_to_rotvec",
+    "nearest_rotation",
+    "read_ply",
+    "rotvec_to_matrix",
+    "save_calibration",
+    "save_image",
+    "save_rig",
+    "save_sphere_fit",
+    "save_truth",
+    "write_ply",
+]

@@ -1,0 +1,28 @@
+#!/usr/bin/env bash
+# Builds and installs stripecal with its test extras, then runs every test: the Rust
+# workspace's tests and the Python tests. Works from a fresh clone; fails on the first
+# failing step.
+#
+#   bash scripts/test.sh            (PYTHON=python3.12 bash scripts/test.sh for another interpreter)
+set -euo pipefail
+cd "$(dirname "$0")/.."
+
+PYTHON="${PYTHON:-python}"
+# Build the extension with cargo's dev profile, into the same target/ directory as
+# `cargo test`, so the two builds share the workspace's compiled dependencies.
+export MATURIN_PEP517_ARGS="${MATURIN_PEP517_ARGS:---profile dev}"
+export PIP_DISABLE_PIP_VERSION_CHECK=1 PIP_ROOT_USER_ACTION=ignore
+
+start=$SECONDS
+step() { printf '\n==> %s  (%ss)\n' "$*" "$((SECONDS - start))"; }
+
+step "pip install -e '.[test]'  (builds stripecal._core with maturin)"
+"$PYTHON" -m pip install --quiet -e '.[test]'
+
+step "cargo test  (default members; the pyo3 crate has no test binary)"
+cargo test --quiet
+
+step "pytest"
+"$PYTHON" -m pytest -q
+
+step "all tests passed"
