@@ -53,6 +53,7 @@ from stripecal._core import (
     save_truth,
     write_ply,
 )
+from stripecal import sim
 
 __all__ = [
     "CAMERA_PARAM_NAMES",
@@ -87,5 +88,6 @@ __all__ = [
     "save_rig",
     "save_sphere_fit",
     "save_truth",
+    "sim",
     "write_ply",
 ]

@@ -9,13 +9,18 @@ The CLI only parses arguments, calls the library and prints: no numerics here.
 from __future__ import annotations
 
 import argparse
+import json
+import os
 import platform
 import sys
-from typing import Callable, List, Optional, Sequence
+import time
+from typing import Any, Callable, Dict, List, Optional, Sequence, Tuple
 
 import numpy as np
 
 import stripecal
+import stripecal.sim
+from stripecal._progress import Progress
 
 
 def cmd_info(args: argparse.Namespace) -> int:
@@ -34,8 +39,159 @@ def _add_info(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     p.set_defaults(func=cmd_info)
 
 
+def _set_path(d: Dict[str, Any], dotted: str, value: Any) -> None:
+    keys = dotted.split(".")
+    for k in keys[:-1]:
+        d = d.setdefault(k, {})
+        if not isinstance(d, dict):
+            raise stripecal.InvalidInputError(f"--set {dotted}: {k} is not a group of knobs")
+    d[keys[-1]] = value
+
+
+def _overrides(args: argparse.Namespace) -> Dict[str, Any]:
+    """The configuration overrides named by the simulate/demo options."""
+    over: Dict[str, Any] = {}
+    if getattr(args, "config", None):
+        with open(args.config, encoding="utf-8") as f:
+            try:
+                loaded = json.load(f)
+            except json.JSONDecodeError as e:
+                raise stripecal.FormatError(f"{args.config}: line {e.lineno}: {e.msg}") from None
+        if not isinstance(loaded, dict):
+            raise stripecal.FormatError(f"{args.config}: expected a JSON object of knobs")
+        over.update(loaded)
+    simple = [
+        ("seed", "seed"),
+        ("poses", "poses.count"),
+        ("noise", "imaging.noise_gray"),
+        ("psf", "imaging.psf_sigma_px"),
+        ("bit_depth", "imaging.bit_depth"),
+        ("scan_step", "scan.step_mm"),
+        ("scan_frames", "scan.max_frames"),
+    ]
+    for attr, path in simple:
+        v = getattr(args, attr, None)
+        if v is not None:
+            _set_path(over, path, v)
+    if getattr(args, "single_image", False):
+        _set_path(over, "imaging.single_image", True)
+    if getattr(args, "no_scan", False):
+        _set_path(over, "scan.enabled", False)
+    if getattr(args, "distortion", None):
+        try:
+            k = [float(x) for x in args.distortion.split(",")]
+        except ValueError:
+            raise stripecal.InvalidInputError(f"--distortion {args.distortion!r}: expected 5 numbers k1,k2,p1,p2,k3") from None
+        if len(k) != 5:
+            raise stripecal.InvalidInputError(f"--distortion: expected 5 numbers k1,k2,p1,p2,k3, got {len(k)}")
+        _set_path(over, "camera.distortion", k)
+    for item in getattr(args, "set", None) or []:
+        key, sep, text = item.partition("=")
+        if not sep or not key:
+            raise stripecal.InvalidInputError(f"--set {item!r}: expected KEY=VALUE, e.g. imaging.noise_gray=2")
+        try:
+            value = json.loads(text)
+        except json.JSONDecodeError:
+            value = text  # a bare string, e.g. camera.distortion_model=opencv5
+        _set_path(over, key, value)
+    return over
+
+
+def _add_knobs(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--preset", default="hp3-paper", choices=stripecal.sim.presets(), help="starting configuration (default hp3-paper)")
+    p.add_argument("--seed", type=int, help="random seed: poses and noise (default 0)")
+    p.add_argument("--poses", type=int, metavar="N", help="number of calibration views")
+    p.add_argument("--noise", type=float, metavar="GRAY", help="read noise sigma in 8-bit gray levels")
+    p.add_argument("--psf", type=float, metavar="PX", help="Gaussian PSF sigma in pixels")
+    p.add_argument("--bit-depth", type=int, choices=[8, 16], help="image bit depth")
+    p.add_argument("--single-image", action="store_true", help="one image per view holding circles and stripe")
+    p.add_argument("--distortion", metavar="K1,K2,P1,P2,K3", help="true distortion coefficients")
+    p.add_argument("--no-scan", action="store_true", help="render the calibration dataset only")
+    p.add_argument("--scan-step", type=float, metavar="MM", help="sensor travel between scan frames")
+    p.add_argument("--scan-frames", type=int, metavar="N", help="cap on the number of scan frames")
+    p.add_argument("--config", metavar="FILE.json", help="a JSON object of knobs merged over the preset")
+    p.add_argument("--set", action="append", metavar="KEY=VALUE", help="any knob by its dotted path, value as JSON (repeatable), e.g. --set imaging.vignetting=0.3")
+    p.add_argument("--print-config", action="store_true", help="print the full configuration and exit")
+
+
+def _render(args: argparse.Namespace, out: str) -> Tuple[stripecal.sim.Twin, Dict[str, Any]]:
+    cfg = stripecal.sim.preset(args.preset, _overrides(args))
+    twin = stripecal.sim.Twin(cfg)
+    summary = twin.write(out, Progress())
+    return twin, summary
+
+
+def _print_summary(twin: stripecal.sim.Twin, summary: Dict[str, Any], elapsed: float) -> None:
+    cfg = twin.config
+    cam = twin.camera
+    print(f"preset {cfg['preset']}, seed {cfg['seed']}: camera {cam.width} x {cam.height}, "
+          f"board {cfg['board']['rows']} x {cfg['board']['cols']} (pitch {cfg['board']['pitch_mm']} mm), "
+          f"robot {twin.robot_nominal.name}; rendered in {elapsed:.1f} s")
+    views = summary["views"]
+    total = summary["circles_total"]
+    print(f"\ncalibration views: {len(views)} (board image + laser image each"
+          f"{'; single-image mode: one image holds both' if cfg['imaging']['single_image'] else ''})")
+    dof = len(views[0]["q_deg"]) if views else 0
+    header = "  view  " + " ".join(f"{'q' + str(i + 1):>8}" for i in range(dof))
+    print(header + "   stand-off   tilt   circles   stripe on board")
+    for i, v in enumerate(views):
+        q = " ".join(f"{x:8.2f}" for x in v["q_deg"])
+        print(f"  {i:>4}  {q}   {v['standoff_mm']:6.1f} mm  {v['tilt_deg']:4.1f} deg"
+              f"  {v['circles_visible']:>3}/{total:<3}  {v['stripe_points_on_board']:>4} px {summary['stripe_direction']}")
+    print("  (joint readings in degrees; stand-off along the optical axis to the board plane;"
+          " tilt between optical axis and board normal)")
+    if summary["scan_dir"] is not None:
+        sp = summary["sphere"]
+        c = sp["center_mm"]
+        print(f"\nball scan: {summary['scan_frames']} stripe images, sensor moving in a straight line in "
+              f"{cfg['scan']['step_mm']} mm steps; ball diameter {sp['diameter_mm']} mm at "
+              f"({c[0]:.2f}, {c[1]:.2f}, {c[2]:.2f}) mm in the base frame; "
+              f"{summary['scan_sphere_points']} stripe points on the ball in all")
+    print(f"\nwrote {summary['calib_dir']}  (rig.json, views.csv, images/, truth.json)")
+    if summary["scan_dir"] is not None:
+        print(f"wrote {summary['scan_dir']}  (rig.json, scan.csv, images/, truth.json)")
+
+
+def cmd_simulate(args: argparse.Namespace) -> int:
+    """Renders a calibration dataset (OUT/calib) and a ball scan (OUT/scan) of the digital
+    twin, exactly in the files of spec/DATASET.md, with the ground truth in truth.json."""
+    if args.print_config:
+        print(json.dumps(stripecal.sim.preset(args.preset, _overrides(args)), indent=2))
+        return 0
+    t0 = time.monotonic()
+    twin, summary = _render(args, args.out)
+    _print_summary(twin, summary, time.monotonic() - t0)
+    return 0
+
+
+def _add_simulate(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
+    p = sub.add_parser("simulate", help="render a twin dataset with known truth", description=cmd_simulate.__doc__)
+    p.add_argument("out", metavar="OUT", help="output folder (OUT/calib, OUT/scan are replaced)")
+    _add_knobs(p)
+    p.set_defaults(func=cmd_simulate)
+
+
+def cmd_demo(args: argparse.Namespace) -> int:
+    """Renders the paper's rig (the hp3-paper twin: 5 calibration poses and a ball scan)
+    and prints what it made and where."""
+    t0 = time.monotonic()
+    print(f"stripecal demo: rendering the {args.preset} digital twin into {os.path.abspath(args.out)}")
+    twin, summary = _render(args, args.out)
+    _print_summary(twin, summary, time.monotonic() - t0)
+    return 0
+
+
+def _add_demo(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
+    p = sub.add_parser("demo", help="render the paper's rig and show what it holds", description=cmd_demo.__doc__)
+    p.add_argument("--out", default="stripecal-demo", help="output folder (default ./stripecal-demo)")
+    _add_knobs(p)
+    p.set_defaults(func=cmd_demo)
+
+
 _SUBCOMMANDS: List[Callable[[argparse._SubParsersAction[argparse.ArgumentParser]], None]] = [
     _add_info,
+    _add_simulate,
+    _add_demo,
 ]
 
 

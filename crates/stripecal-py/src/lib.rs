@@ -11,9 +11,11 @@ mod convert;
 mod errors;
 mod files;
 mod geometry;
+mod imageview;
 mod results;
 mod rig;
 mod robot;
+mod sim;
 
 use pyo3::prelude::*;
 
@@ -61,5 +63,9 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(geometry::rotvec_to_matrix, m)?)?;
     m.add_function(wrap_pyfunction!(geometry::matrix_to_rotvec, m)?)?;
     m.add_function(wrap_pyfunction!(geometry::nearest_rotation, m)?)?;
+
+    m.add_class::<sim::PyTwin>()?;
+    m.add_function(wrap_pyfunction!(sim::sim_presets, m)?)?;
+    m.add_function(wrap_pyfunction!(sim::sim_config, m)?)?;
     Ok(())
 }

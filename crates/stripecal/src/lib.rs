@@ -29,6 +29,7 @@ pub mod geometry;
 pub mod image;
 pub mod io;
 pub mod kinematics;
+pub mod vision;
 
 pub use board::{Board, BoardKind};
 pub use camera::{Camera, DistortionModel};

@@ -1,0 +1,64 @@
+//! Images from numpy: 2D `uint8` / `uint16` arrays (any strides) copied into an owned
+//! gray image, so the GIL can be released while Rust works on it.
+
+use numpy::{
+    PyArrayDescrMethods, PyArrayDyn, PyArrayMethods, PyUntypedArray, PyUntypedArrayMethods,
+};
+use pyo3::exceptions::PyTypeError;
+use pyo3::prelude::*;
+
+use stripecal::image::{AnyGray, GrayImage};
+
+use crate::convert::type_name;
+use crate::errors::invalid_input;
+
+fn copy<T: numpy::Element + Copy>(a: &Bound<'_, PyUntypedArray>) -> PyResult<GrayImage<T>> {
+    let arr = a.cast::<PyArrayDyn<T>>()?;
+    let ro = arr.try_readonly()?;
+    let view = ro.as_array();
+    let (h, w) = (view.shape()[0], view.shape()[1]);
+    Ok(GrayImage {
+        width: w,
+        height: h,
+        data: view.iter().copied().collect(),
+    })
+}
+
+/// `image` (a 2D uint8/uint16 numpy array) as an owned gray image. Other dtypes are a
+/// `TypeError`; other shapes or an empty image an `InvalidInputError` naming `name`.
+#[allow(dead_code)] // used by the vision bindings (issue 3), in progress
+pub fn gray_from_py(obj: &Bound<'_, PyAny>, name: &str) -> PyResult<AnyGray> {
+    let py = obj.py();
+    let Ok(a) = obj.cast::<PyUntypedArray>() else {
+        return Err(PyTypeError::new_err(format!(
+            "{name} must be a 2D numpy array of uint8 or uint16, got {}",
+            type_name(obj)
+        )));
+    };
+    if a.ndim() != 2 {
+        return Err(invalid_input(
+            py,
+            format!(
+                "{name} must be a 2D array (rows, columns), got shape {:?}",
+                a.shape()
+            ),
+        ));
+    }
+    if a.shape().contains(&0) {
+        return Err(invalid_input(
+            py,
+            format!("{name} is empty (shape {:?})", a.shape()),
+        ));
+    }
+    let dt = a.dtype();
+    if dt.is_equiv_to(&numpy::dtype::<u8>(py)) {
+        Ok(AnyGray::U8(copy::<u8>(a)?))
+    } else if dt.is_equiv_to(&numpy::dtype::<u16>(py)) {
+        Ok(AnyGray::U16(copy::<u16>(a)?))
+    } else {
+        Err(PyTypeError::new_err(format!(
+            "{name} must have dtype uint8 or uint16, got {dt}: convert it explicitly (e.g. \
+             image.astype(np.uint16)) so no scaling is guessed"
+        )))
+    }
+}

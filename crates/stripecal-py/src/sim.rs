@@ -1,0 +1,333 @@
+//! Bindings of the digital twin (`stripecal-sim`): configurations as JSON text (the
+//! Python side turns them into dicts), a `Twin` class, images as numpy arrays.
+
+use std::path::PathBuf;
+
+use pyo3::exceptions::PyValueError;
+use pyo3::prelude::*;
+use pyo3::types::{PyDict, PyList};
+use serde_json::Value;
+
+use stripecal::image::AnyGray;
+use stripecal_sim::{SimConfig, SimError, Twin, ViewRender};
+
+use crate::convert::{f64_array, iso_to_py, json_to_py, nd};
+use crate::errors::{invalid_input, map_err};
+use crate::{PyBoard, PyCamera, PyRobot, PyTruth};
+
+fn sim_err(py: Python<'_>, e: SimError) -> PyErr {
+    match e {
+        SimError::Core(e) => map_err(py, e),
+        SimError::Render(m) => map_err(py, stripecal::Error::Degenerate(m)),
+        other => invalid_input(py, other.to_string()),
+    }
+}
+
+fn parse_json(py: Python<'_>, text: &str, what: &str) -> PyResult<Value> {
+    serde_json::from_str(text)
+        .map_err(|e| invalid_input(py, format!("{what} is not valid JSON: {e}")))
+}
+
+/// Names of the built-in presets.
+#[pyfunction]
+pub fn sim_presets() -> Vec<String> {
+    stripecal_sim::PRESETS
+        .iter()
+        .map(|s| s.to_string())
+        .collect()
+}
+
+/// The full configuration of `preset` with `overrides_json` (a partial JSON object)
+/// merged over it, as JSON text.
+#[pyfunction]
+#[pyo3(signature = (preset, overrides_json=None))]
+pub fn sim_config(py: Python<'_>, preset: &str, overrides_json: Option<&str>) -> PyResult<String> {
+    let mut cfg = SimConfig::preset(preset).map_err(|e| sim_err(py, e))?;
+    if let Some(o) = overrides_json {
+        let v = parse_json(py, o, "overrides")?;
+        cfg = cfg.with_overrides(&v).map_err(|e| sim_err(py, e))?;
+    }
+    serde_json::to_string_pretty(&cfg).map_err(|e| PyValueError::new_err(e.to_string()))
+}
+
+fn gray_to_py<'py>(py: Python<'py>, img: &AnyGray) -> PyResult<Bound<'py, PyAny>> {
+    match img {
+        AnyGray::U8(i) => nd(py, &[i.height, i.width], i.data.clone()),
+        AnyGray::U16(i) => nd(py, &[i.height, i.width], i.data.clone()),
+    }
+}
+
+fn render_to_py<'py>(py: Python<'py>, r: &ViewRender) -> PyResult<Bound<'py, PyDict>> {
+    let d = PyDict::new(py);
+    d.set_item(
+        "board_image",
+        r.board_image
+            .as_ref()
+            .map(|i| gray_to_py(py, i))
+            .transpose()?,
+    )?;
+    d.set_item(
+        "laser_image",
+        r.laser_image
+            .as_ref()
+            .map(|i| gray_to_py(py, i))
+            .transpose()?,
+    )?;
+    let idx: Vec<i64> = r
+        .circles
+        .iter()
+        .flat_map(|c| [c.row as i64, c.col as i64])
+        .collect();
+    let ctr: Vec<f64> = r.circles.iter().flat_map(|c| [c.u, c.v]).collect();
+    let ctr_proj: Vec<f64> = r
+        .circles
+        .iter()
+        .flat_map(|c| [c.u_center_proj, c.v_center_proj])
+        .collect();
+    d.set_item("circle_indices", nd(py, &[r.circles.len(), 2], idx)?)?;
+    d.set_item("circle_centers", nd(py, &[r.circles.len(), 2], ctr)?)?;
+    d.set_item(
+        "circle_centers_projected",
+        nd(py, &[r.circles.len(), 2], ctr_proj)?,
+    )?;
+    let n = r.stripe.len();
+    d.set_item(
+        "stripe_points",
+        nd(
+            py,
+            &[n, 2],
+            r.stripe.iter().flat_map(|p| [p.u, p.v]).collect(),
+        )?,
+    )?;
+    d.set_item(
+        "stripe_points_cam",
+        nd(py, &[n, 3], r.stripe.iter().flat_map(|p| p.p_cam).collect())?,
+    )?;
+    d.set_item(
+        "stripe_surface",
+        r.stripe.iter().map(|p| p.surface).collect::<Vec<_>>(),
+    )?;
+    d.set_item(
+        "stripe_incidence_deg",
+        nd(py, &[n], r.stripe.iter().map(|p| p.incidence_deg).collect())?,
+    )?;
+    d.set_item(
+        "stripe_view_deg",
+        nd(py, &[n], r.stripe.iter().map(|p| p.view_deg).collect())?,
+    )?;
+    d.set_item(
+        "stripe_edge_mm",
+        nd(py, &[n], r.stripe.iter().map(|p| p.edge_mm).collect())?,
+    )?;
+    d.set_item(
+        "stripe_slope",
+        nd(py, &[n], r.stripe.iter().map(|p| p.slope).collect())?,
+    )?;
+    d.set_item("base_cam", iso_to_py(py, &r.base_cam)?)?;
+    Ok(d)
+}
+
+fn joints(py: Python<'_>, q: &Bound<'_, PyAny>, dof: usize) -> PyResult<Vec<f64>> {
+    let a = f64_array(q, "q")?;
+    if a.shape() != [dof] {
+        return Err(invalid_input(
+            py,
+            format!("q must have shape ({dof},), got {:?}", a.shape()),
+        ));
+    }
+    Ok(a.iter().copied().collect())
+}
+
+/// The digital twin of one rig, built from a configuration (JSON text).
+#[pyclass(name = "Twin", module = "stripecal._core", frozen)]
+pub struct PyTwin {
+    inner: Twin,
+}
+
+#[pymethods]
+impl PyTwin {
+    #[new]
+    fn new(py: Python<'_>, config_json: &str) -> PyResult<Self> {
+        let v = parse_json(py, config_json, "config")?;
+        let cfg: SimConfig = serde_json::from_value(v)
+            .map_err(|e| invalid_input(py, format!("invalid twin configuration: {e}")))?;
+        let inner = py.detach(|| Twin::new(cfg)).map_err(|e| sim_err(py, e))?;
+        Ok(PyTwin { inner })
+    }
+
+    /// The configuration as JSON text.
+    #[getter]
+    fn config_json(&self) -> PyResult<String> {
+        serde_json::to_string_pretty(&self.inner.cfg)
+            .map_err(|e| PyValueError::new_err(e.to_string()))
+    }
+
+    /// The true camera.
+    #[getter]
+    fn camera(&self) -> PyCamera {
+        PyCamera::new_py(self.inner.camera.clone())
+    }
+
+    /// The board.
+    #[getter]
+    fn board(&self) -> PyBoard {
+        PyBoard::new_py(self.inner.board.clone())
+    }
+
+    /// The nominal robot (what rig.json holds).
+    #[getter]
+    fn robot_nominal(&self) -> PyRobot {
+        PyRobot::new_py(self.inner.robot_nominal.clone())
+    }
+
+    /// The true robot (nominal plus DH errors).
+    #[getter]
+    fn robot_true(&self) -> PyRobot {
+        PyRobot::new_py(self.inner.robot_true.clone())
+    }
+
+    /// True `T_hand_cam`, (4, 4).
+    #[getter]
+    fn hand_cam<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
+        iso_to_py(py, &self.inner.hand_cam)
+    }
+
+    /// True `T_base_board`, (4, 4).
+    #[getter]
+    fn base_board<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
+        iso_to_py(py, &self.inner.base_board)
+    }
+
+    /// True laser plane `(normal (3,), d_mm)` in the camera frame.
+    #[getter]
+    fn laser_plane<'py>(&self, py: Python<'py>) -> PyResult<(Bound<'py, PyAny>, f64)> {
+        let p = self.inner.laser_plane;
+        Ok((nd(py, &[3], vec![p.normal.x, p.normal.y, p.normal.z])?, p.d))
+    }
+
+    /// `rows` or `cols`: how the stripe runs in the images.
+    #[getter]
+    fn stripe_direction(&self) -> &'static str {
+        self.inner.direction.name()
+    }
+
+    /// The true parameters (scan truth includes the sphere).
+    #[pyo3(signature = (with_sphere=true))]
+    fn truth(&self, with_sphere: bool) -> PyTruth {
+        PyTruth {
+            inner: self.inner.truth(with_sphere),
+        }
+    }
+
+    /// Calibration poses: a list of dicts `{q_deg, standoff_mm, tilt_deg, stripe_chord_mm}`.
+    fn calibration_poses<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyList>> {
+        let poses = py
+            .detach(|| self.inner.calibration_poses())
+            .map_err(|e| sim_err(py, e))?;
+        let out = PyList::empty(py);
+        for p in poses {
+            let d = PyDict::new(py);
+            d.set_item("q_deg", nd(py, &[p.q_deg.len()], p.q_deg.clone())?)?;
+            d.set_item("standoff_mm", p.standoff_mm)?;
+            d.set_item("tilt_deg", p.tilt_deg)?;
+            d.set_item("stripe_chord_mm", p.stripe_chord_mm)?;
+            out.append(d)?;
+        }
+        Ok(out)
+    }
+
+    /// Encoder readings of the scan sweep, (N, J).
+    fn scan_poses<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
+        let qs = py
+            .detach(|| self.inner.scan_poses())
+            .map_err(|e| sim_err(py, e))?;
+        let dof = self.inner.robot_true.dof();
+        nd(py, &[qs.len(), dof], qs.into_iter().flatten().collect())
+    }
+
+    /// Renders a calibration view at encoder readings `q` (degrees): a dict with
+    /// `board_image`, `laser_image` (None in single-image mode), circle and stripe truth.
+    #[pyo3(signature = (q, index=0))]
+    fn render_view<'py>(
+        &self,
+        py: Python<'py>,
+        q: &Bound<'py, PyAny>,
+        index: usize,
+    ) -> PyResult<Bound<'py, PyDict>> {
+        let q = joints(py, q, self.inner.robot_true.dof())?;
+        let r = py
+            .detach(|| self.inner.render_view(&q, index))
+            .map_err(|e| sim_err(py, e))?;
+        render_to_py(py, &r)
+    }
+
+    /// Renders a scan frame (stripe image with the sphere) at `q`.
+    #[pyo3(signature = (q, index=0))]
+    fn render_scan_frame<'py>(
+        &self,
+        py: Python<'py>,
+        q: &Bound<'py, PyAny>,
+        index: usize,
+    ) -> PyResult<Bound<'py, PyDict>> {
+        let q = joints(py, q, self.inner.robot_true.dof())?;
+        let r = py
+            .detach(|| self.inner.render_scan_frame(&q, index))
+            .map_err(|e| sim_err(py, e))?;
+        render_to_py(py, &r)
+    }
+
+    /// Renders and writes `out/calib` (and `out/scan`). `progress(stage, done, total)`
+    /// is called between images. Returns a summary dict.
+    #[pyo3(signature = (out, progress=None))]
+    fn write<'py>(
+        &self,
+        py: Python<'py>,
+        out: PathBuf,
+        progress: Option<Py<PyAny>>,
+    ) -> PyResult<Bound<'py, PyDict>> {
+        let mut cb_err: Option<PyErr> = None;
+        let result = py.detach(|| {
+            let mut cb = |stage: &str, done: usize, total: usize| {
+                if let (Some(f), None) = (&progress, &cb_err) {
+                    Python::attach(|py| {
+                        if let Err(e) = f.call1(py, (stage, done, total)) {
+                            cb_err = Some(e);
+                        }
+                    });
+                }
+            };
+            self.inner.write(&out, &mut cb)
+        });
+        if let Some(e) = cb_err {
+            return Err(e);
+        }
+        let s = result.map_err(|e| sim_err(py, e))?;
+        let d = PyDict::new(py);
+        d.set_item("calib_dir", s.calib_dir)?;
+        d.set_item("scan_dir", s.scan_dir)?;
+        let views = PyList::empty(py);
+        for (i, v) in s.views.iter().enumerate() {
+            let vd = PyDict::new(py);
+            vd.set_item("q_deg", nd(py, &[v.q_deg.len()], v.q_deg.clone())?)?;
+            vd.set_item("standoff_mm", v.standoff_mm)?;
+            vd.set_item("tilt_deg", v.tilt_deg)?;
+            vd.set_item("stripe_chord_mm", v.stripe_chord_mm)?;
+            vd.set_item("circles_visible", s.view_circles[i])?;
+            vd.set_item("stripe_points_on_board", s.view_stripe_points[i])?;
+            views.append(vd)?;
+        }
+        d.set_item("views", views)?;
+        d.set_item("circles_total", self.inner.board.len())?;
+        d.set_item("scan_frames", s.scan_frames)?;
+        d.set_item("scan_sphere_points", s.scan_sphere_points)?;
+        d.set_item("stripe_direction", s.direction.name())?;
+        d.set_item(
+            "sphere",
+            self.inner
+                .sphere
+                .map(|sp| json_to_py(py, &serde_json::json!({"center_mm": [sp.center_mm.x, sp.center_mm.y, sp.center_mm.z], "diameter_mm": sp.diameter_mm})))
+                .transpose()?,
+        )?;
+        Ok(d)
+    }
+}

@@ -1,0 +1,1 @@
+//! Circle-grid detection (to be written).

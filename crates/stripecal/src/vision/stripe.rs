@@ -1,0 +1,1 @@
+//! Laser stripe extraction (to be written).
