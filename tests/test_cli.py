@@ -37,3 +37,30 @@ def test_module_entry_point() -> None:
 def test_console_script() -> None:
     proc = subprocess.run(["stripecal", "--version"], capture_output=True, text=True)
     assert proc.returncode == 0 and stripecal.__version__ in proc.stdout
+
+
+def test_simulate_writes_datasets_and_prints_a_summary(tmp_path, capsys) -> None:  # type: ignore[no-untyped-def]
+    out = tmp_path / "sim"
+    rc = main(["simulate", str(out), "--seed", "3", "--poses", "3", "--scan-frames", "2",
+               "--noise", "0.5", "--set", "imaging.vignetting=0.2", "--set", "camera.distortion_model=radial2"])
+    assert rc == 0
+    text = capsys.readouterr().out
+    assert "calibration views: 3" in text and "88/88" in text and str(out / "calib") in text
+    rig = stripecal.load_rig(out / "calib" / "rig.json")
+    assert rig.distortion_model == "radial2"
+    assert len(stripecal.load_scan(out / "scan").images) == 2
+    cfg = stripecal.load_truth(out / "calib" / "truth.json").extra["sim_config"]
+    assert cfg["imaging"]["vignetting"] == 0.2 and cfg["imaging"]["noise_gray"] == 0.5 and cfg["seed"] == 3
+
+
+def test_simulate_rejects_unknown_knobs(tmp_path, capsys) -> None:  # type: ignore[no-untyped-def]
+    assert main(["simulate", str(tmp_path), "--set", "imaging.nosie=1"]) == 1
+    assert "imaging.nosie" in capsys.readouterr().err
+    assert not (tmp_path / "calib").exists()
+
+
+def test_demo_small(tmp_path, capsys) -> None:  # type: ignore[no-untyped-def]
+    assert main(["demo", "--out", str(tmp_path / "d"), "--scan-frames", "2"]) == 0
+    text = capsys.readouterr().out
+    assert "hp3-paper" in text and "calibration views: 5" in text and "ball scan: 2 stripe images" in text
+    assert (tmp_path / "d" / "calib" / "views.csv").exists()

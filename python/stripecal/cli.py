@@ -134,10 +134,12 @@ def _print_summary(twin: stripecal.sim.Twin, summary: Dict[str, Any], elapsed: f
     dof = len(views[0]["q_deg"]) if views else 0
     header = "  view  " + " ".join(f"{'q' + str(i + 1):>8}" for i in range(dof))
     print(header + "   stand-off   tilt   circles   stripe on board")
+    # one stripe point per row when the stripe runs along columns, and vice versa
+    lines = "rows" if summary["stripe_direction"] == "cols" else "columns"
     for i, v in enumerate(views):
         q = " ".join(f"{x:8.2f}" for x in v["q_deg"])
         print(f"  {i:>4}  {q}   {v['standoff_mm']:6.1f} mm  {v['tilt_deg']:4.1f} deg"
-              f"  {v['circles_visible']:>3}/{total:<3}  {v['stripe_points_on_board']:>4} px {summary['stripe_direction']}")
+              f"  {v['circles_visible']:>3}/{total:<3}  {v['stripe_points_on_board']:>4} {lines}")
     print("  (joint readings in degrees; stand-off along the optical axis to the board plane;"
           " tilt between optical axis and board normal)")
     if summary["scan_dir"] is not None:

@@ -20,8 +20,13 @@ in Rust (``stripecal._core``); this module only converts configurations.
 from __future__ import annotations
 
 import json
-from typing import Any, Dict, List, Optional
+import os
+from typing import Any, Callable, Dict, List, Optional, Tuple, Union
 
+import numpy as np
+import numpy.typing as npt
+
+from stripecal._core import Board, Camera, Robot, Truth
 from stripecal._core import Twin as _CoreTwin
 from stripecal._core import sim_config, sim_presets
 
@@ -49,18 +54,84 @@ class Twin:
     """A rig's digital twin (see the module docstring). ``config`` is a full
     configuration dict (from :func:`preset`) or a preset name."""
 
-    def __init__(self, config: "Dict[str, Any] | str" = "hp3-paper") -> None:
+    def __init__(self, config: Union[Dict[str, Any], str] = "hp3-paper") -> None:
         cfg = preset(config) if isinstance(config, str) else config
         self._core = _CoreTwin(json.dumps(cfg))
 
     @property
     def config(self) -> Dict[str, Any]:
-        """The configuration (a fresh dict)."""
+        """The full configuration (a fresh dict)."""
         cfg: Dict[str, Any] = json.loads(self._core.config_json)
         return cfg
 
-    def __getattr__(self, name: str) -> Any:
-        # camera, board, robot_nominal, robot_true, hand_cam, base_board, laser_plane,
-        # stripe_direction, truth(), calibration_poses(), scan_poses(), render_view(),
-        # render_scan_frame(), write(): see stripecal._core.Twin.
-        return getattr(self._core, name)
+    @property
+    def camera(self) -> Camera:
+        """The true camera."""
+        return self._core.camera
+
+    @property
+    def board(self) -> Board:
+        return self._core.board
+
+    @property
+    def robot_nominal(self) -> Robot:
+        """The nominal DH table (what rig.json holds)."""
+        return self._core.robot_nominal
+
+    @property
+    def robot_true(self) -> Robot:
+        """The true DH table: nominal plus ``dh_errors``."""
+        return self._core.robot_true
+
+    @property
+    def hand_cam(self) -> npt.NDArray[np.float64]:
+        """True ``T_hand_cam`` (4, 4)."""
+        return self._core.hand_cam
+
+    @property
+    def base_board(self) -> npt.NDArray[np.float64]:
+        """True ``T_base_board`` (4, 4)."""
+        return self._core.base_board
+
+    @property
+    def laser_plane(self) -> Tuple[npt.NDArray[np.float64], float]:
+        """True laser plane ``(normal, d_mm)`` in the camera frame: ``n . p = d``."""
+        return self._core.laser_plane
+
+    @property
+    def stripe_direction(self) -> str:
+        """``"rows"`` or ``"cols"``: how the stripe runs in the images."""
+        return self._core.stripe_direction
+
+    def truth(self, with_sphere: bool = True) -> Truth:
+        """The true parameters, as written to truth.json (without per-image keys)."""
+        return self._core.truth(with_sphere)
+
+    def calibration_poses(self) -> List[Dict[str, Any]]:
+        """The calibration poses: ``q_deg`` (encoder readings), ``standoff_mm``,
+        ``tilt_deg``, ``stripe_chord_mm``; explicit ones or sampled by seed."""
+        return self._core.calibration_poses()
+
+    def scan_poses(self) -> npt.NDArray[np.float64]:
+        """Encoder readings (N, J) of the scan sweep over the ball."""
+        return self._core.scan_poses()
+
+    def render_view(self, q: npt.ArrayLike, index: int = 0) -> Dict[str, Any]:
+        """Renders a calibration view at encoder readings ``q`` (degrees). Keys:
+        ``board_image``, ``laser_image`` (None in single-image mode), ``circle_indices``
+        (N, 2) and ``circle_centers`` (N, 2) (true imaged-circle centres: outline
+        centroids), ``circle_centers_projected``, ``stripe_points`` (M, 2) and per-point
+        ``stripe_surface``, ``stripe_incidence_deg``, ``stripe_view_deg``,
+        ``stripe_edge_mm``, ``stripe_slope``, ``stripe_points_cam`` (M, 3), ``base_cam``.
+        ``index`` selects the noise stream (views of one dataset differ by index)."""
+        return self._core.render_view(q, index)
+
+    def render_scan_frame(self, q: npt.ArrayLike, index: int = 0) -> Dict[str, Any]:
+        """Renders a scan frame (the ball on the table) at ``q``; keys as
+        :meth:`render_view` (``laser_image`` holds the frame)."""
+        return self._core.render_scan_frame(q, index)
+
+    def write(self, out: Union[str, "os.PathLike[str]"], progress: Optional[Callable[[str, int, int], Any]] = None) -> Dict[str, Any]:
+        """Renders and writes ``out/calib`` and ``out/scan`` (each written under a
+        temporary name, then renamed); returns a summary dict."""
+        return self._core.write(out, progress)
