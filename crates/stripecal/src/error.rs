@@ -40,6 +40,10 @@ pub enum Error {
     /// (a point behind the camera, a ray parallel to a plane...).
     #[error("degenerate geometry: {0}")]
     Degenerate(String),
+    /// An image in which the expected target (circle grid, stripe) cannot be found or
+    /// indexed without guessing; the message says what was found.
+    #[error("detection failed: {0}")]
+    Detection(String),
 }
 
 /// `Result` with the crate's [`Error`].

@@ -1,1 +1,0 @@
-//! Circle-grid detection (to be written).

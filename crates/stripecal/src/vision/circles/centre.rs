@@ -1,0 +1,469 @@
+//! Sub-pixel centres of one blob: the gravity method and an ellipse fit to edge points.
+//!
+//! Both work in a window around the blob built from its moment ellipse (semi-axes
+//! `a >= b`): the *region* is that ellipse grown by `delta = edge_margin_px + 0.1 b` px
+//! (the blob and its blurred edge), the *ring* the band `delta + 1 .. 2 delta + 1`
+//! outside it (the plate around the circle).
+//!
+//! - Background: a plane `bg(x) = p0 + p1 dx + p2 dy` fitted to the ring by least
+//!   squares with two rounds of outlier rejection (3.5 robust sigmas): a vignetted
+//!   or unevenly lit plate is modelled locally, neighbouring circles' edges and a laser
+//!   stripe are rejected.
+//! - Illumination: light falls off multiplicatively (vignetting), so the circle/plate
+//!   contrast at `x` is proportional to `bg(x)`; weights are divided by `bg(x) / bg(c)`,
+//!   which keeps the weight constant inside the circle. (When the plate is much
+//!   darker than the circles, `bg` is too noisy for this and a constant is used.)
+//! - Gravity: `w(x) = s (I(x) - bg(x)) / ref(x)` with `s = -1` for dark circles,
+//!   summed over the region without clipping (clipping noise at 0 would bias the
+//!   centroid towards the window centre); the centre is the `w`-weighted mean of the
+//!   pixel centres. Blur (a symmetric PSF) does not move an intensity centroid.
+//! - Ellipse: along rays from the gravity centre, the normalised profile
+//!   `w / contrast` (1 inside, 0 outside) is sampled by bilinear interpolation every
+//!   0.5 px and its 0.5 crossing found by linear interpolation; a conic is fitted to
+//!   these edge points (algebraic, with the Euclidean-invariant constraint
+//!   `A + C = 1`, re-weighted by the gradient norm twice, which approximates the
+//!   geometric fit), rays farther than 3 RMS are dropped once; the centre is the
+//!   conic's. The RMS geometric residual is the blob's quality figure in both methods.
+//! - Stripe: ring pixels far brighter than the background plane (more than
+//!   `max(6 sigma, 0.2 contrast)`) mark a laser stripe (single-image views) crossing
+//!   the window.
+
+use super::blobs::{Blob, Img};
+
+/// What was measured for one blob.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct Measure {
+    pub gravity: [f64; 2],
+    pub ellipse: Option<Ellipse>,
+    /// Bright ring pixels (a stripe) found.
+    pub stripe_px: usize,
+    /// Area estimated from the ink, px^2.
+    pub area_px: f64,
+}
+
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct Ellipse {
+    pub centre: [f64; 2],
+    /// Semi-axes (major, minor), px.
+    pub axes: [f64; 2],
+    /// Angle of the major axis from +u towards +v, radians.
+    pub angle: f64,
+    /// RMS geometric residual of the edge points, px.
+    pub rms: f64,
+}
+
+/// Why a blob could not be measured.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) enum Fail {
+    /// Its window (blob and edge) leaves the image.
+    Border,
+    /// Not enough background around it, or no contrast.
+    Background,
+}
+
+impl Fail {
+    pub fn reason(self) -> &'static str {
+        match self {
+            Fail::Border => "window leaves the image",
+            Fail::Background => "no usable background ring",
+        }
+    }
+}
+
+fn median(v: &mut [f64]) -> f64 {
+    let n = v.len();
+    let (_, m, _) = v.select_nth_unstable_by(n / 2, f64::total_cmp);
+    *m
+}
+
+/// Solves the 3x3 normal equations of a plane fit.
+fn plane_fit(pts: &[(f64, f64, f64)], keep: &[bool]) -> Option<[f64; 3]> {
+    let mut n = nalgebra::Matrix3::<f64>::zeros();
+    let mut b = nalgebra::Vector3::<f64>::zeros();
+    for (&(x, y, z), &k) in pts.iter().zip(keep) {
+        if !k {
+            continue;
+        }
+        let f = nalgebra::Vector3::new(1.0, x, y);
+        n += f * f.transpose();
+        b += f * z;
+    }
+    let s = n.try_inverse()? * b;
+    Some([s[0], s[1], s[2]])
+}
+
+/// A blob's moment ellipse grown by its edge allowance, as an obstacle for the
+/// background rings of its neighbours.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct Shape {
+    cx: f64,
+    cy: f64,
+    ct: f64,
+    st: f64,
+    ea: f64,
+    eb: f64,
+}
+
+impl Shape {
+    pub fn of(blob: &Blob, edge_margin: f64) -> Shape {
+        let theta = 0.5 * (2.0 * blob.sxy).atan2(blob.sxx - blob.syy);
+        let grow = edge_margin + 0.1 * blob.b;
+        Shape {
+            cx: blob.cx,
+            cy: blob.cy,
+            ct: theta.cos(),
+            st: theta.sin(),
+            ea: blob.a + grow,
+            eb: blob.b + grow,
+        }
+    }
+
+    pub fn cx(&self) -> f64 {
+        self.cx
+    }
+
+    pub fn cy(&self) -> f64 {
+        self.cy
+    }
+
+    /// Radius of a circle that contains the shape.
+    pub fn reach(&self) -> f64 {
+        self.ea
+    }
+
+    #[inline]
+    fn contains(&self, x: f64, y: f64) -> bool {
+        let (dx, dy) = (x - self.cx, y - self.cy);
+        let p = dx * self.ct + dy * self.st;
+        let q = -dx * self.st + dy * self.ct;
+        (p / self.ea).powi(2) + (q / self.eb).powi(2) <= 1.0
+    }
+}
+
+/// Measures one blob. `edge_margin` is the edge allowance in px (blur); `others` are
+/// the shapes of nearby blobs, left out of the background ring.
+pub(crate) fn measure(
+    img: &Img,
+    blob: &Blob,
+    dark: bool,
+    edge_margin: f64,
+    others: &[Shape],
+) -> Result<Measure, Fail> {
+    let (w, h) = (img.w as f64, img.h as f64);
+    let theta = 0.5 * (2.0 * blob.sxy).atan2(blob.sxx - blob.syy);
+    let (ct, st) = (theta.cos(), theta.sin());
+    let (a, b) = (blob.a, blob.b);
+    let delta = edge_margin + 0.1 * b;
+    let ring_w = delta;
+    let (cx, cy) = (blob.cx, blob.cy);
+    // rho^2 of offset (dx, dy) for an ellipse with semi-axes (A, B).
+    let rho2 = |dx: f64, dy: f64, ea: f64, eb: f64| {
+        let p = dx * ct + dy * st;
+        let q = -dx * st + dy * ct;
+        (p / ea).powi(2) + (q / eb).powi(2)
+    };
+    let (ra, rb) = (a + delta, b + delta);
+    let (oa, ob) = (a + delta + 1.0 + ring_w, b + delta + 1.0 + ring_w);
+    let (ia, ib) = (a + delta + 1.0, b + delta + 1.0);
+    let half = |ea: f64, eb: f64| {
+        (
+            ((ea * ct).powi(2) + (eb * st).powi(2)).sqrt(),
+            ((ea * st).powi(2) + (eb * ct).powi(2)).sqrt(),
+        )
+    };
+    let (rhx, rhy) = half(ra, rb);
+    if cx - rhx < 0.0 || cy - rhy < 0.0 || cx + rhx > w - 1.0 || cy + rhy > h - 1.0 {
+        return Err(Fail::Border);
+    }
+    let (ohx, ohy) = half(oa, ob);
+    let x0 = (cx - ohx).floor().max(0.0) as usize;
+    let x1 = ((cx + ohx).ceil() as usize).min(img.w - 1);
+    let y0 = (cy - ohy).floor().max(0.0) as usize;
+    let y1 = ((cy + ohy).ceil() as usize).min(img.h - 1);
+
+    // Ring pixels (offsets from the blob centroid) and the core's values.
+    let mut ring: Vec<(f64, f64, f64)> = Vec::with_capacity(256);
+    let mut core: Vec<f64> = Vec::new();
+    let mut expected_ring = 0usize;
+    for y in y0..=y1 {
+        let dy = y as f64 - cy;
+        for x in x0..=x1 {
+            let dx = x as f64 - cx;
+            if rho2(dx, dy, oa, ob) <= 1.0 && rho2(dx, dy, ia, ib) > 1.0 {
+                expected_ring += 1;
+                if !others.iter().any(|o| o.contains(x as f64, y as f64)) {
+                    ring.push((dx, dy, img.at(x, y) as f64));
+                }
+            } else if rho2(dx, dy, a, b) <= 0.25 {
+                core.push(img.at(x, y) as f64);
+            }
+        }
+    }
+    // Ring area of the full (unclipped) band, to judge how much is missing.
+    let full_ring = (std::f64::consts::PI * (oa * ob - ia * ib)) as usize;
+    expected_ring = expected_ring.max(full_ring);
+    if ring.len() < 12.max(expected_ring / 4) {
+        return Err(Fail::Background);
+    }
+    if core.is_empty() {
+        // tiny blob: the centre pixel
+        let (xi, yi) = (cx.round() as usize, cy.round() as usize);
+        core.push(img.at(xi.min(img.w - 1), yi.min(img.h - 1)) as f64);
+    }
+    let mut keep = vec![true; ring.len()];
+    // Start from the median level (robust), then planes with outlier rejection.
+    let mut bg = {
+        let mut z: Vec<f64> = ring.iter().map(|r| r.2).collect();
+        [median(&mut z), 0.0, 0.0]
+    };
+    let mut sigma = 0.0;
+    let mut res: Vec<f64> = Vec::with_capacity(ring.len());
+    for _ in 0..3 {
+        res.clear();
+        res.extend(
+            ring.iter()
+                .map(|&(x, y, z)| z - (bg[0] + bg[1] * x + bg[2] * y)),
+        );
+        let mut absr: Vec<f64> = res.iter().map(|r| r.abs()).collect();
+        sigma = 1.4826 * median(&mut absr);
+        let lim = 3.5 * sigma.max(0.3);
+        for (k, r) in keep.iter_mut().zip(&res) {
+            *k = r.abs() <= lim;
+        }
+        if keep.iter().filter(|&&k| k).count() < 12 {
+            return Err(Fail::Background);
+        }
+        bg = plane_fit(&ring, &keep).ok_or(Fail::Background)?;
+    }
+    let fg = median(&mut core);
+    let bg_c = bg[0];
+    let s = if dark { -1.0 } else { 1.0 };
+    let contrast = s * (fg - bg_c);
+    if contrast.is_nan() || contrast <= 4.0 * sigma.max(0.0) || contrast <= 0.0 {
+        return Err(Fail::Background);
+    }
+    let stripe_lim = (6.0 * sigma).max(0.2 * contrast);
+    let stripe_px = ring
+        .iter()
+        .filter(|&&(x, y, z)| z - (bg[0] + bg[1] * x + bg[2] * y) > stripe_lim)
+        .count();
+    // Multiplicative illumination correction when the background carries the light.
+    let scale_bg = bg_c > 0.25 * bg_c.max(fg) && bg_c > 0.0;
+    let weight = |dx: f64, dy: f64, z: f64| {
+        let b = bg[0] + bg[1] * dx + bg[2] * dy;
+        let r = if scale_bg { (b / bg_c).max(1e-3) } else { 1.0 };
+        s * (z - b) / r
+    };
+
+    // Gravity.
+    let (mut sw, mut sx, mut sy) = (0.0, 0.0, 0.0);
+    let rx0 = (cx - rhx).floor() as usize;
+    let rx1 = ((cx + rhx).ceil() as usize).min(img.w - 1);
+    let ry0 = (cy - rhy).floor() as usize;
+    let ry1 = ((cy + rhy).ceil() as usize).min(img.h - 1);
+    for y in ry0..=ry1 {
+        let dy = y as f64 - cy;
+        for x in rx0..=rx1 {
+            let dx = x as f64 - cx;
+            if rho2(dx, dy, ra, rb) > 1.0 {
+                continue;
+            }
+            let wgt = weight(dx, dy, img.at(x, y) as f64);
+            sw += wgt;
+            sx += wgt * dx;
+            sy += wgt * dy;
+        }
+    }
+    if sw.is_nan() || sw <= 0.0 {
+        return Err(Fail::Background);
+    }
+    let (gx, gy) = (sx / sw, sy / sw);
+    let gravity = [cx + gx, cy + gy];
+    let area_px = sw / contrast;
+
+    // Ellipse: edge points along rays from the gravity centre.
+    let nrays = ((std::f64::consts::PI * (a + b)).round() as usize).clamp(32, 256);
+    let mut pts: Vec<[f64; 2]> = Vec::with_capacity(nrays);
+    for k in 0..nrays {
+        let phi = std::f64::consts::TAU * k as f64 / nrays as f64;
+        let (ux, uy) = (phi.cos(), phi.sin());
+        let re = 1.0 / rho2(ux, uy, a, b).sqrt();
+        let (t0, t1) = (0.5 * re, re + delta);
+        let q = |t: f64| -> Option<f64> {
+            let (dx, dy) = (gx + t * ux, gy + t * uy);
+            let z = img.bilinear(cx + dx, cy + dy)?;
+            Some(weight(dx, dy, z) / contrast)
+        };
+        let mut prev_t = t0;
+        let Some(mut prev) = q(t0) else { continue };
+        if prev < 0.5 {
+            continue;
+        }
+        let mut t = t0;
+        while t < t1 {
+            t += 0.5;
+            let Some(cur) = q(t) else { break };
+            if cur < 0.5 {
+                let f = (prev - 0.5) / (prev - cur);
+                let te = prev_t + f * (t - prev_t);
+                pts.push([gravity[0] + te * ux, gravity[1] + te * uy]);
+                break;
+            }
+            prev = cur;
+            prev_t = t;
+        }
+    }
+    let ellipse = fit_ellipse(&pts);
+    Ok(Measure {
+        gravity,
+        ellipse,
+        stripe_px,
+        area_px,
+    })
+}
+
+/// Conic `A x^2 + B xy + C y^2 + D x + E y + F = 0` in normalised coordinates.
+type Conic = [f64; 6];
+
+fn conic_eval(c: &Conic, x: f64, y: f64) -> (f64, f64) {
+    let f = c[0] * x * x + c[1] * x * y + c[2] * y * y + c[3] * x + c[4] * y + c[5];
+    let gx = 2.0 * c[0] * x + c[1] * y + c[3];
+    let gy = c[1] * x + 2.0 * c[2] * y + c[4];
+    (f, (gx * gx + gy * gy).sqrt())
+}
+
+/// Weighted algebraic fit with `A + C = 1`.
+fn conic_fit(p: &[[f64; 2]], wts: &[f64]) -> Option<Conic> {
+    let mut n = nalgebra::SMatrix::<f64, 5, 5>::zeros();
+    let mut r = nalgebra::SVector::<f64, 5>::zeros();
+    for (q, &wt) in p.iter().zip(wts) {
+        if wt <= 0.0 {
+            continue;
+        }
+        let (x, y) = (q[0], q[1]);
+        let f = nalgebra::SVector::<f64, 5>::from([x * x - y * y, x * y, x, y, 1.0]);
+        n += f * f.transpose() * wt;
+        r += f * (-y * y) * wt;
+    }
+    let s = n.cholesky()?.solve(&r);
+    Some([s[0], s[1], 1.0 - s[0], s[2], s[3], s[4]])
+}
+
+/// Fits an ellipse to edge points (px); `None` if too few points or not an ellipse.
+pub(crate) fn fit_ellipse(pts: &[[f64; 2]]) -> Option<Ellipse> {
+    if pts.len() < 10 {
+        return None;
+    }
+    let n = pts.len() as f64;
+    let mx = pts.iter().map(|p| p[0]).sum::<f64>() / n;
+    let my = pts.iter().map(|p| p[1]).sum::<f64>() / n;
+    let scale = (pts
+        .iter()
+        .map(|p| (p[0] - mx).powi(2) + (p[1] - my).powi(2))
+        .sum::<f64>()
+        / n)
+        .sqrt();
+    if scale.is_nan() || scale <= 1e-9 {
+        return None;
+    }
+    let q: Vec<[f64; 2]> = pts
+        .iter()
+        .map(|p| [(p[0] - mx) / scale, (p[1] - my) / scale])
+        .collect();
+    let mut wts = vec![1.0; q.len()];
+    let mut c = conic_fit(&q, &wts)?;
+    let mut dropped = false;
+    for it in 0..4 {
+        // gradient re-weighting (Sampson-like), and one round of outlier removal
+        let mut res = Vec::with_capacity(q.len());
+        for (p, wt) in q.iter().zip(wts.iter_mut()) {
+            let (f, g) = conic_eval(&c, p[0], p[1]);
+            if *wt > 0.0 {
+                *wt = 1.0 / (g * g).max(1e-12);
+                res.push((f / g.max(1e-12)).abs());
+            } else {
+                res.push(f64::INFINITY);
+            }
+        }
+        if it == 1 && !dropped {
+            let used: Vec<f64> = res.iter().copied().filter(|r| r.is_finite()).collect();
+            let rms = (used.iter().map(|r| r * r).sum::<f64>() / used.len() as f64).sqrt();
+            let lim = 3.0 * rms.max(0.05 / scale);
+            for (wt, r) in wts.iter_mut().zip(&res) {
+                if *r > lim {
+                    *wt = 0.0;
+                }
+            }
+            dropped = true;
+            if wts.iter().filter(|&&w| w > 0.0).count() < 10 {
+                return None;
+            }
+        }
+        c = conic_fit(&q, &wts)?;
+    }
+    let disc = 4.0 * c[0] * c[2] - c[1] * c[1];
+    if disc.is_nan() || disc <= 0.0 {
+        return None;
+    }
+    // centre: [2A B; B 2C] x = -[D; E]
+    let xc = (c[1] * c[4] - 2.0 * c[2] * c[3]) / disc;
+    let yc = (c[1] * c[3] - 2.0 * c[0] * c[4]) / disc;
+    // axes: translate to the centre, F' = F + (D xc + E yc) / 2
+    let f0 = c[5] + 0.5 * (c[3] * xc + c[4] * yc);
+    let m = nalgebra::Matrix2::new(c[0], 0.5 * c[1], 0.5 * c[1], c[2]);
+    let eig = m.symmetric_eigen();
+    let (l0, l1) = (eig.eigenvalues[0], eig.eigenvalues[1]);
+    if !(-f0 / l0 > 0.0 && -f0 / l1 > 0.0) {
+        return None;
+    }
+    let (s0, s1) = ((-f0 / l0).sqrt(), (-f0 / l1).sqrt());
+    let (major, minor, k) = if s0 >= s1 { (s0, s1, 0) } else { (s1, s0, 1) };
+    let v = eig.eigenvectors.column(k);
+    let mut angle = v[1].atan2(v[0]);
+    if angle < -std::f64::consts::FRAC_PI_2 {
+        angle += std::f64::consts::PI;
+    } else if angle > std::f64::consts::FRAC_PI_2 {
+        angle -= std::f64::consts::PI;
+    }
+    let mut ss = 0.0;
+    let mut cnt = 0.0;
+    for (p, &wt) in q.iter().zip(&wts) {
+        if wt > 0.0 {
+            let (f, g) = conic_eval(&c, p[0], p[1]);
+            ss += (f / g.max(1e-12)).powi(2);
+            cnt += 1.0;
+        }
+    }
+    Some(Ellipse {
+        centre: [mx + xc * scale, my + yc * scale],
+        axes: [major * scale, minor * scale],
+        angle,
+        rms: (ss / cnt).sqrt() * scale,
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn ellipse_fit_recovers_a_rotated_ellipse() {
+        let (cx, cy, a, b, th) = (31.3, -7.25, 12.0, 5.5, 0.6f64);
+        let pts: Vec<[f64; 2]> = (0..60)
+            .map(|k| {
+                let t = std::f64::consts::TAU * k as f64 / 60.0;
+                let (x, y) = (a * t.cos(), b * t.sin());
+                [
+                    cx + x * th.cos() - y * th.sin(),
+                    cy + x * th.sin() + y * th.cos(),
+                ]
+            })
+            .collect();
+        let e = fit_ellipse(&pts).unwrap();
+        assert!((e.centre[0] - cx).abs() < 1e-9 && (e.centre[1] - cy).abs() < 1e-9);
+        assert!((e.axes[0] - a).abs() < 1e-9 && (e.axes[1] - b).abs() < 1e-9);
+        assert!((e.angle - th).abs() < 1e-9, "{}", e.angle);
+        assert!(e.rms < 1e-9);
+        assert!(fit_ellipse(&pts[..5]).is_none());
+    }
+}
