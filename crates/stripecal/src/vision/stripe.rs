@@ -1,1 +1,0 @@
-//! Laser stripe extraction (to be written).

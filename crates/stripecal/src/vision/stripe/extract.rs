@@ -1,0 +1,886 @@
+//! The extractor: ridge search per scan line, then the sub-pixel centre of the chosen peak.
+
+use super::{
+    RejectCounts, StripeDirection, StripeMethod, StripeOptions, StripePoint, FLAG_LOW_SIGNAL,
+    FLAG_OBLIQUE, FLAG_SATURATED, FLAG_UNEVEN_BACKGROUND,
+};
+use crate::error::Result;
+use crate::vision::{AnyView, ImageView, Pixel};
+
+/// Pixels of a ridge-test chunk: the vectorised pass looks at this many pixels, and only
+/// a chunk holding a response above the threshold is scanned pixel by pixel.
+const CHUNK: usize = 32;
+/// Candidate runs closer than this (pixels between them) are one run.
+const MERGE_GAP: u32 = 2;
+/// Auto direction: every `AUTO_STEP`-th row and column is sampled.
+const AUTO_STEP: usize = 4;
+
+/// Integer pixel operations of the ridge pass.
+pub(crate) trait RidgePixel: Pixel + Ord {
+    const ZERO: Self;
+    /// Gray levels per 8-bit gray level (1 or 257).
+    const SCALE: f32;
+    fn sat_sub(self, o: Self) -> Self;
+    fn as_u32(self) -> u32;
+    fn from_u32_clamped(x: u32) -> Self;
+}
+
+impl RidgePixel for u8 {
+    const ZERO: Self = 0;
+    const SCALE: f32 = 1.0;
+    #[inline(always)]
+    fn sat_sub(self, o: Self) -> Self {
+        self.saturating_sub(o)
+    }
+    #[inline(always)]
+    fn as_u32(self) -> u32 {
+        self as u32
+    }
+    #[inline(always)]
+    fn from_u32_clamped(x: u32) -> Self {
+        x.min(u8::MAX as u32) as u8
+    }
+}
+
+impl RidgePixel for u16 {
+    const ZERO: Self = 0;
+    const SCALE: f32 = 257.0;
+    #[inline(always)]
+    fn sat_sub(self, o: Self) -> Self {
+        self.saturating_sub(o)
+    }
+    #[inline(always)]
+    fn as_u32(self) -> u32 {
+        self as u32
+    }
+    #[inline(always)]
+    fn from_u32_clamped(x: u32) -> Self {
+        x.min(u16::MAX as u32) as u16
+    }
+}
+
+/// A run of consecutive ridge responses above the threshold.
+#[derive(Debug, Clone, Copy, Default)]
+struct Run {
+    last: u32,
+    strength: u32,
+    vmax: u32,
+    pfirst: u32,
+    plast: u32,
+}
+
+/// Peak candidates of one scan line: the strongest run and the strength of the next.
+#[derive(Debug, Clone, Copy, Default)]
+pub(crate) struct LineCand {
+    cur: Run,
+    active: bool,
+    best: Run,
+    has_best: bool,
+    second: u32,
+}
+
+impl LineCand {
+    #[inline]
+    fn push(&mut self, pos: u32, r: u32, v: u32) {
+        if self.active && pos <= self.cur.last + 1 + MERGE_GAP {
+            let c = &mut self.cur;
+            c.last = pos;
+            c.strength = c.strength.max(r);
+            if v > c.vmax {
+                c.vmax = v;
+                c.pfirst = pos;
+                c.plast = pos;
+            } else if v == c.vmax {
+                c.plast = pos;
+            }
+        } else {
+            self.close();
+            self.cur = Run {
+                last: pos,
+                strength: r,
+                vmax: v,
+                pfirst: pos,
+                plast: pos,
+            };
+            self.active = true;
+        }
+    }
+
+    fn close(&mut self) {
+        if !self.active {
+            return;
+        }
+        self.active = false;
+        let c = self.cur;
+        if !self.has_best {
+            self.best = c;
+            self.has_best = true;
+        } else if c.strength > self.best.strength {
+            self.second = self.second.max(self.best.strength);
+            self.best = c;
+        } else {
+            self.second = self.second.max(c.strength);
+        }
+    }
+
+    /// The peak pixel of the single trustworthy run, or why there is none.
+    fn verdict(&self, ratio: f32) -> std::result::Result<usize, LineReject> {
+        if !self.has_best {
+            return Err(LineReject::NoPeak);
+        }
+        if self.second as f32 >= ratio * self.best.strength as f32 {
+            return Err(LineReject::Multiple);
+        }
+        Ok(((self.best.pfirst + self.best.plast) / 2) as usize)
+    }
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum LineReject {
+    NoPeak,
+    Multiple,
+    Shape,
+    Saturated,
+    Border,
+}
+
+/// `r(x) = I(x) - max(I(x - d), I(x + d))` over a contiguous scan line; runs above `thr`
+/// go to `cand`.
+#[inline]
+fn scan_line<T: RidgePixel>(line: &[T], d: usize, thr: T, cand: &mut LineCand) {
+    let n = line.len();
+    if n < 2 * d + 1 {
+        return;
+    }
+    let end = n - d;
+    let mut x = d;
+    while x < end {
+        let len = (end - x).min(CHUNK);
+        let a = &line[x - d..x - d + len];
+        let m = &line[x..x + len];
+        let b = &line[x + d..x + d + len];
+        let mx = m
+            .iter()
+            .zip(a)
+            .zip(b)
+            .fold(T::ZERO, |acc, ((&m, &a), &b)| acc.max(m.sat_sub(a.max(b))));
+        if mx >= thr {
+            for (i, ((&m, &a), &b)) in m.iter().zip(a).zip(b).enumerate() {
+                let r = m.sat_sub(a.max(b));
+                if r >= thr {
+                    cand.push((x + i) as u32, r.as_u32(), m.as_u32());
+                }
+            }
+        }
+        x += len;
+    }
+    cand.close();
+}
+
+/// The ridge test down every column at once, row by row (cache friendly): column `x`'s
+/// candidates go to `cands[x]`.
+fn scan_columns<T: RidgePixel>(img: &ImageView<'_, T>, d: usize, thr: T, cands: &mut [LineCand]) {
+    let (w, h) = (img.width(), img.height());
+    if h < 2 * d + 1 {
+        return;
+    }
+    for y in d..h - d {
+        let (ra, rm, rb) = (img.row(y - d), img.row(y), img.row(y + d));
+        let mut x0 = 0;
+        while x0 < w {
+            let len = (w - x0).min(CHUNK);
+            let a = &ra[x0..x0 + len];
+            let m = &rm[x0..x0 + len];
+            let b = &rb[x0..x0 + len];
+            let mx = m
+                .iter()
+                .zip(a)
+                .zip(b)
+                .fold(T::ZERO, |acc, ((&m, &a), &b)| acc.max(m.sat_sub(a.max(b))));
+            if mx >= thr {
+                for (i, ((&m, &a), &b)) in m.iter().zip(a).zip(b).enumerate() {
+                    let r = m.sat_sub(a.max(b));
+                    if r >= thr {
+                        cands[x0 + i].push(y as u32, r.as_u32(), m.as_u32());
+                    }
+                }
+            }
+            x0 += len;
+        }
+    }
+    for c in cands.iter_mut() {
+        c.close();
+    }
+}
+
+/// Options converted to the image's gray scale.
+#[derive(Debug, Clone, Copy)]
+struct Params {
+    d: usize,
+    min_contrast: f32,
+    min_width: f32,
+    max_width: f32,
+    window: f32,
+    flank: usize,
+    max_sat: usize,
+    sat_level: f32,
+    low_signal: f32,
+    uneven: f32,
+    uneven_rel: f32,
+    method: StripeMethod,
+}
+
+impl Params {
+    fn new<T: RidgePixel>(o: &StripeOptions) -> Params {
+        Params {
+            d: o.ridge_px,
+            min_contrast: o.min_contrast * T::SCALE,
+            min_width: o.min_width_px,
+            max_width: o.max_width_px,
+            window: o.window_fwhm,
+            flank: o.flank_px,
+            max_sat: o.max_saturated_px,
+            sat_level: T::MAX,
+            low_signal: o.low_signal_gray * T::SCALE,
+            uneven: o.uneven_gray * T::SCALE,
+            uneven_rel: o.uneven_rel,
+            method: o.method,
+        }
+    }
+
+    /// Half length of the segment around the peak that sub-pixel work may read.
+    fn reach(&self) -> usize {
+        let h = (self.window * self.max_width).ceil() as usize + 2;
+        (h + 2 + self.flank).max(self.d + 1) + (self.max_width.ceil() as usize)
+    }
+}
+
+/// Sub-pixel result on a segment.
+#[derive(Debug, Clone, Copy)]
+struct Sub {
+    c: f64,
+    peak: f32,
+    width: f32,
+    support: f32,
+    flags: u8,
+}
+
+/// Position (fractional index) where `y` falls to `half` walking from `pk` by `step`.
+#[inline]
+fn crossing(
+    seg: &[f32],
+    pk: usize,
+    step: isize,
+    bg: &impl Fn(f32) -> f32,
+    half: f32,
+    limit: usize,
+) -> Option<f32> {
+    let mut x = pk as isize;
+    let n = seg.len() as isize;
+    let mut walked = 0;
+    loop {
+        let nx = x + step;
+        if nx < 0 || nx >= n || walked > limit {
+            return None;
+        }
+        let yn = seg[nx as usize] - bg(nx as f32);
+        if yn <= half {
+            let yx = seg[x as usize] - bg(x as f32);
+            let t = if yx > yn {
+                (yx - half) / (yx - yn)
+            } else {
+                0.5
+            };
+            return Some(x as f32 + step as f32 * t.clamp(0.0, 1.0));
+        }
+        x = nx;
+        walked += 1;
+    }
+}
+
+/// Mean, min and max of `seg[a..b]`.
+#[inline]
+fn flank_stats(seg: &[f32]) -> (f32, f32, f32) {
+    let mut s = 0.0;
+    let mut lo = f32::INFINITY;
+    let mut hi = f32::NEG_INFINITY;
+    for &v in seg {
+        s += v;
+        lo = lo.min(v);
+        hi = hi.max(v);
+    }
+    (s / seg.len() as f32, lo, hi)
+}
+
+/// Linear background through the flank means.
+#[derive(Debug, Clone, Copy)]
+struct Background {
+    xl: f32,
+    bl: f32,
+    slope: f32,
+}
+
+impl Background {
+    #[inline]
+    fn at(&self, x: f32) -> f32 {
+        self.bl + self.slope * (x - self.xl)
+    }
+}
+
+/// The sub-pixel centre of the peak at `pk` (index into `seg`).
+fn subpixel(seg: &[f32], pk: usize, p: &Params) -> std::result::Result<Sub, LineReject> {
+    let n = seg.len();
+    let d = p.d;
+    if pk < d || pk + d >= n {
+        return Err(LineReject::Border);
+    }
+    // First guess of the background: the ridge test's own flank pixels.
+    let b0 = 0.5 * (seg[pk - d] + seg[pk + d]);
+    let mut a = seg[pk] - b0;
+    if a < p.min_contrast {
+        return Err(LineReject::Shape);
+    }
+    let limit = p.max_width.ceil() as usize + 1;
+    let flat = |_: f32| b0;
+    let (Some(mut l), Some(mut r)) = (
+        crossing(seg, pk, -1, &flat, 0.5 * a, limit),
+        crossing(seg, pk, 1, &flat, 0.5 * a, limit),
+    ) else {
+        return Err(LineReject::Shape);
+    };
+    let mut bg = Background {
+        xl: 0.0,
+        bl: b0,
+        slope: 0.0,
+    };
+    let mut h = 0.0;
+    let mut flanks = (0usize, 0usize);
+    let mut uneven = false;
+    for _ in 0..2 {
+        let w = r - l;
+        if !(w >= p.min_width && w <= p.max_width) {
+            return Err(LineReject::Shape);
+        }
+        let cen = 0.5 * (l + r);
+        h = (p.window * w).max(1.5);
+        // Window pixels: round(cen - h) ..= round(cen + h) (plus a pixel of slack each side
+        // for the centroid's moves); flanks beyond.
+        let lo = (cen - h).round() - 2.0;
+        let hi = (cen + h).round() + 2.0;
+        if lo < p.flank as f32 || hi + p.flank as f32 >= n as f32 {
+            return Err(LineReject::Border);
+        }
+        let (lo, hi) = (lo as usize, hi as usize);
+        flanks = (lo + 1 - p.flank, hi);
+        let (ml, minl, maxl) = flank_stats(&seg[lo + 1 - p.flank..=lo]);
+        let (mr, minr, maxr) = flank_stats(&seg[hi..hi + p.flank]);
+        let xl = lo as f32 - 0.5 * (p.flank - 1) as f32;
+        let xr = hi as f32 + 0.5 * (p.flank - 1) as f32;
+        bg = Background {
+            xl,
+            bl: ml,
+            slope: (mr - ml) / (xr - xl),
+        };
+        a = seg[pk] - bg.at(pk as f32);
+        if a < p.min_contrast {
+            return Err(LineReject::Shape);
+        }
+        let tol = p.uneven + p.uneven_rel * a;
+        uneven = (mr - ml).abs() > tol || maxl - minl > tol || maxr - minr > tol;
+        let f = |x: f32| bg.at(x);
+        let (Some(nl), Some(nr)) = (
+            crossing(seg, pk, -1, &f, 0.5 * a, limit),
+            crossing(seg, pk, 1, &f, 0.5 * a, limit),
+        ) else {
+            return Err(LineReject::Shape);
+        };
+        l = nl;
+        r = nr;
+    }
+    let w = r - l;
+    if !(w >= p.min_width && w <= p.max_width) {
+        return Err(LineReject::Shape);
+    }
+    // Saturation: any saturated pixel in the support flags; a long plateau rejects.
+    let mut flags = 0u8;
+    let (f0, f1) = (flanks.0, (flanks.1 + p.flank).min(n));
+    let mut run = 0usize;
+    let mut longest = 0usize;
+    for &v in &seg[f0..f1] {
+        if v >= p.sat_level {
+            run += 1;
+            longest = longest.max(run);
+        } else {
+            run = 0;
+        }
+    }
+    if longest > 0 {
+        flags |= FLAG_SATURATED;
+        if longest > p.max_sat {
+            return Err(LineReject::Saturated);
+        }
+    }
+    if uneven {
+        flags |= FLAG_UNEVEN_BACKGROUND;
+    }
+    if a < p.low_signal {
+        flags |= FLAG_LOW_SIGNAL;
+    }
+    // Centroid with a fractional window centred on the estimate, to its fixed point.
+    let (xmin, xmax) = (flanks.0 + p.flank, flanks.1 - 1);
+    let mut c = 0.5 * (l + r);
+    for _ in 0..8 {
+        let (lo, hi) = (c - h, c + h);
+        let i0 = ((lo + 0.5).floor().max(xmin as f32)) as usize;
+        let i1 = ((hi + 0.5).floor().min(xmax as f32)) as usize;
+        let (mut s, mut sx) = (0.0f32, 0.0f32);
+        for (i, &v) in seg.iter().enumerate().take(i1 + 1).skip(i0) {
+            let xi = i as f32;
+            let wgt = ((xi + 0.5).min(hi) - (xi - 0.5).max(lo)).clamp(0.0, 1.0);
+            let y = wgt * (v - bg.at(xi));
+            s += y;
+            sx += y * (xi - c);
+        }
+        if s <= 0.0 {
+            return Err(LineReject::Shape);
+        }
+        let dc = sx / s;
+        c += dc;
+        if (c - 0.5 * (l + r)).abs() > w {
+            return Err(LineReject::Shape);
+        }
+        if dc.abs() < 1e-4 {
+            break;
+        }
+    }
+    let mut cf = c as f64;
+    if p.method == StripeMethod::Gaussian {
+        if let Some(g) = gauss_fit(seg, &bg, c, a, w, h, xmin, xmax) {
+            cf = g;
+        }
+    }
+    Ok(Sub {
+        c: cf,
+        peak: a,
+        width: w,
+        support: (c - flanks.0 as f32 + 0.5).max(flanks.1 as f32 + p.flank as f32 - 0.5 - c),
+        flags,
+    })
+}
+
+/// Gauss-Newton fit of `A exp(-(x - c)^2 / 2 s^2)` to `seg - bg` over `c +- (h + 1)`.
+#[allow(clippy::too_many_arguments)]
+fn gauss_fit(
+    seg: &[f32],
+    bg: &Background,
+    c0: f32,
+    a0: f32,
+    w: f32,
+    h: f32,
+    xmin: usize,
+    xmax: usize,
+) -> Option<f64> {
+    let i0 = ((c0 - h - 1.0).round().max(xmin as f32)) as usize;
+    let i1 = ((c0 + h + 1.0).round().min(xmax as f32)) as usize;
+    if i1 < i0 + 3 {
+        return None;
+    }
+    let (mut amp, mut c, mut s) = (a0 as f64, c0 as f64, (w / 2.3548).max(0.3) as f64);
+    for _ in 0..10 {
+        let mut jtj = [[0.0f64; 3]; 3];
+        let mut jtr = [0.0f64; 3];
+        for (i, &v) in seg.iter().enumerate().take(i1 + 1).skip(i0) {
+            let x = i as f64;
+            let y = (v - bg.at(i as f32)) as f64;
+            let t = (x - c) / s;
+            let e = (-0.5 * t * t).exp();
+            let f = amp * e;
+            let j = [e, f * t / s, f * t * t / s];
+            let res = y - f;
+            for r in 0..3 {
+                jtr[r] += j[r] * res;
+                for q in 0..3 {
+                    jtj[r][q] += j[r] * j[q];
+                }
+            }
+        }
+        let delta = solve3(&jtj, &jtr)?;
+        amp += delta[0];
+        c += delta[1];
+        s += delta[2];
+        if !(amp > 0.0 && s > 0.2 && s < w as f64 && (c - c0 as f64).abs() < 0.5 * w as f64) {
+            return None;
+        }
+        if delta[1].abs() < 1e-5 {
+            return Some(c);
+        }
+    }
+    Some(c)
+}
+
+/// Solves a 3x3 symmetric system (Cramer's rule); `None` when singular.
+fn solve3(a: &[[f64; 3]; 3], b: &[f64; 3]) -> Option<[f64; 3]> {
+    let det = |m: &[[f64; 3]; 3]| {
+        m[0][0] * (m[1][1] * m[2][2] - m[1][2] * m[2][1])
+            - m[0][1] * (m[1][0] * m[2][2] - m[1][2] * m[2][0])
+            + m[0][2] * (m[1][0] * m[2][1] - m[1][1] * m[2][0])
+    };
+    let d = det(a);
+    if !d.is_finite() || d.abs() <= 1e-12 {
+        return None;
+    }
+    let mut out = [0.0; 3];
+    for (k, o) in out.iter_mut().enumerate() {
+        let mut m = *a;
+        for r in 0..3 {
+            m[r][k] = b[r];
+        }
+        *o = det(&m) / d;
+    }
+    Some(out)
+}
+
+/// A reusable stripe extractor: keeps its buffers between images, so line software
+/// that calls [`StripeExtractor::extract_into`] per frame allocates nothing after the
+/// first frame of a given size.
+#[derive(Debug, Clone)]
+pub struct StripeExtractor {
+    opts: StripeOptions,
+    cands: Vec<LineCand>,
+    seg: Vec<f32>,
+    line_buf: Vec<u16>,
+    rejected: RejectCounts,
+}
+
+impl StripeExtractor {
+    /// An extractor; errors on invalid options.
+    pub fn new(opts: StripeOptions) -> Result<StripeExtractor> {
+        opts.validate()?;
+        Ok(StripeExtractor {
+            opts,
+            cands: Vec::new(),
+            seg: Vec::new(),
+            line_buf: Vec::new(),
+            rejected: RejectCounts::default(),
+        })
+    }
+
+    /// The options in use.
+    pub fn options(&self) -> &StripeOptions {
+        &self.opts
+    }
+
+    /// Why scan lines of the last image gave no point.
+    pub fn rejected(&self) -> RejectCounts {
+        self.rejected
+    }
+
+    /// Extracts the stripe of `img` into `out` (cleared first), in scan-line order, and
+    /// returns the direction used. An image without a stripe gives no points (not an
+    /// error). No panics for any image content.
+    pub fn extract_into(
+        &mut self,
+        img: AnyView<'_>,
+        out: &mut Vec<StripePoint>,
+    ) -> Result<StripeDirection> {
+        out.clear();
+        self.rejected = RejectCounts::default();
+        match img {
+            AnyView::U8(v) => self.run(&v, out),
+            AnyView::U16(v) => self.run(&v, out),
+        }
+    }
+
+    fn run<T: RidgePixel>(
+        &mut self,
+        img: &ImageView<'_, T>,
+        out: &mut Vec<StripePoint>,
+    ) -> Result<StripeDirection> {
+        let dir = match self.opts.direction {
+            StripeDirection::Auto => auto_direction(img, &self.opts, &mut self.line_buf),
+            d => d,
+        };
+        let p = Params::new::<T>(&self.opts);
+        let thr = T::from_u32_clamped(p.min_contrast.ceil().max(1.0) as u32);
+        let (w, h) = (img.width(), img.height());
+        let reach = p.reach();
+        let ratio = self.opts.second_peak_ratio;
+        let mut rej = RejectCounts::default();
+        let mut count = |r: LineReject| match r {
+            LineReject::NoPeak => rej.no_peak += 1,
+            LineReject::Multiple => rej.multiple_peaks += 1,
+            LineReject::Shape => rej.shape += 1,
+            LineReject::Saturated => rej.saturated += 1,
+            LineReject::Border => rej.border += 1,
+        };
+        match dir {
+            StripeDirection::Rows => {
+                self.cands.clear();
+                self.cands.resize(w, LineCand::default());
+                scan_columns(img, p.d, thr, &mut self.cands);
+                for x in 0..w {
+                    let pk = match self.cands[x].verdict(ratio) {
+                        Ok(pk) => pk,
+                        Err(e) => {
+                            count(e);
+                            continue;
+                        }
+                    };
+                    let y0 = pk.saturating_sub(reach);
+                    let y1 = (pk + reach + 1).min(h);
+                    self.seg.clear();
+                    self.seg.extend((y0..y1).map(|y| img.get(x, y).to_f32()));
+                    match subpixel(&self.seg, pk - y0, &p) {
+                        Ok(s) => out.push(StripePoint {
+                            u: x as f64,
+                            v: y0 as f64 + s.c,
+                            peak: s.peak,
+                            width_px: s.width,
+                            support_px: s.support,
+                            flags: s.flags,
+                        }),
+                        Err(e) => count(e),
+                    }
+                }
+            }
+            _ => {
+                for y in 0..h {
+                    let row = img.row(y);
+                    let mut cand = LineCand::default();
+                    scan_line(row, p.d, thr, &mut cand);
+                    let pk = match cand.verdict(ratio) {
+                        Ok(pk) => pk,
+                        Err(e) => {
+                            count(e);
+                            continue;
+                        }
+                    };
+                    let x0 = pk.saturating_sub(reach);
+                    let x1 = (pk + reach + 1).min(w);
+                    self.seg.clear();
+                    self.seg.extend(row[x0..x1].iter().map(|v| v.to_f32()));
+                    match subpixel(&self.seg, pk - x0, &p) {
+                        Ok(s) => out.push(StripePoint {
+                            u: x0 as f64 + s.c,
+                            v: y as f64,
+                            peak: s.peak,
+                            width_px: s.width,
+                            support_px: s.support,
+                            flags: s.flags,
+                        }),
+                        Err(e) => count(e),
+                    }
+                }
+            }
+        }
+        let dir = if dir == StripeDirection::Rows {
+            StripeDirection::Rows
+        } else {
+            StripeDirection::Cols
+        };
+        rej.isolated = continuity(out, dir, self.opts.min_chain, self.opts.max_jump_px);
+        flag_oblique(out, dir, self.opts.max_slope);
+        self.rejected = rej;
+        Ok(dir)
+    }
+}
+
+/// Drops points that are not part of a chain of `min_chain` neighbouring scan lines;
+/// returns how many were dropped.
+fn continuity(
+    pts: &mut Vec<StripePoint>,
+    dir: StripeDirection,
+    min_chain: usize,
+    max_jump: f32,
+) -> usize {
+    if min_chain <= 1 || pts.is_empty() {
+        return 0;
+    }
+    let key = |p: &StripePoint| {
+        if dir == StripeDirection::Rows {
+            (p.u, p.v)
+        } else {
+            (p.v, p.u)
+        }
+    };
+    let n = pts.len();
+    let mut start = 0;
+    let mut dropped = 0;
+    for i in 1..=n {
+        let linked = i < n && {
+            let (la, pa) = key(&pts[i - 1]);
+            let (lb, pb) = key(&pts[i]);
+            let gap = lb - la;
+            gap <= 2.0 && (pb - pa).abs() <= max_jump as f64 * gap
+        };
+        if !linked {
+            if i - start < min_chain {
+                for p in &mut pts[start..i] {
+                    p.support_px = -1.0;
+                }
+                dropped += i - start;
+            }
+            start = i;
+        }
+    }
+    if dropped > 0 {
+        pts.retain(|p| p.support_px >= 0.0);
+    }
+    dropped
+}
+
+/// Flags [`FLAG_OBLIQUE`] where the slope from the neighbouring points (within 2 scan
+/// lines) exceeds `max_slope`.
+fn flag_oblique(pts: &mut [StripePoint], dir: StripeDirection, max_slope: f32) {
+    let key = |p: &StripePoint| {
+        if dir == StripeDirection::Rows {
+            (p.u, p.v)
+        } else {
+            (p.v, p.u)
+        }
+    };
+    let n = pts.len();
+    for i in 0..n {
+        let (l, x) = key(&pts[i]);
+        let near = |j: usize| {
+            let (lj, xj) = key(&pts[j]);
+            ((lj - l).abs() <= 2.0).then_some((lj, xj))
+        };
+        let a = if i > 0 { near(i - 1) } else { None }.unwrap_or((l, x));
+        let b = if i + 1 < n { near(i + 1) } else { None }.unwrap_or((l, x));
+        if b.0 > a.0 && ((b.1 - a.1) / (b.0 - a.0)).abs() > max_slope as f64 {
+            pts[i].flags |= FLAG_OBLIQUE;
+        }
+    }
+}
+
+/// Decides the scan direction of an image: the ridge test on every 4th row and every 4th
+/// column; the direction that yields more single-peak scan lines, scaled to the whole
+/// image (rows found / rows sampled x height against the same for columns), wins; ties
+/// and images without any stripe give `Cols`.
+pub fn resolve_direction(img: AnyView<'_>, opts: &StripeOptions) -> Result<StripeDirection> {
+    opts.validate()?;
+    let mut buf = Vec::new();
+    Ok(match img {
+        AnyView::U8(v) => auto_direction(&v, opts, &mut buf),
+        AnyView::U16(v) => auto_direction(&v, opts, &mut buf),
+    })
+}
+
+fn auto_direction<T: RidgePixel>(
+    img: &ImageView<'_, T>,
+    opts: &StripeOptions,
+    buf: &mut Vec<u16>,
+) -> StripeDirection {
+    let (w, h) = (img.width(), img.height());
+    let thr32 = (opts.min_contrast * T::SCALE).ceil().max(1.0) as u32;
+    let thr = T::from_u32_clamped(thr32);
+    let thr16 = thr32.min(u16::MAX as u32) as u16;
+    let ratio = opts.second_peak_ratio;
+    let d = opts.ridge_px;
+    let (mut rows_hit, mut rows_n) = (0usize, 0usize);
+    for y in (AUTO_STEP / 2..h).step_by(AUTO_STEP) {
+        let mut c = LineCand::default();
+        scan_line(img.row(y), d, thr, &mut c);
+        rows_n += 1;
+        rows_hit += c.verdict(ratio).is_ok() as usize;
+    }
+    let (mut cols_hit, mut cols_n) = (0usize, 0usize);
+    for x in (AUTO_STEP / 2..w).step_by(AUTO_STEP) {
+        buf.clear();
+        buf.extend((0..h).map(|y| img.get(x, y).as_u32() as u16));
+        let mut c = LineCand::default();
+        scan_line(buf.as_slice(), d, thr16, &mut c);
+        cols_n += 1;
+        cols_hit += c.verdict(ratio).is_ok() as usize;
+    }
+    let per_row = if rows_n > 0 {
+        rows_hit as f64 / rows_n as f64 * h as f64
+    } else {
+        0.0
+    };
+    let per_col = if cols_n > 0 {
+        cols_hit as f64 / cols_n as f64 * w as f64
+    } else {
+        0.0
+    };
+    if per_col > per_row {
+        StripeDirection::Rows
+    } else {
+        StripeDirection::Cols
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::vision::stripe::{extract_stripe, StripeOptions};
+
+    /// A synthetic Gaussian stripe `u = u0 + slope * v` on a flat background.
+    fn synth(w: usize, h: usize, u0: f64, slope: f64, sigma: f64, amp: f64, bg: f64) -> Vec<u8> {
+        let mut img = vec![0u8; w * h];
+        for y in 0..h {
+            let c = u0 + slope * y as f64;
+            for x in 0..w {
+                let t = (x as f64 - c) / sigma;
+                let v = bg + amp * (-0.5 * t * t).exp();
+                img[y * w + x] = v.round().clamp(0.0, 255.0) as u8;
+            }
+        }
+        img
+    }
+
+    #[test]
+    fn finds_a_synthetic_stripe_in_both_directions() {
+        let (w, h) = (120, 90);
+        let img = synth(w, h, 40.3, 0.2, 1.6, 180.0, 12.0);
+        let v = ImageView::from_slice(&img, w, h).unwrap();
+        let s = extract_stripe(AnyView::U8(v), &StripeOptions::default()).unwrap();
+        assert_eq!(s.direction, StripeDirection::Cols);
+        assert!(s.points.len() > 80, "{}", s.points.len());
+        for p in &s.points {
+            let c = 40.3 + 0.2 * p.v;
+            assert!((p.u - c).abs() < 0.05, "{} vs {c}", p.u);
+            assert!((p.width_px - 3.77).abs() < 0.3, "{}", p.width_px);
+        }
+        // transposed: one point per column
+        let mut t = vec![0u8; w * h];
+        for y in 0..h {
+            for x in 0..w {
+                t[x * h + y] = img[y * w + x];
+            }
+        }
+        let v = ImageView::from_slice(&t, h, w).unwrap();
+        let s2 = extract_stripe(AnyView::U8(v), &StripeOptions::default()).unwrap();
+        assert_eq!(s2.direction, StripeDirection::Rows);
+        assert_eq!(s2.points.len(), s.points.len());
+        for (a, b) in s.points.iter().zip(&s2.points) {
+            assert!((a.u - b.v).abs() < 1e-4 && (a.v - b.u).abs() < 1e-9);
+        }
+    }
+
+    #[test]
+    fn no_panic_on_degenerate_images() {
+        for (w, h) in [(1usize, 1usize), (1, 50), (50, 1), (3, 3), (11, 11)] {
+            for val in [0u8, 255, 7] {
+                let img = vec![val; w * h];
+                let v = ImageView::from_slice(&img, w, h).unwrap();
+                assert!(extract_stripe(AnyView::U8(v), &StripeOptions::default()).is_err());
+            }
+        }
+        // pseudo-random noise of full range: ambiguous everywhere, no stripe
+        let (w, h) = (200, 150);
+        let mut s = 12345u64;
+        let img: Vec<u16> = (0..w * h)
+            .map(|_| {
+                s = s
+                    .wrapping_mul(6364136223846793005)
+                    .wrapping_add(1442695040888963407);
+                (s >> 48) as u16
+            })
+            .collect();
+        let v = ImageView::from_slice(&img, w, h).unwrap();
+        let r = extract_stripe(AnyView::U16(v), &StripeOptions::default());
+        assert!(r.is_err(), "{:?}", r.map(|s| s.points.len()));
+    }
+}

@@ -1,0 +1,318 @@
+//! Laser stripe extraction: one sub-pixel stripe point per scan line, reflectance-edge
+//! flagging with the board image, and a robust straight-line fit.
+//!
+//! ## Scan lines
+//!
+//! [`StripeDirection::Cols`]: the stripe runs roughly along image columns, each ROW is a
+//! scan line and gives at most one point `(u, v = row)`. [`StripeDirection::Rows`]: the
+//! stripe runs roughly along rows, each COLUMN is a scan line, one point `(u = column, v)`.
+//! [`StripeDirection::Auto`] decides from the image (see [`resolve_direction`]).
+//!
+//! ## Per scan line
+//!
+//! 1. **Peak search (ridge test).** `r(x) = I(x) - max(I(x - d), I(x + d))` with
+//!    `d = ridge_px`: positive only on a bright ridge narrower than `2 d`; a step of the
+//!    background (a circle's border, the plate's edge, board texture in single-image
+//!    views) gives `r <= 0`. Runs of `r >= min_contrast` are peak candidates. This pass is
+//!    one read of the scan line with integer arithmetic, vectorised by the compiler; only
+//!    the few pixels above the threshold are looked at further.
+//! 2. **Rejection.** No candidate: no point. Two candidates with the weaker one at least
+//!    `second_peak_ratio` of the stronger (a reflection, a second stripe): the scan line is
+//!    ambiguous and gives no point.
+//! 3. **Local background** from two flanks of `flank_px` pixels just outside the centre
+//!    window, linear between them (it follows the board texture and shading locally).
+//!    Flanks that disagree or are not flat mean a reflectance change under the stripe:
+//!    the point is flagged [`FLAG_UNEVEN_BACKGROUND`].
+//! 4. **Width** = full width at half maximum along the scan line (`width_px`), peak =
+//!    height above the background. Rejected: width outside `[min_width_px,
+//!    max_width_px]`, a saturated plateau longer than `max_saturated_px`, a window that
+//!    leaves the image.
+//! 5. **Sub-pixel centre.** [`StripeMethod::Centroid`] (the paper's way): gray centroid of
+//!    `I - background` over a window of `+-window_fwhm * width_px` centred on the current
+//!    estimate, with fractional weights at the window ends, iterated to a fixed point (so
+//!    the window truncation does not pull the centre). [`StripeMethod::Gaussian`]: a
+//!    Gauss-Newton fit of `A exp(-(x - c)^2 / 2 s^2)` to the same residuals, started from
+//!    the centroid (falls back to it if the fit fails).
+//! 6. **Continuity.** Points that do not belong to a chain of at least `min_chain`
+//!    neighbouring scan lines (gap <= 2 lines, jump <= `max_jump_px` per line) are dropped:
+//!    a real stripe is a curve, noise is not.
+//!
+//! Points whose support holds a saturated pixel are flagged [`FLAG_SATURATED`]; weak ones
+//! (peak < `low_signal_gray`) [`FLAG_LOW_SIGNAL`]; where the stripe crosses the scan line
+//! at a shallow angle (slope > `max_slope` from the neighbouring points) [`FLAG_OBLIQUE`]. [`flag_reflectance_edges`] adds
+//! [`FLAG_EDGE`] from the board image of the same pose.
+//!
+//! Gray-level options are on the 8-bit scale and multiplied by 257 for 16-bit images
+//! (which use the full range, spec/DATASET.md).
+
+mod edges;
+mod extract;
+mod line;
+
+pub use crate::io::StripeDirection;
+pub use edges::{flag_reflectance_edges, EdgeOptions};
+pub use extract::{resolve_direction, StripeExtractor};
+pub use line::{fit_line, fit_line_with, LineFit, LineFitOptions};
+
+use crate::error::{Error, Result};
+use crate::vision::AnyView;
+
+/// The support of the point holds a saturated pixel (at full scale).
+pub const FLAG_SATURATED: u8 = 1;
+/// The peak is below `low_signal_gray` above the background (e.g. inside a dark circle):
+/// the centre is noisier.
+pub const FLAG_LOW_SIGNAL: u8 = 2;
+/// The board image shows a reflectance edge (circle border, plate edge) inside the
+/// point's support: the centre is biased on a real sensor too ([`flag_reflectance_edges`]).
+pub const FLAG_EDGE: u8 = 4;
+/// The stripe image's own background changes across the point's support (the two flanks
+/// disagree or are not flat): a reflectance or depth edge under the stripe.
+pub const FLAG_UNEVEN_BACKGROUND: u8 = 8;
+/// The stripe crosses the scan line at a shallow angle here (`|d position / d line| >
+/// max_slope`, from the neighbouring points): the scan-line profile runs along the stripe
+/// and follows its bends and intensity changes (a sphere's rim), so the centre is biased.
+pub const FLAG_OBLIQUE: u8 = 16;
+/// Flags that warn of a biased centre: leave such points out of calibration.
+pub const FLAG_BIASED: u8 = FLAG_EDGE | FLAG_UNEVEN_BACKGROUND | FLAG_OBLIQUE;
+
+/// How the sub-pixel centre is computed on each scan line.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum StripeMethod {
+    /// Gray centroid over an adaptive window (the paper's way).
+    #[default]
+    Centroid,
+    /// Least-squares Gaussian fit (Steger-like; slower, a little less noisy on weak lines).
+    Gaussian,
+}
+
+impl StripeMethod {
+    /// `centroid` or `gaussian`.
+    pub fn name(self) -> &'static str {
+        match self {
+            StripeMethod::Centroid => "centroid",
+            StripeMethod::Gaussian => "gaussian",
+        }
+    }
+
+    /// Parses `centroid` or `gaussian`.
+    pub fn from_name(s: &str) -> Result<Self> {
+        match s {
+            "centroid" => Ok(StripeMethod::Centroid),
+            "gaussian" => Ok(StripeMethod::Gaussian),
+            other => Err(Error::InvalidInput(format!(
+                "unknown stripe method {other:?}: expected \"centroid\" or \"gaussian\""
+            ))),
+        }
+    }
+}
+
+/// Options of the stripe extractor. Gray levels on the 8-bit scale (x257 for 16-bit).
+#[derive(Debug, Clone, PartialEq)]
+pub struct StripeOptions {
+    pub direction: StripeDirection,
+    pub method: StripeMethod,
+    /// Ridge test distance `d`, px: a stripe must be brighter than the pixels `d` away on
+    /// both sides. Must exceed the stripe's half width at half maximum.
+    pub ridge_px: usize,
+    /// Smallest ridge response and peak height above the background, gray.
+    pub min_contrast: f32,
+    /// A second candidate at least this fraction of the strongest makes the scan line
+    /// ambiguous (rejected).
+    pub second_peak_ratio: f32,
+    /// Accepted stripe width (FWHM along the scan line), px.
+    pub min_width_px: f32,
+    pub max_width_px: f32,
+    /// Centroid window half width, in stripe widths (FWHM).
+    pub window_fwhm: f32,
+    /// Pixels of each background flank.
+    pub flank_px: usize,
+    /// Longest saturated plateau still trusted, px.
+    pub max_saturated_px: usize,
+    /// Peaks below this height above the background get [`FLAG_LOW_SIGNAL`], gray.
+    pub low_signal_gray: f32,
+    /// Flank disagreement flagged [`FLAG_UNEVEN_BACKGROUND`]: more than
+    /// `uneven_gray + uneven_rel * peak`.
+    pub uneven_gray: f32,
+    pub uneven_rel: f32,
+    /// Continuity: shortest chain of neighbouring points kept.
+    pub min_chain: usize,
+    /// Continuity: largest jump of the centre between neighbouring scan lines, px per line.
+    pub max_jump_px: f32,
+    /// Points where the stripe's slope against the scan line exceeds this get
+    /// [`FLAG_OBLIQUE`].
+    pub max_slope: f32,
+}
+
+impl Default for StripeOptions {
+    fn default() -> Self {
+        StripeOptions {
+            direction: StripeDirection::Auto,
+            method: StripeMethod::Centroid,
+            ridge_px: 5,
+            min_contrast: 6.0,
+            second_peak_ratio: 0.5,
+            min_width_px: 1.2,
+            max_width_px: 24.0,
+            window_fwhm: 1.0,
+            flank_px: 3,
+            max_saturated_px: 6,
+            low_signal_gray: 20.0,
+            uneven_gray: 5.0,
+            uneven_rel: 0.1,
+            min_chain: 3,
+            max_jump_px: 4.0,
+            max_slope: 1.5,
+        }
+    }
+}
+
+impl StripeOptions {
+    /// Checks the values (finite, positive, ordered).
+    pub fn validate(&self) -> Result<()> {
+        let bad = |m: String| Err(Error::InvalidInput(format!("stripe options: {m}")));
+        if self.ridge_px < 1 || self.ridge_px > 64 {
+            return bad(format!("ridge_px {} must be in 1..=64", self.ridge_px));
+        }
+        for (k, v) in [
+            ("min_contrast", self.min_contrast),
+            ("min_width_px", self.min_width_px),
+            ("max_width_px", self.max_width_px),
+            ("window_fwhm", self.window_fwhm),
+            ("max_jump_px", self.max_jump_px),
+            ("max_slope", self.max_slope),
+        ] {
+            if !(v.is_finite() && v > 0.0) {
+                return bad(format!("{k} = {v} must be finite and > 0"));
+            }
+        }
+        for (k, v) in [
+            ("low_signal_gray", self.low_signal_gray),
+            ("uneven_gray", self.uneven_gray),
+            ("uneven_rel", self.uneven_rel),
+            ("second_peak_ratio", self.second_peak_ratio),
+        ] {
+            if !(v.is_finite() && v >= 0.0) {
+                return bad(format!("{k} = {v} must be finite and >= 0"));
+            }
+        }
+        if self.max_width_px < self.min_width_px || self.max_width_px > 256.0 {
+            return bad(format!(
+                "max_width_px {} must be >= min_width_px {} and <= 256",
+                self.max_width_px, self.min_width_px
+            ));
+        }
+        if self.window_fwhm > 4.0 {
+            return bad(format!("window_fwhm {} must be <= 4", self.window_fwhm));
+        }
+        if self.flank_px < 1 || self.flank_px > 32 {
+            return bad(format!("flank_px {} must be in 1..=32", self.flank_px));
+        }
+        Ok(())
+    }
+}
+
+/// One stripe point.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct StripePoint {
+    /// Sub-pixel centre, px (pixel centres at integers). One of the two is the scan line
+    /// (an integer).
+    pub u: f64,
+    pub v: f64,
+    /// Peak height above the local background, gray levels of the image.
+    pub peak: f32,
+    /// Width (FWHM) along the scan line, px.
+    pub width_px: f32,
+    /// Half length of the scan-line segment the centre depends on (window plus background
+    /// flanks), px.
+    pub support_px: f32,
+    /// `FLAG_*` bits.
+    pub flags: u8,
+}
+
+impl StripePoint {
+    /// A reflectance change was seen in the point's support ([`FLAG_EDGE`] or
+    /// [`FLAG_UNEVEN_BACKGROUND`]): leave it out of calibration.
+    pub fn near_edge(&self) -> bool {
+        self.flags & (FLAG_EDGE | FLAG_UNEVEN_BACKGROUND) != 0
+    }
+
+    /// No flag warns of a biased centre (none of [`FLAG_BIASED`]; low-signal and saturated
+    /// points are noisier, not biased, and count as trusted).
+    pub fn trusted(&self) -> bool {
+        self.flags & FLAG_BIASED == 0
+    }
+}
+
+/// Why scan lines gave no point.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct RejectCounts {
+    /// No ridge above `min_contrast`.
+    pub no_peak: usize,
+    /// Two or more comparable peaks.
+    pub multiple_peaks: usize,
+    /// A saturated plateau longer than `max_saturated_px`.
+    pub saturated: usize,
+    /// Width outside the accepted range, or a peak too weak after background removal.
+    pub shape: usize,
+    /// The window or its flanks leave the image.
+    pub border: usize,
+    /// Not part of a chain of neighbouring points (continuity).
+    pub isolated: usize,
+}
+
+/// The stripe of one image.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Stripe {
+    /// The direction used (never `Auto`).
+    pub direction: StripeDirection,
+    /// Image size `(width, height)`.
+    pub size: (usize, usize),
+    /// Points in scan-line order.
+    pub points: Vec<StripePoint>,
+    /// Scan lines examined.
+    pub lines: usize,
+    pub rejected: RejectCounts,
+}
+
+/// Extracts the stripe of one image (see the module docs). An image where no scan line
+/// holds a stripe is an error ([`Error::InvalidInput`], "no stripe found"); line software
+/// that expects empty frames uses [`StripeExtractor::extract_into`], which returns no
+/// points instead.
+pub fn extract_stripe(img: AnyView<'_>, opts: &StripeOptions) -> Result<Stripe> {
+    let mut ex = StripeExtractor::new(opts.clone())?;
+    let mut points = Vec::new();
+    let direction = ex.extract_into(img, &mut points)?;
+    let rejected = ex.rejected();
+    let (w, h) = img.size();
+    let lines = if direction == StripeDirection::Rows {
+        w
+    } else {
+        h
+    };
+    if points.is_empty() {
+        let r = rejected;
+        return Err(Error::InvalidInput(format!(
+            "no stripe found in any scan line ({lines} {} of a {w} x {h} image: {} without a \
+             peak, {} with several peaks, {} saturated, {} of the wrong width or too weak, {} \
+             at the border, {} isolated)",
+            if direction == StripeDirection::Rows {
+                "columns"
+            } else {
+                "rows"
+            },
+            r.no_peak,
+            r.multiple_peaks,
+            r.saturated,
+            r.shape,
+            r.border,
+            r.isolated
+        )));
+    }
+    Ok(Stripe {
+        direction,
+        size: (w, h),
+        points,
+        lines,
+        rejected,
+    })
+}
