@@ -70,6 +70,58 @@ pub(crate) struct BlobStats {
     pub too_small: usize,
     pub too_large: usize,
     pub bad_shape: usize,
+    /// Dark regions not surrounded by a brighter background on every side (e.g. the
+    /// part of the table next to the plate's edge).
+    pub not_surrounded: usize,
+}
+
+/// Whether a blob is darker than its surroundings on every side: 16 samples on its
+/// moment ellipse scaled by 1.6 must all be brighter than the midpoint between the
+/// blob's centre and the samples' median, and the centre darker than `k` times that
+/// median.
+#[allow(clippy::too_many_arguments)]
+fn surrounded(
+    img: &Img,
+    dv: &dyn Fn(f32) -> f32,
+    cx: f64,
+    cy: f64,
+    sxx: f64,
+    syy: f64,
+    sxy: f64,
+    ea: f64,
+    eb: f64,
+    k: f32,
+) -> bool {
+    let theta = 0.5 * (2.0 * sxy).atan2(sxx - syy);
+    let (ct, st) = (theta.cos(), theta.sin());
+    let (xi, yi) = (cx.round() as usize, cy.round() as usize);
+    let mut centre = 0.0f32;
+    let mut n = 0.0f32;
+    for y in yi.saturating_sub(1)..=(yi + 1).min(img.h - 1) {
+        for x in xi.saturating_sub(1)..=(xi + 1).min(img.w - 1) {
+            centre += dv(img.at(x, y));
+            n += 1.0;
+        }
+    }
+    let centre = centre / n;
+    let mut ring: Vec<f32> = Vec::with_capacity(16);
+    for q in 0..16 {
+        let phi = std::f64::consts::TAU * q as f64 / 16.0;
+        let (p, r) = (1.6 * ea * phi.cos(), 1.6 * eb * phi.sin());
+        let (x, y) = (cx + p * ct - r * st, cy + p * st + r * ct);
+        let (x, y) = (x.round(), y.round());
+        if x >= 0.0 && y >= 0.0 && (x as usize) < img.w && (y as usize) < img.h {
+            ring.push(dv(img.at(x as usize, y as usize)));
+        }
+    }
+    if ring.len() < 12 {
+        return false;
+    }
+    let mut sorted = ring.clone();
+    sorted.sort_by(f32::total_cmp);
+    let med = sorted[sorted.len() / 2];
+    let mid = 0.5 * (centre + med);
+    centre < k * med && ring.iter().all(|&v| v > mid)
 }
 
 #[derive(Clone, Copy)]
@@ -280,6 +332,10 @@ pub(crate) fn find_blobs(img: &Img, dark: bool, opts: &CircleOptions) -> (Vec<Bl
             && (bh - 2.0 * hh).abs() <= 0.2 * 2.0 * hh + 2.0;
         if eb / ea < opts.min_axis_ratio || !(0.8..=1.2).contains(&fill) || !box_ok {
             stats.bad_shape += 1;
+            continue;
+        }
+        if !surrounded(img, &dv, cx, cy, sxx, syy, sxy, ea, eb, k) {
+            stats.not_surrounded += 1;
             continue;
         }
         blobs.push(Blob {

@@ -258,6 +258,76 @@ fn seeds(blobs: &[Blob], board: &Board) -> Vec<(f64, usize, [usize; 4])> {
     out
 }
 
+/// Log-area residuals of the nodes against a smooth model of the ordinary circles'
+/// log-area over the lattice (perspective makes areas vary smoothly): a quadratic in
+/// the lattice coordinates (a plane for small grids, a constant for tiny ones),
+/// fitted with the markers excluded iteratively (residuals beyond half the marker
+/// log-ratio `lr`).
+fn area_residuals(
+    coords: &[Coord],
+    at: &HashMap<Coord, usize>,
+    blobs: &[Blob],
+    lr: f64,
+) -> Vec<f64> {
+    let n = coords.len();
+    let la: Vec<f64> = coords.iter().map(|t| blobs[at[t]].area.ln()).collect();
+    let (mi, mj) = (
+        coords.iter().map(|c| c.0 as f64).sum::<f64>() / n as f64,
+        coords.iter().map(|c| c.1 as f64).sum::<f64>() / n as f64,
+    );
+    let terms = if n >= 15 {
+        6
+    } else if n >= 6 {
+        3
+    } else {
+        1
+    };
+    let feat = |c: &Coord| {
+        let (i, j) = (c.0 as f64 - mi, c.1 as f64 - mj);
+        [1.0, i, j, i * i, i * j, j * j]
+    };
+    let mut keep = vec![true; n];
+    let mut res = vec![0.0; n];
+    for _ in 0..4 {
+        let mut m = nalgebra::DMatrix::<f64>::zeros(terms, terms);
+        let mut r = nalgebra::DVector::<f64>::zeros(terms);
+        for k in (0..n).filter(|&k| keep[k]) {
+            let f = feat(&coords[k]);
+            for a in 0..terms {
+                for b in 0..terms {
+                    m[(a, b)] += f[a] * f[b];
+                }
+                r[a] += f[a] * la[k];
+            }
+        }
+        let coef = match m.cholesky() {
+            Some(ch) => ch.solve(&r),
+            None => {
+                // too few kept nodes for the model: a median level
+                let mut v: Vec<f64> = (0..n).filter(|&k| keep[k]).map(|k| la[k]).collect();
+                if v.is_empty() {
+                    v = la.clone();
+                }
+                v.sort_by(f64::total_cmp);
+                let mut c = nalgebra::DVector::<f64>::zeros(terms);
+                c[0] = v[v.len() / 2];
+                c
+            }
+        };
+        for k in 0..n {
+            let f = feat(&coords[k]);
+            let pred: f64 = (0..terms).map(|a| coef[a] * f[a]).sum();
+            res[k] = la[k] - pred;
+        }
+        let new_keep: Vec<bool> = res.iter().map(|&x| x / lr < 0.5).collect();
+        if new_keep == keep {
+            break;
+        }
+        keep = new_keep;
+    }
+    res
+}
+
 fn detection(msg: String) -> Error {
     Error::Detection(msg)
 }
@@ -267,13 +337,14 @@ pub(crate) fn order(blobs: &[Blob], board: &Board, stats: &BlobStats) -> Result<
     let found = || {
         format!(
             "{} blobs passed the filters ({} components: {} touching the border, {} too small, {} too \
-             large, {} not elliptical)",
+             large, {} not elliptical, {} not surrounded by background)",
             blobs.len(),
             stats.components,
             stats.touching_border,
             stats.too_small,
             stats.too_large,
-            stats.bad_shape
+            stats.bad_shape,
+            stats.not_surrounded
         )
     };
     let cap = (10 * board.len()).max(4000);
@@ -324,10 +395,13 @@ pub(crate) fn order(blobs: &[Blob], board: &Board, stats: &BlobStats) -> Result<
     // Leave-one-out check.
     let mut at = grown.at;
     let mut bad: Vec<Coord> = Vec::new();
-    for (&t, &b) in &at {
-        let mut rest = at.clone();
-        rest.remove(&t);
-        match predict_any(&rest, blobs, t) {
+    let mut keys: Vec<Coord> = at.keys().copied().collect();
+    keys.sort_unstable();
+    for t in keys {
+        let Some(b) = at.remove(&t) else { continue };
+        let pred = predict_any(&at, blobs, t);
+        at.insert(t, b);
+        match pred {
             Some((p, pitch, _)) => {
                 let d = ((blobs[b].cx - p[0]).powi(2) + (blobs[b].cy - p[1]).powi(2)).sqrt();
                 if d > 0.2 * pitch {
@@ -360,45 +434,20 @@ pub(crate) fn order(blobs: &[Blob], board: &Board, stats: &BlobStats) -> Result<
         )));
     }
     let lr = ratio.ln();
-    let mut markers: Vec<Coord> = Vec::new();
     let mut coords: Vec<Coord> = at.keys().copied().collect();
     coords.sort_unstable();
-    for &t in &coords {
+    let resid = area_residuals(&coords, &at, blobs, lr);
+    let mut markers: Vec<Coord> = Vec::new();
+    for (&t, &res) in coords.iter().zip(&resid) {
         let b = at[&t];
-        let mut areas: Vec<f64> = Vec::new();
-        for rad in 2..=4 {
-            areas.clear();
-            for di in -rad..=rad {
-                for dj in -rad..=rad {
-                    if (di, dj) == (0, 0) {
-                        continue;
-                    }
-                    if let Some(&k) = at.get(&(t.0 + di, t.1 + dj)) {
-                        areas.push(blobs[k].area);
-                    }
-                }
-            }
-            if areas.len() >= 5 {
-                break;
-            }
-        }
-        if areas.len() < 3 {
-            return Err(detection(format!(
-                "cannot tell markers from circles: lattice node {t:?} has {} neighbours; {}",
-                areas.len(),
-                found()
-            )));
-        }
-        areas.sort_by(f64::total_cmp);
-        let med = areas[areas.len() / 2];
-        let x = (blobs[b].area / med).ln() / lr;
+        let x = res / lr;
         if (0.3..=0.7).contains(&x) {
             return Err(detection(format!(
-                "ambiguous marker: the blob at ({:.1}, {:.1}) px is {:.2} times the area of its \
-                 neighbours (circles 1, markers {ratio:.2})",
+                "ambiguous marker: the blob at ({:.1}, {:.1}) px is {:.2} times the area the \
+                 grid predicts there (circles 1, markers {ratio:.2})",
                 blobs[b].cx,
                 blobs[b].cy,
-                blobs[b].area / med
+                res.exp()
             )));
         }
         if x > 0.5 {
@@ -411,10 +460,15 @@ pub(crate) fn order(blobs: &[Blob], board: &Board, stats: &BlobStats) -> Result<
             .collect::<Vec<_>>()
             .join(", ")
     };
+    let ext = |f: fn(&Coord) -> i32| {
+        let v: Vec<i32> = at.keys().map(f).collect();
+        v.iter().max().copied().unwrap_or(0) - v.iter().min().copied().unwrap_or(0) + 1
+    };
+    let (ni, nj) = (ext(|c| c.0), ext(|c| c.1));
     let summary = |what: &str| {
         format!(
-            "{what}: {}; grid of {} nodes ({grown_n} grown, {} inconsistent), {} markers found at \
-             [{}] px, the board has {}",
+            "{what}: {}; grid of {} nodes spanning {ni} x {nj} ({grown_n} grown, {} inconsistent), {} \
+             markers found at [{}] px, the board has {}",
             found(),
             at.len(),
             bad.len(),
