@@ -12,7 +12,8 @@ radians), ``T_a_b`` maps frame b to frame a, the top-left pixel's centre is (0, 
 
 Errors: ``StripecalError`` is the base class of the library's own errors;
 ``FormatError`` (bad file), ``InvalidInputError`` (bad argument) and
-``DegenerateError`` (impossible geometry) are also ``ValueError``;
+``DegenerateError`` (impossible geometry) and ``DetectionError`` (no target found in an
+image, or not indexable without guessing) are also ``ValueError``;
 ``ConvergenceError`` is also ``RuntimeError``. File-system failures raise the builtin
 ``OSError`` subclasses (``FileNotFoundError``...). Array arguments of the wrong type
 raise ``TypeError``.
@@ -26,6 +27,7 @@ from stripecal._core import (
     ConvergenceError,
     Dataset,
     DegenerateError,
+    DetectionError,
     FormatError,
     InvalidInputError,
     Rig,
@@ -35,6 +37,8 @@ from stripecal._core import (
     StripecalError,
     Truth,
     __version__,
+    detect_circles,
+    detect_circles_full,
     load_calibration,
     load_dataset,
     load_image,
@@ -63,6 +67,7 @@ __all__ = [
     "ConvergenceError",
     "Dataset",
     "DegenerateError",
+    "DetectionError",
     "FormatError",
     "InvalidInputError",
     "Rig",
@@ -72,6 +77,8 @@ __all__ = [
     "StripecalError",
     "Truth",
     "__version__",
+    "detect_circles",
+    "detect_circles_full",
     "load_calibration",
     "load_dataset",
     "load_image",

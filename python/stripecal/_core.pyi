@@ -21,6 +21,7 @@ __all__ = [
     "ConvergenceError",
     "Dataset",
     "DegenerateError",
+    "DetectionError",
     "FormatError",
     "InvalidInputError",
     "Rig",
@@ -30,6 +31,8 @@ __all__ = [
     "StripecalError",
     "Truth",
     "Twin",
+    "detect_circles",
+    "detect_circles_full",
     "load_calibration",
     "load_dataset",
     "load_image",
@@ -59,6 +62,7 @@ class FormatError(StripecalError, ValueError): ...
 class InvalidInputError(StripecalError, ValueError): ...
 class ConvergenceError(StripecalError, RuntimeError): ...
 class DegenerateError(StripecalError, ValueError): ...
+class DetectionError(StripecalError, ValueError): ...
 
 @final
 class Camera:
@@ -384,3 +388,14 @@ class Twin:
     def write(
         self, out: _Path, progress: Optional[Callable[[str, int, int], Any]] = None
     ) -> Dict[str, Any]: ...
+
+# Circle-grid detection (issue 3). image: 2D uint8/uint16 array.
+def detect_circles(
+    image: npt.NDArray[Any], board: Board, method: str = "gravity"
+) -> Tuple[npt.NDArray[np.int64], _F64]: ...
+def detect_circles_full(
+    image: npt.NDArray[Any],
+    board: Board,
+    method: str = "gravity",
+    drop_stripe_crossed: bool = True,
+) -> Dict[str, Any]: ...

@@ -7,6 +7,7 @@
 //! | `InvalidInput`                | `InvalidInputError(StripecalError, ValueError)`    |
 //! | `NotConverged`                | `ConvergenceError(StripecalError, RuntimeError)`   |
 //! | `Degenerate`                  | `DegenerateError(StripecalError, ValueError)`      |
+//! | `Detection`                   | `DetectionError(StripecalError, ValueError)`       |
 
 use std::io::ErrorKind;
 
@@ -24,6 +25,7 @@ static FORMAT_ERROR: PyOnceLock<Py<PyType>> = PyOnceLock::new();
 static INVALID_INPUT_ERROR: PyOnceLock<Py<PyType>> = PyOnceLock::new();
 static CONVERGENCE_ERROR: PyOnceLock<Py<PyType>> = PyOnceLock::new();
 static DEGENERATE_ERROR: PyOnceLock<Py<PyType>> = PyOnceLock::new();
+static DETECTION_ERROR: PyOnceLock<Py<PyType>> = PyOnceLock::new();
 
 /// Creates `class name(*bases)` with a docstring, shown as `stripecal.<name>`.
 fn new_exception<'py>(
@@ -92,6 +94,13 @@ pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
          behind the camera, a ray parallel to a plane...).",
         py.get_type::<PyValueError>(),
     )?;
+    with(
+        &DETECTION_ERROR,
+        "DetectionError",
+        "An image in which the target (circle grid, stripe) cannot be found or indexed \
+         without guessing; the message says what was found.",
+        py.get_type::<PyValueError>(),
+    )?;
     Ok(())
 }
 
@@ -150,6 +159,10 @@ pub fn map_err_at(py: Python<'_>, e: Error, context: &str) -> PyErr {
         ),
         Error::Degenerate(_) => PyErr::from_type(
             exc_type(py, &DEGENERATE_ERROR, py.get_type::<PyValueError>()),
+            prefix(e.to_string()),
+        ),
+        Error::Detection(_) => PyErr::from_type(
+            exc_type(py, &DETECTION_ERROR, py.get_type::<PyValueError>()),
             prefix(e.to_string()),
         ),
     }

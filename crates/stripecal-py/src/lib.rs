@@ -16,6 +16,7 @@ mod results;
 mod rig;
 mod robot;
 mod sim;
+mod vision_circles;
 
 use pyo3::prelude::*;
 
@@ -67,5 +68,8 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<sim::PyTwin>()?;
     m.add_function(wrap_pyfunction!(sim::sim_presets, m)?)?;
     m.add_function(wrap_pyfunction!(sim::sim_config, m)?)?;
+
+    m.add_function(wrap_pyfunction!(vision_circles::detect_circles, m)?)?;
+    m.add_function(wrap_pyfunction!(vision_circles::detect_circles_full, m)?)?;
     Ok(())
 }
