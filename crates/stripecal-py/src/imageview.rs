@@ -26,7 +26,6 @@ fn copy<T: numpy::Element + Copy>(a: &Bound<'_, PyUntypedArray>) -> PyResult<Gra
 
 /// `image` (a 2D uint8/uint16 numpy array) as an owned gray image. Other dtypes are a
 /// `TypeError`; other shapes or an empty image an `InvalidInputError` naming `name`.
-#[allow(dead_code)] // used by the vision bindings (issue 3), in progress
 pub fn gray_from_py(obj: &Bound<'_, PyAny>, name: &str) -> PyResult<AnyGray> {
     let py = obj.py();
     let Ok(a) = obj.cast::<PyUntypedArray>() else {
