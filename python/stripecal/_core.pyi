@@ -5,7 +5,7 @@
 # arrays (float64 unless noted). Shapes are given in the docstrings of the extension.
 
 import os
-from typing import Any, Callable, Dict, List, Optional, Tuple, Union, final
+from typing import Any, Callable, ClassVar, Dict, List, Optional, Tuple, Union, final
 
 import numpy as np
 import numpy.typing as npt
@@ -24,15 +24,19 @@ __all__ = [
     "DetectionError",
     "FormatError",
     "InvalidInputError",
+    "LineFit",
     "Rig",
     "Robot",
     "Scan",
     "SphereFit",
+    "Stripe",
     "StripecalError",
     "Truth",
     "Twin",
     "detect_circles",
     "detect_circles_full",
+    "extract_stripe",
+    "fit_line",
     "load_calibration",
     "load_dataset",
     "load_image",
@@ -388,6 +392,68 @@ class Twin:
     def write(
         self, out: _Path, progress: Optional[Callable[[str, int, int], Any]] = None
     ) -> Dict[str, Any]: ...
+
+# --- vision: laser stripes
+
+_Gray = npt.NDArray[Any]  # 2D uint8 or uint16
+
+@final
+class Stripe:
+    SATURATED: ClassVar[int]
+    LOW_SIGNAL: ClassVar[int]
+    EDGE: ClassVar[int]
+    UNEVEN_BACKGROUND: ClassVar[int]
+    OBLIQUE: ClassVar[int]
+    BIASED: ClassVar[int]
+    @property
+    def points(self) -> _F64: ...
+    @property
+    def intensity(self) -> _F64: ...
+    @property
+    def width(self) -> _F64: ...
+    @property
+    def flags(self) -> npt.NDArray[np.uint8]: ...
+    @property
+    def edge(self) -> npt.NDArray[np.bool_]: ...
+    @property
+    def saturated(self) -> npt.NDArray[np.bool_]: ...
+    @property
+    def low_signal(self) -> npt.NDArray[np.bool_]: ...
+    @property
+    def trusted(self) -> npt.NDArray[np.bool_]: ...
+    @property
+    def direction(self) -> str: ...
+    @property
+    def lines(self) -> int: ...
+    @property
+    def rejected(self) -> Dict[str, int]: ...
+    def __len__(self) -> int: ...
+
+@final
+class LineFit:
+    @property
+    def point(self) -> _F64: ...
+    @property
+    def direction(self) -> _F64: ...
+    @property
+    def normal(self) -> _F64: ...
+    @property
+    def rms_px(self) -> float: ...
+    @property
+    def max_px(self) -> float: ...
+    @property
+    def inliers(self) -> npt.NDArray[np.bool_]: ...
+    @property
+    def inlier_count(self) -> int: ...
+    def distances(self, points: npt.ArrayLike) -> _F64: ...
+
+def extract_stripe(
+    image: _Gray,
+    direction: str = "auto",
+    method: str = "centroid",
+    board_image: Optional[_Gray] = None,
+) -> Stripe: ...
+def fit_line(points: npt.ArrayLike, inlier_px: float = 1.0) -> LineFit: ...
 
 # Circle-grid detection (issue 3). image: 2D uint8/uint16 array.
 def detect_circles(

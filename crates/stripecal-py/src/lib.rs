@@ -17,6 +17,7 @@ mod rig;
 mod robot;
 mod sim;
 mod vision_circles;
+mod vision_stripe;
 
 use pyo3::prelude::*;
 
@@ -71,5 +72,10 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
 
     m.add_function(wrap_pyfunction!(vision_circles::detect_circles, m)?)?;
     m.add_function(wrap_pyfunction!(vision_circles::detect_circles_full, m)?)?;
+
+    m.add_class::<vision_stripe::PyStripe>()?;
+    m.add_class::<vision_stripe::PyLineFit>()?;
+    m.add_function(wrap_pyfunction!(vision_stripe::extract_stripe, m)?)?;
+    m.add_function(wrap_pyfunction!(vision_stripe::fit_line, m)?)?;
     Ok(())
 }

@@ -275,7 +275,8 @@ pub struct Stripe {
 }
 
 /// Extracts the stripe of one image (see the module docs). An image where no scan line
-/// holds a stripe is an error ([`Error::InvalidInput`], "no stripe found"); line software
+/// holds a stripe is an error ([`Error::Detection`], "no stripe found ..." with the
+/// reasons per scan line); line software
 /// that expects empty frames uses [`StripeExtractor::extract_into`], which returns no
 /// points instead.
 pub fn extract_stripe(img: AnyView<'_>, opts: &StripeOptions) -> Result<Stripe> {
@@ -291,7 +292,7 @@ pub fn extract_stripe(img: AnyView<'_>, opts: &StripeOptions) -> Result<Stripe> 
     };
     if points.is_empty() {
         let r = rejected;
-        return Err(Error::InvalidInput(format!(
+        return Err(Error::Detection(format!(
             "no stripe found in any scan line ({lines} {} of a {w} x {h} image: {} without a \
              peak, {} with several peaks, {} saturated, {} of the wrong width or too weak, {} \
              at the border, {} isolated)",
