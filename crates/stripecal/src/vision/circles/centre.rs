@@ -11,9 +11,10 @@
 //!   stripe are rejected.
 //! - Illumination: light falls off multiplicatively (vignetting), so the circle/plate
 //!   contrast at `x` is proportional to `bg(x)`; weights are divided by `bg(x) / bg(c)`,
-//!   which keeps the weight constant inside the circle. (When the plate is much
-//!   darker than the circles, `bg` is too noisy for this and a constant is used.)
-//! - Gravity: `w(x) = s (I(x) - bg(x)) / ref(x)` with `s = -1` for dark circles,
+//!   which keeps the weight constant inside the circle. When the circles are the
+//!   brighter surface (light circles on a dark plate) the illumination's slope comes
+//!   from a plane fitted to the circle's core instead.
+//! - Gravity: `w(x) = s (I(x) - bg(x)) / illum(x)` with `s = -1` for dark circles,
 //!   summed over the region without clipping (clipping noise at 0 would bias the
 //!   centroid towards the window centre); the centre is the `w`-weighted mean of the
 //!   pixel centres. Blur (a symmetric PSF) does not move an intensity centroid.
@@ -184,6 +185,7 @@ pub(crate) fn measure(
     // Ring pixels (offsets from the blob centroid) and the core's values.
     let mut ring: Vec<(f64, f64, f64)> = Vec::with_capacity(256);
     let mut core: Vec<f64> = Vec::new();
+    let mut core_pts: Vec<(f64, f64, f64)> = Vec::new();
     let mut expected_ring = 0usize;
     for y in y0..=y1 {
         let dy = y as f64 - cy;
@@ -196,6 +198,7 @@ pub(crate) fn measure(
                 }
             } else if rho2(dx, dy, a, b) <= 0.25 {
                 core.push(img.at(x, y) as f64);
+                core_pts.push((dx, dy, img.at(x, y) as f64));
             }
         }
     }
@@ -235,6 +238,7 @@ pub(crate) fn measure(
         }
         bg = plane_fit(&ring, &keep).ok_or(Fail::Background)?;
     }
+    let core_n = core.len();
     let fg = median(&mut core);
     let bg_c = bg[0];
     let s = if dark { -1.0 } else { 1.0 };
@@ -247,11 +251,22 @@ pub(crate) fn measure(
         .iter()
         .filter(|&&(x, y, z)| z - (bg[0] + bg[1] * x + bg[2] * y) > stripe_lim)
         .count();
-    // Multiplicative illumination correction when the background carries the light.
-    let scale_bg = bg_c > 0.25 * bg_c.max(fg) && bg_c > 0.0;
+    // Multiplicative illumination correction: from the background plane when the
+    // plate is the brighter surface, else from a plane fitted to the circle's core
+    // (light circles on a dark plate), else none.
+    let illum: [f64; 3] = if bg_c > 0.0 && bg_c >= fg {
+        [1.0, bg[1] / bg_c, bg[2] / bg_c]
+    } else if fg > 0.0 && core_n >= 12 {
+        match plane_fit(&core_pts, &vec![true; core_pts.len()]) {
+            Some(p) if p[0] > 0.0 => [1.0, p[1] / p[0], p[2] / p[0]],
+            _ => [1.0, 0.0, 0.0],
+        }
+    } else {
+        [1.0, 0.0, 0.0]
+    };
     let weight = |dx: f64, dy: f64, z: f64| {
         let b = bg[0] + bg[1] * dx + bg[2] * dy;
-        let r = if scale_bg { (b / bg_c).max(1e-3) } else { 1.0 };
+        let r = (illum[0] + illum[1] * dx + illum[2] * dy).max(1e-3);
         s * (z - b) / r
     };
 
