@@ -28,15 +28,22 @@ pub struct DhJoint {
 }
 
 impl DhJoint {
-    /// The link transform `A_i` for encoder reading `q_deg`.
+    /// Rotation and translation of the link transform `A_i` for encoder reading `q_deg`.
     #[inline]
-    pub fn transform(&self, q_deg: f64) -> Iso3 {
+    pub fn rotation_translation(&self, q_deg: f64) -> (Matrix3<f64>, Vector3<f64>) {
         let theta = (q_deg - self.theta0_deg).to_radians();
         let alpha = self.alpha_deg.to_radians();
         let (st, ct) = theta.sin_cos();
         let (sa, ca) = alpha.sin_cos();
         let r = Matrix3::new(ct, -st * ca, st * sa, st, ct * ca, -ct * sa, 0.0, sa, ca);
         let t = Vector3::new(self.a_mm * ct, self.a_mm * st, self.d_mm);
+        (r, t)
+    }
+
+    /// The link transform `A_i` for encoder reading `q_deg`.
+    #[inline]
+    pub fn transform(&self, q_deg: f64) -> Iso3 {
+        let (r, t) = self.rotation_translation(q_deg);
         Isometry3::from_parts(
             Translation3::from(t),
             UnitQuaternion::from_rotation_matrix(&nalgebra::Rotation3::from_matrix_unchecked(r)),
@@ -165,10 +172,16 @@ impl Robot {
 
     /// Forward kinematics without argument checks (`q_deg.len()` must equal `dof()`).
     pub fn forward_unchecked(&self, q_deg: &[f64]) -> Iso3 {
-        self.joints
-            .iter()
-            .zip(q_deg)
-            .fold(Iso3::identity(), |t, (j, &q)| t * j.transform(q))
+        // Chain 3x3 rotations and translations (cheaper than a quaternion per joint),
+        // then convert once.
+        let mut r = Matrix3::identity();
+        let mut t = Vector3::zeros();
+        for (j, &q) in self.joints.iter().zip(q_deg) {
+            let (rj, tj) = j.rotation_translation(q);
+            t += r * tj;
+            r *= rj;
+        }
+        crate::geometry::iso_from_parts(&r, &t)
     }
 
     /// The geometric Jacobian (6 x N) at `q`: rows `[v; w]` (mm/rad and rad/rad) of the
