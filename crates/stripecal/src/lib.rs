@@ -23,6 +23,7 @@
 //! Data flows one way: images -> vision -> calib -> calibration.json -> reconstruct.
 
 pub mod board;
+pub mod calib;
 pub mod camera;
 pub mod error;
 pub mod geometry;

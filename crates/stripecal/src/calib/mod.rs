@@ -1,0 +1,50 @@
+//! Calibration: camera (Zhang + adjustment with a bias-free circle-centre model), laser
+//! plane, hand-eye / robot-world (AX = ZB by Kronecker least squares), and the
+//! one-stage adjustment of everything together.
+//!
+//! ## Conventions
+//!
+//! - Per view i: `A_i = T_base_hand(q_i)`, `X = T_hand_cam`, `Z = T_base_board`,
+//!   `B_i = T_board_cam(i) = inverse(T_cam_board(i))`, and `A_i X = Z B_i`.
+//! - Observations are in pixels (spec convention: top-left pixel centre at (0, 0)).
+//! - Camera parameter vectors follow [`crate::camera::PARAM_NAMES`].
+//! - Views keep their dataset row index (`ViewObs::view`) through every stage: a view
+//!   that fails is dropped whole, never shifted.
+
+pub mod axzb;
+pub mod camera;
+pub mod conic;
+pub mod homography;
+pub mod laser_plane;
+pub mod lm;
+pub mod zhang;
+
+use crate::geometry::Iso3;
+use crate::io::RobotReading;
+
+/// One detected circle: grid index and imaged centre.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct CircleObs {
+    pub row: usize,
+    pub col: usize,
+    /// Imaged centre (centroid of the imaged outline), px.
+    pub u: f64,
+    pub v: f64,
+}
+
+/// Everything one calibration view contributes.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ViewObs {
+    /// The view's row in views.csv (0-based), for messages and reports.
+    pub view: usize,
+    /// Detected circles.
+    pub circles: Vec<CircleObs>,
+    /// Stripe points on the board `(u, v)` px (points flagged at reflectance edges
+    /// already removed); empty when the view has no laser image.
+    pub stripe: Vec<[f64; 2]>,
+    /// What the robot reported for this view.
+    pub reading: Option<RobotReading>,
+    /// `T_base_hand` for the reading (forward kinematics of the nominal robot, or the
+    /// reported flange pose).
+    pub base_hand: Option<Iso3>,
+}
