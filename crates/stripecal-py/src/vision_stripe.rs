@@ -61,7 +61,11 @@ impl PyStripe {
     #[getter]
     fn points<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
         let p = &self.inner.points;
-        nd(py, &[p.len(), 2], p.iter().flat_map(|p| [p.u, p.v]).collect())
+        nd(
+            py,
+            &[p.len(), 2],
+            p.iter().flat_map(|p| [p.u, p.v]).collect(),
+        )
     }
 
     /// `(M,)` float64: peak height above the local background, gray levels of the image.
@@ -75,7 +79,11 @@ impl PyStripe {
     #[getter]
     fn width<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
         let p = &self.inner.points;
-        nd(py, &[p.len()], p.iter().map(|p| p.width_px as f64).collect())
+        nd(
+            py,
+            &[p.len()],
+            p.iter().map(|p| p.width_px as f64).collect(),
+        )
     }
 
     /// `(M,)` uint8: flag bits (`Stripe.SATURATED`, `LOW_SIGNAL`, `EDGE`,
@@ -319,7 +327,10 @@ fn points_from_py(py: Python<'_>, points: &Bound<'_, PyAny>) -> PyResult<Vec<[f6
     if a.ndim() != 2 || a.shape()[1] != 2 {
         return Err(invalid_input(
             py,
-            format!("points must have shape (N, 2), got {}", fmt_shape(a.shape())),
+            format!(
+                "points must have shape (N, 2), got {}",
+                fmt_shape(a.shape())
+            ),
         ));
     }
     Ok(a.rows().into_iter().map(|r| [r[0], r[1]]).collect())
@@ -336,8 +347,6 @@ pub fn fit_line(py: Python<'_>, points: &Bound<'_, PyAny>, inlier_px: f64) -> Py
         inlier_px,
         ..core::LineFitOptions::default()
     };
-    let fit = py
-        .detach(|| core::fit_line_with(&pts, &opts))
-        .py_err(py)?;
+    let fit = py.detach(|| core::fit_line_with(&pts, &opts)).py_err(py)?;
     Ok(PyLineFit { inner: fit })
 }

@@ -9,9 +9,14 @@ use crate::vision::{AnyView, ImageView, Pixel};
 
 /// Pixels of a ridge-test chunk: the vectorised pass looks at this many pixels, and only
 /// a chunk holding a response above the threshold is scanned pixel by pixel.
-const CHUNK: usize = 32;
+const CHUNK: usize = 64;
 /// Candidate runs closer than this (pixels between them) are one run.
 const MERGE_GAP: u32 = 2;
+/// Half length of the segment first copied around a peak, px (enough for stripes up to
+/// about 6 px wide; wider ones get a second, longer copy).
+const SHORT_REACH: usize = 16;
+/// Rounds of window sizing and background estimation.
+const ROUNDS: usize = 2;
 /// Auto direction: every `AUTO_STEP`-th row and column is sampled.
 const AUTO_STEP: usize = 4;
 
@@ -144,6 +149,28 @@ enum LineReject {
     Border,
 }
 
+/// The responses of a chunk that passed the coarse test: computed into a stack buffer
+/// (vectorised), then the few above `thr` are handed to `f(offset + i, r, value)`.
+#[inline(always)]
+fn detail<T: RidgePixel>(
+    m: &[T],
+    a: &[T],
+    b: &[T],
+    thr: T,
+    offset: u32,
+    mut f: impl FnMut(u32, u32, u32),
+) {
+    let mut buf = [T::ZERO; CHUNK];
+    for (((o, &m), &a), &b) in buf.iter_mut().zip(m).zip(a).zip(b) {
+        *o = m.sat_sub(a.max(b));
+    }
+    for (i, (&r, &v)) in buf.iter().zip(m).enumerate() {
+        if r >= thr {
+            f(offset + i as u32, r.as_u32(), v.as_u32());
+        }
+    }
+}
+
 /// `r(x) = I(x) - max(I(x - d), I(x + d))` over a contiguous scan line; runs above `thr`
 /// go to `cand`.
 #[inline]
@@ -165,12 +192,7 @@ fn scan_line<T: RidgePixel>(line: &[T], d: usize, thr: T, cand: &mut LineCand) {
             .zip(b)
             .fold(T::ZERO, |acc, ((&m, &a), &b)| acc.max(m.sat_sub(a.max(b))));
         if mx >= thr {
-            for (i, ((&m, &a), &b)) in m.iter().zip(a).zip(b).enumerate() {
-                let r = m.sat_sub(a.max(b));
-                if r >= thr {
-                    cand.push((x + i) as u32, r.as_u32(), m.as_u32());
-                }
-            }
+            detail(m, a, b, thr, x as u32, |i, r, v| cand.push(i, r, v));
         }
         x += len;
     }
@@ -198,12 +220,12 @@ fn scan_columns<T: RidgePixel>(img: &ImageView<'_, T>, d: usize, thr: T, cands: 
                 .zip(b)
                 .fold(T::ZERO, |acc, ((&m, &a), &b)| acc.max(m.sat_sub(a.max(b))));
             if mx >= thr {
-                for (i, ((&m, &a), &b)) in m.iter().zip(a).zip(b).enumerate() {
-                    let r = m.sat_sub(a.max(b));
-                    if r >= thr {
-                        cands[x0 + i].push(y as u32, r.as_u32(), m.as_u32());
+                let cands = &mut cands[x0..x0 + len];
+                detail(m, a, b, thr, 0, |i, r, v| {
+                    if let Some(c) = cands.get_mut(i as usize) {
+                        c.push(y as u32, r, v);
                     }
-                }
+                });
             }
             x0 += len;
         }
@@ -228,6 +250,10 @@ struct Params {
     uneven: f32,
     uneven_rel: f32,
     method: StripeMethod,
+    /// Longest half-width walk, px.
+    limit: usize,
+    /// Half length of the segment around the peak that sub-pixel work may read.
+    reach: usize,
 }
 
 impl Params {
@@ -245,14 +271,41 @@ impl Params {
             uneven: o.uneven_gray * T::SCALE,
             uneven_rel: o.uneven_rel,
             method: o.method,
+            limit: o.max_width_px.ceil() as usize + 1,
+            reach: {
+                let h = (o.window_fwhm * o.max_width_px).ceil() as usize + 2;
+                (h + 2 + o.flank_px).max(o.ridge_px + 1) + (o.max_width_px.ceil() as usize)
+            },
         }
     }
+}
 
-    /// Half length of the segment around the peak that sub-pixel work may read.
-    fn reach(&self) -> usize {
-        let h = (self.window * self.max_width).ceil() as usize + 2;
-        (h + 2 + self.flank).max(self.d + 1) + (self.max_width.ceil() as usize)
+/// Sub-pixel centre of the peak at `pk` on a column (scan line of `n` pixels read by
+/// `get`): gathers a short segment first and a long one only when the short one was too
+/// short. Returns the line position of `buf[0]` and the result.
+#[inline]
+fn column_subpixel(
+    buf: &mut Vec<u16>,
+    res: &mut Vec<f32>,
+    n: usize,
+    pk: usize,
+    p: &Params,
+    get: impl Fn(usize) -> u16,
+) -> (usize, std::result::Result<Sub, LineReject>) {
+    let short = (p.d + 1).max(SHORT_REACH);
+    for reach in [short, p.reach] {
+        let a = pk.saturating_sub(reach);
+        let b = (pk + reach + 1).min(n);
+        buf.clear();
+        buf.extend((a..b).map(&get));
+        let out = subpixel(buf.as_slice(), pk - a, p, res);
+        let cut = a > 0 || b < n;
+        if reach == short && cut && matches!(out, Err(LineReject::Border)) && p.reach > short {
+            continue;
+        }
+        return (a, out);
     }
+    (0, Err(LineReject::Border))
 }
 
 /// Sub-pixel result on a segment.
@@ -267,31 +320,34 @@ struct Sub {
 
 /// Position (fractional index) where `y` falls to `half` walking from `pk` by `step`.
 #[inline]
-fn crossing(
-    seg: &[f32],
+fn crossing<T: Pixel>(
+    seg: &[T],
     pk: usize,
     step: isize,
-    bg: &impl Fn(f32) -> f32,
+    bg: &Background,
     half: f32,
     limit: usize,
-) -> Option<f32> {
+) -> std::result::Result<f32, LineReject> {
     let mut x = pk as isize;
     let n = seg.len() as isize;
     let mut walked = 0;
     loop {
         let nx = x + step;
-        if nx < 0 || nx >= n || walked > limit {
-            return None;
+        if nx < 0 || nx >= n {
+            return Err(LineReject::Border);
         }
-        let yn = seg[nx as usize] - bg(nx as f32);
+        if walked > limit {
+            return Err(LineReject::Shape);
+        }
+        let yn = seg[nx as usize].to_f32() - bg.at(nx as f32);
         if yn <= half {
-            let yx = seg[x as usize] - bg(x as f32);
+            let yx = seg[x as usize].to_f32() - bg.at(x as f32);
             let t = if yx > yn {
                 (yx - half) / (yx - yn)
             } else {
                 0.5
             };
-            return Some(x as f32 + step as f32 * t.clamp(0.0, 1.0));
+            return Ok(x as f32 + step as f32 * t.clamp(0.0, 1.0));
         }
         x = nx;
         walked += 1;
@@ -300,11 +356,11 @@ fn crossing(
 
 /// Mean, min and max of `seg[a..b]`.
 #[inline]
-fn flank_stats(seg: &[f32]) -> (f32, f32, f32) {
+fn flank_stats<T: Pixel>(seg: &[T]) -> (f32, f32, f32) {
     let mut s = 0.0;
     let mut lo = f32::INFINITY;
     let mut hi = f32::NEG_INFINITY;
-    for &v in seg {
+    for v in seg.iter().map(|v| v.to_f32()) {
         s += v;
         lo = lo.min(v);
         hi = hi.max(v);
@@ -327,36 +383,39 @@ impl Background {
     }
 }
 
-/// The sub-pixel centre of the peak at `pk` (index into `seg`).
-fn subpixel(seg: &[f32], pk: usize, p: &Params) -> std::result::Result<Sub, LineReject> {
+/// The sub-pixel centre of the peak at `pk` (index into the scan line `seg`); `res` is
+/// scratch space for the background-free residuals.
+fn subpixel<T: Pixel>(
+    seg: &[T],
+    pk: usize,
+    p: &Params,
+    res: &mut Vec<f32>,
+) -> std::result::Result<Sub, LineReject> {
     let n = seg.len();
     let d = p.d;
     if pk < d || pk + d >= n {
         return Err(LineReject::Border);
     }
     // First guess of the background: the ridge test's own flank pixels.
-    let b0 = 0.5 * (seg[pk - d] + seg[pk + d]);
-    let mut a = seg[pk] - b0;
+    let vpk = seg[pk].to_f32();
+    let b0 = 0.5 * (seg[pk - d].to_f32() + seg[pk + d].to_f32());
+    let mut a = vpk - b0;
     if a < p.min_contrast {
         return Err(LineReject::Shape);
     }
-    let limit = p.max_width.ceil() as usize + 1;
-    let flat = |_: f32| b0;
-    let (Some(mut l), Some(mut r)) = (
-        crossing(seg, pk, -1, &flat, 0.5 * a, limit),
-        crossing(seg, pk, 1, &flat, 0.5 * a, limit),
-    ) else {
-        return Err(LineReject::Shape);
-    };
-    let mut bg = Background {
+    let limit = p.limit;
+    let flat = Background {
         xl: 0.0,
         bl: b0,
         slope: 0.0,
     };
+    let mut l = crossing(seg, pk, -1, &flat, 0.5 * a, limit)?;
+    let mut r = crossing(seg, pk, 1, &flat, 0.5 * a, limit)?;
+    let mut bg = flat;
     let mut h = 0.0;
     let mut flanks = (0usize, 0usize);
     let mut uneven = false;
-    for _ in 0..2 {
+    for _ in 0..ROUNDS {
         let w = r - l;
         if !(w >= p.min_width && w <= p.max_width) {
             return Err(LineReject::Shape);
@@ -365,8 +424,9 @@ fn subpixel(seg: &[f32], pk: usize, p: &Params) -> std::result::Result<Sub, Line
         h = (p.window * w).max(1.5);
         // Window pixels: round(cen - h) ..= round(cen + h) (plus a pixel of slack each side
         // for the centroid's moves); flanks beyond.
-        let lo = (cen - h).round() - 2.0;
-        let hi = (cen + h).round() + 2.0;
+        // (x + 0.5) as i32 rounds for x > -0.5; lower values fail the border test anyway
+        let lo = ((cen - h + 0.5) as i32) as f32 - 2.0;
+        let hi = ((cen + h + 0.5) as i32) as f32 + 2.0;
         if lo < p.flank as f32 || hi + p.flank as f32 >= n as f32 {
             return Err(LineReject::Border);
         }
@@ -381,21 +441,14 @@ fn subpixel(seg: &[f32], pk: usize, p: &Params) -> std::result::Result<Sub, Line
             bl: ml,
             slope: (mr - ml) / (xr - xl),
         };
-        a = seg[pk] - bg.at(pk as f32);
+        a = vpk - bg.at(pk as f32);
         if a < p.min_contrast {
             return Err(LineReject::Shape);
         }
         let tol = p.uneven + p.uneven_rel * a;
         uneven = (mr - ml).abs() > tol || maxl - minl > tol || maxr - minr > tol;
-        let f = |x: f32| bg.at(x);
-        let (Some(nl), Some(nr)) = (
-            crossing(seg, pk, -1, &f, 0.5 * a, limit),
-            crossing(seg, pk, 1, &f, 0.5 * a, limit),
-        ) else {
-            return Err(LineReject::Shape);
-        };
-        l = nl;
-        r = nr;
+        l = crossing(seg, pk, -1, &bg, 0.5 * a, limit)?;
+        r = crossing(seg, pk, 1, &bg, 0.5 * a, limit)?;
     }
     let w = r - l;
     if !(w >= p.min_width && w <= p.max_width) {
@@ -406,7 +459,12 @@ fn subpixel(seg: &[f32], pk: usize, p: &Params) -> std::result::Result<Sub, Line
     let (f0, f1) = (flanks.0, (flanks.1 + p.flank).min(n));
     let mut run = 0usize;
     let mut longest = 0usize;
-    for &v in &seg[f0..f1] {
+    let sat_seg = if vpk >= p.sat_level {
+        &seg[f0..f1]
+    } else {
+        &seg[0..0]
+    };
+    for v in sat_seg.iter().map(|v| v.to_f32()) {
         if v >= p.sat_level {
             run += 1;
             longest = longest.max(run);
@@ -426,21 +484,39 @@ fn subpixel(seg: &[f32], pk: usize, p: &Params) -> std::result::Result<Sub, Line
     if a < p.low_signal {
         flags |= FLAG_LOW_SIGNAL;
     }
-    // Centroid with a fractional window centred on the estimate, to its fixed point.
+    // Residuals over the pixels the window may use; res[k] is pixel xmin + k.
     let (xmin, xmax) = (flanks.0 + p.flank, flanks.1 - 1);
+    res.clear();
+    res.extend(
+        seg[xmin..=xmax]
+            .iter()
+            .enumerate()
+            .map(|(k, v)| v.to_f32() - bg.at((xmin + k) as f32)),
+    );
+    // Centroid with a fractional window centred on the estimate, to its fixed point:
+    // interior pixels weigh 1, the two end pixels the fraction inside the window.
+    // Coordinates relative to xmin from here.
+    let (l, r) = (l - xmin as f32, r - xmin as f32);
+    let last = xmax - xmin;
     let mut c = 0.5 * (l + r);
-    for _ in 0..8 {
+    for _ in 0..6 {
         let (lo, hi) = (c - h, c + h);
-        let i0 = ((lo + 0.5).floor().max(xmin as f32)) as usize;
-        let i1 = ((hi + 0.5).floor().min(xmax as f32)) as usize;
-        let (mut s, mut sx) = (0.0f32, 0.0f32);
-        for (i, &v) in seg.iter().enumerate().take(i1 + 1).skip(i0) {
-            let xi = i as f32;
-            let wgt = ((xi + 0.5).min(hi) - (xi - 0.5).max(lo)).clamp(0.0, 1.0);
-            let y = wgt * (v - bg.at(xi));
-            s += y;
-            sx += y * (xi - c);
+        // `as` truncation rounds for lo + 0.5 >= 0; below that it saturates to 0 (the
+        // window is clipped to the residuals either way).
+        let i0 = (lo + 0.5) as usize;
+        let i1 = ((hi + 0.5) as usize).min(last);
+        if i1 <= i0 {
+            return Err(LineReject::Shape);
         }
+        let (mut s, mut sx) = (0.0f32, 0.0f32);
+        for (i, &y) in res.iter().enumerate().take(i1).skip(i0 + 1) {
+            s += y;
+            sx += y * (i as f32 - c);
+        }
+        let w0 = (i0 as f32 + 0.5 - lo).clamp(0.0, 1.0) * res[i0];
+        let w1 = (hi - (i1 as f32 - 0.5)).clamp(0.0, 1.0) * res[i1];
+        s += w0 + w1;
+        sx += w0 * (i0 as f32 - c) + w1 * (i1 as f32 - c);
         if s <= 0.0 {
             return Err(LineReject::Shape);
         }
@@ -449,16 +525,18 @@ fn subpixel(seg: &[f32], pk: usize, p: &Params) -> std::result::Result<Sub, Line
         if (c - 0.5 * (l + r)).abs() > w {
             return Err(LineReject::Shape);
         }
-        if dc.abs() < 1e-4 {
+        if dc.abs() < 1e-3 {
             break;
         }
     }
     let mut cf = c as f64;
     if p.method == StripeMethod::Gaussian {
-        if let Some(g) = gauss_fit(seg, &bg, c, a, w, h, xmin, xmax) {
+        if let Some(g) = gauss_fit(res, c, a, w, h, 0, last) {
             cf = g;
         }
     }
+    let c = c + xmin as f32;
+    let cf = cf + xmin as f64;
     Ok(Sub {
         c: cf,
         peak: a,
@@ -468,11 +546,10 @@ fn subpixel(seg: &[f32], pk: usize, p: &Params) -> std::result::Result<Sub, Line
     })
 }
 
-/// Gauss-Newton fit of `A exp(-(x - c)^2 / 2 s^2)` to `seg - bg` over `c +- (h + 1)`.
-#[allow(clippy::too_many_arguments)]
+/// Gauss-Newton fit of `A exp(-(x - c)^2 / 2 s^2)` to the residuals `res` over
+/// `c +- (h + 1)`.
 fn gauss_fit(
-    seg: &[f32],
-    bg: &Background,
+    res: &[f32],
     c0: f32,
     a0: f32,
     w: f32,
@@ -489,9 +566,9 @@ fn gauss_fit(
     for _ in 0..10 {
         let mut jtj = [[0.0f64; 3]; 3];
         let mut jtr = [0.0f64; 3];
-        for (i, &v) in seg.iter().enumerate().take(i1 + 1).skip(i0) {
+        for (i, &v) in res.iter().enumerate().take(i1 + 1).skip(i0) {
             let x = i as f64;
-            let y = (v - bg.at(i as f32)) as f64;
+            let y = v as f64;
             let t = (x - c) / s;
             let e = (-0.5 * t * t).exp();
             let f = amp * e;
@@ -548,7 +625,7 @@ pub struct StripeExtractor {
     opts: StripeOptions,
     cands: Vec<LineCand>,
     seg: Vec<f32>,
-    line_buf: Vec<u16>,
+    col: Vec<u16>,
     rejected: RejectCounts,
 }
 
@@ -560,7 +637,7 @@ impl StripeExtractor {
             opts,
             cands: Vec::new(),
             seg: Vec::new(),
-            line_buf: Vec::new(),
+            col: Vec::new(),
             rejected: RejectCounts::default(),
         })
     }
@@ -596,14 +673,13 @@ impl StripeExtractor {
         img: &ImageView<'_, T>,
         out: &mut Vec<StripePoint>,
     ) -> Result<StripeDirection> {
-        let dir = match self.opts.direction {
-            StripeDirection::Auto => auto_direction(img, &self.opts, &mut self.line_buf),
-            d => d,
+        let (dir, have_cols) = match self.opts.direction {
+            StripeDirection::Auto => (auto_direction(img, &self.opts, &mut self.cands), true),
+            d => (d, false),
         };
         let p = Params::new::<T>(&self.opts);
         let thr = T::from_u32_clamped(p.min_contrast.ceil().max(1.0) as u32);
         let (w, h) = (img.width(), img.height());
-        let reach = p.reach();
         let ratio = self.opts.second_peak_ratio;
         let mut rej = RejectCounts::default();
         let mut count = |r: LineReject| match r {
@@ -615,9 +691,11 @@ impl StripeExtractor {
         };
         match dir {
             StripeDirection::Rows => {
-                self.cands.clear();
-                self.cands.resize(w, LineCand::default());
-                scan_columns(img, p.d, thr, &mut self.cands);
+                if !have_cols {
+                    self.cands.clear();
+                    self.cands.resize(w, LineCand::default());
+                    scan_columns(img, p.d, thr, &mut self.cands);
+                }
                 for x in 0..w {
                     let pk = match self.cands[x].verdict(ratio) {
                         Ok(pk) => pk,
@@ -626,11 +704,10 @@ impl StripeExtractor {
                             continue;
                         }
                     };
-                    let y0 = pk.saturating_sub(reach);
-                    let y1 = (pk + reach + 1).min(h);
-                    self.seg.clear();
-                    self.seg.extend((y0..y1).map(|y| img.get(x, y).to_f32()));
-                    match subpixel(&self.seg, pk - y0, &p) {
+                    let (y0, res) = column_subpixel(&mut self.col, &mut self.seg, h, pk, &p, |y| {
+                        img.get(x, y).as_u32() as u16
+                    });
+                    match res {
                         Ok(s) => out.push(StripePoint {
                             u: x as f64,
                             v: y0 as f64 + s.c,
@@ -655,11 +732,8 @@ impl StripeExtractor {
                             continue;
                         }
                     };
-                    let x0 = pk.saturating_sub(reach);
-                    let x1 = (pk + reach + 1).min(w);
-                    self.seg.clear();
-                    self.seg.extend(row[x0..x1].iter().map(|v| v.to_f32()));
-                    match subpixel(&self.seg, pk - x0, &p) {
+                    let (x0, res) = (0, subpixel(row, pk, &p, &mut self.seg));
+                    match res {
                         Ok(s) => out.push(StripePoint {
                             u: x0 as f64 + s.c,
                             v: y as f64,
@@ -754,28 +828,28 @@ fn flag_oblique(pts: &mut [StripePoint], dir: StripeDirection, max_slope: f32) {
     }
 }
 
-/// Decides the scan direction of an image: the ridge test on every 4th row and every 4th
-/// column; the direction that yields more single-peak scan lines, scaled to the whole
-/// image (rows found / rows sampled x height against the same for columns), wins; ties
-/// and images without any stripe give `Cols`.
+/// Decides the scan direction of an image: the ridge test on every 4th row and on every
+/// column; the direction that yields more single-peak scan lines wins (the rows found,
+/// scaled by 4, against the columns found); ties and images without any stripe give
+/// `Cols`.
 pub fn resolve_direction(img: AnyView<'_>, opts: &StripeOptions) -> Result<StripeDirection> {
     opts.validate()?;
-    let mut buf = Vec::new();
+    let mut cands = Vec::new();
     Ok(match img {
-        AnyView::U8(v) => auto_direction(&v, opts, &mut buf),
-        AnyView::U16(v) => auto_direction(&v, opts, &mut buf),
+        AnyView::U8(v) => auto_direction(&v, opts, &mut cands),
+        AnyView::U16(v) => auto_direction(&v, opts, &mut cands),
     })
 }
 
+/// The auto decision; leaves the column candidates of the whole image in `cands` (the
+/// work a `Rows` extraction needs anyway).
 fn auto_direction<T: RidgePixel>(
     img: &ImageView<'_, T>,
     opts: &StripeOptions,
-    buf: &mut Vec<u16>,
+    cands: &mut Vec<LineCand>,
 ) -> StripeDirection {
     let (w, h) = (img.width(), img.height());
-    let thr32 = (opts.min_contrast * T::SCALE).ceil().max(1.0) as u32;
-    let thr = T::from_u32_clamped(thr32);
-    let thr16 = thr32.min(u16::MAX as u32) as u16;
+    let thr = T::from_u32_clamped((opts.min_contrast * T::SCALE).ceil().max(1.0) as u32);
     let ratio = opts.second_peak_ratio;
     let d = opts.ridge_px;
     let (mut rows_hit, mut rows_n) = (0usize, 0usize);
@@ -785,26 +859,17 @@ fn auto_direction<T: RidgePixel>(
         rows_n += 1;
         rows_hit += c.verdict(ratio).is_ok() as usize;
     }
-    let (mut cols_hit, mut cols_n) = (0usize, 0usize);
-    for x in (AUTO_STEP / 2..w).step_by(AUTO_STEP) {
-        buf.clear();
-        buf.extend((0..h).map(|y| img.get(x, y).as_u32() as u16));
-        let mut c = LineCand::default();
-        scan_line(buf.as_slice(), d, thr16, &mut c);
-        cols_n += 1;
-        cols_hit += c.verdict(ratio).is_ok() as usize;
-    }
+    // Columns: the row-wise (cache friendly) ridge test of every column.
+    cands.clear();
+    cands.resize(w, LineCand::default());
+    scan_columns(img, d, thr, cands);
+    let cols_hit = cands.iter().filter(|c| c.verdict(ratio).is_ok()).count();
     let per_row = if rows_n > 0 {
         rows_hit as f64 / rows_n as f64 * h as f64
     } else {
         0.0
     };
-    let per_col = if cols_n > 0 {
-        cols_hit as f64 / cols_n as f64 * w as f64
-    } else {
-        0.0
-    };
-    if per_col > per_row {
+    if cols_hit as f64 > per_row {
         StripeDirection::Rows
     } else {
         StripeDirection::Cols
