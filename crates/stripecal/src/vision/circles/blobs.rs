@@ -198,6 +198,7 @@ pub(crate) fn find_blobs(img: &Img, dark: bool, opts: &CircleOptions) -> (Vec<Bl
             }
         }
         let rows_in = ((y + r).min(h - 1) - y.saturating_sub(r) + 1) as f64;
+        let k_rows = k as f64 / rows_in;
         let mut s: f64 = col[..=r.min(w - 1)].iter().sum();
         row_start.push(runs.len());
         let line = &img.px[y * w..(y + 1) * w];
@@ -211,9 +212,9 @@ pub(crate) fn find_blobs(img: &Img, dark: bool, opts: &CircleOptions) -> (Vec<Bl
                     s -= col[x - r - 1];
                 }
             }
+            // dv < k * s / (rows_in * cols_in), without a division
             let cols_in = ((x + r).min(w - 1) - x.saturating_sub(r) + 1) as f64;
-            let mean = (s / (rows_in * cols_in)) as f32;
-            let fg = dv(line[x]) < k * mean;
+            let fg = (dv(line[x]) as f64) * cols_in < k_rows * s;
             match (fg, open) {
                 (true, None) => open = Some(x as u32),
                 (false, Some(x0)) => {

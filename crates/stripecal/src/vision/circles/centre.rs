@@ -99,10 +99,34 @@ fn plane_fit(pts: &[(f64, f64, f64)], keep: &[bool]) -> Option<[f64; 3]> {
 pub(crate) struct Shape {
     cx: f64,
     cy: f64,
-    ct: f64,
-    st: f64,
     ea: f64,
-    eb: f64,
+    q: Quad,
+}
+
+/// The quadratic form `a dx^2 + b dx dy + c dy^2` of an ellipse (value 1 on it).
+#[derive(Debug, Clone, Copy)]
+struct Quad {
+    a: f64,
+    b: f64,
+    c: f64,
+}
+
+impl Quad {
+    #[inline]
+    fn eval(&self, dx: f64, dy: f64) -> f64 {
+        self.a * dx * dx + self.b * dx * dy + self.c * dy * dy
+    }
+}
+
+/// The quadratic form of an ellipse with semi-axes `(ea, eb)`, the first along
+/// `(ct, st)`.
+fn quad(ct: f64, st: f64, ea: f64, eb: f64) -> Quad {
+    let (ia, ib) = (1.0 / (ea * ea), 1.0 / (eb * eb));
+    Quad {
+        a: ct * ct * ia + st * st * ib,
+        b: 2.0 * ct * st * (ia - ib),
+        c: st * st * ia + ct * ct * ib,
+    }
 }
 
 impl Shape {
@@ -112,10 +136,8 @@ impl Shape {
         Shape {
             cx: blob.cx,
             cy: blob.cy,
-            ct: theta.cos(),
-            st: theta.sin(),
             ea: blob.a + grow,
-            eb: blob.b + grow,
+            q: quad(theta.cos(), theta.sin(), blob.a + grow, blob.b + grow),
         }
     }
 
@@ -135,9 +157,7 @@ impl Shape {
     #[inline]
     fn contains(&self, x: f64, y: f64) -> bool {
         let (dx, dy) = (x - self.cx, y - self.cy);
-        let p = dx * self.ct + dy * self.st;
-        let q = -dx * self.st + dy * self.ct;
-        (p / self.ea).powi(2) + (q / self.eb).powi(2) <= 1.0
+        dx.abs() <= self.ea && dy.abs() <= self.ea && self.q.eval(dx, dy) <= 1.0
     }
 }
 
@@ -158,14 +178,16 @@ pub(crate) fn measure(
     let ring_w = delta;
     let (cx, cy) = (blob.cx, blob.cy);
     // rho^2 of offset (dx, dy) for an ellipse with semi-axes (A, B).
-    let rho2 = |dx: f64, dy: f64, ea: f64, eb: f64| {
-        let p = dx * ct + dy * st;
-        let q = -dx * st + dy * ct;
-        (p / ea).powi(2) + (q / eb).powi(2)
-    };
+    let rho2 = |dx: f64, dy: f64, ea: f64, eb: f64| quad(ct, st, ea, eb).eval(dx, dy);
     let (ra, rb) = (a + delta, b + delta);
     let (oa, ob) = (a + delta + 1.0 + ring_w, b + delta + 1.0 + ring_w);
     let (ia, ib) = (a + delta + 1.0, b + delta + 1.0);
+    let (q_outer, q_inner, q_core) = (
+        quad(ct, st, oa, ob),
+        quad(ct, st, ia, ib),
+        quad(ct, st, a, b),
+    );
+    let q_region = quad(ct, st, ra, rb);
     let half = |ea: f64, eb: f64| {
         (
             ((ea * ct).powi(2) + (eb * st).powi(2)).sqrt(),
@@ -191,12 +213,12 @@ pub(crate) fn measure(
         let dy = y as f64 - cy;
         for x in x0..=x1 {
             let dx = x as f64 - cx;
-            if rho2(dx, dy, oa, ob) <= 1.0 && rho2(dx, dy, ia, ib) > 1.0 {
+            if q_outer.eval(dx, dy) <= 1.0 && q_inner.eval(dx, dy) > 1.0 {
                 expected_ring += 1;
                 if !others.iter().any(|o| o.contains(x as f64, y as f64)) {
                     ring.push((dx, dy, img.at(x, y) as f64));
                 }
-            } else if rho2(dx, dy, a, b) <= 0.25 {
+            } else if q_core.eval(dx, dy) <= 0.25 {
                 core.push(img.at(x, y) as f64);
                 core_pts.push((dx, dy, img.at(x, y) as f64));
             }
@@ -280,7 +302,7 @@ pub(crate) fn measure(
         let dy = y as f64 - cy;
         for x in rx0..=rx1 {
             let dx = x as f64 - cx;
-            if rho2(dx, dy, ra, rb) > 1.0 {
+            if q_region.eval(dx, dy) > 1.0 {
                 continue;
             }
             let wgt = weight(dx, dy, img.at(x, y) as f64);
@@ -297,13 +319,13 @@ pub(crate) fn measure(
     let area_px = sw / contrast;
 
     // Ellipse: edge points along rays from the gravity centre.
-    let nrays = ((std::f64::consts::PI * (a + b)).round() as usize).clamp(32, 256);
+    let nrays = ((std::f64::consts::PI * (a + b)).round() as usize).clamp(32, 128);
     let mut pts: Vec<[f64; 2]> = Vec::with_capacity(nrays);
     for k in 0..nrays {
         let phi = std::f64::consts::TAU * k as f64 / nrays as f64;
         let (ux, uy) = (phi.cos(), phi.sin());
         let re = 1.0 / rho2(ux, uy, a, b).sqrt();
-        let (t0, t1) = (0.5 * re, re + delta);
+        let (t0, t1) = ((re - 2.0 * delta).max(0.5 * re), re + delta);
         let q = |t: f64| -> Option<f64> {
             let (dx, dy) = (gx + t * ux, gy + t * uy);
             let z = img.bilinear(cx + dx, cy + dy)?;

@@ -199,14 +199,14 @@ pub struct CircleGrid {
 
 fn to_img<T: Pixel>(v: &ImageView<'_, T>) -> (Img, f32, f32) {
     let (w, h) = (v.width(), v.height());
-    let mut px = Vec::with_capacity(w * h);
+    let mut px: Vec<f32> = Vec::with_capacity(w * h);
     let (mut lo, mut hi) = (f32::INFINITY, f32::NEG_INFINITY);
     for y in 0..h {
-        for &p in v.row(y) {
-            let f = p.to_f32();
-            lo = lo.min(f);
-            hi = hi.max(f);
-            px.push(f);
+        let start = px.len();
+        px.extend(v.row(y).iter().map(|p| p.to_f32()));
+        for &f in &px[start..] {
+            lo = if f < lo { f } else { lo };
+            hi = if f > hi { f } else { hi };
         }
     }
     (
