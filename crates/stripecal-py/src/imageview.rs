@@ -15,12 +15,27 @@ use crate::errors::invalid_input;
 fn copy<T: numpy::Element + Copy>(a: &Bound<'_, PyUntypedArray>) -> PyResult<GrayImage<T>> {
     let arr = a.cast::<PyArrayDyn<T>>()?;
     let ro = arr.try_readonly()?;
-    let view = ro.as_array();
-    let (h, w) = (view.shape()[0], view.shape()[1]);
+    let view = ro
+        .as_array()
+        .into_dimensionality::<numpy::ndarray::Ix2>()
+        .map_err(|e| PyTypeError::new_err(format!("expected a 2D array: {e}")))?;
+    let (h, w) = view.dim();
+    // A C-contiguous array is one memcpy; other layouts are walked row by row (the
+    // 2D iterator, much faster than a dynamic-dimension one).
+    let data = match view.as_slice() {
+        Some(s) => s.to_vec(),
+        None => {
+            let mut v = Vec::with_capacity(h * w);
+            for row in view.rows() {
+                v.extend(row.iter().copied());
+            }
+            v
+        }
+    };
     Ok(GrayImage {
         width: w,
         height: h,
-        data: view.iter().copied().collect(),
+        data,
     })
 }
 
