@@ -270,7 +270,7 @@ pub fn solve_axzb_with(a: &[Iso3], b: &[Iso3], opts: &AxzbOptions) -> Result<Axz
                 break;
             };
             let c = data.cost(&next, wr, wt);
-            if !(c < cur_cost) {
+            if c.is_nan() || c >= cur_cost {
                 break;
             }
             let gain = (cur_cost - c) / cur_cost.max(1e-300);
