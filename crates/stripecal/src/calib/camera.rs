@@ -1,1 +1,374 @@
-//! (being written)
+//! Camera calibration from circle-grid views: homographies -> Zhang -> Levenberg-
+//! Marquardt over intrinsics, the model's free distortion coefficients and the per-view
+//! board poses, predicting imaged centres with the bias-free conic model
+//! ([`crate::calib::conic`]).
+//!
+//! ## Parameters of the adjustment
+//!
+//! `[fu, fv, u0, v0, <free distortion coefficients of the model>]`, then per view
+//! `(w, v)`: the pose increment of [`crate::calib::conic`] (`R = R0 Exp(w)`,
+//! `t = t0 + v`); the state keeps each pose as a rotation vector and a translation.
+//! Pose one-sigmas are therefore: rotation about the BOARD axes (rad), translation in
+//! the camera frame (mm).
+
+use faer::MatMut;
+use nalgebra::{Vector2, Vector3};
+
+use crate::board::Board;
+use crate::calib::conic::{centre_generic, rot_times_exp_first_order, CentreModel, Dual};
+use crate::calib::homography::fit_homography;
+use crate::calib::lm::{levenberg_marquardt, LeastSquares, LmOptions, StopReason};
+use crate::calib::zhang::{pose_from_homography, zhang_intrinsics};
+use crate::calib::ViewObs;
+use crate::camera::{Camera, DistortionModel, PARAM_NAMES};
+use crate::error::{Error, Result};
+use crate::geometry::{iso_from_rotvec, iso_to_rotvec, matrix_to_rotvec, rotvec_to_matrix, Iso3};
+
+/// Options of [`calibrate_camera`].
+#[derive(Debug, Clone, PartialEq)]
+pub struct CameraOptions {
+    /// Centre model of the adjustment (default: exact conic centroid).
+    pub centre_model: CentreModel,
+    /// Solver options.
+    pub lm: LmOptions,
+    /// Minimum circles for a view to be used (>= 4).
+    pub min_circles: usize,
+}
+
+impl Default for CameraOptions {
+    fn default() -> Self {
+        CameraOptions {
+            centre_model: CentreModel::ConicExact,
+            lm: LmOptions {
+                max_iterations: 200,
+                ..Default::default()
+            },
+            min_circles: 4,
+        }
+    }
+}
+
+/// One-sigma of a view's pose.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct PoseSigma {
+    /// Rotation about the board axes, rad.
+    pub rotation_rad: Vector3<f64>,
+    /// Translation, mm.
+    pub translation_mm: Vector3<f64>,
+}
+
+/// The result of [`calibrate_camera`].
+#[derive(Debug, Clone)]
+pub struct CameraCalibration {
+    pub camera: Camera,
+    /// `(view index (ViewObs::view), T_cam_board)` of every used view.
+    pub poses: Vec<(usize, Iso3)>,
+    /// RMS of the circle-centre residuals (per coordinate... as a 2D distance), px.
+    pub rms_px: f64,
+    /// Per used view (same order as `poses`): RMS 2D residual, px.
+    pub per_view_rms_px: Vec<f64>,
+    /// One-sigma per camera parameter in [`PARAM_NAMES`] order (0 for fixed ones, NaN
+    /// for unobservable ones).
+    pub camera_sigma: [f64; 9],
+    /// One-sigma of each pose (same order as `poses`).
+    pub pose_sigma: Vec<PoseSigma>,
+    /// LM iterations.
+    pub iterations: usize,
+    pub stop_reason: StopReason,
+    /// The closed-form (Zhang) intrinsics before refinement `[fu, fv, u0, v0]`.
+    pub initial_intrinsics: [f64; 4],
+    /// Names of parameters found unobservable.
+    pub unobservable: Vec<String>,
+    /// Views dropped, with the reason (naming the view index).
+    pub warnings: Vec<String>,
+}
+
+struct Obs {
+    view: usize, // index into used views
+    centre: (f64, f64),
+    radius: f64,
+    u: f64,
+    v: f64,
+}
+
+struct CamProblem<'a> {
+    base: &'a Camera,
+    free: Vec<usize>, // indices into the 9 camera params
+    nviews: usize,
+    obs: Vec<Obs>,
+    model: CentreModel,
+}
+
+impl CamProblem<'_> {
+    fn ncam(&self) -> usize {
+        self.free.len()
+    }
+    fn cam_params(&self, p: &[f64]) -> [f64; 9] {
+        let mut c = self.base.params();
+        for (k, &i) in self.free.iter().enumerate() {
+            c[i] = p[k];
+        }
+        c
+    }
+    fn pose(&self, p: &[f64], v: usize) -> ([[f64; 3]; 3], [f64; 3]) {
+        let o = self.ncam() + 6 * v;
+        let r = rotvec_to_matrix(&Vector3::new(p[o], p[o + 1], p[o + 2]));
+        (
+            std::array::from_fn(|i| std::array::from_fn(|j| r[(i, j)])),
+            [p[o + 3], p[o + 4], p[o + 5]],
+        )
+    }
+}
+
+impl LeastSquares for CamProblem<'_> {
+    fn num_params(&self) -> usize {
+        self.ncam() + 6 * self.nviews
+    }
+    fn num_residuals(&self) -> usize {
+        2 * self.obs.len()
+    }
+    fn residuals(&self, p: &[f64], r: &mut [f64]) -> Result<()> {
+        let c = self.cam_params(p);
+        let poses: Vec<_> = (0..self.nviews).map(|v| self.pose(p, v)).collect();
+        for (k, o) in self.obs.iter().enumerate() {
+            let (rot, t) = &poses[o.view];
+            let uv = centre_generic(&c, rot, t, o.centre, o.radius, self.model)?;
+            r[2 * k] = uv[0] - o.u;
+            r[2 * k + 1] = uv[1] - o.v;
+        }
+        Ok(())
+    }
+    fn residuals_and_jacobian(
+        &self,
+        p: &[f64],
+        r: &mut [f64],
+        mut jac: MatMut<'_, f64>,
+    ) -> Result<()> {
+        type D = Dual<15>;
+        let c = self.cam_params(p);
+        let mut cd: [D; 9] = std::array::from_fn(|i| D::cst(c[i]));
+        for (k, &i) in self.free.iter().enumerate() {
+            cd[i] = D::var(c[i], k);
+        }
+        let nc = self.ncam();
+        let w: [D; 3] = std::array::from_fn(|i| D::var(0.0, 9 + i));
+        let poses: Vec<_> = (0..self.nviews)
+            .map(|v| {
+                let o = nc + 6 * v;
+                let r0 = rotvec_to_matrix(&Vector3::new(p[o], p[o + 1], p[o + 2]));
+                let rot = rot_times_exp_first_order(&r0, &w);
+                let t: [D; 3] = std::array::from_fn(|i| D::var(p[o + 3 + i], 12 + i));
+                (rot, t)
+            })
+            .collect();
+        for (k, o) in self.obs.iter().enumerate() {
+            let (rot, t) = &poses[o.view];
+            let uv = centre_generic(&cd, rot, t, o.centre, o.radius, self.model)?;
+            r[2 * k] = uv[0].v - o.u;
+            r[2 * k + 1] = uv[1].v - o.v;
+            for a in 0..2 {
+                for q in 0..nc {
+                    jac[(2 * k + a, q)] = uv[a].d[q];
+                }
+                for q in 0..6 {
+                    jac[(2 * k + a, nc + 6 * o.view + q)] = uv[a].d[9 + q];
+                }
+            }
+        }
+        Ok(())
+    }
+    fn retract(&self, p: &[f64], dp: &[f64], out: &mut [f64]) {
+        let nc = self.ncam();
+        for i in 0..nc {
+            out[i] = p[i] + dp[i];
+        }
+        for v in 0..self.nviews {
+            let o = nc + 6 * v;
+            let r0 = rotvec_to_matrix(&Vector3::new(p[o], p[o + 1], p[o + 2]));
+            let r = r0 * rotvec_to_matrix(&Vector3::new(dp[o], dp[o + 1], dp[o + 2]));
+            let rv = matrix_to_rotvec(&r);
+            for i in 0..3 {
+                out[o + i] = rv[i];
+                out[o + 3 + i] = p[o + 3 + i] + dp[o + 3 + i];
+            }
+        }
+    }
+}
+
+/// Calibrates the camera from circle observations (see the module docs).
+///
+/// Views with fewer than `opts.min_circles` circles or whose homography fails are
+/// dropped (listed in `warnings`). Errors: [`Error::InvalidInput`] for a bad board or
+/// image size, non-finite or out-of-grid observations, or fewer than 3 usable views;
+/// errors of Zhang's method ([`Error::Degenerate`]) and of the adjustment are passed on.
+pub fn calibrate_camera(
+    views: &[ViewObs],
+    board: &Board,
+    width: u32,
+    height: u32,
+    model: DistortionModel,
+    opts: &CameraOptions,
+) -> Result<CameraCalibration> {
+    board.validate()?;
+    if width == 0 || height == 0 {
+        return Err(Error::InvalidInput(format!(
+            "image size {width}x{height} must be positive"
+        )));
+    }
+    for v in views {
+        for c in &v.circles {
+            if !(c.u.is_finite() && c.v.is_finite()) {
+                return Err(Error::InvalidInput(format!(
+                    "view {}: circle ({}, {}) has a non-finite centre",
+                    v.view, c.row, c.col
+                )));
+            }
+            if c.row >= board.rows || c.col >= board.cols {
+                return Err(Error::InvalidInput(format!(
+                    "view {}: circle ({}, {}) is outside the {} x {} board",
+                    v.view, c.row, c.col, board.rows, board.cols
+                )));
+            }
+        }
+    }
+    let mut warnings = Vec::new();
+    let mut used: Vec<(&ViewObs, nalgebra::Matrix3<f64>)> = Vec::new();
+    for v in views {
+        if v.circles.len() < opts.min_circles.max(4) {
+            warnings.push(format!(
+                "view {}: dropped, only {} circles (need {})",
+                v.view,
+                v.circles.len(),
+                opts.min_circles.max(4)
+            ));
+            continue;
+        }
+        let plane: Vec<Vector2<f64>> = v
+            .circles
+            .iter()
+            .map(|c| {
+                let p = board.center(c.row, c.col);
+                Vector2::new(p.x, p.y)
+            })
+            .collect();
+        let image: Vec<Vector2<f64>> = v.circles.iter().map(|c| Vector2::new(c.u, c.v)).collect();
+        match fit_homography(&plane, &image) {
+            Ok((h, _)) => used.push((v, h)),
+            Err(e) => warnings.push(format!("view {}: dropped, homography failed: {e}", v.view)),
+        }
+    }
+    if used.len() < 3 {
+        return Err(Error::InvalidInput(format!(
+            "camera calibration needs at least 3 usable views, got {}{}",
+            used.len(),
+            if warnings.is_empty() {
+                String::new()
+            } else {
+                format!(" ({})", warnings.join("; "))
+            }
+        )));
+    }
+    let hs: Vec<_> = used.iter().map(|(_, h)| *h).collect();
+    let scale = 0.5 * (width as f64 + height as f64);
+    let k0 = zhang_intrinsics(&hs, None, scale)?;
+    let initial_intrinsics = [k0.fu, k0.fv, k0.u0, k0.v0];
+    let base = Camera::new(width, height, k0.fu, k0.fv, k0.u0, k0.v0, model, [0.0; 5])?;
+    let kmat = k0.k();
+    let mut free = vec![0, 1, 2, 3];
+    for (i, f) in model.free_coefficients().iter().enumerate() {
+        if *f {
+            free.push(4 + i);
+        }
+    }
+    let mut obs = Vec::new();
+    let mut p0: Vec<f64> = free.iter().map(|&i| base.params()[i]).collect();
+    for (vi, (v, h)) in used.iter().enumerate() {
+        let pose = pose_from_homography(h, &kmat)?;
+        let (rv, t) = iso_to_rotvec(&pose);
+        p0.extend_from_slice(&[rv.x, rv.y, rv.z, t.x, t.y, t.z]);
+        for c in &v.circles {
+            let ctr = board.center(c.row, c.col);
+            obs.push(Obs {
+                view: vi,
+                centre: (ctr.x, ctr.y),
+                radius: 0.5 * board.diameter(c.row, c.col),
+                u: c.u,
+                v: c.v,
+            });
+        }
+    }
+    let problem = CamProblem {
+        base: &base,
+        free: free.clone(),
+        nviews: used.len(),
+        obs,
+        model: opts.centre_model,
+    };
+    let res = levenberg_marquardt(&problem, &p0, &opts.lm)?;
+    let nc = free.len();
+    let camera = base.with_params(&problem.cam_params(&res.params));
+    camera.validate()?;
+    let mut camera_sigma = [0.0; 9];
+    for (k, &i) in free.iter().enumerate() {
+        camera_sigma[i] = res.sigma[k];
+    }
+    let mut poses = Vec::new();
+    let mut pose_sigma = Vec::new();
+    let mut per_view_ss = vec![(0.0, 0usize); used.len()];
+    for (k, o) in problem.obs.iter().enumerate() {
+        let e = &mut per_view_ss[o.view];
+        e.0 += res.residuals[2 * k].powi(2) + res.residuals[2 * k + 1].powi(2);
+        e.1 += 1;
+    }
+    for (vi, (v, _)) in used.iter().enumerate() {
+        let o = nc + 6 * vi;
+        let p = &res.params;
+        poses.push((
+            v.view,
+            iso_from_rotvec(
+                &Vector3::new(p[o], p[o + 1], p[o + 2]),
+                &Vector3::new(p[o + 3], p[o + 4], p[o + 5]),
+            ),
+        ));
+        let s = &res.sigma;
+        pose_sigma.push(PoseSigma {
+            rotation_rad: Vector3::new(s[o], s[o + 1], s[o + 2]),
+            translation_mm: Vector3::new(s[o + 3], s[o + 4], s[o + 5]),
+        });
+    }
+    let per_view_rms_px = per_view_ss
+        .iter()
+        .map(|(s, n)| (s / (*n).max(1) as f64).sqrt())
+        .collect();
+    let rms_px = (res.ssr / problem.obs.len() as f64).sqrt();
+    let unobservable = res
+        .unobservable
+        .iter()
+        .map(|&i| {
+            if i < nc {
+                PARAM_NAMES[free[i]].to_string()
+            } else {
+                let v = (i - nc) / 6;
+                let q = (i - nc) % 6;
+                format!(
+                    "view {} pose {}",
+                    used[v].0.view,
+                    ["wx", "wy", "wz", "tx", "ty", "tz"][q]
+                )
+            }
+        })
+        .collect();
+    Ok(CameraCalibration {
+        camera,
+        poses,
+        rms_px,
+        per_view_rms_px,
+        camera_sigma,
+        pose_sigma,
+        iterations: res.iterations,
+        stop_reason: res.reason,
+        initial_intrinsics,
+        unobservable,
+        warnings,
+    })
+}

@@ -1,1 +1,538 @@
-//! (being written)
+//! A dense Levenberg-Marquardt solver for small parameter vectors (n up to a few
+//! hundred) and many residuals (m up to ~1e5).
+//!
+//! ## Use
+//!
+//! Implement [`LeastSquares`] (residuals; residuals + Jacobian written into a reused
+//! `m x n` faer matrix; optionally a manifold update [`LeastSquares::retract`]) and
+//! call [`levenberg_marquardt`]. The Jacobian buffer is allocated once; `J^T J` is
+//! formed with faer's matrix product, the damped `n x n` system is solved by Cholesky.
+//!
+//! ## Algorithm
+//!
+//! Step: `(J^T W J + lambda D^2) dp = -J^T W r`, with `D^2` the running maximum of
+//! `diag(J^T W J)` (More's scaling) or, if given, the user's `scaling^-2`. `W` are the
+//! Huber IRLS weights (`1` inside the threshold, `delta / |r|` outside) when
+//! [`LmOptions::huber`] is set; the cost is then the Huber cost. A step is accepted if
+//! it lowers the cost; lambda shrinks by 3 after success and grows by 4 (or more) after
+//! failure.
+//!
+//! Stopping ([`StopReason`]): relative cost decrease below `ftol` after an accepted
+//! step; step `|D dp| <= xtol (|D p| + xtol)`; gradient `max |g_i| / sqrt(diag_i)`
+//! below `gtol * sqrt(cost)`... see the options; zero cost; lambda overflow (no step
+//! lowers the cost any more: the minimum at round-off); iteration limit.
+//!
+//! ## Covariance
+//!
+//! At the solution `cov = sigma^2 (J^T W J)^-1`, `sigma^2 = SSR / (m - n)`. Parameters
+//! are first Jacobi-scaled (`J^T J` to unit diagonal); eigenvalues of the scaled matrix
+//! below `rank_tol * max` span the unobservable directions, and every parameter with a
+//! component above 0.1 in one of them is reported in [`LmResult::unobservable`] with a
+//! NaN sigma; the others' covariance is the inverse of their sub-matrix (the
+//! unobservable ones held fixed).
+
+use faer::{Accum, Mat, MatMut, Par};
+use nalgebra::{DMatrix, DVector};
+
+use crate::error::{Error, Result};
+
+/// A least-squares problem `min sum_i rho(r_i(p))`.
+pub trait LeastSquares {
+    /// Number of parameters n.
+    fn num_params(&self) -> usize;
+    /// Number of residuals m.
+    fn num_residuals(&self) -> usize;
+    /// Residuals at `p` into `r` (length m).
+    fn residuals(&self, p: &[f64], r: &mut [f64]) -> Result<()>;
+    /// Residuals into `r` and the Jacobian `dr/dp` into `jac` (m x n, zero-filled on
+    /// entry) at `p`. Columns are derivatives w.r.t. the increment `dp` of
+    /// [`LeastSquares::retract`].
+    fn residuals_and_jacobian(&self, p: &[f64], r: &mut [f64], jac: MatMut<'_, f64>) -> Result<()>;
+    /// `p (+) dp` into `out`; default: addition. Override for manifold parameters
+    /// (rotations: `R Exp(dw)`), the Jacobian being w.r.t. `dp` at 0.
+    fn retract(&self, p: &[f64], dp: &[f64], out: &mut [f64]) {
+        for ((o, a), b) in out.iter_mut().zip(p).zip(dp) {
+            *o = a + b;
+        }
+    }
+}
+
+/// Options of [`levenberg_marquardt`].
+#[derive(Debug, Clone, PartialEq)]
+pub struct LmOptions {
+    /// Maximum iterations (Jacobian evaluations).
+    pub max_iterations: usize,
+    /// Relative cost decrease after an accepted step below which the solver stops.
+    pub ftol: f64,
+    /// Relative (scaled) step size below which the solver stops.
+    pub xtol: f64,
+    /// Scaled gradient `max_i |g_i| / sqrt((J^T J)_ii) / sqrt(2 cost)` below which the
+    /// solver stops (cosine between residual and Jacobian columns).
+    pub gtol: f64,
+    /// Initial damping relative to the largest diagonal entry of `J^T J`.
+    pub initial_lambda: f64,
+    /// Huber threshold (residual units); `None` for plain least squares.
+    pub huber: Option<f64>,
+    /// Per-parameter typical size (length n): the damping uses `1 / scaling^2`.
+    pub scaling: Option<Vec<f64>>,
+    /// Relative eigenvalue of the Jacobi-scaled `J^T J` below which a direction is
+    /// unobservable.
+    pub rank_tol: f64,
+}
+
+impl Default for LmOptions {
+    fn default() -> Self {
+        LmOptions {
+            max_iterations: 100,
+            ftol: 1e-15,
+            xtol: 1e-15,
+            gtol: 1e-14,
+            initial_lambda: 1e-4,
+            huber: None,
+            scaling: None,
+            rank_tol: 1e-13,
+        }
+    }
+}
+
+/// Why the solver stopped.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum StopReason {
+    CostConverged,
+    StepConverged,
+    GradientConverged,
+    /// Cost is zero (exact fit).
+    ZeroCost,
+    /// No step lowers the cost any more (round-off floor).
+    NoDecrease,
+    MaxIterations,
+}
+
+/// The solution and its statistics.
+#[derive(Debug, Clone)]
+pub struct LmResult {
+    pub params: Vec<f64>,
+    /// Final residuals (unweighted).
+    pub residuals: Vec<f64>,
+    /// Sum of squared residuals (unweighted).
+    pub ssr: f64,
+    /// The minimised cost: `0.5 * sum rho(r)` (`0.5 SSR` without Huber).
+    pub cost: f64,
+    /// Initial cost.
+    pub initial_cost: f64,
+    pub iterations: usize,
+    pub reason: StopReason,
+    /// `J^T W J` at the solution (n x n), for covariance and chaining.
+    pub jtj: DMatrix<f64>,
+    /// `sigma^2 = SSR / (m - n)` (0 when m <= n).
+    pub sigma2: f64,
+    /// Covariance `sigma^2 (J^T W J)^-1` (rows / columns of unobservable parameters NaN).
+    pub covariance: DMatrix<f64>,
+    /// One-sigma per parameter (NaN where unobservable).
+    pub sigma: Vec<f64>,
+    /// Indices of unobservable parameters.
+    pub unobservable: Vec<usize>,
+}
+
+fn huber_weight(r: f64, huber: Option<f64>) -> f64 {
+    match huber {
+        Some(d) if r.abs() > d => d / r.abs(),
+        _ => 1.0,
+    }
+}
+
+fn cost_of(r: &[f64], huber: Option<f64>) -> f64 {
+    match huber {
+        None => 0.5 * r.iter().map(|x| x * x).sum::<f64>(),
+        Some(d) => r
+            .iter()
+            .map(|&x| {
+                let a = x.abs();
+                if a <= d {
+                    0.5 * x * x
+                } else {
+                    d * (a - 0.5 * d)
+                }
+            })
+            .sum(),
+    }
+}
+
+/// Minimises the problem from `p0`.
+///
+/// Errors: [`Error::InvalidInput`] for inconsistent sizes, non-finite `p0` or options;
+/// [`Error::Degenerate`] if the initial residuals or Jacobian are not finite; errors of
+/// the problem's own evaluation at `p0` are passed on (later failed evaluations count
+/// as rejected steps).
+pub fn levenberg_marquardt<P: LeastSquares + ?Sized>(
+    problem: &P,
+    p0: &[f64],
+    opts: &LmOptions,
+) -> Result<LmResult> {
+    let n = problem.num_params();
+    let m = problem.num_residuals();
+    if p0.len() != n {
+        return Err(Error::InvalidInput(format!(
+            "initial parameters have length {}, the problem has {n}",
+            p0.len()
+        )));
+    }
+    if n == 0 || m == 0 {
+        return Err(Error::InvalidInput(format!(
+            "least squares needs parameters and residuals (n = {n}, m = {m})"
+        )));
+    }
+    if p0.iter().any(|x| !x.is_finite()) {
+        return Err(Error::InvalidInput(
+            "initial parameters are not finite".into(),
+        ));
+    }
+    if let Some(s) = &opts.scaling {
+        if s.len() != n || s.iter().any(|x| !(x.is_finite() && *x > 0.0)) {
+            return Err(Error::InvalidInput(format!(
+                "scaling must hold {n} positive finite values"
+            )));
+        }
+    }
+    if let Some(h) = opts.huber {
+        if !(h.is_finite() && h > 0.0) {
+            return Err(Error::InvalidInput(format!(
+                "Huber threshold {h} must be positive"
+            )));
+        }
+    }
+
+    let mut p = p0.to_vec();
+    let mut r = vec![0.0; m];
+    let mut jac = Mat::<f64>::zeros(m, n);
+    let mut jtj_f = Mat::<f64>::zeros(n, n);
+    let mut r_try = vec![0.0; m];
+    let mut p_try = vec![0.0; n];
+
+    // Evaluates r, J (weighted by sqrt(W)) into jac, returns (JtWJ, g = JtWr).
+    let eval = |p: &[f64],
+                r: &mut [f64],
+                jac: &mut Mat<f64>,
+                jtj_f: &mut Mat<f64>|
+     -> Result<(DMatrix<f64>, DVector<f64>)> {
+        jac.fill(0.0);
+        problem.residuals_and_jacobian(p, r, jac.as_mut())?;
+        if r.iter().any(|x| !x.is_finite()) {
+            return Err(Error::Degenerate("residuals are not finite".into()));
+        }
+        let mut g = DVector::<f64>::zeros(n);
+        for i in 0..m {
+            let w = huber_weight(r[i], opts.huber);
+            let sw = w.sqrt();
+            for j in 0..n {
+                let v = jac[(i, j)] * sw;
+                jac[(i, j)] = v;
+                g[j] += v * r[i] * sw;
+            }
+        }
+        faer::linalg::matmul::matmul(
+            jtj_f.as_mut(),
+            Accum::Replace,
+            jac.transpose(),
+            jac.as_ref(),
+            1.0,
+            Par::Seq,
+        );
+        let jtj = DMatrix::from_fn(n, n, |a, b| jtj_f[(a, b)]);
+        if jtj.iter().any(|x| !x.is_finite()) {
+            return Err(Error::Degenerate("Jacobian is not finite".into()));
+        }
+        Ok((jtj, g))
+    };
+
+    let (mut jtj, mut g) = eval(&p, &mut r, &mut jac, &mut jtj_f)?;
+    let mut cost = cost_of(&r, opts.huber);
+    let initial_cost = cost;
+    let mut diag: Vec<f64> = match &opts.scaling {
+        Some(s) => s.iter().map(|x| 1.0 / (x * x)).collect(),
+        None => (0..n).map(|i| jtj[(i, i)].max(1e-300)).collect(),
+    };
+    let maxdiag = (0..n).map(|i| jtj[(i, i)]).fold(0.0f64, f64::max);
+    let mut lambda = opts.initial_lambda * maxdiag.max(1e-300)
+        / diag.iter().cloned().fold(0.0f64, f64::max).max(1e-300);
+    let mut iterations = 0;
+    let mut reason = StopReason::MaxIterations;
+
+    'outer: while iterations < opts.max_iterations {
+        iterations += 1;
+        if cost == 0.0 {
+            reason = StopReason::ZeroCost;
+            break;
+        }
+        // gradient test
+        let gmax = (0..n)
+            .map(|i| {
+                let d = jtj[(i, i)];
+                if d > 0.0 {
+                    g[i].abs() / d.sqrt()
+                } else {
+                    0.0
+                }
+            })
+            .fold(0.0f64, f64::max);
+        if gmax <= opts.gtol * (2.0 * cost).sqrt() {
+            reason = StopReason::GradientConverged;
+            break;
+        }
+        if opts.scaling.is_none() {
+            for (i, d) in diag.iter_mut().enumerate() {
+                *d = d.max(jtj[(i, i)]);
+            }
+        }
+        loop {
+            let mut a = jtj.clone();
+            for i in 0..n {
+                a[(i, i)] += lambda * diag[i];
+            }
+            let dp = match a.cholesky() {
+                Some(ch) => ch.solve(&(-&g)),
+                None => {
+                    lambda *= 10.0;
+                    if lambda > 1e30 {
+                        reason = StopReason::NoDecrease;
+                        break 'outer;
+                    }
+                    continue;
+                }
+            };
+            let dnorm = (0..n).map(|i| diag[i] * dp[i] * dp[i]).sum::<f64>().sqrt();
+            problem.retract(&p, dp.as_slice(), &mut p_try);
+            let ok = p_try.iter().all(|x| x.is_finite())
+                && problem.residuals(&p_try, &mut r_try).is_ok()
+                && r_try.iter().all(|x| x.is_finite());
+            let new_cost = if ok {
+                cost_of(&r_try, opts.huber)
+            } else {
+                f64::INFINITY
+            };
+            if new_cost < cost {
+                let pnorm = (0..n).map(|i| diag[i] * p[i] * p[i]).sum::<f64>().sqrt();
+                let rel = (cost - new_cost) / cost;
+                std::mem::swap(&mut p, &mut p_try);
+                cost = new_cost;
+                let (j2, g2) = eval(&p, &mut r, &mut jac, &mut jtj_f)?;
+                jtj = j2;
+                g = g2;
+                lambda = (lambda / 3.0).max(1e-300);
+                if rel < opts.ftol {
+                    reason = StopReason::CostConverged;
+                    break 'outer;
+                }
+                if dnorm <= opts.xtol * (pnorm + opts.xtol) {
+                    reason = StopReason::StepConverged;
+                    break 'outer;
+                }
+                break;
+            }
+            lambda *= 4.0;
+            if lambda > 1e30 || dnorm <= opts.xtol * opts.xtol {
+                reason = StopReason::NoDecrease;
+                break 'outer;
+            }
+        }
+    }
+
+    let ssr: f64 = r.iter().map(|x| x * x).sum();
+    let sigma2 = if m > n { ssr / (m - n) as f64 } else { 0.0 };
+    let (covariance, unobservable) = covariance(&jtj, sigma2, opts.rank_tol);
+    let sigma = (0..n)
+        .map(|i| {
+            let v = covariance[(i, i)];
+            if v.is_finite() {
+                v.max(0.0).sqrt()
+            } else {
+                f64::NAN
+            }
+        })
+        .collect();
+    Ok(LmResult {
+        params: p,
+        residuals: r,
+        ssr,
+        cost,
+        initial_cost,
+        iterations,
+        reason,
+        jtj,
+        sigma2,
+        covariance,
+        sigma,
+        unobservable,
+    })
+}
+
+/// Covariance `sigma2 * jtj^-1` with rank-deficiency detection (module docs): returns
+/// the covariance (NaN rows / columns for unobservable parameters) and their indices.
+pub fn covariance(jtj: &DMatrix<f64>, sigma2: f64, rank_tol: f64) -> (DMatrix<f64>, Vec<usize>) {
+    let n = jtj.nrows();
+    let d: Vec<f64> = (0..n).map(|i| jtj[(i, i)].max(0.0).sqrt()).collect();
+    let mut bad = vec![false; n];
+    for i in 0..n {
+        if d[i].is_nan() || d[i] <= 0.0 || !d[i].is_finite() {
+            bad[i] = true;
+        }
+    }
+    let good: Vec<usize> = (0..n).filter(|&i| !bad[i]).collect();
+    let scaled = DMatrix::from_fn(good.len(), good.len(), |a, b| {
+        jtj[(good[a], good[b])] / (d[good[a]] * d[good[b]])
+    });
+    if !good.is_empty() {
+        let eig = scaled.clone().symmetric_eigen();
+        let emax = eig.eigenvalues.iter().cloned().fold(0.0f64, f64::max);
+        for (k, &ev) in eig.eigenvalues.iter().enumerate() {
+            if ev <= rank_tol * emax {
+                for a in 0..good.len() {
+                    if eig.eigenvectors[(a, k)].abs() > 0.1 {
+                        bad[good[a]] = true;
+                    }
+                }
+            }
+        }
+    }
+    let good: Vec<usize> = (0..n).filter(|&i| !bad[i]).collect();
+    let mut cov = DMatrix::from_element(n, n, f64::NAN);
+    if !good.is_empty() {
+        let sub = DMatrix::from_fn(good.len(), good.len(), |a, b| {
+            jtj[(good[a], good[b])] / (d[good[a]] * d[good[b]])
+        });
+        if let Some(ch) = sub.cholesky() {
+            let inv = ch.inverse();
+            for a in 0..good.len() {
+                for b in 0..good.len() {
+                    cov[(good[a], good[b])] = sigma2 * inv[(a, b)] / (d[good[a]] * d[good[b]]);
+                }
+            }
+        } else {
+            // numerically not positive definite: everything is suspect
+            return (cov, (0..n).collect());
+        }
+    }
+    let unobs = (0..n).filter(|&i| bad[i]).collect();
+    (cov, unobs)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Fit y = a exp(b x) + c.
+    struct Expo {
+        x: Vec<f64>,
+        y: Vec<f64>,
+        /// add a duplicated parameter (unobservable combination) when true
+        dup: bool,
+    }
+
+    impl LeastSquares for Expo {
+        fn num_params(&self) -> usize {
+            if self.dup {
+                4
+            } else {
+                3
+            }
+        }
+        fn num_residuals(&self) -> usize {
+            self.x.len()
+        }
+        fn residuals(&self, p: &[f64], r: &mut [f64]) -> Result<()> {
+            let c = if self.dup { p[2] + p[3] } else { p[2] };
+            for ((ri, x), y) in r.iter_mut().zip(&self.x).zip(&self.y) {
+                *ri = p[0] * (p[1] * x).exp() + c - y;
+            }
+            Ok(())
+        }
+        fn residuals_and_jacobian(
+            &self,
+            p: &[f64],
+            r: &mut [f64],
+            mut jac: MatMut<'_, f64>,
+        ) -> Result<()> {
+            self.residuals(p, r)?;
+            for i in 0..self.x.len() {
+                let e = (p[1] * self.x[i]).exp();
+                jac[(i, 0)] = e;
+                jac[(i, 1)] = p[0] * self.x[i] * e;
+                jac[(i, 2)] = 1.0;
+                if self.dup {
+                    jac[(i, 3)] = 1.0;
+                }
+            }
+            Ok(())
+        }
+    }
+
+    fn data(noise: bool) -> (Vec<f64>, Vec<f64>) {
+        let x: Vec<f64> = (0..50).map(|i| i as f64 * 0.1).collect();
+        let y = x
+            .iter()
+            .enumerate()
+            .map(|(i, &x)| {
+                2.0 * (-0.7 * x).exp()
+                    + 0.5
+                    + if noise {
+                        0.01 * ((i * 7919) % 13) as f64 / 13.0 - 0.005
+                    } else {
+                        0.0
+                    }
+            })
+            .collect();
+        (x, y)
+    }
+
+    #[test]
+    fn exact_fit_and_covariance() {
+        let (x, y) = data(false);
+        let pr = Expo { x, y, dup: false };
+        let res = levenberg_marquardt(&pr, &[1.0, -0.1, 0.0], &LmOptions::default()).unwrap();
+        assert!((res.params[0] - 2.0).abs() < 1e-10, "{:?}", res);
+        assert!((res.params[1] + 0.7).abs() < 1e-10);
+        assert!((res.params[2] - 0.5).abs() < 1e-10);
+        assert!(res.unobservable.is_empty());
+
+        let (x, y) = data(true);
+        let pr = Expo { x, y, dup: false };
+        let res = levenberg_marquardt(&pr, &[1.0, -0.1, 0.0], &LmOptions::default()).unwrap();
+        assert!(res.sigma.iter().all(|s| s.is_finite() && *s > 0.0));
+        assert!((res.params[0] - 2.0).abs() < 5.0 * res.sigma[0] + 1e-3);
+    }
+
+    #[test]
+    fn rank_deficiency_is_reported() {
+        let (x, y) = data(true);
+        let pr = Expo { x, y, dup: true };
+        let res = levenberg_marquardt(&pr, &[1.0, -0.1, 0.0, 0.0], &LmOptions::default()).unwrap();
+        assert_eq!(res.unobservable, vec![2, 3]);
+        assert!(res.sigma[2].is_nan() && res.sigma[3].is_nan());
+        assert!(res.sigma[0].is_finite());
+        assert!((res.params[2] + res.params[3] - 0.5).abs() < 0.01);
+    }
+
+    #[test]
+    fn huber_resists_an_outlier() {
+        let (x, mut y) = data(false);
+        y[10] += 5.0;
+        let pr = Expo { x, y, dup: false };
+        let opts = LmOptions {
+            huber: Some(0.01),
+            max_iterations: 300,
+            ..Default::default()
+        };
+        let res = levenberg_marquardt(&pr, &[1.0, -0.1, 0.0], &opts).unwrap();
+        assert!((res.params[0] - 2.0).abs() < 1e-3, "{:?}", res.params);
+        let plain = levenberg_marquardt(&pr, &[1.0, -0.1, 0.0], &LmOptions::default()).unwrap();
+        assert!((plain.params[0] - 2.0).abs() > (res.params[0] - 2.0).abs());
+    }
+
+    #[test]
+    fn bad_input() {
+        let (x, y) = data(false);
+        let pr = Expo { x, y, dup: false };
+        assert!(levenberg_marquardt(&pr, &[1.0, 0.0], &LmOptions::default()).is_err());
+        assert!(levenberg_marquardt(&pr, &[f64::NAN, 0.0, 0.0], &LmOptions::default()).is_err());
+    }
+}
