@@ -13,6 +13,7 @@
 
 use faer::MatMut;
 use nalgebra::{Vector2, Vector3};
+use rayon::prelude::*;
 
 use crate::board::Board;
 use crate::calib::conic::{centre_generic, rot_times_exp_first_order, CentreModel, Dual};
@@ -130,9 +131,15 @@ impl LeastSquares for CamProblem<'_> {
     fn residuals(&self, p: &[f64], r: &mut [f64]) -> Result<()> {
         let c = self.cam_params(p);
         let poses: Vec<_> = (0..self.nviews).map(|v| self.pose(p, v)).collect();
-        for (k, o) in self.obs.iter().enumerate() {
-            let (rot, t) = &poses[o.view];
-            let uv = centre_generic(&c, rot, t, o.centre, o.radius, self.model)?;
+        let preds: Vec<[f64; 2]> = self
+            .obs
+            .par_iter()
+            .map(|o| {
+                let (rot, t) = &poses[o.view];
+                centre_generic(&c, rot, t, o.centre, o.radius, self.model)
+            })
+            .collect::<Result<_>>()?;
+        for (k, (o, uv)) in self.obs.iter().zip(&preds).enumerate() {
             r[2 * k] = uv[0] - o.u;
             r[2 * k + 1] = uv[1] - o.v;
         }
@@ -161,9 +168,15 @@ impl LeastSquares for CamProblem<'_> {
                 (rot, t)
             })
             .collect();
-        for (k, o) in self.obs.iter().enumerate() {
-            let (rot, t) = &poses[o.view];
-            let uv = centre_generic(&cd, rot, t, o.centre, o.radius, self.model)?;
+        let preds: Vec<[D; 2]> = self
+            .obs
+            .par_iter()
+            .map(|o| {
+                let (rot, t) = &poses[o.view];
+                centre_generic(&cd, rot, t, o.centre, o.radius, self.model)
+            })
+            .collect::<Result<_>>()?;
+        for (k, (o, uv)) in self.obs.iter().zip(&preds).enumerate() {
             r[2 * k] = uv[0].v - o.u;
             r[2 * k + 1] = uv[1].v - o.v;
             for a in 0..2 {
@@ -371,4 +384,111 @@ pub fn calibrate_camera(
         unobservable,
         warnings,
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::calib::conic::predict_centre;
+
+    fn synthetic(model: CentreModel) -> (Camera, Vec<Iso3>, CamProblem<'static>, Vec<f64>) {
+        let cam = Camera::new(
+            1024,
+            768,
+            900.0,
+            900.5,
+            515.3,
+            380.8,
+            DistortionModel::OpenCv5,
+            [-0.25, 0.12, 1e-3, -2e-3, 0.01],
+        )
+        .unwrap();
+        let poses = vec![
+            iso_from_rotvec(
+                &Vector3::new(0.3, 0.1, 0.2),
+                &Vector3::new(-20.0, -15.0, 100.0),
+            ),
+            iso_from_rotvec(
+                &Vector3::new(-0.2, 0.35, -0.1),
+                &Vector3::new(-25.0, -10.0, 110.0),
+            ),
+        ];
+        let board = Board::hp3_paper();
+        let mut obs = Vec::new();
+        for (v, t) in poses.iter().enumerate() {
+            for (r, c) in board.indices().step_by(7) {
+                let ctr = board.center(r, c);
+                let rad = 0.5 * board.diameter(r, c);
+                let uv = predict_centre(&cam, t, &ctr, rad, model).unwrap();
+                obs.push(Obs {
+                    view: v,
+                    centre: (ctr.x, ctr.y),
+                    radius: rad,
+                    u: uv.x + 0.1,
+                    v: uv.y - 0.05,
+                });
+            }
+        }
+        let base: &'static Camera = Box::leak(Box::new(cam.clone()));
+        let pr = CamProblem {
+            base,
+            free: (0..9).collect(),
+            nviews: poses.len(),
+            obs,
+            model,
+        };
+        let mut p: Vec<f64> = cam.params().to_vec();
+        for t in &poses {
+            let (rv, tr) = iso_to_rotvec(t);
+            p.extend_from_slice(&[rv.x, rv.y, rv.z, tr.x, tr.y, tr.z]);
+        }
+        (cam, poses, pr, p)
+    }
+
+    #[test]
+    fn adjustment_jacobian_matches_central_differences_through_retract() {
+        for model in [
+            CentreModel::Naive,
+            CentreModel::Conic,
+            CentreModel::ConicExact,
+        ] {
+            let (_, _, pr, p) = synthetic(model);
+            let (m, n) = (pr.num_residuals(), pr.num_params());
+            let mut r = vec![0.0; m];
+            let mut jac = faer::Mat::<f64>::zeros(m, n);
+            pr.residuals_and_jacobian(&p, &mut r, jac.as_mut()).unwrap();
+            let mut r2 = vec![0.0; m];
+            pr.residuals(&p, &mut r2).unwrap();
+            assert!(r.iter().zip(&r2).all(|(a, b)| (a - b).abs() < 1e-12));
+            for j in 0..n {
+                let h = if j < 9 {
+                    1e-4 * p[j].abs().max(1.0)
+                } else if (j - 9) % 6 < 3 {
+                    1e-6
+                } else {
+                    1e-5
+                };
+                let mut dp = vec![0.0; n];
+                let (mut pa, mut pb) = (vec![0.0; n], vec![0.0; n]);
+                dp[j] = h;
+                pr.retract(&p, &dp, &mut pa);
+                dp[j] = -h;
+                pr.retract(&p, &dp, &mut pb);
+                let (mut ra, mut rb) = (vec![0.0; m], vec![0.0; m]);
+                pr.residuals(&pa, &mut ra).unwrap();
+                pr.residuals(&pb, &mut rb).unwrap();
+                let mut num = 0.0f64;
+                let mut den = 0.0f64;
+                for i in 0..m {
+                    let fd = (ra[i] - rb[i]) / (2.0 * h);
+                    num = num.max((fd - jac[(i, j)]).abs());
+                    den = den.max(jac[(i, j)].abs());
+                }
+                assert!(
+                    num <= 1e-6 * den.max(1.0),
+                    "{model:?} column {j}: {num:e} of {den:e}"
+                );
+            }
+        }
+    }
 }
