@@ -42,6 +42,7 @@ from stripecal._core import (
     detect_circles,
     detect_circles_full,
     extract_stripe,
+    fit_laser_plane,
     fit_line,
     load_calibration,
     load_dataset,
@@ -59,6 +60,8 @@ from stripecal._core import (
     save_rig,
     save_sphere_fit,
     save_truth,
+    solve_axzb,
+    solve_axzb_full,
     write_ply,
 )
 from stripecal import sim
@@ -86,6 +89,7 @@ __all__ = [
     "detect_circles",
     "detect_circles_full",
     "extract_stripe",
+    "fit_laser_plane",
     "fit_line",
     "load_calibration",
     "load_dataset",
@@ -104,5 +108,7 @@ __all__ = [
     "save_sphere_fit",
     "save_truth",
     "sim",
+    "solve_axzb",
+    "solve_axzb_full",
     "write_ply",
 ]

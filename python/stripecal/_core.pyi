@@ -36,6 +36,7 @@ __all__ = [
     "detect_circles",
     "detect_circles_full",
     "extract_stripe",
+    "fit_laser_plane",
     "fit_line",
     "load_calibration",
     "load_dataset",
@@ -55,6 +56,8 @@ __all__ = [
     "save_truth",
     "sim_config",
     "sim_presets",
+    "solve_axzb",
+    "solve_axzb_full",
     "write_ply",
 ]
 
@@ -464,4 +467,15 @@ def detect_circles_full(
     board: Board,
     method: str = "gravity",
     drop_stripe_crossed: bool = True,
+) -> Dict[str, Any]: ...
+
+# Two-stage calibration pieces (issue 4): AX = ZB and the laser plane.
+def solve_axzb(
+    A: npt.ArrayLike, B: npt.ArrayLike, refine: bool = True
+) -> Tuple[_F64, _F64]: ...
+def solve_axzb_full(
+    A: npt.ArrayLike, B: npt.ArrayLike, refine: bool = True
+) -> Dict[str, Any]: ...
+def fit_laser_plane(
+    cam_board: npt.ArrayLike, stripes: Any, camera: Camera
 ) -> Dict[str, Any]: ...

@@ -6,6 +6,7 @@
 //! Python exceptions as described in [`errors`].
 
 mod board;
+mod calib_py;
 mod camera;
 mod convert;
 mod errors;
@@ -77,5 +78,9 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<vision_stripe::PyLineFit>()?;
     m.add_function(wrap_pyfunction!(vision_stripe::extract_stripe, m)?)?;
     m.add_function(wrap_pyfunction!(vision_stripe::fit_line, m)?)?;
+
+    m.add_function(wrap_pyfunction!(calib_py::solve_axzb, m)?)?;
+    m.add_function(wrap_pyfunction!(calib_py::solve_axzb_full, m)?)?;
+    m.add_function(wrap_pyfunction!(calib_py::fit_laser_plane, m)?)?;
     Ok(())
 }

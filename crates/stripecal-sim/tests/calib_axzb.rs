@@ -172,7 +172,7 @@ fn axzb_degenerate_pose_sets_are_typed_errors_with_the_figure() {
         &Vector3::zeros(),
     );
     let mut a2 = a.clone();
-    a2[5] = a2[5] * tilt;
+    a2[5] *= tilt;
     let e = solve_axzb(&a2, &make_b(&a2)).unwrap_err();
     println!("nearly one axis: {e}");
     assert!(
@@ -202,7 +202,7 @@ fn axzb_degenerate_pose_sets_are_typed_errors_with_the_figure() {
 
     // Weak but solvable: warnings, still exact.
     let mut a4 = a.clone();
-    a4[5] = a4[5] * iso_from_rotvec(&(Vector3::new(1.0, 0.0, 0.0) * 0.1), &Vector3::zeros());
+    a4[5] *= iso_from_rotvec(&(Vector3::new(1.0, 0.0, 0.0) * 0.1), &Vector3::zeros());
     let s = solve_axzb(&a4, &make_b(&a4)).unwrap();
     println!(
         "weak set: spread {:.2} deg, warnings {:?}",
