@@ -120,7 +120,8 @@ pub fn backproject_to_board(
 fn principal_axes(pts: &[Vector3<f64>]) -> Result<(Vector3<f64>, Matrix3<f64>, [f64; 3])> {
     let n = pts.len();
     let c = pts.iter().fold(Vector3::zeros(), |a, p| a + p) / n as f64;
-    let mut m = Mat::<f64>::zeros(n, 3);
+    // At least 3 rows (zero rows change nothing) so the SVD has 3 singular values.
+    let mut m = Mat::<f64>::zeros(n.max(3), 3);
     for (i, p) in pts.iter().enumerate() {
         let d = p - c;
         for k in 0..3 {
@@ -444,4 +445,54 @@ pub fn stripe_line_in_view(
         point_board: Vector2::new(pb.x, pb.y),
         direction_board: if dn > 0.0 { db2 / dn } else { db2 },
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::camera::DistortionModel;
+    use crate::geometry::iso_from_rotvec;
+
+    #[test]
+    fn two_point_views_are_enough_and_exact() {
+        let cam = Camera::new(
+            768,
+            576,
+            1270.0,
+            1320.0,
+            384.0,
+            288.0,
+            DistortionModel::Radial1,
+            [0.05, 0.0, 0.0, 0.0, 0.0],
+        )
+        .unwrap();
+        let laser = Plane::new(Vector3::new(0.629, -0.0492, 0.7759), 79.87).unwrap();
+        let poses = [
+            iso_from_rotvec(
+                &Vector3::new(3.4, 0.1, 0.0),
+                &Vector3::new(-20.0, -15.0, 100.0),
+            ),
+            iso_from_rotvec(
+                &Vector3::new(2.9, 0.4, 0.2),
+                &Vector3::new(-20.0, -15.0, 110.0),
+            ),
+        ];
+        let views: Vec<(Iso3, Vec<[f64; 2]>)> = poses
+            .iter()
+            .map(|cb| {
+                let l = stripe_line_in_view(&laser, cb, &cam).unwrap();
+                let pts = [-5.0, 5.0]
+                    .iter()
+                    .map(|s| {
+                        let uv = cam.project(&(l.point_cam + l.direction_cam * *s)).unwrap();
+                        [uv.x, uv.y]
+                    })
+                    .collect();
+                (*cb, pts)
+            })
+            .collect();
+        let fit = fit_laser_plane(&views, &cam).unwrap();
+        assert!((fit.plane.normal - laser.normal).norm() < 1e-9);
+        assert!((fit.plane.d - laser.d).abs() < 1e-9);
+    }
 }
