@@ -32,12 +32,12 @@ impl Img {
         if !(u >= 0.0 && v >= 0.0) {
             return None;
         }
-        let (x0, y0) = (u.floor(), v.floor());
-        let (xi, yi) = (x0 as usize, y0 as usize);
+        // u, v >= 0: truncation is floor (and much cheaper than a libm call)
+        let (xi, yi) = (u as usize, v as usize);
         if xi + 1 >= self.w || yi + 1 >= self.h {
             return None;
         }
-        let (fx, fy) = (u - x0, v - y0);
+        let (fx, fy) = (u - xi as f64, v - yi as f64);
         let i = yi * self.w + xi;
         let (a, b) = (self.px[i] as f64, self.px[i + 1] as f64);
         let (c, d) = (self.px[i + self.w] as f64, self.px[i + self.w + 1] as f64);
@@ -172,8 +172,8 @@ pub(crate) fn find_blobs(img: &Img, dark: bool, opts: &CircleOptions) -> (Vec<Bl
     // "Darkness" value: circles are dark in it.
     let dv = |p: f32| if dark { p } else { img.max - p };
 
-    // Sliding box mean: column sums over rows [y - r, y + r] (clamped), then a running
-    // sum along the row.
+    // Box mean: column sums over rows [y - r, y + r] (clamped, updated row by row), then
+    // window sums along the row from their prefix sums.
     let mut col = vec![0f64; w];
     let top = r.min(h - 1);
     for y in 0..=top {
@@ -181,6 +181,12 @@ pub(crate) fn find_blobs(img: &Img, dark: bool, opts: &CircleOptions) -> (Vec<Bl
             *c += dv(p) as f64;
         }
     }
+    // Per column: the window's column range and k / its width.
+    let lo: Vec<usize> = (0..w).map(|x| x.saturating_sub(r)).collect();
+    let hi: Vec<usize> = (0..w).map(|x| (x + r + 1).min(w)).collect();
+    let kx: Vec<f64> = (0..w).map(|x| k as f64 / (hi[x] - lo[x]) as f64).collect();
+    let mut pre = vec![0f64; w + 1];
+    let mut mask = vec![false; w];
     let mut runs: Vec<Run> = Vec::new();
     let mut row_start: Vec<usize> = Vec::with_capacity(h + 1);
     for y in 0..h {
@@ -198,42 +204,47 @@ pub(crate) fn find_blobs(img: &Img, dark: bool, opts: &CircleOptions) -> (Vec<Bl
             }
         }
         let rows_in = ((y + r).min(h - 1) - y.saturating_sub(r) + 1) as f64;
-        let k_rows = k as f64 / rows_in;
-        let mut s: f64 = col[..=r.min(w - 1)].iter().sum();
-        row_start.push(runs.len());
-        let line = &img.px[y * w..(y + 1) * w];
-        let mut open: Option<u32> = None;
+        let k_row = 1.0 / rows_in;
+        // Prefix sums of the column sums: window sums by two look-ups. All values are
+        // integers far below 2^53, so the sums are exact.
         for x in 0..w {
-            if x > 0 {
-                if x + r < w {
-                    s += col[x + r];
-                }
-                if x > r {
-                    s -= col[x - r - 1];
-                }
-            }
-            // dv < k * s / (rows_in * cols_in), without a division
-            let cols_in = ((x + r).min(w - 1) - x.saturating_sub(r) + 1) as f64;
-            let fg = (dv(line[x]) as f64) * cols_in < k_rows * s;
-            match (fg, open) {
-                (true, None) => open = Some(x as u32),
-                (false, Some(x0)) => {
-                    runs.push(Run {
-                        y: y as u32,
-                        x0,
-                        x1: x as u32 - 1,
-                    });
-                    open = None;
-                }
-                _ => {}
+            pre[x + 1] = pre[x] + col[x];
+        }
+        let line = &img.px[y * w..(y + 1) * w];
+        // dv < k * mean, without a division; the full-width middle part of the row in
+        // a form the compiler vectorises
+        let n = 2 * r + 1;
+        let (a, b) = if w > n { (r, w - r) } else { (w, w) };
+        for x in (0..a).chain(b..w) {
+            mask[x] = (dv(line[x]) as f64) < (pre[hi[x]] - pre[lo[x]]) * kx[x] * k_row;
+        }
+        if a < b {
+            let km = k as f64 / n as f64 * k_row;
+            for (((m, &p), &h1), &l1) in mask[a..b]
+                .iter_mut()
+                .zip(&line[a..b])
+                .zip(&pre[n..])
+                .zip(&pre[..b - a])
+            {
+                *m = (dv(p) as f64) < (h1 - l1) * km;
             }
         }
-        if let Some(x0) = open {
-            runs.push(Run {
-                y: y as u32,
-                x0,
-                x1: w as u32 - 1,
-            });
+        row_start.push(runs.len());
+        let mut x = 0;
+        while x < w {
+            if mask[x] {
+                let x0 = x;
+                while x < w && mask[x] {
+                    x += 1;
+                }
+                runs.push(Run {
+                    y: y as u32,
+                    x0: x0 as u32,
+                    x1: x as u32 - 1,
+                });
+            } else {
+                x += 1;
+            }
         }
     }
     row_start.push(runs.len());

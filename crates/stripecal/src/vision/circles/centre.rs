@@ -116,6 +116,35 @@ impl Quad {
     fn eval(&self, dx: f64, dy: f64) -> f64 {
         self.a * dx * dx + self.b * dx * dy + self.c * dy * dy
     }
+
+    /// The `dx` interval where `eval(dx, dy) <= level` on the row `dy`, if any.
+    #[inline]
+    fn span(&self, dy: f64, level: f64) -> Option<(f64, f64)> {
+        let (bb, cc) = (self.b * dy, self.c * dy * dy - level);
+        let disc = bb * bb - 4.0 * self.a * cc;
+        if disc < 0.0 {
+            return None;
+        }
+        let r = disc.sqrt();
+        Some(((-bb - r) / (2.0 * self.a), (-bb + r) / (2.0 * self.a)))
+    }
+}
+
+/// Integer columns `x` with `cx + lo <= x <= cx + hi`, clipped to `0..w`.
+#[inline]
+fn cols(cx: f64, span: Option<(f64, f64)>, w: usize) -> std::ops::Range<usize> {
+    match span {
+        Some((lo, hi)) => {
+            let x0 = (cx + lo).ceil().max(0.0);
+            let x1 = (cx + hi).floor().min(w as f64 - 1.0);
+            if x1 < x0 {
+                0..0
+            } else {
+                x0 as usize..x1 as usize + 1
+            }
+        }
+        None => 0..0,
+    }
 }
 
 /// The quadratic form of an ellipse with semi-axes `(ea, eb)`, the first along
@@ -198,9 +227,7 @@ pub(crate) fn measure(
     if cx - rhx < 0.0 || cy - rhy < 0.0 || cx + rhx > w - 1.0 || cy + rhy > h - 1.0 {
         return Err(Fail::Border);
     }
-    let (ohx, ohy) = half(oa, ob);
-    let x0 = (cx - ohx).floor().max(0.0) as usize;
-    let x1 = ((cx + ohx).ceil() as usize).min(img.w - 1);
+    let (_, ohy) = half(oa, ob);
     let y0 = (cy - ohy).floor().max(0.0) as usize;
     let y1 = ((cy + ohy).ceil() as usize).min(img.h - 1);
 
@@ -211,17 +238,22 @@ pub(crate) fn measure(
     let mut expected_ring = 0usize;
     for y in y0..=y1 {
         let dy = y as f64 - cy;
-        for x in x0..=x1 {
-            let dx = x as f64 - cx;
-            if q_outer.eval(dx, dy) <= 1.0 && q_inner.eval(dx, dy) > 1.0 {
-                expected_ring += 1;
-                if !others.iter().any(|o| o.contains(x as f64, y as f64)) {
-                    ring.push((dx, dy, img.at(x, y) as f64));
-                }
-            } else if q_core.eval(dx, dy) <= 0.25 {
-                core.push(img.at(x, y) as f64);
-                core_pts.push((dx, dy, img.at(x, y) as f64));
+        let row = &img.px[y * img.w..(y + 1) * img.w];
+        let outer = cols(cx, q_outer.span(dy, 1.0), img.w);
+        let inner = cols(cx, q_inner.span(dy, 1.0), img.w);
+        for x in outer {
+            if inner.contains(&x) {
+                continue;
             }
+            expected_ring += 1;
+            let (xf, yf) = (x as f64, y as f64);
+            if !others.iter().any(|o| o.contains(xf, yf)) {
+                ring.push((xf - cx, dy, row[x] as f64));
+            }
+        }
+        for x in cols(cx, q_core.span(dy, 0.25), img.w) {
+            core.push(row[x] as f64);
+            core_pts.push((x as f64 - cx, dy, row[x] as f64));
         }
     }
     // Ring area of the full (unclipped) band, to judge how much is missing.
@@ -238,18 +270,22 @@ pub(crate) fn measure(
     let mut keep = vec![true; ring.len()];
     // Start from the median level (robust), then planes with outlier rejection.
     let mut bg = {
-        let mut z: Vec<f64> = ring.iter().map(|r| r.2).collect();
+        let mut z: Vec<f64> = ring.iter().step_by(2).map(|r| r.2).collect();
         [median(&mut z), 0.0, 0.0]
     };
     let mut sigma = 0.0;
     let mut res: Vec<f64> = Vec::with_capacity(ring.len());
-    for _ in 0..3 {
+    // every other ring pixel is enough for the robust scale
+    let step = if ring.len() > 200 { 2 } else { 1 };
+    let mut absr: Vec<f64> = Vec::with_capacity(ring.len());
+    for _ in 0..2 {
         res.clear();
         res.extend(
             ring.iter()
                 .map(|&(x, y, z)| z - (bg[0] + bg[1] * x + bg[2] * y)),
         );
-        let mut absr: Vec<f64> = res.iter().map(|r| r.abs()).collect();
+        absr.clear();
+        absr.extend(res.iter().step_by(step).map(|r| r.abs()));
         sigma = 1.4826 * median(&mut absr);
         let lim = 3.5 * sigma.max(0.3);
         for (k, r) in keep.iter_mut().zip(&res) {
@@ -294,22 +330,23 @@ pub(crate) fn measure(
 
     // Gravity.
     let (mut sw, mut sx, mut sy) = (0.0, 0.0, 0.0);
-    let rx0 = (cx - rhx).floor() as usize;
-    let rx1 = ((cx + rhx).ceil() as usize).min(img.w - 1);
     let ry0 = (cy - rhy).floor() as usize;
     let ry1 = ((cy + rhy).ceil() as usize).min(img.h - 1);
     for y in ry0..=ry1 {
         let dy = y as f64 - cy;
-        for x in rx0..=rx1 {
+        let row = &img.px[y * img.w..(y + 1) * img.w];
+        let (b0, r0) = (bg[0] + bg[2] * dy, illum[0] + illum[2] * dy);
+        let (mut rw, mut rx) = (0.0, 0.0);
+        for x in cols(cx, q_region.span(dy, 1.0), img.w) {
             let dx = x as f64 - cx;
-            if q_region.eval(dx, dy) > 1.0 {
-                continue;
-            }
-            let wgt = weight(dx, dy, img.at(x, y) as f64);
-            sw += wgt;
-            sx += wgt * dx;
-            sy += wgt * dy;
+            let r = (r0 + illum[1] * dx).max(1e-3);
+            let wgt = s * (row[x] as f64 - (b0 + bg[1] * dx)) / r;
+            rw += wgt;
+            rx += wgt * dx;
         }
+        sw += rw;
+        sx += rx;
+        sy += rw * dy;
     }
     if sw.is_nan() || sw <= 0.0 {
         return Err(Fail::Background);
@@ -319,7 +356,7 @@ pub(crate) fn measure(
     let area_px = sw / contrast;
 
     // Ellipse: edge points along rays from the gravity centre.
-    let nrays = ((std::f64::consts::PI * (a + b)).round() as usize).clamp(32, 128);
+    let nrays = ((std::f64::consts::PI * (a + b) / 1.5).round() as usize).clamp(32, 96);
     let mut pts: Vec<[f64; 2]> = Vec::with_capacity(nrays);
     for k in 0..nrays {
         let phi = std::f64::consts::TAU * k as f64 / nrays as f64;
