@@ -498,6 +498,22 @@ fn subpixel<T: Pixel>(
     // Coordinates relative to xmin from here.
     let (l, r) = (l - xmin as f32, r - xmin as f32);
     let last = xmax - xmin;
+    // Prefix sums of y and of y * k after the residuals: the window's interior sums are
+    // O(1) in every iteration.
+    let m = last + 1;
+    res.resize(3 * m + 2, 0.0);
+    let (vals, pre) = res.split_at_mut(m);
+    let (pre0, pre1) = pre.split_at_mut(m + 1);
+    let (mut a0, mut a1) = (0.0f32, 0.0f32);
+    pre0[0] = 0.0;
+    pre1[0] = 0.0;
+    for (k, &y) in vals.iter().enumerate() {
+        a0 += y;
+        a1 += y * k as f32;
+        pre0[k + 1] = a0;
+        pre1[k + 1] = a1;
+    }
+    let (res, pre0, pre1) = (&*vals, &*pre0, &*pre1);
     let mut c = 0.5 * (l + r);
     for _ in 0..6 {
         let (lo, hi) = (c - h, c + h);
@@ -508,11 +524,9 @@ fn subpixel<T: Pixel>(
         if i1 <= i0 {
             return Err(LineReject::Shape);
         }
-        let (mut s, mut sx) = (0.0f32, 0.0f32);
-        for (i, &y) in res.iter().enumerate().take(i1).skip(i0 + 1) {
-            s += y;
-            sx += y * (i as f32 - c);
-        }
+        // interior pixels i0 + 1 .. i1 from the prefix sums
+        let mut s = pre0[i1] - pre0[i0 + 1];
+        let mut sx = (pre1[i1] - pre1[i0 + 1]) - c * s;
         let w0 = (i0 as f32 + 0.5 - lo).clamp(0.0, 1.0) * res[i0];
         let w1 = (hi - (i1 as f32 - 0.5)).clamp(0.0, 1.0) * res[i1];
         s += w0 + w1;
