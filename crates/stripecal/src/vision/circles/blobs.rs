@@ -169,8 +169,9 @@ pub(crate) fn find_blobs(img: &Img, dark: bool, opts: &CircleOptions) -> (Vec<Bl
     let short = w.min(h);
     let r = ((short as f64 * opts.window_frac * 0.5).round() as usize).max(3);
     let k = opts.threshold_ratio as f32;
-    // "Darkness" value: circles are dark in it.
-    let dv = |p: f32| if dark { p } else { img.max - p };
+    // "Darkness" value: circles are dark in it (branch-free: off + sgn * p).
+    let (off, sgn) = if dark { (0.0, 1.0) } else { (img.max, -1.0) };
+    let dv = move |p: f32| off + sgn * p;
 
     // Box mean: column sums over rows [y - r, y + r] (clamped, updated row by row), then
     // window sums along the row from their prefix sums.
@@ -231,19 +232,17 @@ pub(crate) fn find_blobs(img: &Img, dark: bool, opts: &CircleOptions) -> (Vec<Bl
         }
         row_start.push(runs.len());
         let mut x = 0;
-        while x < w {
-            if mask[x] {
-                let x0 = x;
-                while x < w && mask[x] {
-                    x += 1;
-                }
-                runs.push(Run {
-                    y: y as u32,
-                    x0: x0 as u32,
-                    x1: x as u32 - 1,
-                });
-            } else {
-                x += 1;
+        while let Some(start) = mask[x..].iter().position(|&m| m) {
+            let x0 = x + start;
+            let len = mask[x0..].iter().position(|&m| !m).unwrap_or(w - x0);
+            runs.push(Run {
+                y: y as u32,
+                x0: x0 as u32,
+                x1: (x0 + len - 1) as u32,
+            });
+            x = x0 + len;
+            if x >= w {
+                break;
             }
         }
     }

@@ -198,6 +198,7 @@ pub(crate) fn measure(
     dark: bool,
     edge_margin: f64,
     others: &[Shape],
+    ellipse_centre: bool,
 ) -> Result<Measure, Fail> {
     let (w, h) = (img.w as f64, img.h as f64);
     let theta = 0.5 * (2.0 * blob.sxy).atan2(blob.sxx - blob.syy);
@@ -356,7 +357,12 @@ pub(crate) fn measure(
     let area_px = sw / contrast;
 
     // Ellipse: edge points along rays from the gravity centre.
-    let nrays = ((std::f64::consts::PI * (a + b) / 1.5).round() as usize).clamp(32, 96);
+    // the gravity method needs the fit for its quality figure only: 32 rays do
+    let nrays = if ellipse_centre {
+        ((std::f64::consts::PI * (a + b) / 1.5).round() as usize).clamp(32, 96)
+    } else {
+        32
+    };
     let mut pts: Vec<[f64; 2]> = Vec::with_capacity(nrays);
     for k in 0..nrays {
         let phi = std::f64::consts::TAU * k as f64 / nrays as f64;

@@ -280,7 +280,8 @@ pub fn detect_circles(img: AnyView<'_>, board: &Board, opts: &CircleOptions) -> 
             let d2 = (s.cx() - b.cx).powi(2) + (s.cy() - b.cy).powi(2);
             (k != bi && d2 < (reach + s.reach()).powi(2)).then_some(*s)
         }));
-        let m = match centre::measure(&im, b, dark, opts.edge_margin_px, &near) {
+        let ellipse_centre = opts.method == CentreMethod::Ellipse;
+        let m = match centre::measure(&im, b, dark, opts.edge_margin_px, &near, ellipse_centre) {
             Ok(m) => m,
             Err(f) => {
                 dropped.push(drop(f.reason()));
