@@ -1,0 +1,1253 @@
+//! The one-stage adjustment: intrinsics, distortion, laser plane, hand-eye `X` and
+//! robot-world `Z` refined together in ONE Levenberg-Marquardt, the board pose of each
+//! view following from the robot.
+//!
+//! ## Model
+//!
+//! Per view i with `A_i = T_base_hand(q_i)` (known from the robot):
+//!
+//! ```text
+//! T_cam_board(i) = (A_i X)^-1 Z,   R_cb = R_X^T R_A^T R_Z,   t_cb = R_X^T (R_A^T (t_Z - t_A) - t_X)
+//! ```
+//!
+//! Residuals, in pixels:
+//! - circles: detected imaged centre minus the predicted imaged centre of the circle
+//!   (the bias-free conic model of [`crate::calib::conic`], default the exact area
+//!   centroid);
+//! - stripe points: signed image distance from the detected point to the image of the
+//!   line where the laser plane meets view i's board plane. The distance is measured to
+//!   the foot point `P(s*)` of the (distorted) image curve of the 3D line, found by
+//!   Gauss-Newton along the line; its derivative w.r.t. the parameters is, by the
+//!   envelope theorem, `n^T d pi(P(s*)) / d theta` at fixed `s*`, `n` the unit normal of
+//!   the image curve at the foot point.
+//!
+//! ## Parameters (state vector)
+//!
+//! `[free camera parameters (PARAM_NAMES order)] [plane a, b, d] [X: w, v] [Z: w, v]`.
+//! The laser plane's unit normal is `normalize(n0 + a e1 + b e2)` around the starting
+//! normal `n0` (`e1`, `e2` orthonormal, perpendicular to it), its offset `d` mm. The
+//! transforms are stored as rotation vector and translation; the solver's increment is
+//! `R Exp(w)` (rotation about the transform's own axes) and `t + v` (mm).
+//!
+//! ## Weighting and uncertainty
+//!
+//! Circle and stripe residuals have different noise. The adjustment estimates one
+//! standard deviation per residual type (variance components): it solves with the
+//! current weights `1 / sigma_type`, re-estimates `sigma_type^2 = SSR_type / (m_type -
+//! n m_type / m)`, and solves again (`reweight_rounds` times). The covariance of the
+//! parameters is then `s^2 (J^T W J)^-1` with `s^2` the a-posteriori variance factor of
+//! the weighted residuals (about 1). Optional Huber loss on the weighted residuals
+//! (threshold 1.345 sigma). Jacobians by forward-mode automatic differentiation
+//! ([`Dual`]), checked against central differences in the tests.
+
+use faer::MatMut;
+use nalgebra::{DMatrix, Matrix3, Vector3};
+use rayon::prelude::*;
+
+use crate::board::Board;
+use crate::calib::conic::{
+    centre_generic, distort_generic, rot_times_exp_first_order, CentreModel, Dual, Scalar,
+};
+use crate::calib::lm::{levenberg_marquardt, LeastSquares, LmOptions, LmResult, StopReason};
+use crate::calib::ViewObs;
+use crate::camera::{Camera, PARAM_NAMES};
+use crate::error::{Error, Result};
+use crate::geometry::{
+    iso_from_rotvec, iso_to_rotvec, matrix_to_rotvec, rotvec_to_matrix, Iso3, Plane,
+};
+
+/// Dual numbers over every parameter slot: camera 0..9, plane 9..12, X 12..18, Z 18..24.
+type D24 = Dual<24>;
+const SLOT_PLANE: usize = 9;
+const SLOT_X: usize = 12;
+const SLOT_Z: usize = 18;
+
+/// Huber threshold on the weighted residuals (in units of the residual's sigma).
+pub const HUBER_SIGMAS: f64 = 1.345;
+
+/// Options of [`joint_adjustment`].
+#[derive(Debug, Clone, PartialEq)]
+pub struct JointOptions {
+    /// Circle-centre model.
+    pub centre_model: CentreModel,
+    /// Solver options of each round.
+    pub lm: LmOptions,
+    /// Huber loss on the weighted residuals.
+    pub robust: bool,
+    /// Variance-component rounds after the first solve (default 2).
+    pub reweight_rounds: usize,
+    /// A view whose RMS of weighted residuals exceeds this (in sigmas) is reported as an
+    /// outlier (default 3).
+    pub outlier_sigmas: f64,
+    /// Starting standard deviations (circle, stripe), px.
+    pub initial_sigma_px: (f64, f64),
+}
+
+impl Default for JointOptions {
+    fn default() -> Self {
+        JointOptions {
+            centre_model: CentreModel::ConicExact,
+            lm: LmOptions {
+                max_iterations: 100,
+                ftol: 1e-12,
+                xtol: 1e-12,
+                ..Default::default()
+            },
+            robust: false,
+            reweight_rounds: 2,
+            outlier_sigmas: 3.0,
+            initial_sigma_px: (0.02, 0.05),
+        }
+    }
+}
+
+/// Where the adjustment starts (the two-stage results).
+#[derive(Debug, Clone, PartialEq)]
+pub struct JointStart {
+    pub camera: Camera,
+    /// Laser plane, camera frame.
+    pub plane: Plane,
+    /// `X = T_hand_cam`.
+    pub hand_cam: Iso3,
+    /// `Z = T_base_board`.
+    pub base_board: Iso3,
+}
+
+/// One-sigma of an estimated transform.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct TransformSigma {
+    /// Of the rotation-vector components, rad.
+    pub rotation_vector: Vector3<f64>,
+    /// Of the translation, mm.
+    pub translation_mm: Vector3<f64>,
+}
+
+/// One-sigma of every estimated number.
+#[derive(Debug, Clone, PartialEq)]
+pub struct JointSigma {
+    /// Camera parameters in [`PARAM_NAMES`] order (0 for fixed ones, NaN unobservable).
+    pub camera: [f64; 9],
+    /// Components of the plane's unit normal.
+    pub plane_normal: Vector3<f64>,
+    /// Plane offset, mm.
+    pub plane_d_mm: f64,
+    pub hand_cam: TransformSigma,
+    pub base_board: TransformSigma,
+}
+
+/// Per-view figures of the adjustment.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ViewReport {
+    /// `ViewObs::view` (dataset row).
+    pub view: usize,
+    pub circles: usize,
+    pub stripe_points: usize,
+    /// RMS of the 2D circle residuals, px (NaN without circles).
+    pub circle_rms_px: f64,
+    /// RMS of the stripe distances, px (NaN without stripe points).
+    pub stripe_rms_px: f64,
+    /// RMS of the stripe points' distances from the laser plane's line on the board,
+    /// mm (each point's image residual converted with its local scale).
+    pub stripe_rms_mm: f64,
+    /// Residuals far beyond the others' (see [`JointOptions::outlier_sigmas`]).
+    pub outlier: bool,
+}
+
+/// The result of [`joint_adjustment`].
+#[derive(Debug, Clone)]
+pub struct JointResult {
+    pub camera: Camera,
+    pub plane: Plane,
+    pub hand_cam: Iso3,
+    pub base_board: Iso3,
+    pub sigma: JointSigma,
+    /// RMS of the 2D circle residuals over all views, px.
+    pub circle_rms_px: f64,
+    /// RMS of the stripe distances, px.
+    pub stripe_rms_px: f64,
+    /// RMS of the stripe residuals in mm on the board.
+    pub stripe_rms_mm: f64,
+    /// Estimated standard deviations of one residual coordinate (circle, stripe), px.
+    pub sigma_px: (f64, f64),
+    pub views: Vec<ViewReport>,
+    /// Parameter names of the state vector, and its covariance (weighted, scaled by the
+    /// variance factor).
+    pub param_names: Vec<String>,
+    pub covariance: DMatrix<f64>,
+    pub iterations: usize,
+    pub stop_reason: StopReason,
+    pub unobservable: Vec<String>,
+    /// Per-residual values (px): circles `(view, row, col, du, dv)`.
+    pub circle_residuals: Vec<(usize, usize, usize, f64, f64)>,
+    /// Stripe `(view, u, v, distance px)`.
+    pub stripe_residuals: Vec<(usize, f64, f64, f64)>,
+    pub warnings: Vec<String>,
+}
+
+#[derive(Debug, Clone, Copy)]
+struct CircleTerm {
+    view: usize,
+    row: usize,
+    col: usize,
+    centre: (f64, f64),
+    radius: f64,
+    u: f64,
+    v: f64,
+}
+
+#[derive(Debug, Clone, Copy)]
+struct StripeTerm {
+    view: usize,
+    u: f64,
+    v: f64,
+}
+
+struct JointProblem<'a> {
+    base: &'a Camera,
+    free: Vec<usize>,
+    model: CentreModel,
+    n0: Vector3<f64>,
+    e1: Vector3<f64>,
+    e2: Vector3<f64>,
+    /// `T_base_hand` of each used view.
+    a: Vec<Iso3>,
+    circles: Vec<CircleTerm>,
+    stripes: Vec<StripeTerm>,
+    w_circle: f64,
+    w_stripe: f64,
+}
+
+/// The values of the state decoded.
+struct State {
+    cam: [f64; 9],
+    plane_n: Vector3<f64>,
+    plane_d: f64,
+    x_rot: Matrix3<f64>,
+    x_t: Vector3<f64>,
+    z_rot: Matrix3<f64>,
+    z_t: Vector3<f64>,
+}
+
+fn m3<T: Scalar>(r: &Matrix3<f64>) -> [[T; 3]; 3] {
+    std::array::from_fn(|i| std::array::from_fn(|j| T::from_f64(r[(i, j)])))
+}
+
+fn matmul<T: Scalar>(a: &[[T; 3]; 3], b: &[[T; 3]; 3]) -> [[T; 3]; 3] {
+    std::array::from_fn(|i| {
+        std::array::from_fn(|j| a[i][0] * b[0][j] + a[i][1] * b[1][j] + a[i][2] * b[2][j])
+    })
+}
+
+fn transpose<T: Scalar>(a: &[[T; 3]; 3]) -> [[T; 3]; 3] {
+    std::array::from_fn(|i| std::array::from_fn(|j| a[j][i]))
+}
+
+fn matvec<T: Scalar>(a: &[[T; 3]; 3], v: &[T; 3]) -> [T; 3] {
+    std::array::from_fn(|i| a[i][0] * v[0] + a[i][1] * v[1] + a[i][2] * v[2])
+}
+
+fn cross<T: Scalar>(a: &[T; 3], b: &[T; 3]) -> [T; 3] {
+    [
+        a[1] * b[2] - a[2] * b[1],
+        a[2] * b[0] - a[0] * b[2],
+        a[0] * b[1] - a[1] * b[0],
+    ]
+}
+
+fn dot<T: Scalar>(a: &[T; 3], b: &[T; 3]) -> T {
+    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+}
+
+/// `T_cam_board = (A X)^-1 Z` from the parts.
+fn cam_board<T: Scalar>(
+    a: &Iso3,
+    xr: &[[T; 3]; 3],
+    xt: &[T; 3],
+    zr: &[[T; 3]; 3],
+    zt: &[T; 3],
+) -> ([[T; 3]; 3], [T; 3]) {
+    let ra = a.rotation.to_rotation_matrix().into_inner();
+    let rat: [[T; 3]; 3] = m3(&ra.transpose());
+    let ta = a.translation.vector;
+    let xrt = transpose(xr);
+    let rot = matmul(&xrt, &matmul(&rat, zr));
+    let dz: [T; 3] = std::array::from_fn(|i| zt[i] - T::from_f64(ta[i]));
+    let inner = matvec(&rat, &dz);
+    let inner2: [T; 3] = std::array::from_fn(|i| inner[i] - xt[i]);
+    (rot, matvec(&xrt, &inner2))
+}
+
+/// The line where the laser plane `(n1, d1)` meets the board plane (third column of
+/// `rot`, through `t`): a point and a unit direction, camera frame.
+fn stripe_line<T: Scalar>(
+    n1: &[T; 3],
+    d1: T,
+    rot: &[[T; 3]; 3],
+    t: &[T; 3],
+) -> Result<([T; 3], [T; 3])> {
+    let n2 = [rot[0][2], rot[1][2], rot[2][2]];
+    let d2 = dot(&n2, t);
+    let dir = cross(n1, &n2);
+    let s2 = dot(&dir, &dir);
+    if s2.value().is_nan() || s2.value() <= 1e-18 {
+        return Err(Error::Degenerate(
+            "the laser plane is parallel to a view's board plane".into(),
+        ));
+    }
+    let a = cross(&n2, &dir);
+    let b = cross(&dir, n1);
+    let p: [T; 3] = std::array::from_fn(|i| (a[i] * d1 + b[i] * d2) / s2);
+    let s = s2.sqrt();
+    let u: [T; 3] = std::array::from_fn(|i| dir[i] / s);
+    Ok((p, u))
+}
+
+/// Pixel projection of a camera-frame point.
+#[inline]
+fn project<T: Scalar>(cam: &[T; 9], p: &[T; 3]) -> [T; 2] {
+    let x = p[0] / p[2];
+    let y = p[1] / p[2];
+    let (d, _) = distort_generic(&[cam[4], cam[5], cam[6], cam[7], cam[8]], x, y);
+    [cam[0] * d[0] + cam[2], cam[1] * d[1] + cam[3]]
+}
+
+/// Foot point of `target` on the image of the 3D line `p0 + s dir`: `s*`, and the unit
+/// normal of the image curve there. Gauss-Newton along the line from the distortion-free
+/// closest point.
+fn foot_point(
+    cam: &[f64; 9],
+    p0: &[f64; 3],
+    dir: &[f64; 3],
+    target: [f64; 2],
+) -> Result<(f64, [f64; 2])> {
+    // Start: closest point of the 3D line to the distortion-free viewing ray.
+    let r = Vector3::new(
+        (target[0] - cam[2]) / cam[0],
+        (target[1] - cam[3]) / cam[1],
+        1.0,
+    )
+    .normalize();
+    let (pv, dv) = (Vector3::from(*p0), Vector3::from(*dir));
+    let b = dv.dot(&r);
+    let den = 1.0 - b * b;
+    let mut s = if den > 1e-12 {
+        (b * r.dot(&pv) - dv.dot(&pv)) / den
+    } else {
+        0.0
+    };
+    let cd: [Dual<1>; 9] = std::array::from_fn(|i| Dual::cst(cam[i]));
+    let mut normal = [0.0, 0.0];
+    for it in 0..30 {
+        let sd = Dual::<1>::var(s, 0);
+        let p: [Dual<1>; 3] = std::array::from_fn(|i| Dual::cst(p0[i]) + sd.scale(dir[i]));
+        if p[2].v <= 0.0 {
+            return Err(Error::Degenerate(
+                "a view's stripe line passes behind the camera".into(),
+            ));
+        }
+        let uv = project(&cd, &p);
+        let res = [uv[0].v - target[0], uv[1].v - target[1]];
+        let j = [uv[0].d[0], uv[1].d[0]];
+        let jj = j[0] * j[0] + j[1] * j[1];
+        if !(jj > 1e-300) || !jj.is_finite() {
+            return Err(Error::Degenerate(
+                "a view's stripe line images as a point".into(),
+            ));
+        }
+        let jn = jj.sqrt();
+        normal = [-j[1] / jn, j[0] / jn];
+        let step = -(j[0] * res[0] + j[1] * res[1]) / jj;
+        s += step;
+        if (step * jn).abs() < 1e-11 || it == 29 {
+            break;
+        }
+    }
+    Ok((s, normal))
+}
+
+impl JointProblem<'_> {
+    fn ncam(&self) -> usize {
+        self.free.len()
+    }
+
+    fn decode(&self, p: &[f64]) -> State {
+        let mut cam = self.base.params();
+        for (k, &i) in self.free.iter().enumerate() {
+            cam[i] = p[k];
+        }
+        let o = self.ncam();
+        let n = self.n0 + self.e1 * p[o] + self.e2 * p[o + 1];
+        let x = o + 3;
+        let z = o + 9;
+        State {
+            cam,
+            plane_n: n / n.norm(),
+            plane_d: p[o + 2],
+            x_rot: rotvec_to_matrix(&Vector3::new(p[x], p[x + 1], p[x + 2])),
+            x_t: Vector3::new(p[x + 3], p[x + 4], p[x + 5]),
+            z_rot: rotvec_to_matrix(&Vector3::new(p[z], p[z + 1], p[z + 2])),
+            z_t: Vector3::new(p[z + 3], p[z + 4], p[z + 5]),
+        }
+    }
+
+    /// Column of the state for a dual slot (`None`: a fixed camera parameter).
+    fn column(&self, slot: usize) -> Option<usize> {
+        if slot < 9 {
+            self.free.iter().position(|&i| i == slot)
+        } else {
+            Some(self.ncam() + slot - 9)
+        }
+    }
+
+    fn nviews(&self) -> usize {
+        self.a.len()
+    }
+
+    /// f64 residuals (unweighted): circles (2 each) then stripe points.
+    fn raw_residuals(&self, p: &[f64], r: &mut [f64]) -> Result<()> {
+        let s = self.decode(p);
+        let xr: [[f64; 3]; 3] = m3(&s.x_rot);
+        let zr: [[f64; 3]; 3] = m3(&s.z_rot);
+        let xt = [s.x_t.x, s.x_t.y, s.x_t.z];
+        let zt = [s.z_t.x, s.z_t.y, s.z_t.z];
+        let poses: Vec<_> = self
+            .a
+            .iter()
+            .map(|a| cam_board(a, &xr, &xt, &zr, &zt))
+            .collect();
+        let n1 = [s.plane_n.x, s.plane_n.y, s.plane_n.z];
+        let lines: Vec<Option<_>> = poses
+            .iter()
+            .map(|(rot, t)| stripe_line(&n1, s.plane_d, rot, t).ok())
+            .collect();
+        let nc = self.circles.len();
+        let (rc, rs) = r.split_at_mut(2 * nc);
+        rc.par_chunks_mut(2)
+            .zip(self.circles.par_iter())
+            .try_for_each(|(out, c)| -> Result<()> {
+                let (rot, t) = &poses[c.view];
+                let uv = centre_generic(&s.cam, rot, t, c.centre, c.radius, self.model)?;
+                out[0] = uv[0] - c.u;
+                out[1] = uv[1] - c.v;
+                Ok(())
+            })?;
+        rs.par_iter_mut()
+            .zip(self.stripes.par_iter())
+            .try_for_each(|(out, st)| -> Result<()> {
+                let Some((p0, dir)) = lines[st.view] else {
+                    return Err(parallel_error(st.view));
+                };
+                let (sf, normal) = foot_point(&s.cam, &p0, &dir, [st.u, st.v])?;
+                let pt: [f64; 3] = std::array::from_fn(|i| p0[i] + sf * dir[i]);
+                let uv = project(&s.cam, &pt);
+                *out = normal[0] * (uv[0] - st.u) + normal[1] * (uv[1] - st.v);
+                Ok(())
+            })?;
+        Ok(())
+    }
+}
+
+impl LeastSquares for JointProblem<'_> {
+    fn num_params(&self) -> usize {
+        self.ncam() + 15
+    }
+    fn num_residuals(&self) -> usize {
+        2 * self.circles.len() + self.stripes.len()
+    }
+    fn residuals(&self, p: &[f64], r: &mut [f64]) -> Result<()> {
+        self.raw_residuals(p, r)?;
+        let nc = 2 * self.circles.len();
+        for (i, x) in r.iter_mut().enumerate() {
+            *x *= if i < nc { self.w_circle } else { self.w_stripe };
+        }
+        Ok(())
+    }
+    fn residuals_and_jacobian(
+        &self,
+        p: &[f64],
+        r: &mut [f64],
+        mut jac: MatMut<'_, f64>,
+    ) -> Result<()> {
+        let s = self.decode(p);
+        let o = self.ncam();
+        // Duals over every slot.
+        let cam: [D24; 9] = std::array::from_fn(|i| {
+            if self.free.contains(&i) {
+                D24::var(s.cam[i], i)
+            } else {
+                D24::cst(s.cam[i])
+            }
+        });
+        let nraw = self.n0 + self.e1 * p[o] + self.e2 * p[o + 1];
+        let a = D24::var(p[o], SLOT_PLANE);
+        let b = D24::var(p[o + 1], SLOT_PLANE + 1);
+        let nn: [D24; 3] = std::array::from_fn(|i| {
+            D24::cst(self.n0[i]) + a.scale(self.e1[i]) + b.scale(self.e2[i])
+        });
+        let _ = nraw;
+        let len = dot(&nn, &nn).sqrt();
+        let n1: [D24; 3] = std::array::from_fn(|i| nn[i] / len);
+        let d1 = D24::var(p[o + 2], SLOT_PLANE + 2);
+        let wx: [D24; 3] = std::array::from_fn(|i| D24::var(0.0, SLOT_X + i));
+        let wz: [D24; 3] = std::array::from_fn(|i| D24::var(0.0, SLOT_Z + i));
+        let xr = rot_times_exp_first_order(&s.x_rot, &wx);
+        let zr = rot_times_exp_first_order(&s.z_rot, &wz);
+        let xt: [D24; 3] = std::array::from_fn(|i| D24::var(s.x_t[i], SLOT_X + 3 + i));
+        let zt: [D24; 3] = std::array::from_fn(|i| D24::var(s.z_t[i], SLOT_Z + 3 + i));
+        let poses: Vec<_> = self
+            .a
+            .iter()
+            .map(|a| cam_board(a, &xr, &xt, &zr, &zt))
+            .collect();
+        // Chain of each view's pose increment (w, v) of T_cam_board w.r.t. the X and Z
+        // slots: dw = vee(R0^T dR), dv = dt.
+        let chains: Vec<[[f64; 12]; 6]> = poses
+            .iter()
+            .map(|(rot, t)| {
+                let r0 = Matrix3::from_fn(|i, j| rot[i][j].v);
+                let mut m = [[0.0; 12]; 6];
+                for k in 0..12 {
+                    let slot = SLOT_X + k;
+                    let dr = Matrix3::from_fn(|i, j| rot[i][j].d[slot]);
+                    let sk = r0.transpose() * dr;
+                    m[0][k] = 0.5 * (sk[(2, 1)] - sk[(1, 2)]);
+                    m[1][k] = 0.5 * (sk[(0, 2)] - sk[(2, 0)]);
+                    m[2][k] = 0.5 * (sk[(1, 0)] - sk[(0, 1)]);
+                    for i in 0..3 {
+                        m[3 + i][k] = t[i].d[slot];
+                    }
+                }
+                m
+            })
+            .collect();
+        let poses_f: Vec<([[f64; 3]; 3], [f64; 3])> = poses
+            .iter()
+            .map(|(rot, t)| {
+                (
+                    std::array::from_fn(|i| std::array::from_fn(|j| rot[i][j].v)),
+                    std::array::from_fn(|i| t[i].v),
+                )
+            })
+            .collect();
+        let lines: Vec<Option<([D24; 3], [D24; 3])>> = poses
+            .iter()
+            .map(|(rot, t)| stripe_line(&n1, d1, rot, t).ok())
+            .collect();
+
+        // Circles: duals over (camera 9, pose increment 6), chained to X and Z.
+        type D15 = Dual<15>;
+        let c15: [D15; 9] = std::array::from_fn(|i| D15::var(s.cam[i], i));
+        let w15: [D15; 3] = std::array::from_fn(|i| D15::var(0.0, 9 + i));
+        let circle_rows: Vec<[D15; 2]> = self
+            .circles
+            .par_iter()
+            .map(|c| {
+                let (rot, t) = &poses_f[c.view];
+                let r0 = Matrix3::from_fn(|i, j| rot[i][j]);
+                let rd = rot_times_exp_first_order(&r0, &w15);
+                let td: [D15; 3] = std::array::from_fn(|i| D15::var(t[i], 12 + i));
+                centre_generic(&c15, &rd, &td, c.centre, c.radius, self.model)
+            })
+            .collect::<Result<_>>()?;
+        let wc = self.w_circle;
+        for (k, (c, uv)) in self.circles.iter().zip(&circle_rows).enumerate() {
+            let ch = &chains[c.view];
+            r[2 * k] = wc * (uv[0].v - c.u);
+            r[2 * k + 1] = wc * (uv[1].v - c.v);
+            for a in 0..2 {
+                let row = 2 * k + a;
+                for slot in 0..9 {
+                    if let Some(col) = self.column(slot) {
+                        jac[(row, col)] = wc * uv[a].d[slot];
+                    }
+                }
+                for kk in 0..12 {
+                    let mut acc = 0.0;
+                    for q in 0..6 {
+                        acc += uv[a].d[9 + q] * ch[q][kk];
+                    }
+                    jac[(row, o + 3 + kk)] = wc * acc;
+                }
+            }
+        }
+        // Stripe points.
+        let ws = self.w_stripe;
+        let stripe_rows: Vec<(f64, [f64; 24])> = self
+            .stripes
+            .par_iter()
+            .map(|st| {
+                let Some((p0, dir)) = lines[st.view] else {
+                    return Err(parallel_error(st.view));
+                };
+                let p0f = [p0[0].v, p0[1].v, p0[2].v];
+                let dirf = [dir[0].v, dir[1].v, dir[2].v];
+                let (sf, normal) = foot_point(&s.cam, &p0f, &dirf, [st.u, st.v])?;
+                let pt: [D24; 3] = std::array::from_fn(|i| p0[i] + dir[i].scale(sf));
+                let uv = project(&cam, &pt);
+                let res = (uv[0] - D24::cst(st.u)).scale(normal[0])
+                    + (uv[1] - D24::cst(st.v)).scale(normal[1]);
+                Ok((res.v, res.d))
+            })
+            .collect::<Result<_>>()?;
+        let base = 2 * self.circles.len();
+        for (k, (v, d)) in stripe_rows.iter().enumerate() {
+            r[base + k] = ws * v;
+            for (slot, dv) in d.iter().enumerate() {
+                if let Some(col) = self.column(slot) {
+                    jac[(base + k, col)] = ws * dv;
+                }
+            }
+        }
+        Ok(())
+    }
+    fn retract(&self, p: &[f64], dp: &[f64], out: &mut [f64]) {
+        let o = self.ncam();
+        for i in 0..o + 3 {
+            out[i] = p[i] + dp[i];
+        }
+        for b in [o + 3, o + 9] {
+            let r0 = rotvec_to_matrix(&Vector3::new(p[b], p[b + 1], p[b + 2]));
+            let r = r0 * rotvec_to_matrix(&Vector3::new(dp[b], dp[b + 1], dp[b + 2]));
+            let rv = matrix_to_rotvec(&r);
+            for i in 0..3 {
+                out[b + i] = rv[i];
+                out[b + 3 + i] = p[b + 3 + i] + dp[b + 3 + i];
+            }
+        }
+    }
+}
+
+fn parallel_error(view: usize) -> Error {
+    Error::Degenerate(format!(
+        "the laser plane is parallel to the board plane of view {view} (of the views used)"
+    ))
+}
+
+/// Two unit vectors completing `n` to an orthonormal basis.
+fn tangent_basis(n: &Vector3<f64>) -> (Vector3<f64>, Vector3<f64>) {
+    let helper = if n.x.abs() < 0.6 {
+        Vector3::x()
+    } else {
+        Vector3::y()
+    };
+    let e1 = n.cross(&helper).normalize();
+    let e2 = n.cross(&e1);
+    (e1, e2)
+}
+
+/// `d rotvec / d w` for `rotvec(R Exp(w))` at `w = 0`: the inverse right Jacobian of SO(3)
+/// at `r`.
+fn inverse_right_jacobian(r: &Vector3<f64>) -> Matrix3<f64> {
+    let th = r.norm();
+    let k = r.cross_matrix();
+    let c = if th < 1e-6 {
+        1.0 / 12.0 + th * th / 720.0
+    } else {
+        (1.0 / (th * th)) - (1.0 + th.cos()) / (2.0 * th * th.sin())
+    };
+    Matrix3::identity() + k * 0.5 + k * k * c
+}
+
+/// The one-stage adjustment (module docs) over the views' circles and stripe points.
+///
+/// Every view used must carry `base_hand` (`T_base_hand`). Views without circles or
+/// without `base_hand` are skipped with a warning. Errors: [`Error::InvalidInput`] for
+/// fewer than 3 usable views, no stripe point at all, or non-finite observations;
+/// [`Error::Degenerate`] when a view's stripe line cannot be formed; solver errors are
+/// passed on.
+pub fn joint_adjustment(
+    views: &[ViewObs],
+    board: &Board,
+    start: &JointStart,
+    opts: &JointOptions,
+) -> Result<JointResult> {
+    board.validate()?;
+    start.camera.validate()?;
+    let mut warnings = Vec::new();
+    let mut a = Vec::new();
+    let mut used = Vec::new();
+    let mut circles = Vec::new();
+    let mut stripes = Vec::new();
+    for v in views {
+        let Some(bh) = v.base_hand else {
+            warnings.push(format!("view {}: left out, no robot pose", v.view));
+            continue;
+        };
+        if v.circles.is_empty() && v.stripe.is_empty() {
+            warnings.push(format!("view {}: left out, no observation", v.view));
+            continue;
+        }
+        let vi = a.len();
+        a.push(bh);
+        used.push(v.view);
+        for c in &v.circles {
+            if !(c.u.is_finite() && c.v.is_finite()) || c.row >= board.rows || c.col >= board.cols {
+                return Err(Error::InvalidInput(format!(
+                    "view {}: circle ({}, {}) at ({}, {}) is not a valid observation",
+                    v.view, c.row, c.col, c.u, c.v
+                )));
+            }
+            let ctr = board.center(c.row, c.col);
+            circles.push(CircleTerm {
+                view: vi,
+                row: c.row,
+                col: c.col,
+                centre: (ctr.x, ctr.y),
+                radius: 0.5 * board.diameter(c.row, c.col),
+                u: c.u,
+                v: c.v,
+            });
+        }
+        for s in &v.stripe {
+            if !(s[0].is_finite() && s[1].is_finite()) {
+                return Err(Error::InvalidInput(format!(
+                    "view {}: stripe point ({}, {}) is not finite",
+                    v.view, s[0], s[1]
+                )));
+            }
+            stripes.push(StripeTerm {
+                view: vi,
+                u: s[0],
+                v: s[1],
+            });
+        }
+    }
+    if a.len() < 3 {
+        return Err(Error::InvalidInput(format!(
+            "the one-stage adjustment needs at least 3 views with a robot pose, got {}",
+            a.len()
+        )));
+    }
+    if stripes.is_empty() {
+        return Err(Error::InvalidInput(
+            "the one-stage adjustment needs stripe points (no view has any)".into(),
+        ));
+    }
+    let model = start.camera.model;
+    let mut free = vec![0, 1, 2, 3];
+    for (i, f) in model.free_coefficients().iter().enumerate() {
+        if *f {
+            free.push(4 + i);
+        }
+    }
+    let n0 = start.plane.normal;
+    let (e1, e2) = tangent_basis(&n0);
+    let mut problem = JointProblem {
+        base: &start.camera,
+        free: free.clone(),
+        model: opts.centre_model,
+        n0,
+        e1,
+        e2,
+        a,
+        circles,
+        stripes,
+        w_circle: 1.0 / opts.initial_sigma_px.0,
+        w_stripe: 1.0 / opts.initial_sigma_px.1,
+    };
+    let cp = start.camera.params();
+    let mut p: Vec<f64> = free.iter().map(|&i| cp[i]).collect();
+    p.extend_from_slice(&[0.0, 0.0, start.plane.d]);
+    for t in [&start.hand_cam, &start.base_board] {
+        let (rv, tr) = iso_to_rotvec(t);
+        p.extend_from_slice(&[rv.x, rv.y, rv.z, tr.x, tr.y, tr.z]);
+    }
+    let n = problem.num_params();
+    let m_c = 2 * problem.circles.len();
+    let m_s = problem.stripes.len();
+    let m = m_c + m_s;
+    let mut res: Option<LmResult> = None;
+    let mut iterations = 0;
+    for round in 0..=opts.reweight_rounds {
+        let mut lm = opts.lm.clone();
+        if opts.robust && round > 0 {
+            lm.huber = Some(HUBER_SIGMAS);
+        }
+        let r = levenberg_marquardt(&problem, &p, &lm)?;
+        iterations += r.iterations;
+        p.clone_from(&r.params);
+        // Variance components from the unweighted residuals (robust: 1.4826 MAD).
+        let (rc, rs) = r.residuals.split_at(m_c);
+        let est = |rr: &[f64], w: f64, mt: usize| -> f64 {
+            let dof = (mt as f64 - n as f64 * mt as f64 / m as f64).max(1.0);
+            if opts.robust {
+                let mut a: Vec<f64> = rr.iter().map(|x| (x / w).abs()).collect();
+                a.sort_by(f64::total_cmp);
+                1.4826 * a.get(a.len() / 2).copied().unwrap_or(0.0)
+            } else {
+                (rr.iter().map(|x| (x / w).powi(2)).sum::<f64>() / dof).sqrt()
+            }
+        };
+        let sc = if m_c > 0 {
+            est(rc, problem.w_circle, m_c)
+        } else {
+            opts.initial_sigma_px.0
+        };
+        let ss = est(rs, problem.w_stripe, m_s);
+        res = Some(r);
+        if round < opts.reweight_rounds {
+            // Floor: round-off for exact data.
+            problem.w_circle = 1.0 / sc.max(1e-9);
+            problem.w_stripe = 1.0 / ss.max(1e-9);
+        }
+    }
+    let Some(res) = res else {
+        return Err(Error::InvalidInput(
+            "the one-stage adjustment did not run".into(),
+        ));
+    };
+    let s = problem.decode(&res.params);
+    let camera = start.camera.with_params(&s.cam);
+    camera.validate()?;
+    let plane = Plane::new(s.plane_n, s.plane_d)?;
+    let o = problem.ncam();
+    let pr = &res.params;
+    let hand_cam = iso_from_rotvec(
+        &Vector3::new(pr[o + 3], pr[o + 4], pr[o + 5]),
+        &Vector3::new(pr[o + 6], pr[o + 7], pr[o + 8]),
+    );
+    let base_board = iso_from_rotvec(
+        &Vector3::new(pr[o + 9], pr[o + 10], pr[o + 11]),
+        &Vector3::new(pr[o + 12], pr[o + 13], pr[o + 14]),
+    );
+
+    // Uncertainty.
+    let cov = &res.covariance;
+    let mut cam_sigma = [0.0; 9];
+    for (k, &i) in free.iter().enumerate() {
+        cam_sigma[i] = cov[(k, k)].sqrt();
+    }
+    // Plane normal: n = normalize(n0 + a e1 + b e2); dn/d(a, b) at the solution.
+    let nraw = n0 + e1 * pr[o] + e2 * pr[o + 1];
+    let l = nraw.norm();
+    let proj = (Matrix3::identity() - s.plane_n * s.plane_n.transpose()) / l;
+    let jn = nalgebra::Matrix3x2::from_columns(&[proj * e1, proj * e2]);
+    let cab = nalgebra::Matrix2::new(
+        cov[(o, o)],
+        cov[(o, o + 1)],
+        cov[(o + 1, o)],
+        cov[(o + 1, o + 1)],
+    );
+    let cn = jn * cab * jn.transpose();
+    // A normal flipped by Plane::new (d < 0) has the same sigmas.
+    let plane_normal = Vector3::new(cn[(0, 0)].sqrt(), cn[(1, 1)].sqrt(), cn[(2, 2)].sqrt());
+    let tsig = |b: usize| -> TransformSigma {
+        let rv = Vector3::new(pr[b], pr[b + 1], pr[b + 2]);
+        let jr = inverse_right_jacobian(&rv);
+        let cw = Matrix3::from_fn(|i, j| cov[(b + i, b + j)]);
+        let crv = jr * cw * jr.transpose();
+        TransformSigma {
+            rotation_vector: Vector3::new(
+                crv[(0, 0)].sqrt(),
+                crv[(1, 1)].sqrt(),
+                crv[(2, 2)].sqrt(),
+            ),
+            translation_mm: Vector3::new(
+                cov[(b + 3, b + 3)].sqrt(),
+                cov[(b + 4, b + 4)].sqrt(),
+                cov[(b + 5, b + 5)].sqrt(),
+            ),
+        }
+    };
+    let sigma = JointSigma {
+        camera: cam_sigma,
+        plane_normal,
+        plane_d_mm: cov[(o + 2, o + 2)].sqrt(),
+        hand_cam: tsig(o + 3),
+        base_board: tsig(o + 9),
+    };
+
+    // Unweighted residuals and reports.
+    let mut raw = vec![0.0; m];
+    problem.raw_residuals(&res.params, &mut raw)?;
+    let (sc_final, ss_final) = (1.0 / problem.w_circle, 1.0 / problem.w_stripe);
+    let mut circle_residuals = Vec::with_capacity(problem.circles.len());
+    let mut vc = vec![(0.0, 0usize); problem.nviews()];
+    for (k, c) in problem.circles.iter().enumerate() {
+        let (du, dv) = (raw[2 * k], raw[2 * k + 1]);
+        circle_residuals.push((used[c.view], c.row, c.col, du, dv));
+        vc[c.view].0 += du * du + dv * dv;
+        vc[c.view].1 += 1;
+    }
+    // mm per px on the board for each view's stripe: the image length of 1 mm of the
+    // stripe line's normal offset, estimated from the view's pose.
+    let mut vs = vec![(0.0, 0usize, 0.0); problem.nviews()];
+    let mut stripe_residuals = Vec::with_capacity(m_s);
+    let xr: [[f64; 3]; 3] = m3(&s.x_rot);
+    let zr: [[f64; 3]; 3] = m3(&s.z_rot);
+    let xt = [s.x_t.x, s.x_t.y, s.x_t.z];
+    let zt = [s.z_t.x, s.z_t.y, s.z_t.z];
+    let mm_per_px: Vec<f64> = problem
+        .a
+        .iter()
+        .map(|av| {
+            let (rot, t) = cam_board(av, &xr, &xt, &zr, &zt);
+            let depth = Vector3::from(t).norm();
+            let tilt = rot[2][2].abs().max(0.1);
+            // Image scale of the board at the stand-off, corrected for its tilt.
+            depth / (0.5 * (s.cam[0] + s.cam[1])) / tilt
+        })
+        .collect();
+    for (k, st) in problem.stripes.iter().enumerate() {
+        let d = raw[m_c + k];
+        stripe_residuals.push((used[st.view], st.u, st.v, d));
+        let e = &mut vs[st.view];
+        e.0 += d * d;
+        e.1 += 1;
+        e.2 += (d * mm_per_px[st.view]).powi(2);
+    }
+    let mut views_out = Vec::new();
+    let mut ss_mm = 0.0;
+    for (vi, &view) in used.iter().enumerate() {
+        let crms = if vc[vi].1 > 0 {
+            (vc[vi].0 / vc[vi].1 as f64).sqrt()
+        } else {
+            f64::NAN
+        };
+        let srms = if vs[vi].1 > 0 {
+            (vs[vi].0 / vs[vi].1 as f64).sqrt()
+        } else {
+            f64::NAN
+        };
+        let smm = if vs[vi].1 > 0 {
+            (vs[vi].2 / vs[vi].1 as f64).sqrt()
+        } else {
+            f64::NAN
+        };
+        ss_mm += vs[vi].2;
+        // RMS per coordinate in sigmas.
+        let zc = crms / std::f64::consts::SQRT_2 / sc_final;
+        let zs = srms / ss_final;
+        let outlier = zc > opts.outlier_sigmas || zs > opts.outlier_sigmas;
+        if outlier {
+            warnings.push(format!(
+                "view {view}: outlier (circle RMS {crms:.4} px, stripe RMS {srms:.4} px vs \
+                 sigmas {sc_final:.4} / {ss_final:.4} px per coordinate)"
+            ));
+        }
+        views_out.push(ViewReport {
+            view,
+            circles: vc[vi].1,
+            stripe_points: vs[vi].1,
+            circle_rms_px: crms,
+            stripe_rms_px: srms,
+            stripe_rms_mm: smm,
+            outlier,
+        });
+    }
+    let circle_ss: f64 = raw[..m_c].iter().map(|x| x * x).sum();
+    let stripe_ss: f64 = raw[m_c..].iter().map(|x| x * x).sum();
+    let mut param_names: Vec<String> = free.iter().map(|&i| PARAM_NAMES[i].to_string()).collect();
+    for nm in [
+        "plane_a",
+        "plane_b",
+        "plane_d_mm",
+        "hand_cam_wx",
+        "hand_cam_wy",
+        "hand_cam_wz",
+        "hand_cam_tx_mm",
+        "hand_cam_ty_mm",
+        "hand_cam_tz_mm",
+        "base_board_wx",
+        "base_board_wy",
+        "base_board_wz",
+        "base_board_tx_mm",
+        "base_board_ty_mm",
+        "base_board_tz_mm",
+    ] {
+        param_names.push(nm.to_string());
+    }
+    let unobservable = res
+        .unobservable
+        .iter()
+        .map(|&i| param_names[i].clone())
+        .collect::<Vec<_>>();
+    if !unobservable.is_empty() {
+        warnings.push(format!(
+            "unobservable parameters (their sigma is NaN): {}",
+            unobservable.join(", ")
+        ));
+    }
+    Ok(JointResult {
+        camera,
+        plane,
+        hand_cam,
+        base_board,
+        sigma,
+        circle_rms_px: if m_c > 0 {
+            (circle_ss / (m_c / 2) as f64).sqrt()
+        } else {
+            f64::NAN
+        },
+        stripe_rms_px: (stripe_ss / m_s as f64).sqrt(),
+        stripe_rms_mm: (ss_mm / m_s as f64).sqrt(),
+        sigma_px: (sc_final, ss_final),
+        views: views_out,
+        param_names,
+        covariance: res.covariance.clone(),
+        iterations,
+        stop_reason: res.reason,
+        unobservable,
+        circle_residuals,
+        stripe_residuals,
+        warnings,
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::calib::conic::predict_centre;
+    use crate::calib::laser_plane::stripe_line_in_view;
+    use crate::calib::CircleObs;
+    use crate::camera::DistortionModel;
+
+    struct Synth {
+        cam: Camera,
+        plane: Plane,
+        x: Iso3,
+        z: Iso3,
+        views: Vec<ViewObs>,
+    }
+
+    fn synth(model: DistortionModel, k: [f64; 5]) -> Synth {
+        let cam = Camera::new(768, 576, 1270.0, 1320.0, 380.0, 290.0, model, k).unwrap();
+        let plane = Plane::new(Vector3::new(0.629, -0.0492, 0.7759), 79.87).unwrap();
+        let x = iso_from_rotvec(
+            &Vector3::new(-0.3087, 0.2362, 3.0369),
+            &Vector3::new(29.19, 5.37, 62.64),
+        );
+        let board = Board::hp3_paper();
+        // Board 110 mm in front of the camera at view 0; other views rotate the hand.
+        let cb0 = iso_from_rotvec(
+            &Vector3::new(3.1, 0.05, 0.0),
+            &Vector3::new(-18.0, -12.0, 112.0),
+        );
+        let a0 = iso_from_rotvec(
+            &Vector3::new(0.0, 3.1, 0.0),
+            &Vector3::new(480.0, 0.0, 300.0),
+        );
+        let z = a0 * x * cb0;
+        let mut views = Vec::new();
+        for (i, d) in [
+            [0.0, 0.0, 0.0],
+            [0.15, 0.0, 0.05],
+            [0.0, 0.18, -0.1],
+            [-0.12, 0.1, 0.2],
+            [0.1, -0.15, -0.2],
+        ]
+        .iter()
+        .enumerate()
+        {
+            // Rotate the camera about a point on the board in front of it.
+            let bc0 = cb0.inverse();
+            let rot = iso_from_rotvec(&Vector3::new(d[0], d[1], d[2]), &Vector3::zeros());
+            let centre = iso_from_rotvec(&Vector3::zeros(), &Vector3::new(20.0, 15.0, 0.0));
+            let bc = centre * rot * centre.inverse() * bc0;
+            let cb = bc.inverse();
+            let a = z * cb.inverse() * x.inverse();
+            let mut circles = Vec::new();
+            for (r, c) in board.indices() {
+                let uv = predict_centre(
+                    &cam,
+                    &cb,
+                    &board.center(r, c),
+                    0.5 * board.diameter(r, c),
+                    CentreModel::ConicExact,
+                )
+                .unwrap();
+                circles.push(CircleObs {
+                    row: r,
+                    col: c,
+                    u: uv.x,
+                    v: uv.y,
+                });
+            }
+            let l = stripe_line_in_view(&plane, &cb, &cam).unwrap();
+            let stripe = (-20..20)
+                .map(|s| {
+                    let uv = cam
+                        .project(&(l.point_cam + l.direction_cam * (s as f64)))
+                        .unwrap();
+                    [uv.x, uv.y]
+                })
+                .collect();
+            views.push(ViewObs {
+                view: i,
+                circles,
+                stripe,
+                reading: None,
+                base_hand: Some(a),
+            });
+        }
+        Synth {
+            cam,
+            plane,
+            x,
+            z,
+            views,
+        }
+    }
+
+    fn iso_err(a: &Iso3, b: &Iso3) -> (f64, f64) {
+        (
+            a.rotation.angle_to(&b.rotation),
+            (a.translation.vector - b.translation.vector).norm(),
+        )
+    }
+
+    fn perturbed_start(s: &Synth) -> JointStart {
+        let mut p = s.cam.params();
+        p[0] += 3.0;
+        p[1] -= 2.0;
+        p[2] += 1.5;
+        p[3] -= 1.0;
+        let d = iso_from_rotvec(
+            &Vector3::new(0.002, -0.001, 0.003),
+            &Vector3::new(0.3, -0.2, 0.4),
+        );
+        JointStart {
+            camera: s.cam.with_params(&p),
+            plane: Plane::new(
+                s.plane.normal + Vector3::new(0.01, -0.01, 0.005),
+                s.plane.d + 0.5,
+            )
+            .unwrap(),
+            hand_cam: s.x * d,
+            base_board: d * s.z,
+        }
+    }
+
+    #[test]
+    fn exact_observations_recover_every_parameter() {
+        for (model, k) in [
+            (DistortionModel::Radial1, [0.05, 0.0, 0.0, 0.0, 0.0]),
+            (DistortionModel::OpenCv5, [-0.2, 0.1, 1e-3, -1e-3, 0.02]),
+        ] {
+            let s = synth(model, k);
+            let start = perturbed_start(&s);
+            let r = joint_adjustment(
+                &s.views,
+                &Board::hp3_paper(),
+                &start,
+                &JointOptions::default(),
+            )
+            .unwrap();
+            let (p, t) = (r.camera.params(), s.cam.params());
+            for i in 0..9 {
+                assert!(
+                    (p[i] - t[i]).abs() <= 1e-6 * t[i].abs().max(1e-3),
+                    "{model:?} {i}: {} vs {}",
+                    p[i],
+                    t[i]
+                );
+            }
+            assert!((r.plane.normal - s.plane.normal).norm() < 1e-9);
+            assert!((r.plane.d - s.plane.d).abs() < 1e-7);
+            let (xr, xt) = iso_err(&r.hand_cam, &s.x);
+            let (zr, zt) = iso_err(&r.base_board, &s.z);
+            assert!(
+                xr < 1e-9 && xt < 1e-7 && zr < 1e-9 && zt < 1e-7,
+                "{xr} {xt} {zr} {zt}"
+            );
+            assert!(r.circle_rms_px < 1e-7 && r.stripe_rms_px < 1e-7);
+        }
+    }
+
+    #[test]
+    fn jacobian_matches_central_differences() {
+        let s = synth(DistortionModel::OpenCv5, [-0.2, 0.1, 1e-3, -1e-3, 0.02]);
+        let start = perturbed_start(&s);
+        let mut circles = Vec::new();
+        let mut stripes = Vec::new();
+        let board = Board::hp3_paper();
+        let mut a = Vec::new();
+        for (vi, v) in s.views.iter().enumerate() {
+            a.push(v.base_hand.unwrap());
+            for c in v.circles.iter().step_by(9) {
+                let ctr = board.center(c.row, c.col);
+                circles.push(CircleTerm {
+                    view: vi,
+                    row: c.row,
+                    col: c.col,
+                    centre: (ctr.x, ctr.y),
+                    radius: 0.5 * board.diameter(c.row, c.col),
+                    u: c.u + 0.3,
+                    v: c.v - 0.2,
+                });
+            }
+            for p in v.stripe.iter().step_by(7) {
+                stripes.push(StripeTerm {
+                    view: vi,
+                    u: p[0] + 0.4,
+                    v: p[1] - 0.3,
+                });
+            }
+        }
+        let (e1, e2) = tangent_basis(&start.plane.normal);
+        let pr = JointProblem {
+            base: &start.camera,
+            free: (0..9).collect(),
+            model: CentreModel::ConicExact,
+            n0: start.plane.normal,
+            e1,
+            e2,
+            a,
+            circles,
+            stripes,
+            w_circle: 2.0,
+            w_stripe: 0.5,
+        };
+        let mut p: Vec<f64> = start.camera.params().to_vec();
+        p.extend_from_slice(&[0.01, -0.02, start.plane.d]);
+        for t in [&start.hand_cam, &start.base_board] {
+            let (rv, tr) = iso_to_rotvec(t);
+            p.extend_from_slice(&[rv.x, rv.y, rv.z, tr.x, tr.y, tr.z]);
+        }
+        let (m, n) = (pr.num_residuals(), pr.num_params());
+        let mut r = vec![0.0; m];
+        let mut jac = faer::Mat::<f64>::zeros(m, n);
+        pr.residuals_and_jacobian(&p, &mut r, jac.as_mut()).unwrap();
+        let mut r2 = vec![0.0; m];
+        pr.residuals(&p, &mut r2).unwrap();
+        assert!(r.iter().zip(&r2).all(|(a, b)| (a - b).abs() < 1e-9));
+        for j in 0..n {
+            let h = if j < 9 {
+                1e-5 * p[j].abs().max(1e-2)
+            } else {
+                1e-6
+            };
+            let mut dp = vec![0.0; n];
+            let (mut pa, mut pb) = (vec![0.0; n], vec![0.0; n]);
+            dp[j] = h;
+            pr.retract(&p, &dp, &mut pa);
+            dp[j] = -h;
+            pr.retract(&p, &dp, &mut pb);
+            let (mut ra, mut rb) = (vec![0.0; m], vec![0.0; m]);
+            pr.residuals(&pa, &mut ra).unwrap();
+            pr.residuals(&pb, &mut rb).unwrap();
+            let (mut num, mut den) = (0.0f64, 0.0f64);
+            for i in 0..m {
+                let fd = (ra[i] - rb[i]) / (2.0 * h);
+                num = num.max((fd - jac[(i, j)]).abs());
+                den = den.max(jac[(i, j)].abs());
+            }
+            assert!(num <= 1e-5 * den.max(1.0), "column {j}: {num:e} of {den:e}");
+        }
+    }
+
+    #[test]
+    fn too_few_views_and_no_stripe_are_typed_errors() {
+        let s = synth(DistortionModel::Radial1, [0.05, 0.0, 0.0, 0.0, 0.0]);
+        let start = perturbed_start(&s);
+        let b = Board::hp3_paper();
+        let e = joint_adjustment(&s.views[..2], &b, &start, &JointOptions::default()).unwrap_err();
+        assert!(matches!(e, Error::InvalidInput(_)), "{e}");
+        let mut v = s.views.clone();
+        for x in &mut v {
+            x.stripe.clear();
+        }
+        let e = joint_adjustment(&v, &b, &start, &JointOptions::default()).unwrap_err();
+        assert!(e.to_string().contains("stripe"), "{e}");
+    }
+}
