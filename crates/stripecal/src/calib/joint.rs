@@ -349,7 +349,7 @@ fn foot_point(
         let res = [uv[0].v - target[0], uv[1].v - target[1]];
         let j = [uv[0].d[0], uv[1].d[0]];
         let jj = j[0] * j[0] + j[1] * j[1];
-        if !(jj > 1e-300) || !jj.is_finite() {
+        if jj.is_nan() || jj <= 1e-300 || !jj.is_finite() {
             return Err(Error::Degenerate(
                 "a view's stripe line images as a point".into(),
             ));
@@ -506,6 +506,7 @@ impl LeastSquares for JointProblem<'_> {
             .map(|(rot, t)| {
                 let r0 = Matrix3::from_fn(|i, j| rot[i][j].v);
                 let mut m = [[0.0; 12]; 6];
+                #[allow(clippy::needless_range_loop)]
                 for k in 0..12 {
                     let slot = SLOT_X + k;
                     let dr = Matrix3::from_fn(|i, j| rot[i][j].d[slot]);
@@ -554,18 +555,15 @@ impl LeastSquares for JointProblem<'_> {
             let ch = &chains[c.view];
             r[2 * k] = wc * (uv[0].v - c.u);
             r[2 * k + 1] = wc * (uv[1].v - c.v);
-            for a in 0..2 {
+            for (a, ua) in uv.iter().enumerate() {
                 let row = 2 * k + a;
                 for slot in 0..9 {
                     if let Some(col) = self.column(slot) {
-                        jac[(row, col)] = wc * uv[a].d[slot];
+                        jac[(row, col)] = wc * ua.d[slot];
                     }
                 }
                 for kk in 0..12 {
-                    let mut acc = 0.0;
-                    for q in 0..6 {
-                        acc += uv[a].d[9 + q] * ch[q][kk];
-                    }
+                    let acc: f64 = (0..6).map(|q| ua.d[9 + q] * ch[q][kk]).sum();
                     jac[(row, o + 3 + kk)] = wc * acc;
                 }
             }

@@ -18,6 +18,7 @@ pub mod homography;
 pub mod joint;
 pub mod laser_plane;
 pub mod lm;
+pub mod pipeline;
 pub mod zhang;
 
 use crate::geometry::Iso3;

@@ -1,0 +1,173 @@
+//! The calibration pipeline on RENDERED twin images (issue 4, acceptance 3): detection,
+//! stripe extraction, camera, plane, AX = ZB and the one-stage adjustment from a dataset
+//! folder, against truth.json's values.
+//!
+//! `cargo test -p stripecal-sim --test calib_rendered -- --nocapture` prints the table
+//! recorded in docs/results/calibration.md.
+
+use stripecal::calib::pipeline::{calibrate_dataset, CalibrateOptions, Method};
+use stripecal::geometry::Plane;
+use stripecal::io::Calibration;
+use stripecal::{Camera, Iso3};
+use stripecal_sim::{SimConfig, Twin};
+
+fn iso_err(a: &Iso3, b: &Iso3) -> (f64, f64) {
+    (
+        a.rotation.angle_to(&b.rotation).to_degrees(),
+        (a.translation.vector - b.translation.vector).norm(),
+    )
+}
+
+/// Largest distance between the true and the estimated laser plane over the part of the
+/// true plane in view at stand-offs `near..far` mm (camera frame).
+fn plane_error_in_volume(cam: &Camera, truth: &Plane, est: &Plane, near: f64, far: f64) -> f64 {
+    let mut worst = 0.0f64;
+    for i in 0..=40 {
+        for j in 0..=30 {
+            let uv = nalgebra::Vector2::new(
+                i as f64 / 40.0 * (cam.width - 1) as f64,
+                j as f64 / 30.0 * (cam.height - 1) as f64,
+            );
+            let Ok(ray) = cam.unproject(&uv) else {
+                continue;
+            };
+            let Some(s) = truth.intersect_ray(&nalgebra::Vector3::zeros(), &ray) else {
+                continue;
+            };
+            let p = ray * s;
+            if p.z < near || p.z > far {
+                continue;
+            }
+            worst = worst.max(est.signed_distance(&p).abs());
+        }
+    }
+    worst
+}
+
+struct Errs {
+    fu_rel: f64,
+    fv_rel: f64,
+    u0: f64,
+    v0: f64,
+    plane_mm: f64,
+    x: (f64, f64),
+    z: (f64, f64),
+}
+
+fn errors(t: &Twin, c: &Calibration) -> Errs {
+    let (e, tr) = (&c.camera, &t.camera);
+    Errs {
+        fu_rel: (e.fu - tr.fu).abs() / tr.fu,
+        fv_rel: (e.fv - tr.fv).abs() / tr.fv,
+        u0: (e.u0 - tr.u0).abs(),
+        v0: (e.v0 - tr.v0).abs(),
+        plane_mm: plane_error_in_volume(tr, &t.laser_plane, &c.laser_plane, 80.0, 130.0),
+        x: iso_err(&c.hand_cam, &t.hand_cam),
+        z: iso_err(&c.base_board, &t.base_board),
+    }
+}
+
+fn row(label: &str, e: &Errs) -> String {
+    format!(
+        "| {label} | {:.4} | {:.4} | {:.3} | {:.3} | {:.4} | {:.4} | {:.4} | {:.4} | {:.4} |",
+        100.0 * e.fu_rel,
+        100.0 * e.fv_rel,
+        e.u0,
+        e.v0,
+        e.plane_mm,
+        e.x.0,
+        e.x.1,
+        e.z.0,
+        e.z.1
+    )
+}
+
+const HEADER: &str = "| case | fu % | fv % | u0 px | v0 px | plane mm | X deg | X mm | Z deg | Z mm |\n|---|---|---|---|---|---|---|---|---|---|";
+
+fn render(count: usize, seed: u64, dir: &std::path::Path) -> Twin {
+    let cfg = SimConfig::hp3_paper()
+        .with_overrides(&serde_json::json!({
+            "poses": {"count": count}, "seed": seed, "scan": {"enabled": false}
+        }))
+        .unwrap();
+    let t = Twin::new(cfg).unwrap();
+    t.write(dir, &mut |_, _, _| {}).unwrap();
+    t
+}
+
+#[test]
+fn fifteen_rendered_poses_meet_the_targets_and_five_beat_the_paper_method() {
+    let mut table = vec![HEADER.to_string()];
+    // 15 poses: fu, fv within 0.01 %, u0, v0 within 0.1 px, plane 0.01 mm over the
+    // working volume, X and Z within 0.005 deg and 0.02 mm.
+    let dir = tempfile::tempdir().unwrap();
+    let t = render(15, 1, dir.path());
+    let rep = calibrate_dataset(dir.path().join("calib"), &CalibrateOptions::default()).unwrap();
+    let e = errors(&t, &rep.calibration);
+    table.push(row("15 poses, one-stage", &e));
+    let paper = calibrate_dataset(
+        dir.path().join("calib"),
+        &CalibrateOptions {
+            method: Method::Paper,
+            ..Default::default()
+        },
+    )
+    .unwrap();
+    table.push(row("15 poses, paper", &errors(&t, &paper.calibration)));
+    println!(
+        "15 poses: rms circles {:.4} px, stripe {:.4} px ({:.4} mm), sigma {:?}, warnings {:?}",
+        rep.calibration.quality.circle_rms_px,
+        rep.calibration.quality.stripe_rms_px,
+        rep.adjustment.stripe_rms_mm,
+        rep.adjustment.sigma_px,
+        rep.warnings
+    );
+    // 5 poses (the paper's count): one-stage vs paper.
+    let dir5 = tempfile::tempdir().unwrap();
+    let t5 = render(5, 1, dir5.path());
+    let one = calibrate_dataset(dir5.path().join("calib"), &CalibrateOptions::default()).unwrap();
+    let pap = calibrate_dataset(
+        dir5.path().join("calib"),
+        &CalibrateOptions {
+            method: Method::Paper,
+            ..Default::default()
+        },
+    )
+    .unwrap();
+    let (e1, e0) = (errors(&t5, &one.calibration), errors(&t5, &pap.calibration));
+    table.push(row("5 poses, one-stage", &e1));
+    table.push(row("5 poses, paper", &e0));
+    println!("{}", table.join("\n"));
+    assert!(
+        e.fu_rel < 1e-4 && e.fv_rel < 1e-4,
+        "fu/fv {} {}",
+        e.fu_rel,
+        e.fv_rel
+    );
+    assert!(e.u0 < 0.1 && e.v0 < 0.1, "u0/v0 {} {}", e.u0, e.v0);
+    assert!(e.plane_mm < 0.01, "plane {}", e.plane_mm);
+    assert!(e.x.0 < 0.005 && e.x.1 < 0.02, "X {:?}", e.x);
+    assert!(e.z.0 < 0.005 && e.z.1 < 0.02, "Z {:?}", e.z);
+    assert!(
+        e1.plane_mm < e0.plane_mm,
+        "plane {} vs paper {}",
+        e1.plane_mm,
+        e0.plane_mm
+    );
+    assert!(
+        e1.x.1 < e0.x.1 && e1.z.1 < e0.z.1,
+        "translations {:?} {:?} vs {:?} {:?}",
+        e1.x,
+        e1.z,
+        e0.x,
+        e0.z
+    );
+    assert!(
+        e1.x.0 < e0.x.0 && e1.z.0 < e0.z.0,
+        "rotations {:?} {:?} vs {:?} {:?}",
+        e1.x,
+        e1.z,
+        e0.x,
+        e0.z
+    );
+}
