@@ -33,6 +33,8 @@ __all__ = [
     "StripecalError",
     "Truth",
     "Twin",
+    "calibrate",
+    "calibrate_camera",
     "detect_circles",
     "detect_circles_full",
     "extract_stripe",
@@ -267,6 +269,12 @@ class Calibration:
     def uncertainty(self) -> Dict[str, Any]: ...
     @property
     def extra(self) -> Dict[str, Any]: ...
+    @property
+    def views(self) -> List[Dict[str, Any]]: ...
+    @property
+    def circle_residuals(self) -> _F64: ...
+    @property
+    def stripe_residuals(self) -> _F64: ...
     def save(self, path: _Path) -> None: ...
     def to_json(self) -> str: ...
     @staticmethod
@@ -478,4 +486,20 @@ def solve_axzb_full(
 ) -> Dict[str, Any]: ...
 def fit_laser_plane(
     cam_board: npt.ArrayLike, stripes: Any, camera: Camera
+) -> Dict[str, Any]: ...
+def calibrate(
+    dataset: Union[_Path, Dataset],
+    *,
+    distortion: Optional[str] = None,
+    method: str = "one-stage",
+    robust: bool = False,
+    centre_model: str = "conic-exact",
+) -> Calibration: ...
+def calibrate_camera(
+    views: Any,
+    board: Board,
+    image_size: Tuple[int, int],
+    *,
+    distortion: str = "radial1",
+    centre_model: str = "conic-exact",
 ) -> Dict[str, Any]: ...

@@ -12,9 +12,23 @@ use stripecal::calib::axzb::{solve_axzb_with, AxzbOptions, AxzbSolution};
 use stripecal::calib::laser_plane::fit_laser_plane as core_fit_laser_plane;
 use stripecal::geometry::{iso_from_matrix, Iso3};
 
+use std::path::PathBuf;
+
+use stripecal::calib::camera::{calibrate_camera as core_calibrate_camera, CameraOptions};
+use stripecal::calib::conic::CentreModel;
+use stripecal::calib::pipeline::{
+    calibrate_dataset, calibrate_observations, observe_dataset, CalibrateOptions,
+    CalibrationReport, Method,
+};
+use stripecal::calib::{CircleObs, ViewObs};
+use stripecal::camera::{DistortionModel, PARAM_NAMES};
+
+use crate::board::PyBoard;
 use crate::camera::PyCamera;
-use crate::convert::{f64_array, fmt_shape, iso_to_py, nd, RIGID_TOL};
+use crate::convert::{f64_array, fmt_shape, iso_to_py, nd, positive_u32, RIGID_TOL};
 use crate::errors::{invalid_input, map_err_at, ResultExt};
+use crate::results::PyCalibration;
+use crate::rig::PyDataset;
 
 /// `(N, 4, 4)` rigid transforms.
 fn isos_from_py(obj: &Bound<'_, PyAny>, name: &str) -> PyResult<Vec<Iso3>> {
@@ -163,5 +177,203 @@ pub fn fit_laser_plane<'py>(
     d.set_item("max_line_angle_deg", fit.max_line_angle_deg)?;
     d.set_item("span_across_mm", fit.span_across_mm)?;
     d.set_item("warnings", PyList::new(py, &fit.warnings)?)?;
+    Ok(d)
+}
+
+fn parse_distortion(py: Python<'_>, s: Option<&str>) -> PyResult<Option<DistortionModel>> {
+    s.map(|s| DistortionModel::from_name(s).py_err(py))
+        .transpose()
+}
+
+/// Calibrates a dataset folder (or a loaded `Dataset`): circles and stripes detected in
+/// every view, then the camera, the laser plane, `X = T_hand_cam` and `Z = T_base_board`.
+///
+/// `distortion`: `"radial1"`, `"radial2"` or `"opencv5"` (default: the rig's model);
+/// `method`: `"one-stage"` (default: everything refined together, the board poses
+/// following from the robot) or `"paper"` (camera, then plane, then linear AX = ZB);
+/// `robust`: Huber loss in the one-stage adjustment; `centre_model`: `"conic-exact"`
+/// (default), `"conic"` or `"naive"`.
+///
+/// Returns a `Calibration` with quality, one-sigma `uncertainty`, per-view figures
+/// (`views`) and the run's residuals. Views whose board is not found, and views whose
+/// robot pose disagrees with their board pose, are left out with a warning naming them
+/// (in `extra["warnings"]`). Raises `InvalidInputError` for fewer than 3 usable views
+/// or no usable laser image, `DegenerateError` for pose sets or stripes that do not
+/// determine the result, `FormatError`/`OSError` for unreadable files. The GIL is
+/// released while it runs.
+#[pyfunction]
+#[pyo3(signature = (dataset, *, distortion = None, method = "one-stage", robust = false, centre_model = "conic-exact"))]
+pub fn calibrate(
+    py: Python<'_>,
+    dataset: &Bound<'_, PyAny>,
+    distortion: Option<&str>,
+    method: &str,
+    robust: bool,
+    centre_model: &str,
+) -> PyResult<PyCalibration> {
+    let opts = CalibrateOptions {
+        distortion: parse_distortion(py, distortion)?,
+        method: Method::from_name(method).py_err(py)?,
+        robust,
+        centre_model: parse_centre_model(py, centre_model)?,
+        ..Default::default()
+    };
+    let rep = if let Ok(ds) = dataset.cast::<PyDataset>() {
+        let ds = ds.get().inner.clone();
+        py.detach(|| -> stripecal::Result<_> {
+            let (obs, mut warnings) = observe_dataset(&ds, &opts)?;
+            let mut rep = calibrate_observations(&obs, &ds.rig, &opts)?;
+            warnings.append(&mut rep.warnings);
+            rep.warnings = warnings;
+            if !rep.warnings.is_empty() {
+                rep.calibration
+                    .extra
+                    .insert("warnings".into(), serde_json::json!(rep.warnings));
+            }
+            Ok(rep)
+        })
+        .py_err(py)?
+    } else {
+        let path: PathBuf = dataset.extract().map_err(|_| {
+            pyo3::exceptions::PyTypeError::new_err(format!(
+                "dataset must be a path (str or os.PathLike) or a stripecal.Dataset, got {}",
+                crate::convert::type_name(dataset)
+            ))
+        })?;
+        py.detach(|| calibrate_dataset(&path, &opts)).py_err(py)?
+    };
+    Ok(report_to_py(rep))
+}
+
+fn parse_centre_model(py: Python<'_>, s: &str) -> PyResult<CentreModel> {
+    match s {
+        "conic-exact" => Ok(CentreModel::ConicExact),
+        "conic" => Ok(CentreModel::Conic),
+        "naive" => Ok(CentreModel::Naive),
+        o => Err(invalid_input(
+            py,
+            format!("unknown centre_model {o:?}: expected \"conic-exact\", \"conic\" or \"naive\""),
+        )),
+    }
+}
+
+fn report_to_py(rep: CalibrationReport) -> PyCalibration {
+    let adj = &rep.adjustment;
+    PyCalibration {
+        inner: rep.calibration,
+        circle_residuals: adj
+            .circle_residuals
+            .iter()
+            .map(|&(v, r, c, du, dv)| [v as f64, r as f64, c as f64, du, dv])
+            .collect(),
+        stripe_residuals: adj
+            .stripe_residuals
+            .iter()
+            .map(|&(v, u, vv, d)| [v as f64, u, vv, d])
+            .collect(),
+    }
+}
+
+/// Calibrates the camera alone from circle observations: `views` is a sequence of
+/// `(indices (N, 2) int (row, col), centres (N, 2) float (u, v))` pairs, as returned by
+/// `detect_circles`; `board` the board; `image_size` `(width, height)`.
+///
+/// Returns a dict: `camera` (Camera), `cam_board` `(K, 4, 4)` board poses `T_cam_board`
+/// of the `K` views used, `views_used` (their indices in `views`), `rms_px`,
+/// `per_view_rms_px`, `camera_sigma` (dict of one-sigmas by parameter name),
+/// `initial_intrinsics` (Zhang's `[fu, fv, u0, v0]`), `warnings`.
+#[pyfunction]
+#[pyo3(signature = (views, board, image_size, *, distortion = "radial1", centre_model = "conic-exact"))]
+pub fn calibrate_camera<'py>(
+    py: Python<'py>,
+    views: &Bound<'py, PyAny>,
+    board: PyRef<'py, PyBoard>,
+    image_size: (i64, i64),
+    distortion: &str,
+    centre_model: &str,
+) -> PyResult<Bound<'py, PyDict>> {
+    let model = DistortionModel::from_name(distortion).py_err(py)?;
+    let cm = parse_centre_model(py, centre_model)?;
+    let width = positive_u32(py, image_size.0, "image_size[0]")?;
+    let height = positive_u32(py, image_size.1, "image_size[1]")?;
+    let seq = views.cast::<PySequence>().map_err(|_| {
+        pyo3::exceptions::PyTypeError::new_err(
+            "views must be a sequence of (indices, centres) pairs",
+        )
+    })?;
+    let mut obs = Vec::new();
+    for i in 0..seq.len()? {
+        let item = seq.get_item(i)?;
+        let (idx, ctr): (Bound<'_, PyAny>, Bound<'_, PyAny>) = item.extract().map_err(|_| {
+            pyo3::exceptions::PyTypeError::new_err(format!(
+                "views[{i}] must be an (indices, centres) pair"
+            ))
+        })?;
+        let ia = f64_array(&idx, &format!("views[{i}] indices"))?;
+        let ca = f64_array(&ctr, &format!("views[{i}] centres"))?;
+        let n = match (ia.shape(), ca.shape()) {
+            ([n, 2], [m, 2]) if n == m => *n,
+            ([0], [0]) => 0,
+            (a, b) => {
+                return Err(invalid_input(
+                    py,
+                    format!(
+                        "views[{i}]: indices {} and centres {} must both be (N, 2)",
+                        fmt_shape(a),
+                        fmt_shape(b)
+                    ),
+                ))
+            }
+        };
+        let mut circles = Vec::with_capacity(n);
+        for k in 0..n {
+            let (r, c) = (ia[[k, 0].as_slice()], ia[[k, 1].as_slice()]);
+            if !(r >= 0.0 && c >= 0.0 && r.fract() == 0.0 && c.fract() == 0.0) {
+                return Err(invalid_input(
+                    py,
+                    format!("views[{i}] indices[{k}] = ({r}, {c}) is not a grid index"),
+                ));
+            }
+            circles.push(CircleObs {
+                row: r as usize,
+                col: c as usize,
+                u: ca[[k, 0].as_slice()],
+                v: ca[[k, 1].as_slice()],
+            });
+        }
+        obs.push(ViewObs {
+            view: i,
+            circles,
+            stripe: Vec::new(),
+            reading: None,
+            base_hand: None,
+        });
+    }
+    let b = board.inner.clone();
+    let opts = CameraOptions {
+        centre_model: cm,
+        ..Default::default()
+    };
+    let r = py
+        .detach(|| core_calibrate_camera(&obs, &b, width, height, model, &opts))
+        .py_err(py)?;
+    let d = PyDict::new(py);
+    d.set_item("camera", PyCamera::new_py(r.camera.clone()))?;
+    let poses: Vec<Iso3> = r.poses.iter().map(|p| p.1).collect();
+    d.set_item("cam_board", crate::convert::isos_to_py(py, &poses)?)?;
+    d.set_item(
+        "views_used",
+        r.poses.iter().map(|p| p.0).collect::<Vec<usize>>(),
+    )?;
+    d.set_item("rms_px", r.rms_px)?;
+    d.set_item("per_view_rms_px", r.per_view_rms_px.clone())?;
+    let cs = PyDict::new(py);
+    for (i, name) in PARAM_NAMES.iter().enumerate() {
+        cs.set_item(*name, r.camera_sigma[i])?;
+    }
+    d.set_item("camera_sigma", cs)?;
+    d.set_item("initial_intrinsics", r.initial_intrinsics.to_vec())?;
+    d.set_item("unobservable", r.unobservable.clone())?;
+    d.set_item("warnings", r.warnings.clone())?;
     Ok(d)
 }

@@ -60,7 +60,7 @@ pub fn load_scan(
 #[pyfunction]
 pub fn load_calibration(py: Python<'_>, path: PathBuf) -> PyResult<PyCalibration> {
     let inner = py.detach(|| read_calibration(&path)).py_err(py)?;
-    Ok(PyCalibration { inner })
+    Ok(PyCalibration::from_inner(inner))
 }
 
 /// Writes calibration.json (atomically).

@@ -82,5 +82,7 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(calib_py::solve_axzb, m)?)?;
     m.add_function(wrap_pyfunction!(calib_py::solve_axzb_full, m)?)?;
     m.add_function(wrap_pyfunction!(calib_py::fit_laser_plane, m)?)?;
+    m.add_function(wrap_pyfunction!(calib_py::calibrate, m)?)?;
+    m.add_function(wrap_pyfunction!(calib_py::calibrate_camera, m)?)?;
     Ok(())
 }

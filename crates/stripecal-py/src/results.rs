@@ -13,7 +13,7 @@ use stripecal::io::{
 };
 
 use crate::camera::PyCamera;
-use crate::convert::{fixed, iso_to_py, map_to_py, nd, opt_dict_to_map, py_to_iso};
+use crate::convert::{fixed, iso_to_py, json_to_py, map_to_py, nd, opt_dict_to_map, py_to_iso};
 use crate::errors::{invalid_input, ResultExt};
 use crate::robot::PyRobot;
 
@@ -75,6 +75,22 @@ fn quality_to_py<'py>(py: Python<'py>, q: &Quality) -> PyResult<Bound<'py, PyDic
 #[derive(Debug, Clone, PartialEq)]
 pub struct PyCalibration {
     pub inner: Calibration,
+    /// Per-circle residuals `(view, row, col, du_px, dv_px)` of the calibration run
+    /// (empty for a calibration loaded from a file).
+    pub circle_residuals: Vec<[f64; 5]>,
+    /// Per-stripe-point residuals `(view, u, v, distance_px)`.
+    pub stripe_residuals: Vec<[f64; 4]>,
+}
+
+impl PyCalibration {
+    /// A calibration without run residuals (loaded or constructed).
+    pub fn from_inner(inner: Calibration) -> Self {
+        PyCalibration {
+            inner,
+            circle_residuals: Vec::new(),
+            stripe_residuals: Vec::new(),
+        }
+    }
 }
 
 #[pymethods]
@@ -93,18 +109,16 @@ impl PyCalibration {
         uncertainty: Option<&Bound<'_, PyDict>>,
         extra: Option<&Bound<'_, PyDict>>,
     ) -> PyResult<Self> {
-        Ok(PyCalibration {
-            inner: Calibration {
-                camera: camera.get().inner.clone(),
-                laser_plane: plane_from_py(py, laser_plane)?,
-                hand_cam: py_to_iso(hand_cam, "hand_cam")?,
-                base_board: py_to_iso(base_board, "base_board")?,
-                robot: robot.map(|r| r.get().inner.clone()),
-                quality: quality_from_py(py, quality)?,
-                uncertainty: opt_dict_to_map(uncertainty, "uncertainty")?,
-                extra: opt_dict_to_map(extra, "extra")?,
-            },
-        })
+        Ok(PyCalibration::from_inner(Calibration {
+            camera: camera.get().inner.clone(),
+            laser_plane: plane_from_py(py, laser_plane)?,
+            hand_cam: py_to_iso(hand_cam, "hand_cam")?,
+            base_board: py_to_iso(base_board, "base_board")?,
+            robot: robot.map(|r| r.get().inner.clone()),
+            quality: quality_from_py(py, quality)?,
+            uncertainty: opt_dict_to_map(uncertainty, "uncertainty")?,
+            extra: opt_dict_to_map(extra, "extra")?,
+        }))
     }
 
     /// The calibrated camera.
@@ -155,6 +169,35 @@ impl PyCalibration {
         map_to_py(py, &self.inner.extra)
     }
 
+    /// Per-view figures of the calibration (`extra["views"]`): a list of dicts with
+    /// `view`, `used`, `circles`, `stripe_points`, `circle_rms_px`, `stripe_rms_px`,
+    /// `outlier` and `note` (empty when the file has none).
+    #[getter]
+    fn views<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
+        match self.inner.extra.get("views") {
+            Some(v) => json_to_py(py, v),
+            None => Ok(pyo3::types::PyList::empty(py).into_any()),
+        }
+    }
+
+    /// Circle residuals of the run that produced this calibration, `(N, 5)`:
+    /// `view, row, col, du_px, dv_px` (detected minus predicted is `-du`; `du` is
+    /// predicted minus detected). Empty `(0, 5)` for a calibration read from a file.
+    #[getter]
+    fn circle_residuals<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
+        let data: Vec<f64> = self.circle_residuals.iter().flatten().copied().collect();
+        nd(py, &[self.circle_residuals.len(), 5], data)
+    }
+
+    /// Stripe residuals of the run, `(M, 4)`: `view, u, v, distance_px` (signed image
+    /// distance of the point from its predicted stripe line). Empty `(0, 4)` for a
+    /// calibration read from a file.
+    #[getter]
+    fn stripe_residuals<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
+        let data: Vec<f64> = self.stripe_residuals.iter().flatten().copied().collect();
+        nd(py, &[self.stripe_residuals.len(), 4], data)
+    }
+
     /// Writes calibration.json (atomically).
     fn save(&self, py: Python<'_>, path: PathBuf) -> PyResult<()> {
         let c = &self.inner;
@@ -171,7 +214,7 @@ impl PyCalibration {
     fn from_json(py: Python<'_>, text: &str) -> PyResult<Self> {
         calibration_from_json(Path::new("<string>"), text)
             .py_err(py)
-            .map(|inner| PyCalibration { inner })
+            .map(PyCalibration::from_inner)
     }
 
     fn __repr__(&self) -> String {

@@ -122,22 +122,53 @@ fn fifteen_rendered_poses_meet_the_targets_and_five_beat_the_paper_method() {
         rep.adjustment.sigma_px,
         rep.warnings
     );
-    // 5 poses (the paper's count): one-stage vs paper.
-    let dir5 = tempfile::tempdir().unwrap();
-    let t5 = render(5, 1, dir5.path());
-    let one = calibrate_dataset(dir5.path().join("calib"), &CalibrateOptions::default()).unwrap();
-    let pap = calibrate_dataset(
-        dir5.path().join("calib"),
-        &CalibrateOptions {
-            method: Method::Paper,
-            ..Default::default()
-        },
-    )
-    .unwrap();
-    let (e1, e0) = (errors(&t5, &one.calibration), errors(&t5, &pap.calibration));
-    table.push(row("5 poses, one-stage", &e1));
-    table.push(row("5 poses, paper", &e0));
+    // 5 poses (the paper's count), seeds 1..=5: one-stage vs paper, by the median over
+    // the seeds (per seed, either can be closer at this noise level).
+    let mut one_e = Vec::new();
+    let mut pap_e = Vec::new();
+    for seed in 1..=5 {
+        let dir5 = tempfile::tempdir().unwrap();
+        let t5 = render(5, seed, dir5.path());
+        let one =
+            calibrate_dataset(dir5.path().join("calib"), &CalibrateOptions::default()).unwrap();
+        let pap = calibrate_dataset(
+            dir5.path().join("calib"),
+            &CalibrateOptions {
+                method: Method::Paper,
+                ..Default::default()
+            },
+        )
+        .unwrap();
+        let (e1, e0) = (errors(&t5, &one.calibration), errors(&t5, &pap.calibration));
+        table.push(row(&format!("5 poses seed {seed}, one-stage"), &e1));
+        table.push(row(&format!("5 poses seed {seed}, paper"), &e0));
+        one_e.push(e1);
+        pap_e.push(e0);
+    }
+    let med = |v: &[Errs], f: &dyn Fn(&Errs) -> f64| -> f64 {
+        let mut x: Vec<f64> = v.iter().map(f).collect();
+        x.sort_by(f64::total_cmp);
+        x[x.len() / 2]
+    };
+    let figures: [(&str, &dyn Fn(&Errs) -> f64); 5] = [
+        ("plane mm", &|e| e.plane_mm),
+        ("X deg", &|e| e.x.0),
+        ("X mm", &|e| e.x.1),
+        ("Z deg", &|e| e.z.0),
+        ("Z mm", &|e| e.z.1),
+    ];
+    let medians: Vec<String> = figures
+        .iter()
+        .map(|(name, f)| {
+            format!(
+                "{name}: one-stage {:.4} vs paper {:.4}",
+                med(&one_e, *f),
+                med(&pap_e, *f)
+            )
+        })
+        .collect();
     println!("{}", table.join("\n"));
+    println!("5 poses, medians over seeds 1..5: {}", medians.join("; "));
     assert!(
         e.fu_rel < 1e-4 && e.fv_rel < 1e-4,
         "fu/fv {} {}",
@@ -148,26 +179,11 @@ fn fifteen_rendered_poses_meet_the_targets_and_five_beat_the_paper_method() {
     assert!(e.plane_mm < 0.01, "plane {}", e.plane_mm);
     assert!(e.x.0 < 0.005 && e.x.1 < 0.02, "X {:?}", e.x);
     assert!(e.z.0 < 0.005 && e.z.1 < 0.02, "Z {:?}", e.z);
-    assert!(
-        e1.plane_mm < e0.plane_mm,
-        "plane {} vs paper {}",
-        e1.plane_mm,
-        e0.plane_mm
-    );
-    assert!(
-        e1.x.1 < e0.x.1 && e1.z.1 < e0.z.1,
-        "translations {:?} {:?} vs {:?} {:?}",
-        e1.x,
-        e1.z,
-        e0.x,
-        e0.z
-    );
-    assert!(
-        e1.x.0 < e0.x.0 && e1.z.0 < e0.z.0,
-        "rotations {:?} {:?} vs {:?} {:?}",
-        e1.x,
-        e1.z,
-        e0.x,
-        e0.z
-    );
+    for (name, f) in figures.iter() {
+        let (m1, m0) = (med(&one_e, *f), med(&pap_e, *f));
+        assert!(
+            m1 < m0,
+            "5 poses, median {name}: one-stage {m1} vs paper {m0}"
+        );
+    }
 }
