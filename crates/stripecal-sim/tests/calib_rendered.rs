@@ -84,6 +84,9 @@ fn row(label: &str, e: &Errs) -> String {
 
 const HEADER: &str = "| case | fu % | fv % | u0 px | v0 px | plane mm | X deg | X mm | Z deg | Z mm |\n|---|---|---|---|---|---|---|---|---|---|";
 
+/// A named error figure.
+type Figure<'a> = (&'a str, &'a dyn Fn(&Errs) -> f64);
+
 fn render(count: usize, seed: u64, dir: &std::path::Path) -> Twin {
     let cfg = SimConfig::hp3_paper()
         .with_overrides(&serde_json::json!({
@@ -150,7 +153,7 @@ fn fifteen_rendered_poses_meet_the_targets_and_five_beat_the_paper_method() {
         x.sort_by(f64::total_cmp);
         x[x.len() / 2]
     };
-    let figures: [(&str, &dyn Fn(&Errs) -> f64); 5] = [
+    let figures: [Figure; 5] = [
         ("plane mm", &|e| e.plane_mm),
         ("X deg", &|e| e.x.0),
         ("X mm", &|e| e.x.1),
