@@ -16,7 +16,9 @@ use nalgebra::{Vector2, Vector3};
 use rayon::prelude::*;
 
 use crate::board::Board;
-use crate::calib::conic::{centre_generic, rot_times_exp_first_order, CentreModel, Dual};
+use crate::calib::conic::{
+    centre_generic_n, quadrature_nodes, rot_times_exp_first_order, CentreModel, Dual,
+};
 use crate::calib::homography::fit_homography;
 use crate::calib::lm::{levenberg_marquardt, LeastSquares, LmOptions, StopReason};
 use crate::calib::zhang::{pose_from_homography, zhang_intrinsics};
@@ -84,6 +86,7 @@ pub struct CameraCalibration {
     pub warnings: Vec<String>,
 }
 
+#[derive(Clone, Copy)]
 struct Obs {
     view: usize, // index into used views
     centre: (f64, f64),
@@ -136,7 +139,15 @@ impl LeastSquares for CamProblem<'_> {
             .par_iter()
             .map(|o| {
                 let (rot, t) = &poses[o.view];
-                centre_generic(&c, rot, t, o.centre, o.radius, self.model)
+                centre_generic_n(
+                    &c,
+                    rot,
+                    t,
+                    o.centre,
+                    o.radius,
+                    self.model,
+                    quadrature_nodes(self.base.model),
+                )
             })
             .collect::<Result<_>>()?;
         for (k, (o, uv)) in self.obs.iter().zip(&preds).enumerate() {
@@ -173,7 +184,15 @@ impl LeastSquares for CamProblem<'_> {
             .par_iter()
             .map(|o| {
                 let (rot, t) = &poses[o.view];
-                centre_generic(&cd, rot, t, o.centre, o.radius, self.model)
+                centre_generic_n(
+                    &cd,
+                    rot,
+                    t,
+                    o.centre,
+                    o.radius,
+                    self.model,
+                    quadrature_nodes(self.base.model),
+                )
             })
             .collect::<Result<_>>()?;
         for (k, (o, uv)) in self.obs.iter().zip(&preds).enumerate() {
@@ -316,6 +335,20 @@ pub fn calibrate_camera(
         nviews: used.len(),
         obs,
         model: opts.centre_model,
+    };
+    // The exact centroid model is solved from the first-order conic model's solution
+    // (the two differ by the distortion curvature only: a few exact iterations).
+    let p0 = if opts.centre_model == CentreModel::ConicExact {
+        let first = CamProblem {
+            base: &base,
+            free: free.clone(),
+            nviews: problem.nviews,
+            obs: problem.obs.iter().map(|o| Obs { ..*o }).collect(),
+            model: CentreModel::Conic,
+        };
+        levenberg_marquardt(&first, &p0, &opts.lm)?.params
+    } else {
+        p0
     };
     let res = levenberg_marquardt(&problem, &p0, &opts.lm)?;
     let nc = free.len();

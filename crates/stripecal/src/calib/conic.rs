@@ -44,7 +44,7 @@ use std::ops::{Add, Div, Mul, Neg, Sub};
 
 use nalgebra::{Matrix3, SMatrix, Vector2, Vector3};
 
-use crate::camera::Camera;
+use crate::camera::{Camera, DistortionModel};
 use crate::error::{Error, Result};
 use crate::geometry::Iso3;
 
@@ -253,6 +253,54 @@ pub fn centre_generic<T: Scalar>(
     radius: f64,
     model: CentreModel,
 ) -> Result<[T; 2]> {
+    centre_generic_n(cam, rot, t, centre, radius, model, QUADRATURE_POINTS)
+}
+
+/// Trapezoidal nodes that integrate the exact centroid's integrands exactly for a
+/// distortion model: the distorted boundary has degree 3 (`radial1`: k1 and, at most,
+/// the tangential terms), 5 (`radial2`) or 7 (`opencv5`, k3) in `(cos t, sin t)`, the
+/// integrands `3 x` that, so `N > 9, 15, 21` nodes are exact: 12, 16, 24.
+pub fn quadrature_nodes(model: DistortionModel) -> usize {
+    match model {
+        DistortionModel::Radial1 => 12,
+        DistortionModel::Radial2 => 16,
+        DistortionModel::OpenCv5 => 24,
+    }
+}
+
+/// `(sin, cos)` of the `nodes` equally spaced angles (cached for the counts in use).
+fn node_table(nodes: usize) -> std::borrow::Cow<'static, [(f64, f64)]> {
+    use std::sync::OnceLock;
+    fn make(nodes: usize) -> Vec<(f64, f64)> {
+        (0..nodes)
+            .map(|n| (std::f64::consts::TAU * n as f64 / nodes as f64).sin_cos())
+            .collect()
+    }
+    static T12: OnceLock<Vec<(f64, f64)>> = OnceLock::new();
+    static T16: OnceLock<Vec<(f64, f64)>> = OnceLock::new();
+    static T24: OnceLock<Vec<(f64, f64)>> = OnceLock::new();
+    static T32: OnceLock<Vec<(f64, f64)>> = OnceLock::new();
+    let cell = match nodes {
+        12 => &T12,
+        16 => &T16,
+        24 => &T24,
+        32 => &T32,
+        n => return std::borrow::Cow::Owned(make(n)),
+    };
+    std::borrow::Cow::Borrowed(cell.get_or_init(|| make(nodes)).as_slice())
+}
+
+/// [`centre_generic`] with `nodes` trapezoidal nodes for the exact centroid (see
+/// [`quadrature_nodes`]: fewer than the model needs is inexact).
+pub fn centre_generic_n<T: Scalar>(
+    cam: &[T; 9],
+    rot: &[[T; 3]; 3],
+    t: &[T; 3],
+    centre: (f64, f64),
+    radius: f64,
+    model: CentreModel,
+    nodes: usize,
+) -> Result<[T; 2]> {
     let k = [cam[4], cam[5], cam[6], cam[7], cam[8]];
     let (cx, cy) = centre;
     // p = R c + t
@@ -299,9 +347,8 @@ pub fn centre_generic<T: Scalar>(
                 let l11 = (q11 - l10 * l10).sqrt();
                 let (mut a, mut mx, mut my) =
                     (T::from_f64(0.0), T::from_f64(0.0), T::from_f64(0.0));
-                for n in 0..QUADRATURE_POINTS {
-                    let th = std::f64::consts::TAU * n as f64 / QUADRATURE_POINTS as f64;
-                    let (s, c) = th.sin_cos();
+                let table = node_table(nodes);
+                for &(s, c) in table.iter() {
                     let x = ex + l00.scale(c);
                     let y = ey + l10.scale(c) + l11.scale(s);
                     // d(x, y)/dth

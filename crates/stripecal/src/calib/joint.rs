@@ -46,7 +46,8 @@ use rayon::prelude::*;
 
 use crate::board::Board;
 use crate::calib::conic::{
-    centre_generic, distort_generic, rot_times_exp_first_order, CentreModel, Dual, Scalar,
+    centre_generic_n, distort_generic, quadrature_nodes, rot_times_exp_first_order, CentreModel,
+    Dual, Scalar,
 };
 use crate::calib::lm::{levenberg_marquardt, LeastSquares, LmOptions, LmResult, StopReason};
 use crate::calib::ViewObs;
@@ -89,8 +90,8 @@ impl Default for JointOptions {
             centre_model: CentreModel::ConicExact,
             lm: LmOptions {
                 max_iterations: 100,
-                ftol: 1e-12,
-                xtol: 1e-12,
+                ftol: 1e-10,
+                xtol: 1e-10,
                 ..Default::default()
             },
             robust: false,
@@ -426,7 +427,15 @@ impl JointProblem<'_> {
             .zip(self.circles.par_iter())
             .try_for_each(|(out, c)| -> Result<()> {
                 let (rot, t) = &poses[c.view];
-                let uv = centre_generic(&s.cam, rot, t, c.centre, c.radius, self.model)?;
+                let uv = centre_generic_n(
+                    &s.cam,
+                    rot,
+                    t,
+                    c.centre,
+                    c.radius,
+                    self.model,
+                    quadrature_nodes(self.base.model),
+                )?;
                 out[0] = uv[0] - c.u;
                 out[1] = uv[1] - c.v;
                 Ok(())
@@ -471,13 +480,6 @@ impl LeastSquares for JointProblem<'_> {
         let s = self.decode(p);
         let o = self.ncam();
         // Duals over every slot.
-        let cam: [D24; 9] = std::array::from_fn(|i| {
-            if self.free.contains(&i) {
-                D24::var(s.cam[i], i)
-            } else {
-                D24::cst(s.cam[i])
-            }
-        });
         let nraw = self.n0 + self.e1 * p[o] + self.e2 * p[o + 1];
         let a = D24::var(p[o], SLOT_PLANE);
         let b = D24::var(p[o + 1], SLOT_PLANE + 1);
@@ -547,7 +549,15 @@ impl LeastSquares for JointProblem<'_> {
                 let r0 = Matrix3::from_fn(|i, j| rot[i][j]);
                 let rd = rot_times_exp_first_order(&r0, &w15);
                 let td: [D15; 3] = std::array::from_fn(|i| D15::var(t[i], 12 + i));
-                centre_generic(&c15, &rd, &td, c.centre, c.radius, self.model)
+                centre_generic_n(
+                    &c15,
+                    &rd,
+                    &td,
+                    c.centre,
+                    c.radius,
+                    self.model,
+                    quadrature_nodes(self.base.model),
+                )
             })
             .collect::<Result<_>>()?;
         let wc = self.w_circle;
@@ -570,6 +580,9 @@ impl LeastSquares for JointProblem<'_> {
         }
         // Stripe points.
         let ws = self.w_stripe;
+        // Chain rule: d res = n^T (d pi/d P (d p0 + s d dir) + d pi/d camera), the line's
+        // derivatives (plane, X, Z slots) from the per-view duals, the projection's by a
+        // small dual over (x, y, k1..k3) at the point.
         let stripe_rows: Vec<(f64, [f64; 24])> = self
             .stripes
             .par_iter()
@@ -580,11 +593,32 @@ impl LeastSquares for JointProblem<'_> {
                 let p0f = [p0[0].v, p0[1].v, p0[2].v];
                 let dirf = [dir[0].v, dir[1].v, dir[2].v];
                 let (sf, normal) = foot_point(&s.cam, &p0f, &dirf, [st.u, st.v])?;
-                let pt: [D24; 3] = std::array::from_fn(|i| p0[i] + dir[i].scale(sf));
-                let uv = project(&cam, &pt);
-                let res = (uv[0] - D24::cst(st.u)).scale(normal[0])
-                    + (uv[1] - D24::cst(st.v)).scale(normal[1]);
-                Ok((res.v, res.d))
+                let pf: [f64; 3] = std::array::from_fn(|i| p0f[i] + sf * dirf[i]);
+                let (x, y) = (pf[0] / pf[2], pf[1] / pf[2]);
+                type D7 = Dual<7>;
+                let kd: [D7; 5] = std::array::from_fn(|i| D7::var(s.cam[4 + i], 2 + i));
+                let (d, _) = distort_generic(&kd, D7::var(x, 0), D7::var(y, 1));
+                let (fu, fv) = (s.cam[0], s.cam[1]);
+                let res = normal[0] * (fu * d[0].v + s.cam[2] - st.u)
+                    + normal[1] * (fv * d[1].v + s.cam[3] - st.v);
+                let (g0, g1) = (normal[0] * fu, normal[1] * fv);
+                let drx = g0 * d[0].d[0] + g1 * d[1].d[0];
+                let dry = g0 * d[0].d[1] + g1 * d[1].d[1];
+                let dp = [drx / pf[2], dry / pf[2], -(drx * x + dry * y) / pf[2]];
+                let mut out = [0.0; 24];
+                out[0] = normal[0] * d[0].v;
+                out[1] = normal[1] * d[1].v;
+                out[2] = normal[0];
+                out[3] = normal[1];
+                for i in 0..5 {
+                    out[4 + i] = g0 * d[0].d[2 + i] + g1 * d[1].d[2 + i];
+                }
+                for (slot, o) in out.iter_mut().enumerate().skip(SLOT_PLANE) {
+                    *o = (0..3)
+                        .map(|i| dp[i] * (p0[i].d[slot] + sf * dir[i].d[slot]))
+                        .sum();
+                }
+                Ok((res, out))
             })
             .collect::<Result<_>>()?;
         let base = 2 * self.circles.len();
@@ -761,6 +795,14 @@ pub fn joint_adjustment(
         if opts.robust && round > 0 {
             lm.huber = Some(HUBER_SIGMAS);
         }
+        // Early rounds (weights still moving) with the first-order conic model when the
+        // exact one is asked for: the last round starts next to its solution.
+        problem.model =
+            if round < opts.reweight_rounds && opts.centre_model == CentreModel::ConicExact {
+                CentreModel::Conic
+            } else {
+                opts.centre_model
+            };
         let r = levenberg_marquardt(&problem, &p, &lm)?;
         iterations += r.iterations;
         p.clone_from(&r.params);

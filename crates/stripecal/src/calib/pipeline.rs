@@ -316,8 +316,16 @@ pub fn calibrate_observations(
         }
     }
     // 2. Camera.
+    // The one-stage adjustment refines the camera with the requested centre model; its
+    // starting camera only needs the first-order conic model (much cheaper).
     let cam_opts = CameraOptions {
-        centre_model: opts.centre_model,
+        centre_model: if opts.method == Method::OneStage
+            && opts.centre_model == CentreModel::ConicExact
+        {
+            CentreModel::Conic
+        } else {
+            opts.centre_model
+        },
         ..Default::default()
     };
     let camcal = calibrate_camera(views, board, rig.width, rig.height, model, &cam_opts)?;

@@ -1,0 +1,82 @@
+//! Criterion benchmark of the whole calibration from detected points (issue 4,
+//! acceptance 6): 15 views of the `hp3-paper` twin (exact imaged-circle centres and
+//! board stripe points plus Gaussian noise of 0.01 / 0.03 px), through Zhang, the camera
+//! adjustment, the laser plane, AX = ZB with the outlier check and the one-stage
+//! adjustment, on ONE thread (a one-thread rayon pool). Also the paper method alone.
+//! Run: `cargo bench -p stripecal-benches --bench calib`; figures go to BENCHMARKS.md.
+
+use criterion::{criterion_group, criterion_main, Criterion};
+use std::hint::black_box;
+
+use stripecal::calib::pipeline::{calibrate_observations, CalibrateOptions, Method};
+use stripecal::calib::{CircleObs, ViewObs};
+use stripecal_sim::rng::Rng;
+use stripecal_sim::truth::{circle_truth, stripe_truth};
+use stripecal_sim::{SimConfig, Twin};
+
+fn views(t: &Twin) -> Vec<ViewObs> {
+    let mut rng = Rng::new(5, 1);
+    t.calibration_poses()
+        .unwrap()
+        .iter()
+        .enumerate()
+        .map(|(i, p)| {
+            let scene = t.scene(&p.q_deg, false).unwrap();
+            let circles = circle_truth(&scene, &t.camera, 0.0)
+                .iter()
+                .map(|c| CircleObs {
+                    row: c.row,
+                    col: c.col,
+                    u: c.u + 0.01 * rng.normal(),
+                    v: c.v + 0.01 * rng.normal(),
+                })
+                .collect();
+            let stripe = stripe_truth(&scene, &t.camera, t.direction)
+                .into_iter()
+                .filter(|s| s.surface == "board")
+                .map(|s| [s.u + 0.03 * rng.normal(), s.v + 0.03 * rng.normal()])
+                .collect();
+            ViewObs {
+                view: i,
+                circles,
+                stripe,
+                reading: None,
+                base_hand: Some(t.robot_true.forward(&p.q_deg).unwrap()),
+            }
+        })
+        .collect()
+}
+
+fn calib(c: &mut Criterion) {
+    let cfg = SimConfig::hp3_paper()
+        .with_overrides(&serde_json::json!({"poses": {"count": 15}}))
+        .unwrap();
+    let t = Twin::new(cfg).unwrap();
+    let v = views(&t);
+    let rig = t.rig().unwrap();
+    let n_stripe: usize = v.iter().map(|x| x.stripe.len()).sum();
+    let n_circ: usize = v.iter().map(|x| x.circles.len()).sum();
+    eprintln!("15 views: {n_circ} circles, {n_stripe} stripe points");
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(1)
+        .build()
+        .unwrap();
+    let mut g = c.benchmark_group("calib");
+    g.sample_size(20);
+    for (name, method) in [
+        ("one_stage_15_views_1_thread", Method::OneStage),
+        ("paper_15_views_1_thread", Method::Paper),
+    ] {
+        let opts = CalibrateOptions {
+            method,
+            ..Default::default()
+        };
+        g.bench_function(name, |b| {
+            b.iter(|| pool.install(|| calibrate_observations(black_box(&v), &rig, &opts).unwrap()))
+        });
+    }
+    g.finish();
+}
+
+criterion_group!(benches, calib);
+criterion_main!(benches);
