@@ -43,6 +43,7 @@
 use faer::MatMut;
 use nalgebra::{DMatrix, Matrix3, Vector3};
 use rayon::prelude::*;
+use std::sync::atomic::{AtomicU64, Ordering};
 
 use crate::board::Board;
 use crate::calib::conic::{
@@ -216,6 +217,10 @@ struct JointProblem<'a> {
     stripes: Vec<StripeTerm>,
     w_circle: f64,
     w_stripe: f64,
+    /// The last foot-point parameter of each stripe point (f64 bits; NaN: none): the
+    /// next evaluation starts there (a warm start; the result does not depend on it
+    /// beyond the 1e-11 px convergence tolerance).
+    foot_cache: Vec<AtomicU64>,
 }
 
 /// The values of the state decoded.
@@ -320,6 +325,7 @@ fn foot_point(
     p0: &[f64; 3],
     dir: &[f64; 3],
     target: [f64; 2],
+    start: f64,
 ) -> Result<(f64, [f64; 2])> {
     // Start: closest point of the 3D line to the distortion-free viewing ray.
     let r = Vector3::new(
@@ -331,7 +337,9 @@ fn foot_point(
     let (pv, dv) = (Vector3::from(*p0), Vector3::from(*dir));
     let b = dv.dot(&r);
     let den = 1.0 - b * b;
-    let mut s = if den > 1e-12 {
+    let mut s = if start.is_finite() {
+        start
+    } else if den > 1e-12 {
         (b * r.dot(&pv) - dv.dot(&pv)) / den
     } else {
         0.0
@@ -441,12 +449,14 @@ impl JointProblem<'_> {
                 Ok(())
             })?;
         rs.par_iter_mut()
-            .zip(self.stripes.par_iter())
-            .try_for_each(|(out, st)| -> Result<()> {
+            .zip(self.stripes.par_iter().zip(self.foot_cache.par_iter()))
+            .try_for_each(|(out, (st, cache))| -> Result<()> {
                 let Some((p0, dir)) = lines[st.view] else {
                     return Err(parallel_error(st.view));
                 };
-                let (sf, normal) = foot_point(&s.cam, &p0, &dir, [st.u, st.v])?;
+                let start = f64::from_bits(cache.load(Ordering::Relaxed));
+                let (sf, normal) = foot_point(&s.cam, &p0, &dir, [st.u, st.v], start)?;
+                cache.store(sf.to_bits(), Ordering::Relaxed);
                 let pt: [f64; 3] = std::array::from_fn(|i| p0[i] + sf * dir[i]);
                 let uv = project(&s.cam, &pt);
                 *out = normal[0] * (uv[0] - st.u) + normal[1] * (uv[1] - st.v);
@@ -586,13 +596,16 @@ impl LeastSquares for JointProblem<'_> {
         let stripe_rows: Vec<(f64, [f64; 24])> = self
             .stripes
             .par_iter()
-            .map(|st| {
+            .zip(self.foot_cache.par_iter())
+            .map(|(st, cache)| {
                 let Some((p0, dir)) = lines[st.view] else {
                     return Err(parallel_error(st.view));
                 };
                 let p0f = [p0[0].v, p0[1].v, p0[2].v];
                 let dirf = [dir[0].v, dir[1].v, dir[2].v];
-                let (sf, normal) = foot_point(&s.cam, &p0f, &dirf, [st.u, st.v])?;
+                let start = f64::from_bits(cache.load(Ordering::Relaxed));
+                let (sf, normal) = foot_point(&s.cam, &p0f, &dirf, [st.u, st.v], start)?;
+                cache.store(sf.to_bits(), Ordering::Relaxed);
                 let pf: [f64; 3] = std::array::from_fn(|i| p0f[i] + sf * dirf[i]);
                 let (x, y) = (pf[0] / pf[2], pf[1] / pf[2]);
                 type D7 = Dual<7>;
@@ -776,7 +789,11 @@ pub fn joint_adjustment(
         stripes,
         w_circle: 1.0 / opts.initial_sigma_px.0,
         w_stripe: 1.0 / opts.initial_sigma_px.1,
+        foot_cache: Vec::new(),
     };
+    problem.foot_cache = (0..problem.stripes.len())
+        .map(|_| AtomicU64::new(f64::NAN.to_bits()))
+        .collect();
     let cp = start.camera.params();
     let mut p: Vec<f64> = free.iter().map(|&i| cp[i]).collect();
     p.extend_from_slice(&[0.0, 0.0, start.plane.d]);
@@ -1237,7 +1254,12 @@ mod tests {
             stripes,
             w_circle: 2.0,
             w_stripe: 0.5,
+            foot_cache: Vec::new(),
         };
+        let mut pr = pr;
+        pr.foot_cache = (0..pr.stripes.len())
+            .map(|_| AtomicU64::new(f64::NAN.to_bits()))
+            .collect();
         let mut p: Vec<f64> = start.camera.params().to_vec();
         p.extend_from_slice(&[0.01, -0.02, start.plane.d]);
         for t in [&start.hand_cam, &start.base_board] {

@@ -318,16 +318,20 @@ pub fn calibrate_observations(
     // 2. Camera.
     // The one-stage adjustment refines the camera with the requested centre model; its
     // starting camera only needs the first-order conic model (much cheaper).
-    let cam_opts = CameraOptions {
-        centre_model: if opts.method == Method::OneStage
-            && opts.centre_model == CentreModel::ConicExact
-        {
+    let one_stage = opts.method == Method::OneStage;
+    let mut cam_opts = CameraOptions {
+        centre_model: if one_stage && opts.centre_model == CentreModel::ConicExact {
             CentreModel::Conic
         } else {
             opts.centre_model
         },
         ..Default::default()
     };
+    if one_stage {
+        // A starting point: the joint adjustment converges from it.
+        cam_opts.lm.ftol = 1e-8;
+        cam_opts.lm.xtol = 1e-8;
+    }
     let camcal = calibrate_camera(views, board, rig.width, rig.height, model, &cam_opts)?;
     warnings.extend(camcal.warnings.iter().cloned());
     // 3. Stripe points on the board.
