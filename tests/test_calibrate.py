@@ -68,13 +68,13 @@ def test_calibration_carries_views_residuals_and_round_trips(
     assert [v["view"] for v in cal.views] == list(range(5))
     assert all(v["used"] and not v["outlier"] for v in cal.views)
     cr, sr = cal.circle_residuals, cal.stripe_residuals
-    assert cr.shape == (5 * 88, 5) and sr.shape[1] == 4 and sr.shape[0] > 300
-    assert np.sqrt(np.mean(cr[:, 3] ** 2 + cr[:, 4] ** 2)) == pytest.approx(cal.quality["circle_rms_px"], rel=1e-9)
+    assert cr.shape == (5 * 88, 7) and sr.shape[1] == 4 and sr.shape[0] > 300
+    assert np.sqrt(np.mean(cr[:, 5] ** 2 + cr[:, 6] ** 2)) == pytest.approx(cal.quality["circle_rms_px"], rel=1e-9)
     p = tmp_path / "c.json"
     cal.save(p)
     back = stripecal.load_calibration(p)
     assert back == stripecal.Calibration.from_json(cal.to_json())
-    assert back.circle_residuals.shape == (0, 5)
+    assert back.circle_residuals.shape == (0, 7)
     doc = json.loads(p.read_text())
     assert doc["format"] == "stripecal/calibration@1"
     assert set(doc["uncertainty"]) == {"camera", "laser_plane", "hand_cam", "base_board"}
@@ -143,3 +143,23 @@ def test_cli_calibrate_writes_json_and_prints_the_table(
     assert stripecal.load_calibration(out).extra["method"] == "paper"
     assert main(["calibrate", str(tmp_path / "nope"), "-o", str(tmp_path / "x.json")]) == 1
     assert not (tmp_path / "x.json").exists()
+
+
+def test_report_writes_html_and_pngs(
+    dataset: Tuple[Path, stripecal.Truth], calibration: stripecal.Calibration, tmp_path: Path
+) -> None:
+    pytest.importorskip("matplotlib")
+    from stripecal.report import write_report
+
+    _, truth = dataset
+    pts = np.random.default_rng(0).normal(size=(200, 3))
+    page = write_report(tmp_path / "rep", calibration, truth=truth, points=pts,
+                        point_colour=np.linalg.norm(pts, axis=1) - 1.0, sections=[("demo", "a table")])
+    text = page.read_text()
+    pngs = sorted((tmp_path / "rep").glob("*.png"))
+    assert {p.name for p in pngs} == {"circle_residuals.png", "stripe_residuals.png", "view_rms.png",
+                                      "residual_histogram.png", "cloud.png"}
+    for p in pngs:
+        assert p.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" and p.stat().st_size > 5000
+        assert f'src="{p.name}"' in text
+    assert "fu (px)" in text and "a table" in text and "<td>yes</td>" in text

@@ -254,6 +254,11 @@ def cmd_calibrate(args: argparse.Namespace) -> int:
     cal.save(args.output)
     print_calibration(cal)
     print(f"\nwrote {os.path.abspath(args.output)}  ({elapsed:.1f} s)")
+    if args.report:
+        from stripecal.report import write_report
+
+        page = write_report(args.report, cal)
+        print(f"wrote {page}")
     return 0
 
 
@@ -265,6 +270,7 @@ def _add_calibrate(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> 
     p.add_argument("--method", choices=["one-stage", "paper"], default="one-stage",
                    help="one-stage (default): everything in one adjustment; paper: camera, plane, then AX = ZB")
     p.add_argument("--robust", action="store_true", help="Huber loss in the one-stage adjustment")
+    p.add_argument("--report", metavar="DIR", help="also write an HTML report with figures into DIR (needs matplotlib)")
     p.set_defaults(func=cmd_calibrate)
 
 

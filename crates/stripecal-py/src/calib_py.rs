@@ -264,7 +264,7 @@ fn report_to_py(rep: CalibrationReport) -> PyCalibration {
         circle_residuals: adj
             .circle_residuals
             .iter()
-            .map(|&(v, r, c, du, dv)| [v as f64, r as f64, c as f64, du, dv])
+            .map(|&(v, r, c, u, vv, du, dv)| [v as f64, r as f64, c as f64, u, vv, du, dv])
             .collect(),
         stripe_residuals: adj
             .stripe_residuals

@@ -75,9 +75,9 @@ fn quality_to_py<'py>(py: Python<'py>, q: &Quality) -> PyResult<Bound<'py, PyDic
 #[derive(Debug, Clone, PartialEq)]
 pub struct PyCalibration {
     pub inner: Calibration,
-    /// Per-circle residuals `(view, row, col, du_px, dv_px)` of the calibration run
+    /// Per-circle residuals `(view, row, col, u, v, du_px, dv_px)` of the calibration run
     /// (empty for a calibration loaded from a file).
-    pub circle_residuals: Vec<[f64; 5]>,
+    pub circle_residuals: Vec<[f64; 7]>,
     /// Per-stripe-point residuals `(view, u, v, distance_px)`.
     pub stripe_residuals: Vec<[f64; 4]>,
 }
@@ -180,13 +180,14 @@ impl PyCalibration {
         }
     }
 
-    /// Circle residuals of the run that produced this calibration, `(N, 5)`:
-    /// `view, row, col, du_px, dv_px` (detected minus predicted is `-du`; `du` is
-    /// predicted minus detected). Empty `(0, 5)` for a calibration read from a file.
+    /// Circle residuals of the run that produced this calibration, `(N, 7)`:
+    /// `view, row, col, u, v, du_px, dv_px`: the detected centre `(u, v)` and the
+    /// residual, predicted minus detected. Empty `(0, 7)` for a calibration read from a
+    /// file.
     #[getter]
     fn circle_residuals<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
         let data: Vec<f64> = self.circle_residuals.iter().flatten().copied().collect();
-        nd(py, &[self.circle_residuals.len(), 5], data)
+        nd(py, &[self.circle_residuals.len(), 7], data)
     }
 
     /// Stripe residuals of the run, `(M, 4)`: `view, u, v, distance_px` (signed image

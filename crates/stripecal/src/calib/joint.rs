@@ -179,8 +179,9 @@ pub struct JointResult {
     pub iterations: usize,
     pub stop_reason: StopReason,
     pub unobservable: Vec<String>,
-    /// Per-residual values (px): circles `(view, row, col, du, dv)`.
-    pub circle_residuals: Vec<(usize, usize, usize, f64, f64)>,
+    /// Per-circle values: `(view, row, col, u, v, du, dv)`, the detected centre `(u, v)`
+    /// and the residual predicted minus detected, px.
+    pub circle_residuals: Vec<(usize, usize, usize, f64, f64, f64, f64)>,
     /// Stripe `(view, u, v, distance px)`.
     pub stripe_residuals: Vec<(usize, f64, f64, f64)>,
     pub warnings: Vec<String>,
@@ -922,7 +923,7 @@ pub fn joint_adjustment(
     let mut vc = vec![(0.0, 0usize); problem.nviews()];
     for (k, c) in problem.circles.iter().enumerate() {
         let (du, dv) = (raw[2 * k], raw[2 * k + 1]);
-        circle_residuals.push((used[c.view], c.row, c.col, du, dv));
+        circle_residuals.push((used[c.view], c.row, c.col, c.u, c.v, du, dv));
         vc[c.view].0 += du * du + dv * dv;
         vc[c.view].1 += 1;
     }

@@ -1,0 +1,284 @@
+"""HTML report of a calibration (and optionally of a measured cloud), with PNG figures.
+
+Needs matplotlib (``pip install 'stripecal[report]'``); the rest of stripecal does not.
+The report draws what the library computed: it adds no numerics of its own beyond
+picking columns and scaling arrows for display.
+
+Figures (one PNG each, referenced by ``index.html``):
+
+- ``circle_residuals.png``: per view, each circle's residual as an arrow at its image
+  position (arrows scaled, the scale printed), the view's RMS in the title;
+- ``stripe_residuals.png``: per view, the stripe points' signed distance from their
+  predicted line along the scan direction;
+- ``view_rms.png``: circle and stripe RMS per view (bad views stand out);
+- ``residual_histogram.png``: histograms of the circle (u and v) and stripe residuals;
+- ``cloud.png`` (with a cloud): two projections of the points, coloured by their
+  distance from the fitted sphere when given.
+"""
+
+from __future__ import annotations
+
+import html
+import os
+from pathlib import Path
+from typing import Any, List, Optional, Sequence, Tuple, Union
+
+import numpy as np
+import numpy.typing as npt
+
+import stripecal
+
+_Path = Union[str, "os.PathLike[str]"]
+F64 = npt.NDArray[np.float64]
+
+
+def _pyplot() -> Any:
+    try:
+        import matplotlib
+
+        matplotlib.use("Agg")
+        import matplotlib.pyplot as plt
+    except ImportError as e:  # pragma: no cover - depends on the install
+        raise ImportError(
+            "the report needs matplotlib: pip install 'stripecal[report]'"
+        ) from e
+    return plt
+
+
+def _grid(n: int) -> Tuple[int, int]:
+    cols = min(n, 3)
+    rows = (n + cols - 1) // cols
+    return rows, cols
+
+
+def _save(fig: Any, path: Path) -> None:
+    tmp = path.with_name(path.name + ".tmp")
+    fig.savefig(tmp, format="png", dpi=90)
+    os.replace(tmp, path)
+
+
+def _circle_figure(plt: Any, cal: stripecal.Calibration, out: Path) -> Optional[str]:
+    cr = cal.circle_residuals
+    if cr.shape[0] == 0:
+        return None
+    views = sorted({int(v) for v in cr[:, 0]})
+    rows, cols = _grid(len(views))
+    fig, axes = plt.subplots(rows, cols, figsize=(4.2 * cols, 3.4 * rows), squeeze=False)
+    mag = np.hypot(cr[:, 5], cr[:, 6])
+    peak = float(mag.max()) if mag.size and mag.max() > 0 else 1.0
+    scale = 40.0 / peak  # the largest arrow is 40 px long on the image
+    cam = cal.camera
+    for ax, v in zip(axes.ravel(), views):
+        m = cr[:, 0] == v
+        rms = float(np.sqrt(np.mean(cr[m, 5] ** 2 + cr[m, 6] ** 2)))
+        ax.quiver(cr[m, 3], cr[m, 4], cr[m, 5] * scale, cr[m, 6] * scale, angles="xy",
+                  scale_units="xy", scale=1.0, width=0.004, color="tab:red")
+        ax.plot(cr[m, 3], cr[m, 4], ".", ms=2, color="k")
+        ax.set_xlim(0, cam.width)
+        ax.set_ylim(cam.height, 0)
+        ax.set_aspect("equal")
+        ax.set_title(f"view {v}: RMS {rms:.4f} px", fontsize=9)
+    for ax in axes.ravel()[len(views):]:
+        ax.axis("off")
+    fig.suptitle(f"circle residuals (predicted - detected), arrows x{scale:.0f}; largest {peak:.4f} px", fontsize=10)
+    fig.tight_layout()
+    _save(fig, out / "circle_residuals.png")
+    plt.close(fig)
+    return "circle_residuals.png"
+
+
+def _stripe_figure(plt: Any, cal: stripecal.Calibration, out: Path) -> Optional[str]:
+    sr = cal.stripe_residuals
+    if sr.shape[0] == 0:
+        return None
+    fig, ax = plt.subplots(figsize=(8, 3.6))
+    # position along the stripe: the coordinate that varies more
+    along = 2 if np.ptp(sr[:, 2]) >= np.ptp(sr[:, 1]) else 1
+    for v in sorted({int(x) for x in sr[:, 0]}):
+        m = sr[:, 0] == v
+        ax.plot(sr[m, along], sr[m, 3], ".", ms=2, label=f"view {v}")
+    ax.axhline(0.0, color="k", lw=0.5)
+    ax.set_xlabel(("u" if along == 1 else "v") + " (px, along the stripe)")
+    ax.set_ylabel("distance from predicted line (px)")
+    ax.legend(fontsize=7, markerscale=4, ncol=4)
+    ax.set_title("stripe residuals", fontsize=10)
+    fig.tight_layout()
+    _save(fig, out / "stripe_residuals.png")
+    plt.close(fig)
+    return "stripe_residuals.png"
+
+
+def _rms_figure(plt: Any, cal: stripecal.Calibration, out: Path) -> Optional[str]:
+    views = [v for v in cal.views if v.get("used")]
+    if not views:
+        return None
+    fig, ax = plt.subplots(figsize=(max(4.0, 0.6 * len(views) + 2), 3.2))
+    x = np.arange(len(views))
+    c = [v.get("circle_rms_px") or 0.0 for v in views]
+    s = [v.get("stripe_rms_px") or 0.0 for v in views]
+    ax.bar(x - 0.2, c, 0.4, label="circles (2D RMS)")
+    ax.bar(x + 0.2, s, 0.4, label="stripe (RMS distance)")
+    for i, v in enumerate(views):
+        if v.get("outlier"):
+            ax.annotate("outlier", (x[i], max(c[i], s[i])), ha="center", va="bottom", color="red", fontsize=8)
+    ax.set_xticks(x)
+    ax.set_xticklabels([str(v["view"]) for v in views])
+    ax.set_xlabel("view")
+    ax.set_ylabel("px")
+    ax.legend(fontsize=8)
+    ax.set_title("residual RMS per view", fontsize=10)
+    fig.tight_layout()
+    _save(fig, out / "view_rms.png")
+    plt.close(fig)
+    return "view_rms.png"
+
+
+def _hist_figure(plt: Any, cal: stripecal.Calibration, out: Path) -> Optional[str]:
+    cr, sr = cal.circle_residuals, cal.stripe_residuals
+    if cr.shape[0] == 0 and sr.shape[0] == 0:
+        return None
+    fig, axes = plt.subplots(1, 2, figsize=(8, 3.2))
+    if cr.shape[0]:
+        axes[0].hist([cr[:, 5], cr[:, 6]], bins=40, label=["du", "dv"], histtype="step")
+        axes[0].legend(fontsize=8)
+    axes[0].set_title("circle residuals (px)", fontsize=10)
+    if sr.shape[0]:
+        axes[1].hist(sr[:, 3], bins=60, histtype="step", color="tab:green")
+    axes[1].set_title("stripe residuals (px)", fontsize=10)
+    fig.tight_layout()
+    _save(fig, out / "residual_histogram.png")
+    plt.close(fig)
+    return "residual_histogram.png"
+
+
+def _cloud_figure(plt: Any, points: F64, colour: Optional[F64], out: Path) -> Optional[str]:
+    if points.shape[0] == 0:
+        return None
+    fig, axes = plt.subplots(1, 2, figsize=(9, 4))
+    for ax, (i, j, name) in zip(axes, ((0, 1, "x-y"), (0, 2, "x-z"))):
+        sc = ax.scatter(points[:, i], points[:, j], c=colour if colour is not None else points[:, 2],
+                        s=1, cmap="coolwarm" if colour is not None else "viridis")
+        ax.set_aspect("equal")
+        ax.set_xlabel("xyz"[i] + " (mm)")
+        ax.set_ylabel("xyz"[j] + " (mm)")
+        ax.set_title(f"{name} projection, base frame", fontsize=10)
+    fig.colorbar(sc, ax=axes, label="distance from sphere (mm)" if colour is not None else "z (mm)")
+    _save(fig, out / "cloud.png")
+    plt.close(fig)
+    return "cloud.png"
+
+
+def _rows(cal: stripecal.Calibration, truth: Optional[stripecal.Truth]) -> List[Tuple[str, float, Any, Optional[float]]]:
+    """(name, value, one-sigma or None, true value or None) per estimated number."""
+    u = cal.uncertainty
+    cam = cal.camera
+    cu = u.get("camera", {})
+    out: List[Tuple[str, float, Any, Optional[float]]] = []
+    for n in ("fu", "fv", "u0", "v0"):
+        out.append((f"{n} (px)", getattr(cam, n), cu.get(n), getattr(truth.camera, n) if truth else None))
+    ds = cu.get("distortion", [None] * 5)
+    for i, n in enumerate(("k1", "k2", "p1", "p2", "k3")):
+        if cam.distortion[i] != 0.0 or ds[i]:
+            out.append((n, float(cam.distortion[i]), ds[i], float(truth.camera.distortion[i]) if truth else None))
+    n_, d_ = cal.laser_plane
+    lu = u.get("laser_plane", {})
+    tn: Optional[Tuple[Any, float]] = truth.laser_plane if truth else None
+    for i, a in enumerate("xyz"):
+        out.append((f"laser normal {a}", float(n_[i]), lu.get("normal", [None] * 3)[i], float(tn[0][i]) if tn else None))
+    out.append(("laser d (mm)", float(d_), lu.get("d_mm"), tn[1] if tn else None))
+    for key, label in (("hand_cam", "X"), ("base_board", "Z")):
+        m = getattr(cal, key)
+        rv = stripecal.matrix_to_rotvec(m[:3, :3])
+        tu = u.get(key, {})
+        tm = getattr(truth, key) if truth else None
+        trv = stripecal.matrix_to_rotvec(tm[:3, :3]) if tm is not None else None
+        for i, a in enumerate("xyz"):
+            out.append((f"{label} rotvec {a} (rad)", float(rv[i]), tu.get("rotation_vector", [None] * 3)[i],
+                        float(trv[i]) if trv is not None else None))
+        for i, a in enumerate("xyz"):
+            out.append((f"{label} t{a} (mm)", float(m[i, 3]), tu.get("translation_mm", [None] * 3)[i],
+                        float(tm[i, 3]) if tm is not None else None))
+    return out
+
+
+def write_report(
+    out_dir: _Path,
+    calibration: stripecal.Calibration,
+    *,
+    truth: Optional[stripecal.Truth] = None,
+    points: Optional[npt.ArrayLike] = None,
+    point_colour: Optional[npt.ArrayLike] = None,
+    sections: Sequence[Tuple[str, str]] = (),
+    title: str = "stripecal calibration report",
+) -> Path:
+    """Writes ``out_dir/index.html`` and its PNG figures; returns the HTML path.
+
+    ``truth`` adds a true-value column; ``points`` (M, 3) mm adds the cloud figure,
+    coloured by ``point_colour`` (M,) (e.g. each point's distance from the fitted sphere);
+    ``sections`` are extra ``(heading, preformatted text)`` blocks (e.g. the demo's
+    tables)."""
+    plt = _pyplot()
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    cal = calibration
+    figures = [
+        f for f in (
+            _circle_figure(plt, cal, out),
+            _stripe_figure(plt, cal, out),
+            _rms_figure(plt, cal, out),
+            _hist_figure(plt, cal, out),
+        ) if f
+    ]
+    if points is not None:
+        p = np.asarray(points, np.float64).reshape(-1, 3)
+        col = None if point_colour is None else np.asarray(point_colour, np.float64).ravel()
+        f = _cloud_figure(plt, p, col, out)
+        if f:
+            figures.append(f)
+    q = cal.quality
+    e = cal.extra
+    rows = _rows(cal, truth)
+    tr = []
+    for name, value, sigma, true in rows:
+        s = "" if sigma is None else f"{float(sigma):.3g}"
+        t = "" if true is None else f"{true:.6f}"
+        err = "" if true is None else f"{value - true:+.3g}"
+        tr.append(f"<tr><td>{html.escape(name)}</td><td>{value:.6f}</td><td>{s}</td><td>{t}</td><td>{err}</td></tr>")
+    views = cal.views
+    vr = []
+    for v in views:
+        def f4(x: Any) -> str:
+            return "" if x is None else f"{x:.4f}"
+        bad = ' style="color:#b00"' if v.get("outlier") or not v.get("used") else ""
+        vr.append(f"<tr{bad}><td>{v['view']}</td><td>{'yes' if v.get('used') else 'no'}</td><td>{v.get('circles', '')}</td>"
+                  f"<td>{v.get('stripe_points', '')}</td><td>{f4(v.get('circle_rms_px'))}</td>"
+                  f"<td>{f4(v.get('stripe_rms_px'))}</td><td>{html.escape(str(v.get('note') or ''))}</td></tr>")
+    warn = "".join(f"<li>{html.escape(str(w))}</li>" for w in e.get("warnings", []))
+    extra_sections = "".join(f"<h2>{html.escape(h)}</h2><pre>{html.escape(t)}</pre>" for h, t in sections)
+    imgs = "".join(f'<figure><img src="{f}" alt="{f}"><figcaption>{f}</figcaption></figure>' for f in figures)
+    doc = f"""<!DOCTYPE html>
+<html><head><meta charset="utf-8"><title>{html.escape(title)}</title>
+<style>body{{font-family:sans-serif;margin:2em;max-width:1100px}} table{{border-collapse:collapse}}
+td,th{{border:1px solid #ccc;padding:2px 8px;text-align:right}} td:first-child{{text-align:left}}
+img{{max-width:100%}} figure{{margin:1em 0}}</style></head><body>
+<h1>{html.escape(title)}</h1>
+<p>method <b>{html.escape(str(e.get('method', '?')))}</b>, camera model {html.escape(cal.camera.distortion_model)},
+{q['views_used']} views used. Residual RMS: circles <b>{q['circle_rms_px']:.4f} px</b>,
+stripe <b>{q['stripe_rms_px']:.4f} px</b> ({float(e.get('stripe_rms_mm', float('nan'))):.4f} mm).</p>
+{('<h2>Warnings</h2><ul>' + warn + '</ul>') if warn else ''}
+<h2>Parameters</h2>
+<table><tr><th>parameter</th><th>value</th><th>1 sigma</th><th>true</th><th>error</th></tr>{''.join(tr)}</table>
+<h2>Views</h2>
+<table><tr><th>view</th><th>used</th><th>circles</th><th>stripe points</th><th>circle RMS px</th><th>stripe RMS px</th><th>note</th></tr>{''.join(vr)}</table>
+{extra_sections}
+<h2>Figures</h2>{imgs}
+</body></html>
+"""
+    path = out / "index.html"
+    tmp = out / "index.html.tmp"
+    tmp.write_text(doc, encoding="utf-8")
+    os.replace(tmp, path)
+    return path
+
+
+__all__ = ["write_report"]
