@@ -355,3 +355,39 @@ fn degenerate_inputs_are_typed_errors() {
     .unwrap();
     assert_eq!(rep.method, Method::Paper);
 }
+
+#[test]
+fn robust_loss_resists_gross_stripe_outliers() {
+    // 5 % of the stripe points of every view moved by 2-4 px (reflections): the Huber
+    // adjustment stays near the truth, the plain one is pulled away.
+    let t = twin(5);
+    let mut views = noisy(&exact_views(&t), 0.01, 0.03, 9);
+    let mut rng = Rng::new(17, 3);
+    for v in &mut views {
+        for (k, p) in v.stripe.iter_mut().enumerate() {
+            if k % 20 == 7 {
+                p[0] += 2.0 + 2.0 * rng.uniform();
+            }
+        }
+    }
+    let r = rig(&t);
+    let plain = calibrate_observations(&views, &r, &CalibrateOptions::default()).unwrap();
+    let robust = calibrate_observations(
+        &views,
+        &r,
+        &CalibrateOptions {
+            robust: true,
+            ..Default::default()
+        },
+    )
+    .unwrap();
+    let e = |c: &Calibration| {
+        let (_, xt) = iso_err(&c.hand_cam, &t.hand_cam);
+        let dd = (c.laser_plane.d - t.laser_plane.d).abs();
+        (xt, dd)
+    };
+    let (p, q) = (e(&plain.calibration), e(&robust.calibration));
+    println!("X translation / plane d error: plain {p:?}, robust {q:?}");
+    assert!(q.0 < 0.01 && q.1 < 0.01, "robust {q:?}");
+    assert!(q.0 < p.0 && q.1 < p.1, "robust {q:?} vs plain {p:?}");
+}
