@@ -168,7 +168,7 @@ def _cloud_figure(plt: Any, points: F64, colour: Optional[F64], out: Path) -> Op
     return "cloud.png"
 
 
-def _rows(cal: stripecal.Calibration, truth: Optional[stripecal.Truth]) -> List[Tuple[str, float, Any, Optional[float]]]:
+def parameter_rows(cal: stripecal.Calibration, truth: Optional[stripecal.Truth]) -> List[Tuple[str, float, Any, Optional[float]]]:
     """(name, value, one-sigma or None, true value or None) per estimated number."""
     u = cal.uncertainty
     cam = cal.camera
@@ -237,7 +237,7 @@ def write_report(
             figures.append(f)
     q = cal.quality
     e = cal.extra
-    rows = _rows(cal, truth)
+    rows = parameter_rows(cal, truth)
     tr = []
     for name, value, sigma, true in rows:
         s = "" if sigma is None else f"{float(sigma):.3g}"
@@ -281,4 +281,4 @@ stripe <b>{q['stripe_rms_px']:.4f} px</b> ({float(e.get('stripe_rms_mm', float('
     return path
 
 
-__all__ = ["write_report"]
+__all__ = ["parameter_rows", "write_report"]
