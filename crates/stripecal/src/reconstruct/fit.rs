@@ -44,6 +44,16 @@ pub struct FitOptions {
     pub max_trim_rounds: usize,
     /// Largest number of Levenberg-Marquardt iterations per fit.
     pub max_iterations: usize,
+    /// Sphere: start from a robust search (module docs) instead of the algebraic fit of
+    /// all points, so a cloud that also holds other surfaces (the table the ball lies on)
+    /// gives the sphere.
+    pub robust_start: bool,
+    /// Sphere, robust start: the fraction of points assumed to lie on the sphere at
+    /// least (the quantile of |residual| minimised), in (0, 1].
+    pub robust_quantile: f64,
+    /// Sphere, robust start: accepted diameters `[min, max]` mm of candidate spheres;
+    /// `None`: up to the diagonal of the points' bounding box.
+    pub diameter_range_mm: Option<[f64; 2]>,
 }
 
 impl Default for FitOptions {
@@ -52,6 +62,9 @@ impl Default for FitOptions {
             trim_sigma: 3.0,
             max_trim_rounds: 20,
             max_iterations: 100,
+            robust_start: true,
+            robust_quantile: 0.2,
+            diameter_range_mm: None,
         }
     }
 }
@@ -63,6 +76,19 @@ impl FitOptions {
                 "trim_sigma = {} must be 0 (no trimming) or >= 1",
                 self.trim_sigma
             )));
+        }
+        if !(self.robust_quantile > 0.0 && self.robust_quantile <= 1.0) {
+            return Err(Error::InvalidInput(format!(
+                "robust_quantile = {} must be in (0, 1]",
+                self.robust_quantile
+            )));
+        }
+        if let Some([a, b]) = self.diameter_range_mm {
+            if !(a.is_finite() && b.is_finite() && a >= 0.0 && b > a) {
+                return Err(Error::InvalidInput(format!(
+                    "diameter_range_mm [{a}, {b}] must be finite with 0 <= min < max"
+                )));
+            }
         }
         if self.max_iterations == 0 {
             return Err(Error::InvalidInput("max_iterations must be >= 1".into()));
@@ -170,6 +196,21 @@ fn check_points(points: &[[f64; 3]], min: usize, what: &str) -> Result<()> {
     Ok(())
 }
 
+/// Smallest robust sigma used for trimming: 1e-9 of the points' extent (exact data must
+/// not have rounding errors trimmed).
+fn sigma_floor(points: &[[f64; 3]]) -> f64 {
+    let (mut lo, mut hi) = (
+        Vector3::repeat(f64::INFINITY),
+        Vector3::repeat(f64::NEG_INFINITY),
+    );
+    for p in points {
+        let v = Vector3::from(*p);
+        lo = lo.inf(&v);
+        hi = hi.sup(&v);
+    }
+    1e-9 * (hi - lo).norm().max(1e-300)
+}
+
 fn median(v: &mut [f64]) -> f64 {
     if v.is_empty() {
         return 0.0;
@@ -192,10 +233,17 @@ fn trim_loop<P: Clone>(
     min_inliers: usize,
     opts: &FitOptions,
     what: &str,
+    init: Option<(Vec<bool>, P)>,
+    sigma_floor: f64,
     mut fit: impl FnMut(&[bool], Option<&P>) -> Result<(P, Vec<f64>)>,
 ) -> Result<(P, Vec<f64>, Vec<bool>, f64)> {
-    let mut mask = vec![true; n];
-    let (mut p, mut res) = fit(&mask, None)?;
+    let (mut mask, start) = match init {
+        // Without trimming every point is used; the robust start only seeds the fit.
+        Some((_, p)) if opts.trim_sigma == 0.0 => (vec![true; n], Some(p)),
+        Some((m, p)) => (m, Some(p)),
+        None => (vec![true; n], None),
+    };
+    let (mut p, mut res) = fit(&mask, start.as_ref())?;
     let mut buf = Vec::with_capacity(n);
     let mut sigma = robust_sigma(&res, &mut buf);
     if opts.trim_sigma == 0.0 {
@@ -210,7 +258,7 @@ fn trim_loop<P: Clone>(
                 .filter(|(_, &m)| m)
                 .map(|(r, _)| r.abs()),
         );
-        sigma = 1.4826 * median(&mut buf);
+        sigma = (1.4826 * median(&mut buf)).max(sigma_floor);
         let thr = opts.trim_sigma * sigma;
         let new: Vec<bool> = res.iter().map(|r| r.abs() <= thr).collect();
         if new == mask {
@@ -341,6 +389,120 @@ fn sphere_lm(
     Ok((c, r.abs(), jtj))
 }
 
+/// Deterministic SplitMix64 sampler of the robust start.
+struct SplitMix(u64);
+
+impl SplitMix {
+    fn below(&mut self, n: usize) -> usize {
+        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
+        let mut z = self.0;
+        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+        ((z ^ (z >> 31)) % n as u64) as usize
+    }
+}
+
+/// The sphere through 4 points, or `None` when they are (nearly) coplanar.
+fn sphere_through(p: [Vector3<f64>; 4]) -> Option<(Vector3<f64>, f64)> {
+    // 2 (p_i - p_0) . c = |p_i|^2 - |p_0|^2, i = 1..3 (relative to p_0 for conditioning).
+    let a = Matrix3::from_rows(&[
+        (p[1] - p[0]).transpose() * 2.0,
+        (p[2] - p[0]).transpose() * 2.0,
+        (p[3] - p[0]).transpose() * 2.0,
+    ]);
+    let b = Vector3::new(
+        (p[1] - p[0]).norm_squared(),
+        (p[2] - p[0]).norm_squared(),
+        (p[3] - p[0]).norm_squared(),
+    );
+    let c = a.lu().solve(&b)?;
+    let r = c.norm();
+    (r.is_finite() && r > 0.0).then_some((p[0] + c, r))
+}
+
+/// Number of random 4-point samples of the robust start.
+const ROBUST_SAMPLES: usize = 1500;
+/// Points scored per candidate (an evenly strided subset of larger clouds).
+const ROBUST_SCORE_POINTS: usize = 3000;
+
+/// Robust start (least quantile of squares): spheres through random 4-point samples
+/// (a fixed seed: the result is deterministic), with diameters in the accepted range,
+/// scored by the `robust_quantile` quantile of |residual| over (a subset of) the
+/// points; the best one gives the initial inliers `|r| <= trim_sigma * s0` with
+/// `s0 = quantile / 0.2533` (0.2533 = the 60 % point of the normal distribution: the
+/// 20 % quantile of |r| of a normal sample), which the trimming then refines.
+fn sphere_robust_start(
+    points: &[[f64; 3]],
+    opts: &FitOptions,
+) -> Result<(Vec<bool>, (Vector3<f64>, f64))> {
+    let n = points.len();
+    let range = match opts.diameter_range_mm {
+        Some(r) => r,
+        None => {
+            let (mut lo, mut hi) = (
+                Vector3::repeat(f64::INFINITY),
+                Vector3::repeat(-f64::INFINITY),
+            );
+            for p in points {
+                let v = Vector3::from(*p);
+                lo = lo.inf(&v);
+                hi = hi.sup(&v);
+            }
+            [0.0, (hi - lo).norm()]
+        }
+    };
+    let stride = n.div_ceil(ROBUST_SCORE_POINTS).max(1);
+    let subset: Vec<Vector3<f64>> = points
+        .iter()
+        .step_by(stride)
+        .map(|p| Vector3::from(*p))
+        .collect();
+    let k =
+        ((opts.robust_quantile * subset.len() as f64).ceil() as usize).clamp(1, subset.len()) - 1;
+    let mut rng = SplitMix(0x5EED);
+    let mut buf = Vec::with_capacity(subset.len());
+    let mut best: Option<(f64, Vector3<f64>, f64)> = None;
+    for _ in 0..ROBUST_SAMPLES {
+        let idx = [rng.below(n), rng.below(n), rng.below(n), rng.below(n)];
+        let Some((c, r)) = sphere_through(idx.map(|i| Vector3::from(points[i]))) else {
+            continue;
+        };
+        if !(2.0 * r >= range[0] && 2.0 * r <= range[1]) {
+            continue;
+        }
+        buf.clear();
+        buf.extend(subset.iter().map(|p| ((p - c).norm() - r).abs()));
+        let (_, q, _) = buf.select_nth_unstable_by(k, |a, b| a.total_cmp(b));
+        let q = *q;
+        if best.is_none_or(|b| q < b.0) {
+            best = Some((q, c, r));
+        }
+    }
+    let Some((q, c, r)) = best else {
+        return Err(Error::Degenerate(format!(
+            "sphere fit: no sphere with a diameter in [{:.3}, {:.3}] mm through the points",
+            range[0], range[1]
+        )));
+    };
+    let s0 = (q / 0.2533).max(sigma_floor(points));
+    let thr = if opts.trim_sigma > 0.0 {
+        opts.trim_sigma * s0
+    } else {
+        3.0 * s0
+    };
+    let mask: Vec<bool> = points
+        .iter()
+        .map(|p| ((Vector3::from(*p) - c).norm() - r).abs() <= thr)
+        .collect();
+    let inl = mask.iter().filter(|&&m| m).count();
+    if inl < 5 {
+        return Err(Error::Degenerate(format!(
+            "sphere fit: the best candidate sphere has only {inl} points near it"
+        )));
+    }
+    Ok((mask, (c, r)))
+}
+
 /// Fits a sphere to points (mm) with trimming and one-sigma uncertainties (module docs).
 /// Needs at least 5 points not on one plane.
 pub fn fit_sphere(points: &[[f64; 3]], opts: &FitOptions) -> Result<SphereFitResult> {
@@ -361,7 +523,13 @@ pub fn fit_sphere(points: &[[f64; 3]], opts: &FitOptions) -> Result<SphereFitRes
             .collect();
         Ok(((c, r), res))
     };
-    let ((c, r), res, mask, robust) = trim_loop(n, 5, opts, "sphere", fit)?;
+    let init = if opts.robust_start {
+        Some(sphere_robust_start(points, opts)?)
+    } else {
+        None
+    };
+    let ((c, r), res, mask, robust) =
+        trim_loop(n, 5, opts, "sphere", init, sigma_floor(points), fit)?;
     let k = mask.iter().filter(|&&m| m).count();
     let ss: f64 = res
         .iter()
@@ -444,7 +612,7 @@ pub fn fit_plane(points: &[[f64; 3]], opts: &FitOptions) -> Result<PlaneFit> {
             .collect();
         Ok((pp.n, res))
     };
-    let (_, _, mask, _) = trim_loop(n_all, 4, opts, "plane", fit)?;
+    let (_, _, mask, _) = trim_loop(n_all, 4, opts, "plane", None, sigma_floor(points), fit)?;
     let pp = plane_tls(points, &mask)?;
     let k = mask.iter().filter(|&&m| m).count();
     let (mut ss, mut lo, mut hi, mut s1, mut s2) =
@@ -662,6 +830,33 @@ mod tests {
         assert!((in_d as f64 / n - 0.683).abs() < 0.095);
         assert!((z2_d / n - 1.0).abs() < 0.29);
         assert!((z2_n / n - 1.0).abs() < 0.29);
+    }
+
+    /// A ball on a table: 35 % of the points on the ball's upper cap, 65 % on the
+    /// table (z = c.z - r). The robust start finds the ball; the table is trimmed.
+    #[test]
+    fn sphere_found_among_table_points() {
+        let sigma = 0.02;
+        let c = Vector3::new(400.0, 50.0, 22.0);
+        let r = 0.5 * D_TRUE;
+        let mut rng = Rng(9);
+        let mut pts = cap_points(&mut rng, c, 700, 75.0, sigma);
+        for _ in 0..1300 {
+            let x = c.x + 80.0 * rng.uniform() - 40.0;
+            let y = c.y + 60.0 * rng.uniform() - 30.0;
+            if (x - c.x).hypot(y - c.y) < r + 1.0 {
+                continue;
+            }
+            pts.push([x, y, c.z - r + sigma * rng.normal()]);
+        }
+        let f = fit_sphere(&pts, &FitOptions::default()).unwrap();
+        eprintln!(
+            "ball among table points: {f:?}",
+            f = (f.diameter_mm, f.points, f.outliers)
+        );
+        assert!((f.diameter_mm - D_TRUE).abs() < 4.0 * f.diameter_sigma_mm);
+        assert!((f.center_mm - c).norm() < 0.02);
+        assert!(f.points >= 690 && f.points <= 700 + 5, "{}", f.points);
     }
 
     #[test]

@@ -685,3 +685,121 @@ pub fn reconstruct_scan(
 pub fn load_scan(root: impl AsRef<Path>, calibration: &Calibration) -> Result<Scan> {
     Scan::load(root, calibration.robot.as_ref())
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::camera::DistortionModel;
+    use crate::geometry::iso_from_rotvec;
+
+    fn camera(k: [f64; 5]) -> Camera {
+        Camera::new(
+            768,
+            576,
+            1271.65,
+            1322.52,
+            346.14,
+            262.6,
+            DistortionModel::OpenCv5,
+            k,
+        )
+        .unwrap()
+    }
+
+    /// Points on the laser plane, projected, triangulated back: the chain inverts the
+    /// projection to rounding (strong opencv5 distortion).
+    #[test]
+    fn triangulation_inverts_projection() {
+        let cam = camera([-0.3, 0.12, 0.001, -0.002, 0.01]);
+        let plane = Plane::new(Vector3::new(0.629, -0.0492, 0.7759), 79.87).unwrap();
+        let hand_cam = iso_from_rotvec(
+            &Vector3::new(-0.3087, 0.2362, 3.0369),
+            &Vector3::new(29.19, 5.37, 62.64),
+        );
+        let base_hand = iso_from_rotvec(
+            &Vector3::new(0.1, 3.0, -0.2),
+            &Vector3::new(480.0, 10.0, 365.0),
+        );
+        let tri = Triangulator::new(&cam, &plane, &hand_cam, 2.0).unwrap();
+        // Points on the plane: p = n d + a e1 + b e2.
+        let e1 = plane.normal.cross(&Vector3::y()).normalize();
+        let e2 = plane.normal.cross(&e1);
+        let mut uv = Vec::new();
+        let mut truth = Vec::new();
+        for i in -10..=10 {
+            for j in -10..=10 {
+                let p = plane.normal * plane.d + e1 * (2.0 * i as f64) + e2 * (2.5 * j as f64);
+                let px = cam.project(&p).unwrap();
+                uv.push([px.x, px.y]);
+                truth.push(base_hand * hand_cam * nalgebra::Point3::from(p));
+            }
+        }
+        let (mut out, mut idx) = (Vec::new(), Vec::new());
+        let drops = tri.triangulate_into(&base_hand, &uv, &mut out, &mut idx);
+        assert_eq!(drops.total(), 0);
+        assert_eq!(out.len(), uv.len());
+        for (k, p) in out.iter().enumerate() {
+            let t = truth[idx[k] as usize];
+            let e = (Vector3::from(*p) - t.coords).norm();
+            assert!(e < 1e-9, "point {k}: error {e:.3e} mm");
+        }
+    }
+
+    /// A plane containing the optical axis direction x = 0 (n = x, d = 50 mm): rays
+    /// through pixels left of u0 meet it behind the camera, those near u0 at grazing
+    /// angles; both are dropped, not turned into far points.
+    #[test]
+    fn grazing_and_backward_rays_are_dropped() {
+        let cam = camera([0.0; 5]);
+        let plane = Plane::new(Vector3::x(), 50.0).unwrap();
+        let tri = Triangulator::new(&cam, &plane, &Iso3::identity(), 2.0).unwrap();
+        // angle to the plane = atan(xn) for yn = 0: 2 deg at xn = tan(2 deg) = 0.0349.
+        let u_at = |deg: f64| cam.u0 + cam.fu * deg.to_radians().tan();
+        let uv = [
+            [u_at(-10.0), cam.v0], // behind
+            [u_at(0.5), cam.v0],   // grazing
+            [u_at(1.99), cam.v0],  // grazing
+            [u_at(2.01), cam.v0],  // kept
+            [u_at(20.0), cam.v0],  // kept
+        ];
+        let (mut out, mut idx) = (Vec::new(), Vec::new());
+        let d = tri.triangulate_into(&Iso3::identity(), &uv, &mut out, &mut idx);
+        assert_eq!(idx, vec![3, 4]);
+        assert_eq!(d.grazing, 3);
+        for p in &out {
+            assert!((p[0] - 50.0).abs() < 1e-9);
+            assert!(p[2] > 0.0 && p[2] < 50.0 / (2.0f64).to_radians().tan() + 1.0);
+        }
+    }
+
+    #[test]
+    fn bad_triangulator_input() {
+        let cam = camera([0.0; 5]);
+        let plane = Plane::new(Vector3::z(), 100.0).unwrap();
+        for a in [-1.0, 90.0, f64::NAN] {
+            assert!(matches!(
+                Triangulator::new(&cam, &plane, &Iso3::identity(), a),
+                Err(Error::InvalidInput(_))
+            ));
+        }
+        let bad = Plane {
+            normal: Vector3::new(0.0, 0.0, 2.0),
+            d: 100.0,
+        };
+        assert!(Triangulator::new(&cam, &bad, &Iso3::identity(), 2.0).is_err());
+    }
+
+    #[test]
+    fn direction_from_plane() {
+        let cam = camera([0.0; 5]);
+        let p = |n: [f64; 3]| Plane::new(Vector3::from(n), 80.0).unwrap();
+        assert_eq!(
+            stripe_direction_from_plane(&cam, &p([0.629, -0.0492, 0.7759])),
+            StripeDirection::Cols
+        );
+        assert_eq!(
+            stripe_direction_from_plane(&cam, &p([0.05, 0.6, 0.8])),
+            StripeDirection::Rows
+        );
+    }
+}
