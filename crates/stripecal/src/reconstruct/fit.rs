@@ -567,6 +567,10 @@ pub fn fit_sphere(points: &[[f64; 3]], opts: &FitOptions) -> Result<SphereFitRes
 
 // ---------------------------------------------------------------- plane
 
+/// Smallest ratio of the points' second in-plane spread (standard deviation) to their
+/// spread off the plane for a plane fit.
+const PLANE_MIN_SPREAD_RATIO: f64 = 5.0;
+
 struct PlaneParams {
     n: Vector3<f64>,
     c: Vector3<f64>,
@@ -587,10 +591,15 @@ fn plane_tls(points: &[[f64; 3]], mask: &[bool]) -> Result<PlaneParams> {
     let mut idx = [0usize, 1, 2];
     idx.sort_by(|&a, &b| eig.eigenvalues[a].total_cmp(&eig.eigenvalues[b]));
     let (l0, l1) = (eig.eigenvalues[idx[0]], eig.eigenvalues[idx[1]]);
-    if !(l1 > 1e-12 * eig.eigenvalues[idx[2]].max(1e-300)) || !(l0 <= l1) {
-        return Err(Error::Degenerate(
-            "plane fit: the points are collinear or coincide".into(),
-        ));
+    // The points must spread in two directions well beyond their spread off the plane:
+    // a single stripe on a plane is a line, and a line does not fix a plane.
+    if !(l1 > PLANE_MIN_SPREAD_RATIO * PLANE_MIN_SPREAD_RATIO * l0.max(0.0) && l1 > 0.0) {
+        return Err(Error::Degenerate(format!(
+            "plane fit: the points lie along a line (spread across it {:.3e} mm, off the \
+             plane {:.3e} mm): a plane needs points spread in two directions",
+            (l1 / k).sqrt(),
+            (l0.max(0.0) / k).sqrt()
+        )));
     }
     let n = eig.eigenvectors.column(idx[0]).into_owned();
     let e1 = eig.eigenvectors.column(idx[2]).into_owned();
@@ -874,6 +883,13 @@ mod tests {
         let e = fit_sphere(&flat, &FitOptions::default()).unwrap_err();
         assert!(matches!(e, Error::Degenerate(_)), "{e}");
         let line: Vec<[f64; 3]> = (0..50).map(|i| [i as f64, 2.0 * i as f64, 0.0]).collect();
+        let e = fit_plane(&line, &FitOptions::default()).unwrap_err();
+        assert!(matches!(e, Error::Degenerate(_)), "{e}");
+        // A noisy line (one stripe on a plane) is no plane either.
+        let mut rng = Rng(3);
+        let line: Vec<[f64; 3]> = (0..500)
+            .map(|i| [i as f64 * 0.1, 0.02 * rng.normal(), 0.02 * rng.normal()])
+            .collect();
         let e = fit_plane(&line, &FitOptions::default()).unwrap_err();
         assert!(matches!(e, Error::Degenerate(_)), "{e}");
     }
