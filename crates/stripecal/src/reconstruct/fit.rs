@@ -291,7 +291,7 @@ fn sphere_algebraic(points: &[[f64; 3]], mask: &[bool]) -> Result<(Vector3<f64>,
         .sum::<f64>()
         / k)
         .sqrt();
-    if !(scale > 0.0) {
+    if scale.is_nan() || scale <= 0.0 {
         return Err(Error::Degenerate("sphere fit: all points coincide".into()));
     }
     // |q|^2 + D qx + E qy + F qz + G = 0 with q = (p - mean) / scale.
@@ -389,6 +389,9 @@ fn sphere_lm(
     Ok((c, r.abs(), jtj))
 }
 
+/// A sphere's centre and radius, mm.
+type SphereParams = (Vector3<f64>, f64);
+
 /// Deterministic SplitMix64 sampler of the robust start.
 struct SplitMix(u64);
 
@@ -434,7 +437,7 @@ const ROBUST_SCORE_POINTS: usize = 3000;
 fn sphere_robust_start(
     points: &[[f64; 3]],
     opts: &FitOptions,
-) -> Result<(Vec<bool>, (Vector3<f64>, f64))> {
+) -> Result<(Vec<bool>, SphereParams)> {
     let n = points.len();
     let range = match opts.diameter_range_mm {
         Some(r) => r,
@@ -593,7 +596,8 @@ fn plane_tls(points: &[[f64; 3]], mask: &[bool]) -> Result<PlaneParams> {
     let (l0, l1) = (eig.eigenvalues[idx[0]], eig.eigenvalues[idx[1]]);
     // The points must spread in two directions well beyond their spread off the plane:
     // a single stripe on a plane is a line, and a line does not fix a plane.
-    if !(l1 > PLANE_MIN_SPREAD_RATIO * PLANE_MIN_SPREAD_RATIO * l0.max(0.0) && l1 > 0.0) {
+    let l2 = eig.eigenvalues[idx[2]];
+    if !(l1 > PLANE_MIN_SPREAD_RATIO * PLANE_MIN_SPREAD_RATIO * l0.max(0.0) && l1 > 1e-12 * l2) {
         return Err(Error::Degenerate(format!(
             "plane fit: the points lie along a line (spread across it {:.3e} mm, off the \
              plane {:.3e} mm): a plane needs points spread in two directions",
@@ -820,7 +824,7 @@ mod tests {
                 .collect();
             pts[3] = [pts[3][0] + 1.0, pts[3][1], pts[3][2]];
             let f = fit_plane(&pts, &FitOptions::default()).unwrap();
-            assert!(f.outliers >= 1 && f.inlier[3] == false);
+            assert!(f.outliers >= 1 && !f.inlier[3]);
             let zd = (f.plane.d - d_true) / f.d_sigma_mm;
             let zn = (f.plane.normal.x - n_true.x) / f.normal_sigma.x;
             in_d += (zd.abs() <= 1.0) as usize;
