@@ -5,8 +5,11 @@
 //! For a stripe point at pixel `(u, v)` of a frame taken at encoder readings `q`:
 //!
 //! 1. Distorted normalised coordinates `xd = (u - u0) / fu`, `yd = (v - v0) / fv`;
-//!    undistorted `(xn, yn)` by Newton's method ([`Camera::undistort_from`], started at
-//!    the previous point's solution: neighbouring stripe points converge in 1-2 steps).
+//!    undistorted `(xn, yn)` by Newton's method, started at the previous point's
+//!    solution (neighbouring stripe points converge in 1-2 steps): for radial-only
+//!    models (`p1 = p2 = 0`: `radial1`, `radial2`) a 1D iteration on the scale
+//!    `r_n / r_d`, otherwise the 2D one of [`Camera::undistort_from`]. Both stop at
+//!    ~1e-15 relative (far below 1e-9 px).
 //! 2. The viewing ray `r = (xn, yn, 1)` (camera frame, through the optical centre).
 //! 3. Its intersection with the laser plane `n . p = d` (camera frame, `d > 0`):
 //!    `s = d / (n . r)`, `p_cam = s r` (mm).
@@ -151,6 +154,11 @@ pub struct Triangulator {
     min_sin: f64,
     /// True when all distortion coefficients are zero (no Newton iteration).
     no_distortion: bool,
+    /// True when the tangential coefficients are zero (a 1D Newton iteration).
+    radial_only: bool,
+    /// `1 / fu`, `1 / fv`.
+    inv_fu: f64,
+    inv_fv: f64,
 }
 
 impl Triangulator {
@@ -194,6 +202,9 @@ impl Triangulator {
             hand_cam: *hand_cam,
             min_sin: a.to_radians().sin(),
             no_distortion: camera.distortion.iter().all(|&k| k == 0.0),
+            radial_only: camera.distortion[2] == 0.0 && camera.distortion[3] == 0.0,
+            inv_fu: 1.0 / camera.fu,
+            inv_fv: 1.0 / camera.fv,
         })
     }
 
@@ -223,34 +234,33 @@ impl Triangulator {
     }
 
     /// The laser-plane point of one pixel in the camera frame (mm), updating the Newton
-    /// start `guess` (undistorted normalised coordinates of the previous point).
+    /// start `warm` (the previous point's solution).
     #[inline]
     fn point_cam(
         &self,
         u: f64,
         v: f64,
-        guess: &mut Option<(f64, f64)>,
+        warm: &mut Warm,
     ) -> std::result::Result<Vector3<f64>, DropReason> {
         let c = &self.camera;
-        let xd = (u - c.u0) / c.fu;
-        let yd = (v - c.v0) / c.fv;
+        let xd = (u - c.u0) * self.inv_fu;
+        let yd = (v - c.v0) * self.inv_fv;
         let (xn, yn) = if self.no_distortion {
             (xd, yd)
-        } else {
-            // Start from the previous solution when it is near (neighbouring points).
-            let (x0, y0) = match *guess {
-                Some((gx, gy)) if (gx - xd).abs() + (gy - yd).abs() < 0.05 => (gx, gy),
-                _ => (xd, yd),
-            };
-            match c.undistort_from(xd, yd, x0, y0) {
-                Ok(p) => p,
-                Err(_) => {
-                    *guess = None;
-                    return Err(DropReason::Undistort);
+        } else if self.radial_only {
+            match self.undistort_radial(xd, yd, warm.scale) {
+                Some(s) => {
+                    warm.scale = s;
+                    (xd * s, yd * s)
+                }
+                None => {
+                    warm.scale = 1.0;
+                    self.undistort_general(xd, yd, warm)?
                 }
             }
+        } else {
+            self.undistort_general(xd, yd, warm)?
         };
-        *guess = Some((xn, yn));
         let r = Vector3::new(xn, yn, 1.0);
         let den = self.n.dot(&r);
         // |n . r| / |r| >= sin(angle), and the plane in front (den > 0 since d > 0).
@@ -260,10 +270,68 @@ impl Triangulator {
         Ok(r * (self.d_mm / den))
     }
 
+    /// Radial-only distortion (`p1 = p2 = 0`): the undistorted point is the distorted one
+    /// scaled by `s = r_n / r_d`, the root of the 1D equation
+    /// `f(s) = s (1 + k1 rho s^2 + k2 rho^2 s^4 + k3 rho^3 s^6) - 1 = 0` with
+    /// `rho = r_d^2`, solved by Newton's method from `s0` (the previous point's scale: a
+    /// neighbouring stripe point converges in one or two steps) to `|ds| <= 1e-15 s`.
+    /// `None` where it does not converge in 20 steps or the model folds there
+    /// (`f'(s) <= 0`, the radial factor `<= 0`): the general 2D solver then decides.
+    #[inline]
+    fn undistort_radial(&self, xd: f64, yd: f64, s0: f64) -> Option<f64> {
+        let [k1, k2, _, _, k3] = self.camera.distortion;
+        let rho = xd * xd + yd * yd;
+        let (a1, a2, a3) = (k1 * rho, k2 * rho * rho, k3 * rho * rho * rho);
+        let mut s = if s0 > 0.0 && s0.is_finite() { s0 } else { 1.0 };
+        for _ in 0..20 {
+            let s2 = s * s;
+            let poly = 1.0 + s2 * (a1 + s2 * (a2 + s2 * a3));
+            // f'(s) and f''(s) / s.
+            let dpoly = 1.0 + s2 * (3.0 * a1 + s2 * (5.0 * a2 + s2 * 7.0 * a3));
+            let ddpoly = 6.0 * a1 + s2 * (20.0 * a2 + s2 * 42.0 * a3);
+            if !(dpoly > 1e-12 && poly > 0.0) {
+                return None;
+            }
+            let ds = (s * poly - 1.0) / dpoly;
+            s -= ds;
+            // Newton's error after the step is about |f'' / (2 f')| ds^2: stop when that
+            // is below 1e-16 (s is about 1), without the extra step a |ds| test needs.
+            if (ddpoly * s).abs() * ds * ds <= 2e-16 * dpoly {
+                return (s > 0.0).then_some(s);
+            }
+        }
+        None
+    }
+
+    /// The general case: 2D Newton ([`Camera::undistort_from`]) from the previous
+    /// solution when it is near.
+    #[inline]
+    fn undistort_general(
+        &self,
+        xd: f64,
+        yd: f64,
+        warm: &mut Warm,
+    ) -> std::result::Result<(f64, f64), DropReason> {
+        let (x0, y0) = match warm.xy {
+            Some((gx, gy)) if (gx - xd).abs() + (gy - yd).abs() < 0.05 => (gx, gy),
+            _ => (xd, yd),
+        };
+        match self.camera.undistort_from(xd, yd, x0, y0) {
+            Ok(p) => {
+                warm.xy = Some(p);
+                Ok(p)
+            }
+            Err(_) => {
+                warm.xy = None;
+                Err(DropReason::Undistort)
+            }
+        }
+    }
+
     /// The laser-plane point of pixel `(u, v)` in the camera frame (mm), or `None` when
     /// it is dropped (grazing ray, plane behind the camera, undistortion failure).
     pub fn point_cam_mm(&self, u: f64, v: f64) -> Option<Vector3<f64>> {
-        self.point_cam(u, v, &mut None).ok()
+        self.point_cam(u, v, &mut Warm::default()).ok()
     }
 
     /// Triangulates pixels `uv_px` of one frame taken at `T_base_hand`: the kept points
@@ -279,9 +347,9 @@ impl Triangulator {
     ) -> DropCounts {
         let (r, t) = self.base_cam(base_hand);
         let mut drops = DropCounts::default();
-        let mut guess = None;
+        let mut warm = Warm::default();
         for (i, &[u, v]) in uv_px.iter().enumerate() {
-            match self.point_cam(u, v, &mut guess) {
+            match self.point_cam(u, v, &mut warm) {
                 Ok(p) => {
                     let b = r * p + t;
                     out_mm.push([b.x, b.y, b.z]);
@@ -292,6 +360,24 @@ impl Triangulator {
             }
         }
         drops
+    }
+}
+
+/// Newton starts carried from one stripe point to the next.
+#[derive(Debug, Clone, Copy)]
+struct Warm {
+    /// Radial-only models: the previous point's `r_n / r_d`.
+    scale: f64,
+    /// General models: the previous point's undistorted coordinates.
+    xy: Option<(f64, f64)>,
+}
+
+impl Default for Warm {
+    fn default() -> Self {
+        Warm {
+            scale: 1.0,
+            xy: None,
+        }
     }
 }
 
@@ -769,6 +855,39 @@ mod tests {
         for p in &out {
             assert!((p[0] - 50.0).abs() < 1e-9);
             assert!(p[2] > 0.0 && p[2] < 50.0 / (2.0f64).to_radians().tan() + 1.0);
+        }
+    }
+
+    /// The 1D radial undistortion agrees with the camera's 2D Newton over the whole
+    /// image of a strongly distorted lens (k1 = -0.25, k2 = 0.12, k3 = 0.01).
+    #[test]
+    fn radial_undistortion_matches_general() {
+        let cam = Camera::new(
+            1024,
+            768,
+            900.0,
+            900.5,
+            515.3,
+            380.8,
+            DistortionModel::OpenCv5,
+            [-0.25, 0.12, 0.0, 0.0, 0.01],
+        )
+        .unwrap();
+        let plane = Plane::new(Vector3::new(0.629, -0.0492, 0.7759), 79.87).unwrap();
+        let tri = Triangulator::new(&cam, &plane, &Iso3::identity(), 0.0).unwrap();
+        assert!(tri.radial_only);
+        let mut warm = Warm::default();
+        for row in (0..768).step_by(7) {
+            for col in (0..1024).step_by(13) {
+                let (u, v) = (col as f64 + 0.3, row as f64 - 0.2);
+                let s =
+                    tri.undistort_radial((u - cam.u0) / cam.fu, (v - cam.v0) / cam.fv, warm.scale);
+                let s = s.expect("converges inside the image");
+                warm.scale = s;
+                let (xd, yd) = ((u - cam.u0) / cam.fu, (v - cam.v0) / cam.fv);
+                let (xn, yn) = cam.undistort(xd, yd).unwrap();
+                assert!((xd * s - xn).abs() < 1e-13 && (yd * s - yn).abs() < 1e-13);
+            }
         }
     }
 
