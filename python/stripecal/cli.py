@@ -276,8 +276,10 @@ def cmd_reconstruct(args: argparse.Namespace) -> int:
     cal = stripecal.load_calibration(args.calibration)
     bar = Progress()
     t0 = time.monotonic()
+    seen = {"frames": 0}
 
     def progress(done: int, total: int, points: int) -> None:
+        seen["frames"] = total
         dt = time.monotonic() - t0
         extra = f", {points / dt:,.0f} points/s" if dt > 0 and points else ""
         bar("reconstructing", done, total, extra)
@@ -295,7 +297,7 @@ def cmd_reconstruct(args: argparse.Namespace) -> int:
     if len(cloud) == 0:
         raise stripecal.DetectionError(f"{args.scan_dir}: no stripe point in any frame; nothing written")
     cloud.save(args.output, ascii=args.ascii)
-    frames = int(cloud.frame.max()) + 1 if len(cloud) else 0
+    frames = seen["frames"]
     d = cloud.dropped
     print(f"{len(cloud)} points from {frames} frames in {dt:.2f} s "
           f"({frames / dt:.1f} frames/s, {len(cloud) / dt:,.0f} points/s)")
