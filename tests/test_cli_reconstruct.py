@@ -61,6 +61,29 @@ def test_reconstruct_and_fit_sphere(tiny, tmp_path, capsys) -> None:  # type: ig
     assert np.array_equal(stripecal.read_ply(asc)["points"], cloud["points"])
 
 
+def test_calibrate_reconstruct_measure(tiny, tmp_path, capsys) -> None:  # type: ignore[no-untyped-def]
+    """End to end: calibrate the tiny dataset (3 views), reconstruct the scan with that
+    calibration, fit the ball."""
+    _, scan, truth = tiny
+    cal = tmp_path / "cal.json"
+    assert main(["calibrate", str(scan.parent / "calib"), "-o", str(cal)]) == 0
+    ply = tmp_path / "cloud.ply"
+    assert main(["reconstruct", str(cal), str(scan), "-o", str(ply)]) == 0
+    sj = tmp_path / "sphere.json"
+    assert main(["fit-sphere", str(ply), "-o", str(sj)]) == 0
+    capsys.readouterr()
+    fit = json.loads(sj.read_text())
+    sphere = truth.sphere
+    assert sphere is not None
+    err_d = fit["diameter_mm"] - sphere["diameter_mm"]
+    err_c = np.linalg.norm(np.array(fit["center_mm"]) - np.array(sphere["center_mm"]))
+    with capsys.disabled():
+        print(f"\ncalibrated (3 views) -> ball: diameter {fit['diameter_mm']:.4f} mm (error {err_d:+.4f}), "
+              f"centre error {err_c:.4f} mm, {fit['points']} points, {fit['outliers']} outliers")
+    # The paper's seven measurements spread +-0.1 mm; the twin's noise is far smaller.
+    assert abs(err_d) < 0.05 and err_c < 0.05
+
+
 def test_reconstruct_bad_scans_write_nothing(tiny, tmp_path, capsys) -> None:  # type: ignore[no-untyped-def]
     cal, scan, _ = tiny
     ply = tmp_path / "cloud.ply"

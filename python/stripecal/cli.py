@@ -325,7 +325,9 @@ def _add_reconstruct(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -
 def cmd_fit_sphere(args: argparse.Namespace) -> int:
     """Fits a sphere (e.g. a reference ball) to a PLY point cloud: robust start (other
     surfaces such as the table are ignored), geometric least squares, outliers trimmed;
-    prints diameter and centre with one-sigma, RMS, inliers and outliers."""
+    prints diameter and centre with one-sigma, RMS, inliers and outliers. The one-sigma
+    is the fit's random part (residual scatter); errors shared by all points, such as
+    calibration errors, are not in it."""
     cloud = stripecal.read_ply(args.cloud)
     rng = None
     if args.diameter_range:
@@ -339,10 +341,10 @@ def cmd_fit_sphere(args: argparse.Namespace) -> int:
     sc = fit.center_sigma_mm if fit.center_sigma_mm is not None else np.full(3, np.nan)
     c = fit.center_mm
     rows = [
-        ("diameter", f"{fit.diameter_mm:.4f} mm", f"+- {sd:.4f} mm (1 sigma)"),
-        ("centre x", f"{c[0]:.4f} mm", f"+- {sc[0]:.4f} mm"),
-        ("centre y", f"{c[1]:.4f} mm", f"+- {sc[1]:.4f} mm"),
-        ("centre z", f"{c[2]:.4f} mm", f"+- {sc[2]:.4f} mm"),
+        ("diameter", f"{fit.diameter_mm:.4f} mm", f"+- {sd:.2g} mm (1 sigma, random part)"),
+        ("centre x", f"{c[0]:.4f} mm", f"+- {sc[0]:.2g} mm"),
+        ("centre y", f"{c[1]:.4f} mm", f"+- {sc[1]:.2g} mm"),
+        ("centre z", f"{c[2]:.4f} mm", f"+- {sc[2]:.2g} mm"),
         ("rms residual", f"{fit.rms_mm:.4f} mm", ""),
         ("points used", f"{fit.points}", ""),
         ("outliers", f"{fit.outliers}", f"(beyond {args.trim_sigma:g} robust sigmas)" if args.trim_sigma else ""),
