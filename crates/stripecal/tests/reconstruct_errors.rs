@@ -73,6 +73,26 @@ fn good_frame_gives_points() {
     assert!(out.u_px.iter().all(|u| (u - 30.3).abs() < 0.05));
 }
 
+/// A flange-pose reading (controllers that report `T_base_hand`) gives the same points
+/// as the joint readings it comes from; so does a calibration without a robot.
+#[test]
+fn flange_pose_equals_joints() {
+    let cal = calibration();
+    let img = stripe_image(W, H, 28.6);
+    let mut rec = Reconstructor::new(&cal, &ReconstructOptions::default()).unwrap();
+    let (mut a, mut b) = (ScanPoints::default(), ScanPoints::default());
+    rec.frame_reading(view(&img), &RobotReading::Joints(Q.to_vec()), 3, &mut a)
+        .unwrap();
+    let pose = Robot::hp3().forward(&Q).unwrap();
+    let mut no_robot = cal.clone();
+    no_robot.robot = None;
+    let mut rec2 = Reconstructor::new(&no_robot, &ReconstructOptions::default()).unwrap();
+    rec2.frame_reading(view(&img), &RobotReading::FlangePose(pose), 3, &mut b)
+        .unwrap();
+    assert!(!a.is_empty());
+    assert_eq!(a, b);
+}
+
 #[test]
 fn per_frame_errors_name_the_frame_and_append_nothing() {
     let cal = calibration();
