@@ -77,8 +77,9 @@ fn exact_chain(tw: &Twin, qs: &[Vec<f64>]) -> (usize, f64) {
             *surfaces.entry(t.surface).or_insert(0usize) += 1;
             n += 1;
         }
-        // Truth points are inside the image and in front: none may be dropped for the
-        // paper's geometry (rays meet the laser plane at 38-58 deg).
+        // Truth points are inside the image and in front, and every image ray of both
+        // rigs meets the laser plane far above the 2 deg threshold (paper camera: 34-69
+        // deg): none may be dropped.
         assert_eq!(idx.len(), uv.len());
     }
     eprintln!("  points per surface: {surfaces:?}");
