@@ -127,3 +127,19 @@ def test_fit_sphere_bad_input(tmp_path, capsys) -> None:  # type: ignore[no-unty
     assert "sphere" in capsys.readouterr().err and not (tmp_path / "s.json").exists()
     assert main(["fit-sphere", str(p), "--diameter-range", "10"]) == 1
     assert "MIN,MAX" in capsys.readouterr().err
+
+
+def test_reconstruct_progress_bar_on_a_terminal(tiny, tmp_path, monkeypatch) -> None:  # type: ignore[no-untyped-def]
+    """On a terminal the bar shows frames done, frames/s and points/s."""
+    import io
+
+    class Tty(io.StringIO):
+        def isatty(self) -> bool:
+            return True
+
+    err = Tty()
+    monkeypatch.setattr("sys.stderr", err)
+    cal, scan, _ = tiny
+    assert main(["reconstruct", str(cal), str(scan), "-o", str(tmp_path / "c.ply")]) == 0
+    text = err.getvalue()
+    assert "reconstructing" in text and "5/5" in text and "/s" in text and "points/s" in text
