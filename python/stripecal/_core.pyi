@@ -18,6 +18,7 @@ __all__ = [
     "CAMERA_PARAM_NAMES",
     "Calibration",
     "Camera",
+    "Cloud",
     "ConvergenceError",
     "Dataset",
     "DegenerateError",
@@ -25,6 +26,7 @@ __all__ = [
     "FormatError",
     "InvalidInputError",
     "LineFit",
+    "PlaneFit",
     "Rig",
     "Robot",
     "Scan",
@@ -40,6 +42,8 @@ __all__ = [
     "extract_stripe",
     "fit_laser_plane",
     "fit_line",
+    "fit_plane",
+    "fit_sphere",
     "load_calibration",
     "load_dataset",
     "load_image",
@@ -50,6 +54,8 @@ __all__ = [
     "matrix_to_rotvec",
     "nearest_rotation",
     "read_ply",
+    "reconstruct",
+    "reconstruct_scan",
     "rotvec_to_matrix",
     "save_calibration",
     "save_image",
@@ -60,6 +66,7 @@ __all__ = [
     "sim_presets",
     "solve_axzb",
     "solve_axzb_full",
+    "triangulate",
     "write_ply",
 ]
 
@@ -341,6 +348,10 @@ class SphereFit:
     def outliers(self) -> int: ...
     @property
     def extra(self) -> Dict[str, Any]: ...
+    @property
+    def diameter_sigma_mm(self) -> Optional[float]: ...
+    @property
+    def center_sigma_mm(self) -> Optional[_F64]: ...
     def save(self, path: _Path) -> None: ...
     def __eq__(self, value: object, /) -> bool: ...
     def __ne__(self, value: object, /) -> bool: ...
@@ -503,3 +514,75 @@ def calibrate_camera(
     distortion: str = "radial1",
     centre_model: str = "conic-exact",
 ) -> Dict[str, Any]: ...
+
+# --- reconstruction and measurement
+
+@final
+class Cloud:
+    @property
+    def points(self) -> _F64: ...
+    @property
+    def frame(self) -> npt.NDArray[np.int64]: ...
+    @property
+    def u(self) -> _F64: ...
+    @property
+    def v(self) -> _F64: ...
+    @property
+    def intensity(self) -> _F64: ...
+    @property
+    def flags(self) -> npt.NDArray[np.uint8]: ...
+    @property
+    def dropped(self) -> Dict[str, int]: ...
+    def save(self, path: _Path, ascii: bool = False) -> None: ...
+    def __len__(self) -> int: ...
+
+@final
+class PlaneFit:
+    @property
+    def normal(self) -> _F64: ...
+    @property
+    def d_mm(self) -> float: ...
+    @property
+    def centroid_mm(self) -> _F64: ...
+    @property
+    def rms_mm(self) -> float: ...
+    @property
+    def flatness_mm(self) -> float: ...
+    @property
+    def normal_sigma(self) -> _F64: ...
+    @property
+    def d_sigma_mm(self) -> float: ...
+    @property
+    def tilt_sigma_deg(self) -> float: ...
+    @property
+    def points(self) -> int: ...
+    @property
+    def outliers(self) -> int: ...
+    @property
+    def inliers(self) -> npt.NDArray[np.bool_]: ...
+
+def reconstruct(
+    calibration: Calibration,
+    images: Union[npt.NDArray[Any], List[npt.NDArray[Any]]],
+    joints: npt.ArrayLike,
+    direction: str = "auto",
+    min_ray_plane_angle_deg: float = 2.0,
+    drop_flags: int = 0,
+) -> Cloud: ...
+def reconstruct_scan(
+    calibration: Calibration,
+    scan_dir: _Path,
+    direction: str = "auto",
+    min_ray_plane_angle_deg: float = 2.0,
+    drop_flags: int = 0,
+    progress: Optional[Callable[[int, int, int], Any]] = None,
+) -> Cloud: ...
+def triangulate(
+    calibration: Calibration, uv: npt.ArrayLike, base_hand: npt.ArrayLike
+) -> Tuple[_F64, npt.NDArray[np.int64]]: ...
+def fit_sphere(
+    points: npt.ArrayLike,
+    trim_sigma: float = 3.0,
+    diameter_range_mm: Optional[Tuple[float, float]] = None,
+) -> SphereFit: ...
+def fit_plane(points: npt.ArrayLike, trim_sigma: float = 3.0) -> PlaneFit: ...

@@ -9,7 +9,8 @@ from typing import Optional, TextIO
 
 
 class Progress:
-    """``Progress()(stage, done, total)`` redraws one line ``stage [####    ] 12/40 3.1/s``."""
+    """``Progress()(stage, done, total)`` redraws one line ``stage [####    ] 12/40 3.1/s``;
+    ``extra`` (e.g. a second rate) is appended to the line."""
 
     def __init__(self, stream: Optional[TextIO] = None, width: int = 30) -> None:
         self.stream = stream if stream is not None else sys.stderr
@@ -18,7 +19,7 @@ class Progress:
         self._stage = ""
         self._t0 = time.monotonic()
 
-    def __call__(self, stage: str, done: int, total: int) -> None:
+    def __call__(self, stage: str, done: int, total: int, extra: str = "") -> None:
         if not self.enabled:
             return
         if stage != self._stage:
@@ -31,7 +32,7 @@ class Progress:
         dt = time.monotonic() - self._t0
         rate = f" {done / dt:5.1f}/s" if dt > 0 and done else ""
         bar = "#" * fill + " " * (self.width - fill)
-        self.stream.write(f"\r{stage:<18} [{bar}] {done}/{total}{rate}")
+        self.stream.write(f"\r{stage:<18} [{bar}] {done}/{total}{rate}{extra}")
         if done >= total:
             self.stream.write("\n")
             self._stage = ""

@@ -274,11 +274,114 @@ def _add_calibrate(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> 
     p.set_defaults(func=cmd_calibrate)
 
 
+def cmd_reconstruct(args: argparse.Namespace) -> int:
+    """Reconstructs a scan folder (scan.csv + stripe images, spec/DATASET.md) with a
+    calibration into a point cloud in the robot base frame (PLY: double x y z in mm plus
+    per-point view, u, v, intensity, flags). The file is written only when every frame
+    succeeded."""
+    cal = stripecal.load_calibration(args.calibration)
+    bar = Progress()
+    t0 = time.monotonic()
+    seen = {"frames": 0}
+
+    def progress(done: int, total: int, points: int) -> None:
+        seen["frames"] = total
+        dt = time.monotonic() - t0
+        extra = f", {points / dt:,.0f} points/s" if dt > 0 and points else ""
+        bar("reconstructing", done, total, extra)
+
+    drop = stripecal.Stripe.BIASED if args.drop_biased else 0
+    cloud = stripecal.reconstruct_scan(
+        cal,
+        args.scan_dir,
+        direction=args.direction,
+        min_ray_plane_angle_deg=args.min_angle_deg,
+        drop_flags=drop,
+        progress=progress,
+    )
+    dt = time.monotonic() - t0
+    if len(cloud) == 0:
+        raise stripecal.DetectionError(f"{args.scan_dir}: no stripe point in any frame; nothing written")
+    cloud.save(args.output, ascii=args.ascii)
+    frames = seen["frames"]
+    d = cloud.dropped
+    print(f"{len(cloud)} points from {frames} frames in {dt:.2f} s "
+          f"({frames / dt:.1f} frames/s, {len(cloud) / dt:,.0f} points/s)")
+    print(f"dropped: {d['grazing']} grazing rays, {d['undistort']} outside the distortion model, "
+          f"{d['flagged']} flagged")
+    print(f"wrote {args.output} ({'ascii' if args.ascii else 'binary'} PLY, base frame, mm)")
+    return 0
+
+
+def _add_reconstruct(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
+    p = sub.add_parser("reconstruct", help="scan images + calibration -> point cloud (PLY)", description=cmd_reconstruct.__doc__)
+    p.add_argument("calibration", metavar="CALIBRATION.json", help="calibration result (spec: calibration.json)")
+    p.add_argument("scan_dir", metavar="SCAN_DIR", help="scan folder: scan.csv and the images it names")
+    p.add_argument("-o", "--output", required=True, metavar="CLOUD.ply", help="output point cloud")
+    p.add_argument("--ascii", action="store_true", help="write ASCII PLY (default binary little-endian)")
+    p.add_argument("--direction", default="auto", choices=["auto", "rows", "cols"],
+                   help="stripe direction (default: the scan's rig.json hint, else from the laser plane)")
+    p.add_argument("--min-angle-deg", type=float, default=2.0, metavar="DEG",
+                   help="drop rays meeting the laser plane at less than this angle (default 2)")
+    p.add_argument("--drop-biased", action="store_true",
+                   help="drop stripe points flagged as biased (uneven background, oblique crossing)")
+    p.set_defaults(func=cmd_reconstruct)
+
+
+def cmd_fit_sphere(args: argparse.Namespace) -> int:
+    """Fits a sphere (e.g. a reference ball) to a PLY point cloud: robust start (other
+    surfaces such as the table are ignored), geometric least squares, outliers trimmed;
+    prints diameter and centre with one-sigma, RMS, inliers and outliers. The one-sigma
+    is the fit's random part (residual scatter); errors shared by all points, such as
+    calibration errors, are not in it."""
+    cloud = stripecal.read_ply(args.cloud)
+    rng = None
+    if args.diameter_range:
+        try:
+            lo, hi = (float(x) for x in args.diameter_range.split(","))
+        except ValueError:
+            raise stripecal.InvalidInputError(f"--diameter-range {args.diameter_range!r}: expected MIN,MAX in mm") from None
+        rng = (lo, hi)
+    fit = stripecal.fit_sphere(cloud["points"], trim_sigma=args.trim_sigma, diameter_range_mm=rng)
+    sd = fit.diameter_sigma_mm if fit.diameter_sigma_mm is not None else float("nan")
+    sc = fit.center_sigma_mm if fit.center_sigma_mm is not None else np.full(3, np.nan)
+    c = fit.center_mm
+    rows = [
+        ("diameter", f"{fit.diameter_mm:.4f} mm", f"+- {sd:.2g} mm (1 sigma, random part)"),
+        ("centre x", f"{c[0]:.4f} mm", f"+- {sc[0]:.2g} mm"),
+        ("centre y", f"{c[1]:.4f} mm", f"+- {sc[1]:.2g} mm"),
+        ("centre z", f"{c[2]:.4f} mm", f"+- {sc[2]:.2g} mm"),
+        ("rms residual", f"{fit.rms_mm:.4f} mm", ""),
+        ("points used", f"{fit.points}", ""),
+        ("outliers", f"{fit.outliers}", f"(beyond {args.trim_sigma:g} robust sigmas)" if args.trim_sigma else ""),
+    ]
+    print(f"sphere fit of {args.cloud} ({len(cloud['points'])} points, base frame)")
+    for name, value, note in rows:
+        print(f"  {name:<13} {value:>16}  {note}".rstrip())
+    if args.output:
+        fit.save(args.output)
+        print(f"wrote {args.output}")
+    return 0
+
+
+def _add_fit_sphere(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
+    p = sub.add_parser("fit-sphere", help="fit a sphere to a point cloud (PLY)", description=cmd_fit_sphere.__doc__)
+    p.add_argument("cloud", metavar="CLOUD.ply", help="point cloud (x y z in mm)")
+    p.add_argument("-o", "--output", metavar="SPHERE.json", help="write the fit (spec: sphere fit JSON)")
+    p.add_argument("--trim-sigma", type=float, default=3.0, metavar="K",
+                   help="outlier threshold in robust sigmas (0: no trimming; default 3)")
+    p.add_argument("--diameter-range", metavar="MIN,MAX",
+                   help="accepted diameters of the robust start, mm (default: up to the cloud's size)")
+    p.set_defaults(func=cmd_fit_sphere)
+
+
 _SUBCOMMANDS: List[Callable[[argparse._SubParsersAction[argparse.ArgumentParser]], None]] = [
     _add_info,
     _add_simulate,
     _add_demo,
     _add_calibrate,
+    _add_reconstruct,
+    _add_fit_sphere,
 ]
 
 

@@ -13,6 +13,7 @@ mod errors;
 mod files;
 mod geometry;
 mod imageview;
+mod reconstruct_py;
 mod results;
 mod rig;
 mod robot;
@@ -84,5 +85,13 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(calib_py::fit_laser_plane, m)?)?;
     m.add_function(wrap_pyfunction!(calib_py::calibrate, m)?)?;
     m.add_function(wrap_pyfunction!(calib_py::calibrate_camera, m)?)?;
+
+    m.add_class::<reconstruct_py::PyCloud>()?;
+    m.add_class::<reconstruct_py::PyPlaneFit>()?;
+    m.add_function(wrap_pyfunction!(reconstruct_py::reconstruct, m)?)?;
+    m.add_function(wrap_pyfunction!(reconstruct_py::reconstruct_scan, m)?)?;
+    m.add_function(wrap_pyfunction!(reconstruct_py::triangulate, m)?)?;
+    m.add_function(wrap_pyfunction!(reconstruct_py::fit_sphere, m)?)?;
+    m.add_function(wrap_pyfunction!(reconstruct_py::fit_plane, m)?)?;
     Ok(())
 }

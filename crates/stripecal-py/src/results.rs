@@ -456,6 +456,29 @@ impl PySphereFit {
         map_to_py(py, &self.inner.extra)
     }
 
+    /// One-sigma of the diameter, mm (`extra["diameter_sigma_mm"]`), or None.
+    #[getter]
+    fn diameter_sigma_mm(&self) -> Option<f64> {
+        self.inner
+            .extra
+            .get("diameter_sigma_mm")
+            .and_then(|v| v.as_f64())
+    }
+
+    /// One-sigma of the centre, shape (3,), mm (`extra["center_sigma_mm"]`), or None.
+    #[getter]
+    fn center_sigma_mm<'py>(&self, py: Python<'py>) -> PyResult<Option<Bound<'py, PyAny>>> {
+        let v = self
+            .inner
+            .extra
+            .get("center_sigma_mm")
+            .and_then(|v| v.as_array());
+        match v.map(|a| a.iter().filter_map(|x| x.as_f64()).collect::<Vec<f64>>()) {
+            Some(s) if s.len() == 3 => Ok(Some(nd(py, &[3], s)?)),
+            _ => Ok(None),
+        }
+    }
+
     /// Writes the sphere fit JSON (atomically).
     fn save(&self, py: Python<'_>, path: PathBuf) -> PyResult<()> {
         let s = &self.inner;

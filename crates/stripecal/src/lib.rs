@@ -30,6 +30,7 @@ pub mod geometry;
 pub mod image;
 pub mod io;
 pub mod kinematics;
+pub mod reconstruct;
 pub mod vision;
 
 pub use board::{Board, BoardKind};

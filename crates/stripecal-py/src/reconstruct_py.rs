@@ -1,0 +1,423 @@
+//! `stripecal.reconstruct`, `stripecal.reconstruct_scan`, `stripecal.triangulate`,
+//! `stripecal.fit_sphere`, `stripecal.fit_plane`, `stripecal.Cloud`,
+//! `stripecal.PlaneFit`: stripe images + joints -> points in the robot base frame, and
+//! measurements in them. Conversions only; the GIL is released while Rust works.
+
+use std::path::PathBuf;
+
+use nalgebra::Vector3;
+use pyo3::prelude::*;
+use pyo3::types::{PyDict, PySequence};
+
+use stripecal::image::AnyGray;
+use stripecal::io::{write_ply, PlyFormat, RobotReading};
+use stripecal::reconstruct::{self as core, FitOptions, PlaneFit, ReconstructOptions, ScanPoints};
+use stripecal::vision::stripe::StripeDirection;
+
+use crate::convert::{f64_array, fmt_shape, nd, py_to_iso};
+use crate::errors::{invalid_input, ResultExt};
+use crate::imageview::gray_from_py;
+use crate::results::{PyCalibration, PySphereFit};
+
+/// Reconstructed points: `points` (M, 3) float64 mm in the robot base frame, and per
+/// point the frame index, the image position `u`, `v` (px) and the stripe `intensity`
+/// (peak above the local background, gray levels) and its `flags` (`Stripe` flag bits).
+#[pyclass(name = "Cloud", module = "stripecal", frozen)]
+pub struct PyCloud {
+    pub inner: ScanPoints,
+}
+
+#[pymethods]
+impl PyCloud {
+    /// `(M, 3)` float64: points in the robot base frame, mm.
+    #[getter]
+    fn points<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
+        let p = &self.inner.points_mm;
+        nd(py, &[p.len(), 3], p.iter().flatten().copied().collect())
+    }
+
+    /// `(M,)` int64: index of the frame (image) each point comes from.
+    #[getter]
+    fn frame<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
+        let f = &self.inner.frame;
+        nd(py, &[f.len()], f.iter().map(|&x| x as i64).collect())
+    }
+
+    /// `(M,)` float64: image column of the stripe point, px.
+    #[getter]
+    fn u<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
+        nd(py, &[self.inner.u_px.len()], self.inner.u_px.clone())
+    }
+
+    /// `(M,)` float64: image row of the stripe point, px.
+    #[getter]
+    fn v<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
+        nd(py, &[self.inner.v_px.len()], self.inner.v_px.clone())
+    }
+
+    /// `(M,)` float64: stripe peak above the local background, gray levels.
+    #[getter]
+    fn intensity<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
+        let i = &self.inner.intensity;
+        nd(py, &[i.len()], i.iter().map(|&x| x as f64).collect())
+    }
+
+    /// `(M,)` uint8: the stripe point's flag bits (`Stripe.SATURATED`, ...).
+    #[getter]
+    fn flags<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
+        nd(py, &[self.inner.flags.len()], self.inner.flags.clone())
+    }
+
+    /// Points dropped, by reason: `grazing` (rays meeting the laser plane at less than
+    /// the angle threshold, or behind the camera), `undistort` (outside the distortion
+    /// model's valid zone), `flagged` (by `drop_flags`).
+    #[getter]
+    fn dropped<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
+        let d = PyDict::new(py);
+        let c = self.inner.dropped;
+        d.set_item("grazing", c.grazing)?;
+        d.set_item("undistort", c.undistort)?;
+        d.set_item("flagged", c.flagged)?;
+        Ok(d)
+    }
+
+    /// Writes a PLY file (binary little-endian, or ASCII with `ascii=True`): double
+    /// `x y z` (mm) and the properties `view` (frame index), `u`, `v`, `intensity`,
+    /// `flags`. Written atomically.
+    #[pyo3(signature = (path, ascii = false))]
+    fn save(&self, py: Python<'_>, path: PathBuf, ascii: bool) -> PyResult<()> {
+        let f = if ascii {
+            PlyFormat::Ascii
+        } else {
+            PlyFormat::BinaryLittleEndian
+        };
+        let inner = &self.inner;
+        py.detach(|| write_ply(&path, &inner.to_cloud(), f))
+            .py_err(py)
+    }
+
+    fn __len__(&self) -> usize {
+        self.inner.len()
+    }
+
+    fn __repr__(&self) -> String {
+        let frames = self
+            .inner
+            .frame
+            .iter()
+            .max()
+            .map(|&m| m as usize + 1)
+            .unwrap_or(0);
+        format!(
+            "Cloud(points={}, frames={frames}, dropped={})",
+            self.inner.len(),
+            self.inner.dropped.total()
+        )
+    }
+}
+
+fn options(
+    py: Python<'_>,
+    direction: &str,
+    min_ray_plane_angle_deg: f64,
+    drop_flags: u8,
+) -> PyResult<ReconstructOptions> {
+    let mut o = ReconstructOptions {
+        min_ray_plane_angle_deg,
+        drop_flags,
+        ..ReconstructOptions::default()
+    };
+    o.stripe.direction = StripeDirection::from_name(direction).py_err(py)?;
+    o.validate().py_err(py)?;
+    Ok(o)
+}
+
+/// Reconstructs stripe images taken at joint readings: `images` (N, H, W) uint8/uint16
+/// (or a sequence of N 2D arrays), `joints` (N, J) encoder readings in degrees (J = the
+/// calibration robot's joints). Every image must have the calibrated camera's size.
+/// `direction`: "auto" (from the laser plane), "rows" or "cols". Rays meeting the laser
+/// plane at less than `min_ray_plane_angle_deg` are dropped; so are stripe points with
+/// any of the `drop_flags` bits. Runs in parallel with the GIL released. Errors name the
+/// frame.
+#[pyfunction]
+#[pyo3(signature = (calibration, images, joints, direction = "auto", min_ray_plane_angle_deg = 2.0, drop_flags = 0))]
+pub fn reconstruct(
+    py: Python<'_>,
+    calibration: &Bound<'_, PyCalibration>,
+    images: &Bound<'_, PyAny>,
+    joints: &Bound<'_, PyAny>,
+    direction: &str,
+    min_ray_plane_angle_deg: f64,
+    drop_flags: u8,
+) -> PyResult<PyCloud> {
+    let opts = options(py, direction, min_ray_plane_angle_deg, drop_flags)?;
+    let q = f64_array(joints, "joints")?;
+    if q.ndim() != 2 {
+        return Err(invalid_input(
+            py,
+            format!(
+                "joints must have shape (N, J), got {}",
+                fmt_shape(q.shape())
+            ),
+        ));
+    }
+    let n = q.shape()[0];
+    let seq = images.cast::<PySequence>().ok();
+    let len = match (images.getattr("shape"), &seq) {
+        (Ok(s), _) => {
+            let s: Vec<usize> = s.extract()?;
+            if s.len() != 3 {
+                return Err(invalid_input(
+                    py,
+                    format!("images must have shape (N, H, W), got {}", fmt_shape(&s)),
+                ));
+            }
+            s[0]
+        }
+        (Err(_), Some(s)) => s.len()?,
+        _ => {
+            return Err(pyo3::exceptions::PyTypeError::new_err(
+                "images must be a (N, H, W) uint8/uint16 array or a sequence of 2D arrays",
+            ))
+        }
+    };
+    if len != n {
+        return Err(invalid_input(
+            py,
+            format!("{len} images but {n} rows of joints: images and joints pair by row"),
+        ));
+    }
+    let mut imgs: Vec<AnyGray> = Vec::with_capacity(n);
+    for i in 0..n {
+        let item = images.get_item(i)?;
+        imgs.push(gray_from_py(&item, &format!("images[{i}]"))?);
+    }
+    let readings: Vec<RobotReading> = q
+        .rows()
+        .into_iter()
+        .map(|r| RobotReading::Joints(r.to_vec()))
+        .collect();
+    let cal = &calibration.get().inner;
+    let sp = py
+        .detach(|| -> stripecal::Result<ScanPoints> {
+            let views = imgs
+                .iter()
+                .map(|i| i.view())
+                .collect::<stripecal::Result<Vec<_>>>()?;
+            core::reconstruct_frames(cal, &views, &readings, &opts)
+        })
+        .py_err(py)?;
+    Ok(PyCloud { inner: sp })
+}
+
+/// Reconstructs a scan folder (scan.csv + images, spec/DATASET.md) with a calibration.
+/// `direction` "auto" takes the scan's rig.json hint, else the laser plane's.
+/// `progress(frames_done, frames_total, points)` is called between chunks of frames.
+#[pyfunction]
+#[pyo3(signature = (calibration, scan_dir, direction = "auto", min_ray_plane_angle_deg = 2.0, drop_flags = 0, progress = None))]
+pub fn reconstruct_scan(
+    py: Python<'_>,
+    calibration: &Bound<'_, PyCalibration>,
+    scan_dir: PathBuf,
+    direction: &str,
+    min_ray_plane_angle_deg: f64,
+    drop_flags: u8,
+    progress: Option<Py<PyAny>>,
+) -> PyResult<PyCloud> {
+    let opts = options(py, direction, min_ray_plane_angle_deg, drop_flags)?;
+    let cal = &calibration.get().inner;
+    let mut cb_err: Option<PyErr> = None;
+    let result = py.detach(|| {
+        let scan = core::load_scan(&scan_dir, cal)?;
+        let mut cb = |done: usize, total: usize, points: usize| {
+            if let (Some(f), None) = (&progress, &cb_err) {
+                Python::attach(|py| {
+                    if let Err(e) = f.call1(py, (done, total, points)) {
+                        cb_err = Some(e);
+                    }
+                });
+            }
+        };
+        core::reconstruct_scan(cal, &scan, &opts, &mut cb)
+    });
+    if let Some(e) = cb_err {
+        return Err(e);
+    }
+    Ok(PyCloud {
+        inner: result.py_err(py)?,
+    })
+}
+
+fn points_from_py(py: Python<'_>, points: &Bound<'_, PyAny>) -> PyResult<Vec<[f64; 3]>> {
+    let a = f64_array(points, "points")?;
+    if a.ndim() != 2 || a.shape()[1] != 3 {
+        return Err(invalid_input(
+            py,
+            format!(
+                "points must have shape (N, 3), got {}",
+                fmt_shape(a.shape())
+            ),
+        ));
+    }
+    Ok(a.rows().into_iter().map(|r| [r[0], r[1], r[2]]).collect())
+}
+
+/// Triangulates stripe pixels `uv` (N, 2) of one frame taken at `base_hand` (4, 4)
+/// (`T_base_hand`): `(points (M, 3) mm base frame, index (M,) into uv)`; pixels whose ray
+/// meets the laser plane at less than 2 degrees (or behind the camera) are dropped.
+#[pyfunction]
+pub fn triangulate<'py>(
+    py: Python<'py>,
+    calibration: &Bound<'py, PyCalibration>,
+    uv: &Bound<'py, PyAny>,
+    base_hand: &Bound<'py, PyAny>,
+) -> PyResult<(Bound<'py, PyAny>, Bound<'py, PyAny>)> {
+    let a = f64_array(uv, "uv")?;
+    if a.ndim() != 2 || a.shape()[1] != 2 {
+        return Err(invalid_input(
+            py,
+            format!("uv must have shape (N, 2), got {}", fmt_shape(a.shape())),
+        ));
+    }
+    let uv: Vec<[f64; 2]> = a.rows().into_iter().map(|r| [r[0], r[1]]).collect();
+    let t = py_to_iso(base_hand, "base_hand")?;
+    let cal = &calibration.get().inner;
+    let (pts, idx) = py.detach(|| core::triangulate(cal, &t, &uv)).py_err(py)?;
+    Ok((
+        nd(py, &[pts.len(), 3], pts.iter().flatten().copied().collect())?,
+        nd(py, &[idx.len()], idx.iter().map(|&i| i as i64).collect())?,
+    ))
+}
+
+fn fit_options(
+    py: Python<'_>,
+    trim_sigma: f64,
+    diameter_range_mm: Option<(f64, f64)>,
+) -> PyResult<FitOptions> {
+    let o = FitOptions {
+        trim_sigma,
+        diameter_range_mm: diameter_range_mm.map(|(a, b)| [a, b]),
+        ..FitOptions::default()
+    };
+    // Validated by the fit; reject obviously bad values early with the same error type.
+    if !trim_sigma.is_finite() {
+        return Err(invalid_input(py, "trim_sigma must be finite"));
+    }
+    Ok(o)
+}
+
+/// Fits a sphere to `points` (N, 3) mm: robust start (so other surfaces in the cloud,
+/// e.g. the table, are ignored), geometric least squares, outliers beyond `trim_sigma`
+/// robust sigmas trimmed (0: no trimming). `diameter_range_mm` (min, max) limits the
+/// candidate spheres of the robust start. The result's `extra` holds the one-sigma
+/// `diameter_sigma_mm` and `center_sigma_mm`.
+#[pyfunction]
+#[pyo3(signature = (points, trim_sigma = 3.0, diameter_range_mm = None))]
+pub fn fit_sphere(
+    py: Python<'_>,
+    points: &Bound<'_, PyAny>,
+    trim_sigma: f64,
+    diameter_range_mm: Option<(f64, f64)>,
+) -> PyResult<PySphereFit> {
+    let pts = points_from_py(py, points)?;
+    let o = fit_options(py, trim_sigma, diameter_range_mm)?;
+    let f = py.detach(|| core::fit_sphere(&pts, &o)).py_err(py)?;
+    Ok(PySphereFit {
+        inner: f.to_sphere_fit(),
+    })
+}
+
+/// A plane fit: `normal . p = d_mm` (|normal| = 1, d_mm >= 0) with RMS, flatness and
+/// one-sigma uncertainties.
+#[pyclass(name = "PlaneFit", module = "stripecal", frozen)]
+pub struct PyPlaneFit {
+    inner: PlaneFit,
+}
+
+fn v3<'py>(py: Python<'py>, v: &Vector3<f64>) -> PyResult<Bound<'py, PyAny>> {
+    nd(py, &[3], vec![v.x, v.y, v.z])
+}
+
+#[pymethods]
+impl PyPlaneFit {
+    /// `(3,)`: unit normal.
+    #[getter]
+    fn normal<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
+        v3(py, &self.inner.plane.normal)
+    }
+    /// Offset of the plane from the origin along the normal, mm (>= 0).
+    #[getter]
+    fn d_mm(&self) -> f64 {
+        self.inner.plane.d
+    }
+    /// `(3,)`: centroid of the inliers, mm.
+    #[getter]
+    fn centroid_mm<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
+        v3(py, &self.inner.centroid_mm)
+    }
+    /// RMS distance of the inliers from the plane, mm.
+    #[getter]
+    fn rms_mm(&self) -> f64 {
+        self.inner.rms_mm
+    }
+    /// Largest minus smallest signed distance of the inliers, mm.
+    #[getter]
+    fn flatness_mm(&self) -> f64 {
+        self.inner.flatness_mm
+    }
+    /// `(3,)`: one-sigma of the normal's components.
+    #[getter]
+    fn normal_sigma<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
+        v3(py, &self.inner.normal_sigma)
+    }
+    /// One-sigma of d_mm, mm.
+    #[getter]
+    fn d_sigma_mm(&self) -> f64 {
+        self.inner.d_sigma_mm
+    }
+    /// One-sigma of the normal's direction (the larger of the two tilts), degrees.
+    #[getter]
+    fn tilt_sigma_deg(&self) -> f64 {
+        self.inner.tilt_sigma_deg
+    }
+    /// Inliers used.
+    #[getter]
+    fn points(&self) -> usize {
+        self.inner.points
+    }
+    /// Points trimmed as outliers.
+    #[getter]
+    fn outliers(&self) -> usize {
+        self.inner.outliers
+    }
+    /// `(N,)` bool: the points the fit used.
+    #[getter]
+    fn inliers<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
+        nd(py, &[self.inner.inlier.len()], self.inner.inlier.clone())
+    }
+
+    fn __repr__(&self) -> String {
+        let f = &self.inner;
+        let n = f.plane.normal;
+        format!(
+            "PlaneFit(normal=[{:.6}, {:.6}, {:.6}], d_mm={:.4}, rms_mm={:.4}, flatness_mm={:.4}, points={}, outliers={})",
+            n.x, n.y, n.z, f.plane.d, f.rms_mm, f.flatness_mm, f.points, f.outliers
+        )
+    }
+}
+
+/// Fits a plane to `points` (N, 3) mm by total least squares, outliers beyond
+/// `trim_sigma` robust sigmas trimmed (0: no trimming). Points along one line (a single
+/// stripe) are a `DegenerateError`.
+#[pyfunction]
+#[pyo3(signature = (points, trim_sigma = 3.0))]
+pub fn fit_plane(
+    py: Python<'_>,
+    points: &Bound<'_, PyAny>,
+    trim_sigma: f64,
+) -> PyResult<PyPlaneFit> {
+    let pts = points_from_py(py, points)?;
+    let o = fit_options(py, trim_sigma, None)?;
+    let f = py.detach(|| core::fit_plane(&pts, &o)).py_err(py)?;
+    Ok(PyPlaneFit { inner: f })
+}

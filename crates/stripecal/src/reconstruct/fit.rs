@@ -1,0 +1,900 @@
+//! Measurements in point clouds: sphere and plane fits with outlier trimming and
+//! one-sigma uncertainties. Points in mm (any frame); results in the same frame.
+//!
+//! ## Sphere
+//!
+//! 1. Algebraic start (Kåsa): `|p|^2 + D x + E y + F z + G = 0` by linear least squares
+//!    over centred, scaled points; centre `-(D, E, F) / 2`, `R^2 = |c|^2 - G`.
+//! 2. Geometric fit: Levenberg-Marquardt on the residuals `r_i = |p_i - c| - R`
+//!    (Jacobian row `[-(p_i - c)^T / |p_i - c|, -1]`), to a relative step of 1e-12.
+//! 3. Trimming (when `trim_sigma > 0`): the robust sigma of the residuals of ALL points
+//!    is `s = 1.4826 * median |r_i|`; points with `|r_i| > trim_sigma * s` are outliers;
+//!    the fit is redone on the inliers (from the previous solution) until the inlier set
+//!    stops changing (at most `max_trim_rounds`). The outlier count is reported.
+//! 4. Uncertainty: `sigma^2 = sum r_i^2 / (n - 4)` over the inliers and
+//!    `cov = sigma^2 (J^T J)^-1` at the solution (the usual Gauss-Markov estimate, valid
+//!    for independent equal-variance residuals): `diameter_sigma_mm = 2 sqrt(cov_RR)`,
+//!    `center_sigma_mm = sqrt(diag cov_cc)`. Correlated errors (e.g. a calibration error
+//!    shared by all points) are not in it.
+//!
+//! ## Plane
+//!
+//! Total least squares: the centroid `c` and the normal `n` = the eigenvector of the
+//! smallest eigenvalue of the scatter matrix; `d = n . c` (the [`Plane`] convention, `d >=
+//! 0`). Residuals `r_i = n . p_i - d`; `rms_mm`, `flatness_mm = max r - min r` over the
+//! inliers. Trimming as for the sphere. Uncertainty: with `n` tilted by angles `a, b`
+//! about the two in-plane axes `e1, e2` and the offset `delta` at the centroid, the
+//! residuals are `n . (p - c) - delta`, whose normal matrix is diagonal:
+//! `var a = sigma^2 / sum (e1 . (p - c))^2`, `var b` likewise, `var delta = sigma^2 / n`;
+//! `normal_sigma = sqrt(diag(var a e1 e1^T + var b e2 e2^T))`, and `d = n . c + delta`
+//! gives `var d = var delta + var a (e1 . c)^2 + var b (e2 . c)^2`.
+
+use nalgebra::{Matrix3, Matrix4, SymmetricEigen, Vector3, Vector4};
+
+use crate::error::{Error, Result};
+use crate::geometry::Plane;
+use crate::io::SphereFit;
+
+/// Options of the fits.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct FitOptions {
+    /// Outlier threshold in robust sigmas (`1.4826 * median |r|`); 0 disables trimming.
+    pub trim_sigma: f64,
+    /// Largest number of trim-and-refit rounds.
+    pub max_trim_rounds: usize,
+    /// Largest number of Levenberg-Marquardt iterations per fit.
+    pub max_iterations: usize,
+    /// Sphere: start from a robust search (module docs) instead of the algebraic fit of
+    /// all points, so a cloud that also holds other surfaces (the table the ball lies on)
+    /// gives the sphere.
+    pub robust_start: bool,
+    /// Sphere, robust start: the fraction of points assumed to lie on the sphere at
+    /// least (the quantile of |residual| minimised), in (0, 1].
+    pub robust_quantile: f64,
+    /// Sphere, robust start: accepted diameters `[min, max]` mm of candidate spheres;
+    /// `None`: up to the diagonal of the points' bounding box.
+    pub diameter_range_mm: Option<[f64; 2]>,
+}
+
+impl Default for FitOptions {
+    fn default() -> Self {
+        FitOptions {
+            trim_sigma: 3.0,
+            max_trim_rounds: 20,
+            max_iterations: 100,
+            robust_start: true,
+            robust_quantile: 0.2,
+            diameter_range_mm: None,
+        }
+    }
+}
+
+impl FitOptions {
+    fn validate(&self) -> Result<()> {
+        if !(self.trim_sigma.is_finite() && (self.trim_sigma == 0.0 || self.trim_sigma >= 1.0)) {
+            return Err(Error::InvalidInput(format!(
+                "trim_sigma = {} must be 0 (no trimming) or >= 1",
+                self.trim_sigma
+            )));
+        }
+        if !(self.robust_quantile > 0.0 && self.robust_quantile <= 1.0) {
+            return Err(Error::InvalidInput(format!(
+                "robust_quantile = {} must be in (0, 1]",
+                self.robust_quantile
+            )));
+        }
+        if let Some([a, b]) = self.diameter_range_mm {
+            if !(a.is_finite() && b.is_finite() && a >= 0.0 && b > a) {
+                return Err(Error::InvalidInput(format!(
+                    "diameter_range_mm [{a}, {b}] must be finite with 0 <= min < max"
+                )));
+            }
+        }
+        if self.max_iterations == 0 {
+            return Err(Error::InvalidInput("max_iterations must be >= 1".into()));
+        }
+        Ok(())
+    }
+}
+
+/// A sphere fit with its uncertainty.
+#[derive(Debug, Clone, PartialEq)]
+pub struct SphereFitResult {
+    pub center_mm: Vector3<f64>,
+    pub diameter_mm: f64,
+    /// RMS of the inliers' radial residuals, mm.
+    pub rms_mm: f64,
+    /// One-sigma of the diameter, mm.
+    pub diameter_sigma_mm: f64,
+    /// One-sigma of the centre coordinates, mm.
+    pub center_sigma_mm: Vector3<f64>,
+    /// Inliers used.
+    pub points: usize,
+    /// Points trimmed as outliers.
+    pub outliers: usize,
+    /// Robust sigma of the residuals at the last trimming round, mm.
+    pub robust_sigma_mm: f64,
+    /// Largest |residual| of an inlier, mm.
+    pub max_residual_mm: f64,
+    /// Inlier mask (same order as the input points).
+    pub inlier: Vec<bool>,
+}
+
+impl SphereFitResult {
+    /// The spec's sphere-fit record; the uncertainties go to the extra keys
+    /// `diameter_sigma_mm` and `center_sigma_mm` (spec/DATASET.md has no keys for them).
+    pub fn to_sphere_fit(&self) -> SphereFit {
+        let mut extra = serde_json::Map::new();
+        extra.insert(
+            "diameter_sigma_mm".into(),
+            serde_json::json!(self.diameter_sigma_mm),
+        );
+        extra.insert(
+            "center_sigma_mm".into(),
+            serde_json::json!([
+                self.center_sigma_mm.x,
+                self.center_sigma_mm.y,
+                self.center_sigma_mm.z
+            ]),
+        );
+        extra.insert(
+            "robust_sigma_mm".into(),
+            serde_json::json!(self.robust_sigma_mm),
+        );
+        extra.insert(
+            "max_residual_mm".into(),
+            serde_json::json!(self.max_residual_mm),
+        );
+        SphereFit {
+            diameter_mm: self.diameter_mm,
+            center_mm: self.center_mm,
+            rms_mm: self.rms_mm,
+            points: self.points,
+            outliers: self.outliers,
+            extra,
+        }
+    }
+}
+
+/// A plane fit with its uncertainty.
+#[derive(Debug, Clone, PartialEq)]
+pub struct PlaneFit {
+    /// `n . p = d`, `|n| = 1`, `d >= 0` (mm).
+    pub plane: Plane,
+    /// Centroid of the inliers, mm.
+    pub centroid_mm: Vector3<f64>,
+    /// RMS of the inliers' residuals, mm.
+    pub rms_mm: f64,
+    /// Largest minus smallest residual of the inliers, mm.
+    pub flatness_mm: f64,
+    /// One-sigma of the normal's components.
+    pub normal_sigma: Vector3<f64>,
+    /// One-sigma of `d`, mm.
+    pub d_sigma_mm: f64,
+    /// One-sigma of the offset at the centroid (along the normal), mm.
+    pub offset_sigma_mm: f64,
+    /// One-sigma of the normal's direction (largest of the two tilt angles), degrees.
+    pub tilt_sigma_deg: f64,
+    pub points: usize,
+    pub outliers: usize,
+    pub inlier: Vec<bool>,
+}
+
+fn check_points(points: &[[f64; 3]], min: usize, what: &str) -> Result<()> {
+    if points.len() < min {
+        return Err(Error::InvalidInput(format!(
+            "{what} fit needs at least {min} points, {} given",
+            points.len()
+        )));
+    }
+    if let Some(i) = points.iter().position(|p| p.iter().any(|x| !x.is_finite())) {
+        return Err(Error::InvalidInput(format!(
+            "point {i} ({:?}) is not finite",
+            points[i]
+        )));
+    }
+    Ok(())
+}
+
+/// Smallest robust sigma used for trimming: 1e-9 of the points' extent (exact data must
+/// not have rounding errors trimmed).
+fn sigma_floor(points: &[[f64; 3]]) -> f64 {
+    let (mut lo, mut hi) = (
+        Vector3::repeat(f64::INFINITY),
+        Vector3::repeat(f64::NEG_INFINITY),
+    );
+    for p in points {
+        let v = Vector3::from(*p);
+        lo = lo.inf(&v);
+        hi = hi.sup(&v);
+    }
+    1e-9 * (hi - lo).norm().max(1e-300)
+}
+
+fn median(v: &mut [f64]) -> f64 {
+    if v.is_empty() {
+        return 0.0;
+    }
+    let m = v.len() / 2;
+    let (_, x, _) = v.select_nth_unstable_by(m, |a, b| a.total_cmp(b));
+    *x
+}
+
+/// Robust sigma `1.4826 * median |r|`, reusing `buf`.
+fn robust_sigma(res: &[f64], buf: &mut Vec<f64>) -> f64 {
+    buf.clear();
+    buf.extend(res.iter().map(|r| r.abs()));
+    1.4826 * median(buf)
+}
+
+/// Generic trim loop: `fit(mask) -> (params, residuals of all points)`.
+fn trim_loop<P: Clone>(
+    n: usize,
+    min_inliers: usize,
+    opts: &FitOptions,
+    what: &str,
+    init: Option<(Vec<bool>, P)>,
+    sigma_floor: f64,
+    mut fit: impl FnMut(&[bool], Option<&P>) -> Result<(P, Vec<f64>)>,
+) -> Result<(P, Vec<f64>, Vec<bool>, f64)> {
+    let (mut mask, start) = match init {
+        // Without trimming every point is used; the robust start only seeds the fit.
+        Some((_, p)) if opts.trim_sigma == 0.0 => (vec![true; n], Some(p)),
+        Some((m, p)) => (m, Some(p)),
+        None => (vec![true; n], None),
+    };
+    let (mut p, mut res) = fit(&mask, start.as_ref())?;
+    let mut buf = Vec::with_capacity(n);
+    let mut sigma = robust_sigma(&res, &mut buf);
+    if opts.trim_sigma == 0.0 {
+        return Ok((p, res, mask, sigma));
+    }
+    for _ in 0..opts.max_trim_rounds {
+        // Robust sigma over the current inliers' residuals.
+        buf.clear();
+        buf.extend(
+            res.iter()
+                .zip(&mask)
+                .filter(|(_, &m)| m)
+                .map(|(r, _)| r.abs()),
+        );
+        sigma = (1.4826 * median(&mut buf)).max(sigma_floor);
+        let thr = opts.trim_sigma * sigma;
+        let new: Vec<bool> = res.iter().map(|r| r.abs() <= thr).collect();
+        if new == mask {
+            break;
+        }
+        let k = new.iter().filter(|&&m| m).count();
+        if k < min_inliers {
+            return Err(Error::Degenerate(format!(
+                "{what} fit: only {k} of {n} points within {:.3} mm ({} robust sigmas) of the fit",
+                thr, opts.trim_sigma
+            )));
+        }
+        mask = new;
+        let (p2, r2) = fit(&mask, Some(&p))?;
+        p = p2;
+        res = r2;
+    }
+    Ok((p, res, mask, sigma))
+}
+
+// ---------------------------------------------------------------- sphere
+
+/// Kåsa's algebraic sphere through the masked points: `(centre, radius)`.
+fn sphere_algebraic(points: &[[f64; 3]], mask: &[bool]) -> Result<(Vector3<f64>, f64)> {
+    let sel = || points.iter().zip(mask).filter(|(_, &m)| m).map(|(p, _)| p);
+    let k = sel().count() as f64;
+    let mean = sel().fold(Vector3::zeros(), |a, p| a + Vector3::from(*p)) / k;
+    let scale = (sel()
+        .map(|p| (Vector3::from(*p) - mean).norm_squared())
+        .sum::<f64>()
+        / k)
+        .sqrt();
+    if scale.is_nan() || scale <= 0.0 {
+        return Err(Error::Degenerate("sphere fit: all points coincide".into()));
+    }
+    // |q|^2 + D qx + E qy + F qz + G = 0 with q = (p - mean) / scale.
+    let mut ata = Matrix4::zeros();
+    let mut atb = Vector4::zeros();
+    for p in sel() {
+        let q = (Vector3::from(*p) - mean) / scale;
+        let a = Vector4::new(q.x, q.y, q.z, 1.0);
+        ata += a * a.transpose();
+        atb -= a * q.norm_squared();
+    }
+    let x = ata
+        .cholesky()
+        .map(|c| c.solve(&atb))
+        .ok_or_else(|| Error::Degenerate("sphere fit: points are coplanar or collinear".into()))?;
+    let c = Vector3::new(-0.5 * x[0], -0.5 * x[1], -0.5 * x[2]);
+    let r2 = c.norm_squared() - x[3];
+    if !(r2 > 0.0 && r2.is_finite()) {
+        return Err(Error::Degenerate(
+            "sphere fit: the points do not determine a sphere (algebraic fit failed)".into(),
+        ));
+    }
+    Ok((mean + c * scale, r2.sqrt() * scale))
+}
+
+/// Geometric LM over the masked points from `(c, r)`; returns `(c, r, J^T J)`.
+fn sphere_lm(
+    points: &[[f64; 3]],
+    mask: &[bool],
+    c0: Vector3<f64>,
+    r0: f64,
+    max_iter: usize,
+) -> Result<(Vector3<f64>, f64, Matrix4<f64>)> {
+    let eval = |c: &Vector3<f64>, r: f64| -> (f64, Matrix4<f64>, Vector4<f64>) {
+        let mut cost = 0.0;
+        let mut jtj = Matrix4::zeros();
+        let mut jtr = Vector4::zeros();
+        for (p, _) in points.iter().zip(mask).filter(|(_, &m)| m) {
+            let dv = Vector3::from(*p) - c;
+            let dist = dv.norm();
+            let res = dist - r;
+            let j = if dist > 0.0 {
+                Vector4::new(-dv.x / dist, -dv.y / dist, -dv.z / dist, -1.0)
+            } else {
+                Vector4::new(0.0, 0.0, 0.0, -1.0)
+            };
+            cost += res * res;
+            jtj += j * j.transpose();
+            jtr += j * res;
+        }
+        (cost, jtj, jtr)
+    };
+    let (mut c, mut r) = (c0, r0);
+    let (mut cost, mut jtj, mut jtr) = eval(&c, r);
+    let mut lambda = 1e-6;
+    for _ in 0..max_iter {
+        let mut a = jtj;
+        for i in 0..4 {
+            a[(i, i)] *= 1.0 + lambda;
+        }
+        let Some(ch) = a.cholesky() else {
+            lambda *= 10.0;
+            if lambda > 1e12 {
+                break;
+            }
+            continue;
+        };
+        let step = ch.solve(&(-jtr));
+        let c2 = c + step.fixed_rows::<3>(0);
+        let r2 = r + step[3];
+        let (cost2, jtj2, jtr2) = eval(&c2, r2);
+        if cost2 <= cost {
+            let small = step.norm() <= 1e-12 * (r.abs() + c.norm() + 1.0);
+            c = c2;
+            r = r2;
+            cost = cost2;
+            jtj = jtj2;
+            jtr = jtr2;
+            lambda = (lambda * 0.1).max(1e-12);
+            if small {
+                break;
+            }
+        } else {
+            lambda *= 10.0;
+            if lambda > 1e12 {
+                break;
+            }
+        }
+    }
+    if !(r.is_finite() && r > 0.0 && c.iter().all(|x| x.is_finite())) {
+        return Err(Error::Degenerate(format!(
+            "sphere fit: no sphere (radius {r})"
+        )));
+    }
+    Ok((c, r.abs(), jtj))
+}
+
+/// A sphere's centre and radius, mm.
+type SphereParams = (Vector3<f64>, f64);
+
+/// Deterministic SplitMix64 sampler of the robust start.
+struct SplitMix(u64);
+
+impl SplitMix {
+    fn below(&mut self, n: usize) -> usize {
+        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
+        let mut z = self.0;
+        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+        ((z ^ (z >> 31)) % n as u64) as usize
+    }
+}
+
+/// The sphere through 4 points, or `None` when they are (nearly) coplanar.
+fn sphere_through(p: [Vector3<f64>; 4]) -> Option<(Vector3<f64>, f64)> {
+    // 2 (p_i - p_0) . c = |p_i|^2 - |p_0|^2, i = 1..3 (relative to p_0 for conditioning).
+    let a = Matrix3::from_rows(&[
+        (p[1] - p[0]).transpose() * 2.0,
+        (p[2] - p[0]).transpose() * 2.0,
+        (p[3] - p[0]).transpose() * 2.0,
+    ]);
+    let b = Vector3::new(
+        (p[1] - p[0]).norm_squared(),
+        (p[2] - p[0]).norm_squared(),
+        (p[3] - p[0]).norm_squared(),
+    );
+    let c = a.lu().solve(&b)?;
+    let r = c.norm();
+    (r.is_finite() && r > 0.0).then_some((p[0] + c, r))
+}
+
+/// Number of random 4-point samples of the robust start.
+const ROBUST_SAMPLES: usize = 1500;
+/// Points scored per candidate (an evenly strided subset of larger clouds).
+const ROBUST_SCORE_POINTS: usize = 3000;
+
+/// Robust start (least quantile of squares): spheres through random 4-point samples
+/// (a fixed seed: the result is deterministic), with diameters in the accepted range,
+/// scored by the `robust_quantile` quantile of |residual| over (a subset of) the
+/// points; the best one gives the initial inliers `|r| <= trim_sigma * s0` with
+/// `s0 = quantile / 0.2533` (0.2533 = the 60 % point of the normal distribution: the
+/// 20 % quantile of |r| of a normal sample), which the trimming then refines.
+fn sphere_robust_start(
+    points: &[[f64; 3]],
+    opts: &FitOptions,
+) -> Result<(Vec<bool>, SphereParams)> {
+    let n = points.len();
+    let range = match opts.diameter_range_mm {
+        Some(r) => r,
+        None => {
+            let (mut lo, mut hi) = (
+                Vector3::repeat(f64::INFINITY),
+                Vector3::repeat(-f64::INFINITY),
+            );
+            for p in points {
+                let v = Vector3::from(*p);
+                lo = lo.inf(&v);
+                hi = hi.sup(&v);
+            }
+            [0.0, (hi - lo).norm()]
+        }
+    };
+    let stride = n.div_ceil(ROBUST_SCORE_POINTS).max(1);
+    let subset: Vec<Vector3<f64>> = points
+        .iter()
+        .step_by(stride)
+        .map(|p| Vector3::from(*p))
+        .collect();
+    let k =
+        ((opts.robust_quantile * subset.len() as f64).ceil() as usize).clamp(1, subset.len()) - 1;
+    let mut rng = SplitMix(0x5EED);
+    let mut buf = Vec::with_capacity(subset.len());
+    let mut best: Option<(f64, Vector3<f64>, f64)> = None;
+    for _ in 0..ROBUST_SAMPLES {
+        let idx = [rng.below(n), rng.below(n), rng.below(n), rng.below(n)];
+        let Some((c, r)) = sphere_through(idx.map(|i| Vector3::from(points[i]))) else {
+            continue;
+        };
+        if !(2.0 * r >= range[0] && 2.0 * r <= range[1]) {
+            continue;
+        }
+        buf.clear();
+        buf.extend(subset.iter().map(|p| ((p - c).norm() - r).abs()));
+        let (_, q, _) = buf.select_nth_unstable_by(k, |a, b| a.total_cmp(b));
+        let q = *q;
+        if best.is_none_or(|b| q < b.0) {
+            best = Some((q, c, r));
+        }
+    }
+    let Some((q, c, r)) = best else {
+        return Err(Error::Degenerate(format!(
+            "sphere fit: no sphere with a diameter in [{:.3}, {:.3}] mm through the points",
+            range[0], range[1]
+        )));
+    };
+    let s0 = (q / 0.2533).max(sigma_floor(points));
+    let thr = if opts.trim_sigma > 0.0 {
+        opts.trim_sigma * s0
+    } else {
+        3.0 * s0
+    };
+    let mask: Vec<bool> = points
+        .iter()
+        .map(|p| ((Vector3::from(*p) - c).norm() - r).abs() <= thr)
+        .collect();
+    let inl = mask.iter().filter(|&&m| m).count();
+    if inl < 5 {
+        return Err(Error::Degenerate(format!(
+            "sphere fit: the best candidate sphere has only {inl} points near it"
+        )));
+    }
+    Ok((mask, (c, r)))
+}
+
+/// Fits a sphere to points (mm) with trimming and one-sigma uncertainties (module docs).
+/// Needs at least 5 points not on one plane.
+pub fn fit_sphere(points: &[[f64; 3]], opts: &FitOptions) -> Result<SphereFitResult> {
+    opts.validate()?;
+    check_points(points, 5, "sphere")?;
+    let n = points.len();
+    let mut last_jtj = Matrix4::zeros();
+    let fit = |mask: &[bool], prev: Option<&(Vector3<f64>, f64)>| {
+        let (c0, r0) = match prev {
+            Some(&(c, r)) => (c, r),
+            None => sphere_algebraic(points, mask)?,
+        };
+        let (c, r, jtj) = sphere_lm(points, mask, c0, r0, opts.max_iterations)?;
+        last_jtj = jtj;
+        let res: Vec<f64> = points
+            .iter()
+            .map(|p| (Vector3::from(*p) - c).norm() - r)
+            .collect();
+        Ok(((c, r), res))
+    };
+    let init = if opts.robust_start {
+        Some(sphere_robust_start(points, opts)?)
+    } else {
+        None
+    };
+    let ((c, r), res, mask, robust) =
+        trim_loop(n, 5, opts, "sphere", init, sigma_floor(points), fit)?;
+    let k = mask.iter().filter(|&&m| m).count();
+    let ss: f64 = res
+        .iter()
+        .zip(&mask)
+        .filter(|(_, &m)| m)
+        .map(|(r, _)| r * r)
+        .sum();
+    let max_res = res
+        .iter()
+        .zip(&mask)
+        .filter(|(_, &m)| m)
+        .fold(0.0f64, |a, (r, _)| a.max(r.abs()));
+    let dof = k.saturating_sub(4).max(1) as f64;
+    let s2 = ss / dof;
+    let cov = last_jtj.try_inverse().ok_or_else(|| {
+        Error::Degenerate("sphere fit: the points do not determine the sphere".into())
+    })? * s2;
+    Ok(SphereFitResult {
+        center_mm: c,
+        diameter_mm: 2.0 * r,
+        rms_mm: (ss / k as f64).sqrt(),
+        diameter_sigma_mm: 2.0 * cov[(3, 3)].max(0.0).sqrt(),
+        center_sigma_mm: Vector3::new(
+            cov[(0, 0)].max(0.0).sqrt(),
+            cov[(1, 1)].max(0.0).sqrt(),
+            cov[(2, 2)].max(0.0).sqrt(),
+        ),
+        points: k,
+        outliers: n - k,
+        robust_sigma_mm: robust,
+        max_residual_mm: max_res,
+        inlier: mask,
+    })
+}
+
+// ---------------------------------------------------------------- plane
+
+/// Smallest ratio of the points' second in-plane spread (standard deviation) to their
+/// spread off the plane for a plane fit.
+const PLANE_MIN_SPREAD_RATIO: f64 = 5.0;
+
+struct PlaneParams {
+    n: Vector3<f64>,
+    c: Vector3<f64>,
+    e1: Vector3<f64>,
+    e2: Vector3<f64>,
+}
+
+fn plane_tls(points: &[[f64; 3]], mask: &[bool]) -> Result<PlaneParams> {
+    let sel = || points.iter().zip(mask).filter(|(_, &m)| m).map(|(p, _)| p);
+    let k = sel().count() as f64;
+    let c = sel().fold(Vector3::zeros(), |a, p| a + Vector3::from(*p)) / k;
+    let mut s = Matrix3::zeros();
+    for p in sel() {
+        let q = Vector3::from(*p) - c;
+        s += q * q.transpose();
+    }
+    let eig = SymmetricEigen::new(s);
+    let mut idx = [0usize, 1, 2];
+    idx.sort_by(|&a, &b| eig.eigenvalues[a].total_cmp(&eig.eigenvalues[b]));
+    let (l0, l1) = (eig.eigenvalues[idx[0]], eig.eigenvalues[idx[1]]);
+    // The points must spread in two directions well beyond their spread off the plane:
+    // a single stripe on a plane is a line, and a line does not fix a plane.
+    let l2 = eig.eigenvalues[idx[2]];
+    if !(l1 > PLANE_MIN_SPREAD_RATIO * PLANE_MIN_SPREAD_RATIO * l0.max(0.0) && l1 > 1e-12 * l2) {
+        return Err(Error::Degenerate(format!(
+            "plane fit: the points lie along a line (spread across it {:.3e} mm, off the \
+             plane {:.3e} mm): a plane needs points spread in two directions",
+            (l1 / k).sqrt(),
+            (l0.max(0.0) / k).sqrt()
+        )));
+    }
+    let n = eig.eigenvectors.column(idx[0]).into_owned();
+    let e1 = eig.eigenvectors.column(idx[2]).into_owned();
+    let e2 = n.cross(&e1);
+    Ok(PlaneParams { n, c, e1, e2 })
+}
+
+/// Fits a plane to points (mm) by total least squares with trimming and one-sigma
+/// uncertainties (module docs). Needs at least 4 points not on one line.
+pub fn fit_plane(points: &[[f64; 3]], opts: &FitOptions) -> Result<PlaneFit> {
+    opts.validate()?;
+    check_points(points, 4, "plane")?;
+    let n_all = points.len();
+    let fit = |mask: &[bool], _prev: Option<&Vector3<f64>>| {
+        let pp = plane_tls(points, mask)?;
+        let res: Vec<f64> = points
+            .iter()
+            .map(|p| pp.n.dot(&(Vector3::from(*p) - pp.c)))
+            .collect();
+        Ok((pp.n, res))
+    };
+    let (_, _, mask, _) = trim_loop(n_all, 4, opts, "plane", None, sigma_floor(points), fit)?;
+    let pp = plane_tls(points, &mask)?;
+    let k = mask.iter().filter(|&&m| m).count();
+    let (mut ss, mut lo, mut hi, mut s1, mut s2) =
+        (0.0, f64::INFINITY, f64::NEG_INFINITY, 0.0, 0.0);
+    for (p, _) in points.iter().zip(&mask).filter(|(_, &m)| m) {
+        let q = Vector3::from(*p) - pp.c;
+        let r = pp.n.dot(&q);
+        ss += r * r;
+        lo = lo.min(r);
+        hi = hi.max(r);
+        s1 += pp.e1.dot(&q).powi(2);
+        s2 += pp.e2.dot(&q).powi(2);
+    }
+    let sigma2 = ss / (k.saturating_sub(3).max(1)) as f64;
+    let (va, vb, vdelta) = (sigma2 / s1, sigma2 / s2, sigma2 / k as f64);
+    let cov_n = pp.e1 * pp.e1.transpose() * va + pp.e2 * pp.e2.transpose() * vb;
+    let plane = Plane::new(pp.n, pp.n.dot(&pp.c))?;
+    let vd = vdelta + va * pp.e1.dot(&pp.c).powi(2) + vb * pp.e2.dot(&pp.c).powi(2);
+    Ok(PlaneFit {
+        plane,
+        centroid_mm: pp.c,
+        rms_mm: (ss / k as f64).sqrt(),
+        flatness_mm: hi - lo,
+        normal_sigma: Vector3::new(
+            cov_n[(0, 0)].sqrt(),
+            cov_n[(1, 1)].sqrt(),
+            cov_n[(2, 2)].sqrt(),
+        ),
+        d_sigma_mm: vd.sqrt(),
+        offset_sigma_mm: vdelta.sqrt(),
+        tilt_sigma_deg: va.max(vb).sqrt().to_degrees(),
+        points: k,
+        outliers: n_all - k,
+        inlier: mask,
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// SplitMix64 + Box-Muller: a deterministic normal generator for the tests.
+    struct Rng(u64);
+    impl Rng {
+        fn u64(&mut self) -> u64 {
+            self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
+            let mut z = self.0;
+            z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+            z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+            z ^ (z >> 31)
+        }
+        fn uniform(&mut self) -> f64 {
+            ((self.u64() >> 11) as f64 + 0.5) / (1u64 << 53) as f64
+        }
+        fn normal(&mut self) -> f64 {
+            let (a, b) = (self.uniform(), self.uniform());
+            (-2.0 * a.ln()).sqrt() * (std::f64::consts::TAU * b).cos()
+        }
+    }
+
+    const D_TRUE: f64 = 44.8614;
+
+    /// Points on the cap of a sphere within `cap_deg` of its top (+z), as a stripe
+    /// scan sees a ball on a table, with radial Gaussian noise `sigma`.
+    fn cap_points(
+        rng: &mut Rng,
+        c: Vector3<f64>,
+        n: usize,
+        cap_deg: f64,
+        sigma: f64,
+    ) -> Vec<[f64; 3]> {
+        let r = 0.5 * D_TRUE;
+        let zmin = cap_deg.to_radians().cos();
+        (0..n)
+            .map(|_| {
+                let z = zmin + (1.0 - zmin) * rng.uniform();
+                let phi = std::f64::consts::TAU * rng.uniform();
+                let s = (1.0 - z * z).sqrt();
+                let u = Vector3::new(s * phi.cos(), s * phi.sin(), z);
+                let p = c + u * (r + sigma * rng.normal());
+                [p.x, p.y, p.z]
+            })
+            .collect()
+    }
+
+    #[test]
+    fn sphere_exact_points_recovered() {
+        let mut rng = Rng(1);
+        let c = Vector3::new(480.0, 90.0, -12.0);
+        let pts = cap_points(&mut rng, c, 200, 70.0, 0.0);
+        let f = fit_sphere(&pts, &FitOptions::default()).unwrap();
+        assert!((f.diameter_mm - D_TRUE).abs() < 1e-9, "{f:?}");
+        assert!((f.center_mm - c).norm() < 1e-9);
+        assert_eq!(f.outliers, 0);
+    }
+
+    /// The one-sigma of diameter and centre is honest: over many noise seeds about 68 %
+    /// of the errors fall within one sigma, and the mean squared z-score is about 1.
+    #[test]
+    fn sphere_sigma_coverage() {
+        let seeds = 300;
+        let sigma = 0.02;
+        let c = Vector3::new(480.0, 90.0, -12.0);
+        let (mut in_d, mut in_z, mut z2_d, mut z2_x) = (0, 0, 0.0, 0.0);
+        for s in 0..seeds {
+            let mut rng = Rng(1000 + s);
+            let pts = cap_points(&mut rng, c, 1500, 60.0, sigma);
+            let f = fit_sphere(&pts, &FitOptions::default()).unwrap();
+            let zd = (f.diameter_mm - D_TRUE) / f.diameter_sigma_mm;
+            let zz = (f.center_mm.z - c.z) / f.center_sigma_mm.z;
+            let zx = (f.center_mm.x - c.x) / f.center_sigma_mm.x;
+            in_d += (zd.abs() <= 1.0) as usize;
+            in_z += (zz.abs() <= 1.0) as usize;
+            z2_d += zd * zd;
+            z2_x += zx * zx;
+            assert!((f.rms_mm - sigma).abs() < 0.1 * sigma, "rms {}", f.rms_mm);
+        }
+        let n = seeds as f64;
+        let (cov_d, cov_z) = (in_d as f64 / n, in_z as f64 / n);
+        let (m_d, m_x) = (z2_d / n, z2_x / n);
+        eprintln!("coverage of 1 sigma: diameter {cov_d:.3}, centre z {cov_z:.3}; mean z^2: diameter {m_d:.3}, centre x {m_x:.3}");
+        // Binomial sd of a 0.683 fraction over 300 seeds: 0.027; allow 3.5 sd.
+        for cov in [cov_d, cov_z] {
+            assert!((cov - 0.683).abs() < 0.095, "coverage {cov}");
+        }
+        // Mean of 300 chi^2(1) values: sd sqrt(2/300) = 0.082; allow 3.5 sd.
+        for m in [m_d, m_x] {
+            assert!((m - 1.0).abs() < 0.29, "mean z^2 {m}");
+        }
+    }
+
+    /// Gross outliers (5 %, 0.3 to 3 mm off the surface, both sides) are trimmed and the
+    /// fit stays within 4 sigma of the truth.
+    #[test]
+    fn sphere_outliers_trimmed() {
+        let sigma = 0.02;
+        let c = Vector3::new(-30.0, 5.0, 100.0);
+        for s in 0..20 {
+            let mut rng = Rng(77 + s);
+            let mut pts = cap_points(&mut rng, c, 1000, 60.0, sigma);
+            let n_out = 50;
+            for i in 0..n_out {
+                let k = (i * 19) % pts.len();
+                let p = Vector3::from(pts[k]);
+                let dir = (p - c).normalize();
+                let off =
+                    (0.3 + 2.7 * rng.uniform()) * if rng.uniform() < 0.5 { -1.0 } else { 1.0 };
+                let q = p + dir * off;
+                pts[k] = [q.x, q.y, q.z];
+            }
+            let f = fit_sphere(&pts, &FitOptions::default()).unwrap();
+            assert!(
+                f.outliers >= n_out && f.outliers <= n_out + 20,
+                "outliers {}",
+                f.outliers
+            );
+            assert!(
+                (f.diameter_mm - D_TRUE).abs() < 4.0 * f.diameter_sigma_mm,
+                "diameter {} sigma {}",
+                f.diameter_mm,
+                f.diameter_sigma_mm
+            );
+            assert!((f.rms_mm - sigma).abs() < 0.15 * sigma);
+            // Without trimming the outliers pull the fit off.
+            let g = fit_sphere(
+                &pts,
+                &FitOptions {
+                    trim_sigma: 0.0,
+                    ..Default::default()
+                },
+            )
+            .unwrap();
+            assert_eq!(g.outliers, 0);
+            assert!(g.rms_mm > 5.0 * sigma);
+        }
+    }
+
+    #[test]
+    fn plane_sigma_coverage_and_flatness() {
+        let sigma = 0.01;
+        let n_true = Vector3::new(0.1, -0.2, 1.0).normalize();
+        let d_true = 42.0;
+        let e1 = n_true.cross(&Vector3::x()).normalize();
+        let e2 = n_true.cross(&e1);
+        let seeds = 300;
+        let (mut in_d, mut z2_d, mut z2_n) = (0, 0.0, 0.0);
+        for s in 0..seeds {
+            let mut rng = Rng(5000 + s);
+            let mut pts: Vec<[f64; 3]> = (0..800)
+                .map(|_| {
+                    let p = n_true * (d_true + sigma * rng.normal())
+                        + e1 * (40.0 * rng.uniform() - 20.0)
+                        + e2 * (10.0 * rng.uniform() - 5.0);
+                    [p.x, p.y, p.z]
+                })
+                .collect();
+            pts[3] = [pts[3][0] + 1.0, pts[3][1], pts[3][2]];
+            let f = fit_plane(&pts, &FitOptions::default()).unwrap();
+            assert!(f.outliers >= 1 && !f.inlier[3]);
+            let zd = (f.plane.d - d_true) / f.d_sigma_mm;
+            let zn = (f.plane.normal.x - n_true.x) / f.normal_sigma.x;
+            in_d += (zd.abs() <= 1.0) as usize;
+            z2_d += zd * zd;
+            z2_n += zn * zn;
+            assert!((f.rms_mm - sigma).abs() < 0.15 * sigma);
+            assert!(f.flatness_mm > 4.0 * sigma && f.flatness_mm < 9.0 * sigma);
+        }
+        let n = seeds as f64;
+        eprintln!(
+            "plane: coverage d {:.3}, mean z^2 d {:.3}, normal x {:.3}",
+            in_d as f64 / n,
+            z2_d / n,
+            z2_n / n
+        );
+        assert!((in_d as f64 / n - 0.683).abs() < 0.095);
+        assert!((z2_d / n - 1.0).abs() < 0.29);
+        assert!((z2_n / n - 1.0).abs() < 0.29);
+    }
+
+    /// A ball on a table: 35 % of the points on the ball's upper cap, 65 % on the
+    /// table (z = c.z - r). The robust start finds the ball; the table is trimmed.
+    #[test]
+    fn sphere_found_among_table_points() {
+        let sigma = 0.02;
+        let c = Vector3::new(400.0, 50.0, 22.0);
+        let r = 0.5 * D_TRUE;
+        let mut rng = Rng(9);
+        let mut pts = cap_points(&mut rng, c, 700, 75.0, sigma);
+        for _ in 0..1300 {
+            let x = c.x + 80.0 * rng.uniform() - 40.0;
+            let y = c.y + 60.0 * rng.uniform() - 30.0;
+            if (x - c.x).hypot(y - c.y) < r + 1.0 {
+                continue;
+            }
+            pts.push([x, y, c.z - r + sigma * rng.normal()]);
+        }
+        let f = fit_sphere(&pts, &FitOptions::default()).unwrap();
+        eprintln!(
+            "ball among table points: {f:?}",
+            f = (f.diameter_mm, f.points, f.outliers)
+        );
+        assert!((f.diameter_mm - D_TRUE).abs() < 4.0 * f.diameter_sigma_mm);
+        assert!((f.center_mm - c).norm() < 0.02);
+        assert!(f.points >= 690 && f.points <= 700 + 5, "{}", f.points);
+    }
+
+    #[test]
+    fn bad_points_are_typed_errors() {
+        let e = fit_sphere(&[[0.0; 3]; 3], &FitOptions::default()).unwrap_err();
+        assert!(matches!(e, Error::InvalidInput(_)), "{e}");
+        let mut pts = vec![[1.0, 2.0, 3.0]; 10];
+        pts[4][1] = f64::NAN;
+        let e = fit_sphere(&pts, &FitOptions::default()).unwrap_err();
+        assert!(e.to_string().contains("point 4"), "{e}");
+        // Coplanar points: no sphere.
+        let flat: Vec<[f64; 3]> = (0..50)
+            .map(|i| [i as f64, (i * i % 7) as f64, 0.0])
+            .collect();
+        let e = fit_sphere(&flat, &FitOptions::default()).unwrap_err();
+        assert!(matches!(e, Error::Degenerate(_)), "{e}");
+        let line: Vec<[f64; 3]> = (0..50).map(|i| [i as f64, 2.0 * i as f64, 0.0]).collect();
+        let e = fit_plane(&line, &FitOptions::default()).unwrap_err();
+        assert!(matches!(e, Error::Degenerate(_)), "{e}");
+        // A noisy line (one stripe on a plane) is no plane either.
+        let mut rng = Rng(3);
+        let line: Vec<[f64; 3]> = (0..500)
+            .map(|i| [i as f64 * 0.1, 0.02 * rng.normal(), 0.02 * rng.normal()])
+            .collect();
+        let e = fit_plane(&line, &FitOptions::default()).unwrap_err();
+        assert!(matches!(e, Error::Degenerate(_)), "{e}");
+    }
+}
