@@ -149,30 +149,76 @@ enum LineReject {
     Border,
 }
 
-/// The responses of a chunk that passed the coarse test: computed into a stack buffer
-/// (vectorised), then the few above `thr` are handed to `f(offset + i, r, value)`.
+/// Ridge responses of one block of `CHUNK` positions: `m[i] - max(a[i], b[i])`
+/// (saturating). Fixed width, so the compiler unrolls and vectorises it (`u8`: 16 lanes
+/// per SSE2 register) without bounds checks.
 #[inline(always)]
-fn detail<T: RidgePixel>(
-    m: &[T],
-    a: &[T],
-    b: &[T],
-    thr: T,
-    offset: u32,
-    mut f: impl FnMut(u32, u32, u32),
+fn block_response<T: RidgePixel>(
+    a: &[T; CHUNK],
+    m: &[T; CHUNK],
+    b: &[T; CHUNK],
+    out: &mut [T; CHUNK],
 ) {
-    let mut buf = [T::ZERO; CHUNK];
-    for (((o, &m), &a), &b) in buf.iter_mut().zip(m).zip(a).zip(b) {
-        *o = m.sat_sub(a.max(b));
+    for i in 0..CHUNK {
+        out[i] = m[i].sat_sub(a[i].max(b[i]));
     }
-    for (i, (&r, &v)) in buf.iter().zip(m).enumerate() {
-        if r >= thr {
-            f(offset + i as u32, r.as_u32(), v.as_u32());
+}
+
+/// Largest ridge response of a block (the coarse test: almost every block of an image
+/// is below the threshold and is done after this).
+#[inline(always)]
+fn block_max<T: RidgePixel>(a: &[T; CHUNK], m: &[T; CHUNK], b: &[T; CHUNK]) -> T {
+    let mut mx = T::ZERO;
+    for i in 0..CHUNK {
+        mx = mx.max(m[i].sat_sub(a[i].max(b[i])));
+    }
+    mx
+}
+
+/// The responses of a block that passed the coarse test: those `>= thr` at block
+/// offsets `>= skip` go to `f(offset, r, value)` in increasing offset. The threshold test
+/// is vectorised into 0/1 bytes; the set ones are found eight at a time.
+#[inline(always)]
+fn block_detail<T: RidgePixel>(
+    a: &[T; CHUNK],
+    m: &[T; CHUNK],
+    b: &[T; CHUNK],
+    thr: T,
+    skip: usize,
+    mut f: impl FnMut(usize, u32, u32),
+) {
+    let mut r = [T::ZERO; CHUNK];
+    block_response(a, m, b, &mut r);
+    let mut hit = [0u8; CHUNK];
+    for i in 0..CHUNK {
+        hit[i] = (r[i] >= thr) as u8;
+    }
+    for (k, word) in hit.chunks_exact(8).enumerate() {
+        let mut bits = u64::from_le_bytes([
+            word[0], word[1], word[2], word[3], word[4], word[5], word[6], word[7],
+        ]);
+        while bits != 0 {
+            let i = 8 * k + (bits.trailing_zeros() / 8) as usize;
+            bits &= bits - 1;
+            if i >= skip {
+                f(i, r[i].as_u32(), m[i].as_u32());
+            }
         }
     }
 }
 
+/// The three `CHUNK`-pixel blocks of `s` starting at `i - d`, `i` and `i + d`.
+#[inline(always)]
+fn blocks3<T>(s: &[T], i: usize, d: usize) -> Option<(&[T; CHUNK], &[T; CHUNK], &[T; CHUNK])> {
+    let a = s.get(i - d..i - d + CHUNK)?.try_into().ok()?;
+    let m = s.get(i..i + CHUNK)?.try_into().ok()?;
+    let b = s.get(i + d..i + d + CHUNK)?.try_into().ok()?;
+    Some((a, m, b))
+}
+
 /// `r(x) = I(x) - max(I(x - d), I(x + d))` over a contiguous scan line; runs above `thr`
-/// go to `cand`.
+/// go to `cand`. Blocks of `CHUNK` positions; the last block overlaps the one before it
+/// (positions already seen are skipped), so every block is full width.
 #[inline]
 fn scan_line<T: RidgePixel>(line: &[T], d: usize, thr: T, cand: &mut LineCand) {
     let n = line.len();
@@ -180,27 +226,36 @@ fn scan_line<T: RidgePixel>(line: &[T], d: usize, thr: T, cand: &mut LineCand) {
         return;
     }
     let end = n - d;
+    if end - d < CHUNK {
+        // short scan line: one pixel at a time
+        for x in d..end {
+            let r = line[x].sat_sub(line[x - d].max(line[x + d]));
+            if r >= thr {
+                cand.push(x as u32, r.as_u32(), line[x].as_u32());
+            }
+        }
+        cand.close();
+        return;
+    }
     let mut x = d;
     while x < end {
-        let len = (end - x).min(CHUNK);
-        let a = &line[x - d..x - d + len];
-        let m = &line[x..x + len];
-        let b = &line[x + d..x + d + len];
-        let mx = m
-            .iter()
-            .zip(a)
-            .zip(b)
-            .fold(T::ZERO, |acc, ((&m, &a), &b)| acc.max(m.sat_sub(a.max(b))));
-        if mx >= thr {
-            detail(m, a, b, thr, x as u32, |i, r, v| cand.push(i, r, v));
+        let start = x.min(end - CHUNK);
+        let skip = x - start;
+        if let Some((a, m, b)) = blocks3(line, start, d) {
+            if block_max(a, m, b) >= thr {
+                block_detail(a, m, b, thr, skip, |i, r, v| {
+                    cand.push((start + i) as u32, r, v)
+                });
+            }
         }
-        x += len;
+        x = start + CHUNK;
     }
     cand.close();
 }
 
 /// The ridge test down every column at once, row by row (cache friendly): column `x`'s
-/// candidates go to `cands[x]`.
+/// candidates go to `cands[x]` (`cands.len() == img.width()`). The same blocks, responses
+/// and candidate order as [`scan_line`] on the transposed image.
 fn scan_columns<T: RidgePixel>(img: &ImageView<'_, T>, d: usize, thr: T, cands: &mut [LineCand]) {
     let (w, h) = (img.width(), img.height());
     if h < 2 * d + 1 {
@@ -208,26 +263,37 @@ fn scan_columns<T: RidgePixel>(img: &ImageView<'_, T>, d: usize, thr: T, cands: 
     }
     for y in d..h - d {
         let (ra, rm, rb) = (img.row(y - d), img.row(y), img.row(y + d));
-        let mut x0 = 0;
-        while x0 < w {
-            let len = (w - x0).min(CHUNK);
-            let a = &ra[x0..x0 + len];
-            let m = &rm[x0..x0 + len];
-            let b = &rb[x0..x0 + len];
-            let mx = m
-                .iter()
-                .zip(a)
-                .zip(b)
-                .fold(T::ZERO, |acc, ((&m, &a), &b)| acc.max(m.sat_sub(a.max(b))));
-            if mx >= thr {
-                let cands = &mut cands[x0..x0 + len];
-                detail(m, a, b, thr, 0, |i, r, v| {
-                    if let Some(c) = cands.get_mut(i as usize) {
-                        c.push(y as u32, r, v);
+        if w < CHUNK {
+            for x in 0..w {
+                let r = rm[x].sat_sub(ra[x].max(rb[x]));
+                if r >= thr {
+                    if let Some(c) = cands.get_mut(x) {
+                        c.push(y as u32, r.as_u32(), rm[x].as_u32());
                     }
-                });
+                }
             }
-            x0 += len;
+            continue;
+        }
+        let mut x = 0;
+        while x < w {
+            let start = x.min(w - CHUNK);
+            let skip = x - start;
+            let blocks = (|| {
+                let a: &[T; CHUNK] = ra.get(start..start + CHUNK)?.try_into().ok()?;
+                let m: &[T; CHUNK] = rm.get(start..start + CHUNK)?.try_into().ok()?;
+                let b: &[T; CHUNK] = rb.get(start..start + CHUNK)?.try_into().ok()?;
+                Some((a, m, b))
+            })();
+            if let (Some((a, m, b)), Some(cs)) = (blocks, cands.get_mut(start..start + CHUNK)) {
+                if block_max(a, m, b) >= thr {
+                    block_detail(a, m, b, thr, skip, |i, r, v| {
+                        if let Some(c) = cs.get_mut(i) {
+                            c.push(y as u32, r, v);
+                        }
+                    });
+                }
+            }
+            x = start + CHUNK;
         }
     }
     for c in cands.iter_mut() {
@@ -280,25 +346,62 @@ impl Params {
     }
 }
 
-/// Sub-pixel centre of the peak at `pk` on a column (scan line of `n` pixels read by
-/// `get`): gathers a short segment first and a long one only when the short one was too
-/// short. Returns the line position of `buf[0]` and the result.
+/// A scan line that hands out segments of itself for the sub-pixel work.
+trait ScanLine {
+    type Px: Pixel;
+    /// Pixels `a..b` of the scan line.
+    fn segment(&mut self, a: usize, b: usize) -> &[Self::Px];
+}
+
+/// A contiguous scan line (an image row): segments are sub-slices.
+struct RowLine<'a, T>(&'a [T]);
+
+impl<T: Pixel> ScanLine for RowLine<'_, T> {
+    type Px = T;
+    #[inline]
+    fn segment(&mut self, a: usize, b: usize) -> &[T] {
+        &self.0[a..b]
+    }
+}
+
+/// An image column: segments are gathered into `buf` (as `u16`, which holds both pixel
+/// types exactly).
+struct ColumnLine<'a, 'b, T: RidgePixel> {
+    img: &'a ImageView<'a, T>,
+    x: usize,
+    buf: &'b mut Vec<u16>,
+}
+
+impl<T: RidgePixel> ScanLine for ColumnLine<'_, '_, T> {
+    type Px = u16;
+    #[inline]
+    fn segment(&mut self, a: usize, b: usize) -> &[u16] {
+        let (img, x) = (self.img, self.x);
+        self.buf.clear();
+        self.buf
+            .extend((a..b).map(|y| img.get(x, y).as_u32() as u16));
+        self.buf
+    }
+}
+
+/// Sub-pixel centre of the peak at `pk` of a scan line of `n` pixels: works on the
+/// segment `pk +- reach` (clipped to the line), a short one first and a long one only
+/// when the short one was too short. Returns the line position of the segment's first
+/// pixel and the result. Rows and columns both come here with the same segments, so
+/// `Rows` on a transposed image computes bit for bit what `Cols` computes on the image.
 #[inline]
-fn column_subpixel(
-    buf: &mut Vec<u16>,
+fn line_subpixel<L: ScanLine>(
+    line: &mut L,
     res: &mut Vec<f32>,
     n: usize,
     pk: usize,
     p: &Params,
-    get: impl Fn(usize) -> u16,
 ) -> (usize, std::result::Result<Sub, LineReject>) {
     let short = (p.d + 1).max(SHORT_REACH);
     for reach in [short, p.reach] {
         let a = pk.saturating_sub(reach);
         let b = (pk + reach + 1).min(n);
-        buf.clear();
-        buf.extend((a..b).map(&get));
-        let out = subpixel(buf.as_slice(), pk - a, p, res);
+        let out = subpixel(line.segment(a, b), pk - a, p, res);
         let cut = a > 0 || b < n;
         if reach == short && cut && matches!(out, Err(LineReject::Border)) && p.reach > short {
             continue;
@@ -485,42 +588,39 @@ fn subpixel<T: Pixel>(
         flags |= FLAG_LOW_SIGNAL;
     }
     // Residuals over the pixels the window may use; res[k] is pixel xmin + k.
-    let (xmin, xmax) = (flanks.0 + p.flank, flanks.1 - 1);
-    res.clear();
-    res.extend(
-        seg[xmin..=xmax]
-            .iter()
-            .enumerate()
-            .map(|(k, v)| v.to_f32() - bg.at((xmin + k) as f32)),
-    );
-    // Centroid with a fractional window centred on the estimate, to its fixed point:
-    // interior pixels weigh 1, the two end pixels the fraction inside the window.
     // Coordinates relative to xmin from here.
+    let (xmin, xmax) = (flanks.0 + p.flank, flanks.1 - 1);
     let (l, r) = (l - xmin as f32, r - xmin as f32);
     let last = xmax - xmin;
-    // Prefix sums of y and of y * k after the residuals: the window's interior sums are
-    // O(1) in every iteration.
     let m = last + 1;
+    // The residuals and, in the same pass, their prefix sums of y and of y * k: the
+    // window's interior sums are O(1) in every centroid iteration.
+    res.clear();
     res.resize(3 * m + 2, 0.0);
     let (vals, pre) = res.split_at_mut(m);
     let (pre0, pre1) = pre.split_at_mut(m + 1);
     let (mut a0, mut a1) = (0.0f32, 0.0f32);
-    pre0[0] = 0.0;
-    pre1[0] = 0.0;
-    for (k, &y) in vals.iter().enumerate() {
+    for (k, ((o, (s0, s1)), v)) in vals
+        .iter_mut()
+        .zip(pre0[1..].iter_mut().zip(pre1[1..].iter_mut()))
+        .zip(&seg[xmin..=xmax])
+        .enumerate()
+    {
+        let y = v.to_f32() - bg.at((xmin + k) as f32);
+        *o = y;
         a0 += y;
         a1 += y * k as f32;
-        pre0[k + 1] = a0;
-        pre1[k + 1] = a1;
+        *s0 = a0;
+        *s1 = a1;
     }
     let (res, pre0, pre1) = (&*vals, &*pre0, &*pre1);
     let mut c = 0.5 * (l + r);
     for _ in 0..6 {
         let (lo, hi) = (c - h, c + h);
-        // `as` truncation rounds for lo + 0.5 >= 0; below that it saturates to 0 (the
+        // `as` truncation rounds for lo + 0.5 >= 0; below that it is clamped to 0 (the
         // window is clipped to the residuals either way).
-        let i0 = (lo + 0.5) as usize;
-        let i1 = ((hi + 0.5) as usize).min(last);
+        let i0 = ((lo + 0.5) as i32).max(0) as usize;
+        let i1 = (((hi + 0.5) as i32).max(0) as usize).min(last);
         if i1 <= i0 {
             return Err(LineReject::Shape);
         }
@@ -718,9 +818,12 @@ impl StripeExtractor {
                             continue;
                         }
                     };
-                    let (y0, res) = column_subpixel(&mut self.col, &mut self.seg, h, pk, &p, |y| {
-                        img.get(x, y).as_u32() as u16
-                    });
+                    let mut line = ColumnLine {
+                        img,
+                        x,
+                        buf: &mut self.col,
+                    };
+                    let (y0, res) = line_subpixel(&mut line, &mut self.seg, h, pk, &p);
                     match res {
                         Ok(s) => out.push(StripePoint {
                             u: x as f64,
@@ -746,7 +849,7 @@ impl StripeExtractor {
                             continue;
                         }
                     };
-                    let (x0, res) = (0, subpixel(row, pk, &p, &mut self.seg));
+                    let (x0, res) = line_subpixel(&mut RowLine(row), &mut self.seg, w, pk, &p);
                     match res {
                         Ok(s) => out.push(StripePoint {
                             u: x0 as f64 + s.c,
@@ -935,6 +1038,100 @@ mod tests {
         assert_eq!(s2.points.len(), s.points.len());
         for (a, b) in s.points.iter().zip(&s2.points) {
             assert!((a.u - b.v).abs() < 1e-4 && (a.v - b.u).abs() < 1e-9);
+        }
+    }
+
+    /// A curved stripe of varying width and brightness (saturated in places) over a
+    /// textured, shaded background with pseudo-random noise: a stand-in for a laser image.
+    fn textured(w: usize, h: usize) -> Vec<u8> {
+        let mut s = 987654321u64;
+        let mut img = vec![0u8; w * h];
+        for y in 0..h {
+            let yf = y as f64;
+            let c = 0.37 * w as f64 + 9.0 * (yf / 37.0).sin() + 0.05 * yf;
+            let sigma = 1.1 + 0.6 * (yf / 23.0).cos().abs();
+            let amp = 60.0 + 260.0 * (0.5 + 0.5 * (yf / 41.0).sin());
+            for x in 0..w {
+                let xf = x as f64;
+                s = s
+                    .wrapping_mul(6364136223846793005)
+                    .wrapping_add(1442695040888963407);
+                let noise = ((s >> 40) as f64 / (1u64 << 24) as f64 - 0.5) * 3.0;
+                let board = if ((x / 13) + (y / 17)) % 2 == 0 {
+                    40.0
+                } else {
+                    15.0
+                };
+                let t = (xf - c) / sigma;
+                let v = board + 0.02 * xf + amp * (-0.5 * t * t).exp() + noise;
+                img[y * w + x] = v.round().clamp(0.0, 255.0) as u8;
+            }
+        }
+        img
+    }
+
+    fn transposed<T: Copy + Default>(img: &[T], w: usize, h: usize) -> Vec<T> {
+        let mut t = vec![T::default(); w * h];
+        for y in 0..h {
+            for x in 0..w {
+                t[x * h + y] = img[y * w + x];
+            }
+        }
+        t
+    }
+
+    /// `Rows` (and `Auto`) on the transposed image compute bit for bit what `Cols`
+    /// computes on the image: the same candidates, segments and arithmetic.
+    #[test]
+    fn rows_on_the_transposed_image_equal_cols_bit_for_bit() {
+        let (w, h) = (203, 157); // not multiples of the ridge block
+        let img = textured(w, h);
+        let img16: Vec<u16> = img.iter().map(|&v| v as u16 * 257).collect();
+        let t = transposed(&img, w, h);
+        let t16 = transposed(&img16, w, h);
+        for method in [StripeMethod::Centroid, StripeMethod::Gaussian] {
+            let cols = StripeOptions {
+                direction: StripeDirection::Cols,
+                method,
+                ..StripeOptions::default()
+            };
+            let rows = StripeOptions {
+                direction: StripeDirection::Rows,
+                ..cols.clone()
+            };
+            let auto = StripeOptions {
+                direction: StripeDirection::Auto,
+                ..cols.clone()
+            };
+            let views = [
+                (
+                    AnyView::U8(ImageView::from_slice(&img, w, h).unwrap()),
+                    AnyView::U8(ImageView::from_slice(&t, h, w).unwrap()),
+                ),
+                (
+                    AnyView::U16(ImageView::from_slice(&img16, w, h).unwrap()),
+                    AnyView::U16(ImageView::from_slice(&t16, h, w).unwrap()),
+                ),
+            ];
+            for (v, vt) in views {
+                let a = extract_stripe(v, &cols).unwrap();
+                assert!(a.points.len() > 120, "{}", a.points.len());
+                assert!(a.points.iter().any(|p| p.flags & FLAG_SATURATED != 0));
+                for opts in [&rows, &auto] {
+                    let b = extract_stripe(vt, opts).unwrap();
+                    assert_eq!(b.direction, StripeDirection::Rows);
+                    assert_eq!(b.rejected, a.rejected);
+                    assert_eq!(b.points.len(), a.points.len());
+                    for (p, q) in a.points.iter().zip(&b.points) {
+                        let swapped = StripePoint {
+                            u: q.v,
+                            v: q.u,
+                            ..*q
+                        };
+                        assert_eq!(*p, swapped);
+                    }
+                }
+            }
         }
     }
 
