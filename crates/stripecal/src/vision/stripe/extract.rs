@@ -527,13 +527,19 @@ fn subpixel<T: Pixel>(
         h = (p.window * w).max(1.5);
         // Window pixels: round(cen - h) ..= round(cen + h) (plus a pixel of slack each side
         // for the centroid's moves); flanks beyond.
-        // (x + 0.5) as i32 rounds for x > -0.5; lower values fail the border test anyway
-        let lo = ((cen - h + 0.5) as i32) as f32 - 2.0;
-        let hi = ((cen + h + 0.5) as i32) as f32 + 2.0;
-        if lo < p.flank as f32 || hi + p.flank as f32 >= n as f32 {
+        // (x + 0.5) as i32 rounds for x > -0.5; lower values fail the border test anyway.
+        // Integer bounds from here (no float round trip on the critical path).
+        let lo = ((cen - h + 0.5) as i32) as i64 - 2;
+        let hi = ((cen + h + 0.5) as i32) as i64 + 2;
+        if lo < p.flank as i64 || hi + p.flank as i64 >= n as i64 {
             return Err(LineReject::Border);
         }
         let (lo, hi) = (lo as usize, hi as usize);
+        if (lo + 1 - p.flank, hi) == flanks {
+            // The same window as the last round: the same flanks, background, peak and
+            // crossings follow (they depend on the window only), so l and r stand.
+            continue;
+        }
         flanks = (lo + 1 - p.flank, hi);
         let (ml, minl, maxl) = flank_stats(&seg[lo + 1 - p.flank..=lo]);
         let (mr, minr, maxr) = flank_stats(&seg[hi..hi + p.flank]);
@@ -593,23 +599,21 @@ fn subpixel<T: Pixel>(
     let (l, r) = (l - xmin as f32, r - xmin as f32);
     let last = xmax - xmin;
     let m = last + 1;
-    // The residuals and, in the same pass, their prefix sums of y and of y * k: the
-    // window's interior sums are O(1) in every centroid iteration.
+    // The residuals, then their prefix sums of y and of y * k: the window's interior sums
+    // are O(1) in every centroid iteration.
     res.clear();
     res.resize(3 * m + 2, 0.0);
     let (vals, pre) = res.split_at_mut(m);
     let (pre0, pre1) = pre.split_at_mut(m + 1);
-    let (mut a0, mut a1) = (0.0f32, 0.0f32);
-    for (k, ((o, (s0, s1)), v)) in vals
-        .iter_mut()
-        .zip(pre0[1..].iter_mut().zip(pre1[1..].iter_mut()))
-        .zip(&seg[xmin..=xmax])
-        .enumerate()
-    {
-        let y = v.to_f32() - bg.at((xmin + k) as f32);
-        *o = y;
+    for (k, (o, v)) in vals.iter_mut().zip(&seg[xmin..=xmax]).enumerate() {
+        *o = v.to_f32() - bg.at((xmin + k) as f32);
+    }
+    // (kf counts 0, 1, 2, ... exactly: the same products as y * k as f32)
+    let (mut a0, mut a1, mut kf) = (0.0f32, 0.0f32, 0.0f32);
+    for ((&y, s0), s1) in vals.iter().zip(&mut pre0[1..]).zip(&mut pre1[1..]) {
         a0 += y;
-        a1 += y * k as f32;
+        a1 += y * kf;
+        kf += 1.0;
         *s0 = a0;
         *s1 = a1;
     }
