@@ -65,7 +65,7 @@ impl RidgePixel for u16 {
 }
 
 /// A run of consecutive ridge responses above the threshold.
-#[derive(Debug, Clone, Copy, Default)]
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
 struct Run {
     last: u32,
     strength: u32,
@@ -75,7 +75,7 @@ struct Run {
 }
 
 /// Peak candidates of one scan line: the strongest run and the strength of the next.
-#[derive(Debug, Clone, Copy, Default)]
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
 pub(crate) struct LineCand {
     cur: Run,
     active: bool,
@@ -219,8 +219,8 @@ fn blocks3<T>(s: &[T], i: usize, d: usize) -> Option<(&[T; CHUNK], &[T; CHUNK], 
 /// `r(x) = I(x) - max(I(x - d), I(x + d))` over a contiguous scan line; runs above `thr`
 /// go to `cand`. Blocks of `CHUNK` positions; the last block overlaps the one before it
 /// (positions already seen are skipped), so every block is full width.
-#[inline]
-fn scan_line<T: RidgePixel>(line: &[T], d: usize, thr: T, cand: &mut LineCand) {
+#[inline(always)]
+fn scan_line_generic<T: RidgePixel>(line: &[T], d: usize, thr: T, cand: &mut LineCand) {
     let n = line.len();
     if n < 2 * d + 1 {
         return;
@@ -256,7 +256,13 @@ fn scan_line<T: RidgePixel>(line: &[T], d: usize, thr: T, cand: &mut LineCand) {
 /// The ridge test down every column at once, row by row (cache friendly): column `x`'s
 /// candidates go to `cands[x]` (`cands.len() == img.width()`). The same blocks, responses
 /// and candidate order as [`scan_line`] on the transposed image.
-fn scan_columns<T: RidgePixel>(img: &ImageView<'_, T>, d: usize, thr: T, cands: &mut [LineCand]) {
+#[inline(always)]
+fn scan_columns_generic<T: RidgePixel>(
+    img: &ImageView<'_, T>,
+    d: usize,
+    thr: T,
+    cands: &mut [LineCand],
+) {
     let (w, h) = (img.width(), img.height());
     if h < 2 * d + 1 {
         return;
@@ -299,6 +305,63 @@ fn scan_columns<T: RidgePixel>(img: &ImageView<'_, T>, d: usize, thr: T, cands: 
     for c in cands.iter_mut() {
         c.close();
     }
+}
+
+/// Whether the CPU runs AVX2 (std detects it once and caches it). The library is built
+/// for the x86-64 baseline (SSE2); the ridge passes are compiled a second time with AVX2
+/// enabled (32 byte lanes) and chosen here at run time.
+#[inline]
+fn has_avx2() -> bool {
+    #[cfg(target_arch = "x86_64")]
+    {
+        std::arch::is_x86_feature_detected!("avx2")
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    {
+        false
+    }
+}
+
+/// [`scan_line_generic`], with AVX2 where the CPU has it (the same results).
+#[inline]
+fn scan_line<T: RidgePixel>(line: &[T], d: usize, thr: T, cand: &mut LineCand) {
+    #[cfg(target_arch = "x86_64")]
+    if has_avx2() {
+        // SAFETY: the CPU supports AVX2 (checked just above), the only requirement for
+        // calling a `#[target_feature(enable = "avx2")]` function.
+        unsafe { scan_line_avx2(line, d, thr, cand) };
+        return;
+    }
+    scan_line_generic(line, d, thr, cand)
+}
+
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+fn scan_line_avx2<T: RidgePixel>(line: &[T], d: usize, thr: T, cand: &mut LineCand) {
+    scan_line_generic(line, d, thr, cand)
+}
+
+/// [`scan_columns_generic`], with AVX2 where the CPU has it (the same results).
+fn scan_columns<T: RidgePixel>(img: &ImageView<'_, T>, d: usize, thr: T, cands: &mut [LineCand]) {
+    #[cfg(target_arch = "x86_64")]
+    if has_avx2() {
+        // SAFETY: the CPU supports AVX2 (checked just above), the only requirement for
+        // calling a `#[target_feature(enable = "avx2")]` function.
+        unsafe { scan_columns_avx2(img, d, thr, cands) };
+        return;
+    }
+    scan_columns_generic(img, d, thr, cands)
+}
+
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+fn scan_columns_avx2<T: RidgePixel>(
+    img: &ImageView<'_, T>,
+    d: usize,
+    thr: T,
+    cands: &mut [LineCand],
+) {
+    scan_columns_generic(img, d, thr, cands)
 }
 
 /// Options converted to the image's gray scale.
@@ -1136,6 +1199,42 @@ mod tests {
                     }
                 }
             }
+        }
+    }
+
+    /// The AVX2 build of the ridge passes (where the CPU has it) finds exactly the
+    /// candidates of the baseline build, on 8- and 16-bit lines of every length mod 64.
+    #[test]
+    fn ridge_pass_dispatch_equals_the_baseline_build() {
+        let (w, h) = (203, 157);
+        let img = textured(w, h);
+        let img16: Vec<u16> = img.iter().map(|&v| v as u16 * 257).collect();
+        let v8 = ImageView::from_slice(&img, w, h).unwrap();
+        let v16 = ImageView::from_slice(&img16, w, h).unwrap();
+        for d in [1usize, 5, 9] {
+            for y in 0..h {
+                for len in [w, 140, 75, 64, 63, 20] {
+                    let (mut a, mut b) = (LineCand::default(), LineCand::default());
+                    scan_line(&v8.row(y)[..len], d, 6, &mut a);
+                    scan_line_generic(&v8.row(y)[..len], d, 6, &mut b);
+                    assert_eq!(a, b);
+                    let (mut a, mut b) = (LineCand::default(), LineCand::default());
+                    scan_line(&v16.row(y)[..len], d, 6 * 257, &mut a);
+                    scan_line_generic(&v16.row(y)[..len], d, 6 * 257, &mut b);
+                    assert_eq!(a, b);
+                }
+            }
+            let mut a = vec![LineCand::default(); w];
+            let mut b = a.clone();
+            scan_columns(&v8, d, 6, &mut a);
+            scan_columns_generic(&v8, d, 6, &mut b);
+            assert_eq!(a, b);
+            assert!(a.iter().any(|c| c.has_best));
+            let mut a = vec![LineCand::default(); w];
+            let mut b = a.clone();
+            scan_columns(&v16, d, 6 * 257, &mut a);
+            scan_columns_generic(&v16, d, 6 * 257, &mut b);
+            assert_eq!(a, b);
         }
     }
 
