@@ -805,6 +805,8 @@ fn solve3(a: &[[f64; 3]; 3], b: &[f64; 3]) -> Option<[f64; 3]> {
 pub struct StripeExtractor {
     opts: StripeOptions,
     cands: Vec<LineCand>,
+    /// Candidates of the rows sampled by the auto decision.
+    rows: Vec<LineCand>,
     seg: Vec<f32>,
     col: Vec<u16>,
     rejected: RejectCounts,
@@ -817,6 +819,7 @@ impl StripeExtractor {
         Ok(StripeExtractor {
             opts,
             cands: Vec::new(),
+            rows: Vec::new(),
             seg: Vec::new(),
             col: Vec::new(),
             rejected: RejectCounts::default(),
@@ -854,8 +857,11 @@ impl StripeExtractor {
         img: &ImageView<'_, T>,
         out: &mut Vec<StripePoint>,
     ) -> Result<StripeDirection> {
-        let (dir, have_cols) = match self.opts.direction {
-            StripeDirection::Auto => (auto_direction(img, &self.opts, &mut self.cands), true),
+        let (dir, auto) = match self.opts.direction {
+            StripeDirection::Auto => (
+                auto_direction(img, &self.opts, &mut self.cands, &mut self.rows),
+                true,
+            ),
             d => (d, false),
         };
         let p = Params::new::<T>(&self.opts);
@@ -872,7 +878,7 @@ impl StripeExtractor {
         };
         match dir {
             StripeDirection::Rows => {
-                if !have_cols {
+                if !auto {
                     self.cands.clear();
                     self.cands.resize(w, LineCand::default());
                     scan_columns(img, p.d, thr, &mut self.cands);
@@ -907,8 +913,15 @@ impl StripeExtractor {
             _ => {
                 for y in 0..h {
                     let row = img.row(y);
-                    let mut cand = LineCand::default();
-                    scan_line(row, p.d, thr, &mut cand);
+                    // rows that the auto decision sampled are scanned already
+                    let sampled = (auto && y % AUTO_STEP == AUTO_STEP / 2)
+                        .then(|| self.rows.get(y / AUTO_STEP).copied())
+                        .flatten();
+                    let cand = sampled.unwrap_or_else(|| {
+                        let mut cand = LineCand::default();
+                        scan_line(row, p.d, thr, &mut cand);
+                        cand
+                    });
                     let pk = match cand.verdict(ratio) {
                         Ok(pk) => pk,
                         Err(e) => {
@@ -1018,30 +1031,34 @@ fn flag_oblique(pts: &mut [StripePoint], dir: StripeDirection, max_slope: f32) {
 /// `Cols`.
 pub fn resolve_direction(img: AnyView<'_>, opts: &StripeOptions) -> Result<StripeDirection> {
     opts.validate()?;
-    let mut cands = Vec::new();
+    let (mut cands, mut rows) = (Vec::new(), Vec::new());
     Ok(match img {
-        AnyView::U8(v) => auto_direction(&v, opts, &mut cands),
-        AnyView::U16(v) => auto_direction(&v, opts, &mut cands),
+        AnyView::U8(v) => auto_direction(&v, opts, &mut cands, &mut rows),
+        AnyView::U16(v) => auto_direction(&v, opts, &mut cands, &mut rows),
     })
 }
 
 /// The auto decision; leaves the column candidates of the whole image in `cands` (the
-/// work a `Rows` extraction needs anyway).
+/// work a `Rows` extraction needs anyway) and those of the sampled rows in `rows` (row
+/// `AUTO_STEP / 2 + k * AUTO_STEP` at `k`: a `Cols` extraction reuses them).
 fn auto_direction<T: RidgePixel>(
     img: &ImageView<'_, T>,
     opts: &StripeOptions,
     cands: &mut Vec<LineCand>,
+    rows: &mut Vec<LineCand>,
 ) -> StripeDirection {
     let (w, h) = (img.width(), img.height());
     let thr = T::from_u32_clamped((opts.min_contrast * T::SCALE).ceil().max(1.0) as u32);
     let ratio = opts.second_peak_ratio;
     let d = opts.ridge_px;
     let (mut rows_hit, mut rows_n) = (0usize, 0usize);
+    rows.clear();
     for y in (AUTO_STEP / 2..h).step_by(AUTO_STEP) {
         let mut c = LineCand::default();
         scan_line(img.row(y), d, thr, &mut c);
         rows_n += 1;
         rows_hit += c.verdict(ratio).is_ok() as usize;
+        rows.push(c);
     }
     // Columns: the row-wise (cache friendly) ridge test of every column.
     cands.clear();
@@ -1183,6 +1200,8 @@ mod tests {
             for (v, vt) in views {
                 let a = extract_stripe(v, &cols).unwrap();
                 assert!(a.points.len() > 120, "{}", a.points.len());
+                // Auto reuses the candidates of the rows it sampled: the same result
+                assert_eq!(extract_stripe(v, &auto).unwrap(), a);
                 assert!(a.points.iter().any(|p| p.flags & FLAG_SATURATED != 0));
                 for opts in [&rows, &auto] {
                     let b = extract_stripe(vt, opts).unwrap();
