@@ -207,55 +207,78 @@ fn block_detail<T: RidgePixel>(
     }
 }
 
-/// The three `CHUNK`-pixel blocks of `s` starting at `i - d`, `i` and `i + d`.
+/// The ridge test `r(i) = m[i] - max(a[i], b[i])` over three aligned lines (the first
+/// `len` pixels, `len` the shortest of the three); responses `>= thr` go to
+/// `f(i, r, m[i])` in increasing `i`. Full blocks of `CHUNK` come from `chunks_exact`
+/// (no bounds checks); a last partial block is taken as the full block ending at `len`,
+/// overlapping the one before (positions already seen are skipped), so every block is
+/// full width. Lines shorter than a block go pixel by pixel.
 #[inline(always)]
-fn blocks3<T>(s: &[T], i: usize, d: usize) -> Option<(&[T; CHUNK], &[T; CHUNK], &[T; CHUNK])> {
-    let a = s.get(i - d..i - d + CHUNK)?.try_into().ok()?;
-    let m = s.get(i..i + CHUNK)?.try_into().ok()?;
-    let b = s.get(i + d..i + d + CHUNK)?.try_into().ok()?;
-    Some((a, m, b))
+fn ridge_blocks<T: RidgePixel>(
+    a: &[T],
+    m: &[T],
+    b: &[T],
+    thr: T,
+    mut f: impl FnMut(usize, u32, u32),
+) {
+    let len = m.len().min(a.len()).min(b.len());
+    let (a, m, b) = (&a[..len], &m[..len], &b[..len]);
+    if len < CHUNK {
+        for i in 0..len {
+            let r = m[i].sat_sub(a[i].max(b[i]));
+            if r >= thr {
+                f(i, r.as_u32(), m[i].as_u32());
+            }
+        }
+        return;
+    }
+    let blocks = a
+        .chunks_exact(CHUNK)
+        .zip(m.chunks_exact(CHUNK))
+        .zip(b.chunks_exact(CHUNK));
+    for (k, ((ca, cm), cb)) in blocks.enumerate() {
+        let (Ok(ca), Ok(cm), Ok(cb)) = (ca.try_into(), cm.try_into(), cb.try_into()) else {
+            continue;
+        };
+        if block_max(ca, cm, cb) >= thr {
+            let base = k * CHUNK;
+            block_detail(ca, cm, cb, thr, 0, |i, r, v| f(base + i, r, v));
+        }
+    }
+    let full = len / CHUNK * CHUNK;
+    if full < len {
+        let start = len - CHUNK;
+        let (ca, cm, cb) = (&a[start..], &m[start..], &b[start..]);
+        if let (Ok(ca), Ok(cm), Ok(cb)) = (ca.try_into(), cm.try_into(), cb.try_into()) {
+            if block_max(ca, cm, cb) >= thr {
+                block_detail(ca, cm, cb, thr, full - start, |i, r, v| f(start + i, r, v));
+            }
+        }
+    }
 }
 
 /// `r(x) = I(x) - max(I(x - d), I(x + d))` over a contiguous scan line; runs above `thr`
-/// go to `cand`. Blocks of `CHUNK` positions; the last block overlaps the one before it
-/// (positions already seen are skipped), so every block is full width.
+/// go to `cand`.
 #[inline(always)]
 fn scan_line_generic<T: RidgePixel>(line: &[T], d: usize, thr: T, cand: &mut LineCand) {
     let n = line.len();
     if n < 2 * d + 1 {
         return;
     }
-    let end = n - d;
-    if end - d < CHUNK {
-        // short scan line: one pixel at a time
-        for x in d..end {
-            let r = line[x].sat_sub(line[x - d].max(line[x + d]));
-            if r >= thr {
-                cand.push(x as u32, r.as_u32(), line[x].as_u32());
-            }
-        }
-        cand.close();
-        return;
-    }
-    let mut x = d;
-    while x < end {
-        let start = x.min(end - CHUNK);
-        let skip = x - start;
-        if let Some((a, m, b)) = blocks3(line, start, d) {
-            if block_max(a, m, b) >= thr {
-                block_detail(a, m, b, thr, skip, |i, r, v| {
-                    cand.push((start + i) as u32, r, v)
-                });
-            }
-        }
-        x = start + CHUNK;
-    }
+    // position x = d + i compares line[x] with line[x - d] and line[x + d]
+    ridge_blocks(
+        &line[..n - 2 * d],
+        &line[d..n - d],
+        &line[2 * d..],
+        thr,
+        |i, r, v| cand.push((d + i) as u32, r, v),
+    );
     cand.close();
 }
 
 /// The ridge test down every column at once, row by row (cache friendly): column `x`'s
 /// candidates go to `cands[x]` (`cands.len() == img.width()`). The same blocks, responses
-/// and candidate order as [`scan_line`] on the transposed image.
+/// and candidate order as [`scan_line_generic`] on the transposed image.
 #[inline(always)]
 fn scan_columns_generic<T: RidgePixel>(
     img: &ImageView<'_, T>,
@@ -263,44 +286,17 @@ fn scan_columns_generic<T: RidgePixel>(
     thr: T,
     cands: &mut [LineCand],
 ) {
-    let (w, h) = (img.width(), img.height());
+    let h = img.height();
     if h < 2 * d + 1 {
         return;
     }
     for y in d..h - d {
         let (ra, rm, rb) = (img.row(y - d), img.row(y), img.row(y + d));
-        if w < CHUNK {
-            for x in 0..w {
-                let r = rm[x].sat_sub(ra[x].max(rb[x]));
-                if r >= thr {
-                    if let Some(c) = cands.get_mut(x) {
-                        c.push(y as u32, r.as_u32(), rm[x].as_u32());
-                    }
-                }
+        ridge_blocks(ra, rm, rb, thr, |i, r, v| {
+            if let Some(c) = cands.get_mut(i) {
+                c.push(y as u32, r, v);
             }
-            continue;
-        }
-        let mut x = 0;
-        while x < w {
-            let start = x.min(w - CHUNK);
-            let skip = x - start;
-            let blocks = (|| {
-                let a: &[T; CHUNK] = ra.get(start..start + CHUNK)?.try_into().ok()?;
-                let m: &[T; CHUNK] = rm.get(start..start + CHUNK)?.try_into().ok()?;
-                let b: &[T; CHUNK] = rb.get(start..start + CHUNK)?.try_into().ok()?;
-                Some((a, m, b))
-            })();
-            if let (Some((a, m, b)), Some(cs)) = (blocks, cands.get_mut(start..start + CHUNK)) {
-                if block_max(a, m, b) >= thr {
-                    block_detail(a, m, b, thr, skip, |i, r, v| {
-                        if let Some(c) = cs.get_mut(i) {
-                            c.push(y as u32, r, v);
-                        }
-                    });
-                }
-            }
-            x = start + CHUNK;
-        }
+        });
     }
     for c in cands.iter_mut() {
         c.close();
