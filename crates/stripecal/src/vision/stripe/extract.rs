@@ -7,8 +7,8 @@ use super::{
 use crate::error::Result;
 use crate::vision::{AnyView, ImageView, Pixel};
 
-/// Pixels of a ridge-test chunk: the vectorised pass looks at this many pixels, and only
-/// a chunk holding a response above the threshold is scanned pixel by pixel.
+/// Pixels of a ridge-test block: the vectorised pass tests this many pixels at once, and
+/// only a block holding a response above the threshold is looked at further.
 const CHUNK: usize = 64;
 /// Candidate runs closer than this (pixels between them) are one run.
 const MERGE_GAP: u32 = 2;
