@@ -65,11 +65,6 @@ def test_methods_and_directions(view: Dict[str, Any], method: str, direction: st
     assert s.direction == "cols" and len(s) > 400
 
 
-@pytest.mark.xfail(
-    strict=True,
-    reason="KNOWN DEFECT (session 1): direction='rows' on the transposed image does not "
-    "reproduce the 'cols' points to 1e-6 px; open in issue 3, to fix next session",
-)
 def test_rows_direction_on_the_transposed_image(view: Dict[str, Any]) -> None:
     img = view["laser_image"]
     a = stripecal.extract_stripe(img, direction="cols")

@@ -7,8 +7,8 @@ use super::{
 use crate::error::Result;
 use crate::vision::{AnyView, ImageView, Pixel};
 
-/// Pixels of a ridge-test chunk: the vectorised pass looks at this many pixels, and only
-/// a chunk holding a response above the threshold is scanned pixel by pixel.
+/// Pixels of a ridge-test block: the vectorised pass tests this many pixels at once, and
+/// only a block holding a response above the threshold is looked at further.
 const CHUNK: usize = 64;
 /// Candidate runs closer than this (pixels between them) are one run.
 const MERGE_GAP: u32 = 2;
@@ -65,7 +65,7 @@ impl RidgePixel for u16 {
 }
 
 /// A run of consecutive ridge responses above the threshold.
-#[derive(Debug, Clone, Copy, Default)]
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
 struct Run {
     last: u32,
     strength: u32,
@@ -75,7 +75,7 @@ struct Run {
 }
 
 /// Peak candidates of one scan line: the strongest run and the strength of the next.
-#[derive(Debug, Clone, Copy, Default)]
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
 pub(crate) struct LineCand {
     cur: Run,
     active: bool,
@@ -149,90 +149,215 @@ enum LineReject {
     Border,
 }
 
-/// The responses of a chunk that passed the coarse test: computed into a stack buffer
-/// (vectorised), then the few above `thr` are handed to `f(offset + i, r, value)`.
+/// Ridge responses of one block of `CHUNK` positions: `m[i] - max(a[i], b[i])`
+/// (saturating). Fixed width, so the compiler unrolls and vectorises it (`u8`: 16 lanes
+/// per SSE2 register) without bounds checks.
 #[inline(always)]
-fn detail<T: RidgePixel>(
-    m: &[T],
+fn block_response<T: RidgePixel>(
+    a: &[T; CHUNK],
+    m: &[T; CHUNK],
+    b: &[T; CHUNK],
+    out: &mut [T; CHUNK],
+) {
+    for i in 0..CHUNK {
+        out[i] = m[i].sat_sub(a[i].max(b[i]));
+    }
+}
+
+/// Largest ridge response of a block (the coarse test: almost every block of an image
+/// is below the threshold and is done after this).
+#[inline(always)]
+fn block_max<T: RidgePixel>(a: &[T; CHUNK], m: &[T; CHUNK], b: &[T; CHUNK]) -> T {
+    let mut mx = T::ZERO;
+    for i in 0..CHUNK {
+        mx = mx.max(m[i].sat_sub(a[i].max(b[i])));
+    }
+    mx
+}
+
+/// The responses of a block that passed the coarse test: those `>= thr` at block
+/// offsets `>= skip` go to `f(offset, r, value)` in increasing offset. The threshold test
+/// is vectorised into 0/1 bytes; the set ones are found eight at a time.
+#[inline(always)]
+fn block_detail<T: RidgePixel>(
+    a: &[T; CHUNK],
+    m: &[T; CHUNK],
+    b: &[T; CHUNK],
+    thr: T,
+    skip: usize,
+    mut f: impl FnMut(usize, u32, u32),
+) {
+    let mut r = [T::ZERO; CHUNK];
+    block_response(a, m, b, &mut r);
+    let mut hit = [0u8; CHUNK];
+    for i in 0..CHUNK {
+        hit[i] = (r[i] >= thr) as u8;
+    }
+    for (k, word) in hit.chunks_exact(8).enumerate() {
+        let mut bits = u64::from_le_bytes([
+            word[0], word[1], word[2], word[3], word[4], word[5], word[6], word[7],
+        ]);
+        while bits != 0 {
+            let i = 8 * k + (bits.trailing_zeros() / 8) as usize;
+            bits &= bits - 1;
+            if i >= skip {
+                f(i, r[i].as_u32(), m[i].as_u32());
+            }
+        }
+    }
+}
+
+/// The ridge test `r(i) = m[i] - max(a[i], b[i])` over three aligned lines (the first
+/// `len` pixels, `len` the shortest of the three); responses `>= thr` go to
+/// `f(i, r, m[i])` in increasing `i`. Full blocks of `CHUNK` come from `chunks_exact`
+/// (no bounds checks); a last partial block is taken as the full block ending at `len`,
+/// overlapping the one before (positions already seen are skipped), so every block is
+/// full width. Lines shorter than a block go pixel by pixel.
+#[inline(always)]
+fn ridge_blocks<T: RidgePixel>(
     a: &[T],
+    m: &[T],
     b: &[T],
     thr: T,
-    offset: u32,
-    mut f: impl FnMut(u32, u32, u32),
+    mut f: impl FnMut(usize, u32, u32),
 ) {
-    let mut buf = [T::ZERO; CHUNK];
-    for (((o, &m), &a), &b) in buf.iter_mut().zip(m).zip(a).zip(b) {
-        *o = m.sat_sub(a.max(b));
+    let len = m.len().min(a.len()).min(b.len());
+    let (a, m, b) = (&a[..len], &m[..len], &b[..len]);
+    if len < CHUNK {
+        for i in 0..len {
+            let r = m[i].sat_sub(a[i].max(b[i]));
+            if r >= thr {
+                f(i, r.as_u32(), m[i].as_u32());
+            }
+        }
+        return;
     }
-    for (i, (&r, &v)) in buf.iter().zip(m).enumerate() {
-        if r >= thr {
-            f(offset + i as u32, r.as_u32(), v.as_u32());
+    let blocks = a
+        .chunks_exact(CHUNK)
+        .zip(m.chunks_exact(CHUNK))
+        .zip(b.chunks_exact(CHUNK));
+    for (k, ((ca, cm), cb)) in blocks.enumerate() {
+        let (Ok(ca), Ok(cm), Ok(cb)) = (ca.try_into(), cm.try_into(), cb.try_into()) else {
+            continue;
+        };
+        if block_max(ca, cm, cb) >= thr {
+            let base = k * CHUNK;
+            block_detail(ca, cm, cb, thr, 0, |i, r, v| f(base + i, r, v));
+        }
+    }
+    let full = len / CHUNK * CHUNK;
+    if full < len {
+        let start = len - CHUNK;
+        let (ca, cm, cb) = (&a[start..], &m[start..], &b[start..]);
+        if let (Ok(ca), Ok(cm), Ok(cb)) = (ca.try_into(), cm.try_into(), cb.try_into()) {
+            if block_max(ca, cm, cb) >= thr {
+                block_detail(ca, cm, cb, thr, full - start, |i, r, v| f(start + i, r, v));
+            }
         }
     }
 }
 
 /// `r(x) = I(x) - max(I(x - d), I(x + d))` over a contiguous scan line; runs above `thr`
 /// go to `cand`.
-#[inline]
-fn scan_line<T: RidgePixel>(line: &[T], d: usize, thr: T, cand: &mut LineCand) {
+#[inline(always)]
+fn scan_line_generic<T: RidgePixel>(line: &[T], d: usize, thr: T, cand: &mut LineCand) {
     let n = line.len();
     if n < 2 * d + 1 {
         return;
     }
-    let end = n - d;
-    let mut x = d;
-    while x < end {
-        let len = (end - x).min(CHUNK);
-        let a = &line[x - d..x - d + len];
-        let m = &line[x..x + len];
-        let b = &line[x + d..x + d + len];
-        let mx = m
-            .iter()
-            .zip(a)
-            .zip(b)
-            .fold(T::ZERO, |acc, ((&m, &a), &b)| acc.max(m.sat_sub(a.max(b))));
-        if mx >= thr {
-            detail(m, a, b, thr, x as u32, |i, r, v| cand.push(i, r, v));
-        }
-        x += len;
-    }
+    // position x = d + i compares line[x] with line[x - d] and line[x + d]
+    ridge_blocks(
+        &line[..n - 2 * d],
+        &line[d..n - d],
+        &line[2 * d..],
+        thr,
+        |i, r, v| cand.push((d + i) as u32, r, v),
+    );
     cand.close();
 }
 
 /// The ridge test down every column at once, row by row (cache friendly): column `x`'s
-/// candidates go to `cands[x]`.
-fn scan_columns<T: RidgePixel>(img: &ImageView<'_, T>, d: usize, thr: T, cands: &mut [LineCand]) {
-    let (w, h) = (img.width(), img.height());
+/// candidates go to `cands[x]` (`cands.len() == img.width()`). The same blocks, responses
+/// and candidate order as [`scan_line_generic`] on the transposed image.
+#[inline(always)]
+fn scan_columns_generic<T: RidgePixel>(
+    img: &ImageView<'_, T>,
+    d: usize,
+    thr: T,
+    cands: &mut [LineCand],
+) {
+    let h = img.height();
     if h < 2 * d + 1 {
         return;
     }
     for y in d..h - d {
         let (ra, rm, rb) = (img.row(y - d), img.row(y), img.row(y + d));
-        let mut x0 = 0;
-        while x0 < w {
-            let len = (w - x0).min(CHUNK);
-            let a = &ra[x0..x0 + len];
-            let m = &rm[x0..x0 + len];
-            let b = &rb[x0..x0 + len];
-            let mx = m
-                .iter()
-                .zip(a)
-                .zip(b)
-                .fold(T::ZERO, |acc, ((&m, &a), &b)| acc.max(m.sat_sub(a.max(b))));
-            if mx >= thr {
-                let cands = &mut cands[x0..x0 + len];
-                detail(m, a, b, thr, 0, |i, r, v| {
-                    if let Some(c) = cands.get_mut(i as usize) {
-                        c.push(y as u32, r, v);
-                    }
-                });
+        ridge_blocks(ra, rm, rb, thr, |i, r, v| {
+            if let Some(c) = cands.get_mut(i) {
+                c.push(y as u32, r, v);
             }
-            x0 += len;
-        }
+        });
     }
     for c in cands.iter_mut() {
         c.close();
     }
+}
+
+/// Whether the CPU runs AVX2 (std detects it once and caches it). The library is built
+/// for the x86-64 baseline (SSE2); the ridge passes are compiled a second time with AVX2
+/// enabled (32 byte lanes) and chosen here at run time.
+#[inline]
+fn has_avx2() -> bool {
+    #[cfg(target_arch = "x86_64")]
+    {
+        std::arch::is_x86_feature_detected!("avx2")
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    {
+        false
+    }
+}
+
+/// [`scan_line_generic`], with AVX2 where the CPU has it (the same results).
+#[inline]
+fn scan_line<T: RidgePixel>(line: &[T], d: usize, thr: T, cand: &mut LineCand) {
+    #[cfg(target_arch = "x86_64")]
+    if has_avx2() {
+        // SAFETY: the CPU supports AVX2 (checked just above), the only requirement for
+        // calling a `#[target_feature(enable = "avx2")]` function.
+        unsafe { scan_line_avx2(line, d, thr, cand) };
+        return;
+    }
+    scan_line_generic(line, d, thr, cand)
+}
+
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+fn scan_line_avx2<T: RidgePixel>(line: &[T], d: usize, thr: T, cand: &mut LineCand) {
+    scan_line_generic(line, d, thr, cand)
+}
+
+/// [`scan_columns_generic`], with AVX2 where the CPU has it (the same results).
+fn scan_columns<T: RidgePixel>(img: &ImageView<'_, T>, d: usize, thr: T, cands: &mut [LineCand]) {
+    #[cfg(target_arch = "x86_64")]
+    if has_avx2() {
+        // SAFETY: the CPU supports AVX2 (checked just above), the only requirement for
+        // calling a `#[target_feature(enable = "avx2")]` function.
+        unsafe { scan_columns_avx2(img, d, thr, cands) };
+        return;
+    }
+    scan_columns_generic(img, d, thr, cands)
+}
+
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+fn scan_columns_avx2<T: RidgePixel>(
+    img: &ImageView<'_, T>,
+    d: usize,
+    thr: T,
+    cands: &mut [LineCand],
+) {
+    scan_columns_generic(img, d, thr, cands)
 }
 
 /// Options converted to the image's gray scale.
@@ -280,25 +405,62 @@ impl Params {
     }
 }
 
-/// Sub-pixel centre of the peak at `pk` on a column (scan line of `n` pixels read by
-/// `get`): gathers a short segment first and a long one only when the short one was too
-/// short. Returns the line position of `buf[0]` and the result.
+/// A scan line that hands out segments of itself for the sub-pixel work.
+trait ScanLine {
+    type Px: Pixel;
+    /// Pixels `a..b` of the scan line.
+    fn segment(&mut self, a: usize, b: usize) -> &[Self::Px];
+}
+
+/// A contiguous scan line (an image row): segments are sub-slices.
+struct RowLine<'a, T>(&'a [T]);
+
+impl<T: Pixel> ScanLine for RowLine<'_, T> {
+    type Px = T;
+    #[inline]
+    fn segment(&mut self, a: usize, b: usize) -> &[T] {
+        &self.0[a..b]
+    }
+}
+
+/// An image column: segments are gathered into `buf` (as `u16`, which holds both pixel
+/// types exactly).
+struct ColumnLine<'a, 'b, T: RidgePixel> {
+    img: &'a ImageView<'a, T>,
+    x: usize,
+    buf: &'b mut Vec<u16>,
+}
+
+impl<T: RidgePixel> ScanLine for ColumnLine<'_, '_, T> {
+    type Px = u16;
+    #[inline]
+    fn segment(&mut self, a: usize, b: usize) -> &[u16] {
+        let (img, x) = (self.img, self.x);
+        self.buf.clear();
+        self.buf
+            .extend((a..b).map(|y| img.get(x, y).as_u32() as u16));
+        self.buf
+    }
+}
+
+/// Sub-pixel centre of the peak at `pk` of a scan line of `n` pixels: works on the
+/// segment `pk +- reach` (clipped to the line), a short one first and a long one only
+/// when the short one was too short. Returns the line position of the segment's first
+/// pixel and the result. Rows and columns both come here with the same segments, so
+/// `Rows` on a transposed image computes bit for bit what `Cols` computes on the image.
 #[inline]
-fn column_subpixel(
-    buf: &mut Vec<u16>,
+fn line_subpixel<L: ScanLine>(
+    line: &mut L,
     res: &mut Vec<f32>,
     n: usize,
     pk: usize,
     p: &Params,
-    get: impl Fn(usize) -> u16,
 ) -> (usize, std::result::Result<Sub, LineReject>) {
     let short = (p.d + 1).max(SHORT_REACH);
     for reach in [short, p.reach] {
         let a = pk.saturating_sub(reach);
         let b = (pk + reach + 1).min(n);
-        buf.clear();
-        buf.extend((a..b).map(&get));
-        let out = subpixel(buf.as_slice(), pk - a, p, res);
+        let out = subpixel(line.segment(a, b), pk - a, p, res);
         let cut = a > 0 || b < n;
         if reach == short && cut && matches!(out, Err(LineReject::Border)) && p.reach > short {
             continue;
@@ -424,13 +586,19 @@ fn subpixel<T: Pixel>(
         h = (p.window * w).max(1.5);
         // Window pixels: round(cen - h) ..= round(cen + h) (plus a pixel of slack each side
         // for the centroid's moves); flanks beyond.
-        // (x + 0.5) as i32 rounds for x > -0.5; lower values fail the border test anyway
-        let lo = ((cen - h + 0.5) as i32) as f32 - 2.0;
-        let hi = ((cen + h + 0.5) as i32) as f32 + 2.0;
-        if lo < p.flank as f32 || hi + p.flank as f32 >= n as f32 {
+        // (x + 0.5) as i32 rounds for x > -0.5; lower values fail the border test anyway.
+        // Integer bounds from here (no float round trip on the critical path).
+        let lo = ((cen - h + 0.5) as i32) as i64 - 2;
+        let hi = ((cen + h + 0.5) as i32) as i64 + 2;
+        if lo < p.flank as i64 || hi + p.flank as i64 >= n as i64 {
             return Err(LineReject::Border);
         }
         let (lo, hi) = (lo as usize, hi as usize);
+        if (lo + 1 - p.flank, hi) == flanks {
+            // The same window as the last round: the same flanks, background, peak and
+            // crossings follow (they depend on the window only), so l and r stand.
+            continue;
+        }
         flanks = (lo + 1 - p.flank, hi);
         let (ml, minl, maxl) = flank_stats(&seg[lo + 1 - p.flank..=lo]);
         let (mr, minr, maxr) = flank_stats(&seg[hi..hi + p.flank]);
@@ -485,42 +653,37 @@ fn subpixel<T: Pixel>(
         flags |= FLAG_LOW_SIGNAL;
     }
     // Residuals over the pixels the window may use; res[k] is pixel xmin + k.
-    let (xmin, xmax) = (flanks.0 + p.flank, flanks.1 - 1);
-    res.clear();
-    res.extend(
-        seg[xmin..=xmax]
-            .iter()
-            .enumerate()
-            .map(|(k, v)| v.to_f32() - bg.at((xmin + k) as f32)),
-    );
-    // Centroid with a fractional window centred on the estimate, to its fixed point:
-    // interior pixels weigh 1, the two end pixels the fraction inside the window.
     // Coordinates relative to xmin from here.
+    let (xmin, xmax) = (flanks.0 + p.flank, flanks.1 - 1);
     let (l, r) = (l - xmin as f32, r - xmin as f32);
     let last = xmax - xmin;
-    // Prefix sums of y and of y * k after the residuals: the window's interior sums are
-    // O(1) in every iteration.
     let m = last + 1;
+    // The residuals, then their prefix sums of y and of y * k: the window's interior sums
+    // are O(1) in every centroid iteration.
+    res.clear();
     res.resize(3 * m + 2, 0.0);
     let (vals, pre) = res.split_at_mut(m);
     let (pre0, pre1) = pre.split_at_mut(m + 1);
-    let (mut a0, mut a1) = (0.0f32, 0.0f32);
-    pre0[0] = 0.0;
-    pre1[0] = 0.0;
-    for (k, &y) in vals.iter().enumerate() {
+    for (k, (o, v)) in vals.iter_mut().zip(&seg[xmin..=xmax]).enumerate() {
+        *o = v.to_f32() - bg.at((xmin + k) as f32);
+    }
+    // (kf counts 0, 1, 2, ... exactly: the same products as y * k as f32)
+    let (mut a0, mut a1, mut kf) = (0.0f32, 0.0f32, 0.0f32);
+    for ((&y, s0), s1) in vals.iter().zip(&mut pre0[1..]).zip(&mut pre1[1..]) {
         a0 += y;
-        a1 += y * k as f32;
-        pre0[k + 1] = a0;
-        pre1[k + 1] = a1;
+        a1 += y * kf;
+        kf += 1.0;
+        *s0 = a0;
+        *s1 = a1;
     }
     let (res, pre0, pre1) = (&*vals, &*pre0, &*pre1);
     let mut c = 0.5 * (l + r);
     for _ in 0..6 {
         let (lo, hi) = (c - h, c + h);
-        // `as` truncation rounds for lo + 0.5 >= 0; below that it saturates to 0 (the
+        // `as` truncation rounds for lo + 0.5 >= 0; below that it is clamped to 0 (the
         // window is clipped to the residuals either way).
-        let i0 = (lo + 0.5) as usize;
-        let i1 = ((hi + 0.5) as usize).min(last);
+        let i0 = ((lo + 0.5) as i32).max(0) as usize;
+        let i1 = (((hi + 0.5) as i32).max(0) as usize).min(last);
         if i1 <= i0 {
             return Err(LineReject::Shape);
         }
@@ -638,6 +801,8 @@ fn solve3(a: &[[f64; 3]; 3], b: &[f64; 3]) -> Option<[f64; 3]> {
 pub struct StripeExtractor {
     opts: StripeOptions,
     cands: Vec<LineCand>,
+    /// Candidates of the rows sampled by the auto decision.
+    rows: Vec<LineCand>,
     seg: Vec<f32>,
     col: Vec<u16>,
     rejected: RejectCounts,
@@ -650,6 +815,7 @@ impl StripeExtractor {
         Ok(StripeExtractor {
             opts,
             cands: Vec::new(),
+            rows: Vec::new(),
             seg: Vec::new(),
             col: Vec::new(),
             rejected: RejectCounts::default(),
@@ -687,8 +853,11 @@ impl StripeExtractor {
         img: &ImageView<'_, T>,
         out: &mut Vec<StripePoint>,
     ) -> Result<StripeDirection> {
-        let (dir, have_cols) = match self.opts.direction {
-            StripeDirection::Auto => (auto_direction(img, &self.opts, &mut self.cands), true),
+        let (dir, auto) = match self.opts.direction {
+            StripeDirection::Auto => (
+                auto_direction(img, &self.opts, &mut self.cands, &mut self.rows),
+                true,
+            ),
             d => (d, false),
         };
         let p = Params::new::<T>(&self.opts);
@@ -705,7 +874,7 @@ impl StripeExtractor {
         };
         match dir {
             StripeDirection::Rows => {
-                if !have_cols {
+                if !auto {
                     self.cands.clear();
                     self.cands.resize(w, LineCand::default());
                     scan_columns(img, p.d, thr, &mut self.cands);
@@ -718,9 +887,12 @@ impl StripeExtractor {
                             continue;
                         }
                     };
-                    let (y0, res) = column_subpixel(&mut self.col, &mut self.seg, h, pk, &p, |y| {
-                        img.get(x, y).as_u32() as u16
-                    });
+                    let mut line = ColumnLine {
+                        img,
+                        x,
+                        buf: &mut self.col,
+                    };
+                    let (y0, res) = line_subpixel(&mut line, &mut self.seg, h, pk, &p);
                     match res {
                         Ok(s) => out.push(StripePoint {
                             u: x as f64,
@@ -737,8 +909,15 @@ impl StripeExtractor {
             _ => {
                 for y in 0..h {
                     let row = img.row(y);
-                    let mut cand = LineCand::default();
-                    scan_line(row, p.d, thr, &mut cand);
+                    // rows that the auto decision sampled are scanned already
+                    let sampled = (auto && y % AUTO_STEP == AUTO_STEP / 2)
+                        .then(|| self.rows.get(y / AUTO_STEP).copied())
+                        .flatten();
+                    let cand = sampled.unwrap_or_else(|| {
+                        let mut cand = LineCand::default();
+                        scan_line(row, p.d, thr, &mut cand);
+                        cand
+                    });
                     let pk = match cand.verdict(ratio) {
                         Ok(pk) => pk,
                         Err(e) => {
@@ -746,7 +925,7 @@ impl StripeExtractor {
                             continue;
                         }
                     };
-                    let (x0, res) = (0, subpixel(row, pk, &p, &mut self.seg));
+                    let (x0, res) = line_subpixel(&mut RowLine(row), &mut self.seg, w, pk, &p);
                     match res {
                         Ok(s) => out.push(StripePoint {
                             u: x0 as f64 + s.c,
@@ -848,30 +1027,34 @@ fn flag_oblique(pts: &mut [StripePoint], dir: StripeDirection, max_slope: f32) {
 /// `Cols`.
 pub fn resolve_direction(img: AnyView<'_>, opts: &StripeOptions) -> Result<StripeDirection> {
     opts.validate()?;
-    let mut cands = Vec::new();
+    let (mut cands, mut rows) = (Vec::new(), Vec::new());
     Ok(match img {
-        AnyView::U8(v) => auto_direction(&v, opts, &mut cands),
-        AnyView::U16(v) => auto_direction(&v, opts, &mut cands),
+        AnyView::U8(v) => auto_direction(&v, opts, &mut cands, &mut rows),
+        AnyView::U16(v) => auto_direction(&v, opts, &mut cands, &mut rows),
     })
 }
 
 /// The auto decision; leaves the column candidates of the whole image in `cands` (the
-/// work a `Rows` extraction needs anyway).
+/// work a `Rows` extraction needs anyway) and those of the sampled rows in `rows` (row
+/// `AUTO_STEP / 2 + k * AUTO_STEP` at `k`: a `Cols` extraction reuses them).
 fn auto_direction<T: RidgePixel>(
     img: &ImageView<'_, T>,
     opts: &StripeOptions,
     cands: &mut Vec<LineCand>,
+    rows: &mut Vec<LineCand>,
 ) -> StripeDirection {
     let (w, h) = (img.width(), img.height());
     let thr = T::from_u32_clamped((opts.min_contrast * T::SCALE).ceil().max(1.0) as u32);
     let ratio = opts.second_peak_ratio;
     let d = opts.ridge_px;
     let (mut rows_hit, mut rows_n) = (0usize, 0usize);
+    rows.clear();
     for y in (AUTO_STEP / 2..h).step_by(AUTO_STEP) {
         let mut c = LineCand::default();
         scan_line(img.row(y), d, thr, &mut c);
         rows_n += 1;
         rows_hit += c.verdict(ratio).is_ok() as usize;
+        rows.push(c);
     }
     // Columns: the row-wise (cache friendly) ridge test of every column.
     cands.clear();
@@ -935,6 +1118,138 @@ mod tests {
         assert_eq!(s2.points.len(), s.points.len());
         for (a, b) in s.points.iter().zip(&s2.points) {
             assert!((a.u - b.v).abs() < 1e-4 && (a.v - b.u).abs() < 1e-9);
+        }
+    }
+
+    /// A curved stripe of varying width and brightness (saturated in places) over a
+    /// textured, shaded background with pseudo-random noise: a stand-in for a laser image.
+    fn textured(w: usize, h: usize) -> Vec<u8> {
+        let mut s = 987654321u64;
+        let mut img = vec![0u8; w * h];
+        for y in 0..h {
+            let yf = y as f64;
+            let c = 0.37 * w as f64 + 9.0 * (yf / 37.0).sin() + 0.05 * yf;
+            let sigma = 1.1 + 0.6 * (yf / 23.0).cos().abs();
+            let amp = 60.0 + 260.0 * (0.5 + 0.5 * (yf / 41.0).sin());
+            for x in 0..w {
+                let xf = x as f64;
+                s = s
+                    .wrapping_mul(6364136223846793005)
+                    .wrapping_add(1442695040888963407);
+                let noise = ((s >> 40) as f64 / (1u64 << 24) as f64 - 0.5) * 3.0;
+                let board = if ((x / 13) + (y / 17)) % 2 == 0 {
+                    40.0
+                } else {
+                    15.0
+                };
+                let t = (xf - c) / sigma;
+                let v = board + 0.02 * xf + amp * (-0.5 * t * t).exp() + noise;
+                img[y * w + x] = v.round().clamp(0.0, 255.0) as u8;
+            }
+        }
+        img
+    }
+
+    fn transposed<T: Copy + Default>(img: &[T], w: usize, h: usize) -> Vec<T> {
+        let mut t = vec![T::default(); w * h];
+        for y in 0..h {
+            for x in 0..w {
+                t[x * h + y] = img[y * w + x];
+            }
+        }
+        t
+    }
+
+    /// `Rows` (and `Auto`) on the transposed image compute bit for bit what `Cols`
+    /// computes on the image: the same candidates, segments and arithmetic.
+    #[test]
+    fn rows_on_the_transposed_image_equal_cols_bit_for_bit() {
+        let (w, h) = (203, 157); // not multiples of the ridge block
+        let img = textured(w, h);
+        let img16: Vec<u16> = img.iter().map(|&v| v as u16 * 257).collect();
+        let t = transposed(&img, w, h);
+        let t16 = transposed(&img16, w, h);
+        for method in [StripeMethod::Centroid, StripeMethod::Gaussian] {
+            let cols = StripeOptions {
+                direction: StripeDirection::Cols,
+                method,
+                ..StripeOptions::default()
+            };
+            let rows = StripeOptions {
+                direction: StripeDirection::Rows,
+                ..cols.clone()
+            };
+            let auto = StripeOptions {
+                direction: StripeDirection::Auto,
+                ..cols.clone()
+            };
+            let views = [
+                (
+                    AnyView::U8(ImageView::from_slice(&img, w, h).unwrap()),
+                    AnyView::U8(ImageView::from_slice(&t, h, w).unwrap()),
+                ),
+                (
+                    AnyView::U16(ImageView::from_slice(&img16, w, h).unwrap()),
+                    AnyView::U16(ImageView::from_slice(&t16, h, w).unwrap()),
+                ),
+            ];
+            for (v, vt) in views {
+                let a = extract_stripe(v, &cols).unwrap();
+                assert!(a.points.len() > 120, "{}", a.points.len());
+                // Auto reuses the candidates of the rows it sampled: the same result
+                assert_eq!(extract_stripe(v, &auto).unwrap(), a);
+                assert!(a.points.iter().any(|p| p.flags & FLAG_SATURATED != 0));
+                for opts in [&rows, &auto] {
+                    let b = extract_stripe(vt, opts).unwrap();
+                    assert_eq!(b.direction, StripeDirection::Rows);
+                    assert_eq!(b.rejected, a.rejected);
+                    assert_eq!(b.points.len(), a.points.len());
+                    for (p, q) in a.points.iter().zip(&b.points) {
+                        let swapped = StripePoint {
+                            u: q.v,
+                            v: q.u,
+                            ..*q
+                        };
+                        assert_eq!(*p, swapped);
+                    }
+                }
+            }
+        }
+    }
+
+    /// The AVX2 build of the ridge passes (where the CPU has it) finds exactly the
+    /// candidates of the baseline build, on 8- and 16-bit lines of every length mod 64.
+    #[test]
+    fn ridge_pass_dispatch_equals_the_baseline_build() {
+        let (w, h) = (203, 157);
+        let img = textured(w, h);
+        let img16: Vec<u16> = img.iter().map(|&v| v as u16 * 257).collect();
+        let v8 = ImageView::from_slice(&img, w, h).unwrap();
+        let v16 = ImageView::from_slice(&img16, w, h).unwrap();
+        for d in [1usize, 5, 9] {
+            for y in 0..h {
+                for len in [w, 140, 75, 64, 63, 20] {
+                    let (mut a, mut b) = (LineCand::default(), LineCand::default());
+                    scan_line(&v8.row(y)[..len], d, 6, &mut a);
+                    scan_line_generic(&v8.row(y)[..len], d, 6, &mut b);
+                    assert_eq!(a, b);
+                    let (mut a, mut b) = (LineCand::default(), LineCand::default());
+                    scan_line(&v16.row(y)[..len], d, 6 * 257, &mut a);
+                    scan_line_generic(&v16.row(y)[..len], d, 6 * 257, &mut b);
+                    assert_eq!(a, b);
+                }
+            }
+            let mut a = vec![LineCand::default(); w];
+            let mut b = a.clone();
+            scan_columns(&v8, d, 6, &mut a);
+            scan_columns_generic(&v8, d, 6, &mut b);
+            assert_eq!(a, b);
+            assert!(a.iter().any(|c| c.has_best));
+            let mut a = vec![LineCand::default(); w];
+            let mut b = a.clone();
+            scan_columns(&v16, d, 6 * 257, &mut a);
+            scan_columns_generic(&v16, d, 6 * 257, &mut b);
+            assert_eq!(a, b);
         }
     }
 
