@@ -192,6 +192,9 @@ def parameter_rows(cal: stripecal.Calibration, truth: Optional[stripecal.Truth])
         tu = u.get(key, {})
         tm = getattr(truth, key) if truth else None
         trv = stripecal.matrix_to_rotvec(tm[:3, :3]) if tm is not None else None
+        if trv is not None and np.linalg.norm(rv - trv) > np.pi:
+            # near 180 deg a rotation has two rotation vectors: show the truth's branch
+            rv = rv * (1.0 - 2.0 * np.pi / np.linalg.norm(rv))
         for i, a in enumerate("xyz"):
             out.append((f"{label} rotvec {a} (rad)", float(rv[i]), tu.get("rotation_vector", [None] * 3)[i],
                         float(trv[i]) if trv is not None else None))
