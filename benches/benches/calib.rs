@@ -11,38 +11,29 @@ use std::hint::black_box;
 use stripecal::calib::pipeline::{calibrate_observations, CalibrateOptions, Method};
 use stripecal::calib::{CircleObs, ViewObs};
 use stripecal_sim::rng::Rng;
-use stripecal_sim::truth::{circle_truth, stripe_truth};
 use stripecal_sim::{SimConfig, Twin};
 
 fn views(t: &Twin) -> Vec<ViewObs> {
     let mut rng = Rng::new(5, 1);
-    t.calibration_poses()
+    t.exact_observations()
         .unwrap()
-        .iter()
-        .enumerate()
-        .map(|(i, p)| {
-            let scene = t.scene(&p.q_deg, false).unwrap();
-            let circles = circle_truth(&scene, &t.camera, 0.0)
+        .into_iter()
+        .map(|v| ViewObs {
+            circles: v
+                .circles
                 .iter()
                 .map(|c| CircleObs {
-                    row: c.row,
-                    col: c.col,
                     u: c.u + 0.01 * rng.normal(),
                     v: c.v + 0.01 * rng.normal(),
+                    ..*c
                 })
-                .collect();
-            let stripe = stripe_truth(&scene, &t.camera, t.direction)
-                .into_iter()
-                .filter(|s| s.surface == "board")
-                .map(|s| [s.u + 0.03 * rng.normal(), s.v + 0.03 * rng.normal()])
-                .collect();
-            ViewObs {
-                view: i,
-                circles,
-                stripe,
-                reading: None,
-                base_hand: Some(t.robot_true.forward(&p.q_deg).unwrap()),
-            }
+                .collect(),
+            stripe: v
+                .stripe
+                .iter()
+                .map(|p| [p[0] + 0.03 * rng.normal(), p[1] + 0.03 * rng.normal()])
+                .collect(),
+            ..v
         })
         .collect()
 }

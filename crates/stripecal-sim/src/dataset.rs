@@ -523,6 +523,40 @@ impl Twin {
         })
     }
 
+    /// The exact observations of the calibration poses, as a detector would report them
+    /// with no error: imaged-circle centres (area centroids of the projected outlines),
+    /// stripe points on the board, and `T_base_hand` of the TRUE robot. For tests and
+    /// benchmarks of the calibration from points.
+    pub fn exact_observations(&self) -> Result<Vec<stripecal::calib::ViewObs>, SimError> {
+        use stripecal::calib::{CircleObs, ViewObs};
+        let mut out = Vec::new();
+        for (i, p) in self.calibration_poses()?.iter().enumerate() {
+            let scene = self.scene(&p.q_deg, false)?;
+            let circles = circle_truth(&scene, &self.camera, 0.0)
+                .iter()
+                .map(|c| CircleObs {
+                    row: c.row,
+                    col: c.col,
+                    u: c.u,
+                    v: c.v,
+                })
+                .collect();
+            let stripe = stripe_truth(&scene, &self.camera, self.direction)
+                .into_iter()
+                .filter(|s| s.surface == "board")
+                .map(|s| [s.u, s.v])
+                .collect();
+            out.push(ViewObs {
+                view: i,
+                circles,
+                stripe,
+                reading: Some(RobotReading::Joints(p.q_deg.clone())),
+                base_hand: Some(self.robot_true.forward(&p.q_deg)?),
+            });
+        }
+        Ok(out)
+    }
+
     /// A calibration holding the TRUE parameters (for tests that reconstruct with truth).
     pub fn true_calibration(&self) -> Calibration {
         Calibration {

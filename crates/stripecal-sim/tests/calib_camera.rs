@@ -11,7 +11,6 @@ use stripecal::calib::conic::CentreModel;
 use stripecal::calib::{CircleObs, ViewObs};
 use stripecal::{Camera, DistortionModel, Error, Iso3};
 use stripecal_sim::rng::Rng;
-use stripecal_sim::truth::circle_truth;
 use stripecal_sim::{SimConfig, Twin};
 
 struct Case {
@@ -32,29 +31,24 @@ fn case(name: &'static str, count: usize) -> Case {
         .unwrap();
     let twin = Twin::new(cfg).unwrap();
     let model = twin.camera.model;
-    let poses = twin.calibration_poses().unwrap();
-    let mut views = Vec::new();
-    let mut truth_poses = Vec::new();
-    for (i, p) in poses.iter().enumerate() {
-        let scene = twin.scene(&p.q_deg, false).unwrap();
-        let circles = circle_truth(&scene, &twin.camera, 0.0)
-            .iter()
-            .map(|c| CircleObs {
-                row: c.row,
-                col: c.col,
-                u: c.u,
-                v: c.v,
-            })
-            .collect();
-        views.push(ViewObs {
-            view: i,
-            circles,
+    // Camera calibration only: the circles of the exact observations.
+    let views: Vec<ViewObs> = twin
+        .exact_observations()
+        .unwrap()
+        .into_iter()
+        .map(|v| ViewObs {
             stripe: vec![],
             reading: None,
             base_hand: None,
-        });
-        truth_poses.push(scene.cam_board);
-    }
+            ..v
+        })
+        .collect();
+    let truth_poses: Vec<Iso3> = twin
+        .calibration_poses()
+        .unwrap()
+        .iter()
+        .map(|p| twin.scene(&p.q_deg, false).unwrap().cam_board)
+        .collect();
     Case {
         twin,
         views,

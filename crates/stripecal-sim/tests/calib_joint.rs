@@ -12,7 +12,6 @@ use stripecal::geometry::iso_to_rotvec;
 use stripecal::io::{Calibration, Rig};
 use stripecal::{Error, Iso3};
 use stripecal_sim::rng::Rng;
-use stripecal_sim::truth::{circle_truth, stripe_truth};
 use stripecal_sim::{SimConfig, Twin};
 
 fn twin(count: usize) -> Twin {
@@ -25,35 +24,7 @@ fn twin(count: usize) -> Twin {
 /// The twin's exact observations: imaged-circle centres, stripe points on the board,
 /// `T_base_hand` from the robot.
 fn exact_views(t: &Twin) -> Vec<ViewObs> {
-    t.calibration_poses()
-        .unwrap()
-        .iter()
-        .enumerate()
-        .map(|(i, p)| {
-            let scene = t.scene(&p.q_deg, false).unwrap();
-            let circles = circle_truth(&scene, &t.camera, 0.0)
-                .iter()
-                .map(|c| CircleObs {
-                    row: c.row,
-                    col: c.col,
-                    u: c.u,
-                    v: c.v,
-                })
-                .collect();
-            let stripe = stripe_truth(&scene, &t.camera, t.direction)
-                .into_iter()
-                .filter(|s| s.surface == "board")
-                .map(|s| [s.u, s.v])
-                .collect();
-            ViewObs {
-                view: i,
-                circles,
-                stripe,
-                reading: None,
-                base_hand: Some(t.robot_true.forward(&p.q_deg).unwrap()),
-            }
-        })
-        .collect()
+    t.exact_observations().unwrap()
 }
 
 fn noisy(views: &[ViewObs], sc: f64, ss: f64, seed: u64) -> Vec<ViewObs> {

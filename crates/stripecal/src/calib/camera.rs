@@ -486,42 +486,17 @@ mod tests {
             CentreModel::ConicExact,
         ] {
             let (_, _, pr, p) = synthetic(model);
-            let (m, n) = (pr.num_residuals(), pr.num_params());
-            let mut r = vec![0.0; m];
-            let mut jac = faer::Mat::<f64>::zeros(m, n);
-            pr.residuals_and_jacobian(&p, &mut r, jac.as_mut()).unwrap();
-            let mut r2 = vec![0.0; m];
-            pr.residuals(&p, &mut r2).unwrap();
-            assert!(r.iter().zip(&r2).all(|(a, b)| (a - b).abs() < 1e-12));
-            for j in 0..n {
-                let h = if j < 9 {
+            let step = |j: usize| {
+                if j < 9 {
                     1e-4 * p[j].abs().max(1.0)
                 } else if (j - 9) % 6 < 3 {
                     1e-6
                 } else {
                     1e-5
-                };
-                let mut dp = vec![0.0; n];
-                let (mut pa, mut pb) = (vec![0.0; n], vec![0.0; n]);
-                dp[j] = h;
-                pr.retract(&p, &dp, &mut pa);
-                dp[j] = -h;
-                pr.retract(&p, &dp, &mut pb);
-                let (mut ra, mut rb) = (vec![0.0; m], vec![0.0; m]);
-                pr.residuals(&pa, &mut ra).unwrap();
-                pr.residuals(&pb, &mut rb).unwrap();
-                let mut num = 0.0f64;
-                let mut den = 0.0f64;
-                for i in 0..m {
-                    let fd = (ra[i] - rb[i]) / (2.0 * h);
-                    num = num.max((fd - jac[(i, j)]).abs());
-                    den = den.max(jac[(i, j)].abs());
                 }
-                assert!(
-                    num <= 1e-6 * den.max(1.0),
-                    "{model:?} column {j}: {num:e} of {den:e}"
-                );
-            }
+            };
+            let what = format!("{model:?}");
+            crate::calib::lm::assert_jacobian_matches_fd(&pr, &p, step, 1e-12, 1e-6, &what);
         }
     }
 }

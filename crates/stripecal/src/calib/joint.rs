@@ -235,6 +235,17 @@ struct State {
     z_t: Vector3<f64>,
 }
 
+impl State {
+    /// `T_cam_board` of each view, `(R, t)`, from the robot poses `a`.
+    fn view_poses(&self, a: &[Iso3]) -> Vec<([[f64; 3]; 3], [f64; 3])> {
+        let xr: [[f64; 3]; 3] = m3(&self.x_rot);
+        let zr: [[f64; 3]; 3] = m3(&self.z_rot);
+        let xt = [self.x_t.x, self.x_t.y, self.x_t.z];
+        let zt = [self.z_t.x, self.z_t.y, self.z_t.z];
+        a.iter().map(|a| cam_board(a, &xr, &xt, &zr, &zt)).collect()
+    }
+}
+
 fn m3<T: Scalar>(r: &Matrix3<f64>) -> [[T; 3]; 3] {
     std::array::from_fn(|i| std::array::from_fn(|j| T::from_f64(r[(i, j)])))
 }
@@ -416,15 +427,7 @@ impl JointProblem<'_> {
     /// f64 residuals (unweighted): circles (2 each) then stripe points.
     fn raw_residuals(&self, p: &[f64], r: &mut [f64]) -> Result<()> {
         let s = self.decode(p);
-        let xr: [[f64; 3]; 3] = m3(&s.x_rot);
-        let zr: [[f64; 3]; 3] = m3(&s.z_rot);
-        let xt = [s.x_t.x, s.x_t.y, s.x_t.z];
-        let zt = [s.z_t.x, s.z_t.y, s.z_t.z];
-        let poses: Vec<_> = self
-            .a
-            .iter()
-            .map(|a| cam_board(a, &xr, &xt, &zr, &zt))
-            .collect();
+        let poses = s.view_poses(&self.a);
         let n1 = [s.plane_n.x, s.plane_n.y, s.plane_n.z];
         let lines: Vec<Option<_>> = poses
             .iter()
@@ -931,15 +934,10 @@ pub fn joint_adjustment(
     // stripe line's normal offset, estimated from the view's pose.
     let mut vs = vec![(0.0, 0usize, 0.0); problem.nviews()];
     let mut stripe_residuals = Vec::with_capacity(m_s);
-    let xr: [[f64; 3]; 3] = m3(&s.x_rot);
-    let zr: [[f64; 3]; 3] = m3(&s.z_rot);
-    let xt = [s.x_t.x, s.x_t.y, s.x_t.z];
-    let zt = [s.z_t.x, s.z_t.y, s.z_t.z];
-    let mm_per_px: Vec<f64> = problem
-        .a
-        .iter()
-        .map(|av| {
-            let (rot, t) = cam_board(av, &xr, &xt, &zr, &zt);
+    let mm_per_px: Vec<f64> = s
+        .view_poses(&problem.a)
+        .into_iter()
+        .map(|(rot, t)| {
             let depth = Vector3::from(t).norm();
             let tilt = rot[2][2].abs().max(0.1);
             // Image scale of the board at the stand-off, corrected for its tilt.
@@ -1267,36 +1265,14 @@ mod tests {
             let (rv, tr) = iso_to_rotvec(t);
             p.extend_from_slice(&[rv.x, rv.y, rv.z, tr.x, tr.y, tr.z]);
         }
-        let (m, n) = (pr.num_residuals(), pr.num_params());
-        let mut r = vec![0.0; m];
-        let mut jac = faer::Mat::<f64>::zeros(m, n);
-        pr.residuals_and_jacobian(&p, &mut r, jac.as_mut()).unwrap();
-        let mut r2 = vec![0.0; m];
-        pr.residuals(&p, &mut r2).unwrap();
-        assert!(r.iter().zip(&r2).all(|(a, b)| (a - b).abs() < 1e-9));
-        for j in 0..n {
-            let h = if j < 9 {
+        let step = |j: usize| {
+            if j < 9 {
                 1e-5 * p[j].abs().max(1e-2)
             } else {
                 1e-6
-            };
-            let mut dp = vec![0.0; n];
-            let (mut pa, mut pb) = (vec![0.0; n], vec![0.0; n]);
-            dp[j] = h;
-            pr.retract(&p, &dp, &mut pa);
-            dp[j] = -h;
-            pr.retract(&p, &dp, &mut pb);
-            let (mut ra, mut rb) = (vec![0.0; m], vec![0.0; m]);
-            pr.residuals(&pa, &mut ra).unwrap();
-            pr.residuals(&pb, &mut rb).unwrap();
-            let (mut num, mut den) = (0.0f64, 0.0f64);
-            for i in 0..m {
-                let fd = (ra[i] - rb[i]) / (2.0 * h);
-                num = num.max((fd - jac[(i, j)]).abs());
-                den = den.max(jac[(i, j)].abs());
             }
-            assert!(num <= 1e-5 * den.max(1.0), "column {j}: {num:e} of {den:e}");
-        }
+        };
+        crate::calib::lm::assert_jacobian_matches_fd(&pr, &p, step, 1e-9, 1e-5, "joint");
     }
 
     #[test]

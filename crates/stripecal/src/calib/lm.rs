@@ -416,6 +416,53 @@ pub fn covariance(jtj: &DMatrix<f64>, sigma2: f64, rank_tol: f64) -> (DMatrix<f6
     (cov, unobs)
 }
 
+/// Test support: asserts that `residuals_and_jacobian` at `p` returns the residuals of
+/// `residuals` (to `rtol` absolute) and a Jacobian equal to central differences taken
+/// through [`LeastSquares::retract`] with step `step(j)` per column: the largest
+/// difference in a column at most `tol * max(largest |entry|, 1)`.
+#[cfg(test)]
+pub(crate) fn assert_jacobian_matches_fd<P: LeastSquares>(
+    pr: &P,
+    p: &[f64],
+    step: impl Fn(usize) -> f64,
+    rtol: f64,
+    tol: f64,
+    what: &str,
+) {
+    let (m, n) = (pr.num_residuals(), pr.num_params());
+    let mut r = vec![0.0; m];
+    let mut jac = Mat::<f64>::zeros(m, n);
+    pr.residuals_and_jacobian(p, &mut r, jac.as_mut()).unwrap();
+    let mut r2 = vec![0.0; m];
+    pr.residuals(p, &mut r2).unwrap();
+    assert!(
+        r.iter().zip(&r2).all(|(a, b)| (a - b).abs() < rtol),
+        "{what}: residuals differ"
+    );
+    for j in 0..n {
+        let h = step(j);
+        let mut dp = vec![0.0; n];
+        let (mut pa, mut pb) = (vec![0.0; n], vec![0.0; n]);
+        dp[j] = h;
+        pr.retract(p, &dp, &mut pa);
+        dp[j] = -h;
+        pr.retract(p, &dp, &mut pb);
+        let (mut ra, mut rb) = (vec![0.0; m], vec![0.0; m]);
+        pr.residuals(&pa, &mut ra).unwrap();
+        pr.residuals(&pb, &mut rb).unwrap();
+        let (mut num, mut den) = (0.0f64, 0.0f64);
+        for i in 0..m {
+            let fd = (ra[i] - rb[i]) / (2.0 * h);
+            num = num.max((fd - jac[(i, j)]).abs());
+            den = den.max(jac[(i, j)].abs());
+        }
+        assert!(
+            num <= tol * den.max(1.0),
+            "{what} column {j}: {num:e} of {den:e}"
+        );
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
