@@ -281,7 +281,9 @@ pub struct Stripe {
 /// points instead.
 pub fn extract_stripe(img: AnyView<'_>, opts: &StripeOptions) -> Result<Stripe> {
     let mut ex = StripeExtractor::new(opts.clone())?;
-    let mut points = Vec::new();
+    // At most one point per scan line: one allocation, no regrowth.
+    let (w0, h0) = img.size();
+    let mut points = Vec::with_capacity(w0.max(h0));
     let direction = ex.extract_into(img, &mut points)?;
     let rejected = ex.rejected();
     let (w, h) = img.size();
