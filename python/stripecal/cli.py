@@ -292,36 +292,15 @@ def _fmt_sigma(value: float, sigma: Any) -> str:
 
 def print_calibration(cal: stripecal.Calibration) -> None:
     """Prints a calibration's parameters with their one-sigma, residuals and views."""
-    u = cal.uncertainty
+    from stripecal.report import parameter_rows  # plain Python; matplotlib only for figures
+
     cam = cal.camera
     extra = cal.extra
     print(f"method {extra.get('method', '?')}, camera model {cam.distortion_model}, "
           f"{cal.quality['views_used']} views used")
     print("\n  parameter                    value +- 1 sigma")
-    cu = u.get("camera", {})
-    for name in ("fu", "fv", "u0", "v0"):
-        print(f"  {name + ' (px)':<22}{_fmt_sigma(getattr(cam, name), cu.get(name))}")
-    dist = cam.distortion
-    dsig = cu.get("distortion", [None] * 5)
-    for i, name in enumerate(("k1", "k2", "p1", "p2", "k3")):
-        if dist[i] != 0.0 or (dsig[i] not in (None, 0.0)):
-            print(f"  {name:<22}{_fmt_sigma(dist[i], dsig[i] if dsig[i] else None)}")
-    n, d = cal.laser_plane
-    lu = u.get("laser_plane", {})
-    nsig = lu.get("normal", [None] * 3)
-    for i, ax in enumerate("xyz"):
-        print(f"  {'laser normal ' + ax:<22}{_fmt_sigma(n[i], nsig[i])}")
-    print(f"  {'laser d (mm)':<22}{_fmt_sigma(d, lu.get('d_mm'))}")
-    for key, label, mat in (("hand_cam", "X", cal.hand_cam), ("base_board", "Z", cal.base_board)):
-        rv = stripecal.matrix_to_rotvec(mat[:3, :3])
-        t = mat[:3, 3]
-        tu = u.get(key, {})
-        rs = tu.get("rotation_vector", [None] * 3)
-        ts = tu.get("translation_mm", [None] * 3)
-        for i, ax in enumerate("xyz"):
-            print(f"  {label + ' rotvec ' + ax + ' (rad)':<22}{_fmt_sigma(rv[i], rs[i])}")
-        for i, ax in enumerate("xyz"):
-            print(f"  {label + ' t' + ax + ' (mm)':<22}{_fmt_sigma(t[i], ts[i])}")
+    for name, value, sigma, _ in parameter_rows(cal, None):
+        print(f"  {name:<22}{_fmt_sigma(value, sigma or None)}")
     q = cal.quality
     print(f"\n  residual RMS: circles {q['circle_rms_px']:.4f} px, stripe {q['stripe_rms_px']:.4f} px"
           f" ({extra.get('stripe_rms_mm', float('nan')):.4f} mm)")

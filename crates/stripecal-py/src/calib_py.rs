@@ -17,8 +17,7 @@ use std::path::PathBuf;
 use stripecal::calib::camera::{calibrate_camera as core_calibrate_camera, CameraOptions};
 use stripecal::calib::conic::CentreModel;
 use stripecal::calib::pipeline::{
-    calibrate_dataset, calibrate_observations, observe_dataset, CalibrateOptions,
-    CalibrationReport, Method,
+    calibrate_dataset, calibrate_dataset_loaded, CalibrateOptions, CalibrationReport, Method,
 };
 use stripecal::calib::{CircleObs, ViewObs};
 use stripecal::camera::{DistortionModel, PARAM_NAMES};
@@ -219,20 +218,9 @@ pub fn calibrate(
         ..Default::default()
     };
     let rep = if let Ok(ds) = dataset.cast::<PyDataset>() {
-        let ds = ds.get().inner.clone();
-        py.detach(|| -> stripecal::Result<_> {
-            let (obs, mut warnings) = observe_dataset(&ds, &opts)?;
-            let mut rep = calibrate_observations(&obs, &ds.rig, &opts)?;
-            warnings.append(&mut rep.warnings);
-            rep.warnings = warnings;
-            if !rep.warnings.is_empty() {
-                rep.calibration
-                    .extra
-                    .insert("warnings".into(), serde_json::json!(rep.warnings));
-            }
-            Ok(rep)
-        })
-        .py_err(py)?
+        let ds = &ds.get().inner;
+        py.detach(|| calibrate_dataset_loaded(ds, &opts))
+            .py_err(py)?
     } else {
         let path: PathBuf = dataset.extract().map_err(|_| {
             pyo3::exceptions::PyTypeError::new_err(format!(

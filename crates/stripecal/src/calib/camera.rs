@@ -17,7 +17,7 @@ use rayon::prelude::*;
 
 use crate::board::Board;
 use crate::calib::conic::{
-    centre_generic_n, quadrature_nodes, rot_times_exp_first_order, CentreModel, Dual,
+    centre_generic_n, quadrature_nodes, rot_times_exp_first_order, CentreModel, Dual, Scalar,
 };
 use crate::calib::homography::fit_homography;
 use crate::calib::lm::{levenberg_marquardt, LeastSquares, LmOptions, StopReason};
@@ -86,7 +86,6 @@ pub struct CameraCalibration {
     pub warnings: Vec<String>,
 }
 
-#[derive(Clone, Copy)]
 struct Obs {
     view: usize, // index into used views
     centre: (f64, f64),
@@ -114,6 +113,24 @@ impl CamProblem<'_> {
         }
         c
     }
+    /// Predicted imaged centre of observation `o`'s circle (camera and pose generic).
+    fn predict<T: Scalar>(
+        &self,
+        cam: &[T; 9],
+        pose: &([[T; 3]; 3], [T; 3]),
+        o: &Obs,
+    ) -> Result<[T; 2]> {
+        let (rot, t) = pose;
+        centre_generic_n(
+            cam,
+            rot,
+            t,
+            o.centre,
+            o.radius,
+            self.model,
+            quadrature_nodes(self.base.model),
+        )
+    }
     fn pose(&self, p: &[f64], v: usize) -> ([[f64; 3]; 3], [f64; 3]) {
         let o = self.ncam() + 6 * v;
         let r = rotvec_to_matrix(&Vector3::new(p[o], p[o + 1], p[o + 2]));
@@ -137,18 +154,7 @@ impl LeastSquares for CamProblem<'_> {
         let preds: Vec<[f64; 2]> = self
             .obs
             .par_iter()
-            .map(|o| {
-                let (rot, t) = &poses[o.view];
-                centre_generic_n(
-                    &c,
-                    rot,
-                    t,
-                    o.centre,
-                    o.radius,
-                    self.model,
-                    quadrature_nodes(self.base.model),
-                )
-            })
+            .map(|o| self.predict(&c, &poses[o.view], o))
             .collect::<Result<_>>()?;
         for (k, (o, uv)) in self.obs.iter().zip(&preds).enumerate() {
             r[2 * k] = uv[0] - o.u;
@@ -182,18 +188,7 @@ impl LeastSquares for CamProblem<'_> {
         let preds: Vec<[D; 2]> = self
             .obs
             .par_iter()
-            .map(|o| {
-                let (rot, t) = &poses[o.view];
-                centre_generic_n(
-                    &cd,
-                    rot,
-                    t,
-                    o.centre,
-                    o.radius,
-                    self.model,
-                    quadrature_nodes(self.base.model),
-                )
-            })
+            .map(|o| self.predict(&cd, &poses[o.view], o))
             .collect::<Result<_>>()?;
         for (k, (o, uv)) in self.obs.iter().zip(&preds).enumerate() {
             r[2 * k] = uv[0].v - o.u;
@@ -329,7 +324,7 @@ pub fn calibrate_camera(
             });
         }
     }
-    let problem = CamProblem {
+    let mut problem = CamProblem {
         base: &base,
         free: free.clone(),
         nviews: used.len(),
@@ -339,14 +334,10 @@ pub fn calibrate_camera(
     // The exact centroid model is solved from the first-order conic model's solution
     // (the two differ by the distortion curvature only: a few exact iterations).
     let p0 = if opts.centre_model == CentreModel::ConicExact {
-        let first = CamProblem {
-            base: &base,
-            free: free.clone(),
-            nviews: problem.nviews,
-            obs: problem.obs.iter().map(|o| Obs { ..*o }).collect(),
-            model: CentreModel::Conic,
-        };
-        levenberg_marquardt(&first, &p0, &opts.lm)?.params
+        problem.model = CentreModel::Conic;
+        let first = levenberg_marquardt(&problem, &p0, &opts.lm)?.params;
+        problem.model = CentreModel::ConicExact;
+        first
     } else {
         p0
     };

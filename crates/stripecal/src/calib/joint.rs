@@ -494,13 +494,11 @@ impl LeastSquares for JointProblem<'_> {
         let s = self.decode(p);
         let o = self.ncam();
         // Duals over every slot.
-        let nraw = self.n0 + self.e1 * p[o] + self.e2 * p[o + 1];
         let a = D24::var(p[o], SLOT_PLANE);
         let b = D24::var(p[o + 1], SLOT_PLANE + 1);
         let nn: [D24; 3] = std::array::from_fn(|i| {
             D24::cst(self.n0[i]) + a.scale(self.e1[i]) + b.scale(self.e2[i])
         });
-        let _ = nraw;
         let len = dot(&nn, &nn).sqrt();
         let n1: [D24; 3] = std::array::from_fn(|i| nn[i] / len);
         let d1 = D24::var(p[o + 2], SLOT_PLANE + 2);

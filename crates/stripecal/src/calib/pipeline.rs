@@ -34,9 +34,9 @@ use crate::calib::conic::CentreModel;
 use crate::calib::joint::{joint_adjustment, JointOptions, JointResult, JointStart};
 use crate::calib::laser_plane::{backproject_to_board, fit_laser_plane, LaserPlaneFit};
 use crate::calib::{CircleObs, ViewObs};
-use crate::camera::{Camera, DistortionModel, PARAM_NAMES};
+use crate::camera::{DistortionModel, PARAM_NAMES};
 use crate::error::{Error, Result};
-use crate::geometry::{iso_to_rotvec, Iso3};
+use crate::geometry::Iso3;
 use crate::io::{load_gray, Calibration, Dataset, Quality, Rig};
 use crate::vision::circles::{detect_circles, CircleOptions};
 use crate::vision::stripe::{extract_stripe, flag_reflectance_edges, EdgeOptions, StripeOptions};
@@ -508,13 +508,10 @@ pub fn calibrate_observations(
         Method::OneStage => (adj.camera.clone(), adj.plane, adj.hand_cam, adj.base_board),
     };
     let uncertainty = match opts.method {
-        Method::OneStage => uncertainty_json(&camera, &adj),
+        Method::OneStage => uncertainty_json(&adj),
         Method::Paper => {
             let mut u = Map::new();
-            u.insert(
-                "camera".into(),
-                camera_sigma_json(&camera, &camcal.camera_sigma),
-            );
+            u.insert("camera".into(), camera_sigma_json(&camcal.camera_sigma));
             u.insert(
                 "laser_plane".into(),
                 json!({"normal": plane.sigma.normal.as_slice(), "d_mm": plane.sigma.d_mm}),
@@ -590,8 +587,7 @@ fn finite_or_null(x: f64) -> Value {
     }
 }
 
-fn camera_sigma_json(camera: &Camera, s: &[f64; 9]) -> Value {
-    let _ = camera;
+fn camera_sigma_json(s: &[f64; 9]) -> Value {
     let mut m = Map::new();
     for (i, name) in PARAM_NAMES.iter().enumerate().take(4) {
         m.insert((*name).into(), finite_or_null(s[i]));
@@ -603,10 +599,10 @@ fn camera_sigma_json(camera: &Camera, s: &[f64; 9]) -> Value {
     Value::Object(m)
 }
 
-fn uncertainty_json(camera: &Camera, adj: &JointResult) -> Map<String, Value> {
+fn uncertainty_json(adj: &JointResult) -> Map<String, Value> {
     let s = &adj.sigma;
     let mut u = Map::new();
-    u.insert("camera".into(), camera_sigma_json(camera, &s.camera));
+    u.insert("camera".into(), camera_sigma_json(&s.camera));
     u.insert(
         "laser_plane".into(),
         json!({
@@ -626,15 +622,24 @@ fn uncertainty_json(camera: &Camera, adj: &JointResult) -> Map<String, Value> {
     u
 }
 
-/// Loads a dataset folder, observes it and calibrates it.
+/// Loads a dataset folder, observes it and calibrates it ([`calibrate_dataset_loaded`]).
 pub fn calibrate_dataset(
     root: impl AsRef<Path>,
     opts: &CalibrateOptions,
 ) -> Result<CalibrationReport> {
-    let ds = Dataset::load(root)?;
-    let (obs, mut warnings) = observe_dataset(&ds, opts)?;
+    calibrate_dataset_loaded(&Dataset::load(root)?, opts)
+}
+
+/// Observes and calibrates a loaded dataset: [`observe_dataset`], then
+/// [`calibrate_observations`]; views left out by the detection are listed in the
+/// report's views and warnings.
+pub fn calibrate_dataset_loaded(
+    ds: &Dataset,
+    opts: &CalibrateOptions,
+) -> Result<CalibrationReport> {
+    let (obs, mut warnings) = observe_dataset(ds, opts)?;
     let mut rep = calibrate_observations(&obs, &ds.rig, opts)?;
-    for v in ds.views.iter().enumerate().map(|(i, _)| i) {
+    for v in 0..ds.views.len() {
         if !rep.views.iter().any(|s| s.view == v) {
             rep.views.push(ViewStatus {
                 view: v,
@@ -652,20 +657,10 @@ pub fn calibrate_dataset(
     rep.views.sort_by_key(|s| s.view);
     warnings.append(&mut rep.warnings);
     rep.warnings = warnings;
-    if let Some(Value::Array(_)) = rep.calibration.extra.get("warnings") {
-        rep.calibration
-            .extra
-            .insert("warnings".into(), json!(rep.warnings));
-    } else if !rep.warnings.is_empty() {
+    if !rep.warnings.is_empty() {
         rep.calibration
             .extra
             .insert("warnings".into(), json!(rep.warnings));
     }
     Ok(rep)
-}
-
-/// The rotation vector and translation of a transform (for tables).
-pub fn transform_parts(t: &Iso3) -> ([f64; 3], [f64; 3]) {
-    let (r, tr) = iso_to_rotvec(t);
-    ([r.x, r.y, r.z], [tr.x, tr.y, tr.z])
 }
