@@ -917,9 +917,14 @@ pub fn joint_adjustment(
     };
 
     // Unweighted residuals and reports.
-    let mut raw = vec![0.0; m];
-    problem.raw_residuals(&res.params, &mut raw)?;
+    // The solver's final residuals carry the last round's weights.
     let (sc_final, ss_final) = (1.0 / problem.w_circle, 1.0 / problem.w_stripe);
+    let raw: Vec<f64> = res
+        .residuals
+        .iter()
+        .enumerate()
+        .map(|(i, r)| r * if i < m_c { sc_final } else { ss_final })
+        .collect();
     let mut circle_residuals = Vec::with_capacity(problem.circles.len());
     let mut vc = vec![(0.0, 0usize); problem.nviews()];
     for (k, c) in problem.circles.iter().enumerate() {
