@@ -20,7 +20,10 @@ use crate::calib::conic::{
     centre_generic_n, quadrature_nodes, rot_times_exp_first_order, CentreModel, Dual, Scalar,
 };
 use crate::calib::homography::fit_homography;
-use crate::calib::lm::{levenberg_marquardt, LeastSquares, LmOptions, StopReason};
+use crate::calib::lm::{
+    dense_jacobian_from_rows, levenberg_marquardt, JacobianRows, LeastSquares, LmOptions,
+    StopReason,
+};
 use crate::calib::zhang::{pose_from_homography, zhang_intrinsics};
 use crate::calib::ViewObs;
 use crate::camera::{Camera, DistortionModel, PARAM_NAMES};
@@ -162,11 +165,18 @@ impl LeastSquares for CamProblem<'_> {
         }
         Ok(())
     }
-    fn residuals_and_jacobian(
+    fn residuals_and_jacobian(&self, p: &[f64], r: &mut [f64], jac: MatMut<'_, f64>) -> Result<()> {
+        dense_jacobian_from_rows(self, p, r, jac)
+    }
+    fn jacobian_row_width(&self) -> Option<usize> {
+        // The free camera parameters and the view's pose.
+        Some(self.ncam() + 6)
+    }
+    fn residuals_and_jacobian_rows(
         &self,
         p: &[f64],
         r: &mut [f64],
-        mut jac: MatMut<'_, f64>,
+        rows: &mut JacobianRows,
     ) -> Result<()> {
         type D = Dual<15>;
         let c = self.cam_params(p);
@@ -185,24 +195,31 @@ impl LeastSquares for CamProblem<'_> {
                 (rot, t)
             })
             .collect();
-        let preds: Vec<[D; 2]> = self
-            .obs
-            .par_iter()
-            .map(|o| self.predict(&cd, &poses[o.view], o))
-            .collect::<Result<_>>()?;
-        for (k, (o, uv)) in self.obs.iter().zip(&preds).enumerate() {
-            r[2 * k] = uv[0].v - o.u;
-            r[2 * k + 1] = uv[1].v - o.v;
-            for a in 0..2 {
-                for q in 0..nc {
-                    jac[(2 * k + a, q)] = uv[a].d[q];
+        let width = nc + 6;
+        let (cols, vals) = rows.parts_mut();
+        r.par_chunks_mut(2)
+            .zip(cols.par_chunks_mut(2 * width))
+            .zip(vals.par_chunks_mut(2 * width))
+            .zip(self.obs.par_iter())
+            .try_for_each(|(((r, cols), vals), o)| -> Result<()> {
+                let uv = self.predict(&cd, &poses[o.view], o)?;
+                for a in 0..2 {
+                    r[a] = uv[a].v - if a == 0 { o.u } else { o.v };
+                    let (c, v) = (
+                        &mut cols[a * width..(a + 1) * width],
+                        &mut vals[a * width..(a + 1) * width],
+                    );
+                    for q in 0..nc {
+                        c[q] = q;
+                        v[q] = uv[a].d[q];
+                    }
+                    for q in 0..6 {
+                        c[nc + q] = nc + 6 * o.view + q;
+                        v[nc + q] = uv[a].d[9 + q];
+                    }
                 }
-                for q in 0..6 {
-                    jac[(2 * k + a, nc + 6 * o.view + q)] = uv[a].d[9 + q];
-                }
-            }
-        }
-        Ok(())
+                Ok(())
+            })
     }
     fn retract(&self, p: &[f64], dp: &[f64], out: &mut [f64]) {
         let nc = self.ncam();

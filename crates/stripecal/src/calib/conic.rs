@@ -113,6 +113,16 @@ pub trait Scalar:
     fn value(self) -> f64;
     fn sqrt(self) -> Self;
     fn scale(self, k: f64) -> Self;
+    /// The exact centroid's offset from `D(e)` (see [`centroid_offset`]). Duals
+    /// differentiate it through a small inner dual over the inputs that vary (the five
+    /// ellipse parameters and the varying distortion coefficients), then chain: the
+    /// quadrature loop runs on at most 10 derivatives whatever `N`.
+    fn centroid_offset(
+        k: &[Self; 5],
+        e: &[Self; 5],
+        d: &[Self; 2],
+        table: &[(f64, f64)],
+    ) -> [Self; 2];
 }
 
 impl Scalar for f64 {
@@ -131,6 +141,9 @@ impl Scalar for f64 {
     #[inline]
     fn scale(self, k: f64) -> Self {
         self * k
+    }
+    fn centroid_offset(k: &[f64; 5], e: &[f64; 5], d: &[f64; 2], table: &[(f64, f64)]) -> [f64; 2] {
+        centroid_offset(k, e, d, table)
     }
 }
 
@@ -218,6 +231,69 @@ impl<const N: usize> Scalar for Dual<N> {
         }
         self
     }
+    fn centroid_offset(
+        k: &[Self; 5],
+        e: &[Self; 5],
+        d: &[Self; 2],
+        table: &[(f64, f64)],
+    ) -> [Self; 2] {
+        // Inputs: the ellipse (always varying), then the coefficients that vary.
+        let mut inputs: [Self; 10] = [Dual::cst(0.0); 10];
+        inputs[..5].copy_from_slice(e);
+        let mut q = 5;
+        let mut k_var = [false; 5];
+        for (i, ki) in k.iter().enumerate() {
+            if ki.d.iter().any(|x| *x != 0.0) {
+                k_var[i] = true;
+                inputs[q] = *ki;
+                q += 1;
+            }
+        }
+        let inner = match q {
+            5 => chained_offset::<N, 5>(k, &k_var, &inputs, table),
+            6 => chained_offset::<N, 6>(k, &k_var, &inputs, table),
+            7 => chained_offset::<N, 7>(k, &k_var, &inputs, table),
+            8 => chained_offset::<N, 8>(k, &k_var, &inputs, table),
+            9 => chained_offset::<N, 9>(k, &k_var, &inputs, table),
+            _ => chained_offset::<N, 10>(k, &k_var, &inputs, table),
+        };
+        // `d` = D(e) is recomputed from the inner duals, so the offset's derivatives
+        // carry its dependence on the origin D(e) (the caller adds the outer D(e)).
+        let _ = d;
+        inner
+    }
+}
+
+/// [`centroid_offset`] of dual inputs through an inner `Dual<M>` over the `M` varying
+/// inputs (`inputs[..M]`: the ellipse, then the coefficients flagged in `k_var`).
+fn chained_offset<const N: usize, const M: usize>(
+    k: &[Dual<N>; 5],
+    k_var: &[bool; 5],
+    inputs: &[Dual<N>; 10],
+    table: &[(f64, f64)],
+) -> [Dual<N>; 2] {
+    let e: [Dual<M>; 5] = std::array::from_fn(|i| Dual::var(inputs[i].v, i));
+    let mut q = 5;
+    let ki: [Dual<M>; 5] = std::array::from_fn(|i| {
+        if k_var[i] {
+            q += 1;
+            Dual::var(k[i].v, q - 1)
+        } else {
+            Dual::cst(k[i].v)
+        }
+    });
+    let (dc, _) = distort_generic(&ki, e[0], e[1]);
+    let off = centroid_offset(&ki, &e, &dc, table);
+    std::array::from_fn(|a| {
+        let mut d = [0.0; N];
+        for (j, inp) in inputs.iter().take(M).enumerate() {
+            let g = off[a].d[j];
+            for (o, x) in d.iter_mut().zip(&inp.d) {
+                *o += g * x;
+            }
+        }
+        Dual { v: off[a].v, d }
+    })
 }
 
 // ---------------------------------------------------------------------------------
@@ -290,6 +366,37 @@ fn node_table(nodes: usize) -> std::borrow::Cow<'static, [(f64, f64)]> {
     std::borrow::Cow::Borrowed(cell.get_or_init(|| make(nodes)).as_slice())
 }
 
+/// Offset of the area centroid of the distorted ellipse `D(E)` from `d = D(e)`:
+/// `E = {e + L (cos t, sin t)}`, `e = (e[0], e[1])`, `L = [[e[2], 0], [e[3], e[4]]]`, by
+/// Green's theorem on the boundary with the trapezoidal nodes `table` of `(sin, cos)`
+/// (module docs). Coordinates relative to `d` keep the round-off small.
+pub fn centroid_offset<T: Scalar>(
+    k: &[T; 5],
+    e: &[T; 5],
+    d: &[T; 2],
+    table: &[(f64, f64)],
+) -> [T; 2] {
+    let [ex, ey, l00, l10, l11] = *e;
+    let zero = T::from_f64(0.0);
+    let (mut a, mut mx, mut my) = (zero, zero, zero);
+    for &(s, c) in table.iter() {
+        let x = ex + l00.scale(c);
+        let y = ey + l10.scale(c) + l11.scale(s);
+        // d(x, y)/dth
+        let dx = l00.scale(-s);
+        let dy = l10.scale(-s) + l11.scale(c);
+        let (q, j) = distort_generic(k, x, y);
+        let bx = q[0] - d[0];
+        let by = q[1] - d[1];
+        let tx = j[0][0] * dx + j[0][1] * dy;
+        let ty = j[1][0] * dx + j[1][1] * dy;
+        a = a + bx * ty - by * tx;
+        mx = mx + bx * bx * ty;
+        my = my - by * by * tx;
+    }
+    [mx / a, my / a]
+}
+
 /// [`centre_generic`] with `nodes` trapezoidal nodes for the exact centroid (see
 /// [`quadrature_nodes`]: fewer than the model needs is inexact).
 pub fn centre_generic_n<T: Scalar>(
@@ -345,26 +452,9 @@ pub fn centre_generic_n<T: Scalar>(
                 let l00 = q00.sqrt();
                 let l10 = q01 / l00;
                 let l11 = (q11 - l10 * l10).sqrt();
-                let (mut a, mut mx, mut my) =
-                    (T::from_f64(0.0), T::from_f64(0.0), T::from_f64(0.0));
                 let table = node_table(nodes);
-                for &(s, c) in table.iter() {
-                    let x = ex + l00.scale(c);
-                    let y = ey + l10.scale(c) + l11.scale(s);
-                    // d(x, y)/dth
-                    let dx = l00.scale(-s);
-                    let dy = l10.scale(-s) + l11.scale(c);
-                    let (q, j) = distort_generic(&k, x, y);
-                    // relative to D(e) for round-off
-                    let bx = q[0] - d[0];
-                    let by = q[1] - d[1];
-                    let tx = j[0][0] * dx + j[0][1] * dy;
-                    let ty = j[1][0] * dx + j[1][1] * dy;
-                    a = a + bx * ty - by * tx;
-                    mx = mx + bx * bx * ty;
-                    my = my - by * by * tx;
-                }
-                (d[0] + mx / a, d[1] + my / a)
+                let off = T::centroid_offset(&k, &[ex, ey, l00, l10, l11], &d, &table);
+                (d[0] + off[0], d[1] + off[1])
             }
         }
     };

@@ -32,9 +32,10 @@
 //! ## Weighting and uncertainty
 //!
 //! Circle and stripe residuals have different noise. The adjustment estimates one
-//! standard deviation per residual type (variance components): it solves with the
-//! current weights `1 / sigma_type`, re-estimates `sigma_type^2 = SSR_type / (m_type -
-//! n m_type / m)`, and solves again (`reweight_rounds` times). The covariance of the
+//! standard deviation per residual type (variance components): after every accepted
+//! step it re-estimates `sigma_type^2 = SSR_type / (m_type - n m_type / m)` from the
+//! residuals and re-weights (`1 / sigma_type`); the solver does not stop while the
+//! weights still move (see [`LeastSquares::reweight`]). The covariance of the
 //! parameters is then `s^2 (J^T W J)^-1` with `s^2` the a-posteriori variance factor of
 //! the weighted residuals (about 1). Optional Huber loss on the weighted residuals
 //! (threshold 1.345 sigma). Jacobians by forward-mode automatic differentiation
@@ -43,14 +44,17 @@
 use faer::MatMut;
 use nalgebra::{DMatrix, Matrix3, Vector3};
 use rayon::prelude::*;
-use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::atomic::{AtomicU64, AtomicUsize, Ordering};
 
 use crate::board::Board;
 use crate::calib::conic::{
     centre_generic_n, distort_generic, quadrature_nodes, rot_times_exp_first_order, CentreModel,
     Dual, Scalar,
 };
-use crate::calib::lm::{levenberg_marquardt, LeastSquares, LmOptions, LmResult, StopReason};
+use crate::calib::lm::{
+    dense_jacobian_from_rows, levenberg_marquardt, JacobianRows, LeastSquares, LmOptions, LmResult,
+    StopReason,
+};
 use crate::calib::ViewObs;
 use crate::camera::{Camera, PARAM_NAMES};
 use crate::error::{Error, Result};
@@ -64,6 +68,11 @@ const SLOT_PLANE: usize = 9;
 const SLOT_X: usize = 12;
 const SLOT_Z: usize = 18;
 
+/// Variance-component re-estimations per solve: they settle in 2-3 on noisy data; a
+/// residual type fitted exactly (noise-free data, or a model that fits one type
+/// perfectly) would otherwise chase its sigma towards zero step after step.
+const MAX_REWEIGHTS: usize = 5;
+
 /// Huber threshold on the weighted residuals (in units of the residual's sigma).
 pub const HUBER_SIGMAS: f64 = 1.345;
 
@@ -76,8 +85,9 @@ pub struct JointOptions {
     pub lm: LmOptions,
     /// Huber loss on the weighted residuals.
     pub robust: bool,
-    /// Variance-component rounds after the first solve (default 2).
-    pub reweight_rounds: usize,
+    /// Estimate one standard deviation per residual type (variance components) during
+    /// the solve (default true); otherwise the weights stay `1 / initial_sigma_px`.
+    pub variance_components: bool,
     /// A view whose RMS of weighted residuals exceeds this (in sigmas) is reported as an
     /// outlier (default 3).
     pub outlier_sigmas: f64,
@@ -96,7 +106,7 @@ impl Default for JointOptions {
                 ..Default::default()
             },
             robust: false,
-            reweight_rounds: 2,
+            variance_components: true,
             outlier_sigmas: 3.0,
             initial_sigma_px: (0.02, 0.05),
         }
@@ -216,8 +226,16 @@ struct JointProblem<'a> {
     a: Vec<Iso3>,
     circles: Vec<CircleTerm>,
     stripes: Vec<StripeTerm>,
-    w_circle: f64,
-    w_stripe: f64,
+    /// Weights `1 / sigma` of the circle and stripe residuals (f64 bits; re-estimated
+    /// during the solve when `variance_components` is set).
+    w_circle: AtomicU64,
+    w_stripe: AtomicU64,
+    /// Re-estimate the weights (variance components) in [`LeastSquares::reweight`].
+    variance_components: bool,
+    /// MAD instead of RMS for the sigmas (robust).
+    robust_sigma: bool,
+    /// Re-estimations left in the current solve (see [`MAX_REWEIGHTS`]).
+    reweights_left: AtomicUsize,
     /// The last foot-point parameter of each stripe point (f64 bits; NaN: none): the
     /// next evaluation starts there (a warm start; the result does not depend on it
     /// beyond the 1e-11 px convergence tolerance).
@@ -391,6 +409,38 @@ impl JointProblem<'_> {
         self.free.len()
     }
 
+    fn wc(&self) -> f64 {
+        f64::from_bits(self.w_circle.load(Ordering::Relaxed))
+    }
+
+    fn ws(&self) -> f64 {
+        f64::from_bits(self.w_stripe.load(Ordering::Relaxed))
+    }
+
+    /// Standard deviations (circle, stripe) of the raw residuals behind the weighted
+    /// `r`: `sqrt(SSR_type / (m_type - n m_type / m))`, or 1.4826 MAD when robust;
+    /// floored at 1e-9 px (round-off of exact data).
+    fn sigmas(&self, r: &[f64]) -> (Option<f64>, f64) {
+        let n = self.num_params() as f64;
+        let m = r.len() as f64;
+        let mc = 2 * self.circles.len();
+        let (rc, rs) = r.split_at(mc);
+        let est = |rr: &[f64], w: f64| -> f64 {
+            let mt = rr.len() as f64;
+            let dof = (mt - n * mt / m).max(1.0);
+            let s = if self.robust_sigma {
+                let mut a: Vec<f64> = rr.iter().map(|x| (x / w).abs()).collect();
+                a.sort_by(f64::total_cmp);
+                1.4826 * a.get(a.len() / 2).copied().unwrap_or(0.0)
+            } else {
+                (rr.iter().map(|x| (x / w).powi(2)).sum::<f64>() / dof).sqrt()
+            };
+            s.max(1e-9)
+        };
+        let sc = (mc > 0).then(|| est(rc, self.wc()));
+        (sc, est(rs, self.ws()))
+    }
+
     fn decode(&self, p: &[f64]) -> State {
         let mut cam = self.base.params();
         for (k, &i) in self.free.iter().enumerate() {
@@ -481,17 +531,27 @@ impl LeastSquares for JointProblem<'_> {
         self.raw_residuals(p, r)?;
         let nc = 2 * self.circles.len();
         for (i, x) in r.iter_mut().enumerate() {
-            *x *= if i < nc { self.w_circle } else { self.w_stripe };
+            *x *= if i < nc { self.wc() } else { self.ws() };
         }
         Ok(())
     }
-    fn residuals_and_jacobian(
+    fn residuals_and_jacobian(&self, p: &[f64], r: &mut [f64], jac: MatMut<'_, f64>) -> Result<()> {
+        dense_jacobian_from_rows(self, p, r, jac)
+    }
+    fn jacobian_row_width(&self) -> Option<usize> {
+        // Every residual depends on (nearly) every parameter: dense rows.
+        Some(self.num_params())
+    }
+    fn residuals_and_jacobian_rows(
         &self,
         p: &[f64],
         r: &mut [f64],
-        mut jac: MatMut<'_, f64>,
+        rows: &mut JacobianRows,
     ) -> Result<()> {
         let s = self.decode(p);
+        let n = self.num_params();
+        // Column of each dual slot (fixed camera parameters: none).
+        let col_of: [Option<usize>; 24] = std::array::from_fn(|slot| self.column(slot));
         let o = self.ncam();
         // Duals over every slot.
         let a = D24::var(p[o], SLOT_PLANE);
@@ -553,15 +613,23 @@ impl LeastSquares for JointProblem<'_> {
         type D15 = Dual<15>;
         let c15: [D15; 9] = std::array::from_fn(|i| D15::var(s.cam[i], i));
         let w15: [D15; 3] = std::array::from_fn(|i| D15::var(0.0, 9 + i));
-        let circle_rows: Vec<[D15; 2]> = self
-            .circles
-            .par_iter()
-            .map(|c| {
+        let nc = self.circles.len();
+        let (rc, rs) = r.split_at_mut(2 * nc);
+        let (cols, vals) = rows.parts_mut();
+        cols.par_chunks_mut(n)
+            .enumerate()
+            .for_each(|(_, c)| c.iter_mut().enumerate().for_each(|(j, x)| *x = j));
+        let (vc, vs) = vals.split_at_mut(2 * nc * n);
+        let wc = self.wc();
+        rc.par_chunks_mut(2)
+            .zip(vc.par_chunks_mut(2 * n))
+            .zip(self.circles.par_iter())
+            .try_for_each(|((out, jrow), c)| -> Result<()> {
                 let (rot, t) = &poses_f[c.view];
                 let r0 = Matrix3::from_fn(|i, j| rot[i][j]);
                 let rd = rot_times_exp_first_order(&r0, &w15);
                 let td: [D15; 3] = std::array::from_fn(|i| D15::var(t[i], 12 + i));
-                centre_generic_n(
+                let uv = centre_generic_n(
                     &c15,
                     &rd,
                     &td,
@@ -569,37 +637,33 @@ impl LeastSquares for JointProblem<'_> {
                     c.radius,
                     self.model,
                     quadrature_nodes(self.base.model),
-                )
-            })
-            .collect::<Result<_>>()?;
-        let wc = self.w_circle;
-        for (k, (c, uv)) in self.circles.iter().zip(&circle_rows).enumerate() {
-            let ch = &chains[c.view];
-            r[2 * k] = wc * (uv[0].v - c.u);
-            r[2 * k + 1] = wc * (uv[1].v - c.v);
-            for (a, ua) in uv.iter().enumerate() {
-                let row = 2 * k + a;
-                for slot in 0..9 {
-                    if let Some(col) = self.column(slot) {
-                        jac[(row, col)] = wc * ua.d[slot];
+                )?;
+                out[0] = wc * (uv[0].v - c.u);
+                out[1] = wc * (uv[1].v - c.v);
+                let ch = &chains[c.view];
+                for (a, ua) in uv.iter().enumerate() {
+                    let row = &mut jrow[a * n..(a + 1) * n];
+                    for (slot, col) in col_of.iter().enumerate().take(9) {
+                        if let Some(col) = col {
+                            row[*col] = wc * ua.d[slot];
+                        }
+                    }
+                    for kk in 0..12 {
+                        let acc: f64 = (0..6).map(|q| ua.d[9 + q] * ch[q][kk]).sum();
+                        row[o + 3 + kk] = wc * acc;
                     }
                 }
-                for kk in 0..12 {
-                    let acc: f64 = (0..6).map(|q| ua.d[9 + q] * ch[q][kk]).sum();
-                    jac[(row, o + 3 + kk)] = wc * acc;
-                }
-            }
-        }
+                Ok(())
+            })?;
         // Stripe points.
-        let ws = self.w_stripe;
+        let ws = self.ws();
         // Chain rule: d res = n^T (d pi/d P (d p0 + s d dir) + d pi/d camera), the line's
         // derivatives (plane, X, Z slots) from the per-view duals, the projection's by a
         // small dual over (x, y, k1..k3) at the point.
-        let stripe_rows: Vec<(f64, [f64; 24])> = self
-            .stripes
-            .par_iter()
-            .zip(self.foot_cache.par_iter())
-            .map(|(st, cache)| {
+        rs.par_iter_mut()
+            .zip(vs.par_chunks_mut(n))
+            .zip(self.stripes.par_iter().zip(self.foot_cache.par_iter()))
+            .try_for_each(|((out, row), (st, cache))| -> Result<()> {
                 let Some((p0, dir)) = lines[st.view] else {
                     return Err(parallel_error(st.view));
                 };
@@ -620,32 +684,47 @@ impl LeastSquares for JointProblem<'_> {
                 let drx = g0 * d[0].d[0] + g1 * d[1].d[0];
                 let dry = g0 * d[0].d[1] + g1 * d[1].d[1];
                 let dp = [drx / pf[2], dry / pf[2], -(drx * x + dry * y) / pf[2]];
-                let mut out = [0.0; 24];
-                out[0] = normal[0] * d[0].v;
-                out[1] = normal[1] * d[1].v;
-                out[2] = normal[0];
-                out[3] = normal[1];
+                let mut full = [0.0; 24];
+                full[0] = normal[0] * d[0].v;
+                full[1] = normal[1] * d[1].v;
+                full[2] = normal[0];
+                full[3] = normal[1];
                 for i in 0..5 {
-                    out[4 + i] = g0 * d[0].d[2 + i] + g1 * d[1].d[2 + i];
+                    full[4 + i] = g0 * d[0].d[2 + i] + g1 * d[1].d[2 + i];
                 }
-                for (slot, o) in out.iter_mut().enumerate().skip(SLOT_PLANE) {
+                for (slot, o) in full.iter_mut().enumerate().skip(SLOT_PLANE) {
                     *o = (0..3)
                         .map(|i| dp[i] * (p0[i].d[slot] + sf * dir[i].d[slot]))
                         .sum();
                 }
-                Ok((res, out))
-            })
-            .collect::<Result<_>>()?;
-        let base = 2 * self.circles.len();
-        for (k, (v, d)) in stripe_rows.iter().enumerate() {
-            r[base + k] = ws * v;
-            for (slot, dv) in d.iter().enumerate() {
-                if let Some(col) = self.column(slot) {
-                    jac[(base + k, col)] = ws * dv;
+                *out = ws * res;
+                for (slot, v) in full.iter().enumerate() {
+                    if let Some(col) = col_of[slot] {
+                        row[col] = ws * v;
+                    }
                 }
-            }
-        }
+                Ok(())
+            })?;
         Ok(())
+    }
+    fn reweight(&self, r: &[f64]) -> Option<Vec<f64>> {
+        if !self.variance_components
+            || self
+                .reweights_left
+                .fetch_update(Ordering::Relaxed, Ordering::Relaxed, |k| k.checked_sub(1))
+                .is_err()
+        {
+            return None;
+        }
+        let (sc, ss) = self.sigmas(r);
+        let (wc0, ws0) = (self.wc(), self.ws());
+        let wc1 = sc.map_or(wc0, |s| 1.0 / s);
+        let ws1 = 1.0 / ss;
+        self.w_circle.store(wc1.to_bits(), Ordering::Relaxed);
+        self.w_stripe.store(ws1.to_bits(), Ordering::Relaxed);
+        let nc = 2 * self.circles.len();
+        let (fc, fs) = (wc1 / wc0, ws1 / ws0);
+        Some((0..r.len()).map(|i| if i < nc { fc } else { fs }).collect())
     }
     fn retract(&self, p: &[f64], dp: &[f64], out: &mut [f64]) {
         let o = self.ncam();
@@ -789,8 +868,11 @@ pub fn joint_adjustment(
         a,
         circles,
         stripes,
-        w_circle: 1.0 / opts.initial_sigma_px.0,
-        w_stripe: 1.0 / opts.initial_sigma_px.1,
+        w_circle: AtomicU64::new((1.0 / opts.initial_sigma_px.0).to_bits()),
+        w_stripe: AtomicU64::new((1.0 / opts.initial_sigma_px.1).to_bits()),
+        variance_components: opts.variance_components,
+        robust_sigma: opts.robust,
+        reweights_left: AtomicUsize::new(MAX_REWEIGHTS),
         foot_cache: Vec::new(),
     };
     problem.foot_cache = (0..problem.stripes.len())
@@ -803,52 +885,43 @@ pub fn joint_adjustment(
         let (rv, tr) = iso_to_rotvec(t);
         p.extend_from_slice(&[rv.x, rv.y, rv.z, tr.x, tr.y, tr.z]);
     }
-    let n = problem.num_params();
     let m_c = 2 * problem.circles.len();
     let m_s = problem.stripes.len();
-    let m = m_c + m_s;
+    // Two solves: the first with the first-order conic model when the exact one is asked
+    // for (much cheaper; the weights settle there), the second with the requested model
+    // (and Huber when robust) from next to its solution. The variance components are
+    // re-estimated after every accepted step of both.
+    let exact_later = opts.centre_model == CentreModel::ConicExact;
+    let solves: Vec<(CentreModel, bool)> = if exact_later || opts.robust {
+        vec![
+            (
+                if exact_later {
+                    CentreModel::Conic
+                } else {
+                    opts.centre_model
+                },
+                false,
+            ),
+            (opts.centre_model, opts.robust),
+        ]
+    } else {
+        vec![(opts.centre_model, false)]
+    };
     let mut res: Option<LmResult> = None;
     let mut iterations = 0;
-    for round in 0..=opts.reweight_rounds {
+    for (model, huber) in solves {
         let mut lm = opts.lm.clone();
-        if opts.robust && round > 0 {
+        if huber {
             lm.huber = Some(HUBER_SIGMAS);
         }
-        // Early rounds (weights still moving) with the first-order conic model when the
-        // exact one is asked for: the last round starts next to its solution.
-        problem.model =
-            if round < opts.reweight_rounds && opts.centre_model == CentreModel::ConicExact {
-                CentreModel::Conic
-            } else {
-                opts.centre_model
-            };
+        problem.model = model;
+        problem
+            .reweights_left
+            .store(MAX_REWEIGHTS, Ordering::Relaxed);
         let r = levenberg_marquardt(&problem, &p, &lm)?;
         iterations += r.iterations;
         p.clone_from(&r.params);
-        // Variance components from the unweighted residuals (robust: 1.4826 MAD).
-        let (rc, rs) = r.residuals.split_at(m_c);
-        let est = |rr: &[f64], w: f64, mt: usize| -> f64 {
-            let dof = (mt as f64 - n as f64 * mt as f64 / m as f64).max(1.0);
-            if opts.robust {
-                let mut a: Vec<f64> = rr.iter().map(|x| (x / w).abs()).collect();
-                a.sort_by(f64::total_cmp);
-                1.4826 * a.get(a.len() / 2).copied().unwrap_or(0.0)
-            } else {
-                (rr.iter().map(|x| (x / w).powi(2)).sum::<f64>() / dof).sqrt()
-            }
-        };
-        let sc = if m_c > 0 {
-            est(rc, problem.w_circle, m_c)
-        } else {
-            opts.initial_sigma_px.0
-        };
-        let ss = est(rs, problem.w_stripe, m_s);
         res = Some(r);
-        if round < opts.reweight_rounds {
-            // Floor: round-off for exact data.
-            problem.w_circle = 1.0 / sc.max(1e-9);
-            problem.w_stripe = 1.0 / ss.max(1e-9);
-        }
     }
     let Some(res) = res else {
         return Err(Error::InvalidInput(
@@ -918,7 +991,7 @@ pub fn joint_adjustment(
 
     // Unweighted residuals and reports.
     // The solver's final residuals carry the last round's weights.
-    let (sc_final, ss_final) = (1.0 / problem.w_circle, 1.0 / problem.w_stripe);
+    let (sc_final, ss_final) = (1.0 / problem.wc(), 1.0 / problem.ws());
     let raw: Vec<f64> = res
         .residuals
         .iter()
@@ -1254,8 +1327,11 @@ mod tests {
             a,
             circles,
             stripes,
-            w_circle: 2.0,
-            w_stripe: 0.5,
+            w_circle: AtomicU64::new(2.0f64.to_bits()),
+            w_stripe: AtomicU64::new(0.5f64.to_bits()),
+            variance_components: false,
+            robust_sigma: false,
+            reweights_left: AtomicUsize::new(0),
             foot_cache: Vec::new(),
         };
         let mut pr = pr;

@@ -55,6 +55,106 @@ pub trait LeastSquares {
             *o = a + b;
         }
     }
+    /// Re-weighting (variance components): called with the residuals at the start and
+    /// after every accepted step; a problem that changes its residual weights returns
+    /// the factor by which each residual's weight changed (the solver rescales the
+    /// residuals and Jacobian it holds). While a factor differs from 1 by more than
+    /// 1e-3 the solver does not stop on its cost or step tests. Default: `None`.
+    fn reweight(&self, _r: &[f64]) -> Option<Vec<f64>> {
+        None
+    }
+    /// `Some(w)` when every Jacobian row has at most `w` non-zeros and the problem
+    /// provides them by [`LeastSquares::residuals_and_jacobian_rows`] (the solver then
+    /// never forms the dense `m x n` Jacobian); `None` (default): dense.
+    fn jacobian_row_width(&self) -> Option<usize> {
+        None
+    }
+    /// Residuals into `r` and the Jacobian by rows into `rows` (zero-filled on entry;
+    /// see [`JacobianRows`]). Only called when [`LeastSquares::jacobian_row_width`] is
+    /// `Some`.
+    fn residuals_and_jacobian_rows(
+        &self,
+        _p: &[f64],
+        _r: &mut [f64],
+        _rows: &mut JacobianRows,
+    ) -> Result<()> {
+        Err(Error::InvalidInput(
+            "this least-squares problem has no row Jacobian".into(),
+        ))
+    }
+}
+
+/// A Jacobian stored by rows of `width` (column, value) pairs: for problems in which
+/// each residual depends on a few parameters (a camera and one view's pose). Unused
+/// pairs are (0, 0.0); a column may appear more than once in a row (the values add).
+#[derive(Debug, Clone)]
+pub struct JacobianRows {
+    width: usize,
+    cols: Vec<usize>,
+    vals: Vec<f64>,
+}
+
+impl JacobianRows {
+    /// `m` zero rows of `width` pairs.
+    pub fn new(m: usize, width: usize) -> Self {
+        JacobianRows {
+            width,
+            cols: vec![0; m * width],
+            vals: vec![0.0; m * width],
+        }
+    }
+    /// Pairs per row.
+    pub fn width(&self) -> usize {
+        self.width
+    }
+    /// Number of rows.
+    pub fn len(&self) -> usize {
+        self.vals.len() / self.width.max(1)
+    }
+    /// True without rows.
+    pub fn is_empty(&self) -> bool {
+        self.vals.is_empty()
+    }
+    /// Zero-fills every row.
+    pub fn clear(&mut self) {
+        self.cols.fill(0);
+        self.vals.fill(0.0);
+    }
+    /// Columns and values of every row, row after row (`width` each): split them with
+    /// `chunks_mut(width)` (or rayon's `par_chunks_mut`).
+    pub fn parts_mut(&mut self) -> (&mut [usize], &mut [f64]) {
+        (&mut self.cols, &mut self.vals)
+    }
+    /// Columns and values of row `i`.
+    pub fn row(&self, i: usize) -> (&[usize], &[f64]) {
+        let w = self.width;
+        (
+            &self.cols[i * w..(i + 1) * w],
+            &self.vals[i * w..(i + 1) * w],
+        )
+    }
+}
+
+/// [`LeastSquares::residuals_and_jacobian`] of a problem that provides its Jacobian by
+/// rows: the rows scattered into the dense matrix (for tests and callers that want it).
+pub fn dense_jacobian_from_rows<P: LeastSquares + ?Sized>(
+    problem: &P,
+    p: &[f64],
+    r: &mut [f64],
+    mut jac: MatMut<'_, f64>,
+) -> Result<()> {
+    let w = problem.jacobian_row_width().ok_or_else(|| {
+        Error::InvalidInput("this least-squares problem has no row Jacobian".into())
+    })?;
+    let mut rows = JacobianRows::new(r.len(), w);
+    problem.residuals_and_jacobian_rows(p, r, &mut rows)?;
+    for i in 0..rows.len() {
+        let (c, v) = rows.row(i);
+        for (&c, &v) in c.iter().zip(v) {
+            jac[(i, c)] += v;
+        }
+    }
+    Ok(())
 }
 
 /// Options of [`levenberg_marquardt`].
@@ -158,6 +258,181 @@ fn cost_of(r: &[f64], huber: Option<f64>) -> f64 {
     }
 }
 
+/// Relative weight change below which re-weighted weights count as settled.
+const WEIGHT_TOL: f64 = 1e-3;
+
+/// The solver's Jacobian storage (dense, or by rows) and its normal equations.
+struct Work {
+    m: usize,
+    n: usize,
+    rows: Option<JacobianRows>,
+    jac: Mat<f64>,
+    jtj_f: Mat<f64>,
+    scratch: Vec<f64>,
+}
+
+impl Work {
+    fn new(m: usize, n: usize, row_width: Option<usize>) -> Self {
+        Work {
+            m,
+            n,
+            rows: row_width.map(|w| JacobianRows::new(m, w)),
+            jac: if row_width.is_some() {
+                Mat::zeros(0, 0)
+            } else {
+                Mat::zeros(m, n)
+            },
+            jtj_f: Mat::zeros(n, n),
+            scratch: Vec::new(),
+        }
+    }
+
+    /// Residuals and Jacobian at `p`.
+    fn evaluate<P: LeastSquares + ?Sized>(
+        &mut self,
+        problem: &P,
+        p: &[f64],
+        r: &mut [f64],
+    ) -> Result<()> {
+        match &mut self.rows {
+            Some(rows) => {
+                rows.clear();
+                problem.residuals_and_jacobian_rows(p, r, rows)?;
+            }
+            None => {
+                self.jac.fill(0.0);
+                problem.residuals_and_jacobian(p, r, self.jac.as_mut())?;
+            }
+        }
+        if r.iter().any(|x| !x.is_finite()) {
+            return Err(Error::Degenerate("residuals are not finite".into()));
+        }
+        Ok(())
+    }
+
+    /// Multiplies residual `i` and Jacobian row `i` by `f[i]` (a re-weighting).
+    fn rescale(&mut self, f: &[f64], r: &mut [f64]) {
+        for (ri, fi) in r.iter_mut().zip(f) {
+            *ri *= fi;
+        }
+        match &mut self.rows {
+            Some(rows) => {
+                let w = rows.width;
+                for (v, fi) in rows.vals.chunks_exact_mut(w.max(1)).zip(f) {
+                    v.iter_mut().for_each(|x| *x *= fi);
+                }
+            }
+            None => {
+                for j in 0..self.n {
+                    for (i, fi) in f.iter().enumerate() {
+                        self.jac[(i, j)] *= fi;
+                    }
+                }
+            }
+        }
+    }
+
+    /// `(J^T W J, J^T W r)`, `W` the Huber IRLS weights at `r` (identity without Huber).
+    fn normal_equations(
+        &mut self,
+        r: &[f64],
+        huber: Option<f64>,
+    ) -> Result<(DMatrix<f64>, DVector<f64>)> {
+        let (m, n) = (self.m, self.n);
+        let mut g = DVector::<f64>::zeros(n);
+        let mut jtj = DMatrix::<f64>::zeros(n, n);
+        // sqrt(W) r
+        let sw: Vec<f64> = r.iter().map(|&x| huber_weight(x, huber).sqrt()).collect();
+        let rw: Vec<f64> = r.iter().zip(&sw).map(|(x, s)| x * s).collect();
+        // sqrt(W) J as a column-major n x m matrix (J^T) or a column-major m x n one.
+        let dense_t: Option<faer::MatRef<'_, f64>>;
+        match &self.rows {
+            Some(rows) => {
+                let w = rows.width;
+                let dense_rows = w == n
+                    && rows
+                        .cols
+                        .chunks_exact(w.max(1))
+                        .all(|c| c.iter().enumerate().all(|(j, &x)| x == j));
+                if dense_rows {
+                    // Every row holds columns 0..n in order: the values are J^T stored
+                    // column-major (n x m).
+                    let vals: &[f64] = if huber.is_some() {
+                        self.scratch.clear();
+                        self.scratch.extend_from_slice(&rows.vals);
+                        for (v, s) in self.scratch.chunks_exact_mut(w.max(1)).zip(&sw) {
+                            v.iter_mut().for_each(|x| *x *= s);
+                        }
+                        &self.scratch
+                    } else {
+                        &rows.vals
+                    };
+                    dense_t = Some(faer::MatRef::from_column_major_slice(vals, n, m));
+                } else {
+                    // Scatter each row's outer product (column-major n x n).
+                    let acc = jtj.as_mut_slice();
+                    for (i, (&ri, &si)) in r.iter().zip(&sw).enumerate() {
+                        let wt = si * si;
+                        let (c, v) = rows.row(i);
+                        for (&ca, &va) in c.iter().zip(v) {
+                            if va == 0.0 {
+                                continue;
+                            }
+                            let wva = wt * va;
+                            g[ca] += wva * ri;
+                            let col = &mut acc[ca * n..(ca + 1) * n];
+                            for (&cb, &vb) in c.iter().zip(v) {
+                                col[cb] += wva * vb;
+                            }
+                        }
+                    }
+                    dense_t = None;
+                }
+            }
+            None => {
+                if huber.is_some() {
+                    self.scratch.clear();
+                    self.scratch.resize(m * n, 0.0);
+                    for j in 0..n {
+                        let col = self.jac.col(j);
+                        for (i, si) in sw.iter().enumerate() {
+                            self.scratch[j * m + i] = col[i] * si;
+                        }
+                    }
+                    dense_t = Some(
+                        faer::MatRef::from_column_major_slice(&self.scratch, m, n).transpose(),
+                    );
+                } else {
+                    dense_t = Some(self.jac.as_ref().transpose());
+                }
+            }
+        }
+        if let Some(jt) = dense_t {
+            faer::linalg::matmul::matmul(
+                self.jtj_f.as_mut(),
+                Accum::Replace,
+                jt,
+                jt.transpose(),
+                1.0,
+                Par::Seq,
+            );
+            let rv = faer::MatRef::from_column_major_slice(&rw, m, 1);
+            let mut gf = Mat::<f64>::zeros(n, 1);
+            faer::linalg::matmul::matmul(gf.as_mut(), Accum::Replace, jt, rv, 1.0, Par::Seq);
+            for a in 0..n {
+                g[a] = gf[(a, 0)];
+                for b in 0..n {
+                    jtj[(a, b)] = self.jtj_f[(a, b)];
+                }
+            }
+        }
+        if jtj.iter().any(|x| !x.is_finite()) || g.iter().any(|x| !x.is_finite()) {
+            return Err(Error::Degenerate("Jacobian is not finite".into()));
+        }
+        Ok((jtj, g))
+    }
+}
+
 /// Minimises the problem from `p0`.
 ///
 /// Errors: [`Error::InvalidInput`] for inconsistent sizes, non-finite `p0` or options;
@@ -204,48 +479,15 @@ pub fn levenberg_marquardt<P: LeastSquares + ?Sized>(
 
     let mut p = p0.to_vec();
     let mut r = vec![0.0; m];
-    let mut jac = Mat::<f64>::zeros(m, n);
-    let mut jtj_f = Mat::<f64>::zeros(n, n);
+    let mut work = Work::new(m, n, problem.jacobian_row_width());
     let mut r_try = vec![0.0; m];
     let mut p_try = vec![0.0; n];
 
-    // Evaluates r, J (weighted by sqrt(W)) into jac, returns (JtWJ, g = JtWr).
-    let eval = |p: &[f64],
-                r: &mut [f64],
-                jac: &mut Mat<f64>,
-                jtj_f: &mut Mat<f64>|
-     -> Result<(DMatrix<f64>, DVector<f64>)> {
-        jac.fill(0.0);
-        problem.residuals_and_jacobian(p, r, jac.as_mut())?;
-        if r.iter().any(|x| !x.is_finite()) {
-            return Err(Error::Degenerate("residuals are not finite".into()));
-        }
-        let mut g = DVector::<f64>::zeros(n);
-        for i in 0..m {
-            let w = huber_weight(r[i], opts.huber);
-            let sw = w.sqrt();
-            for j in 0..n {
-                let v = jac[(i, j)] * sw;
-                jac[(i, j)] = v;
-                g[j] += v * r[i] * sw;
-            }
-        }
-        faer::linalg::matmul::matmul(
-            jtj_f.as_mut(),
-            Accum::Replace,
-            jac.transpose(),
-            jac.as_ref(),
-            1.0,
-            Par::Seq,
-        );
-        let jtj = DMatrix::from_fn(n, n, |a, b| jtj_f[(a, b)]);
-        if jtj.iter().any(|x| !x.is_finite()) {
-            return Err(Error::Degenerate("Jacobian is not finite".into()));
-        }
-        Ok((jtj, g))
-    };
-
-    let (mut jtj, mut g) = eval(&p, &mut r, &mut jac, &mut jtj_f)?;
+    work.evaluate(problem, &p, &mut r)?;
+    if let Some(f) = problem.reweight(&r) {
+        work.rescale(&f, &mut r);
+    }
+    let (mut jtj, mut g) = work.normal_equations(&r, opts.huber)?;
     let mut cost = cost_of(&r, opts.huber);
     let initial_cost = cost;
     let mut diag: Vec<f64> = match &opts.scaling {
@@ -255,8 +497,12 @@ pub fn levenberg_marquardt<P: LeastSquares + ?Sized>(
     let maxdiag = (0..n).map(|i| jtj[(i, i)]).fold(0.0f64, f64::max);
     let mut lambda = opts.initial_lambda * maxdiag.max(1e-300)
         / diag.iter().cloned().fold(0.0f64, f64::max).max(1e-300);
+    let mut nu = 4.0;
     let mut iterations = 0;
     let mut reason = StopReason::MaxIterations;
+    // Whether the weights moved at the last re-weighting (no convergence stop then).
+    let mut weights_moving = false;
+    let trace = std::env::var_os("STRIPECAL_LM_TRACE").is_some();
 
     'outer: while iterations < opts.max_iterations {
         iterations += 1;
@@ -275,7 +521,7 @@ pub fn levenberg_marquardt<P: LeastSquares + ?Sized>(
                 }
             })
             .fold(0.0f64, f64::max);
-        if gmax <= opts.gtol * (2.0 * cost).sqrt() {
+        if gmax <= opts.gtol * (2.0 * cost).sqrt() && !weights_moving {
             reason = StopReason::GradientConverged;
             break;
         }
@@ -300,6 +546,20 @@ pub fn levenberg_marquardt<P: LeastSquares + ?Sized>(
                     continue;
                 }
             };
+            // Decrease predicted by the quadratic model: -g.dp - dp^T JtJ dp / 2.
+            let pred = -g.dot(&dp) - 0.5 * dp.dot(&(&jtj * &dp));
+            // Stop before evaluating a step that cannot gain anything worth having: a
+            // predicted relative decrease below `ftol` (MINPACK's test), or below the
+            // round-off of the cost itself (`m` terms summed).
+            let noise = 10.0 * m as f64 * f64::EPSILON;
+            if pred.is_nan() || pred <= opts.ftol.max(noise) * cost {
+                reason = if pred > noise * cost {
+                    StopReason::CostConverged
+                } else {
+                    StopReason::NoDecrease
+                };
+                break 'outer;
+            }
             let dnorm = (0..n).map(|i| diag[i] * dp[i] * dp[i]).sum::<f64>().sqrt();
             problem.retract(&p, dp.as_slice(), &mut p_try);
             let ok = p_try.iter().all(|x| x.is_finite())
@@ -310,27 +570,53 @@ pub fn levenberg_marquardt<P: LeastSquares + ?Sized>(
             } else {
                 f64::INFINITY
             };
+            if trace {
+                eprintln!(
+                    "lm n={n} m={m} it={iterations} lambda={lambda:.3e} cost={cost:.9e} \
+                     new={new_cost:.9e} rho={:.4}",
+                    (cost - new_cost) / pred
+                );
+            }
             if new_cost < cost {
                 let pnorm = (0..n).map(|i| diag[i] * p[i] * p[i]).sum::<f64>().sqrt();
                 let rel = (cost - new_cost) / cost;
+                let rho = (cost - new_cost) / pred;
                 std::mem::swap(&mut p, &mut p_try);
-                cost = new_cost;
-                let (j2, g2) = eval(&p, &mut r, &mut jac, &mut jtj_f)?;
-                jtj = j2;
-                g = g2;
-                lambda = (lambda / 3.0).max(1e-300);
-                if rel < opts.ftol {
+                work.evaluate(problem, &p, &mut r)?;
+                weights_moving = false;
+                if let Some(f) = problem.reweight(&r) {
+                    weights_moving = f.iter().any(|x| (x - 1.0).abs() > WEIGHT_TOL);
+                    work.rescale(&f, &mut r);
+                }
+                (jtj, g) = work.normal_equations(&r, opts.huber)?;
+                cost = cost_of(&r, opts.huber);
+                // The quadratic model predicted the decrease well: close to Gauss-Newton
+                // (near the solution of a mildly non-linear problem the damping only
+                // slows the convergence in the weakly determined directions).
+                lambda = if rho > 0.9 {
+                    lambda / 100.0
+                } else if rho > 0.75 {
+                    lambda / 10.0
+                } else if rho > 0.25 {
+                    lambda / 3.0
+                } else {
+                    lambda * 2.0
+                }
+                .max(1e-300);
+                nu = 2.0;
+                if !weights_moving && rel < opts.ftol {
                     reason = StopReason::CostConverged;
                     break 'outer;
                 }
-                if dnorm <= opts.xtol * (pnorm + opts.xtol) {
+                if !weights_moving && dnorm <= opts.xtol * (pnorm + opts.xtol) {
                     reason = StopReason::StepConverged;
                     break 'outer;
                 }
                 break;
             }
-            lambda *= 4.0;
-            if lambda > 1e30 || dnorm <= opts.xtol * opts.xtol {
+            lambda *= nu;
+            nu *= 2.0;
+            if lambda > 1e30 {
                 reason = StopReason::NoDecrease;
                 break 'outer;
             }
