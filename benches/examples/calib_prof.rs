@@ -4,9 +4,11 @@
 
 use std::time::Instant;
 
+use stripecal::calib::axzb::solve_axzb;
 use stripecal::calib::camera::{calibrate_camera, CameraOptions};
 use stripecal::calib::conic::CentreModel;
 use stripecal::calib::joint::{joint_adjustment, JointOptions, JointStart};
+use stripecal::calib::laser_plane::fit_laser_plane;
 use stripecal::calib::pipeline::{calibrate_observations, CalibrateOptions, Method};
 use stripecal::calib::{CircleObs, ViewObs};
 use stripecal_sim::rng::Rng;
@@ -44,6 +46,23 @@ fn cpu_ns() -> u64 {
         .next()
         .and_then(|x| x.parse().ok())
         .unwrap_or(0)
+}
+
+fn median_ms<T>(name: &str, reps: usize, mut f: impl FnMut() -> T) -> T {
+    let mut w = Vec::new();
+    let mut out = None;
+    for _ in 0..reps {
+        let t0 = Instant::now();
+        out = Some(f());
+        w.push(t0.elapsed().as_secs_f64() * 1e3);
+    }
+    w.sort_by(f64::total_cmp);
+    println!(
+        "{name:40} median {:8.2} ms, min {:8.2} ms ({reps} runs)",
+        w[reps / 2],
+        w[0]
+    );
+    out.unwrap()
 }
 
 fn time<T>(name: &str, reps: usize, mut f: impl FnMut() -> T) -> T {
@@ -149,6 +168,66 @@ fn main() {
                     &o,
                 )
                 .unwrap()
+            });
+            return;
+        }
+        if only == "stages" {
+            let opts = CalibrateOptions::default();
+            median_ms("pipeline one-stage", 30, || {
+                calibrate_observations(&v, &rig, &opts).unwrap()
+            });
+            let popts = CalibrateOptions {
+                method: Method::Paper,
+                ..Default::default()
+            };
+            let r = calibrate_observations(&v, &rig, &popts).unwrap();
+            let mut o = CameraOptions {
+                centre_model: CentreModel::Conic,
+                ..Default::default()
+            };
+            o.lm.ftol = 1e-8;
+            o.lm.xtol = 1e-8;
+            median_ms("  camera (conic, 1e-8)", 30, || {
+                calibrate_camera(
+                    &v,
+                    &rig.board,
+                    rig.width,
+                    rig.height,
+                    rig.distortion_model,
+                    &o,
+                )
+                .unwrap()
+            });
+            let pv: Vec<_> = r
+                .stages
+                .camera
+                .poses
+                .iter()
+                .map(|(i, p)| (*p, v[*i].stripe.clone()))
+                .collect();
+            median_ms("  laser plane", 30, || {
+                fit_laser_plane(&pv, &r.stages.camera.camera).unwrap()
+            });
+            let (a, b): (Vec<_>, Vec<_>) = r
+                .stages
+                .camera
+                .poses
+                .iter()
+                .map(|(i, p)| (v[*i].base_hand.unwrap(), p.inverse()))
+                .unzip();
+            median_ms("  axzb x16 (leave-one-out)", 30, || {
+                for _ in 0..16 {
+                    solve_axzb(&a, &b).unwrap();
+                }
+            });
+            let start = JointStart {
+                camera: r.stages.camera.camera.clone(),
+                plane: r.stages.plane.plane,
+                hand_cam: r.stages.axzb.x,
+                base_board: r.stages.axzb.z,
+            };
+            median_ms("  joint", 30, || {
+                joint_adjustment(&v, &rig.board, &start, &JointOptions::default()).unwrap()
             });
             return;
         }

@@ -369,22 +369,43 @@ impl Work {
                     };
                     dense_t = Some(faer::MatRef::from_column_major_slice(vals, n, m));
                 } else {
-                    // Scatter each row's outer product (column-major n x n).
+                    // Rows with the same columns as the previous (same view) are summed
+                    // into a small w x w block; the block is scattered into the n x n
+                    // matrix when the columns change.
                     let acc = jtj.as_mut_slice();
+                    let mut block = vec![0.0; w * w];
+                    let mut cur: Option<usize> = None;
+                    let flush = |acc: &mut [f64], block: &mut [f64], cols: &[usize]| {
+                        for (a, &ca) in cols.iter().enumerate() {
+                            let col = &mut acc[ca * n..(ca + 1) * n];
+                            for (b, &cb) in cols.iter().enumerate() {
+                                col[cb] += block[a * w + b];
+                            }
+                        }
+                        block.fill(0.0);
+                    };
                     for (i, (&ri, &si)) in r.iter().zip(&sw).enumerate() {
                         let wt = si * si;
                         let (c, v) = rows.row(i);
-                        for (&ca, &va) in c.iter().zip(v) {
-                            if va == 0.0 {
-                                continue;
+                        if let Some(k) = cur {
+                            if rows.row(k).0 != c {
+                                flush(acc, &mut block, rows.row(k).0);
+                                cur = Some(i);
                             }
+                        } else {
+                            cur = Some(i);
+                        }
+                        for (a, (&ca, &va)) in c.iter().zip(v).enumerate() {
                             let wva = wt * va;
                             g[ca] += wva * ri;
-                            let col = &mut acc[ca * n..(ca + 1) * n];
-                            for (&cb, &vb) in c.iter().zip(v) {
-                                col[cb] += wva * vb;
+                            let brow = &mut block[a * w..(a + 1) * w];
+                            for (bb, &vb) in brow.iter_mut().zip(v) {
+                                *bb += wva * vb;
                             }
                         }
+                    }
+                    if let Some(k) = cur {
+                        flush(acc, &mut block, rows.row(k).0);
                     }
                     dense_t = None;
                 }
@@ -667,6 +688,25 @@ pub fn covariance(jtj: &DMatrix<f64>, sigma2: f64, rank_tol: f64) -> (DMatrix<f6
     let scaled = DMatrix::from_fn(good.len(), good.len(), |a, b| {
         jtj[(good[a], good[b])] / (d[good[a]] * d[good[b]])
     });
+    // Cheap certificate of full rank: for the unit-diagonal `S`, `lambda_max <= trace =
+    // k` and `lambda_min >= 1 / trace(S^-1)`; when `k trace(S^-1) rank_tol <= 1` no
+    // eigenvalue is below `rank_tol lambda_max` and the eigen-decomposition is skipped.
+    let certified: Option<DMatrix<f64>> = if good.len() == n {
+        scaled
+            .clone()
+            .cholesky()
+            .map(|ch| ch.inverse())
+            .filter(|inv| {
+                let tr: f64 = (0..n).map(|i| inv[(i, i)]).sum();
+                tr.is_finite() && n as f64 * tr * rank_tol <= 1.0
+            })
+    } else {
+        None
+    };
+    if let Some(inv) = certified {
+        let cov = DMatrix::from_fn(n, n, |a, b| sigma2 * inv[(a, b)] / (d[a] * d[b]));
+        return (cov, Vec::new());
+    }
     if !good.is_empty() {
         let eig = scaled.clone().symmetric_eigen();
         let emax = eig.eigenvalues.iter().cloned().fold(0.0f64, f64::max);
