@@ -113,6 +113,8 @@ pub trait Scalar:
     fn value(self) -> f64;
     fn sqrt(self) -> Self;
     fn scale(self, k: f64) -> Self;
+    /// Zero with zero derivatives (a coefficient that plays no part).
+    fn is_zero(&self) -> bool;
     /// The exact centroid's offset from `D(e)` (see [`centroid_offset`]). Duals
     /// differentiate it through a small inner dual over the inputs that vary (the five
     /// ellipse parameters and the varying distortion coefficients), then chain: the
@@ -141,6 +143,10 @@ impl Scalar for f64 {
     #[inline]
     fn scale(self, k: f64) -> Self {
         self * k
+    }
+    #[inline]
+    fn is_zero(&self) -> bool {
+        *self == 0.0
     }
     fn centroid_offset(k: &[f64; 5], e: &[f64; 5], d: &[f64; 2], table: &[(f64, f64)]) -> [f64; 2] {
         centroid_offset(k, e, d, table)
@@ -208,6 +214,10 @@ impl<const N: usize> Scalar for Dual<N> {
     #[inline]
     fn from_f64(x: f64) -> Self {
         Dual::cst(x)
+    }
+    #[inline]
+    fn is_zero(&self) -> bool {
+        self.v == 0.0 && self.d.iter().all(|x| *x == 0.0)
     }
     #[inline]
     fn value(self) -> f64 {
@@ -303,6 +313,32 @@ fn chained_offset<const N: usize, const M: usize>(
 /// `[[dxd/dx, dxd/dy], [dyd/dx, dyd/dy]]`.
 #[inline]
 pub fn distort_generic<T: Scalar>(k: &[T; 5], x: T, y: T) -> ([T; 2], [[T; 2]; 2]) {
+    if k[1].is_zero() && k[2].is_zero() && k[3].is_zero() && k[4].is_zero() {
+        distort_k1(k[0], x, y)
+    } else {
+        distort_full(k, x, y)
+    }
+}
+
+/// [`distort_generic`] with `k2 = p1 = p2 = k3 = 0` (`radial1`): the same operations
+/// without the terms that vanish, so the same values bit for bit.
+#[inline]
+fn distort_k1<T: Scalar>(k1: T, x: T, y: T) -> ([T; 2], [[T; 2]; 2]) {
+    let one = T::from_f64(1.0);
+    let r2 = x * x + y * y;
+    let radial = one + r2 * k1;
+    let dradial = k1;
+    let xy = x * y;
+    let xd = x * radial;
+    let yd = y * radial;
+    let cross = (xy * dradial).scale(2.0);
+    let j00 = radial + (x * x * dradial).scale(2.0);
+    let j11 = radial + (y * y * dradial).scale(2.0);
+    ([xd, yd], [[j00, cross], [cross, j11]])
+}
+
+#[inline]
+fn distort_full<T: Scalar>(k: &[T; 5], x: T, y: T) -> ([T; 2], [[T; 2]; 2]) {
     let [k1, k2, p1, p2, k3] = *k;
     let one = T::from_f64(1.0);
     let r2 = x * x + y * y;

@@ -621,14 +621,19 @@ impl LeastSquares for JointProblem<'_> {
 
         // Circles: duals over (camera 9, pose increment 6), chained to X and Z.
         type D15 = Dual<15>;
-        let c15: [D15; 9] = std::array::from_fn(|i| D15::var(s.cam[i], i));
+        // Fixed camera parameters are constants (zero coefficients then cost nothing).
+        let c15: [D15; 9] = std::array::from_fn(|i| {
+            if col_of[i].is_some() {
+                D15::var(s.cam[i], i)
+            } else {
+                D15::cst(s.cam[i])
+            }
+        });
         let w15: [D15; 3] = std::array::from_fn(|i| D15::var(0.0, 9 + i));
         let nc = self.circles.len();
         let (rc, rs) = r.split_at_mut(2 * nc);
-        let (cols, vals) = rows.parts_mut();
-        cols.par_chunks_mut(n)
-            .enumerate()
-            .for_each(|(_, c)| c.iter_mut().enumerate().for_each(|(j, x)| *x = j));
+        // Dense rows: values of columns 0..n.
+        let (_, vals) = rows.parts_mut();
         let (vc, vs) = vals.split_at_mut(2 * nc * n);
         let wc = self.wc();
         rc.par_chunks_mut(2)
@@ -691,7 +696,13 @@ impl LeastSquares for JointProblem<'_> {
                 let pf: [f64; 3] = std::array::from_fn(|i| p0f[i] + sf * dirf[i]);
                 let (x, y) = (pf[0] / pf[2], pf[1] / pf[2]);
                 type D7 = Dual<7>;
-                let kd: [D7; 5] = std::array::from_fn(|i| D7::var(s.cam[4 + i], 2 + i));
+                let kd: [D7; 5] = std::array::from_fn(|i| {
+                    if col_of[4 + i].is_some() {
+                        D7::var(s.cam[4 + i], 2 + i)
+                    } else {
+                        D7::cst(s.cam[4 + i])
+                    }
+                });
                 let (d, _) = distort_generic(&kd, D7::var(x, 0), D7::var(y, 1));
                 let (fu, fv) = (s.cam[0], s.cam[1]);
                 let res = normal[0] * (fu * d[0].v + s.cam[2] - st.u)

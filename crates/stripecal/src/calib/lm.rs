@@ -65,7 +65,8 @@ pub trait LeastSquares {
     }
     /// `Some(w)` when every Jacobian row has at most `w` non-zeros and the problem
     /// provides them by [`LeastSquares::residuals_and_jacobian_rows`] (the solver then
-    /// never forms the dense `m x n` Jacobian); `None` (default): dense.
+    /// never forms the `m x n` Jacobian matrix; `w = n`: dense rows, see
+    /// [`JacobianRows`]); `None` (default): the dense matrix.
     fn jacobian_row_width(&self) -> Option<usize> {
         None
     }
@@ -87,25 +88,41 @@ pub trait LeastSquares {
 /// A Jacobian stored by rows of `width` (column, value) pairs: for problems in which
 /// each residual depends on a few parameters (a camera and one view's pose). Unused
 /// pairs are (0, 0.0); a column may appear more than once in a row (the values add).
+///
+/// When the width equals the number of parameters the rows are DENSE: row `i` holds
+/// the values of columns `0..n` in order, no columns are stored ([`Self::parts_mut`]
+/// returns an empty column slice) and the solver forms `J^T J` by a matrix product.
 #[derive(Debug, Clone)]
 pub struct JacobianRows {
     width: usize,
+    dense: bool,
+    /// Sparse: the columns of every row; dense: `0..width` once.
     cols: Vec<usize>,
     vals: Vec<f64>,
 }
 
 impl JacobianRows {
-    /// `m` zero rows of `width` pairs.
-    pub fn new(m: usize, width: usize) -> Self {
+    /// `m` zero rows of `width` pairs; dense when `width == n`.
+    pub fn new(m: usize, width: usize, n: usize) -> Self {
+        let dense = width == n;
         JacobianRows {
             width,
-            cols: vec![0; m * width],
+            dense,
+            cols: if dense {
+                (0..width).collect()
+            } else {
+                vec![0; m * width]
+            },
             vals: vec![0.0; m * width],
         }
     }
     /// Pairs per row.
     pub fn width(&self) -> usize {
         self.width
+    }
+    /// Whether the rows are dense (see the type's docs).
+    pub fn is_dense(&self) -> bool {
+        self.dense
     }
     /// Number of rows.
     pub fn len(&self) -> usize {
@@ -117,21 +134,29 @@ impl JacobianRows {
     }
     /// Zero-fills every row.
     pub fn clear(&mut self) {
-        self.cols.fill(0);
+        if !self.dense {
+            self.cols.fill(0);
+        }
         self.vals.fill(0.0);
     }
-    /// Columns and values of every row, row after row (`width` each): split them with
-    /// `chunks_mut(width)` (or rayon's `par_chunks_mut`).
+    /// Columns (empty when dense) and values of every row, row after row (`width`
+    /// each): split them with `chunks_mut(width)` (or rayon's `par_chunks_mut`).
     pub fn parts_mut(&mut self) -> (&mut [usize], &mut [f64]) {
-        (&mut self.cols, &mut self.vals)
+        if self.dense {
+            (&mut [], &mut self.vals)
+        } else {
+            (&mut self.cols, &mut self.vals)
+        }
     }
     /// Columns and values of row `i`.
     pub fn row(&self, i: usize) -> (&[usize], &[f64]) {
         let w = self.width;
-        (
-            &self.cols[i * w..(i + 1) * w],
-            &self.vals[i * w..(i + 1) * w],
-        )
+        let c = if self.dense {
+            &self.cols[..]
+        } else {
+            &self.cols[i * w..(i + 1) * w]
+        };
+        (c, &self.vals[i * w..(i + 1) * w])
     }
 }
 
@@ -146,7 +171,7 @@ pub fn dense_jacobian_from_rows<P: LeastSquares + ?Sized>(
     let w = problem.jacobian_row_width().ok_or_else(|| {
         Error::InvalidInput("this least-squares problem has no row Jacobian".into())
     })?;
-    let mut rows = JacobianRows::new(r.len(), w);
+    let mut rows = JacobianRows::new(r.len(), w, problem.num_params());
     problem.residuals_and_jacobian_rows(p, r, &mut rows)?;
     for i in 0..rows.len() {
         let (c, v) = rows.row(i);
@@ -276,7 +301,7 @@ impl Work {
         Work {
             m,
             n,
-            rows: row_width.map(|w| JacobianRows::new(m, w)),
+            rows: row_width.map(|w| JacobianRows::new(m, w, n)),
             jac: if row_width.is_some() {
                 Mat::zeros(0, 0)
             } else {
@@ -349,12 +374,7 @@ impl Work {
         match &self.rows {
             Some(rows) => {
                 let w = rows.width;
-                let dense_rows = w == n
-                    && rows
-                        .cols
-                        .chunks_exact(w.max(1))
-                        .all(|c| c.iter().enumerate().all(|(j, &x)| x == j));
-                if dense_rows {
+                if rows.dense {
                     // Every row holds columns 0..n in order: the values are J^T stored
                     // column-major (n x m).
                     let vals: &[f64] = if huber.is_some() {
