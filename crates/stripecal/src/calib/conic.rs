@@ -599,6 +599,37 @@ mod tests {
     use crate::camera::DistortionModel;
     use crate::geometry::{iso_from_rotvec, rotvec_to_matrix};
 
+    #[test]
+    fn k1_only_distortion_equals_the_full_formula_bit_for_bit() {
+        for k1 in [-0.31, 0.0, 0.05] {
+            for (x, y) in [(0.0, 0.0), (0.3, -0.2), (-0.45, 0.37), (1e-9, 2.0)] {
+                let k = [k1, 0.0, 0.0, 0.0, 0.0];
+                assert_eq!(distort_generic(&k, x, y), distort_full(&k, x, y));
+                // Duals: a varying k1, constant zero others, varying point.
+                type D = Dual<3>;
+                let kd = [
+                    D::var(k1, 0),
+                    D::cst(0.0),
+                    D::cst(0.0),
+                    D::cst(0.0),
+                    D::cst(0.0),
+                ];
+                let (xd, yd) = (D::var(x, 1), D::var(y, 2));
+                assert_eq!(distort_generic(&kd, xd, yd), distort_full(&kd, xd, yd));
+            }
+        }
+        // A varying zero coefficient is not "absent": the full formula is used.
+        let kd = [
+            Dual::<2>::var(0.1, 0),
+            Dual::var(0.0, 1),
+            Dual::cst(0.0),
+            Dual::cst(0.0),
+            Dual::cst(0.0),
+        ];
+        let (d, _) = distort_generic(&kd, Dual::cst(0.3), Dual::cst(0.4));
+        assert!(d[0].d[1] != 0.0, "d xd / d k2 must be r^4 x");
+    }
+
     fn cams() -> Vec<Camera> {
         let base = Camera::new(
             1024,
