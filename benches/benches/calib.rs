@@ -9,33 +9,17 @@ use criterion::{criterion_group, criterion_main, Criterion};
 use std::hint::black_box;
 
 use stripecal::calib::pipeline::{calibrate_observations, CalibrateOptions, Method};
-use stripecal::calib::{CircleObs, ViewObs};
+use stripecal::calib::ViewObs;
 use stripecal_sim::rng::Rng;
-use stripecal_sim::{SimConfig, Twin};
+use stripecal_sim::{noisy_observations, SimConfig, Twin};
 
 fn views(t: &Twin) -> Vec<ViewObs> {
-    let mut rng = Rng::new(5, 1);
-    t.exact_observations()
-        .unwrap()
-        .into_iter()
-        .map(|v| ViewObs {
-            circles: v
-                .circles
-                .iter()
-                .map(|c| CircleObs {
-                    u: c.u + 0.01 * rng.normal(),
-                    v: c.v + 0.01 * rng.normal(),
-                    ..*c
-                })
-                .collect(),
-            stripe: v
-                .stripe
-                .iter()
-                .map(|p| [p[0] + 0.03 * rng.normal(), p[1] + 0.03 * rng.normal()])
-                .collect(),
-            ..v
-        })
-        .collect()
+    noisy_observations(
+        &t.exact_observations().unwrap(),
+        0.01,
+        0.03,
+        &mut Rng::new(5, 1),
+    )
 }
 
 fn calib(c: &mut Criterion) {

@@ -647,3 +647,51 @@ fn auto_base_board(
     let t = target - r * c_board;
     Ok(stripecal::geometry::iso_from_parts(&r, &t))
 }
+
+/// `views` with Gaussian noise of `circle_px` added to each circle-centre coordinate and
+/// `stripe_px` to each stripe-point coordinate, drawn from `rng` view by view (circles,
+/// then stripe points; a zero sigma draws nothing). For tests and benchmarks of the
+/// calibration from points (with [`Twin::exact_observations`]).
+pub fn noisy_observations(
+    views: &[stripecal::calib::ViewObs],
+    circle_px: f64,
+    stripe_px: f64,
+    rng: &mut crate::rng::Rng,
+) -> Vec<stripecal::calib::ViewObs> {
+    use stripecal::calib::{CircleObs, ViewObs};
+    views
+        .iter()
+        .map(|v| {
+            let circles = if circle_px == 0.0 {
+                v.circles.clone()
+            } else {
+                v.circles
+                    .iter()
+                    .map(|c| CircleObs {
+                        u: c.u + circle_px * rng.normal(),
+                        v: c.v + circle_px * rng.normal(),
+                        ..*c
+                    })
+                    .collect()
+            };
+            let stripe = if stripe_px == 0.0 {
+                v.stripe.clone()
+            } else {
+                v.stripe
+                    .iter()
+                    .map(|p| {
+                        [
+                            p[0] + stripe_px * rng.normal(),
+                            p[1] + stripe_px * rng.normal(),
+                        ]
+                    })
+                    .collect()
+            };
+            ViewObs {
+                circles,
+                stripe,
+                ..v.clone()
+            }
+        })
+        .collect()
+}

@@ -32,7 +32,7 @@ pub mod scene;
 pub mod truth;
 
 pub use config::{SimConfig, PRESETS};
-pub use dataset::{DatasetSummary, Twin, ViewRender};
+pub use dataset::{noisy_observations, DatasetSummary, Twin, ViewRender};
 
 /// Errors of the twin.
 #[derive(Debug, thiserror::Error)]

@@ -8,10 +8,10 @@
 
 use stripecal::calib::camera::{calibrate_camera, CameraCalibration, CameraOptions};
 use stripecal::calib::conic::CentreModel;
-use stripecal::calib::{CircleObs, ViewObs};
+use stripecal::calib::ViewObs;
 use stripecal::{Camera, DistortionModel, Error, Iso3};
 use stripecal_sim::rng::Rng;
-use stripecal_sim::{SimConfig, Twin};
+use stripecal_sim::{noisy_observations, SimConfig, Twin};
 
 struct Case {
     twin: Twin,
@@ -58,22 +58,7 @@ fn case(name: &'static str, count: usize) -> Case {
 }
 
 fn with_noise(views: &[ViewObs], sigma: f64, seed: u64) -> Vec<ViewObs> {
-    let mut rng = Rng::new(seed, 7);
-    views
-        .iter()
-        .map(|v| ViewObs {
-            circles: v
-                .circles
-                .iter()
-                .map(|c| CircleObs {
-                    u: c.u + sigma * rng.normal(),
-                    v: c.v + sigma * rng.normal(),
-                    ..*c
-                })
-                .collect(),
-            ..v.clone()
-        })
-        .collect()
+    noisy_observations(views, sigma, 0.0, &mut Rng::new(seed, 7))
 }
 
 fn run(c: &Case, views: &[ViewObs], model: CentreModel) -> CameraCalibration {

@@ -12,7 +12,7 @@ use stripecal::geometry::iso_to_rotvec;
 use stripecal::io::{Calibration, Rig};
 use stripecal::{Error, Iso3};
 use stripecal_sim::rng::Rng;
-use stripecal_sim::{SimConfig, Twin};
+use stripecal_sim::{noisy_observations, SimConfig, Twin};
 
 fn twin(count: usize) -> Twin {
     let cfg = SimConfig::hp3_paper()
@@ -28,27 +28,7 @@ fn exact_views(t: &Twin) -> Vec<ViewObs> {
 }
 
 fn noisy(views: &[ViewObs], sc: f64, ss: f64, seed: u64) -> Vec<ViewObs> {
-    let mut rng = Rng::new(seed, 11);
-    views
-        .iter()
-        .map(|v| ViewObs {
-            circles: v
-                .circles
-                .iter()
-                .map(|c| CircleObs {
-                    u: c.u + sc * rng.normal(),
-                    v: c.v + sc * rng.normal(),
-                    ..*c
-                })
-                .collect(),
-            stripe: v
-                .stripe
-                .iter()
-                .map(|p| [p[0] + ss * rng.normal(), p[1] + ss * rng.normal()])
-                .collect(),
-            ..v.clone()
-        })
-        .collect()
+    noisy_observations(views, sc, ss, &mut Rng::new(seed, 11))
 }
 
 fn iso_err(a: &Iso3, b: &Iso3) -> (f64, f64) {
