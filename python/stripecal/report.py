@@ -51,10 +51,17 @@ def _grid(n: int) -> Tuple[int, int]:
     return rows, cols
 
 
-def _save(fig: Any, path: Path) -> None:
+def _save(plt: Any, fig: Any, out: Path, name: str, tight: bool = True) -> str:
+    """Lays out (unless `tight` is false), writes `out/name` atomically, closes the
+    figure and returns `name`."""
+    if tight:
+        fig.tight_layout()
+    path = out / name
     tmp = path.with_name(path.name + ".tmp")
     fig.savefig(tmp, format="png", dpi=90)
     os.replace(tmp, path)
+    plt.close(fig)
+    return name
 
 
 def _circle_figure(plt: Any, cal: stripecal.Calibration, out: Path) -> Optional[str]:
@@ -81,10 +88,7 @@ def _circle_figure(plt: Any, cal: stripecal.Calibration, out: Path) -> Optional[
     for ax in axes.ravel()[len(views):]:
         ax.axis("off")
     fig.suptitle(f"circle residuals (predicted - detected), arrows x{scale:.0f}; largest {peak:.4f} px", fontsize=10)
-    fig.tight_layout()
-    _save(fig, out / "circle_residuals.png")
-    plt.close(fig)
-    return "circle_residuals.png"
+    return _save(plt, fig, out, "circle_residuals.png")
 
 
 def _stripe_figure(plt: Any, cal: stripecal.Calibration, out: Path) -> Optional[str]:
@@ -102,10 +106,7 @@ def _stripe_figure(plt: Any, cal: stripecal.Calibration, out: Path) -> Optional[
     ax.set_ylabel("distance from predicted line (px)")
     ax.legend(fontsize=7, markerscale=4, ncol=4)
     ax.set_title("stripe residuals", fontsize=10)
-    fig.tight_layout()
-    _save(fig, out / "stripe_residuals.png")
-    plt.close(fig)
-    return "stripe_residuals.png"
+    return _save(plt, fig, out, "stripe_residuals.png")
 
 
 def _rms_figure(plt: Any, cal: stripecal.Calibration, out: Path) -> Optional[str]:
@@ -127,10 +128,7 @@ def _rms_figure(plt: Any, cal: stripecal.Calibration, out: Path) -> Optional[str
     ax.set_ylabel("px")
     ax.legend(fontsize=8)
     ax.set_title("residual RMS per view", fontsize=10)
-    fig.tight_layout()
-    _save(fig, out / "view_rms.png")
-    plt.close(fig)
-    return "view_rms.png"
+    return _save(plt, fig, out, "view_rms.png")
 
 
 def _hist_figure(plt: Any, cal: stripecal.Calibration, out: Path) -> Optional[str]:
@@ -145,10 +143,7 @@ def _hist_figure(plt: Any, cal: stripecal.Calibration, out: Path) -> Optional[st
     if sr.shape[0]:
         axes[1].hist(sr[:, 3], bins=60, histtype="step", color="tab:green")
     axes[1].set_title("stripe residuals (px)", fontsize=10)
-    fig.tight_layout()
-    _save(fig, out / "residual_histogram.png")
-    plt.close(fig)
-    return "residual_histogram.png"
+    return _save(plt, fig, out, "residual_histogram.png")
 
 
 def _cloud_figure(plt: Any, points: F64, colour: Optional[F64], out: Path) -> Optional[str]:
@@ -163,9 +158,7 @@ def _cloud_figure(plt: Any, points: F64, colour: Optional[F64], out: Path) -> Op
         ax.set_ylabel("xyz"[j] + " (mm)")
         ax.set_title(f"{name} projection, base frame", fontsize=10)
     fig.colorbar(sc, ax=axes, label="distance from sphere (mm)" if colour is not None else "z (mm)")
-    _save(fig, out / "cloud.png")
-    plt.close(fig)
-    return "cloud.png"
+    return _save(plt, fig, out, "cloud.png", tight=False)
 
 
 def parameter_rows(cal: stripecal.Calibration, truth: Optional[stripecal.Truth]) -> List[Tuple[str, float, Any, Optional[float]]]:

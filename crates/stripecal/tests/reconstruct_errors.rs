@@ -169,6 +169,11 @@ fn batch_errors_name_the_first_bad_frame() {
     assert_eq!(ok.frame.iter().filter(|&&f| f == 1).count() * 2, ok.len());
 }
 
+/// A `W` x `h` stripe image (stripe at column 30) written as PNG to `path`.
+fn write_frame(path: &Path, h: usize) {
+    save_gray_png(path, &AnyGray::U8(stripe_image(W, h, 30.0))).unwrap();
+}
+
 fn write_scan(dir: &Path, frames: &[(&str, Vec<f64>)]) {
     std::fs::create_dir_all(dir.join("images")).unwrap();
     let rows: Vec<ScanFrame> = frames
@@ -202,11 +207,7 @@ fn scan_folder_errors() {
         &d,
         &[("images/a.png", Q.to_vec()), ("images/b.png", Q.to_vec())],
     );
-    save_gray_png(
-        d.join("images/a.png"),
-        &AnyGray::U8(stripe_image(W, H, 30.0)),
-    )
-    .unwrap();
+    write_frame(&d.join("images/a.png"), H);
     let e = load_scan(&d, &cal).unwrap_err();
     assert!(matches!(e, Error::Format { .. }), "{e}");
     assert!(
@@ -217,11 +218,7 @@ fn scan_folder_errors() {
     // Joint columns that do not match the calibration's robot.
     let d = tmp.path().join("joints");
     write_scan(&d, &[("images/a.png", vec![0.0; 5])]);
-    save_gray_png(
-        d.join("images/a.png"),
-        &AnyGray::U8(stripe_image(W, H, 30.0)),
-    )
-    .unwrap();
+    write_frame(&d.join("images/a.png"), H);
     let e = load_scan(&d, &cal).unwrap_err();
     assert!(matches!(e, Error::Format { .. }), "{e}");
 
@@ -231,16 +228,8 @@ fn scan_folder_errors() {
         &d,
         &[("images/a.png", Q.to_vec()), ("images/b.png", Q.to_vec())],
     );
-    save_gray_png(
-        d.join("images/a.png"),
-        &AnyGray::U8(stripe_image(W, H, 30.0)),
-    )
-    .unwrap();
-    save_gray_png(
-        d.join("images/b.png"),
-        &AnyGray::U8(stripe_image(W, 40, 30.0)),
-    )
-    .unwrap();
+    write_frame(&d.join("images/a.png"), H);
+    write_frame(&d.join("images/b.png"), 40);
     let scan = load_scan(&d, &cal).unwrap();
     let e = reconstruct_scan(&cal, &scan, &ReconstructOptions::default(), noop).unwrap_err();
     let m = e.to_string();

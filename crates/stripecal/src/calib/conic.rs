@@ -241,10 +241,12 @@ impl<const N: usize> Scalar for Dual<N> {
         }
         self
     }
+    /// `D(e)` is recomputed from the inner duals (so the offset's derivatives carry its
+    /// dependence on the origin); the caller's `d` is not needed.
     fn centroid_offset(
         k: &[Self; 5],
         e: &[Self; 5],
-        d: &[Self; 2],
+        _d: &[Self; 2],
         table: &[(f64, f64)],
     ) -> [Self; 2] {
         // Inputs: the ellipse (always varying), then the coefficients that vary.
@@ -259,18 +261,14 @@ impl<const N: usize> Scalar for Dual<N> {
                 q += 1;
             }
         }
-        let inner = match q {
+        match q {
             5 => chained_offset::<N, 5>(k, &k_var, &inputs, table),
             6 => chained_offset::<N, 6>(k, &k_var, &inputs, table),
             7 => chained_offset::<N, 7>(k, &k_var, &inputs, table),
             8 => chained_offset::<N, 8>(k, &k_var, &inputs, table),
             9 => chained_offset::<N, 9>(k, &k_var, &inputs, table),
             _ => chained_offset::<N, 10>(k, &k_var, &inputs, table),
-        };
-        // `d` = D(e) is recomputed from the inner duals, so the offset's derivatives
-        // carry its dependence on the origin D(e) (the caller adds the outer D(e)).
-        let _ = d;
-        inner
+        }
     }
 }
 
