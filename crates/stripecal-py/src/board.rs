@@ -23,10 +23,7 @@ impl PyBoard {
 }
 
 fn kind_name(k: BoardKind) -> &'static str {
-    match k {
-        BoardKind::Circles => "circles",
-        BoardKind::Chessboard => "chessboard",
-    }
+    k.name()
 }
 
 #[pymethods]
@@ -46,18 +43,10 @@ impl PyBoard {
         kind: &str,
         square_mm: Option<f64>,
     ) -> PyResult<Self> {
-        let kind = match kind {
-            "circles" => BoardKind::Circles,
-            "chessboard" => BoardKind::Chessboard,
-            other => {
-                return Err(invalid_input(
-                    py,
-                    format!("unknown board kind {other:?}: expected \"circles\" or \"chessboard\""),
-                ))
-            }
-        };
+        let kind = BoardKind::from_name(kind).map_err(|e| invalid_input(py, e.to_string()))?;
         let markers = match markers {
-            None => Board::default_markers(),
+            None if kind == BoardKind::Circles => Board::default_markers(),
+            None => Vec::new(),
             Some(ms) => ms
                 .into_iter()
                 .map(|(r, c)| {

@@ -127,16 +127,22 @@ fn rig_round_trips_with_and_without_robot() {
         );
         assert_eq!(text.contains("\"robot\""), r.robot.is_some());
     }
-    let mut chess = rig(None);
-    chess.board = Board {
-        kind: BoardKind::Chessboard,
-        square_mm: Some(7.5),
-        pitch_mm: 7.5,
-        ..Board::hp3_paper()
-    };
-    let p = d.path().join("chess.json");
-    write_rig(&p, &chess).unwrap();
-    assert_eq!(read_rig(&p).unwrap(), chess);
+    // the other target kinds (spec/DATASET.md, "Target kinds"), and a circle grid
+    // with no markers (marker_diameter_mm is then not written and not needed)
+    let mut no_markers = Board::hp3_paper();
+    no_markers.markers.clear();
+    no_markers.marker_diameter_mm = no_markers.circle_diameter_mm;
+    for board in [
+        Board::chessboard(6, 9, 7.5).unwrap(),
+        Board::asymmetric_circles(4, 11, 20.0, 8.0).unwrap(),
+        no_markers,
+    ] {
+        let mut r = rig(None);
+        r.board = board;
+        let p = d.path().join("other.json");
+        write_rig(&p, &r).unwrap();
+        assert_eq!(read_rig(&p).unwrap(), r);
+    }
 }
 
 #[test]

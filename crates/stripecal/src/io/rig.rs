@@ -18,9 +18,11 @@ pub(super) const RIG_FORMAT: &str = "stripecal/rig@1";
 /// Parses rig.json text; `path` is used in error messages only.
 ///
 /// Required: `format`, `camera.width`, `camera.height`, `board.rows`, `board.cols`, and
-/// for circle boards `board.pitch_mm`, `board.circle_diameter_mm`,
-/// `board.marker_diameter_mm`; for chessboards (`"kind": "chessboard"`)
-/// `board.square_mm` (the pitch; the circle diameters default to it and are unused).
+/// for circle grids (`"kind"` `"circles"`, the default, or `"asymmetric_circles"`)
+/// `board.pitch_mm` and `board.circle_diameter_mm`, plus `board.marker_diameter_mm`
+/// when `markers` is not empty; for chessboards `board.square_mm` (a `pitch_mm`, if
+/// given, must equal it). `markers` defaults to the L `[[0,0],[0,1],[1,0]]` for
+/// `"circles"` and is empty (and must be) for the other kinds.
 /// Unknown keys are ignored.
 pub fn rig_from_json(path: &Path, text: &str) -> Result<Rig> {
     let doc = parse(path, text)?;
@@ -78,43 +80,21 @@ pub(super) fn distortion_model_from(v: &Val<'_>) -> Result<DistortionModel> {
 fn board_from(b: &Obj<'_>) -> Result<Board> {
     let kind = match b.opt("kind") {
         None => BoardKind::Circles,
-        Some(v) => match v.str()? {
-            "circles" => BoardKind::Circles,
-            "chessboard" => BoardKind::Chessboard,
-            other => {
-                return Err(v.err(format!(
-                    "expected \"circles\" or \"chessboard\", got {other:?}"
-                )))
-            }
-        },
+        Some(v) => {
+            let s = v.str()?;
+            BoardKind::from_name(s).map_err(|_| {
+                v.err(format!(
+                    "expected \"circles\", \"asymmetric_circles\" or \"chessboard\", got {s:?}"
+                ))
+            })?
+        }
     };
     let rows = b.positive_usize("rows")?;
     let cols = b.positive_usize("cols")?;
-    let (pitch_mm, circle_diameter_mm, marker_diameter_mm, square_mm) = match kind {
-        BoardKind::Circles => (
-            b.positive_f64("pitch_mm")?,
-            b.positive_f64("circle_diameter_mm")?,
-            b.positive_f64("marker_diameter_mm")?,
-            b.opt_positive_f64("square_mm")?,
-        ),
-        BoardKind::Chessboard => {
-            let square = b.positive_f64("square_mm")?;
-            let pitch = b.opt_positive_f64("pitch_mm")?.unwrap_or(square);
-            if pitch != square {
-                return Err(b.err(format!(
-                    "a chessboard's pitch_mm ({pitch}) must equal its square_mm ({square})"
-                )));
-            }
-            (
-                pitch,
-                b.opt_positive_f64("circle_diameter_mm")?.unwrap_or(square),
-                b.opt_positive_f64("marker_diameter_mm")?.unwrap_or(square),
-                Some(square),
-            )
-        }
-    };
     let markers = match b.opt("markers") {
-        None => Board::default_markers(),
+        // the contract's default L for circle grids; the other kinds have none
+        None if kind == BoardKind::Circles => Board::default_markers(),
+        None => Vec::new(),
         Some(v) => {
             let mut markers = Vec::new();
             for item in v.arr()? {
@@ -127,7 +107,35 @@ fn board_from(b: &Obj<'_>) -> Result<Board> {
                 }
                 markers.push([pair[0].count()?, pair[1].count()?]);
             }
+            if !markers.is_empty() && kind != BoardKind::Circles {
+                return Err(v.err(format!(
+                    "a board of kind \"{}\" has no markers (only \"circles\" grids do)",
+                    kind.name()
+                )));
+            }
             markers
+        }
+    };
+    let (pitch_mm, circle_diameter_mm, marker_diameter_mm, square_mm) = match kind {
+        BoardKind::Circles | BoardKind::AsymmetricCircles => {
+            let circle = b.positive_f64("circle_diameter_mm")?;
+            // needed only when there are markers
+            let marker = if markers.is_empty() {
+                b.opt_positive_f64("marker_diameter_mm")?.unwrap_or(circle)
+            } else {
+                b.positive_f64("marker_diameter_mm")?
+            };
+            (b.positive_f64("pitch_mm")?, circle, marker, None)
+        }
+        BoardKind::Chessboard => {
+            let square = b.positive_f64("square_mm")?;
+            let pitch = b.opt_positive_f64("pitch_mm")?.unwrap_or(square);
+            if pitch != square {
+                return Err(b.err(format!(
+                    "a chessboard's pitch_mm ({pitch}) must equal its square_mm ({square})"
+                )));
+            }
+            (square, 0.0, 0.0, Some(square))
         }
     };
     let dark_circles = b.opt_bool("dark_circles")?.unwrap_or(true);
@@ -192,26 +200,28 @@ pub(super) fn robot_value(r: &Robot) -> Value {
 
 fn board_value(b: &Board) -> Value {
     let mut m = Map::new();
-    let kind = match b.kind {
-        BoardKind::Circles => "circles",
-        BoardKind::Chessboard => "chessboard",
-    };
-    m.insert("kind".into(), Value::from(kind));
+    m.insert("kind".into(), Value::from(b.kind.name()));
     m.insert("rows".into(), Value::from(b.rows));
     m.insert("cols".into(), Value::from(b.cols));
-    m.insert("pitch_mm".into(), num(b.pitch_mm));
-    m.insert("circle_diameter_mm".into(), num(b.circle_diameter_mm));
-    m.insert("marker_diameter_mm".into(), num(b.marker_diameter_mm));
-    if let Some(s) = b.square_mm {
-        m.insert("square_mm".into(), num(s));
+    match b.kind {
+        BoardKind::Chessboard => {
+            m.insert("square_mm".into(), num(b.pitch_mm));
+        }
+        BoardKind::Circles | BoardKind::AsymmetricCircles => {
+            m.insert("pitch_mm".into(), num(b.pitch_mm));
+            m.insert("circle_diameter_mm".into(), num(b.circle_diameter_mm));
+            if !b.markers.is_empty() {
+                m.insert("marker_diameter_mm".into(), num(b.marker_diameter_mm));
+            }
+            let markers = b
+                .markers
+                .iter()
+                .map(|[r, c]| Value::Array(vec![Value::from(*r), Value::from(*c)]))
+                .collect();
+            m.insert("markers".into(), Value::Array(markers));
+            m.insert("dark_circles".into(), Value::from(b.dark_circles));
+        }
     }
-    let markers = b
-        .markers
-        .iter()
-        .map(|[r, c]| Value::Array(vec![Value::from(*r), Value::from(*c)]))
-        .collect();
-    m.insert("markers".into(), Value::Array(markers));
-    m.insert("dark_circles".into(), Value::from(b.dark_circles));
     Value::Object(m)
 }
 
@@ -255,11 +265,6 @@ pub fn write_rig(p: impl AsRef<Path>, r: &Rig) -> Result<()> {
         )));
     }
     r.board.validate()?;
-    if r.board.kind == BoardKind::Chessboard && r.board.square_mm != Some(r.board.pitch_mm) {
-        return Err(Error::InvalidInput(
-            "a chessboard needs square_mm equal to pitch_mm".into(),
-        ));
-    }
     if let Some(robot) = &r.robot {
         robot.validate()?;
     }

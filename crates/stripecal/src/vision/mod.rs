@@ -10,8 +10,10 @@
 //! - Errors are [`crate::Error`]; a detection that cannot be trusted is an error that
 //!   says what was found, never a guess.
 
+pub mod chessboard;
 pub mod circles;
 pub mod stripe;
+pub mod target;
 
 use crate::error::{Error, Result};
 

@@ -33,6 +33,8 @@ pub(crate) struct GridResult {
     pub grown: usize,
     /// Nodes dropped by the leave-one-out check.
     pub outliers: usize,
+    /// Board symmetries the view cannot decide.
+    pub alternatives: Vec<crate::board::Symmetry>,
 }
 
 type Coord = (i32, i32);
@@ -575,5 +577,6 @@ pub(crate) fn order(blobs: &[Blob], board: &Board, stats: &BlobStats) -> Result<
         nodes,
         grown: grown_n,
         outliers: bad.len(),
+        alternatives: Vec::new(),
     })
 }

@@ -195,6 +195,9 @@ pub struct CircleGrid {
     pub homography_max_px: f64,
     /// The method used for `u, v`.
     pub method: CentreMethod,
+    /// Board symmetries the view cannot decide (see
+    /// [`crate::vision::target::TargetDetection::alternatives`]).
+    pub alternatives: Vec<crate::board::Symmetry>,
 }
 
 fn to_img<T: Pixel>(v: &ImageView<'_, T>) -> (Img, f32, f32) {
@@ -319,7 +322,10 @@ pub fn detect_circles(img: AnyView<'_>, board: &Board, opts: &CircleOptions) -> 
             stripe_crossed: stripe,
         });
     }
-    let (homography_rms_px, homography_max_px) = homography_residuals(board, &circles);
+    let pts: Vec<(usize, usize, f64, f64)> =
+        circles.iter().map(|c| (c.row, c.col, c.u, c.v)).collect();
+    let (homography_rms_px, homography_max_px) =
+        crate::vision::target::homography_residuals(board, &pts);
     Ok(CircleGrid {
         circles,
         dropped,
@@ -329,63 +335,8 @@ pub fn detect_circles(img: AnyView<'_>, board: &Board, opts: &CircleOptions) -> 
         homography_rms_px,
         homography_max_px,
         method: opts.method,
+        alternatives: g.alternatives,
     })
-}
-
-/// RMS and max residual of a normalised-DLT homography board (mm) -> image (px);
-/// NaN with fewer than 5 circles.
-fn homography_residuals(board: &Board, circles: &[DetectedCircle]) -> (f64, f64) {
-    if circles.len() < 5 {
-        return (f64::NAN, f64::NAN);
-    }
-    let n = circles.len() as f64;
-    let bp: Vec<[f64; 2]> = circles
-        .iter()
-        .map(|c| [c.col as f64 * board.pitch_mm, c.row as f64 * board.pitch_mm])
-        .collect();
-    let ip: Vec<[f64; 2]> = circles.iter().map(|c| [c.u, c.v]).collect();
-    let norm = |p: &[[f64; 2]]| {
-        let mx = p.iter().map(|q| q[0]).sum::<f64>() / n;
-        let my = p.iter().map(|q| q[1]).sum::<f64>() / n;
-        let d = p
-            .iter()
-            .map(|q| ((q[0] - mx).powi(2) + (q[1] - my).powi(2)).sqrt())
-            .sum::<f64>()
-            / n;
-        let s = if d > 0.0 {
-            std::f64::consts::SQRT_2 / d
-        } else {
-            1.0
-        };
-        (mx, my, s)
-    };
-    let (bmx, bmy, bs) = norm(&bp);
-    let (imx, imy, is) = norm(&ip);
-    let mut ata = nalgebra::SMatrix::<f64, 9, 9>::zeros();
-    for (b, i) in bp.iter().zip(&ip) {
-        let (x, y) = ((b[0] - bmx) * bs, (b[1] - bmy) * bs);
-        let (u, v) = ((i[0] - imx) * is, (i[1] - imy) * is);
-        let r1 = nalgebra::SVector::<f64, 9>::from([x, y, 1.0, 0.0, 0.0, 0.0, -u * x, -u * y, -u]);
-        let r2 = nalgebra::SVector::<f64, 9>::from([0.0, 0.0, 0.0, x, y, 1.0, -v * x, -v * y, -v]);
-        ata += r1 * r1.transpose() + r2 * r2.transpose();
-    }
-    let eig = ata.symmetric_eigen();
-    let k = eig.eigenvalues.imin();
-    let hv = eig.eigenvectors.column(k);
-    let (mut ss, mut mx) = (0.0f64, 0.0f64);
-    for (b, i) in bp.iter().zip(&ip) {
-        let (x, y) = ((b[0] - bmx) * bs, (b[1] - bmy) * bs);
-        let d = hv[6] * x + hv[7] * y + hv[8];
-        if d.abs() < 1e-12 {
-            return (f64::NAN, f64::NAN);
-        }
-        let u = (hv[0] * x + hv[1] * y + hv[2]) / d / is + imx;
-        let v = (hv[3] * x + hv[4] * y + hv[5]) / d / is + imy;
-        let e2 = (u - i[0]).powi(2) + (v - i[1]).powi(2);
-        ss += e2;
-        mx = mx.max(e2.sqrt());
-    }
-    ((ss / n).sqrt(), mx)
 }
 
 #[cfg(test)]
