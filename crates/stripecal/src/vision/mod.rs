@@ -18,11 +18,13 @@ pub mod target;
 use crate::error::{Error, Result};
 
 /// A pixel type: `u8` or `u16`.
-pub trait Pixel: Copy + Send + Sync + 'static {
+pub trait Pixel: Copy + Ord + Send + Sync + 'static {
     /// Largest value (255 or 65535).
     const MAX: f32;
     /// The value as `f32`.
     fn to_f32(self) -> f32;
+    /// The value as `u32`.
+    fn to_u32(self) -> u32;
 }
 
 impl Pixel for u8 {
@@ -31,6 +33,10 @@ impl Pixel for u8 {
     fn to_f32(self) -> f32 {
         self as f32
     }
+    #[inline]
+    fn to_u32(self) -> u32 {
+        self as u32
+    }
 }
 
 impl Pixel for u16 {
@@ -38,6 +44,10 @@ impl Pixel for u16 {
     #[inline]
     fn to_f32(self) -> f32 {
         self as f32
+    }
+    #[inline]
+    fn to_u32(self) -> u32 {
+        self as u32
     }
 }
 

@@ -30,6 +30,7 @@
 //!   the window.
 
 use super::blobs::{Blob, Img};
+use crate::vision::Pixel;
 
 /// What was measured for one blob.
 #[derive(Debug, Clone, Copy)]
@@ -77,19 +78,27 @@ fn median(v: &mut [f64]) -> f64 {
     *m
 }
 
-/// Solves the 3x3 normal equations of a plane fit.
-fn plane_fit(pts: &[(f64, f64, f64)], keep: &[bool]) -> Option<[f64; 3]> {
-    let mut n = nalgebra::Matrix3::<f64>::zeros();
-    let mut b = nalgebra::Vector3::<f64>::zeros();
-    for (&(x, y, z), &k) in pts.iter().zip(keep) {
-        if !k {
+/// Least-squares plane `z = p0 + p1 x + p2 y` through the kept points (the 3x3 normal
+/// equations from nine scalar sums).
+fn plane_fit(pts: &[(f64, f64, f64)], keep: impl Fn(usize) -> bool) -> Option<[f64; 3]> {
+    let (mut sn, mut sx, mut sy, mut sxx, mut sxy, mut syy) = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0);
+    let (mut sz, mut sxz, mut syz) = (0.0, 0.0, 0.0);
+    for (k, &(x, y, z)) in pts.iter().enumerate() {
+        if !keep(k) {
             continue;
         }
-        let f = nalgebra::Vector3::new(1.0, x, y);
-        n += f * f.transpose();
-        b += f * z;
+        sn += 1.0;
+        sx += x;
+        sy += y;
+        sxx += x * x;
+        sxy += x * y;
+        syy += y * y;
+        sz += z;
+        sxz += x * z;
+        syz += y * z;
     }
-    let s = n.try_inverse()? * b;
+    let n = nalgebra::Matrix3::new(sn, sx, sy, sx, sxx, sxy, sy, sxy, syy);
+    let s = n.try_inverse()? * nalgebra::Vector3::new(sz, sxz, syz);
     Some([s[0], s[1], s[2]])
 }
 
@@ -109,6 +118,8 @@ struct Quad {
     a: f64,
     b: f64,
     c: f64,
+    /// `1 / (2 a)`, for the row spans.
+    inv2a: f64,
 }
 
 impl Quad {
@@ -126,7 +137,7 @@ impl Quad {
             return None;
         }
         let r = disc.sqrt();
-        Some(((-bb - r) / (2.0 * self.a), (-bb + r) / (2.0 * self.a)))
+        Some(((-bb - r) * self.inv2a, (-bb + r) * self.inv2a))
     }
 }
 
@@ -151,10 +162,12 @@ fn cols(cx: f64, span: Option<(f64, f64)>, w: usize) -> std::ops::Range<usize> {
 /// `(ct, st)`.
 fn quad(ct: f64, st: f64, ea: f64, eb: f64) -> Quad {
     let (ia, ib) = (1.0 / (ea * ea), 1.0 / (eb * eb));
+    let a = ct * ct * ia + st * st * ib;
     Quad {
-        a: ct * ct * ia + st * st * ib,
+        a,
         b: 2.0 * ct * st * (ia - ib),
         c: st * st * ia + ct * ct * ib,
+        inv2a: 0.5 / a,
     }
 }
 
@@ -183,17 +196,23 @@ impl Shape {
         self.ea
     }
 
+    /// The closed `x` interval the shape covers on row `y`, if any.
     #[inline]
-    fn contains(&self, x: f64, y: f64) -> bool {
-        let (dx, dy) = (x - self.cx, y - self.cy);
-        dx.abs() <= self.ea && dy.abs() <= self.ea && self.q.eval(dx, dy) <= 1.0
+    fn row_span(&self, y: f64) -> Option<(f64, f64)> {
+        let dy = y - self.cy;
+        if dy.abs() > self.ea {
+            return None;
+        }
+        self.q
+            .span(dy, 1.0)
+            .map(|(lo, hi)| (self.cx + lo, self.cx + hi))
     }
 }
 
 /// Measures one blob. `edge_margin` is the edge allowance in px (blur); `others` are
 /// the shapes of nearby blobs, left out of the background ring.
-pub(crate) fn measure(
-    img: &Img,
+pub(crate) fn measure<T: Pixel>(
+    img: &Img<'_, T>,
     blob: &Blob,
     dark: bool,
     edge_margin: f64,
@@ -233,28 +252,36 @@ pub(crate) fn measure(
     let y1 = ((cy + ohy).ceil() as usize).min(img.h - 1);
 
     // Ring pixels (offsets from the blob centroid) and the core's values.
-    let mut ring: Vec<(f64, f64, f64)> = Vec::with_capacity(256);
-    let mut core: Vec<f64> = Vec::new();
-    let mut core_pts: Vec<(f64, f64, f64)> = Vec::new();
+    // capacities from the areas of the ring band and the core (no regrowth)
+    let band = std::f64::consts::PI * (oa * ob - ia * ib) + 4.0 * (oa + ob) + 16.0;
+    let mut ring: Vec<(f64, f64, f64)> = Vec::with_capacity(band as usize);
+    let core_area = std::f64::consts::PI * 0.25 * a * b + 2.0 * (a + b) + 4.0;
+    let mut core: Vec<f64> = Vec::with_capacity(core_area as usize);
+    let mut core_pts: Vec<(f64, f64, f64)> = Vec::with_capacity(core_area as usize);
     let mut expected_ring = 0usize;
+    let mut spans: Vec<(f64, f64)> = Vec::with_capacity(others.len());
     for y in y0..=y1 {
         let dy = y as f64 - cy;
-        let row = &img.px[y * img.w..(y + 1) * img.w];
+        let row = img.row(y);
         let outer = cols(cx, q_outer.span(dy, 1.0), img.w);
         let inner = cols(cx, q_inner.span(dy, 1.0), img.w);
+        // the neighbours' shapes on this row: pixels inside them are not background
+        spans.clear();
+        spans.extend(others.iter().filter_map(|o| o.row_span(y as f64)));
         for x in outer {
             if inner.contains(&x) {
                 continue;
             }
             expected_ring += 1;
-            let (xf, yf) = (x as f64, y as f64);
-            if !others.iter().any(|o| o.contains(xf, yf)) {
-                ring.push((xf - cx, dy, row[x] as f64));
+            let xf = x as f64;
+            if !spans.iter().any(|&(lo, hi)| xf >= lo && xf <= hi) {
+                ring.push((xf - cx, dy, row[x].to_f32() as f64));
             }
         }
         for x in cols(cx, q_core.span(dy, 0.25), img.w) {
-            core.push(row[x] as f64);
-            core_pts.push((x as f64 - cx, dy, row[x] as f64));
+            let z = row[x].to_f32() as f64;
+            core.push(z);
+            core_pts.push((x as f64 - cx, dy, z));
         }
     }
     // Ring area of the full (unclipped) band, to judge how much is missing.
@@ -295,7 +322,7 @@ pub(crate) fn measure(
         if keep.iter().filter(|&&k| k).count() < 12 {
             return Err(Fail::Background);
         }
-        bg = plane_fit(&ring, &keep).ok_or(Fail::Background)?;
+        bg = plane_fit(&ring, |k| keep[k]).ok_or(Fail::Background)?;
     }
     let core_n = core.len();
     let fg = median(&mut core);
@@ -316,7 +343,7 @@ pub(crate) fn measure(
     let illum: [f64; 3] = if bg_c > 0.0 && bg_c >= fg {
         [1.0, bg[1] / bg_c, bg[2] / bg_c]
     } else if fg > 0.0 && core_n >= 12 {
-        match plane_fit(&core_pts, &vec![true; core_pts.len()]) {
+        match plane_fit(&core_pts, |_| true) {
             Some(p) if p[0] > 0.0 => [1.0, p[1] / p[0], p[2] / p[0]],
             _ => [1.0, 0.0, 0.0],
         }
@@ -335,15 +362,56 @@ pub(crate) fn measure(
     let ry1 = ((cy + rhy).ceil() as usize).min(img.h - 1);
     for y in ry0..=ry1 {
         let dy = y as f64 - cy;
-        let row = &img.px[y * img.w..(y + 1) * img.w];
+        let row = img.row(y);
         let (b0, r0) = (bg[0] + bg[2] * dy, illum[0] + illum[2] * dy);
+        let xs = cols(cx, q_region.span(dy, 1.0), img.w);
         let (mut rw, mut rx) = (0.0, 0.0);
-        for x in cols(cx, q_region.span(dy, 1.0), img.w) {
-            let dx = x as f64 - cx;
-            let r = (r0 + illum[1] * dx).max(1e-3);
-            let wgt = s * (row[x] as f64 - (b0 + bg[1] * dx)) / r;
-            rw += wgt;
-            rx += wgt * dx;
+        if xs.is_empty() {
+            continue;
+        }
+        let dx0 = xs.start as f64 - cx;
+        let dx1 = (xs.end - 1) as f64 - cx;
+        // relative illumination change per px along the row
+        let rate = illum[1] / r0;
+        if r0 > 1e-3 && rate.abs() * dx0.abs().max(dx1.abs()) < 0.02 {
+            // 1 / (r0 (1 + e)) = (1 - e + e^2 - e^3) / r0 to a relative 1.6e-7 at
+            // |e| < 0.02: no division per pixel; two accumulator pairs (no long chain
+            // of dependent additions)
+            let g0 = s / r0;
+            let (mut w2, mut x2) = (0.0, 0.0);
+            let px = &row[xs];
+            let term = |k: usize| {
+                let dx = dx0 + k as f64;
+                let e = rate * dx;
+                let g = g0 * (1.0 - e * (1.0 - e * (1.0 - e)));
+                let wgt = (px[k].to_f32() as f64 - (b0 + bg[1] * dx)) * g;
+                (wgt, wgt * dx)
+            };
+            let mut k = 0;
+            while k + 1 < px.len() {
+                let (a0, a1) = term(k);
+                let (c0, c1) = term(k + 1);
+                rw += a0;
+                rx += a1;
+                w2 += c0;
+                x2 += c1;
+                k += 2;
+            }
+            if k < px.len() {
+                let (a0, a1) = term(k);
+                rw += a0;
+                rx += a1;
+            }
+            rw += w2;
+            rx += x2;
+        } else {
+            for x in xs {
+                let dx = x as f64 - cx;
+                let r = (r0 + illum[1] * dx).max(1e-3);
+                let wgt = s * (row[x].to_f32() as f64 - (b0 + bg[1] * dx)) / r;
+                rw += wgt;
+                rx += wgt * dx;
+            }
         }
         sw += rw;
         sx += rx;
@@ -364,9 +432,13 @@ pub(crate) fn measure(
         32
     };
     let mut pts: Vec<[f64; 2]> = Vec::with_capacity(nrays);
-    for k in 0..nrays {
-        let phi = std::f64::consts::TAU * k as f64 / nrays as f64;
-        let (ux, uy) = (phi.cos(), phi.sin());
+    // ray directions by rotation from (1, 0): one sin / cos pair per blob
+    let (step_s, step_c) = (std::f64::consts::TAU / nrays as f64).sin_cos();
+    let (mut ux, mut uy) = (1.0f64, 0.0f64);
+    for _ in 0..nrays {
+        let (ux_k, uy_k) = (ux, uy);
+        (ux, uy) = (ux_k * step_c - uy_k * step_s, ux_k * step_s + uy_k * step_c);
+        let (ux, uy) = (ux_k, uy_k);
         let re = 1.0 / rho2(ux, uy, a, b).sqrt();
         let (t0, t1) = ((re - 2.0 * delta).max(0.5 * re), re + delta);
         let q = |t: f64| -> Option<f64> {
@@ -374,23 +446,43 @@ pub(crate) fn measure(
             let z = img.bilinear(cx + dx, cy + dy)?;
             Some(weight(dx, dy, z) / contrast)
         };
-        let mut prev_t = t0;
-        let Some(mut prev) = q(t0) else { continue };
-        if prev < 0.5 {
-            continue;
-        }
-        let mut t = t0;
-        while t < t1 {
-            t += 0.5;
-            let Some(cur) = q(t) else { break };
-            if cur < 0.5 {
-                let f = (prev - 0.5) / (prev - cur);
-                let te = prev_t + f * (t - prev_t);
-                pts.push([gravity[0] + te * ux, gravity[1] + te * uy]);
-                break;
+        // The edge lies near the moment ellipse: bracket the profile's 0.5 crossing
+        // from there on a 0.5 px grid within [t0, t1] (outwards while the profile is
+        // at or above 0.5, inwards while below), then interpolate linearly.
+        let Some(at_re) = q(re) else { continue };
+        let bracket = if at_re >= 0.5 {
+            // outwards to the first sample below 0.5
+            let (mut t, mut prev) = (re, at_re);
+            loop {
+                let tn = t + 0.5;
+                if tn > t1 {
+                    break None;
+                }
+                let Some(cur) = q(tn) else { break None };
+                if cur < 0.5 {
+                    break Some((t, prev, tn, cur));
+                }
+                (t, prev) = (tn, cur);
             }
-            prev = cur;
-            prev_t = t;
+        } else {
+            // inwards to the first sample at or above 0.5
+            let (mut t, mut cur) = (re, at_re);
+            loop {
+                let tp = t - 0.5;
+                if tp < t0 {
+                    break None;
+                }
+                let Some(prev) = q(tp) else { break None };
+                if prev >= 0.5 {
+                    break Some((tp, prev, t, cur));
+                }
+                (t, cur) = (tp, prev);
+            }
+        };
+        if let Some((ta, va, tb, vb)) = bracket {
+            let f = (va - 0.5) / (va - vb);
+            let te = ta + f * (tb - ta);
+            pts.push([gravity[0] + te * ux, gravity[1] + te * uy]);
         }
     }
     let ellipse = fit_ellipse(&pts);

@@ -40,11 +40,12 @@
 
 mod blobs;
 mod centre;
-mod grid;
+mod labels;
+mod lattice;
 
 use crate::board::{Board, BoardKind};
 use crate::error::{Error, Result};
-use crate::vision::{AnyView, ImageView, Pixel};
+use crate::vision::{AnyView, Pixel};
 
 use blobs::Img;
 
@@ -195,33 +196,11 @@ pub struct CircleGrid {
     pub homography_max_px: f64,
     /// The method used for `u, v`.
     pub method: CentreMethod,
+    /// Marker circles seen (measured or cut by the image border).
+    pub markers_seen: usize,
     /// Board symmetries the view cannot decide (see
     /// [`crate::vision::target::TargetDetection::alternatives`]).
     pub alternatives: Vec<crate::board::Symmetry>,
-}
-
-fn to_img<T: Pixel>(v: &ImageView<'_, T>) -> (Img, f32, f32) {
-    let (w, h) = (v.width(), v.height());
-    let mut px: Vec<f32> = Vec::with_capacity(w * h);
-    let (mut lo, mut hi) = (f32::INFINITY, f32::NEG_INFINITY);
-    for y in 0..h {
-        let start = px.len();
-        px.extend(v.row(y).iter().map(|p| p.to_f32()));
-        for &f in &px[start..] {
-            lo = if f < lo { f } else { lo };
-            hi = if f > hi { f } else { hi };
-        }
-    }
-    (
-        Img {
-            w,
-            h,
-            px,
-            max: T::MAX,
-        },
-        lo,
-        hi,
-    )
 }
 
 /// Smallest image side accepted.
@@ -247,18 +226,37 @@ pub fn detect_circles(img: AnyView<'_>, board: &Board, opts: &CircleOptions) -> 
             "image is {w} x {h} pixels; at least {MIN_IMAGE_SIDE} x {MIN_IMAGE_SIDE} is needed"
         )));
     }
-    let (im, lo, hi) = match img {
-        AnyView::U8(v) => to_img(&v),
-        AnyView::U16(v) => to_img(&v),
-    };
+    match img {
+        AnyView::U8(v) => detect_in(Img::new(v), board, opts),
+        AnyView::U16(v) => detect_in(Img::new(v), board, opts),
+    }
+}
+
+fn detect_in<T: Pixel>(im: Img<'_, T>, board: &Board, opts: &CircleOptions) -> Result<CircleGrid> {
+    let (lo, hi) = im.range();
     if hi - lo < im.max / 64.0 {
         return Err(Error::Detection(format!(
             "no circle grid: the image has no contrast (all pixels between {lo} and {hi})"
         )));
     }
     let dark = board.dark_circles;
-    let (blobs, stats) = blobs::find_blobs(&im, dark, opts);
-    let g = grid::order(&blobs, board, &stats)?;
+    let found = blobs::find_blobs(&im, dark, opts);
+    let (blobs, stats) = (&found.blobs, found.stats);
+    let summary = || {
+        format!(
+            "{} blobs passed the filters ({} components: {} touching the border, {} too small, {} \
+             too large, {} not elliptical, {} not surrounded by background)",
+            blobs.len(),
+            stats.components,
+            stats.touching_border,
+            stats.too_small,
+            stats.too_large,
+            stats.bad_shape,
+            stats.not_surrounded
+        )
+    };
+    let grid = lattice::build(blobs, board, &summary)?;
+    let g = labels::label(&grid, blobs, &found.cut, board, (im.w, im.h), &summary)?;
 
     let shapes: Vec<centre::Shape> = blobs
         .iter()
@@ -330,18 +328,20 @@ pub fn detect_circles(img: AnyView<'_>, board: &Board, opts: &CircleOptions) -> 
         circles,
         dropped,
         blobs: blobs.len(),
-        nodes_grown: g.grown,
-        nodes_inconsistent: g.outliers,
+        nodes_grown: grid.grown,
+        nodes_inconsistent: grid.outliers,
         homography_rms_px,
         homography_max_px,
         method: opts.method,
         alternatives: g.alternatives,
+        markers_seen: g.markers_seen,
     })
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::vision::ImageView;
 
     fn detect(data: &[u8], w: usize, h: usize) -> Result<CircleGrid> {
         let v = ImageView::from_slice(data, w, h)?;
