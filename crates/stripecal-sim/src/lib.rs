@@ -12,7 +12,8 @@
 //!   [`target`]) printed on a plate lying on a table, a sphere on the table, a laser
 //!   sheet with Gaussian thickness.
 //! - Rendering ([`render`]): ray casting from every pixel with >= 4 x 4 supersampling
-//!   (4x finer on edge pixels) through the exact inverse distortion.
+//!   (4x finer on edge pixels, 8x at a chessboard's square corners) through the exact
+//!   inverse distortion.
 //! - Image formation ([`imaging`]): ambient x reflectance, vignetting, laser radiance
 //!   with incidence, fall-off and shadows, speckle, Gaussian PSF, photon and read
 //!   noise, clipping, 8/16-bit quantisation.

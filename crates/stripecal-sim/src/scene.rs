@@ -20,7 +20,7 @@
 use nalgebra::{Matrix3, Vector3};
 
 use stripecal::geometry::{Iso3, Plane};
-use stripecal::Board;
+use stripecal::{Board, BoardKind};
 
 /// Surface ids used in materials and truth.
 pub const SURF_NONE: u32 = 0;
@@ -93,6 +93,8 @@ pub enum Footprint {
     Uniform(Hit),
     Smooth,
     Edge,
+    /// An edge pixel that also holds a chessboard junction (where square corners meet).
+    Corner,
 }
 
 /// What one ray sees.
@@ -286,6 +288,21 @@ impl ImageScene {
         d.min(self.board.ink_edge_distance(x, y))
     }
 
+    /// Distance (board mm) from (x, y) to the nearest corner of a chessboard's squares
+    /// (`(i s, j s)` for `i` in `-1..=cols`, `j` in `-1..=rows`); infinite for circle
+    /// grids.
+    #[inline]
+    pub fn square_corner_distance(&self, x: f64, y: f64) -> f64 {
+        let b = &self.board;
+        if b.kind != BoardKind::Chessboard {
+            return f64::INFINITY;
+        }
+        let s = b.pitch_mm;
+        let i = (x / s).round().clamp(-1.0, b.cols as f64);
+        let j = (y / s).round().clamp(-1.0, b.rows as f64);
+        (x - i * s).hypot(y - j * s)
+    }
+
     /// Classifies the footprint of a pixel whose rays all lie within angle `alpha`
     /// (radians, an upper bound) of its central ray `dir`:
     /// - [`Footprint::Uniform`]: every ray provably sees the same material with
@@ -293,6 +310,9 @@ impl ImageScene {
     ///   one sample exactly;
     /// - [`Footprint::Edge`]: a material edge, the plate's outline or a silhouette may
     ///   cross the footprint (needs fine sampling);
+    /// - [`Footprint::Corner`]: an edge footprint that may also hold a corner of a
+    ///   chessboard's squares (an inner corner or a corner of the outer squares), where
+    ///   the renderer samples more finely still;
     /// - [`Footprint::Smooth`]: one material, but the laser sheet is near (smooth
     ///   integrand: regular supersampling is accurate).
     #[inline]
@@ -323,6 +343,9 @@ impl ImageScene {
             SURF_PLATE => {
                 let (x, y) = self.board_xy(&p);
                 if self.plate_edge_distance(x, y) <= 1.5 * rho {
+                    if self.square_corner_distance(x, y) <= 1.5 * rho {
+                        return Footprint::Corner;
+                    }
                     return Footprint::Edge;
                 }
             }
