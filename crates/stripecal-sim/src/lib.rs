@@ -20,6 +20,7 @@
 //! - Truth ([`truth`]): imaged target points per image (circle centres as outline
 //!   centroids, chessboard corners as projected points) and stripe centre lines, plus
 //!   the true parameters.
+//! - Board-only views at random camera poses for detection tests ([`views`]).
 //!
 //! ## Conventions
 //!
@@ -35,6 +36,7 @@ pub mod rng;
 pub mod scene;
 pub mod target;
 pub mod truth;
+pub mod views;
 
 pub use config::{SimConfig, PRESETS};
 pub use dataset::{noisy_observations, DatasetSummary, Twin, ViewRender};
