@@ -11,7 +11,12 @@ preset and override what you need::
     summary = twin.write("out")              # out/calib and out/scan, per spec/DATASET.md
     view = twin.render_view(twin.calibration_poses()[0]["q_deg"])
     view["board_image"]                      # (H, W) uint8 numpy array
-    view["circle_centers"]                   # true imaged-circle centres (N, 2)
+    view["target_points"]                    # true imaged target points (N, 2)
+
+Presets: ``hp3-paper`` (the paper's rig and 8 x 11 circle board), ``hp3-wide`` (a
+wide-angle, distorted camera), ``hp3-chessboard`` and ``hp3-asymmetric`` (the paper's
+rig with a chessboard or an asymmetric circle grid). ``board.kind`` selects the target:
+``"circles"``, ``"asymmetric_circles"`` or ``"chessboard"`` (with ``board.square_mm``).
 
 Unknown keys are an error, so a misspelt knob never goes unnoticed. All rendering runs
 in Rust (``stripecal._core``); this module only converts configurations.
@@ -35,7 +40,9 @@ __all__ = ["Twin", "preset", "presets"]
 
 def presets() -> List[str]:
     """Names of the built-in presets (``hp3-paper``: the paper's rig; ``hp3-wide``: a
-    wide-angle, strongly distorted camera with 15 poses)."""
+    wide-angle, strongly distorted camera with 15 poses; ``hp3-chessboard``: the paper's
+    rig with a 7 x 10 inner-corner chessboard of 4.8 mm squares; ``hp3-asymmetric``: the
+    paper's rig with an 11 x 8 asymmetric circle grid, pitch 7 mm, circles 2.5 mm)."""
     return list(sim_presets())
 
 
@@ -71,7 +78,15 @@ class Twin:
 
     @property
     def board(self) -> Board:
+        """The target (its ``kind``: ``circles``, ``asymmetric_circles`` or
+        ``chessboard``)."""
         return self._core.board
+
+    @property
+    def board_kind(self) -> str:
+        """The target's kind: ``"circles"``, ``"asymmetric_circles"`` or
+        ``"chessboard"``."""
+        return str(self._core.board.kind)
 
     @property
     def robot_nominal(self) -> Robot:
@@ -118,11 +133,15 @@ class Twin:
 
     def render_view(self, q: npt.ArrayLike, index: int = 0) -> Dict[str, Any]:
         """Renders a calibration view at encoder readings ``q`` (degrees). Keys:
-        ``board_image``, ``laser_image`` (None in single-image mode), ``circle_indices``
-        (N, 2) and ``circle_centers`` (N, 2) (true imaged-circle centres: outline
-        centroids), ``circle_centers_projected``, ``stripe_points`` (M, 2) and per-point
-        ``stripe_surface``, ``stripe_incidence_deg``, ``stripe_view_deg``,
-        ``stripe_edge_mm``, ``stripe_slope``, ``stripe_points_cam`` (M, 3), ``base_cam``.
+        ``board_image``, ``laser_image`` (None in single-image mode), ``target_indices``
+        (N, 2) (row, col) and ``target_points`` (N, 2): the true imaged target points
+        (circles: outline centroids, whole circle in the image; chessboard corners: the
+        projected corner, inside the image); the same data as ``circle_indices`` and
+        ``circle_centers`` (the historical names); ``circle_centers_projected`` (the
+        projected points: for a chessboard equal to the truth), ``stripe_points``
+        (M, 2) and per-point ``stripe_surface``, ``stripe_incidence_deg``,
+        ``stripe_view_deg``, ``stripe_edge_mm``, ``stripe_slope``,
+        ``stripe_points_cam`` (M, 3), ``base_cam``.
         ``index`` selects the noise stream (views of one dataset differ by index)."""
         return self._core.render_view(q, index)
 
@@ -133,5 +152,6 @@ class Twin:
 
     def write(self, out: Union[str, "os.PathLike[str]"], progress: Optional[Callable[[str, int, int], Any]] = None) -> Dict[str, Any]:
         """Renders and writes ``out/calib`` and ``out/scan`` (each written under a
-        temporary name, then renamed); returns a summary dict."""
+        temporary name, then renamed); returns a summary dict (``board_kind``, per view
+        ``circles_visible``: the imaged target points, whatever the kind)."""
         return self._core.write(out, progress)

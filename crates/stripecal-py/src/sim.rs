@@ -84,8 +84,18 @@ fn render_to_py<'py>(py: Python<'py>, r: &ViewRender) -> PyResult<Bound<'py, PyD
         .iter()
         .flat_map(|c| [c.u_center_proj, c.v_center_proj])
         .collect();
-    d.set_item("circle_indices", nd(py, &[r.circles.len(), 2], idx)?)?;
-    d.set_item("circle_centers", nd(py, &[r.circles.len(), 2], ctr)?)?;
+    // The imaged target points (circle centres or chessboard corners) under the
+    // historical circle names and the kind-neutral ones (the same data).
+    d.set_item(
+        "circle_indices",
+        nd(py, &[r.circles.len(), 2], idx.clone())?,
+    )?;
+    d.set_item(
+        "circle_centers",
+        nd(py, &[r.circles.len(), 2], ctr.clone())?,
+    )?;
+    d.set_item("target_indices", nd(py, &[r.circles.len(), 2], idx)?)?;
+    d.set_item("target_points", nd(py, &[r.circles.len(), 2], ctr)?)?;
     d.set_item(
         "circle_centers_projected",
         nd(py, &[r.circles.len(), 2], ctr_proj)?,
@@ -318,6 +328,7 @@ impl PyTwin {
         }
         d.set_item("views", views)?;
         d.set_item("circles_total", self.inner.board.len())?;
+        d.set_item("board_kind", self.inner.board.kind.name())?;
         d.set_item("scan_frames", s.scan_frames)?;
         d.set_item("scan_sphere_points", s.scan_sphere_points)?;
         d.set_item("stripe_direction", s.direction.name())?;

@@ -67,19 +67,51 @@ pub struct RobotCfg {
     pub joints: Vec<DhCfg>,
 }
 
-/// The target.
+/// The target (spec/DATASET.md, "Board" and "Target kinds").
+///
+/// Which knobs a kind uses:
+/// - `circles`: `rows`, `cols`, `pitch_mm`, `circle_diameter_mm`, `markers`,
+///   `marker_diameter_mm` (only when `markers` is not empty), `dark_circles`;
+/// - `asymmetric_circles`: `rows`, `cols`, `pitch_mm` (between neighbours in a row),
+///   `circle_diameter_mm`, `dark_circles`; it has no markers;
+/// - `chessboard`: `rows`, `cols` (inner corners) and `square_mm` (`null`: `pitch_mm`);
+///   the colours are the contract's (the square outside corner (0, 0) is dark).
+///
+/// The knobs a kind does not use are ignored, so switching the kind of a preset
+/// (`--set board.kind=asymmetric_circles`) needs no other change; rig.json holds only
+/// the ones the kind uses.
+///
+/// `plate_margin_mm` means the same for every kind: how far the plate reaches beyond
+/// the OUTER TARGET POINTS (circle centres, a chessboard's outer inner corners) on each
+/// side, so the plate is the points' bounding box grown by it. It must cover the
+/// printed pattern: at least the largest circle radius for circle grids, and MORE than
+/// `square_mm` for a chessboard (whose outer squares reach one square beyond its outer
+/// corners); `plate_margin_mm - square_mm` is then the light border around the squares.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct BoardCfg {
+    /// `circles` (default), `asymmetric_circles` or `chessboard`.
+    #[serde(default = "default_board_kind")]
+    pub kind: String,
+    /// Grid rows: circles, or a chessboard's inner corners along board y.
     pub rows: usize,
+    /// Grid columns: circles, or a chessboard's inner corners along board x.
     pub cols: usize,
+    /// Circle kinds: centre distance between neighbours in a row, mm.
     pub pitch_mm: f64,
     pub circle_diameter_mm: f64,
     pub marker_diameter_mm: f64,
     pub markers: Vec<[usize; 2]>,
     pub dark_circles: bool,
-    /// Plate beyond the outer circle centres, mm (each side).
+    /// Chessboards: the square side, mm (`null`: `pitch_mm`).
+    #[serde(default)]
+    pub square_mm: Option<f64>,
+    /// Plate beyond the outer target points, mm (each side); see the type's docs.
     pub plate_margin_mm: f64,
+}
+
+fn default_board_kind() -> String {
+    BoardKind::Circles.name().into()
 }
 
 /// How calibration poses are chosen.
@@ -198,7 +230,7 @@ pub struct SimConfig {
 }
 
 /// Names of the built-in presets.
-pub const PRESETS: [&str; 2] = ["hp3-paper", "hp3-wide"];
+pub const PRESETS: [&str; 4] = ["hp3-paper", "hp3-wide", "hp3-chessboard", "hp3-asymmetric"];
 
 impl SimConfig {
     /// A built-in preset by name.
@@ -206,6 +238,8 @@ impl SimConfig {
         match name {
             "hp3-paper" => Ok(Self::hp3_paper()),
             "hp3-wide" => Ok(Self::hp3_wide()),
+            "hp3-chessboard" => Ok(Self::hp3_chessboard()),
+            "hp3-asymmetric" => Ok(Self::hp3_asymmetric()),
             other => Err(SimError::Config(format!(
                 "unknown preset {other:?}; presets: {}",
                 PRESETS.join(", ")
@@ -254,6 +288,7 @@ impl SimConfig {
             },
             dh_errors: vec![],
             board: BoardCfg {
+                kind: BoardKind::Circles.name().into(),
                 rows: 8,
                 cols: 11,
                 pitch_mm: 5.0,
@@ -261,6 +296,7 @@ impl SimConfig {
                 marker_diameter_mm: 3.5,
                 markers: Board::default_markers(),
                 dark_circles: true,
+                square_mm: None,
                 plate_margin_mm: 4.0,
             },
             poses: PosesCfg {
@@ -326,6 +362,55 @@ impl SimConfig {
         };
         c.poses.count = 15;
         c.poses.standoff_mm = [95.0, 125.0];
+        c
+    }
+
+    /// The paper's rig (`hp3-paper`: camera, robot, poses, laser, scan) with a
+    /// chessboard of 7 x 10 inner corners and 4.8 mm squares. Its printed pattern (11 x
+    /// 8 squares, 52.8 x 38.4 mm) is the size of the paper board's (53.5 x 38.5 mm over
+    /// the outer circles' edges), so the same poses see it as fully; a square is ~54 px
+    /// at the nominal stand-off. rows + cols is odd, so the colours fix the board's
+    /// orientation. The plate reaches 10 mm beyond the outer corners: a 5.2 mm light
+    /// border (more than a square) around the squares.
+    pub fn hp3_chessboard() -> SimConfig {
+        let mut c = Self::hp3_paper();
+        c.preset = "hp3-chessboard".into();
+        c.board = BoardCfg {
+            kind: BoardKind::Chessboard.name().into(),
+            rows: 7,
+            cols: 10,
+            pitch_mm: 4.8,
+            circle_diameter_mm: 0.0,
+            marker_diameter_mm: 0.0,
+            markers: vec![],
+            dark_circles: true,
+            square_mm: Some(4.8),
+            plate_margin_mm: 10.0,
+        };
+        c
+    }
+
+    /// The paper's rig with an asymmetric circle grid: 11 rows of 8 circles (88, like
+    /// the paper board), pitch 7 mm along a row (neighbours 4.95 mm apart), circles of
+    /// 2.5 mm (~28 px across at the nominal stand-off, ~19 px at 1.5x it). The centres
+    /// span 52.5 x 35 mm (the paper board's: 50 x 35 mm), the aspect of the 4:3 image.
+    /// An odd number of rows: the grid fixes its own orientation (an even one is the same
+    /// after a half turn).
+    pub fn hp3_asymmetric() -> SimConfig {
+        let mut c = Self::hp3_paper();
+        c.preset = "hp3-asymmetric".into();
+        c.board = BoardCfg {
+            kind: BoardKind::AsymmetricCircles.name().into(),
+            rows: 11,
+            cols: 8,
+            pitch_mm: 7.0,
+            circle_diameter_mm: 2.5,
+            marker_diameter_mm: 2.5,
+            markers: vec![],
+            dark_circles: true,
+            square_mm: None,
+            plate_margin_mm: 4.0,
+        };
         c
     }
 
@@ -473,31 +558,39 @@ impl SimConfig {
         pose_model(&self.hand_cam)
     }
 
-    /// The board.
+    /// The board of `board.kind` (see [`BoardCfg`] for the knobs each kind uses), with
+    /// its plate margin checked.
     pub fn board_model(&self) -> Result<Board, SimError> {
         let b = &self.board;
-        let board = Board {
-            kind: BoardKind::Circles,
-            rows: b.rows,
-            cols: b.cols,
-            pitch_mm: b.pitch_mm,
-            circle_diameter_mm: b.circle_diameter_mm,
-            marker_diameter_mm: b.marker_diameter_mm,
-            markers: b.markers.clone(),
-            dark_circles: b.dark_circles,
-            square_mm: None,
+        let kind = BoardKind::from_name(&b.kind)
+            .map_err(|e| SimError::Config(format!("board.kind: {e}")))?;
+        let board = match kind {
+            BoardKind::Circles => Board {
+                kind,
+                rows: b.rows,
+                cols: b.cols,
+                pitch_mm: b.pitch_mm,
+                circle_diameter_mm: b.circle_diameter_mm,
+                marker_diameter_mm: b.marker_diameter_mm,
+                markers: b.markers.clone(),
+                dark_circles: b.dark_circles,
+                square_mm: None,
+            },
+            BoardKind::AsymmetricCircles => Board {
+                dark_circles: b.dark_circles,
+                ..Board::asymmetric_circles(b.rows, b.cols, b.pitch_mm, b.circle_diameter_mm)
+                    .map_err(|e| SimError::Config(format!("board: {e}")))?
+            },
+            BoardKind::Chessboard => {
+                Board::chessboard(b.rows, b.cols, b.square_mm.unwrap_or(b.pitch_mm))
+                    .map_err(|e| SimError::Config(format!("board: {e}")))?
+            }
         };
         board
             .validate()
             .map_err(|e| SimError::Config(format!("board: {e}")))?;
-        if !(b.plate_margin_mm.is_finite()
-            && b.plate_margin_mm >= 0.5 * b.marker_diameter_mm.max(b.circle_diameter_mm))
-        {
-            return Err(SimError::Config(format!(
-                "board.plate_margin_mm: {} must cover the outer circles (>= half a diameter)",
-                b.plate_margin_mm
-            )));
-        }
+        crate::target::check_plate_margin(&board, b.plate_margin_mm)
+            .map_err(|m| SimError::Config(format!("board.plate_margin_mm: {m}")))?;
         Ok(board)
     }
 

@@ -20,7 +20,7 @@ use crate::imaging::{form_image, Exposure};
 use crate::poses::{PoseInfo, PoseProblem};
 use crate::render::{LinearImage, Renderer};
 use crate::scene::{ImageScene, Laser, World};
-use crate::truth::{circle_truth, stripe_direction, stripe_truth, CircleTruth, StripePointTruth};
+use crate::truth::{stripe_direction, stripe_truth, target_truth, PointTruth, StripePointTruth};
 use crate::SimError;
 
 /// Plate thickness: the table lies this far behind the board surface, mm.
@@ -46,6 +46,9 @@ pub struct Twin {
     pub direction: StripeDirection,
     calib_world: World,
     scan_world: World,
+    /// The calibration world with the board frame as the base frame (board-only views
+    /// at arbitrary `T_board_cam`).
+    board_world: World,
     renderer: OnceLock<Result<Renderer, String>>,
 }
 
@@ -55,8 +58,9 @@ pub struct ViewRender {
     pub board_image: Option<AnyGray>,
     /// Laser image; `None` in single-image mode (the board image holds the stripe).
     pub laser_image: Option<AnyGray>,
-    /// Imaged circle centres (empty for scan frames).
-    pub circles: Vec<CircleTruth>,
+    /// Imaged target points: circle centres or chessboard corners
+    /// ([`crate::truth::target_truth`]; empty for scan frames). The name is historical.
+    pub circles: Vec<PointTruth>,
     /// True stripe centre line.
     pub stripe: Vec<StripePointTruth>,
     /// `T_base_cam` of the view.
@@ -69,7 +73,8 @@ pub struct DatasetSummary {
     pub calib_dir: PathBuf,
     pub scan_dir: Option<PathBuf>,
     pub views: Vec<PoseInfo>,
-    /// Per view: circles fully visible, stripe truth points on the board.
+    /// Per view: target points imaged (circles fully visible, corners inside the
+    /// image), stripe truth points on the board.
     pub view_circles: Vec<usize>,
     pub view_stripe_points: Vec<usize>,
     pub scan_frames: usize,
@@ -128,9 +133,10 @@ impl Twin {
         };
         let sphere = cfg.scan.enabled.then(|| {
             let r = 0.5 * cfg.scan.sphere_diameter_mm;
+            let ctr = crate::target::points_center(&board);
             let c_board = Point3::new(
-                0.5 * (board.cols - 1) as f64 * board.pitch_mm + cfg.scan.sphere_offset_mm[0],
-                0.5 * (board.rows - 1) as f64 * board.pitch_mm + cfg.scan.sphere_offset_mm[1],
+                ctr.x + cfg.scan.sphere_offset_mm[0],
+                ctr.y + cfg.scan.sphere_offset_mm[1],
                 PLATE_THICKNESS_MM - r,
             );
             Sphere {
@@ -140,6 +146,10 @@ impl Twin {
         });
         let scan_world = World {
             sphere: sphere.map(|s| (s.center_mm, 0.5 * s.diameter_mm)),
+            ..calib_world.clone()
+        };
+        let board_world = World {
+            base_board: Iso3::identity(),
             ..calib_world.clone()
         };
         let mut twin = Twin {
@@ -156,6 +166,7 @@ impl Twin {
             direction: StripeDirection::Cols,
             calib_world,
             scan_world,
+            board_world,
             renderer: OnceLock::new(),
         };
         let mid = 0.5 * (twin.cfg.working_range_mm[0] + twin.cfg.working_range_mm[1]);
@@ -349,10 +360,44 @@ impl Twin {
         Ok(ViewRender {
             board_image: Some(board_image),
             laser_image,
-            circles: circle_truth(&scene, &self.camera, 0.0),
+            circles: target_truth(&scene, &self.camera, 0.0),
             stripe: stripe_truth(&scene, &self.camera, self.direction),
             base_cam: self.base_cam(q_deg)?,
         })
+    }
+
+    /// The calibration scene (the plate on its table, no sphere) with the laser off,
+    /// seen from `T_board_cam` (the camera pose in the board frame, not through the
+    /// robot): the scene of the board-only views of [`crate::views`].
+    pub fn board_scene(&self, board_cam: &Iso3) -> ImageScene {
+        let mut laser = self.laser();
+        laser.peak = 0.0;
+        self.board_world.image_scene(board_cam, laser)
+    }
+
+    /// Linear radiance of the board-only scene from `T_board_cam` (for fidelity tests):
+    /// `(image, scene)`.
+    pub fn render_board_linear(
+        &self,
+        board_cam: &Iso3,
+    ) -> Result<(LinearImage, ImageScene), SimError> {
+        let scene = self.board_scene(board_cam);
+        Ok((self.renderer()?.render(&scene), scene))
+    }
+
+    /// A board image (board lit, laser off) from `T_board_cam`: the cheapest render of
+    /// the twin (no laser: every pixel off an edge is one sample). `stream` selects the
+    /// noise (the twin's seed, stream `stream`).
+    pub fn render_board_image(&self, board_cam: &Iso3, stream: u64) -> Result<AnyGray, SimError> {
+        let (lin, _) = self.render_board_linear(board_cam)?;
+        Ok(form_image(
+            &lin,
+            &self.camera,
+            &self.cfg.imaging,
+            Exposure::Board,
+            self.cfg.seed,
+            stream,
+        ))
     }
 
     /// Renders scan frame `index` at `q_deg` (stripe image only) with its truth.
@@ -532,7 +577,7 @@ impl Twin {
         let mut out = Vec::new();
         for (i, p) in self.calibration_poses()?.iter().enumerate() {
             let scene = self.scene(&p.q_deg, false)?;
-            let circles = circle_truth(&scene, &self.camera, 0.0)
+            let circles = target_truth(&scene, &self.camera, 0.0)
                 .iter()
                 .map(|c| CircleObs {
                     row: c.row,
@@ -639,11 +684,7 @@ fn auto_base_board(
     let xb = (xc - zb * xc.dot(&zb)).normalize();
     let yb = zb.cross(&xb);
     let r = nalgebra::Matrix3::from_columns(&[xb, yb, zb]);
-    let c_board = Vector3::new(
-        0.5 * (board.cols - 1) as f64 * board.pitch_mm,
-        0.5 * (board.rows - 1) as f64 * board.pitch_mm,
-        0.0,
-    );
+    let c_board = crate::target::points_center(board);
     let t = target - r * c_board;
     Ok(stripecal::geometry::iso_from_parts(&r, &t))
 }

@@ -7,15 +7,20 @@
 //! ## What is modelled
 //!
 //! - Geometry: the true camera (pinhole + distortion), the true robot (nominal DH plus
-//!   optional errors), hand-eye X, robot-world Z, a circle board on a plate lying on a
-//!   table, a sphere on the table, a laser sheet with Gaussian thickness.
+//!   optional errors), hand-eye X, robot-world Z, a target of any kind of the contract
+//!   (`board.kind`: a circle grid with markers, an asymmetric circle grid, a chessboard;
+//!   [`target`]) printed on a plate lying on a table, a sphere on the table, a laser
+//!   sheet with Gaussian thickness.
 //! - Rendering ([`render`]): ray casting from every pixel with >= 4 x 4 supersampling
-//!   (4x finer on edge pixels) through the exact inverse distortion.
+//!   (4x finer on edge pixels, 8x at a chessboard's square corners) through the exact
+//!   inverse distortion.
 //! - Image formation ([`imaging`]): ambient x reflectance, vignetting, laser radiance
 //!   with incidence, fall-off and shadows, speckle, Gaussian PSF, photon and read
 //!   noise, clipping, 8/16-bit quantisation.
-//! - Truth ([`truth`]): imaged circle centres (outline centroids) and stripe centre
-//!   lines per image, plus the true parameters.
+//! - Truth ([`truth`]): imaged target points per image (circle centres as outline
+//!   centroids, chessboard corners as projected points) and stripe centre lines, plus
+//!   the true parameters.
+//! - Board-only views at random camera poses for detection tests ([`views`]).
 //!
 //! ## Conventions
 //!
@@ -29,7 +34,9 @@ pub mod poses;
 pub mod render;
 pub mod rng;
 pub mod scene;
+pub mod target;
 pub mod truth;
+pub mod views;
 
 pub use config::{SimConfig, PRESETS};
 pub use dataset::{noisy_observations, DatasetSummary, Twin, ViewRender};

@@ -10,6 +10,7 @@ use stripecal::{Camera, Robot};
 
 use crate::rng::Rng;
 use crate::scene::ImageScene;
+use crate::target;
 use crate::SimError;
 
 /// Facts about one calibration pose.
@@ -69,15 +70,22 @@ impl PoseProblem<'_> {
         if tilt > self.max_tilt_deg + 1e-9 {
             return Err(format!("tilt {tilt:.1} deg too large"));
         }
-        let circles = circle_truth_quick(&scene, self.camera, self.margin_px);
-        if circles < board.len() {
-            return Err(format!(
-                "only {circles} of {} circles inside the image margin",
-                board.len()
-            ));
+        // The whole printed pattern inside the image margin: every circle's outline
+        // (circle grids; 32 points each), the outer squares' outline (chessboards).
+        if board.kind.is_circles() {
+            let circles = target::points_inside_quick(&scene, self.camera, self.margin_px, 32);
+            if circles < board.len() {
+                return Err(format!(
+                    "only {circles} of {} circles inside the image margin",
+                    board.len()
+                ));
+            }
+        } else if !target::pattern_inside(&scene, self.camera, self.margin_px, 32) {
+            return Err("the chessboard's squares are not all inside the image margin".into());
         }
         let (chord, mid) = stripe_chord(&scene);
-        let need = 0.5 * (board.rows.min(board.cols) - 1) as f64 * board.pitch_mm;
+        let [x0, x1, y0, y1] = target::points_bbox(&board);
+        let need = 0.5 * (x1 - x0).min(y1 - y0);
         if chord < need {
             return Err(format!("stripe crosses the grid over {chord:.1} mm only"));
         }
@@ -101,11 +109,7 @@ impl PoseProblem<'_> {
     /// Samples `count` poses, deterministic by `seed`, spread in orientation.
     pub fn sample(&self, count: usize, seed: u64) -> Result<Vec<PoseInfo>, SimError> {
         let board = (self.scene)(&Iso3::identity()).board().clone();
-        let center = Vector3::new(
-            0.5 * (board.cols - 1) as f64 * board.pitch_mm,
-            0.5 * (board.rows - 1) as f64 * board.pitch_mm,
-            0.0,
-        );
+        let center = target::points_center(&board);
         let want = (count * 8).max(count + 8);
         let mut rng = Rng::new(seed, 0x905e5);
         let mut pool: Vec<(PoseInfo, UnitQuaternion<f64>)> = Vec::new();
@@ -212,38 +216,17 @@ pub fn axis_spread(rots: &[UnitQuaternion<f64>]) -> f64 {
     ev[1] / ev[0]
 }
 
-fn circle_truth_quick(scene: &ImageScene, cam: &Camera, margin: f64) -> usize {
-    // A coarse version of circle_truth: 32 boundary points per circle are enough to
-    // decide visibility with a margin.
-    let board = scene.board();
-    let t = scene.cam_board;
-    board
-        .indices()
-        .filter(|&(r, c)| {
-            let ctr = board.center(r, c);
-            let rad = 0.5 * board.diameter(r, c);
-            (0..32).all(|k| {
-                let a = std::f64::consts::TAU * k as f64 / 32.0;
-                let pb = Point3::new(ctr.x + rad * a.cos(), ctr.y + rad * a.sin(), 0.0);
-                matches!(cam.project(&(t * pb).coords), Ok(uv) if cam.contains(&uv, margin))
-            })
-        })
-        .count()
-}
-
-/// Length of the laser line's chord across the rectangle spanned by the circle centres,
-/// and the chord's middle (board coordinates).
+/// Length of the laser line's chord across the rectangle spanned by the target points
+/// (circle centres, inner corners; [`target::points_bbox`]), and the chord's middle
+/// (board coordinates).
 pub fn stripe_chord(scene: &ImageScene) -> (f64, (f64, f64)) {
     let b = scene.board();
     let t = scene.cam_board;
     // Laser plane in board coordinates.
     let lp = scene.laser.plane.transformed(&t.inverse());
     let (n, d) = (lp.normal, lp.d);
-    // Line n.x x + n.y y = d in the board plane z = 0.
-    let (w, h) = (
-        (b.cols - 1) as f64 * b.pitch_mm,
-        (b.rows - 1) as f64 * b.pitch_mm,
-    );
+    // Line n.x x + n.y y = d in the board plane z = 0 (the box starts at the origin).
+    let [_, w, _, h] = target::points_bbox(b);
     let mut pts: Vec<(f64, f64)> = Vec::new();
     if n.y.abs() > 1e-12 {
         for x in [0.0, w] {

@@ -5,8 +5,10 @@
 //! angular radius):
 //! - one material of constant reflectance and no laser light: the integrand is
 //!   constant, so the central sample IS the exact supersampled value;
-//! - a reflectance edge, the plate's outline or a silhouette may cross it: `4 ss x 4 ss`
-//!   samples on a regular sub-pixel grid;
+//! - a reflectance edge, the plate's outline or a silhouette may cross it: `(4 ss)^2`
+//!   samples ([`FinePattern`]): a regular sub-pixel grid for circle grids, a
+//!   multi-jittered pattern for chessboards, and `(8 ss)^2` of it where a chessboard's
+//!   square corners meet (a junction inside the footprint);
 //! - otherwise (the smooth laser sheet nearby): `ss x ss` samples (`ss >= 4`), promoted
 //!   to the fine grid if those samples see different materials.
 //!
@@ -17,7 +19,7 @@
 use nalgebra::{Matrix2, Vector3};
 use rayon::prelude::*;
 
-use stripecal::Camera;
+use stripecal::{BoardKind, Camera};
 
 use crate::scene::{Footprint, ImageScene};
 use crate::SimError;
@@ -31,6 +33,73 @@ pub struct LinearImage {
     pub ambient: Vec<f32>,
     /// Mean laser radiance over the pixel footprint.
     pub laser: Vec<f32>,
+}
+
+/// Where the `(4 ss)^2` samples of an edge pixel lie.
+///
+/// A regular `m x m` grid (`m = 4 ss`) measures the area of a pixel cut by a straight
+/// edge that runs along a pixel row or column only to `1 / m` (every sample row sits
+/// at the same `m` offsets): a systematic error of up to `1 / (2 m)` of the contrast
+/// all along such an edge, i.e. a shifted edge. Circles sweep every direction, so it
+/// averages out of their centroids; a chessboard's straight sides at small roll are its
+/// worst case. A multi-jittered pattern (Chiu, Shirley and Wang 1994: one sample per
+/// cell of the `m x m` grid AND one per row and column of the finer `m^2 x m^2` grid,
+/// jittered) measures a row- or column-aligned edge to `1 / m^2` and has no lattice
+/// directions along which samples line up.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum FinePattern {
+    /// The regular grid (circle grids: keeps their images as they always were).
+    Grid,
+    /// A fixed multi-jittered pattern (chessboards).
+    MultiJittered,
+}
+
+impl FinePattern {
+    /// The pattern for a board kind.
+    pub fn for_kind(kind: BoardKind) -> FinePattern {
+        match kind {
+            BoardKind::Chessboard => FinePattern::MultiJittered,
+            BoardKind::Circles | BoardKind::AsymmetricCircles => FinePattern::Grid,
+        }
+    }
+
+    /// The `m x m` sample offsets in pixels from the pixel centre (in `(-0.5, 0.5)`),
+    /// in summation order.
+    pub fn offsets(self, m: usize) -> Vec<(f64, f64)> {
+        match self {
+            FinePattern::Grid => {
+                let offs: Vec<f64> = (0..m).map(|i| (i as f64 + 0.5) / m as f64 - 0.5).collect();
+                offs.iter()
+                    .flat_map(|&dv| offs.iter().map(move |&du| (du, dv)))
+                    .collect()
+            }
+            FinePattern::MultiJittered => {
+                // Cell (i, j) (column i, row j) holds x in column slot i * m + sx[i][j]
+                // and y in row slot j * m + sy[j][i]; shuffling sx down each column and
+                // sy along each row keeps both n-rooks properties.
+                let mut rng = crate::rng::Rng::new(0x6d6a, m as u64);
+                let identity: Vec<usize> = (0..m).collect();
+                let mut sx = vec![identity.clone(); m];
+                let mut sy = vec![identity; m];
+                for line in sx.iter_mut().chain(sy.iter_mut()) {
+                    for a in 0..m {
+                        let k = a + ((rng.uniform() * (m - a) as f64) as usize).min(m - a - 1);
+                        line.swap(a, k);
+                    }
+                }
+                let f = (m * m) as f64;
+                let mut out = Vec::with_capacity(m * m);
+                for j in 0..m {
+                    for i in 0..m {
+                        let x = ((i * m + sx[i][j]) as f64 + rng.uniform()) / f;
+                        let y = ((j * m + sy[j][i]) as f64 + rng.uniform()) / f;
+                        out.push((x - 0.5, y - 0.5));
+                    }
+                }
+                out
+            }
+        }
+    }
 }
 
 /// A camera's ray table.
@@ -135,9 +204,10 @@ impl Renderer {
         let mut laser = vec![0f32; w * h];
         let n = self.ss * self.ss;
         let fine = 4 * self.ss;
-        let fine_offs: Vec<f64> = (0..fine)
-            .map(|i| (i as f64 + 0.5) / fine as f64 - 0.5)
-            .collect();
+        let pattern = FinePattern::for_kind(scene.board().kind);
+        let fine_offs = pattern.offsets(fine);
+        // Chessboard junctions (Footprint::Corner): twice as fine again per side.
+        let corner_offs = pattern.offsets(2 * fine);
         ambient
             .par_chunks_mut(w)
             .zip(laser.par_chunks_mut(w))
@@ -154,7 +224,7 @@ impl Renderer {
                     }
                     let mut sum_a = 0.0;
                     let mut sum_l = 0.0;
-                    let mut mixed = class == Footprint::Edge;
+                    let mut mixed = matches!(class, Footprint::Edge | Footprint::Corner);
                     if !mixed {
                         let mut first = u32::MAX;
                         for d in &self.deltas[idx * n..(idx + 1) * n] {
@@ -178,15 +248,18 @@ impl Renderer {
                             .from_pixel(&nalgebra::Vector2::new(col as f64, row as f64));
                         sum_a = 0.0;
                         sum_l = 0.0;
-                        for &dv in &fine_offs {
-                            for &du in &fine_offs {
-                                let (sx, sy) = sub_ray(&self.camera, xd, yd, xc, yc, &jinv, du, dv);
-                                let hit = scene.shade(&Vector3::new(sx, sy, 1.0));
-                                sum_a += hit.reflectance;
-                                sum_l += hit.laser;
-                            }
+                        let offs = if class == Footprint::Corner {
+                            &corner_offs
+                        } else {
+                            &fine_offs
+                        };
+                        for &(du, dv) in offs {
+                            let (sx, sy) = sub_ray(&self.camera, xd, yd, xc, yc, &jinv, du, dv);
+                            let hit = scene.shade(&Vector3::new(sx, sy, 1.0));
+                            sum_a += hit.reflectance;
+                            sum_l += hit.laser;
                         }
-                        let m = (fine * fine) as f64;
+                        let m = offs.len() as f64;
                         arow[col] = (sum_a / m) as f32;
                         lrow[col] = (sum_l / m) as f32;
                     } else {
@@ -231,4 +304,34 @@ fn sub_ray(
         y -= ji[(1, 0)] * ex + ji[(1, 1)] * ey;
     }
     (x, y)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn multi_jittered_pattern_is_stratified_three_ways() {
+        let m = 16;
+        let p = FinePattern::MultiJittered.offsets(m);
+        assert_eq!(p.len(), m * m);
+        let f = (m * m) as f64;
+        let mut cols = vec![0; m * m];
+        let mut rows = vec![0; m * m];
+        let mut cells = vec![0; m * m];
+        for &(x, y) in &p {
+            assert!(x > -0.5 && x < 0.5 && y > -0.5 && y < 0.5);
+            let (fx, fy) = (((x + 0.5) * f) as usize, ((y + 0.5) * f) as usize);
+            cols[fx] += 1;
+            rows[fy] += 1;
+            cells[(fy / m) * m + fx / m] += 1;
+        }
+        assert!(cols.iter().chain(&rows).chain(&cells).all(|&c| c == 1));
+        // fixed: the same pattern every time
+        assert_eq!(p, FinePattern::MultiJittered.offsets(m));
+        // the grid keeps the historical order: rows of du, one dv after another
+        let g = FinePattern::Grid.offsets(4);
+        assert_eq!(g[1], (-0.125, -0.375));
+        assert_eq!(g[4], (-0.375, -0.125));
+    }
 }

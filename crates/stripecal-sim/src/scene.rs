@@ -2,8 +2,14 @@
 //! the laser sheet; ray casting and shading in the camera frame of one image.
 //!
 //! Geometry is exact: a ray hits the plate plane, the point's board coordinates decide
-//! circle membership exactly (so imaged circle edges are exact ellipses under
-//! perspective and distortion, up to anti-aliasing), the sphere is an exact quadric.
+//! exactly whether it lies on a printed feature ([`Board::ink_at`]: a circle of a circle
+//! grid or a dark square of a chessboard; so imaged circle edges are exact ellipses and
+//! square sides exact lines under perspective, curves under distortion, up to
+//! anti-aliasing), the sphere is an exact quadric. The plate is the target points'
+//! bounding box grown by the plate margin ([`crate::target::plate_extent`]).
+//!
+//! Reflectances: the plate `plate_reflectance`, the printed features ("ink": circles,
+//! dark squares) `circle_reflectance` (swapped for light circles on a dark plate).
 //!
 //! Shading (linear radiance, 1.0 = full scale):
 //! - ambient part: surface reflectance (the illumination level is applied later);
@@ -14,15 +20,21 @@
 use nalgebra::{Matrix3, Vector3};
 
 use stripecal::geometry::{Iso3, Plane};
-use stripecal::Board;
+use stripecal::{Board, BoardKind};
 
 /// Surface ids used in materials and truth.
 pub const SURF_NONE: u32 = 0;
 pub const SURF_PLATE: u32 = 1;
 pub const SURF_TABLE: u32 = 2;
 pub const SURF_SPHERE: u32 = 3;
-/// Circle materials are `SURF_CIRCLE0 + row * cols + col`.
+/// Printed features ("ink") are `SURF_CIRCLE0 + id` with the id of [`Board::ink_at`]:
+/// `row * cols + col` for a circle, `(j + 1) * (cols + 1) + i + 1` for chessboard square
+/// `(i, j)`. Every such material is >= 16, so it never equals another surface's id, and
+/// below `16 + 1001 * 1001` (boards have at most 1000 x 1000 points), far from
+/// `u32::MAX`.
 pub const SURF_CIRCLE0: u32 = 16;
+/// The same base under a kind-neutral name.
+pub const SURF_INK0: u32 = SURF_CIRCLE0;
 
 /// Reference distance of the laser fall-off law, mm.
 pub const LASER_REF_DISTANCE_MM: f64 = 100.0;
@@ -31,6 +43,7 @@ pub const LASER_REF_DISTANCE_MM: f64 = 100.0;
 #[derive(Debug, Clone)]
 pub struct World {
     pub board: Board,
+    /// Plate beyond the outer target points, mm (see [`crate::target::plate_extent`]).
     pub plate_margin_mm: f64,
     /// `T_base_board`.
     pub base_board: Iso3,
@@ -39,6 +52,7 @@ pub struct World {
     /// Sphere centre (base frame) and radius, if any.
     pub sphere: Option<(Vector3<f64>, f64)>,
     pub plate_reflectance: f64,
+    /// Reflectance of the printed features: circles or dark squares ("ink").
     pub circle_reflectance: f64,
     pub table_reflectance: f64,
     pub sphere_reflectance: f64,
@@ -79,6 +93,8 @@ pub enum Footprint {
     Uniform(Hit),
     Smooth,
     Edge,
+    /// An edge pixel that also holds a chessboard junction (where square corners meet).
+    Corner,
 }
 
 /// What one ray sees.
@@ -102,14 +118,7 @@ impl World {
         let bt = board_cam.translation.vector;
         let plate_n = cam_board.rotation * Vector3::z();
         let plate_d = plate_n.dot(&cam_board.translation.vector);
-        let b = &self.board;
-        let m = self.plate_margin_mm;
-        let extent = [
-            -m,
-            (b.cols - 1) as f64 * b.pitch_mm + m,
-            -m,
-            (b.rows - 1) as f64 * b.pitch_mm + m,
-        ];
+        let extent = crate::target::plate_extent(&self.board, self.plate_margin_mm);
         let cam_base = base_cam.inverse();
         ImageScene {
             board: self.board.clone(),
@@ -174,7 +183,7 @@ impl ImageScene {
     }
 
     /// The first surface a ray `s * dir` (s > 0) hits: `(surface, s)` with surface
-    /// `SURF_PLATE` (plate, circles not distinguished), `SURF_TABLE` or `SURF_SPHERE`.
+    /// `SURF_PLATE` (plate, printed features not distinguished), `SURF_TABLE` or `SURF_SPHERE`.
     #[inline]
     pub fn first_hit(&self, dir: &Vector3<f64>) -> Option<(u32, f64)> {
         let mut best: Option<(u32, f64)> = None;
@@ -270,25 +279,35 @@ impl ImageScene {
     }
 
     /// Distance in board coordinates from plate point (x, y) to the nearest reflectance
-    /// edge: a circle border or the plate's edge.
+    /// edge: a printed edge ([`Board::ink_edge_distance`]: a circle's border, a square's
+    /// side; for circle grids its cheaper equal near the edges,
+    /// [`crate::target::circle_edge_distance`]) or the plate's edge.
+    #[inline]
     pub fn plate_edge_distance(&self, x: f64, y: f64) -> f64 {
-        let b = &self.board;
         let e = self.extent;
-        let mut d = (x - e[0]).min(e[1] - x).min(y - e[2]).min(e[3] - y);
-        let c0 = (x / b.pitch_mm).round() as i64;
-        let r0 = (y / b.pitch_mm).round() as i64;
-        for r in r0 - 1..=r0 + 1 {
-            for c in c0 - 1..=c0 + 1 {
-                if r < 0 || c < 0 || r >= b.rows as i64 || c >= b.cols as i64 {
-                    continue;
-                }
-                let ctr = b.center(r as usize, c as usize);
-                let rad = 0.5 * b.diameter(r as usize, c as usize);
-                let dist = ((x - ctr.x).powi(2) + (y - ctr.y).powi(2)).sqrt();
-                d = d.min((dist - rad).abs());
+        let d = (x - e[0]).min(e[1] - x).min(y - e[2]).min(e[3] - y);
+        let ink = match self.board.kind {
+            BoardKind::Chessboard => self.board.ink_edge_distance(x, y),
+            BoardKind::Circles | BoardKind::AsymmetricCircles => {
+                crate::target::circle_edge_distance(&self.board, x, y)
             }
+        };
+        d.min(ink)
+    }
+
+    /// Distance (board mm) from (x, y) to the nearest corner of a chessboard's squares
+    /// (`(i s, j s)` for `i` in `-1..=cols`, `j` in `-1..=rows`); infinite for circle
+    /// grids.
+    #[inline]
+    pub fn square_corner_distance(&self, x: f64, y: f64) -> f64 {
+        let b = &self.board;
+        if b.kind != BoardKind::Chessboard {
+            return f64::INFINITY;
         }
-        d
+        let s = b.pitch_mm;
+        let i = (x / s).round().clamp(-1.0, b.cols as f64);
+        let j = (y / s).round().clamp(-1.0, b.rows as f64);
+        (x - i * s).hypot(y - j * s)
     }
 
     /// Classifies the footprint of a pixel whose rays all lie within angle `alpha`
@@ -298,6 +317,9 @@ impl ImageScene {
     ///   one sample exactly;
     /// - [`Footprint::Edge`]: a material edge, the plate's outline or a silhouette may
     ///   cross the footprint (needs fine sampling);
+    /// - [`Footprint::Corner`]: an edge footprint that may also hold a corner of a
+    ///   chessboard's squares (an inner corner or a corner of the outer squares), where
+    ///   the renderer samples more finely still;
     /// - [`Footprint::Smooth`]: one material, but the laser sheet is near (smooth
     ///   integrand: regular supersampling is accurate).
     #[inline]
@@ -328,6 +350,9 @@ impl ImageScene {
             SURF_PLATE => {
                 let (x, y) = self.board_xy(&p);
                 if self.plate_edge_distance(x, y) <= 1.5 * rho {
+                    if self.square_corner_distance(x, y) <= 1.5 * rho {
+                        return Footprint::Corner;
+                    }
                     return Footprint::Edge;
                 }
             }
@@ -381,11 +406,8 @@ impl ImageScene {
         let (material, refl) = match surface {
             SURF_PLATE => {
                 let (x, y) = self.board_xy(&p);
-                match self.board.circle_at(x, y) {
-                    Some((r, c)) => (
-                        SURF_CIRCLE0 + (r * self.board.cols + c) as u32,
-                        self.refl[1],
-                    ),
+                match self.board.ink_at(x, y) {
+                    Some(id) => (SURF_INK0 + id as u32, self.refl[1]),
                     None => (SURF_PLATE, self.refl[0]),
                 }
             }

@@ -1,9 +1,15 @@
 //! Per-image truth for the vision tests.
 //!
-//! - Circles: the centre of each imaged circle is the area centroid of its exactly
-//!   projected outline (the circle's boundary sampled densely in board coordinates,
-//!   transformed, distorted and projected; shoelace centroid). This is NOT the
-//!   projection of the circle's centre: perspective shifts it.
+//! - Target points ([`PointTruth`], one per point of the board that is imaged):
+//!   - circles (`circles`, `asymmetric_circles`): the centre of each imaged circle is
+//!     the area centroid of its exactly projected outline (the circle's boundary sampled
+//!     densely in board coordinates, transformed, distorted and projected; shoelace
+//!     centroid). This is NOT the projection of the circle's centre: perspective shifts
+//!     it. A circle counts as imaged when its whole outline is inside the image.
+//!   - chessboard corners: the exact projection (pinhole and distortion) of the corner
+//!     point; a corner is a point, so it has no perspective bias, and `(u, v)` equals
+//!     `(u_center_proj, v_center_proj)`. A corner counts as imaged when that point is
+//!     inside the image.
 //! - Stripe: the projection of the laser plane's intersection with the surfaces (plate,
 //!   table, sphere), one point per scan line where the curve crosses it, kept only where
 //!   the camera sees that surface point and the laser lights it. Each point carries the
@@ -22,18 +28,23 @@ use crate::scene::{ImageScene, SURF_PLATE, SURF_SPHERE, SURF_TABLE};
 /// Vertices of the polygon approximating a projected circle outline.
 const OUTLINE_VERTICES: usize = 4096;
 
-/// Truth of one imaged circle.
+/// Truth of one imaged target point: a circle's centre or a chessboard's inner corner.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize)]
-pub struct CircleTruth {
+pub struct PointTruth {
     pub row: usize,
     pub col: usize,
-    /// Area centroid of the projected outline, px.
+    /// The point's true image position, px: a circle's area centroid of the projected
+    /// outline; a chessboard corner's projection (== `u_center_proj, v_center_proj`).
     pub u: f64,
     pub v: f64,
-    /// Projection of the circle's centre (for comparison; differs from (u, v)).
+    /// Projection of the point ([`stripecal::Board::center`]): for circles, for
+    /// comparison (it differs from (u, v) by the perspective bias).
     pub u_center_proj: f64,
     pub v_center_proj: f64,
 }
+
+/// The former name of [`PointTruth`] (circle grids).
+pub type CircleTruth = PointTruth;
 
 /// Truth of one stripe point.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize)]
@@ -48,21 +59,39 @@ pub struct StripePointTruth {
     pub incidence_deg: f64,
     /// Angle between the surface normal and the direction to the camera, deg.
     pub view_deg: f64,
-    /// Distance on the surface to the nearest reflectance edge (circle border, plate
-    /// edge), mm; 99 where there is none nearby.
+    /// Distance on the surface to the nearest reflectance edge (circle border, square
+    /// side, plate edge), mm; 99 where there is none nearby.
     pub edge_mm: f64,
     /// d(other coordinate) / d(scan-line coordinate) of the projected curve.
     pub slope: f64,
 }
 
-/// Imaged circles entirely inside the image (with `margin_px`) and in front of the camera.
-pub fn circle_truth(scene: &ImageScene, cam: &Camera, margin_px: f64) -> Vec<CircleTruth> {
+/// The imaged target points of a scene, row-major: circles entirely inside the image
+/// (with `margin_px`) and in front of the camera; chessboard corners inside the image
+/// (with `margin_px`) and in front of the camera. See the module docs.
+pub fn target_truth(scene: &ImageScene, cam: &Camera, margin_px: f64) -> Vec<PointTruth> {
     let board = scene.board();
     let t = scene.cam_board;
     let mut out = Vec::new();
     for (r, c) in board.indices() {
         let ctr = board.center(r, c);
         let rad = 0.5 * board.diameter(r, c);
+        if rad == 0.0 {
+            // a chessboard corner: a point
+            if let Ok(uv) = cam.project(&(t * Point3::from(ctr)).coords) {
+                if cam.contains(&uv, margin_px) {
+                    out.push(PointTruth {
+                        row: r,
+                        col: c,
+                        u: uv.x,
+                        v: uv.y,
+                        u_center_proj: uv.x,
+                        v_center_proj: uv.y,
+                    });
+                }
+            }
+            continue;
+        }
         let mut pts = Vec::with_capacity(OUTLINE_VERTICES);
         let mut ok = true;
         for k in 0..OUTLINE_VERTICES {
@@ -83,7 +112,7 @@ pub fn circle_truth(scene: &ImageScene, cam: &Camera, margin_px: f64) -> Vec<Cir
         let Ok(cp) = cam.project(&(t * Point3::from(ctr)).coords) else {
             continue;
         };
-        out.push(CircleTruth {
+        out.push(PointTruth {
             row: r,
             col: c,
             u: cu,
@@ -93,6 +122,11 @@ pub fn circle_truth(scene: &ImageScene, cam: &Camera, margin_px: f64) -> Vec<Cir
         });
     }
     out
+}
+
+/// [`target_truth`] under its former name (circle grids).
+pub fn circle_truth(scene: &ImageScene, cam: &Camera, margin_px: f64) -> Vec<PointTruth> {
+    target_truth(scene, cam, margin_px)
 }
 
 /// Area centroid of a closed polygon (shoelace). Vertices are taken relative to the

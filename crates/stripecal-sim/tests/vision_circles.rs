@@ -6,18 +6,13 @@
 //! Printed figures (`cargo test -p stripecal-sim --test vision_circles -- --nocapture`)
 //! are the ones quoted in BENCHMARKS.md ("Vision: circles").
 
-use nalgebra::{Matrix3, Rotation3, Unit, Vector3};
 use rayon::prelude::*;
 
-use stripecal::geometry::{iso_from_parts, Iso3};
 use stripecal::image::AnyGray;
 use stripecal::vision::circles::{detect_circles, CentreMethod, CircleGrid, CircleOptions};
 use stripecal::Error;
-use stripecal_sim::imaging::{form_image, Exposure};
-use stripecal_sim::render::Renderer;
-use stripecal_sim::rng::Rng;
-use stripecal_sim::scene::World;
-use stripecal_sim::truth::{circle_truth, CircleTruth};
+use stripecal_sim::truth::CircleTruth;
+use stripecal_sim::views::RandomViews;
 use stripecal_sim::{SimConfig, Twin};
 
 fn cfg(overrides: serde_json::Value) -> SimConfig {
@@ -142,115 +137,37 @@ fn centres_match_truth_on_the_paper_rig() {
 /// View index, centre errors or the failure, circles found, all markers in the image.
 type ViewResult = (usize, Result<Vec<f64>, String>, usize, bool);
 
-/// A camera pose looking at board point `look` (board frame, mm) from `standoff` mm
-/// along the optical axis, tilted by `tilt` about an axis at azimuth `az` in the board
-/// plane, rolled by `roll` about the optical axis (radians). Returns `T_board_cam`.
-fn board_cam(look: Vector3<f64>, standoff: f64, tilt: f64, az: f64, roll: f64) -> Iso3 {
-    let axis = Unit::new_normalize(Vector3::new(az.cos(), az.sin(), 0.0));
-    let z = Rotation3::from_axis_angle(&axis, tilt) * Vector3::z();
-    let x0 = (Vector3::x() - z * z.x).normalize();
-    let x = Rotation3::from_axis_angle(&Unit::new_normalize(z), roll) * x0;
-    let y = z.cross(&x);
-    let r = Matrix3::from_columns(&[x, y, z]);
-    iso_from_parts(&r, &(look - z * standoff))
-}
-
-/// Circles whose 16 outline points all project inside the image.
-fn quick_inside(scene: &stripecal_sim::scene::ImageScene, camera: &stripecal::Camera) -> usize {
-    let b = scene.board();
-    b.indices()
-        .filter(|&(r, c)| {
-            let ctr = b.center(r, c);
-            let rad = 0.5 * b.diameter(r, c);
-            (0..16).all(|k| {
-                let a = std::f64::consts::TAU * k as f64 / 16.0;
-                let p = nalgebra::Point3::new(ctr.x + rad * a.cos(), ctr.y + rad * a.sin(), 0.0);
-                matches!(camera.project(&(scene.cam_board * p).coords), Ok(uv) if camera.contains(&uv, 0.0))
-            })
-        })
-        .count()
-}
-
 /// Acceptance 2: 200 random views, in-plane rotation over 360 deg, tilt up to 45 deg,
 /// stand-off 0.7x..1.5x the nominal, up to 30 % of the board's circles outside the
 /// image. Zero misordered grids; every failure is a typed `Error::Detection`.
 #[test]
 fn random_views_are_never_misordered() {
-    let c = cfg(serde_json::json!({"seed": 42}));
-    let twin = Twin::new(c.clone()).unwrap();
+    let twin = Twin::new(cfg(serde_json::json!({"seed": 42}))).unwrap();
     let board = twin.board.clone();
-    let camera = twin.camera.clone();
-    let world = World {
-        board: board.clone(),
-        plate_margin_mm: c.board.plate_margin_mm,
-        base_board: Iso3::identity(),
-        plate_thickness_mm: stripecal_sim::dataset::PLATE_THICKNESS_MM,
-        sphere: None,
-        plate_reflectance: c.imaging.plate_reflectance,
-        circle_reflectance: c.imaging.circle_reflectance,
-        table_reflectance: c.imaging.table_reflectance,
-        sphere_reflectance: c.imaging.sphere_reflectance,
-    };
-    let renderer = Renderer::new(&camera, c.imaging.supersample).unwrap();
-    let nominal = 0.5 * (c.poses.standoff_mm[0] + c.poses.standoff_mm[1]);
-    let (bw, bh) = (
-        (board.cols - 1) as f64 * board.pitch_mm,
-        (board.rows - 1) as f64 * board.pitch_mm,
-    );
-    // Board images only: no laser light (cheaper rendering, same ambient image).
-    let mut laser = twin.laser();
-    laser.peak = 0.0;
-    // Sample the poses first (cheap), then render and detect in parallel.
-    let mut rng = Rng::new(2024, 7);
-    let mut poses = Vec::new();
-    let mut tries = 0;
-    while poses.len() < 200 {
-        tries += 1;
-        assert!(tries < 100_000, "cannot sample views");
-        let tilt = rng.range(0.0, 45f64.to_radians());
-        let az = rng.range(0.0, std::f64::consts::TAU);
-        let roll = rng.range(0.0, std::f64::consts::TAU);
-        let s = nominal * rng.range(0.7, 1.5);
-        let look = Vector3::new(
-            rng.range(-0.25, 1.25) * bw,
-            rng.range(-0.25, 1.25) * bh,
-            0.0,
-        );
-        let t = board_cam(look, s, tilt, az, roll);
-        let scene = world.image_scene(&t, laser);
-        // a coarse count first (16 outline points per circle), the exact truth after
-        if quick_inside(&scene, &camera) * 10 < board.len() * 7 {
-            continue;
-        }
-        let truth = circle_truth(&scene, &camera, 0.0);
-        if truth.len() * 10 >= board.len() * 7 {
-            poses.push((t, truth, tilt.to_degrees(), roll.to_degrees(), s / nominal));
-        }
-    }
+    // Sample the poses with their truth first (the library's generator: its defaults
+    // are this test's views), then render board images (no laser) and detect in
+    // parallel.
+    let views = RandomViews::default().sample(&twin).unwrap();
     // STRIPECAL_VIEWS=3,17 renders only those views (debugging).
     let only: Option<Vec<usize>> = std::env::var("STRIPECAL_VIEWS")
         .ok()
         .map(|s| s.split(',').filter_map(|x| x.trim().parse().ok()).collect());
     let start = std::time::Instant::now();
-    let results: Vec<ViewResult> = poses
+    let results: Vec<ViewResult> = views
         .par_iter()
         .enumerate()
         .filter(|(k, _)| only.as_ref().is_none_or(|o| o.contains(k)))
-        .map(|(k, (t, truth, _, _, _))| {
+        .map(|(k, view)| {
+            let truth = &view.truth;
             let t0 = std::time::Instant::now();
-            let scene = world.image_scene(t, laser);
-            let lin = renderer.render(&scene);
+            let img = view.render(&twin, k as u64).unwrap();
             let t1 = std::time::Instant::now();
-            let img = form_image(&lin, &camera, &c.imaging, Exposure::Board, 42, k as u64);
-            let t2 = std::time::Instant::now();
             if only.is_some() {
-                let t3 = std::time::Instant::now();
                 let _ = detect(&img, &board, CentreMethod::default());
                 eprintln!(
-                    "view {k}: render {:.3} s, image {:.3} s, detect {:.4} s",
+                    "view {k}: render {:.3} s, detect {:.4} s",
                     (t1 - t0).as_secs_f64(),
-                    (t2 - t1).as_secs_f64(),
-                    t3.elapsed().as_secs_f64()
+                    t1.elapsed().as_secs_f64()
                 );
             }
             if only.is_some() {
@@ -277,7 +194,8 @@ fn random_views_are_never_misordered() {
     let mut found = 0;
     let mut visible = 0;
     for (k, r, n, markers_in) in &results {
-        let (_, truth, tilt, roll, scale) = &poses[*k];
+        let v = &views[*k];
+        let (truth, tilt, roll, scale) = (&v.truth, v.tilt_deg, v.roll_deg, v.standoff_scale);
         match r {
             Ok(e) => {
                 ok += 1;
