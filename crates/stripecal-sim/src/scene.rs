@@ -280,19 +280,12 @@ impl ImageScene {
 
     /// Distance in board coordinates from plate point (x, y) to the nearest reflectance
     /// edge: a printed edge ([`Board::ink_edge_distance`]: a circle's border, a square's
-    /// side; for circle grids its cheaper equal near the edges,
-    /// [`crate::target::circle_edge_distance`]) or the plate's edge.
+    /// side) or the plate's edge.
     #[inline]
     pub fn plate_edge_distance(&self, x: f64, y: f64) -> f64 {
         let e = self.extent;
         let d = (x - e[0]).min(e[1] - x).min(y - e[2]).min(e[3] - y);
-        let ink = match self.board.kind {
-            BoardKind::Chessboard => self.board.ink_edge_distance(x, y),
-            BoardKind::Circles | BoardKind::AsymmetricCircles => {
-                crate::target::circle_edge_distance(&self.board, x, y)
-            }
-        };
-        d.min(ink)
+        d.min(self.board.ink_edge_distance(x, y))
     }
 
     /// Distance (board mm) from (x, y) to the nearest corner of a chessboard's squares

@@ -84,33 +84,6 @@ pub fn check_plate_margin(board: &Board, margin_mm: f64) -> Result<(), String> {
     Ok(())
 }
 
-/// Distance (mm) from board point `(x, y)` to the nearest circle border of a circle
-/// grid: [`Board::ink_edge_distance`] over the 3 x 3 lattice sites around the point
-/// instead of 5 x 5, with `sqrt` instead of `hypot` (the renderer asks it once per
-/// pixel; this is about 5x cheaper, and exactly the twin's historical circle-board
-/// computation). The same upper bound, exact near the edges: a circle whose border lies
-/// within `e` of the point has its centre within `r + e` of it, which is less than 1.5
-/// lattice units for every valid board (circles do not touch: `r` < 0.5 unit for
-/// symmetric grids, < 0.71 unit for asymmetric ones) and small `e`, so it is among the
-/// sites checked.
-#[inline]
-pub fn circle_edge_distance(board: &Board, x: f64, y: f64) -> f64 {
-    let u = board.lattice_unit_mm();
-    let (i0, j0) = ((x / u).round() as i64, (y / u).round() as i64);
-    let mut d = f64::INFINITY;
-    for j in j0 - 1..=j0 + 1 {
-        for i in i0 - 1..=i0 + 1 {
-            if let Some((r, c)) = board.from_lattice(i, j) {
-                let ctr = board.center(r, c);
-                let rad = 0.5 * board.diameter(r, c);
-                let dist = ((x - ctr.x).powi(2) + (y - ctr.y).powi(2)).sqrt();
-                d = d.min((dist - rad).abs());
-            }
-        }
-    }
-    d
-}
-
 /// Number of circles (circle kinds) whose outline, sampled at `n` points, projects
 /// inside the image with `margin_px`; for a chessboard, the number of corners that do.
 /// A quick count: the exact truth samples the outline far more densely.
@@ -173,33 +146,6 @@ mod tests {
         assert_eq!(points_bbox(&c), [0.0, 45.0, 0.0, 30.0]);
         assert_eq!(max_radius(&c), 0.0);
         assert_eq!(max_radius(&b), 1.75);
-    }
-
-    #[test]
-    fn circle_edge_distance_is_the_boards_near_the_edges() {
-        let mut rng = crate::rng::Rng::new(1, 2);
-        let boards = [
-            Board::hp3_paper(),
-            Board::asymmetric_circles(11, 8, 7.0, 2.5).unwrap(),
-            // circles nearly touching their neighbours (7 < 10 / sqrt 2)
-            Board::asymmetric_circles(5, 4, 10.0, 7.0).unwrap(),
-            Board::circles(4, 5, 5.0, 4.9, 4.9).unwrap(),
-        ];
-        for b in boards {
-            let [x0, x1, y0, y1] = plate_extent(&b, 5.0);
-            let u = b.lattice_unit_mm();
-            let mut near = 0;
-            for _ in 0..200_000 {
-                let (x, y) = (rng.range(x0, x1), rng.range(y0, y1));
-                let (fast, reference) = (circle_edge_distance(&b, x, y), b.ink_edge_distance(x, y));
-                assert!(fast >= reference - 1e-12, "{:?} ({x}, {y})", b.kind);
-                if reference < 0.25 * u {
-                    near += 1;
-                    assert!((fast - reference).abs() < 1e-12, "{:?} ({x}, {y})", b.kind);
-                }
-            }
-            assert!(near > 10_000);
-        }
     }
 
     #[test]

@@ -446,14 +446,19 @@ impl Board {
                 (fx.min(1.0 - fx) * s).min(fy.min(1.0 - fy) * s)
             }
             _ => {
+                // A circle whose border lies within e of the point has its centre within
+                // r + e of it: less than 1.5 lattice units for every valid board (circles
+                // do not touch: r < 0.5 unit for symmetric grids, < 0.71 for asymmetric
+                // ones) and small e, so the 3 x 3 sites around the point hold it. (The
+                // twin asks this once per rendered pixel: keep it cheap.)
                 let u = self.lattice_unit_mm();
                 let (i0, j0) = ((x / u).round() as i64, (y / u).round() as i64);
                 let mut d = f64::INFINITY;
-                for j in j0 - 2..=j0 + 2 {
-                    for i in i0 - 2..=i0 + 2 {
+                for j in j0 - 1..=j0 + 1 {
+                    for i in i0 - 1..=i0 + 1 {
                         if let Some((r, c)) = self.from_lattice(i, j) {
                             let p = self.center(r, c);
-                            let dist = (x - p.x).hypot(y - p.y);
+                            let dist = ((x - p.x).powi(2) + (y - p.y).powi(2)).sqrt();
                             d = d.min((dist - 0.5 * self.diameter(r, c)).abs());
                         }
                     }
@@ -546,6 +551,45 @@ mod tests {
         let mut bad = b.clone();
         bad.square_mm = Some(21.0);
         assert!(bad.validate().is_err());
+    }
+
+    /// The 3 x 3 neighbourhood finds the nearest circle border wherever it is close
+    /// (within 0.2 lattice units), for symmetric and asymmetric grids with circles that
+    /// nearly touch.
+    #[test]
+    fn ink_edge_distance_is_exact_near_the_edges() {
+        let mut near_touching = Board::hp3_paper();
+        near_touching.marker_diameter_mm = 4.9;
+        for b in [
+            Board::hp3_paper(),
+            near_touching,
+            Board::asymmetric_circles(5, 4, 10.0, 7.0).unwrap(),
+            Board::asymmetric_circles(4, 6, 10.0, 3.0).unwrap(),
+        ] {
+            let u = b.lattice_unit_mm();
+            let e = b.pattern_extent();
+            let brute = |x: f64, y: f64| {
+                b.indices()
+                    .map(|(r, c)| {
+                        let p = b.center(r, c);
+                        ((x - p.x).hypot(y - p.y) - 0.5 * b.diameter(r, c)).abs()
+                    })
+                    .fold(f64::INFINITY, f64::min)
+            };
+            let mut checked = 0;
+            for iy in 0..200 {
+                for ix in 0..200 {
+                    let x = e[0] - u + (e[1] - e[0] + 2.0 * u) * ix as f64 / 199.0;
+                    let y = e[2] - u + (e[3] - e[2] + 2.0 * u) * iy as f64 / 199.0;
+                    let want = brute(x, y);
+                    if want < 0.2 * u {
+                        checked += 1;
+                        assert!((b.ink_edge_distance(x, y) - want).abs() < 1e-12, "{x} {y}");
+                    }
+                }
+            }
+            assert!(checked > 1000);
+        }
     }
 
     #[test]

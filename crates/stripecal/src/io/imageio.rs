@@ -1,4 +1,7 @@
-//! Grayscale image files (PNG, TIFF) through the `image` crate, with decoder limits.
+//! Grayscale image files (PNG, TIFF, BMP, JPEG) through the `image` crate, with decoder
+//! limits. Colour images become gray by ITU-R BT.601 luma, `0.299 R + 0.587 G +
+//! 0.114 B` (spec/DATASET.md; the `image` crate's own conversion uses other weights),
+//! rounded to the nearest integer at the image's bit depth.
 
 use std::io::Cursor;
 use std::path::Path;
@@ -22,34 +25,54 @@ fn image_err(path: &Path, message: impl Into<String>) -> Error {
     }
 }
 
-/// Loads a PNG or TIFF image as grayscale.
+/// What a loaded image file was.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct ImageInfo {
+    /// `png`, `tiff`, `bmp` or `jpeg`.
+    pub format: &'static str,
+    /// The file held colour (converted to gray by BT.601 luma).
+    pub colour: bool,
+    /// A lossy format (JPEG): accepted, but compression artefacts cost accuracy.
+    pub lossy: bool,
+}
+
+/// Loads a PNG, TIFF, BMP or JPEG image as grayscale ([`load_gray_info`] without the
+/// file facts).
+pub fn load_gray(p: impl AsRef<Path>) -> Result<AnyGray> {
+    load_gray_info(p).map(|(g, _)| g)
+}
+
+/// Loads a PNG, TIFF, BMP or JPEG image as grayscale, with what the file was.
 ///
 /// 8-bit gray gives [`AnyGray::U8`], 16-bit gray [`AnyGray::U16`]; colour (and
-/// gray + alpha) images are converted to luma at their bit depth, alpha dropped.
+/// gray + alpha) images are converted to BT.601 luma at their bit depth, alpha dropped.
 /// Float images and other formats are [`Error::Image`]; a file that cannot be opened
 /// is [`Error::Io`]. The decoder is limited to [`MAX_IMAGE_SIDE`] pixels per side and
 /// [`MAX_IMAGE_BYTES`] of memory, so a hostile header cannot make it allocate more.
-pub fn load_gray(p: impl AsRef<Path>) -> Result<AnyGray> {
+pub fn load_gray_info(p: impl AsRef<Path>) -> Result<(AnyGray, ImageInfo)> {
     let path = p.as_ref();
     let mut reader = ImageReader::open(path)
         .map_err(|e| Error::io(path, e))?
         .with_guessed_format()
         .map_err(|e| Error::io(path, e))?;
-    match reader.format() {
-        Some(ImageFormat::Png | ImageFormat::Tiff) => {}
+    let format = match reader.format() {
+        Some(ImageFormat::Png) => "png",
+        Some(ImageFormat::Tiff) => "tiff",
+        Some(ImageFormat::Bmp) => "bmp",
+        Some(ImageFormat::Jpeg) => "jpeg",
         Some(other) => {
             return Err(image_err(
                 path,
-                format!("unsupported image format {other:?}: expected PNG or TIFF"),
+                format!("unsupported image format {other:?}: expected PNG, TIFF, BMP or JPEG"),
             ))
         }
         None => {
             return Err(image_err(
                 path,
-                "not a PNG or TIFF file (unrecognised content)",
+                "not a PNG, TIFF, BMP or JPEG file (unrecognised content)",
             ))
         }
-    }
+    };
     let mut limits = Limits::default();
     limits.max_image_width = Some(MAX_IMAGE_SIDE);
     limits.max_image_height = Some(MAX_IMAGE_SIDE);
@@ -58,7 +81,28 @@ pub fn load_gray(p: impl AsRef<Path>) -> Result<AnyGray> {
     let img = reader
         .decode()
         .map_err(|e| image_err(path, e.to_string()))?;
-    to_gray(path, img)
+    let colour = !matches!(
+        img,
+        DynamicImage::ImageLuma8(_)
+            | DynamicImage::ImageLuma16(_)
+            | DynamicImage::ImageLumaA8(_)
+            | DynamicImage::ImageLumaA16(_)
+    );
+    let gray = to_gray(path, img)?;
+    Ok((
+        gray,
+        ImageInfo {
+            format,
+            colour,
+            lossy: format == "jpeg",
+        },
+    ))
+}
+
+/// BT.601 luma of an RGB pixel, rounded: `(299 R + 587 G + 114 B + 500) / 1000`.
+#[inline]
+fn luma(r: u32, g: u32, b: u32) -> u32 {
+    (299 * r + 587 * g + 114 * b + 500) / 1000
 }
 
 fn to_gray(path: &Path, img: DynamicImage) -> Result<AnyGray> {
@@ -77,15 +121,26 @@ fn to_gray(path: &Path, img: DynamicImage) -> Result<AnyGray> {
             data,
         })
     };
+    // every luma of channels <= MAX is <= MAX: the narrowing casts below are exact
+    let rgb8 = |px: &[u8], n: usize| -> Vec<u8> {
+        px.chunks_exact(n)
+            .map(|c| luma(c[0] as u32, c[1] as u32, c[2] as u32) as u8)
+            .collect()
+    };
+    let rgb16 = |px: &[u16], n: usize| -> Vec<u16> {
+        px.chunks_exact(n)
+            .map(|c| luma(c[0] as u32, c[1] as u32, c[2] as u32) as u16)
+            .collect()
+    };
     Ok(match img {
         DynamicImage::ImageLuma8(b) => u8_image(b.into_raw()),
         DynamicImage::ImageLuma16(b) => u16_image(b.into_raw()),
-        DynamicImage::ImageLumaA8(_) | DynamicImage::ImageRgb8(_) | DynamicImage::ImageRgba8(_) => {
-            u8_image(img.into_luma8().into_raw())
-        }
-        DynamicImage::ImageLumaA16(_)
-        | DynamicImage::ImageRgb16(_)
-        | DynamicImage::ImageRgba16(_) => u16_image(img.into_luma16().into_raw()),
+        DynamicImage::ImageLumaA8(b) => u8_image(b.pixels().map(|p| p.0[0]).collect()),
+        DynamicImage::ImageLumaA16(b) => u16_image(b.pixels().map(|p| p.0[0]).collect()),
+        DynamicImage::ImageRgb8(b) => u8_image(rgb8(b.as_raw(), 3)),
+        DynamicImage::ImageRgba8(b) => u8_image(rgb8(b.as_raw(), 4)),
+        DynamicImage::ImageRgb16(b) => u16_image(rgb16(b.as_raw(), 3)),
+        DynamicImage::ImageRgba16(b) => u16_image(rgb16(b.as_raw(), 4)),
         other => {
             return Err(image_err(
                 path,

@@ -27,7 +27,9 @@ pub use calibration::{
     write_truth,
 };
 pub use csv::{read_scan_csv, read_views_csv, write_scan_csv, write_views_csv};
-pub use imageio::{load_gray, save_gray_png, MAX_IMAGE_BYTES, MAX_IMAGE_SIDE};
+pub use imageio::{
+    load_gray, load_gray_info, save_gray_png, ImageInfo, MAX_IMAGE_BYTES, MAX_IMAGE_SIDE,
+};
 pub use ply::{read_ply, write_ply, PlyFormat};
 pub use rig::{read_rig, rig_from_json, rig_to_json, write_rig};
 

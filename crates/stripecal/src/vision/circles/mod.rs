@@ -43,7 +43,7 @@ mod centre;
 mod labels;
 mod lattice;
 
-use crate::board::{Board, BoardKind};
+use crate::board::Board;
 use crate::error::{Error, Result};
 use crate::vision::{AnyView, Pixel};
 
@@ -215,10 +215,12 @@ pub const MIN_IMAGE_SIDE: usize = 16;
 pub fn detect_circles(img: AnyView<'_>, board: &Board, opts: &CircleOptions) -> Result<CircleGrid> {
     board.validate()?;
     opts.validate()?;
-    if board.kind != BoardKind::Circles {
-        return Err(Error::InvalidInput(
-            "detect_circles needs a circle board (kind \"circles\")".into(),
-        ));
+    if !board.kind.is_circles() {
+        return Err(Error::InvalidInput(format!(
+            "detect_circles needs a circle board (kind \"circles\" or \"asymmetric_circles\"), \
+             not a \"{}\"",
+            board.kind.name()
+        )));
     }
     let (w, h) = img.size();
     if w < MIN_IMAGE_SIDE || h < MIN_IMAGE_SIDE {
