@@ -335,6 +335,7 @@ pub fn calibrate_camera<'py>(
             stripe: Vec::new(),
             reading: None,
             base_hand: None,
+            alternatives: Vec::new(),
         });
     }
     let b = board.inner.clone();

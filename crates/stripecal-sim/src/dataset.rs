@@ -597,6 +597,7 @@ impl Twin {
                 stripe,
                 reading: Some(RobotReading::Joints(p.q_deg.clone())),
                 base_hand: Some(self.robot_true.forward(&p.q_deg)?),
+                alternatives: Vec::new(),
             });
         }
         Ok(out)

@@ -288,6 +288,7 @@ fn degenerate_inputs_are_typed_errors() {
                 stripe,
                 reading: None,
                 base_hand: Some(a),
+                alternatives: Vec::new(),
             }
         })
         .collect();

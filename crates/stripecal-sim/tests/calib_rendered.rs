@@ -5,84 +5,11 @@
 //! `cargo test -p stripecal-sim --test calib_rendered -- --nocapture` prints the table
 //! recorded in docs/results/calibration.md.
 
+mod common;
+
+use common::{errors, row, Errs, HEADER};
 use stripecal::calib::pipeline::{calibrate_dataset, CalibrateOptions, Method};
-use stripecal::geometry::Plane;
-use stripecal::io::Calibration;
-use stripecal::{Camera, Iso3};
 use stripecal_sim::{SimConfig, Twin};
-
-fn iso_err(a: &Iso3, b: &Iso3) -> (f64, f64) {
-    (
-        a.rotation.angle_to(&b.rotation).to_degrees(),
-        (a.translation.vector - b.translation.vector).norm(),
-    )
-}
-
-/// Largest distance between the true and the estimated laser plane over the part of the
-/// true plane in view at stand-offs `near..far` mm (camera frame).
-fn plane_error_in_volume(cam: &Camera, truth: &Plane, est: &Plane, near: f64, far: f64) -> f64 {
-    let mut worst = 0.0f64;
-    for i in 0..=40 {
-        for j in 0..=30 {
-            let uv = nalgebra::Vector2::new(
-                i as f64 / 40.0 * (cam.width - 1) as f64,
-                j as f64 / 30.0 * (cam.height - 1) as f64,
-            );
-            let Ok(ray) = cam.unproject(&uv) else {
-                continue;
-            };
-            let Some(s) = truth.intersect_ray(&nalgebra::Vector3::zeros(), &ray) else {
-                continue;
-            };
-            let p = ray * s;
-            if p.z < near || p.z > far {
-                continue;
-            }
-            worst = worst.max(est.signed_distance(&p).abs());
-        }
-    }
-    worst
-}
-
-struct Errs {
-    fu_rel: f64,
-    fv_rel: f64,
-    u0: f64,
-    v0: f64,
-    plane_mm: f64,
-    x: (f64, f64),
-    z: (f64, f64),
-}
-
-fn errors(t: &Twin, c: &Calibration) -> Errs {
-    let (e, tr) = (&c.camera, &t.camera);
-    Errs {
-        fu_rel: (e.fu - tr.fu).abs() / tr.fu,
-        fv_rel: (e.fv - tr.fv).abs() / tr.fv,
-        u0: (e.u0 - tr.u0).abs(),
-        v0: (e.v0 - tr.v0).abs(),
-        plane_mm: plane_error_in_volume(tr, &t.laser_plane, &c.laser_plane, 80.0, 130.0),
-        x: iso_err(&c.hand_cam, &t.hand_cam),
-        z: iso_err(&c.base_board, &t.base_board),
-    }
-}
-
-fn row(label: &str, e: &Errs) -> String {
-    format!(
-        "| {label} | {:.4} | {:.4} | {:.3} | {:.3} | {:.4} | {:.4} | {:.4} | {:.4} | {:.4} |",
-        100.0 * e.fu_rel,
-        100.0 * e.fv_rel,
-        e.u0,
-        e.v0,
-        e.plane_mm,
-        e.x.0,
-        e.x.1,
-        e.z.0,
-        e.z.1
-    )
-}
-
-const HEADER: &str = "| case | fu % | fv % | u0 px | v0 px | plane mm | X deg | X mm | Z deg | Z mm |\n|---|---|---|---|---|---|---|---|---|---|";
 
 /// A named error figure.
 type Figure<'a> = (&'a str, &'a dyn Fn(&Errs) -> f64);

@@ -119,7 +119,11 @@ fn run(twin: &Twin, views: &[RandomView], stream0: u64) -> Vec<Outcome> {
 /// A refusal's reason: the message up to its first colon, with numbers dropped.
 fn reason(m: &str) -> String {
     let head = m.split(':').next().unwrap_or(m);
-    head.chars().filter(|c| !c.is_ascii_digit()).collect::<String>().trim().to_string()
+    head.chars()
+        .filter(|c| !c.is_ascii_digit())
+        .collect::<String>()
+        .trim()
+        .to_string()
 }
 
 fn view_count() -> usize {

@@ -10,7 +10,14 @@ fn main() {
         let r = detect_target(img.view().unwrap(), &rig.board, &TargetOptions::default());
         let dt = t0.elapsed().as_secs_f64() * 1e3;
         match r {
-            Ok(d) => println!("{p}: {} points, {} dropped, alt {:?}, H rms {:.3} markers {} ({dt:.2} ms)", d.points.len(), d.dropped.len(), d.alternatives, d.homography_rms_px, d.circles.as_ref().map(|c| c.markers_seen).unwrap_or(0)),
+            Ok(d) => println!(
+                "{p}: {} points, {} dropped, alt {:?}, H rms {:.3} markers {} ({dt:.2} ms)",
+                d.points.len(),
+                d.dropped.len(),
+                d.alternatives,
+                d.homography_rms_px,
+                d.circles.as_ref().map(|c| c.markers_seen).unwrap_or(0)
+            ),
             Err(e) => println!("{p}: ERR {e} ({dt:.2} ms)"),
         }
     }

@@ -1192,7 +1192,13 @@ fn colour_images_become_gray_and_tiff_is_read() {
 #[test]
 fn bmp_and_jpeg_and_bt601_luma() {
     let d = tmp();
-    let colours: [[u8; 3]; 5] = [[255, 0, 0], [0, 255, 0], [0, 0, 255], [200, 100, 50], [255, 255, 255]];
+    let colours: [[u8; 3]; 5] = [
+        [255, 0, 0],
+        [0, 255, 0],
+        [0, 0, 255],
+        [200, 100, 50],
+        [255, 255, 255],
+    ];
     let mut rgb = image::RgbImage::new(5, 1);
     for (x, c) in colours.iter().enumerate() {
         rgb.put_pixel(x as u32, 0, image::Rgb(*c));
@@ -1202,7 +1208,10 @@ fn bmp_and_jpeg_and_bt601_luma() {
         .map(|c| (0.299 * c[0] as f64 + 0.587 * c[1] as f64 + 0.114 * c[2] as f64).round() as u8)
         .collect();
     assert_eq!(want, vec![76, 150, 29, 124, 255]);
-    for (name, fmt) in [("c.bmp", image::ImageFormat::Bmp), ("c.png", image::ImageFormat::Png)] {
+    for (name, fmt) in [
+        ("c.bmp", image::ImageFormat::Bmp),
+        ("c.png", image::ImageFormat::Png),
+    ] {
         let p = d.path().join(name);
         rgb.save_with_format(&p, fmt).unwrap();
         let (g, info) = stripecal::io::load_gray_info(&p).unwrap();
@@ -1211,18 +1220,30 @@ fn bmp_and_jpeg_and_bt601_luma() {
         assert!(info.colour && !info.lossy, "{name}: {info:?}");
     }
     // 16-bit colour keeps its depth
-    let rgb16 = image::ImageBuffer::<image::Rgb<u16>, _>::from_pixel(1, 1, image::Rgb([60000, 1000, 30000]));
+    let rgb16 = image::ImageBuffer::<image::Rgb<u16>, _>::from_pixel(
+        1,
+        1,
+        image::Rgb([60000, 1000, 30000]),
+    );
     let p = d.path().join("c16.png");
     rgb16.save(&p).unwrap();
-    let AnyGray::U16(g) = load_gray(&p).unwrap() else { panic!("16-bit") };
-    assert_eq!(g.data[0], (0.299f64 * 60000.0 + 0.587 * 1000.0 + 0.114 * 30000.0).round() as u16);
+    let AnyGray::U16(g) = load_gray(&p).unwrap() else {
+        panic!("16-bit")
+    };
+    assert_eq!(
+        g.data[0],
+        (0.299f64 * 60000.0 + 0.587 * 1000.0 + 0.114 * 30000.0).round() as u16
+    );
     // JPEG: gray and colour, flagged lossy
     let gray = image::GrayImage::from_fn(32, 16, |x, y| image::Luma([(x * 8 + y) as u8]));
     let p = d.path().join("g.jpg");
     gray.save_with_format(&p, image::ImageFormat::Jpeg).unwrap();
     let (g, info) = stripecal::io::load_gray_info(&p).unwrap();
     assert_eq!(g.size(), (32, 16));
-    assert_eq!((info.format, info.colour, info.lossy), ("jpeg", false, true));
+    assert_eq!(
+        (info.format, info.colour, info.lossy),
+        ("jpeg", false, true)
+    );
     let p = d.path().join("c.jpeg");
     image::RgbImage::from_pixel(16, 16, image::Rgb([200, 100, 50]))
         .save_with_format(&p, image::ImageFormat::Jpeg)
@@ -1230,7 +1251,11 @@ fn bmp_and_jpeg_and_bt601_luma() {
     let (g, info) = stripecal::io::load_gray_info(&p).unwrap();
     let AnyGray::U8(g) = g else { panic!("8-bit") };
     assert!(info.colour && info.lossy);
-    assert!((g.data[8 * 16 + 8] as i32 - 124).abs() <= 3, "{}", g.data[8 * 16 + 8]);
+    assert!(
+        (g.data[8 * 16 + 8] as i32 - 124).abs() <= 3,
+        "{}",
+        g.data[8 * 16 + 8]
+    );
 }
 
 #[test]

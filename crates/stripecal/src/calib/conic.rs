@@ -354,7 +354,8 @@ fn distort_full<T: Scalar>(k: &[T; 5], x: T, y: T) -> ([T; 2], [[T; 2]; 2]) {
 /// Predicted imaged centre (pixels) of a circle, generic over the scalar type.
 ///
 /// `cam`: `[fu, fv, u0, v0, k1, k2, p1, p2, k3]`; `rot`, `t`: `T_cam_board`;
-/// `centre`: the circle centre on the board (z = 0), `radius` in mm.
+/// `centre`: the circle centre on the board (z = 0), `radius` in mm; radius 0 is a
+/// point target (a chessboard corner), predicted by its projection whatever `model`.
 pub fn centre_generic<T: Scalar>(
     cam: &[T; 9],
     rot: &[[T; 3]; 3],
@@ -443,6 +444,13 @@ pub fn centre_generic_n<T: Scalar>(
     nodes: usize,
 ) -> Result<[T; 2]> {
     let k = [cam[4], cam[5], cam[6], cam[7], cam[8]];
+    // A point target (a chessboard corner, radius 0) images as its projection: no
+    // perspective or distortion bias, and no conic to take the centre of.
+    let model = if radius == 0.0 {
+        CentreModel::Naive
+    } else {
+        model
+    };
     let (cx, cy) = centre;
     // p = R c + t
     let p: [T; 3] = std::array::from_fn(|i| rot[i][0].scale(cx) + rot[i][1].scale(cy) + t[i]);

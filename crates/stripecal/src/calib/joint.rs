@@ -1239,6 +1239,7 @@ mod tests {
                 stripe,
                 reading: None,
                 base_hand: Some(a),
+                alternatives: Vec::new(),
             });
         }
         Synth {

@@ -14,6 +14,7 @@
 pub mod axzb;
 pub mod camera;
 pub mod conic;
+pub mod consensus;
 pub mod homography;
 pub mod joint;
 pub mod laser_plane;
@@ -49,4 +50,8 @@ pub struct ViewObs {
     /// `T_base_hand` for the reading (forward kinematics of the nominal robot, or the
     /// reported flange pose).
     pub base_hand: Option<Iso3>,
+    /// Board symmetries the view's image cannot decide: the circles could equally be
+    /// labelled by any of them ([`crate::vision::target::TargetDetection::alternatives`]);
+    /// the calibration chooses from the robot poses ([`consensus`]).
+    pub alternatives: Vec<crate::board::Symmetry>,
 }

@@ -31,15 +31,16 @@ use crate::board::Board;
 use crate::calib::axzb::{solve_axzb, AxzbSolution};
 use crate::calib::camera::{calibrate_camera, CameraCalibration, CameraOptions};
 use crate::calib::conic::CentreModel;
+use crate::calib::consensus::{self, Candidates, Decision};
 use crate::calib::joint::{joint_adjustment, JointOptions, JointResult, JointStart};
 use crate::calib::laser_plane::{backproject_to_board, fit_laser_plane, LaserPlaneFit};
 use crate::calib::{CircleObs, ViewObs};
 use crate::camera::{DistortionModel, PARAM_NAMES};
 use crate::error::{Error, Result};
 use crate::geometry::Iso3;
-use crate::io::{load_gray, Calibration, Dataset, Quality, Rig};
-use crate::vision::circles::{detect_circles, CircleOptions};
+use crate::io::{load_gray, load_gray_info, Calibration, Dataset, Quality, Rig};
 use crate::vision::stripe::{extract_stripe, flag_reflectance_edges, EdgeOptions, StripeOptions};
+use crate::vision::target::{detect_target, TargetOptions};
 
 /// Which pipeline.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
@@ -80,7 +81,8 @@ pub struct CalibrateOptions {
     /// Huber loss in the one-stage adjustment.
     pub robust: bool,
     pub centre_model: CentreModel,
-    pub circles: CircleOptions,
+    /// Target detection (every kind).
+    pub target: TargetOptions,
     pub stripe: StripeOptions,
     pub edges: EdgeOptions,
     /// Leave-one-out AX = ZB consistency: a view is an outlier when its rotation error
@@ -98,7 +100,7 @@ impl Default for CalibrateOptions {
             method: Method::OneStage,
             robust: false,
             centre_model: CentreModel::ConicExact,
-            circles: CircleOptions::default(),
+            target: TargetOptions::default(),
             stripe: StripeOptions::default(),
             edges: EdgeOptions::default(),
             outlier_factor: 8.0,
@@ -153,6 +155,7 @@ pub fn observe_dataset(
     opts: &CalibrateOptions,
 ) -> Result<(Vec<ViewObs>, Vec<String>)> {
     let rig = &ds.rig;
+    let lossy = std::sync::atomic::AtomicUsize::new(0);
     let mut stripe_opts = opts.stripe.clone();
     stripe_opts.direction = rig.stripe_direction;
     let results: Vec<Result<std::result::Result<ViewObs, String>>> = ds
@@ -165,7 +168,7 @@ pub fn observe_dataset(
                 .reading
                 .base_hand(rig.robot.as_ref())
                 .map_err(|e| Error::InvalidInput(format!("{tag}: robot pose: {e}")))?;
-            let board_img = load_gray(ds.image_path(&v.board_image))?;
+            let (board_img, info) = load_gray_info(ds.image_path(&v.board_image))?;
             if board_img.size() != (rig.width as usize, rig.height as usize) {
                 return Err(Error::InvalidInput(format!(
                     "{tag}: {} is {} x {}, rig.json says {} x {}",
@@ -176,13 +179,16 @@ pub fn observe_dataset(
                     rig.height
                 )));
             }
+            if info.lossy {
+                lossy.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+            }
             let bview = board_img.view()?;
-            let grid = match detect_circles(bview, &rig.board, &opts.circles) {
+            let det = match detect_target(bview, &rig.board, &opts.target) {
                 Ok(g) => g,
                 Err(e) => return Ok(Err(format!("{tag}: left out, board not found: {e}"))),
             };
-            let circles = grid
-                .circles
+            let circles = det
+                .points
                 .iter()
                 .map(|c| CircleObs {
                     row: c.row,
@@ -232,11 +238,19 @@ pub fn observe_dataset(
                 stripe,
                 reading: Some(v.reading.clone()),
                 base_hand: Some(base_hand),
+                alternatives: det.alternatives,
             }))
         })
         .collect();
     let mut obs = Vec::new();
     let mut warnings = Vec::new();
+    let lossy = lossy.into_inner();
+    if lossy > 0 {
+        warnings.push(format!(
+            "{lossy} board image(s) are JPEG: lossy compression costs accuracy (accepted; PNG, \
+             TIFF or BMP keep every grey level)"
+        ));
+    }
     for r in results {
         match r? {
             Ok(o) => obs.push(o),
@@ -246,9 +260,13 @@ pub fn observe_dataset(
     Ok((obs, warnings))
 }
 
-/// The board-frame rectangle the stripe points must fall in: the circle grid grown by
-/// half a pitch.
+/// The board-frame rectangle the stripe points must fall in: a circle grid's centres
+/// grown by half a pitch, a chessboard's squares.
 fn grid_extent(board: &Board) -> (Vector2<f64>, Vector2<f64>) {
+    if board.kind == crate::board::BoardKind::Chessboard {
+        let e = board.pattern_extent();
+        return (Vector2::new(e[0], e[2]), Vector2::new(e[1], e[3]));
+    }
     let (mut lo, mut hi) = (
         Vector2::new(f64::INFINITY, f64::INFINITY),
         Vector2::new(f64::NEG_INFINITY, f64::NEG_INFINITY),
@@ -260,6 +278,104 @@ fn grid_extent(board: &Board) -> (Vector2<f64>, Vector2<f64>) {
     }
     let m = 0.5 * board.pitch_mm;
     (lo.add_scalar(-m), hi.add_scalar(m))
+}
+
+/// A view after the labelling choice: the relabelled view with its `T_cam_board`, or
+/// `(view, why it is left out)`.
+type Labelled = std::result::Result<(ViewObs, Iso3), (usize, String)>;
+
+/// Chooses, for every view whose image leaves its labelling open (a symmetric board),
+/// the labelling that agrees with the robot poses of the others ([`consensus`]), and
+/// relabels its points and board pose. Views that cannot be decided are left out with
+/// the reason (and a warning). Returns the views in `poses` order and, when the board
+/// frame itself was fixed by the first view's labelling (no view's image fixes it), the
+/// contract's note `"first view"`.
+fn resolve_labellings(
+    views: &[ViewObs],
+    poses: &[(usize, Iso3)],
+    board: &Board,
+    warnings: &mut Vec<String>,
+) -> (Vec<Labelled>, Option<String>) {
+    let items: Vec<(&ViewObs, Iso3)> = poses
+        .iter()
+        .filter_map(|(view, cb)| views.iter().find(|v| v.view == *view).map(|v| (v, *cb)))
+        .collect();
+    if items.iter().all(|(v, _)| v.alternatives.is_empty()) {
+        return (
+            items
+                .into_iter()
+                .map(|(v, cb)| Ok((v.clone(), cb)))
+                .collect(),
+            None,
+        );
+    }
+    // candidates: the detected labelling, then each alternative (T_board_cam = M B)
+    let motions: Vec<Vec<(Option<crate::board::Symmetry>, Iso3)>> = items
+        .iter()
+        .map(|(v, _)| {
+            std::iter::once((None, Iso3::identity()))
+                .chain(
+                    v.alternatives
+                        .iter()
+                        .map(|s| (Some(*s), consensus::symmetry_motion(board, s))),
+                )
+                .collect()
+        })
+        .collect();
+    // views without a robot pose cannot take part (left as detected)
+    let with_robot: Vec<usize> = (0..items.len())
+        .filter(|&k| items[k].0.base_hand.is_some())
+        .collect();
+    let cands: Vec<Candidates> = with_robot
+        .iter()
+        .map(|&k| Candidates {
+            a: items[k].0.base_hand.unwrap_or_else(Iso3::identity),
+            b: motions[k]
+                .iter()
+                .map(|(_, m)| m * items[k].1.inverse())
+                .collect(),
+        })
+        .collect();
+    let decisions = consensus::choose(&cands, 0);
+    let frame_fixed_by_first = items.iter().all(|(v, _)| !v.alternatives.is_empty());
+    let mut out = Vec::with_capacity(items.len());
+    for (k, (v, cb)) in items.iter().enumerate() {
+        let Some(pos) = with_robot.iter().position(|&j| j == k) else {
+            out.push(Ok(((*v).clone(), *cb)));
+            continue;
+        };
+        match decisions[pos] {
+            Decision::Chosen { index, .. } => {
+                let (sym, m) = motions[k][index];
+                let mut v2 = (*v).clone();
+                if let Some(s) = sym {
+                    for c in v2.circles.iter_mut() {
+                        if let Some((r, cc)) = s.apply(board, c.row, c.col) {
+                            (c.row, c.col) = (r, cc);
+                        }
+                    }
+                    v2.circles.sort_by_key(|c| (c.row, c.col));
+                }
+                v2.alternatives.clear();
+                // T_cam_board of the new labelling: T_cam_board M^-1
+                out.push(Ok((v2, cb * m.inverse())));
+            }
+            Decision::Undecided { best, second } => {
+                let msg = format!(
+                    "view {}: left out: its orientation on the symmetric board cannot be told \
+                     from the robot poses (its two best labellings disagree with the other views \
+                     by {:.1} and {:.1} sigma, sigma = 0.2 deg / 1 mm of screw motion)",
+                    v.view,
+                    best.sqrt(),
+                    second.sqrt()
+                );
+                warnings.push(msg.clone());
+                out.push(Err((v.view, msg)));
+            }
+        }
+    }
+    let note = frame_fixed_by_first.then(|| "first view".to_string());
+    (out, note)
 }
 
 /// Leave-one-out candidate: score, view, its error, the others' median error.
@@ -334,14 +450,18 @@ pub fn calibrate_observations(
     }
     let camcal = calibrate_camera(views, board, rig.width, rig.height, model, &cam_opts)?;
     warnings.extend(camcal.warnings.iter().cloned());
+    // Labellings the images leave open, from the robot poses.
+    let (labelled, frame_note) = resolve_labellings(views, &camcal.poses, board, &mut warnings);
+    for (view, note) in labelled.iter().filter_map(|l| l.as_ref().err()) {
+        if let Some(s) = status.iter_mut().find(|s| s.view == *view) {
+            s.note = Some(note.clone());
+        }
+    }
     // 3. Stripe points on the board.
     let (lo, hi) = grid_extent(board);
     let mut obs: Vec<ViewObs> = Vec::new();
     let mut poses: Vec<Iso3> = Vec::new();
-    for (view, cb) in &camcal.poses {
-        let Some(v) = views.iter().find(|v| v.view == *view) else {
-            continue;
-        };
+    for (v, cb) in labelled.iter().filter_map(|l| l.as_ref().ok()) {
         let bc = cb.inverse();
         let stripe: Vec<[f64; 2]> = v
             .stripe
@@ -522,6 +642,9 @@ pub fn calibrate_observations(
     let mut extra = Map::new();
     extra.insert("method".into(), json!(opts.method.name()));
     extra.insert("centre_model".into(), json!(opts.centre_model.name()));
+    if let Some(note) = frame_note {
+        extra.insert("base_board_orientation".into(), json!(note));
+    }
     extra.insert("stripe_rms_mm".into(), json!(adj.stripe_rms_mm));
     extra.insert(
         "residual_sigma_px".into(),

@@ -152,11 +152,11 @@ fn surrounded<T: Pixel>(
     ring.clear();
     for q in 0..16 {
         let phi = std::f64::consts::TAU * q as f64 / 16.0;
-        let (p, r) = (
-            (1.3 * b.a + 1.5) * phi.cos(),
-            (1.3 * b.b + 1.5) * phi.sin(),
+        let (p, r) = ((1.3 * b.a + 1.5) * phi.cos(), (1.3 * b.b + 1.5) * phi.sin());
+        let (x, y) = (
+            (b.cx + p * ct - r * st).round(),
+            (b.cy + p * st + r * ct).round(),
         );
-        let (x, y) = ((b.cx + p * ct - r * st).round(), (b.cy + p * st + r * ct).round());
         if x >= 0.0 && y >= 0.0 && (x as usize) < img.w && (y as usize) < img.h {
             ring.push(dv(img.at(x as usize, y as usize)));
         }
@@ -537,7 +537,9 @@ mod tests {
             for density in [1u64, 3, 8, 13] {
                 let mask: Vec<u8> = (0..len)
                     .map(|_| {
-                        state = state.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+                        state = state
+                            .wrapping_mul(6364136223846793005)
+                            .wrapping_add(1442695040888963407);
                         ((state >> 60) < density) as u8
                     })
                     .collect();
@@ -551,7 +553,11 @@ mod tests {
                         while x < len && mask[x] == 1 {
                             x += 1;
                         }
-                        want.push(Run { y: 3, x0: s0 as u32, x1: (x - 1) as u32 });
+                        want.push(Run {
+                            y: 3,
+                            x0: s0 as u32,
+                            x1: (x - 1) as u32,
+                        });
                     } else {
                         x += 1;
                     }

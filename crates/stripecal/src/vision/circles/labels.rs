@@ -212,8 +212,10 @@ fn cut_states(
         };
         let nb = &blobs[nb];
         let rad_m = (ratio.max(1.0) * nb.area / std::f64::consts::PI).sqrt() * 1.3 + 2.0;
-        let near_border =
-            p[0] < rad_m || p[1] < rad_m || p[0] > w as f64 - 1.0 - rad_m || p[1] > h as f64 - 1.0 - rad_m;
+        let near_border = p[0] < rad_m
+            || p[1] < rad_m
+            || p[0] > w as f64 - 1.0 - rad_m
+            || p[1] > h as f64 - 1.0 - rad_m;
         if !near_border {
             continue;
         }
@@ -230,7 +232,8 @@ fn cut_states(
         };
         let model = |scale: f64| {
             let s = [nb.sxx * scale, nb.syy * scale, nb.sxy * scale];
-            clipped_ellipse(p, s, w, h).map(|(total, vis, cen)| (nb.area * scale * vis / total, cen))
+            clipped_ellipse(p, s, w, h)
+                .map(|(total, vis, cen)| (nb.area * scale * vis / total, cen))
         };
         let (Some((e_c, cen_c)), Some((e_m, cen_m))) = (model(1.0), model(ratio)) else {
             continue;

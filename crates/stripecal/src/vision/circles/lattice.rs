@@ -57,8 +57,7 @@ impl std::hash::Hasher for CoordHasher {
 }
 
 /// Lattice coordinate -> value.
-pub(crate) type CoordMap<V> =
-    HashMap<Coord, V, std::hash::BuildHasherDefault<CoordHasher>>;
+pub(crate) type CoordMap<V> = HashMap<Coord, V, std::hash::BuildHasherDefault<CoordHasher>>;
 
 /// The grown grid: lattice coordinate -> blob index.
 pub(crate) struct Grid {
@@ -394,11 +393,7 @@ fn trim_to_board(at: &mut CoordMap<usize>, board: &Board) {
 }
 
 /// Builds the grid of the board's circles.
-pub(crate) fn build(
-    blobs: &[Blob],
-    board: &Board,
-    found: &dyn Fn() -> String,
-) -> Result<Grid> {
+pub(crate) fn build(blobs: &[Blob], board: &Board, found: &dyn Fn() -> String) -> Result<Grid> {
     let cap = (10 * board.len()).max(4000);
     if blobs.len() > cap {
         return Err(Error::Detection(format!(

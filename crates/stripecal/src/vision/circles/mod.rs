@@ -343,6 +343,7 @@ fn detect_in<T: Pixel>(im: Img<'_, T>, board: &Board, opts: &CircleOptions) -> R
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::board::BoardKind;
     use crate::vision::ImageView;
 
     fn detect(data: &[u8], w: usize, h: usize) -> Result<CircleGrid> {
