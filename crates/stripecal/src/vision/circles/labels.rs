@@ -239,7 +239,7 @@ fn cut_states(
             continue;
         };
         let lr = (e_m / e_c).ln();
-        if !(lr.abs() >= 1.3f64.ln()) || c.area <= 0.0 {
+        if lr.is_nan() || lr.abs() < 1.3f64.ln() || c.area <= 0.0 {
             continue;
         }
         let x = (c.area / e_c).ln() / lr;
