@@ -33,12 +33,14 @@ __all__ = [
     "SphereFit",
     "Stripe",
     "StripecalError",
+    "TargetDetection",
     "Truth",
     "Twin",
     "calibrate",
     "calibrate_camera",
     "detect_circles",
     "detect_circles_full",
+    "detect_target",
     "extract_stripe",
     "fit_laser_plane",
     "fit_line",
@@ -145,7 +147,7 @@ class Board:
         cols: int,
         pitch_mm: float,
         circle_diameter_mm: float,
-        marker_diameter_mm: float,
+        marker_diameter_mm: Optional[float] = None,
         markers: Optional[List[Tuple[int, int]]] = None,
         dark_circles: bool = True,
         kind: str = "circles",
@@ -153,6 +155,17 @@ class Board:
     ) -> Board: ...
     @staticmethod
     def hp3_paper() -> Board: ...
+    @staticmethod
+    def chessboard(rows: int, cols: int, square_mm: float) -> Board: ...
+    @staticmethod
+    def asymmetric_circles(
+        rows: int,
+        cols: int,
+        pitch_mm: float,
+        circle_diameter_mm: float,
+        dark_circles: bool = True,
+    ) -> Board: ...
+    def symmetries(self) -> List[Tuple[int, Tuple[int, int]]]: ...
     @property
     def kind(self) -> str: ...
     @property
@@ -487,6 +500,45 @@ def detect_circles_full(
     method: str = "gravity",
     drop_stripe_crossed: bool = True,
 ) -> Dict[str, Any]: ...
+
+# Any target kind (issue 10). image: 2D uint8/uint16 gray or 3D (rows, cols, 3|4) RGB(A).
+@final
+class TargetDetection:
+    FLAG_MARKER: ClassVar[int]
+    FLAG_STRIPE_CROSSED: ClassVar[int]
+    FLAG_NEAR_BORDER: ClassVar[int]
+    @property
+    def kind(self) -> str: ...
+    @property
+    def indices(self) -> npt.NDArray[np.int64]: ...
+    @property
+    def points(self) -> _F64: ...
+    @property
+    def flags(self) -> npt.NDArray[np.uint8]: ...
+    @property
+    def quality_px(self) -> _F64: ...
+    @property
+    def dropped_indices(self) -> npt.NDArray[np.int64]: ...
+    @property
+    def dropped_points(self) -> _F64: ...
+    @property
+    def dropped_reasons(self) -> List[str]: ...
+    @property
+    def alternatives(self) -> List[Tuple[int, Tuple[int, int]]]: ...
+    def relabel(self, k: int) -> npt.NDArray[np.int64]: ...
+    @property
+    def homography_rms_px(self) -> float: ...
+    @property
+    def homography_max_px(self) -> float: ...
+    def __len__(self) -> int: ...
+
+def detect_target(
+    image: npt.NDArray[Any],
+    board: Board,
+    *,
+    method: str = "gravity",
+    drop_stripe_crossed: bool = True,
+) -> TargetDetection: ...
 
 # Two-stage calibration pieces (issue 4): AX = ZB and the laser plane.
 def solve_axzb(

@@ -6,10 +6,13 @@ use stripecal::board::{Board, BoardKind};
 use crate::convert::{nd, non_negative};
 use crate::errors::{invalid_input, ResultExt};
 
-/// The calibration target: a `rows x cols` grid of circles, circle (row, col) centred
-/// at board coordinates `(col * pitch_mm, row * pitch_mm, 0)`; board z points into the
-/// plate. `markers` (default the L `(0, 0), (0, 1), (1, 0)`) have the larger
-/// `marker_diameter_mm`.
+/// The calibration target (spec/DATASET.md, "Target kinds"): `kind` "circles" (a
+/// `rows x cols` grid of circles, circle (row, col) centred at board coordinates
+/// `(col * pitch_mm, row * pitch_mm, 0)`; `markers`, default the L `(0, 0), (0, 1),
+/// (1, 0)`, any number or none, have `marker_diameter_mm`), "asymmetric_circles"
+/// (OpenCV's asymmetric grid, odd rows shifted by half a pitch; see
+/// `Board.asymmetric_circles`) or "chessboard" (inner corners; see
+/// `Board.chessboard`). Board z points into the plate.
 #[pyclass(name = "Board", module = "stripecal", frozen, eq)]
 #[derive(Debug, Clone, PartialEq)]
 pub struct PyBoard {
@@ -29,7 +32,7 @@ fn kind_name(k: BoardKind) -> &'static str {
 #[pymethods]
 impl PyBoard {
     #[new]
-    #[pyo3(signature = (rows, cols, pitch_mm, circle_diameter_mm, marker_diameter_mm, markers = None, dark_circles = true, kind = "circles", square_mm = None))]
+    #[pyo3(signature = (rows, cols, pitch_mm, circle_diameter_mm, marker_diameter_mm = None, markers = None, dark_circles = true, kind = "circles", square_mm = None))]
     #[allow(clippy::too_many_arguments)]
     fn new(
         py: Python<'_>,
@@ -37,7 +40,7 @@ impl PyBoard {
         cols: i64,
         pitch_mm: f64,
         circle_diameter_mm: f64,
-        marker_diameter_mm: f64,
+        marker_diameter_mm: Option<f64>,
         markers: Option<Vec<(i64, i64)>>,
         dark_circles: bool,
         kind: &str,
@@ -56,6 +59,17 @@ impl PyBoard {
                     ])
                 })
                 .collect::<PyResult<Vec<_>>>()?,
+        };
+        let marker_diameter_mm = match marker_diameter_mm {
+            Some(d) => d,
+            None if markers.is_empty() => circle_diameter_mm,
+            None => {
+                return Err(invalid_input(
+                    py,
+                    "marker_diameter_mm is needed when the board has markers (pass markers=[] \
+                     for a grid without)",
+                ))
+            }
         };
         let b = Board {
             kind,
@@ -78,7 +92,56 @@ impl PyBoard {
         PyBoard::new_py(Board::hp3_paper())
     }
 
-    /// `"circles"` or `"chessboard"` (reserved).
+    /// A chessboard of `rows x cols` INNER corners (a board of `(rows + 1) x (cols + 1)`
+    /// squares), corner (r, c) at `(c * square_mm, r * square_mm, 0)`; the square
+    /// outside corner (0, 0) is dark.
+    #[staticmethod]
+    fn chessboard(py: Python<'_>, rows: i64, cols: i64, square_mm: f64) -> PyResult<Self> {
+        let b = Board::chessboard(
+            non_negative(py, rows, "rows")?,
+            non_negative(py, cols, "cols")?,
+            square_mm,
+        )
+        .py_err(py)?;
+        Ok(PyBoard::new_py(b))
+    }
+
+    /// OpenCV's asymmetric circle grid: `rows x cols` circles, circle (r, c) at
+    /// `((2 c + r mod 2) * pitch_mm / 2, r * pitch_mm / 2, 0)` (`pitch_mm` is the distance
+    /// between neighbours in one row).
+    #[staticmethod]
+    #[pyo3(signature = (rows, cols, pitch_mm, circle_diameter_mm, dark_circles = true))]
+    fn asymmetric_circles(
+        py: Python<'_>,
+        rows: i64,
+        cols: i64,
+        pitch_mm: f64,
+        circle_diameter_mm: f64,
+        dark_circles: bool,
+    ) -> PyResult<Self> {
+        let mut b = Board::asymmetric_circles(
+            non_negative(py, rows, "rows")?,
+            non_negative(py, cols, "cols")?,
+            pitch_mm,
+            circle_diameter_mm,
+        )
+        .py_err(py)?;
+        b.dark_circles = dark_circles;
+        Ok(PyBoard::new_py(b))
+    }
+
+    /// The rotations that map the board onto itself, points and appearance alike, as
+    /// `(quarter_turns, (di, dj))` lattice maps; empty when the board fixes its own
+    /// orientation (markers, colours, an odd number of rows...).
+    fn symmetries(&self) -> Vec<(u8, (i64, i64))> {
+        self.inner
+            .symmetries()
+            .iter()
+            .map(|s| (s.quarter_turns, s.shift))
+            .collect()
+    }
+
+    /// `"circles"`, `"asymmetric_circles"` or `"chessboard"`.
     #[getter]
     fn kind(&self) -> &'static str {
         kind_name(self.inner.kind)
@@ -132,7 +195,8 @@ impl PyBoard {
         self.inner.square_mm
     }
 
-    /// Circle centres in board coordinates (mm), shape (rows * cols, 3), row-major.
+    /// Point positions (circle centres or inner corners) in board coordinates (mm),
+    /// shape (rows * cols, 3), row-major.
     fn centers<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
         let b = &self.inner;
         let data = b

@@ -76,3 +76,61 @@ pub fn gray_from_py(obj: &Bound<'_, PyAny>, name: &str) -> PyResult<AnyGray> {
         )))
     }
 }
+
+fn copy_any<T: numpy::Element + Copy>(a: &Bound<'_, PyUntypedArray>) -> PyResult<Vec<T>> {
+    let arr = a.cast::<PyArrayDyn<T>>()?;
+    let ro = arr.try_readonly()?;
+    let view = ro.as_array();
+    Ok(match view.as_slice() {
+        Some(s) => s.to_vec(),
+        None => view.iter().copied().collect(),
+    })
+}
+
+/// Like [`gray_from_py`], and also a colour image: a 3D `(rows, columns, 3 or 4)`
+/// uint8/uint16 array (RGB or RGBA, alpha ignored) becomes gray by BT.601 luma, the
+/// contract's conversion.
+pub fn gray_or_colour_from_py(obj: &Bound<'_, PyAny>, name: &str) -> PyResult<AnyGray> {
+    let py = obj.py();
+    let Ok(a) = obj.cast::<PyUntypedArray>() else {
+        return gray_from_py(obj, name);
+    };
+    if a.ndim() != 3 {
+        return gray_from_py(obj, name);
+    }
+    let shape = a.shape().to_vec();
+    if shape.contains(&0) || !(shape[2] == 3 || shape[2] == 4) {
+        return Err(invalid_input(
+            py,
+            format!(
+                "{name} must be (rows, columns) gray or (rows, columns, 3 or 4) RGB(A), got \
+                 shape {shape:?}"
+            ),
+        ));
+    }
+    let (h, w, c) = (shape[0], shape[1], shape[2]);
+    let dt = a.dtype();
+    let lost = || invalid_input(py, format!("{name}: colour conversion failed"));
+    if dt.is_equiv_to(&numpy::dtype::<u8>(py)) {
+        let data =
+            stripecal::image::gray_from_interleaved(&copy_any::<u8>(a)?, c).ok_or_else(lost)?;
+        Ok(AnyGray::U8(GrayImage {
+            width: w,
+            height: h,
+            data,
+        }))
+    } else if dt.is_equiv_to(&numpy::dtype::<u16>(py)) {
+        let data =
+            stripecal::image::gray_from_interleaved(&copy_any::<u16>(a)?, c).ok_or_else(lost)?;
+        Ok(AnyGray::U16(GrayImage {
+            width: w,
+            height: h,
+            data,
+        }))
+    } else {
+        Err(PyTypeError::new_err(format!(
+            "{name} must have dtype uint8 or uint16, got {dt}: convert it explicitly (e.g. \
+             image.astype(np.uint16)) so no scaling is guessed"
+        )))
+    }
+}

@@ -20,6 +20,7 @@ mod robot;
 mod sim;
 mod vision_circles;
 mod vision_stripe;
+mod vision_target;
 
 use pyo3::prelude::*;
 
@@ -74,6 +75,8 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
 
     m.add_function(wrap_pyfunction!(vision_circles::detect_circles, m)?)?;
     m.add_function(wrap_pyfunction!(vision_circles::detect_circles_full, m)?)?;
+    m.add_class::<vision_target::PyTargetDetection>()?;
+    m.add_function(wrap_pyfunction!(vision_target::detect_target, m)?)?;
 
     m.add_class::<vision_stripe::PyStripe>()?;
     m.add_class::<vision_stripe::PyLineFit>()?;

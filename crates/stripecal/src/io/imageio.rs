@@ -11,7 +11,7 @@ use image::{DynamicImage, ExtendedColorType, ImageEncoder, ImageFormat, ImageRea
 
 use super::atomic::write_atomic;
 use crate::error::{Error, Result};
-use crate::image::{AnyGray, GrayImage};
+use crate::image::{gray_from_interleaved, AnyGray, GrayImage};
 
 /// The largest image width or height [`load_gray`] accepts (pixels).
 pub const MAX_IMAGE_SIDE: u32 = 32768;
@@ -99,12 +99,6 @@ pub fn load_gray_info(p: impl AsRef<Path>) -> Result<(AnyGray, ImageInfo)> {
     ))
 }
 
-/// BT.601 luma of an RGB pixel, rounded: `(299 R + 587 G + 114 B + 500) / 1000`.
-#[inline]
-fn luma(r: u32, g: u32, b: u32) -> u32 {
-    (299 * r + 587 * g + 114 * b + 500) / 1000
-}
-
 fn to_gray(path: &Path, img: DynamicImage) -> Result<AnyGray> {
     let (w, h) = (img.width() as usize, img.height() as usize);
     let u8_image = |data: Vec<u8>| {
@@ -121,17 +115,9 @@ fn to_gray(path: &Path, img: DynamicImage) -> Result<AnyGray> {
             data,
         })
     };
-    // every luma of channels <= MAX is <= MAX: the narrowing casts below are exact
-    let rgb8 = |px: &[u8], n: usize| -> Vec<u8> {
-        px.chunks_exact(n)
-            .map(|c| luma(c[0] as u32, c[1] as u32, c[2] as u32) as u8)
-            .collect()
-    };
-    let rgb16 = |px: &[u16], n: usize| -> Vec<u16> {
-        px.chunks_exact(n)
-            .map(|c| luma(c[0] as u32, c[1] as u32, c[2] as u32) as u16)
-            .collect()
-    };
+    // the luma of channels <= MAX is <= MAX: the conversion cannot fail
+    let rgb8 = |px: &[u8], n: usize| gray_from_interleaved(px, n).unwrap_or_default();
+    let rgb16 = |px: &[u16], n: usize| gray_from_interleaved(px, n).unwrap_or_default();
     Ok(match img {
         DynamicImage::ImageLuma8(b) => u8_image(b.into_raw()),
         DynamicImage::ImageLuma16(b) => u16_image(b.into_raw()),

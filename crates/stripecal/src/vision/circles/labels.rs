@@ -254,6 +254,87 @@ fn cut_states(
     out
 }
 
+/// Errors when the grid ends inside the image on a side where the board (as rig.json
+/// describes it) goes on: a whole line of board points beyond the grid, predicted
+/// (homography of the nodes) at least a lattice step inside the image, without a single
+/// circle. The printed pattern is then smaller than rig.json says (or that line is
+/// hidden); a partial view cut by the image border is not affected.
+fn check_not_smaller(
+    grid: &Grid,
+    blobs: &[Blob],
+    board: &Board,
+    m0: &[[i64; 2]; 2],
+    t0: (i64, i64),
+    (w, h): (usize, usize),
+    describe: &dyn Fn(&str) -> String,
+) -> Result<()> {
+    let mut lat = Vec::with_capacity(grid.at.len());
+    let mut img = Vec::with_capacity(grid.at.len());
+    let (mut lo, mut hi) = ((i64::MAX, i64::MAX), (i64::MIN, i64::MIN));
+    for (&c, &b) in &grid.at {
+        let (i, j) = Grid::board_coords(grid.kind, c);
+        let l = place(m0, t0, (i as i64, j as i64));
+        lo = (lo.0.min(l.0), lo.1.min(l.1));
+        hi = (hi.0.max(l.0), hi.1.max(l.1));
+        lat.push(nalgebra::Vector2::new(l.0 as f64, l.1 as f64));
+        img.push(nalgebra::Vector2::new(blobs[b].cx, blobs[b].cy));
+    }
+    let Ok(hm) = crate::calib::homography::dlt(&lat, &img) else {
+        return Ok(());
+    };
+    let apply = crate::calib::homography::apply;
+    // the board's points on lattice line `axis = v`
+    let line = |axis: usize, v: i64| -> Vec<(i64, i64)> {
+        board
+            .indices()
+            .map(|(r, c)| board.lattice(r, c))
+            .filter(|l| (if axis == 0 { l.0 } else { l.1 }) == v)
+            .collect()
+    };
+    // the nearest line beyond the grid that holds board points (asymmetric grids hold
+    // points on every other line of a given parity)
+    let beyond = |axis: usize, from: i64, step: i64| -> Option<(i64, Vec<(i64, i64)>)> {
+        (1..=2)
+            .map(|k| from + k * step)
+            .map(|v| (v, line(axis, v)))
+            .find(|(_, pts)| !pts.is_empty())
+    };
+    for (axis, edge, step, name) in [
+        (0, lo.0, -1, "columns"),
+        (0, hi.0, 1, "columns"),
+        (1, lo.1, -1, "rows"),
+        (1, hi.1, 1, "rows"),
+    ] {
+        let Some((_, pts)) = beyond(axis, edge, step) else {
+            continue;
+        };
+        // a lattice step in px near the line, for the margin
+        let inside = pts.iter().all(|&(i, j)| {
+            let p = nalgebra::Vector2::new(i as f64, j as f64);
+            let (Some(q), Some(qx), Some(qy)) = (
+                apply(&hm, &p),
+                apply(&hm, &(p + nalgebra::Vector2::new(1.0, 0.0))),
+                apply(&hm, &(p + nalgebra::Vector2::new(0.0, 1.0))),
+            ) else {
+                return false;
+            };
+            let m = (qx - q).norm().max((qy - q).norm());
+            q.x >= m && q.y >= m && q.x <= w as f64 - 1.0 - m && q.y <= h as f64 - 1.0 - m
+        });
+        if inside {
+            let (ext_i, ext_j) = (hi.0 - lo.0 + 1, hi.1 - lo.1 + 1);
+            return Err(Error::Detection(describe(&format!(
+                "the grid ends inside the image where the board goes on: no circle on the next \
+                 line of {name}, which lies well inside the image; the grid found spans {ext_j} x \
+                 {ext_i} lattice steps, a {} x {} board in rig.json more (rows and cols in \
+                 rig.json larger than the printed pattern, or that line hidden)",
+                board.rows, board.cols
+            ))));
+        }
+    }
+    Ok(())
+}
+
 /// The 8 signed permutations of the lattice: `(row0, row1)` of the matrix.
 const LATTICE_MAPS: [[[i64; 2]; 2]; 8] = [
     [[1, 0], [0, 1]],
@@ -434,6 +515,7 @@ pub(crate) fn label(
             }
         }
     }
+    check_not_smaller(grid, blobs, board, &m0, t0, size, &describe)?;
     let mut nodes: Vec<(usize, usize, usize)> = at
         .iter()
         .filter_map(|(&c, &b)| {

@@ -357,31 +357,102 @@ mod tests {
 
     /// A synthetic fronto-parallel board, anti-aliased by 8x8 supersampling.
     fn synthetic(w: usize, h: usize, pitch_px: f64, rot: f64, origin: (f64, f64)) -> Vec<u8> {
-        let b = Board::hp3_paper();
-        let s = pitch_px / b.pitch_mm;
-        let (c, sn) = (rot.cos(), rot.sin());
+        synthetic_boards(w, h, &[(Board::hp3_paper(), pitch_px, rot, origin)])
+    }
+
+    /// Several boards `(board, pitch px, rotation, image position of point (0, 0))` on
+    /// one light plate.
+    fn synthetic_boards(w: usize, h: usize, boards: &[(Board, f64, f64, (f64, f64))]) -> Vec<u8> {
         let mut out = vec![0u8; w * h];
         for y in 0..h {
             for x in 0..w {
                 let mut acc = 0.0f64;
                 for sy in 0..8 {
                     for sx in 0..8 {
-                        let u = x as f64 - 0.5 + (sx as f64 + 0.5) / 8.0 - origin.0;
-                        let v = y as f64 - 0.5 + (sy as f64 + 0.5) / 8.0 - origin.1;
-                        // image -> board (inverse rotation, scale)
-                        let bx = (c * u + sn * v) / s;
-                        let by = (-sn * u + c * v) / s;
-                        acc += if b.circle_at(bx, by).is_some() {
-                            0.1
-                        } else {
-                            0.8
-                        };
+                        let ink = boards.iter().any(|(b, pitch_px, rot, origin)| {
+                            let s = pitch_px / b.pitch_mm;
+                            let (c, sn) = (rot.cos(), rot.sin());
+                            let u = x as f64 - 0.5 + (sx as f64 + 0.5) / 8.0 - origin.0;
+                            let v = y as f64 - 0.5 + (sy as f64 + 0.5) / 8.0 - origin.1;
+                            // image -> board (inverse rotation, scale)
+                            let bx = (c * u + sn * v) / s;
+                            let by = (-sn * u + c * v) / s;
+                            b.circle_at(bx, by).is_some()
+                        });
+                        acc += if ink { 0.1 } else { 0.8 };
                     }
                 }
                 out[y * w + x] = (acc / 64.0 * 255.0).round() as u8;
             }
         }
         out
+    }
+
+    fn detect_as(data: &[u8], w: usize, h: usize, board: &Board) -> Result<CircleGrid> {
+        let v = ImageView::from_slice(data, w, h)?;
+        detect_circles(AnyView::U8(v), board, &CircleOptions::default())
+    }
+
+    /// The image shows the 8 x 11 board whole; rig.json says another size: a typed
+    /// detection error saying so, in both directions.
+    #[test]
+    fn wrong_board_size_is_a_detection_error() {
+        let (w, h) = (320, 240);
+        let img = synthetic(w, h, 16.0, 0.2, (90.0, 40.0));
+        assert_eq!(detect(&img, w, h).unwrap().circles.len(), 88);
+        for (rows, cols, what) in [
+            (8, 10, "larger"),
+            (7, 11, "larger"),
+            (9, 11, "ends inside"),
+            (8, 12, "ends inside"),
+        ] {
+            let mut b = Board::hp3_paper();
+            (b.rows, b.cols) = (rows, cols);
+            let e = detect_as(&img, w, h, &b).unwrap_err();
+            assert!(matches!(e, Error::Detection(_)), "{rows} x {cols}: {e}");
+            assert!(e.to_string().contains(what), "{rows} x {cols}: {e}");
+        }
+    }
+
+    /// Two boards in the image: which is the target cannot be told.
+    #[test]
+    fn two_boards_are_a_detection_error() {
+        let (w, h) = (480, 240);
+        let b = Board::hp3_paper();
+        let img = synthetic_boards(
+            w,
+            h,
+            &[
+                (b.clone(), 12.0, 0.1, (20.0, 40.0)),
+                (b, 12.0, -0.2, (300.0, 80.0)),
+            ],
+        );
+        let e = detect(&img, w, h).unwrap_err();
+        assert!(matches!(e, Error::Detection(_)), "{e}");
+        assert!(e.to_string().contains("two boards"), "{e}");
+    }
+
+    /// A grid without markers: the half turn is returned as the alternative, and the
+    /// labelling is one of the two.
+    #[test]
+    fn no_markers_gives_the_half_turn_as_alternative() {
+        let (w, h) = (320, 240);
+        let img = synthetic(w, h, 16.0, 0.4, (100.0, 30.0));
+        let mut b = Board::hp3_paper();
+        b.markers.clear();
+        let g = detect_as(&img, w, h, &b).unwrap();
+        assert_eq!(g.circles.len(), 88);
+        assert_eq!(g.alternatives, b.symmetries());
+        // a part of it (the right third out of the image): where on the board is unknown
+        let img = synthetic(w, h, 16.0, 0.0, (170.0, 60.0));
+        let e = detect_as(&img, w, h, &b).unwrap_err();
+        assert!(
+            e.to_string().contains("cannot tell where on the board"),
+            "{e}"
+        );
+        // with the marker L it is indexed
+        let g = detect(&img, w, h).unwrap();
+        assert!(g.circles.len() > 40 && g.circles.iter().all(|c| c.col < 10));
     }
 
     #[test]
