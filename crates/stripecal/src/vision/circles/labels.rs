@@ -7,11 +7,11 @@
 //!    `Ordinary` circle when it is clearly not, and `Unknown` in between (no constraint;
 //!    a circle half hidden by a stripe, say).
 //! 2. Cut circles: a lattice site next to the grid whose circle touches the image
-//!    border has no measurable centre, but its visible part may still tell a marker from
-//!    an ordinary circle: its pixel count and centroid are compared with the visible
-//!    parts of both ellipses the neighbouring circles predict there (clipped to the
-//!    image). It is classified only when the two predictions differ by at least 30 % in
-//!    area and one of them fits; it then constrains the labelling but is not measured.
+//!    border has no measurable centre, but its visible part may still tell a marker: its
+//!    pixel count and centroid are compared with the visible parts of both ellipses the
+//!    neighbouring circles predict there (clipped to the image). It counts as a marker
+//!    only when the two predictions differ by at least 30 % in area and the marker's
+//!    fits; it then constrains the labelling but is not measured.
 //! 3. Placements: every rotation of the board's lattice (mirror images rejected: with
 //!    `u` right and `v` down, the image direction of increasing column crossed with that
 //!    of increasing row must be positive, since board z points away from the camera)
@@ -235,7 +235,7 @@ fn cut_states(
             clipped_ellipse(p, s, w, h)
                 .map(|(total, vis, cen)| (nb.area * scale * vis / total, cen))
         };
-        let (Some((e_c, cen_c)), Some((e_m, cen_m))) = (model(1.0), model(ratio)) else {
+        let (Some((e_c, _)), Some((e_m, cen_m))) = (model(1.0), model(ratio)) else {
             continue;
         };
         let lr = (e_m / e_c).ln();
@@ -245,10 +245,11 @@ fn cut_states(
         let x = (c.area / e_c).ln() / lr;
         let tol = |e: f64| 0.25 * (e / std::f64::consts::PI).sqrt() + 1.0;
         let close = |cen: [f64; 2], e: f64| (c.cx - cen[0]).hypot(c.cy - cen[1]) <= tol(e);
+        // Only a cut MARKER is kept as evidence: a cut ordinary circle adds little to the
+        // measured nodes, and a dark patch at the border that happens to look like one
+        // (the table beyond the plate's corner) must not push the grid off the board.
         if (0.7..1.5).contains(&x) && close(cen_m, e_m) {
             out.insert(t, State::Marker);
-        } else if (-0.5..0.3).contains(&x) && close(cen_c, e_c) {
-            out.insert(t, State::Ordinary);
         }
     }
     out
@@ -283,6 +284,12 @@ fn check_not_smaller(
         return Ok(());
     };
     let apply = crate::calib::homography::apply;
+    // the largest circle diameter in lattice units
+    let rad_units = (board.circle_diameter_mm.max(if board.markers.is_empty() {
+        0.0
+    } else {
+        board.marker_diameter_mm
+    })) / board.lattice_unit_mm();
     // the board's points on lattice line `axis = v`
     let line = |axis: usize, v: i64| -> Vec<(i64, i64)> {
         board
@@ -300,10 +307,10 @@ fn check_not_smaller(
             .find(|(_, pts)| !pts.is_empty())
     };
     for (axis, edge, step, name) in [
-        (0, lo.0, -1, "columns"),
-        (0, hi.0, 1, "columns"),
-        (1, lo.1, -1, "rows"),
-        (1, hi.1, 1, "rows"),
+        (0, lo.0, -1, "column"),
+        (0, hi.0, 1, "column"),
+        (1, lo.1, -1, "row"),
+        (1, hi.1, 1, "row"),
     ] {
         let Some((_, pts)) = beyond(axis, edge, step) else {
             continue;
@@ -318,16 +325,18 @@ fn check_not_smaller(
             ) else {
                 return false;
             };
-            let m = (qx - q).norm().max((qy - q).norm());
+            // the circle there, whole, with a few pixels of blur around it
+            let step = (qx - q).norm().max((qy - q).norm());
+            let m = 0.5 * rad_units * step + 3.0;
             q.x >= m && q.y >= m && q.x <= w as f64 - 1.0 - m && q.y <= h as f64 - 1.0 - m
         });
         if inside {
             let (ext_i, ext_j) = (hi.0 - lo.0 + 1, hi.1 - lo.1 + 1);
             return Err(Error::Detection(describe(&format!(
                 "the grid ends inside the image where the board goes on: no circle on the next \
-                 line of {name}, which lies well inside the image; the grid found spans {ext_j} x \
-                 {ext_i} lattice steps, a {} x {} board in rig.json more (rows and cols in \
-                 rig.json larger than the printed pattern, or that line hidden)",
+                 {name} beyond it, which lies inside the image; the grid found spans {ext_j} x \
+                 {ext_i} lattice steps, the {} x {} board of rig.json more (rows and cols in \
+                 rig.json larger than the printed pattern, or that {name} hidden)",
                 board.rows, board.cols
             ))));
         }

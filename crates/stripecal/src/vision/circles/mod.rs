@@ -1,17 +1,27 @@
-//! Circle-grid detection: find the board's circles in an image, index them by
-//! `(row, col)` and measure their centres to sub-pixel accuracy.
+//! Circle-grid detection (symmetric grids with any number of markers, and asymmetric
+//! grids): find the board's circles in an image, index them by `(row, col)` and measure
+//! their centres to sub-pixel accuracy.
 //!
-//! [`detect_circles`] runs three stages:
+//! [`detect_circles`] runs four stages:
 //!
 //! 1. Blobs (`blobs`): adaptive threshold against a local mean over a window that is a
 //!    fraction of the image, run-length connected components, filters on area (relative
-//!    to the image), fill ratio and axis ratio of the moment ellipse; blobs touching the
-//!    image border are cut circles and are rejected.
-//! 2. Grid (`grid`): lattice coordinates grown from neighbourhood topology, checked
-//!    leave-one-out, then board indices from the marker circles under the 8 lattice
-//!    symmetries, mirror images rejected. Partial boards work as long as every marker
-//!    is seen; anything ambiguous is an [`Error::Detection`] saying what was found.
-//! 3. Centres (`centre`): the gravity method (background-corrected intensity centroid
+//!    to the image), fill ratio and axis ratio of the moment ellipse, and a darker-than-
+//!    its-surroundings test that tolerates a close neighbour. Components touching the
+//!    image border are cut circles: kept aside, only to tell a cut marker by its size.
+//! 2. Lattice (`lattice`): lattice coordinates grown from neighbourhood topology (for
+//!    an asymmetric grid the 45-degree lattice of its nearest neighbours), checked
+//!    leave-one-out; a grid larger than the board, or a second board, is an error.
+//! 3. Labels (`labels`): board indices from what the image shows: marker circles by
+//!    their relative size (cut ones by the visible part), every rotation and shift of
+//!    the lattice that puts the grid on the board with the markers on markers, mirror
+//!    images rejected. One placement is the labelling; placements related by the
+//!    board's own symmetries are returned as alternatives
+//!    ([`CircleGrid::alternatives`]) for the calibration to decide from the robot poses;
+//!    any other ambiguity (a part of a board without markers) is an
+//!    [`Error::Detection`] saying so, never a guess. So is a grid that ends inside the
+//!    image where the board of rig.json would go on.
+//! 4. Centres (`centre`): the gravity method (background-corrected intensity centroid
 //!    over the blob and its blurred edge) or the centre of an ellipse fitted to
 //!    sub-pixel edge points; see [`CentreMethod`]. Every circle also carries the RMS
 //!    residual of the ellipse fit as its quality figure.
