@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 import shutil
 import subprocess
 import sys
@@ -64,3 +65,25 @@ def test_demo_small(tmp_path, capsys) -> None:  # type: ignore[no-untyped-def]
     text = capsys.readouterr().out
     assert "hp3-paper" in text and "calibration views: 5" in text and "ball scan: 2 stripe images" in text
     assert (tmp_path / "d" / "calib" / "views.csv").exists()
+
+
+def test_detect_prints_every_view_and_writes_points(tmp_path, capsys) -> None:  # type: ignore[no-untyped-def]
+    """`stripecal detect DATASET --csv FILE` on a twin dataset of an asymmetric grid: every
+    view detected and its points written; `--rig RIG IMAGE...` with a wrong board size
+    refuses each image with the reason and exits 1."""
+    assert main(["simulate", str(tmp_path / "d"), "--preset", "hp3-asymmetric", "--poses", "3",
+                 "--set", "scan.enabled=false"]) == 0
+    capsys.readouterr()
+    csv_path = tmp_path / "points.csv"
+    assert main(["detect", str(tmp_path / "d" / "calib"), "--csv", str(csv_path)]) == 0
+    out = capsys.readouterr().out
+    assert "board: asymmetric_circles 11 x 8, 3 images" in out and "3 of 3 images detected" in out
+    lines = csv_path.read_text().splitlines()
+    assert lines[0] == "view,row,col,u,v,flags" and len(lines) == 1 + 3 * 88
+    rig = json.loads((tmp_path / "d" / "calib" / "rig.json").read_text())
+    rig["board"]["cols"] = 7
+    (tmp_path / "wrong.json").write_text(json.dumps(rig))
+    images = sorted(str(p) for p in (tmp_path / "d" / "calib" / "images").glob("*board*"))
+    assert main(["detect", "--rig", str(tmp_path / "wrong.json"), *images]) == 1
+    out = capsys.readouterr().out
+    assert "0 of 3 images detected" in out and "larger than the board" in out

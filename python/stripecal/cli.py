@@ -347,6 +347,60 @@ def _add_calibrate(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> 
     p.set_defaults(func=cmd_calibrate)
 
 
+def cmd_detect(args: argparse.Namespace) -> int:
+    """Detects the board of rig.json in every board image of a dataset folder (or in
+    the images given with --rig) and prints, per image, the points found, the markers
+    seen, the labellings the image leaves open (symmetric boards: the calibration
+    decides them from the robot poses) and the residual of a homography through the
+    points, or why the image is refused. With --csv, writes every point (view, row, col,
+    u, v, flags) to a file. Exit status 1 when fewer than 3 images are detected."""
+    if args.rig:
+        board = stripecal.load_rig(args.rig).board
+        images = list(args.inputs)
+    else:
+        if len(args.inputs) != 1:
+            print("stripecal detect: give one DATASET folder, or --rig RIG and images", file=sys.stderr)
+            return 2
+        ds = stripecal.load_dataset(args.inputs[0])
+        board = ds.rig.board
+        images = [n if os.path.isabs(n) else os.path.join(ds.root, n) for n in ds.board_images]
+    print(f"board: {board.kind} {board.rows} x {board.cols}, {len(images)} images")
+    print("\n  view  points  markers  alternatives  H rms px  image / reason")
+    rows: List[str] = []
+    found = 0
+    for k, name in enumerate(images):
+        image = stripecal.load_image(name)
+        try:
+            det = stripecal.detect_target(image, board)
+        except stripecal.DetectionError as e:
+            print(f"  {k:>4}  {'-':>6}  {'-':>7}  {'-':>12}  {'-':>8}  {name}: {e}")
+            continue
+        found += 1
+        markers = int(np.count_nonzero(det.flags & stripecal.TargetDetection.FLAG_MARKER))
+        print(f"  {k:>4}  {len(det):>6}  {markers:>7}  {len(det.alternatives):>12}  "
+              f"{det.homography_rms_px:>8.3f}  {name}")
+        for (r, c), (u, v), f in zip(det.indices, det.points, det.flags):
+            rows.append(f"{k},{int(r)},{int(c)},{float(u)!r},{float(v)!r},{int(f)}\n")
+    print(f"\n{found} of {len(images)} images detected")
+    if args.csv:
+        tmp = f"{args.csv}.tmp{os.getpid()}"
+        with open(tmp, "w") as f:
+            f.write("view,row,col,u,v,flags\n")
+            f.writelines(rows)
+        os.replace(tmp, args.csv)
+        print(f"wrote {os.path.abspath(args.csv)}")
+    return 0 if found >= 3 else 1
+
+
+def _add_detect(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
+    p = sub.add_parser("detect", help="detect the board in a dataset's images", description=cmd_detect.__doc__)
+    p.add_argument("inputs", nargs="+", metavar="DATASET | IMAGE",
+                   help="a dataset folder (rig.json, views.csv, images), or images with --rig")
+    p.add_argument("--rig", metavar="RIG", help="rig.json whose board to detect in the IMAGE arguments")
+    p.add_argument("--csv", metavar="FILE", help="write every detected point to FILE")
+    p.set_defaults(func=cmd_detect)
+
+
 def cmd_reconstruct(args: argparse.Namespace) -> int:
     """Reconstructs a scan folder (scan.csv + stripe images, spec/DATASET.md) with a
     calibration into a point cloud in the robot base frame (PLY: double x y z in mm plus
@@ -452,6 +506,7 @@ _SUBCOMMANDS: List[Callable[[argparse._SubParsersAction[argparse.ArgumentParser]
     _add_info,
     _add_simulate,
     _add_demo,
+    _add_detect,
     _add_calibrate,
     _add_reconstruct,
     _add_fit_sphere,
