@@ -1,0 +1,535 @@
+//! Sub-pixel saddle points: a blurred X-junction model fitted in a window that is
+//! re-centred on the estimate at every step.
+//!
+//! ## Model
+//!
+//! Two straight edges through the corner `c` at angles `a1`, `a2` (a projective image of
+//! a chessboard corner is exactly that, whatever the tilt), blurred by a Gaussian of
+//! width `s` (PSF and pixel area together):
+//!
+//! `M(x) = erf(n1 . (x - c) / (sqrt 2 s)) erf(n2 . (x - c) / (sqrt 2 s))`,
+//!
+//! and the image `I(x) = p0 + p1 M + (p2 + p3 M) dx / R + (p4 + p5 M) dy / R` with
+//! `(dx, dy) = x - c` and `R` the window radius. The `p2, p4` terms are an additive
+//! linear illumination gradient (ambient light), `p3, p5` a multiplicative one (the
+//! light on the board times its reflectance): a plain model without them is biased by
+//! a gradient across the window. All eleven parameters are fitted by
+//! Levenberg-Marquardt with the window (a disc of radius `R`, a one-pixel linear taper
+//! at its rim) centred on the current `c`.
+//!
+//! ## Why the window is symmetric
+//!
+//! Near its centre the model's blur of an oblique junction is only approximately a
+//! Gaussian blur, but both the image of the junction and the model family are point
+//! symmetric about their centre. With the window symmetric about `c` the cost is then
+//! symmetric under the point reflection about the true corner, so the fitted centre has
+//! no bias from the model's approximation (only the pixel grid breaks the symmetry, a
+//! small effect that averages out). The window radius stays below the distance to the
+//! neighbouring squares' far edges (from the local lattice vectors), so the model's two
+//! edges are all the window sees.
+//!
+//! ## Start
+//!
+//! The grid gives positions within a few pixels (coarse pyramid levels). A few steps of
+//! the gradient-orthogonality estimate (each gradient is orthogonal to the direction
+//! from the corner, solved in closed form) bring the start within a fraction of a pixel
+//! before the model fit.
+//!
+//! ## Quality and stripes
+//!
+//! The reported quality is the formal standard deviation of the position,
+//! `sqrt((C_uu + C_vv) / 2)` from `s^2 (J^T W J)^-1` with `s` the residual RMS: it
+//! grows with noise, blur, low contrast and any misfit. Pixels far brighter than the
+//! fitted model (by more than half the contrast) are a bright stripe crossing the
+//! window.
+
+use std::collections::HashSet;
+
+use nalgebra::{SMatrix, SVector};
+
+use super::image::Gray;
+use super::lattice::{cross, norm};
+
+const NP: usize = 11;
+type Mat = SMatrix<f64, NP, NP>;
+type Vec11 = SVector<f64, NP>;
+
+/// A measured corner.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct Saddle {
+    pub u: f64,
+    pub v: f64,
+    /// Formal standard deviation of the position, px.
+    pub sigma_px: f64,
+    /// Fitted contrast (light minus dark), image units.
+    pub contrast: f64,
+    /// The window had to be shrunk to fit, or ends within 2 px of the image border.
+    pub near_border: bool,
+    /// A bright stripe crosses the window (kept: the stripe pixels and their mirror
+    /// images were left out of the fit).
+    pub stripe: bool,
+}
+
+/// Why a corner could not be measured.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) enum Fail {
+    Stripe,
+    Border,
+    NotCorner(&'static str),
+}
+
+impl Fail {
+    pub fn reason(self) -> &'static str {
+        match self {
+            Fail::Stripe => "crossed by a bright stripe",
+            Fail::Border => "too close to the image border for a measuring window",
+            Fail::NotCorner(r) => r,
+        }
+    }
+}
+
+/// Settings of one refinement.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct Settings {
+    pub max_radius: f64,
+    pub keep_stripe: bool,
+    /// Image noise sigma, image units.
+    pub noise: f64,
+}
+
+/// `erf` (Abramowitz & Stegun 7.1.26, |error| < 1.5e-7) and `exp(-x^2)`.
+#[inline]
+fn erf_exp(x: f64) -> (f64, f64) {
+    let a = x.abs();
+    let t = 1.0 / (1.0 + 0.3275911 * a);
+    let e = (-a * a).exp();
+    let poly =
+        ((((1.061405429 * t - 1.453152027) * t + 1.421413741) * t - 0.284496736) * t + 0.254829592) * t;
+    let y = 1.0 - poly * e;
+    (if x < 0.0 { -y } else { y }, e)
+}
+
+const TWO_OVER_SQRT_PI: f64 = std::f64::consts::FRAC_2_SQRT_PI;
+
+/// Window pixels: `(dx, dy, value, weight)` relative to the centre.
+fn window(g: &Gray, c: [f64; 2], r: f64, mask: &HashSet<(i32, i32)>, out: &mut Vec<[f64; 4]>) {
+    out.clear();
+    let (x0, x1) = ((c[0] - r - 0.5).ceil() as i64, (c[0] + r + 0.5).floor() as i64);
+    let (y0, y1) = ((c[1] - r - 0.5).ceil() as i64, (c[1] + r + 0.5).floor() as i64);
+    for y in y0.max(0)..=y1.min(g.h as i64 - 1) {
+        for x in x0.max(0)..=x1.min(g.w as i64 - 1) {
+            let (dx, dy) = (x as f64 - c[0], y as f64 - c[1]);
+            let w = (r + 0.5 - (dx * dx + dy * dy).sqrt()).clamp(0.0, 1.0);
+            if w <= 0.0 {
+                continue;
+            }
+            if !mask.is_empty() {
+                let (mx, my) = ((2.0 * c[0] - x as f64).round(), (2.0 * c[1] - y as f64).round());
+                if mask.contains(&(x as i32, y as i32)) || mask.contains(&(mx as i32, my as i32)) {
+                    continue;
+                }
+            }
+            out.push([dx, dy, g.at(x as usize, y as usize) as f64, w]);
+        }
+    }
+}
+
+/// Model value and its gradient with respect to the 11 parameters at offset `(dx, dy)`
+/// from the centre (`th = [cx, cy, a1, a2, ln s, p0..p5]`).
+#[inline]
+fn model(th: &Vec11, dx: f64, dy: f64, inv_r: f64) -> (f64, Vec11, f64) {
+    let (s1a, c1a) = th[2].sin_cos();
+    let (s2a, c2a) = th[3].sin_cos();
+    let k = std::f64::consts::FRAC_1_SQRT_2 * (-th[4]).exp();
+    let s1 = -s1a * dx + c1a * dy;
+    let s2 = -s2a * dx + c2a * dy;
+    let (e1, g1) = erf_exp(k * s1);
+    let (e2, g2) = erf_exp(k * s2);
+    let (g1, g2) = (TWO_OVER_SQRT_PI * g1, TWO_OVER_SQRT_PI * g2);
+    let m = e1 * e2;
+    let (ux, uy) = (dx * inv_r, dy * inv_r);
+    let f = th[5] + th[6] * m + (th[7] + th[8] * m) * ux + (th[9] + th[10] * m) * uy;
+    let a = th[6] + th[8] * ux + th[10] * uy;
+    let dm_ds1 = k * g1 * e2;
+    let dm_ds2 = k * g2 * e1;
+    let mut j = Vec11::zeros();
+    // s1 = n1 . (x - c): ds1/dcx = s1a, ds1/dcy = -c1a
+    j[0] = a * (dm_ds1 * s1a + dm_ds2 * s2a) - (th[7] + th[8] * m) * inv_r;
+    j[1] = a * (-dm_ds1 * c1a - dm_ds2 * c2a) - (th[9] + th[10] * m) * inv_r;
+    // ds1/da1 = -(c1a dx + s1a dy)
+    j[2] = a * dm_ds1 * -(c1a * dx + s1a * dy);
+    j[3] = a * dm_ds2 * -(c2a * dx + s2a * dy);
+    j[4] = a * -(k * s1 * g1 * e2 + k * s2 * g2 * e1);
+    j[5] = 1.0;
+    j[6] = m;
+    j[7] = ux;
+    j[8] = m * ux;
+    j[9] = uy;
+    j[10] = m * uy;
+    (f, j, m)
+}
+
+/// Normal equations of the window: `(J^T W J, J^T W r, cost, weight sum)`.
+fn normal(th: &Vec11, px: &[[f64; 4]], inv_r: f64) -> (Mat, Vec11, f64, f64) {
+    let mut h = Mat::zeros();
+    let mut b = Vec11::zeros();
+    let (mut cost, mut wsum) = (0.0, 0.0);
+    for q in px {
+        let (f, j, _) = model(th, q[0], q[1], inv_r);
+        let r = q[2] - f;
+        h.ger(q[3], &j, &j, 1.0);
+        b.axpy(q[3] * r, &j, 1.0);
+        cost += q[3] * r * r;
+        wsum += q[3];
+    }
+    (h, b, cost, wsum)
+}
+
+fn cost_of(th: &Vec11, px: &[[f64; 4]], inv_r: f64) -> f64 {
+    px.iter()
+        .map(|q| {
+            let (f, _, _) = model(th, q[0], q[1], inv_r);
+            q[3] * (q[2] - f).powi(2)
+        })
+        .sum()
+}
+
+/// Gradient-orthogonality estimate (a few closed-form steps).
+fn orthogonality_start(g: &Gray, start: [f64; 2], r: f64, mask: &HashSet<(i32, i32)>) -> Option<[f64; 2]> {
+    let mut c = start;
+    let s2 = 2.0 * (0.5 * r).powi(2);
+    for _ in 0..10 {
+        let (mut a, mut b, mut d, mut bx, mut by) = (0.0, 0.0, 0.0, 0.0, 0.0);
+        let (x0, x1) = ((c[0] - r).ceil() as i64, (c[0] + r).floor() as i64);
+        let (y0, y1) = ((c[1] - r).ceil() as i64, (c[1] + r).floor() as i64);
+        for y in y0.max(1)..=y1.min(g.h as i64 - 2) {
+            for x in x0.max(1)..=x1.min(g.w as i64 - 2) {
+                if !mask.is_empty() {
+                    let (mx, my) = ((2.0 * c[0] - x as f64).round(), (2.0 * c[1] - y as f64).round());
+                    if mask.contains(&(x as i32, y as i32)) || mask.contains(&(mx as i32, my as i32)) {
+                        continue;
+                    }
+                }
+                let (xu, yu) = (x as usize, y as usize);
+                let gx = 0.5 * (g.at(xu + 1, yu) - g.at(xu - 1, yu)) as f64;
+                let gy = 0.5 * (g.at(xu, yu + 1) - g.at(xu, yu - 1)) as f64;
+                let (dx, dy) = (x as f64 - c[0], y as f64 - c[1]);
+                let w = (-(dx * dx + dy * dy) / s2).exp();
+                let (gxx, gxy, gyy) = (w * gx * gx, w * gx * gy, w * gy * gy);
+                a += gxx;
+                b += gxy;
+                d += gyy;
+                bx += gxx * x as f64 + gxy * y as f64;
+                by += gxy * x as f64 + gyy * y as f64;
+            }
+        }
+        let det = a * d - b * b;
+        if !(det > 1e-12 * (a + d) * (a + d)) {
+            return None;
+        }
+        let n = [(d * bx - b * by) / det, (a * by - b * bx) / det];
+        let step = norm([n[0] - c[0], n[1] - c[1]]);
+        c = n;
+        if !(step.is_finite()) {
+            return None;
+        }
+        if step < 0.02 {
+            break;
+        }
+    }
+    Some(c)
+}
+
+/// Angle difference modulo pi, in [0, pi/2].
+fn line_angle_diff(a: f64, b: f64) -> f64 {
+    let d = (a - b).rem_euclid(std::f64::consts::PI);
+    d.min(std::f64::consts::PI - d)
+}
+
+/// The fit itself: returns the parameters, the final window and its normal equations.
+fn fit(
+    g: &Gray,
+    c0: [f64; 2],
+    angles: [f64; 2],
+    r: f64,
+    mask: &HashSet<(i32, i32)>,
+) -> Option<(Vec11, Vec<[f64; 4]>, Mat, f64, f64)> {
+    let inv_r = 1.0 / r;
+    let mut th = Vec11::zeros();
+    th[0] = c0[0];
+    th[1] = c0[1];
+    th[2] = angles[0];
+    th[3] = angles[1];
+    th[4] = 0.0;
+    let mut px = Vec::with_capacity(512);
+    window(g, c0, r, mask, &mut px);
+    if px.len() < 20 {
+        return None;
+    }
+    // linear part first: contrast and illumination for the starting geometry
+    {
+        let (h, b, _, _) = normal(&th, &px, inv_r);
+        let hl = h.fixed_view::<6, 6>(5, 5).into_owned();
+        let bl = b.fixed_rows::<6>(5).into_owned();
+        let sol = hl.cholesky()?.solve(&bl);
+        for k in 0..6 {
+            th[5 + k] = sol[k];
+        }
+    }
+    let mut lambda = 1e-3;
+    for _ in 0..40 {
+        window(g, [th[0], th[1]], r, mask, &mut px);
+        if px.len() < 20 {
+            return None;
+        }
+        // the parameters are relative to the centre: shifting the window keeps them
+        let (h, b, cost, _) = normal(&th, &px, inv_r);
+        let mut accepted = None;
+        for _ in 0..8 {
+            let mut ha = h;
+            for k in 0..NP {
+                ha[(k, k)] += lambda * h[(k, k)].max(1e-12);
+            }
+            let Some(ch) = ha.cholesky() else {
+                lambda *= 10.0;
+                continue;
+            };
+            let delta = ch.solve(&b);
+            let mut t2 = th + delta;
+            // the centre moved: keep the offsets relative to the trial centre
+            t2[4] = t2[4].clamp(-3.0, 3.0);
+            let trial: Vec<[f64; 4]> = px
+                .iter()
+                .map(|q| [q[0] - delta[0], q[1] - delta[1], q[2], q[3]])
+                .collect();
+            let c2 = cost_of(&t2, &trial, inv_r);
+            if c2.is_finite() && c2 <= cost {
+                lambda = (lambda / 3.0).max(1e-9);
+                accepted = Some((t2, delta));
+                break;
+            }
+            lambda *= 4.0;
+        }
+        let Some((t2, delta)) = accepted else {
+            break;
+        };
+        th = t2;
+        if delta[0].hypot(delta[1]) < 1e-4 && delta[2].abs() < 1e-4 && delta[3].abs() < 1e-4 {
+            break;
+        }
+    }
+    window(g, [th[0], th[1]], r, mask, &mut px);
+    let (h, _, cost, wsum) = normal(&th, &px, inv_r);
+    th.iter().all(|v| v.is_finite()).then_some((th, px, h, cost, wsum))
+}
+
+/// The four squares around a corner at `c` (medians over their central parts): the
+/// diagonal pairs must agree and differ from each other (an X-junction, not an L or a
+/// T where a board ends), the pair between `+i` and `+j` light iff `light_ij`.
+/// Returns the light and dark levels.
+fn quadrants(
+    g: &Gray,
+    c: [f64; 2],
+    di: [f64; 2],
+    dj: [f64; 2],
+    light_ij: Option<bool>,
+    noise: f64,
+) -> Result<(f64, f64), Fail> {
+    let cell = |a: f64, b: f64| {
+        let e1 = [a * di[0], a * di[1]];
+        let e2 = [b * dj[0], b * dj[1]];
+        let m = [c[0] + 0.5 * (e1[0] + e2[0]), c[1] + 0.5 * (e1[1] + e2[1])];
+        super::cells::patch_median(g, m, e1, e2, 0.25, 4).map(f64::from)
+    };
+    let q = [cell(1.0, 1.0), cell(-1.0, -1.0), cell(-1.0, 1.0), cell(1.0, -1.0)];
+    let [Some(a0), Some(a1), Some(b0), Some(b1)] = q else {
+        // squares cut by the image border: the fit alone decides
+        return Ok((f64::NAN, f64::NAN));
+    };
+    let (ma, mb) = (0.5 * (a0 + a1), 0.5 * (b0 + b1));
+    let diff = (ma - mb).abs();
+    if diff < 6.0 * noise || (a0 - a1).abs() > 0.5 * diff || (b0 - b1).abs() > 0.5 * diff {
+        return Err(Fail::NotCorner("the four squares around it are not a chessboard corner"));
+    }
+    if light_ij.is_some_and(|l| l != (ma > mb)) {
+        return Err(Fail::NotCorner("the square colours around the corner are swapped"));
+    }
+    Ok((ma.max(mb), ma.min(mb)))
+}
+
+/// Pixels of the window around `c` brighter than the light squares by a quarter of
+/// the contrast (and 5 noise sigmas), grown by one pixel: a bright stripe.
+fn stripe_mask(g: &Gray, c: [f64; 2], r: f64, light: f64, dark: f64, noise: f64) -> HashSet<(i32, i32)> {
+    let mut out = HashSet::new();
+    if !(light.is_finite() && dark.is_finite()) {
+        return out;
+    }
+    let thr = light + (0.25 * (light - dark)).max(5.0 * noise);
+    let mut px = Vec::new();
+    window(g, c, r + 1.0, &HashSet::new(), &mut px);
+    for q in &px {
+        if q[2] > thr {
+            let (x, y) = ((q[0] + c[0]).round() as i32, (q[1] + c[1]).round() as i32);
+            for dy in -1..=1 {
+                for dx in -1..=1 {
+                    out.insert((x + dx, y + dy));
+                }
+            }
+        }
+    }
+    out
+}
+
+/// Measures the corner near `start` with local lattice steps `di`, `dj` (image
+/// vectors to the `+i` and `+j` neighbours). `light_ij`: whether the square between the
+/// `+i` and `+j` edges is light, when known.
+pub(crate) fn refine(
+    g: &Gray,
+    start: [f64; 2],
+    di: [f64; 2],
+    dj: [f64; 2],
+    light_ij: Option<bool>,
+    s: &Settings,
+) -> Result<Saddle, Fail> {
+    let (li, lj) = (norm(di), norm(dj));
+    let area = cross(di, dj).abs();
+    if !(li > 1.0 && lj > 1.0 && area > 1.0 && start[0].is_finite() && start[1].is_finite()) {
+        return Err(Fail::NotCorner("degenerate local lattice"));
+    }
+    let d_far = area / li.max(lj);
+    let mut r = (0.75 * d_far - 1.5).clamp(2.5, s.max_radius.max(2.5));
+    let border = |c: [f64; 2]| {
+        let (w, h) = ((g.w - 1) as f64, (g.h - 1) as f64);
+        c[0].min(c[1]).min(w - c[0]).min(h - c[1]) - 1.5
+    };
+    let mut near_border = false;
+    let mut shrink = |c: [f64; 2], r: &mut f64| {
+        let rb = border(c);
+        if rb < *r {
+            if rb < 2.5 {
+                return Err(Fail::Border);
+            }
+            *r = rb;
+            near_border = true;
+        }
+        Ok(())
+    };
+    shrink(start, &mut r)?;
+    let (light, dark) = quadrants(g, start, di, dj, light_ij, s.noise)?;
+    let mask = stripe_mask(g, start, r, light, dark, s.noise);
+    let stripe = mask.len() >= 9;
+    if stripe && !s.keep_stripe {
+        return Err(Fail::Stripe);
+    }
+    let tol = (0.35 * li.min(lj)).max(2.0);
+    let c0 = orthogonality_start(g, start, r, &mask).ok_or(Fail::NotCorner("no gradient structure"))?;
+    if norm([c0[0] - start[0], c0[1] - start[1]]) > tol {
+        return Err(Fail::NotCorner("the saddle point is far from the predicted position"));
+    }
+    shrink(c0, &mut r)?;
+    let angles = [di[1].atan2(di[0]), dj[1].atan2(dj[0])];
+    let (th, _, h, cost, wsum) = fit(g, c0, angles, r, &mask).ok_or(Fail::NotCorner("the saddle fit failed"))?;
+    validate(&th, start, angles, r, tol, light_ij, s, di, dj)?;
+    let rms = (cost / wsum.max(1.0)).sqrt();
+    if rms > 0.08 * 2.0 * th[6].abs() + 1.5 * s.noise {
+        return Err(Fail::NotCorner("the image does not fit a corner model"));
+    }
+    let c = [th[0], th[1]];
+    near_border |= border(c) - r < 2.0;
+    let dof = (wsum - NP as f64).max(1.0);
+    let s2 = cost / dof;
+    let sigma_px = h
+        .try_inverse()
+        .map(|inv| (0.5 * s2 * (inv[(0, 0)] + inv[(1, 1)]).max(0.0)).sqrt())
+        .unwrap_or(f64::NAN);
+    Ok(Saddle {
+        u: c[0],
+        v: c[1],
+        sigma_px,
+        contrast: 2.0 * th[6].abs(),
+        near_border,
+        stripe,
+    })
+}
+
+/// Checks the fitted model: position, contrast, blur, edge directions, polarity.
+#[allow(clippy::too_many_arguments)]
+fn validate(
+    th: &Vec11,
+    start: [f64; 2],
+    angles: [f64; 2],
+    r: f64,
+    tol: f64,
+    light_ij: Option<bool>,
+    s: &Settings,
+    di: [f64; 2],
+    dj: [f64; 2],
+) -> Result<(), Fail> {
+    let c = [th[0], th[1]];
+    if norm([c[0] - start[0], c[1] - start[1]]) > tol {
+        return Err(Fail::NotCorner("the saddle point is far from the predicted position"));
+    }
+    let contrast = 2.0 * th[6].abs();
+    if contrast < 6.0 * s.noise {
+        return Err(Fail::NotCorner("too little contrast for a corner"));
+    }
+    let blur = th[4].exp();
+    if !(0.15..=0.7 * r + 0.5).contains(&blur) {
+        return Err(Fail::NotCorner("the corner is too blurred for its window"));
+    }
+    let lim = 30f64.to_radians();
+    if line_angle_diff(th[2], angles[0]) > lim || line_angle_diff(th[3], angles[1]) > lim {
+        return Err(Fail::NotCorner("the edges do not follow the grid"));
+    }
+    if line_angle_diff(th[2], th[3]) < 15f64.to_radians() {
+        return Err(Fail::NotCorner("the edges do not follow the grid"));
+    }
+    if let Some(light) = light_ij {
+        // model sign half-way into the square between +i and +j
+        let (ui, uj) = (norm(di), norm(dj));
+        let d = [0.25 * r * (di[0] / ui + dj[0] / uj), 0.25 * r * (di[1] / ui + dj[1] / uj)];
+        let (_, _, m) = model(th, d[0], d[1], 1.0 / r);
+        if (th[6] * m > 0.0) != light {
+            return Err(Fail::NotCorner("the square colours around the corner are swapped"));
+        }
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn erf_is_accurate() {
+        // reference values of erf
+        for (x, want) in [(0.0, 0.0), (0.5, 0.5204998778), (1.0, 0.8427007929), (-2.0, -0.9953222650)] {
+            let (e, ex) = erf_exp(x);
+            assert!((e - want).abs() < 3e-7, "{x}: {e}");
+            assert!((ex - (-x * x).exp()).abs() < 1e-15);
+        }
+    }
+
+    #[test]
+    fn model_gradient_matches_finite_differences() {
+        let th = Vec11::from_column_slice(&[
+            0.3, -0.2, 0.4, 1.9, 0.1, 100.0, 60.0, 3.0, -2.0, 1.0, 0.5,
+        ]);
+        let inv_r = 1.0 / 6.0;
+        for &(x, y) in &[(1.2, 0.7), (-2.0, 1.5), (0.1, -0.3)] {
+            let (dx, dy) = (x - th[0], y - th[1]);
+            let (_, j, _) = model(&th, dx, dy, inv_r);
+            for k in 0..NP {
+                let h = 1e-6;
+                let mut tp = th;
+                tp[k] += h;
+                let mut tm = th;
+                tm[k] -= h;
+                let fp = model(&tp, x - tp[0], y - tp[1], inv_r).0;
+                let fm = model(&tm, x - tm[0], y - tm[1], inv_r).0;
+                let fd = (fp - fm) / (2.0 * h);
+                assert!((fd - j[k]).abs() < 1e-4 * (1.0 + fd.abs()), "param {k}: {fd} vs {}", j[k]);
+            }
+        }
+    }
+}
