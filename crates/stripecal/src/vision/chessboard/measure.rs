@@ -51,6 +51,22 @@ impl Measured {
         }
     }
 
+    /// Drops sites without a measured 4-neighbour (a jump across a failed site that
+    /// nothing around confirms).
+    fn drop_isolated(&mut self) {
+        let lone: Vec<Coord> = self
+            .at
+            .keys()
+            .filter(|t| !DIRS.iter().any(|d| self.at.contains_key(&(t.0 + d.0, t.1 + d.1))))
+            .copied()
+            .collect();
+        for t in lone {
+            if let Some(k) = self.at.remove(&t) {
+                self.failed.insert(t, (Fail::NotCorner("no measured corner next to it"), self.pos[k]));
+            }
+        }
+    }
+
     /// Local lattice at `t` from the measured sites.
     pub fn local(&self, t: Coord) -> Option<Local> {
         predict_any(&self.at, &self.pos, t)
@@ -67,9 +83,10 @@ pub(crate) fn measure_site(
     start: [f64; 2],
     l: &Local,
     phase: u8,
+    strict: bool,
     s: &Settings,
 ) -> Result<Saddle, Fail> {
-    let sd = refine(g, start, l.di, l.dj, Some(!cell_dark(t.0, t.1, phase)), s)?;
+    let sd = refine(g, start, l.di, l.dj, Some(!cell_dark(t.0, t.1, phase)), strict, s)?;
     let mut near: Vec<f64> = Vec::new();
     for di in -2..=2 {
         for dj in -2..=2 {
@@ -112,7 +129,7 @@ pub(crate) fn measure_grid(
     };
     for (k, &t) in keys.iter().enumerate() {
         let Some(l) = predict_any(&cat, &cpos, t) else { continue };
-        match measure_site(g, &m, t, cpos[k], &l, phase, s) {
+        match measure_site(g, &m, t, cpos[k], &l, phase, false, s) {
             Ok(sd) => m.insert(t, sd),
             Err(f) => {
                 m.failed.insert(t, (f, cpos[k]));
@@ -122,6 +139,7 @@ pub(crate) fn measure_grid(
     m.prune(0.15);
     extend(g, &mut m, phase, s, cap);
     m.prune(0.15);
+    m.drop_isolated();
     m
 }
 
@@ -157,7 +175,7 @@ fn extend(g: &Gray, m: &mut Measured, phase: u8, s: &Settings, cap: i32) {
             if !inside(g, l.p) {
                 continue;
             }
-            match measure_site(g, m, t, l.p, &l, phase, s) {
+            match measure_site(g, m, t, l.p, &l, phase, true, s) {
                 Ok(sd) => {
                     m.insert(t, sd);
                     added += 1;
@@ -184,7 +202,7 @@ pub(crate) fn fill(g: &Gray, m: &mut Measured, sites: &[Coord], phase: u8, s: &S
         if !inside(g, l.p) {
             continue;
         }
-        match measure_site(g, m, t, l.p, &l, phase, s) {
+        match measure_site(g, m, t, l.p, &l, phase, true, s) {
             Ok(sd) => m.insert(t, sd),
             Err(f) => {
                 m.failed.insert(t, (f, l.p));

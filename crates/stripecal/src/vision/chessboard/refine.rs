@@ -324,9 +324,11 @@ fn fit(
 }
 
 /// The four squares around a corner at `c` (medians over their central parts): the
-/// diagonal pairs must agree and differ from each other (an X-junction, not an L or a
-/// T where a board ends), the pair between `+i` and `+j` light iff `light_ij`.
-/// Returns the light and dark levels.
+/// diagonal pairs must agree within `ratio` times their difference from each other
+/// (an X-junction, not an L or a T where a board ends: there the ratio is 2), the pair
+/// between `+i` and `+j` light iff `light_ij`.
+/// Returns the light and dark levels; [`Fail::Border`] when a square is not in the
+/// image even near the corner.
 fn quadrants(
     g: &Gray,
     c: [f64; 2],
@@ -334,21 +336,25 @@ fn quadrants(
     dj: [f64; 2],
     light_ij: Option<bool>,
     noise: f64,
+    ratio: f64,
 ) -> Result<(f64, f64), Fail> {
+    // the central part of each square, or of its part nearest the corner when the
+    // square leaves the image
     let cell = |a: f64, b: f64| {
-        let e1 = [a * di[0], a * di[1]];
-        let e2 = [b * dj[0], b * dj[1]];
-        let m = [c[0] + 0.5 * (e1[0] + e2[0]), c[1] + 0.5 * (e1[1] + e2[1])];
-        super::cells::patch_median(g, m, e1, e2, 0.25, 4).map(f64::from)
+        [(0.5, 0.25), (0.3, 0.12)].iter().find_map(|&(at, half)| {
+            let e1 = [a * di[0], a * di[1]];
+            let e2 = [b * dj[0], b * dj[1]];
+            let m = [c[0] + at * (e1[0] + e2[0]), c[1] + at * (e1[1] + e2[1])];
+            super::cells::patch_median(g, m, e1, e2, half, 4).map(f64::from)
+        })
     };
     let q = [cell(1.0, 1.0), cell(-1.0, -1.0), cell(-1.0, 1.0), cell(1.0, -1.0)];
     let [Some(a0), Some(a1), Some(b0), Some(b1)] = q else {
-        // squares cut by the image border: the fit alone decides
-        return Ok((f64::NAN, f64::NAN));
+        return Err(Fail::Border);
     };
     let (ma, mb) = (0.5 * (a0 + a1), 0.5 * (b0 + b1));
     let diff = (ma - mb).abs();
-    if diff < 6.0 * noise || (a0 - a1).abs() > 0.5 * diff || (b0 - b1).abs() > 0.5 * diff {
+    if diff < 4.0 * noise || (a0 - a1).abs() > ratio * diff || (b0 - b1).abs() > ratio * diff {
         return Err(Fail::NotCorner("the four squares around it are not a chessboard corner"));
     }
     if light_ij.is_some_and(|l| l != (ma > mb)) {
@@ -357,23 +363,117 @@ fn quadrants(
     Ok((ma.max(mb), ma.min(mb)))
 }
 
-/// Pixels of the window around `c` brighter than the light squares by a quarter of
-/// the contrast (and 5 noise sigmas), grown by one pixel: a bright stripe.
+/// A bright stripe in the window around `c`: the pixels brighter than the light
+/// squares by half the contrast (and 8 noise sigmas), see [`stripe_of`].
 fn stripe_mask(g: &Gray, c: [f64; 2], r: f64, light: f64, dark: f64, noise: f64) -> HashSet<(i32, i32)> {
-    let mut out = HashSet::new();
     if !(light.is_finite() && dark.is_finite()) {
-        return out;
+        return HashSet::new();
     }
-    let thr = light + (0.25 * (light - dark)).max(5.0 * noise);
+    let thr = light + (0.5 * (light - dark)).max(8.0 * noise);
     let mut px = Vec::new();
     window(g, c, r + 1.0, &HashSet::new(), &mut px);
-    for q in &px {
-        if q[2] > thr {
-            let (x, y) = ((q[0] + c[0]).round() as i32, (q[1] + c[1]).round() as i32);
+    let bright: Vec<(i32, i32)> = px
+        .iter()
+        .filter(|q| q[2] > thr)
+        .map(|q| ((q[0] + c[0]).round() as i32, (q[1] + c[1]).round() as i32))
+        .collect();
+    stripe_of(bright, r)
+}
+
+/// A stripe over the dark squares: pixels of the window around `c` inside a dark
+/// sector (more than 3.5 px from the edges along the lattice directions `di`, `dj`)
+/// brighter than the middle of the dark and light levels, see [`stripe_of`]. The dark
+/// squares are the quietest part of the window (no grain, no glare reaches half the
+/// contrast there), so a stripe no brighter than the light squares shows here.
+#[allow(clippy::too_many_arguments)]
+fn dark_sector_stripe(
+    g: &Gray,
+    c: [f64; 2],
+    r: f64,
+    di: [f64; 2],
+    dj: [f64; 2],
+    light_ij: Option<bool>,
+    light: f64,
+    dark: f64,
+) -> HashSet<(i32, i32)> {
+    let det = cross(di, dj);
+    let (Some(light_ij), true) = (light_ij, light.is_finite() && dark.is_finite() && det.abs() > 1e-9) else {
+        return HashSet::new();
+    };
+    let thr = 0.5 * (light + dark);
+    let (ni, nj) = (norm(di), norm(dj));
+    let mut px = Vec::new();
+    window(g, c, r, &HashSet::new(), &mut px);
+    let bright: Vec<(i32, i32)> = px
+        .iter()
+        .filter(|q| {
+            // lattice coordinates of the offset, and distances to the two edges
+            let a = cross([q[0], q[1]], dj) / det;
+            let b = cross(di, [q[0], q[1]]) / det;
+            let (to_i_edge, to_j_edge) = ((b * det / ni).abs(), (a * det / nj).abs());
+            // the sectors of (+i, +j) and (-i, -j) have the colour of light_ij
+            let like_ij = (a > 0.0) == (b > 0.0);
+            let in_dark = like_ij != light_ij;
+            to_i_edge > 3.5 && to_j_edge > 3.5 && in_dark && q[2] > thr
+        })
+        .map(|q| ((q[0] + c[0]).round() as i32, (q[1] + c[1]).round() as i32))
+        .collect();
+    stripe_of(bright, 0.5 * r)
+}
+
+/// A stripe seen in the fit's residuals: pixels brighter than the fitted model by 3/4
+/// of the contrast (a stripe over the dark squares that is no brighter than the light
+/// ones), see [`stripe_of`].
+fn residual_stripe(th: &Vec11, px: &[[f64; 4]], r: f64, noise: f64) -> HashSet<(i32, i32)> {
+    let thr = (1.5 * th[6].abs()).max(8.0 * noise);
+    let bright: Vec<(i32, i32)> = px
+        .iter()
+        .filter(|q| q[2] - model(th, q[0], q[1], 1.0 / r).0 > thr)
+        .map(|q| ((q[0] + th[0]).round() as i32, (q[1] + th[1]).round() as i32))
+        .collect();
+    stripe_of(bright, r)
+}
+
+/// Size of the largest 8-connected component of a pixel set.
+fn largest_component(px: &[(i32, i32)]) -> usize {
+    let set: HashSet<(i32, i32)> = px.iter().copied().collect();
+    let mut seen: HashSet<(i32, i32)> = HashSet::new();
+    let mut best = 0;
+    let mut stack = Vec::new();
+    for &p in px {
+        if !seen.insert(p) {
+            continue;
+        }
+        stack.push(p);
+        let mut n = 0;
+        while let Some((x, y)) = stack.pop() {
+            n += 1;
             for dy in -1..=1 {
                 for dx in -1..=1 {
-                    out.insert((x + dx, y + dy));
+                    let q = (x + dx, y + dy);
+                    if set.contains(&q) && seen.insert(q) {
+                        stack.push(q);
+                    }
                 }
+            }
+        }
+        best = best.max(n);
+    }
+    best
+}
+
+/// The pixels grown by one pixel when their largest connected part has at least
+/// `max(8, r)` pixels (a stripe crossing the window has about `4 r`; bright grain,
+/// a few in small clumps); empty otherwise.
+fn stripe_of(px: Vec<(i32, i32)>, r: f64) -> HashSet<(i32, i32)> {
+    let mut out = HashSet::new();
+    if (largest_component(&px) as f64) < r.max(8.0) {
+        return out;
+    }
+    for (x, y) in px {
+        for dy in -1..=1 {
+            for dx in -1..=1 {
+                out.insert((x + dx, y + dy));
             }
         }
     }
@@ -382,13 +482,16 @@ fn stripe_mask(g: &Gray, c: [f64; 2], r: f64, light: f64, dark: f64, noise: f64)
 
 /// Measures the corner near `start` with local lattice steps `di`, `dj` (image
 /// vectors to the `+i` and `+j` neighbours). `light_ij`: whether the square between the
-/// `+i` and `+j` edges is light, when known.
+/// `+i` and `+j` edges is light, when known. `strict`: a site the candidates did not
+/// show (grid extension, holes), whose squares must agree closely (0.6, against 1.2 for
+/// a grid corner whose links were checked; glare on one square stays below 1).
 pub(crate) fn refine(
     g: &Gray,
     start: [f64; 2],
     di: [f64; 2],
     dj: [f64; 2],
     light_ij: Option<bool>,
+    strict: bool,
     s: &Settings,
 ) -> Result<Saddle, Fail> {
     let (li, lj) = (norm(di), norm(dj));
@@ -415,9 +518,10 @@ pub(crate) fn refine(
         Ok(())
     };
     shrink(start, &mut r)?;
-    let (light, dark) = quadrants(g, start, di, dj, light_ij, s.noise)?;
+    let ratio = if strict { 0.6 } else { 1.2 };
+    let (light, dark) = quadrants(g, start, di, dj, light_ij, s.noise, ratio)?;
     let mask = stripe_mask(g, start, r, light, dark, s.noise);
-    let stripe = mask.len() >= 9;
+    let stripe = !mask.is_empty();
     if stripe && !s.keep_stripe {
         return Err(Fail::Stripe);
     }
@@ -427,11 +531,33 @@ pub(crate) fn refine(
         return Err(Fail::NotCorner("the saddle point is far from the predicted position"));
     }
     shrink(c0, &mut r)?;
+    let on_dark = dark_sector_stripe(g, c0, r, di, dj, light_ij, light, dark);
+    let stripe = stripe || !on_dark.is_empty();
+    if stripe && !s.keep_stripe {
+        return Err(Fail::Stripe);
+    }
+    let mask: HashSet<(i32, i32)> = mask.union(&on_dark).copied().collect();
     let angles = [di[1].atan2(di[0]), dj[1].atan2(dj[0])];
-    let (th, _, h, cost, wsum) = fit(g, c0, angles, r, &mask).ok_or(Fail::NotCorner("the saddle fit failed"))?;
+    let (mut th, mut px, mut h, mut cost, mut wsum) =
+        fit(g, c0, angles, r, &mask).ok_or(Fail::NotCorner("the saddle fit failed"))?;
+    let more = residual_stripe(&th, &px, r, s.noise);
+    let stripe = stripe || !more.is_empty();
+    if !more.is_empty() {
+        if !s.keep_stripe {
+            return Err(Fail::Stripe);
+        }
+        let all: HashSet<(i32, i32)> = mask.union(&more).copied().collect();
+        (th, px, h, cost, wsum) = fit(g, c0, angles, r, &all).ok_or(Fail::Stripe)?;
+    }
     validate(&th, start, angles, r, tol, light_ij, s, di, dj)?;
+    if std::env::var("CHESS_DBG").is_ok() {
+        eprintln!("fit at {:.1},{:.1}: r {r:.1} blur {:.2} c {:.1} sector {:.2}", th[0], th[1], th[4].exp(), 2.0 * th[6].abs(), worst_sector(&th, &px, r));
+    }
+    if worst_sector(&th, &px, r) > 0.25 * 2.0 * th[6].abs() {
+        return Err(Fail::NotCorner("one of its four squares does not fit a corner model"));
+    }
     let rms = (cost / wsum.max(1.0)).sqrt();
-    if rms > 0.08 * 2.0 * th[6].abs() + 1.5 * s.noise {
+    if rms > 0.25 * 2.0 * th[6].abs() + 2.0 * s.noise {
         return Err(Fail::NotCorner("the image does not fit a corner model"));
     }
     let c = [th[0], th[1]];
@@ -452,6 +578,32 @@ pub(crate) fn refine(
     })
 }
 
+/// Largest absolute mean residual over the four sectors between the fitted edges
+/// (pixels more than two blur widths from both edges): about zero at an X-junction,
+/// half the contrast where one square is not what the model says (the tip of a
+/// square cut by a stripe, an L where the board ends).
+fn worst_sector(th: &Vec11, px: &[[f64; 4]], r: f64) -> f64 {
+    let (s1a, c1a) = th[2].sin_cos();
+    let (s2a, c2a) = th[3].sin_cos();
+    let away = (2.0 * th[4].exp() + 0.5).min(0.4 * r);
+    let inv_r = 1.0 / r;
+    let mut acc = [[0f64; 2]; 4];
+    for q in px {
+        let s1 = -s1a * q[0] + c1a * q[1];
+        let s2 = -s2a * q[0] + c2a * q[1];
+        if s1.abs() < away || s2.abs() < away {
+            continue;
+        }
+        let k = (s1 > 0.0) as usize * 2 + (s2 > 0.0) as usize;
+        let (f, _, _) = model(th, q[0], q[1], inv_r);
+        acc[k][0] += q[3] * (q[2] - f);
+        acc[k][1] += q[3];
+    }
+    acc.iter()
+        .map(|a| if a[1] >= 3.0 { (a[0] / a[1]).abs() } else { f64::INFINITY })
+        .fold(0.0, f64::max)
+}
+
 /// Checks the fitted model: position, contrast, blur, edge directions, polarity.
 #[allow(clippy::too_many_arguments)]
 fn validate(
@@ -470,7 +622,7 @@ fn validate(
         return Err(Fail::NotCorner("the saddle point is far from the predicted position"));
     }
     let contrast = 2.0 * th[6].abs();
-    if contrast < 6.0 * s.noise {
+    if contrast < 4.0 * s.noise {
         return Err(Fail::NotCorner("too little contrast for a corner"));
     }
     let blur = th[4].exp();
