@@ -20,9 +20,10 @@ impl Gray {
         for y in 0..h {
             let start = px.len();
             px.extend(v.row(y).iter().map(|p| p.to_f32()));
+            // written so that it vectorises (no NaN in pixel values)
             for &f in &px[start..] {
-                lo = lo.min(f);
-                hi = hi.max(f);
+                lo = if f < lo { f } else { lo };
+                hi = if f > hi { f } else { hi };
             }
         }
         (Gray { w, h, px }, lo, hi)

@@ -101,6 +101,10 @@ pub(crate) struct Settings {
 #[inline]
 fn erf_exp(x: f64) -> (f64, f64) {
     let a = x.abs();
+    if a > 6.0 {
+        // erf within 3e-17 of +-1, exp(-36) below 3e-16
+        return (x.signum(), 0.0);
+    }
     let t = 1.0 / (1.0 + 0.3275911 * a);
     let e = (-a * a).exp();
     let poly =
@@ -134,61 +138,117 @@ fn window(g: &Gray, c: [f64; 2], r: f64, mask: &HashSet<(i32, i32)>, out: &mut V
     }
 }
 
-/// Model value and its gradient with respect to the 11 parameters at offset `(dx, dy)`
-/// from the centre (`th = [cx, cy, a1, a2, ln s, p0..p5]`).
-#[inline]
-fn model(th: &Vec11, dx: f64, dy: f64, inv_r: f64) -> (f64, Vec11, f64) {
-    let (s1a, c1a) = th[2].sin_cos();
-    let (s2a, c2a) = th[3].sin_cos();
-    let k = std::f64::consts::FRAC_1_SQRT_2 * (-th[4]).exp();
-    let s1 = -s1a * dx + c1a * dy;
-    let s2 = -s2a * dx + c2a * dy;
-    let (e1, g1) = erf_exp(k * s1);
-    let (e2, g2) = erf_exp(k * s2);
-    let (g1, g2) = (TWO_OVER_SQRT_PI * g1, TWO_OVER_SQRT_PI * g2);
-    let m = e1 * e2;
-    let (ux, uy) = (dx * inv_r, dy * inv_r);
-    let f = th[5] + th[6] * m + (th[7] + th[8] * m) * ux + (th[9] + th[10] * m) * uy;
-    let a = th[6] + th[8] * ux + th[10] * uy;
-    let dm_ds1 = k * g1 * e2;
-    let dm_ds2 = k * g2 * e1;
-    let mut j = Vec11::zeros();
-    // s1 = n1 . (x - c): ds1/dcx = s1a, ds1/dcy = -c1a
-    j[0] = a * (dm_ds1 * s1a + dm_ds2 * s2a) - (th[7] + th[8] * m) * inv_r;
-    j[1] = a * (-dm_ds1 * c1a - dm_ds2 * c2a) - (th[9] + th[10] * m) * inv_r;
-    // ds1/da1 = -(c1a dx + s1a dy)
-    j[2] = a * dm_ds1 * -(c1a * dx + s1a * dy);
-    j[3] = a * dm_ds2 * -(c2a * dx + s2a * dy);
-    j[4] = a * -(k * s1 * g1 * e2 + k * s2 * g2 * e1);
-    j[5] = 1.0;
-    j[6] = m;
-    j[7] = ux;
-    j[8] = m * ux;
-    j[9] = uy;
-    j[10] = m * uy;
-    (f, j, m)
+/// The model for one parameter vector (`th = [cx, cy, a1, a2, ln s, p0..p5]`), with
+/// the per-vector constants computed once.
+struct Model {
+    th: Vec11,
+    s1a: f64,
+    c1a: f64,
+    s2a: f64,
+    c2a: f64,
+    k: f64,
+    inv_r: f64,
+}
+
+impl Model {
+    fn new(th: &Vec11, inv_r: f64) -> Model {
+        let (s1a, c1a) = th[2].sin_cos();
+        let (s2a, c2a) = th[3].sin_cos();
+        Model {
+            th: *th,
+            s1a,
+            c1a,
+            s2a,
+            c2a,
+            k: std::f64::consts::FRAC_1_SQRT_2 * (-th[4]).exp(),
+            inv_r,
+        }
+    }
+
+    /// Model value and `M` at offset `(dx, dy)` from the centre.
+    #[inline]
+    fn value(&self, dx: f64, dy: f64) -> (f64, f64) {
+        let th = &self.th;
+        let s1 = -self.s1a * dx + self.c1a * dy;
+        let s2 = -self.s2a * dx + self.c2a * dy;
+        let m = erf_exp(self.k * s1).0 * erf_exp(self.k * s2).0;
+        let (ux, uy) = (dx * self.inv_r, dy * self.inv_r);
+        (th[5] + th[6] * m + (th[7] + th[8] * m) * ux + (th[9] + th[10] * m) * uy, m)
+    }
+
+    /// Model value and its gradient with respect to the 11 parameters.
+    #[inline]
+    fn eval(&self, dx: f64, dy: f64) -> (f64, Vec11) {
+        let (th, k, inv_r) = (&self.th, self.k, self.inv_r);
+        let (s1a, c1a, s2a, c2a) = (self.s1a, self.c1a, self.s2a, self.c2a);
+        let s1 = -s1a * dx + c1a * dy;
+        let s2 = -s2a * dx + c2a * dy;
+        let (e1, g1) = erf_exp(k * s1);
+        let (e2, g2) = erf_exp(k * s2);
+        let (g1, g2) = (TWO_OVER_SQRT_PI * g1, TWO_OVER_SQRT_PI * g2);
+        let m = e1 * e2;
+        let (ux, uy) = (dx * inv_r, dy * inv_r);
+        let f = th[5] + th[6] * m + (th[7] + th[8] * m) * ux + (th[9] + th[10] * m) * uy;
+        let a = th[6] + th[8] * ux + th[10] * uy;
+        let dm_ds1 = k * g1 * e2;
+        let dm_ds2 = k * g2 * e1;
+        let mut j = Vec11::zeros();
+        // s1 = n1 . (x - c): ds1/dcx = s1a, ds1/dcy = -c1a
+        j[0] = a * (dm_ds1 * s1a + dm_ds2 * s2a) - (th[7] + th[8] * m) * inv_r;
+        j[1] = a * (-dm_ds1 * c1a - dm_ds2 * c2a) - (th[9] + th[10] * m) * inv_r;
+        // ds1/da1 = -(c1a dx + s1a dy)
+        j[2] = a * dm_ds1 * -(c1a * dx + s1a * dy);
+        j[3] = a * dm_ds2 * -(c2a * dx + s2a * dy);
+        j[4] = -a * (s1 * dm_ds1 + s2 * dm_ds2);
+        j[5] = 1.0;
+        j[6] = m;
+        j[7] = ux;
+        j[8] = m * ux;
+        j[9] = uy;
+        j[10] = m * uy;
+        (f, j)
+    }
 }
 
 /// Normal equations of the window: `(J^T W J, J^T W r, cost, weight sum)`.
 fn normal(th: &Vec11, px: &[[f64; 4]], inv_r: f64) -> (Mat, Vec11, f64, f64) {
-    let mut h = Mat::zeros();
+    // upper triangle of J^T W J, row by row
+    let mut tri = [0f64; NP * (NP + 1) / 2];
     let mut b = Vec11::zeros();
     let (mut cost, mut wsum) = (0.0, 0.0);
+    let md = Model::new(th, inv_r);
     for q in px {
-        let (f, j, _) = model(th, q[0], q[1], inv_r);
+        let (f, j) = md.eval(q[0], q[1]);
         let r = q[2] - f;
-        h.ger(q[3], &j, &j, 1.0);
+        let mut k = 0;
+        for a in 0..NP {
+            let wa = q[3] * j[a];
+            for c in a..NP {
+                tri[k] += wa * j[c];
+                k += 1;
+            }
+        }
         b.axpy(q[3] * r, &j, 1.0);
         cost += q[3] * r * r;
         wsum += q[3];
+    }
+    let mut h = Mat::zeros();
+    let mut k = 0;
+    for a in 0..NP {
+        for c in a..NP {
+            h[(a, c)] = tri[k];
+            h[(c, a)] = tri[k];
+            k += 1;
+        }
     }
     (h, b, cost, wsum)
 }
 
 fn cost_of(th: &Vec11, px: &[[f64; 4]], inv_r: f64) -> f64 {
+    let md = Model::new(th, inv_r);
     px.iter()
         .map(|q| {
-            let (f, _, _) = model(th, q[0], q[1], inv_r);
+            let (f, _) = md.value(q[0], q[1]);
             q[3] * (q[2] - f).powi(2)
         })
         .sum()
@@ -314,7 +374,7 @@ fn fit(
             break;
         };
         th = t2;
-        if delta[0].hypot(delta[1]) < 1e-4 && delta[2].abs() < 1e-4 && delta[3].abs() < 1e-4 {
+        if delta[0].hypot(delta[1]) < 2e-4 && delta[2].abs() < 2e-4 && delta[3].abs() < 2e-4 {
             break;
         }
     }
@@ -426,9 +486,10 @@ fn dark_sector_stripe(
 /// ones), see [`stripe_of`].
 fn residual_stripe(th: &Vec11, px: &[[f64; 4]], r: f64, noise: f64) -> HashSet<(i32, i32)> {
     let thr = (1.5 * th[6].abs()).max(8.0 * noise);
+    let md = Model::new(th, 1.0 / r);
     let bright: Vec<(i32, i32)> = px
         .iter()
-        .filter(|q| q[2] - model(th, q[0], q[1], 1.0 / r).0 > thr)
+        .filter(|q| q[2] - md.value(q[0], q[1]).0 > thr)
         .map(|q| ((q[0] + th[0]).round() as i32, (q[1] + th[1]).round() as i32))
         .collect();
     stripe_of(bright, r)
@@ -550,9 +611,6 @@ pub(crate) fn refine(
         (th, px, h, cost, wsum) = fit(g, c0, angles, r, &all).ok_or(Fail::Stripe)?;
     }
     validate(&th, start, angles, r, tol, light_ij, s, di, dj)?;
-    if std::env::var("CHESS_DBG").is_ok() {
-        eprintln!("fit at {:.1},{:.1}: r {r:.1} blur {:.2} c {:.1} sector {:.2}", th[0], th[1], th[4].exp(), 2.0 * th[6].abs(), worst_sector(&th, &px, r));
-    }
     if worst_sector(&th, &px, r) > 0.25 * 2.0 * th[6].abs() {
         return Err(Fail::NotCorner("one of its four squares does not fit a corner model"));
     }
@@ -586,7 +644,7 @@ fn worst_sector(th: &Vec11, px: &[[f64; 4]], r: f64) -> f64 {
     let (s1a, c1a) = th[2].sin_cos();
     let (s2a, c2a) = th[3].sin_cos();
     let away = (2.0 * th[4].exp() + 0.5).min(0.4 * r);
-    let inv_r = 1.0 / r;
+    let md = Model::new(th, 1.0 / r);
     let mut acc = [[0f64; 2]; 4];
     for q in px {
         let s1 = -s1a * q[0] + c1a * q[1];
@@ -595,7 +653,7 @@ fn worst_sector(th: &Vec11, px: &[[f64; 4]], r: f64) -> f64 {
             continue;
         }
         let k = (s1 > 0.0) as usize * 2 + (s2 > 0.0) as usize;
-        let (f, _, _) = model(th, q[0], q[1], inv_r);
+        let (f, _) = md.value(q[0], q[1]);
         acc[k][0] += q[3] * (q[2] - f);
         acc[k][1] += q[3];
     }
@@ -640,7 +698,7 @@ fn validate(
         // model sign half-way into the square between +i and +j
         let (ui, uj) = (norm(di), norm(dj));
         let d = [0.25 * r * (di[0] / ui + dj[0] / uj), 0.25 * r * (di[1] / ui + dj[1] / uj)];
-        let (_, _, m) = model(th, d[0], d[1], 1.0 / r);
+        let (_, m) = Model::new(th, 1.0 / r).value(d[0], d[1]);
         if (th[6] * m > 0.0) != light {
             return Err(Fail::NotCorner("the square colours around the corner are swapped"));
         }
@@ -670,15 +728,15 @@ mod tests {
         let inv_r = 1.0 / 6.0;
         for &(x, y) in &[(1.2, 0.7), (-2.0, 1.5), (0.1, -0.3)] {
             let (dx, dy) = (x - th[0], y - th[1]);
-            let (_, j, _) = model(&th, dx, dy, inv_r);
+            let (_, j) = Model::new(&th, inv_r).eval(dx, dy);
             for k in 0..NP {
                 let h = 1e-6;
                 let mut tp = th;
                 tp[k] += h;
                 let mut tm = th;
                 tm[k] -= h;
-                let fp = model(&tp, x - tp[0], y - tp[1], inv_r).0;
-                let fm = model(&tm, x - tm[0], y - tm[1], inv_r).0;
+                let fp = Model::new(&tp, inv_r).value(x - tp[0], y - tp[1]).0;
+                let fm = Model::new(&tm, inv_r).value(x - tm[0], y - tm[1]).0;
                 let fd = (fp - fm) / (2.0 * h);
                 assert!((fd - j[k]).abs() < 1e-4 * (1.0 + fd.abs()), "param {k}: {fd} vs {}", j[k]);
             }
