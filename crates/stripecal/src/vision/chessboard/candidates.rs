@@ -205,7 +205,11 @@ mod tests {
             for x in 0..w {
                 let corner = (x < 20) == (y < 20);
                 let edge = x < 20;
-                px[y * w + x] = if y < 40 && x < 40 && corner { 200.0 } else { 50.0 };
+                px[y * w + x] = if y < 40 && x < 40 && corner {
+                    200.0
+                } else {
+                    50.0
+                };
                 let _ = edge;
             }
         }

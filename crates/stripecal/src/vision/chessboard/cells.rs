@@ -43,8 +43,8 @@ pub(crate) fn patch_median(
 }
 
 /// The two cells on either side of the link between sites `a` and `b` (4-neighbours):
-/// `((cell on the +e side, its centre offset sign), (cell on the -e side))`, where `e`
-/// is the lattice axis perpendicular to the link.
+/// `(cell on the +e side, cell on the -e side)`, where `e` is the lattice axis
+/// perpendicular to the link.
 pub(crate) fn link_cells(a: Coord, b: Coord) -> (Coord, Coord) {
     let lo = (a.0.min(b.0), a.1.min(b.1));
     if a.1 == b.1 {
@@ -67,6 +67,7 @@ pub(crate) enum Check {
 /// either side must have the colours of phase `phase`, the dark one darker than the
 /// light one by at least `thr`. `perp` is the image vector of one lattice step along
 /// the axis perpendicular to the link, in the direction of increasing coordinate.
+#[allow(clippy::too_many_arguments)]
 pub(crate) fn check_link(
     g: &Gray,
     a: Coord,
@@ -77,7 +78,7 @@ pub(crate) fn check_link(
     phase: u8,
     thr: f32,
 ) -> Check {
-    let (plus, minus) = link_cells(a, b);
+    let (plus, _) = link_cells(a, b);
     let mid = [0.5 * (pa[0] + pb[0]), 0.5 * (pa[1] + pb[1])];
     let along = [pb[0] - pa[0], pb[1] - pa[1]];
     let centre = |s: f64| [mid[0] + s * 0.5 * perp[0], mid[1] + s * 0.5 * perp[1]];
@@ -116,8 +117,16 @@ pub(crate) fn phase_of(
             let b = (a.0 + d.0, a.1 + d.1);
             let Some(&kb) = at.get(&b) else { continue };
             // perpendicular step from the neighbours on either side
-            let q = if d.0 == 1 { (a.0, a.1 + 1) } else { (a.0 + 1, a.1) };
-            let q2 = if d.0 == 1 { (a.0, a.1 - 1) } else { (a.0 - 1, a.1) };
+            let q = if d.0 == 1 {
+                (a.0, a.1 + 1)
+            } else {
+                (a.0 + 1, a.1)
+            };
+            let q2 = if d.0 == 1 {
+                (a.0, a.1 - 1)
+            } else {
+                (a.0 - 1, a.1)
+            };
             let (pa, pb) = (pos[ka], pos[kb]);
             let perp = match (at.get(&q), at.get(&q2)) {
                 (Some(&kq), _) => [pos[kq][0] - pa[0], pos[kq][1] - pa[1]],

@@ -95,7 +95,10 @@ pub(crate) fn side_status(
     let Some(amax) = at.keys().map(a_of).max() else {
         return Side::Unknown;
     };
-    if stripe_sites.iter().any(|t| a_of(t) >= amax && a_of(t) <= amax + 1) {
+    if stripe_sites
+        .iter()
+        .any(|t| a_of(t) >= amax && a_of(t) <= amax + 1)
+    {
         return Side::Unknown;
     }
     let line: Vec<i32> = at.keys().filter(|t| a_of(t) == amax).map(b_of).collect();
@@ -118,7 +121,10 @@ pub(crate) fn side_status(
     };
     let am = amax as f64;
     let dark_at = |a: f64, b: f64| {
-        let (li, lj) = (a * n.0 as f64 + b * e.0 as f64, a * n.1 as f64 + b * e.1 as f64);
+        let (li, lj) = (
+            a * n.0 as f64 + b * e.0 as f64,
+            a * n.1 as f64 + b * e.1 as f64,
+        );
         cell_dark(li.floor() as i32, lj.floor() as i32, phase)
     };
     let (mut light, mut dark) = (Vec::new(), Vec::new());
@@ -129,17 +135,45 @@ pub(crate) fn side_status(
         let bb = (b as f64 + 0.25, b as f64 + 0.75);
         let inner_dark = dark_at(am - 0.5, b as f64 + 0.5);
         if let Some(v) = band_median(g, &h, n, e, (am - 0.75, am - 0.25), bb) {
-            if inner_dark { dark.push(v) } else { light.push(v) }
+            if inner_dark {
+                dark.push(v)
+            } else {
+                light.push(v)
+            }
         }
         if let Some(v) = band_median(g, &h, n, e, (am + 0.25, am + 0.75), bb) {
-            if inner_dark { light.push(v) } else { dark.push(v) }
+            if inner_dark {
+                light.push(v)
+            } else {
+                dark.push(v)
+            }
             outer.push((!inner_dark, v));
         }
-        if let Some(v) = band_median(g, &h, n, e, (am + 1.1, am + 1.4), (b as f64 + 0.2, b as f64 + 0.8)) {
+        if let Some(v) = band_median(
+            g,
+            &h,
+            n,
+            e,
+            (am + 1.1, am + 1.4),
+            (b as f64 + 0.2, b as f64 + 0.8),
+        ) {
             // a continued chessboard would repeat the inner square's colour
             beyond.push((inner_dark, v));
         }
     }
+    decide(light, dark, &outer, &beyond, cells, noise)
+}
+
+/// The side's status from the light and dark squares' samples, the outer squares
+/// `(dark, value)` and the beyond band `(dark if continued, value)` (module docs).
+fn decide(
+    mut light: Vec<f32>,
+    mut dark: Vec<f32>,
+    outer: &[(bool, f32)],
+    beyond: &[(bool, f32)],
+    cells: usize,
+    noise: f32,
+) -> Side {
     let (Some(lv), Some(dv)) = (median(&mut light), median(&mut dark)) else {
         return Side::Unknown;
     };
@@ -147,10 +181,14 @@ pub(crate) fn side_status(
     if c < 4.0 * noise || outer.is_empty() {
         return Side::Unknown;
     }
-    let outer_ok = outer
-        .iter()
-        .all(|&(is_dark, v)| if is_dark { v <= dv + 0.35 * c } else { v >= lv - 0.35 * c });
-    if !outer_ok || beyond.is_empty() {
+    let fits = |&(is_dark, v): &(bool, f32)| {
+        if is_dark {
+            v <= dv + 0.35 * c
+        } else {
+            v >= lv - 0.35 * c
+        }
+    };
+    if !outer.iter().all(fits) || beyond.is_empty() {
         return Side::Unknown;
     }
     if beyond.iter().any(|&(_, v)| v > lv + 0.6 * c) {
@@ -159,13 +197,8 @@ pub(crate) fn side_status(
     let dark_seen = beyond.iter().filter(|x| x.0).count();
     let all_light = beyond.iter().all(|&(_, v)| v >= lv - 0.3 * c);
     if all_light && dark_seen >= 1 && 2 * beyond.len() >= cells {
-        return Side::End;
-    }
-    let alternates = dark_seen >= 1
-        && beyond
-            .iter()
-            .all(|&(is_dark, v)| if is_dark { v <= dv + 0.35 * c } else { v >= lv - 0.35 * c });
-    if alternates {
+        Side::End
+    } else if dark_seen >= 1 && beyond.iter().all(fits) {
         Side::Continues
     } else {
         Side::Unknown

@@ -93,7 +93,7 @@ fn seed(ctx: &Ctx, s: usize) -> Option<(Seed, u8, f64)> {
             return;
         }
         let d2 = (ctx.pos[k][0] - p[0]).powi(2) + (ctx.pos[k][1] - p[1]).powi(2);
-        if d2 <= MAX_PITCH * MAX_PITCH && d2 >= 4.0 {
+        if (4.0..=MAX_PITCH * MAX_PITCH).contains(&d2) {
             near.push((d2, k));
         }
     });
@@ -109,12 +109,22 @@ fn seed(ctx: &Ctx, s: usize) -> Option<(Seed, u8, f64)> {
     let k = |x: usize| near[x].1;
     if let Some(([a, a2, b, b2], score)) = best_cross(&v) {
         let phase = quadrant_phase(ctx, s, v[a], v[b])?;
-        let sites = vec![((0, 0), s), ((1, 0), k(a)), ((-1, 0), k(a2)), ((0, 1), k(b)), ((0, -1), k(b2))];
+        let sites = vec![
+            ((0, 0), s),
+            ((1, 0), k(a)),
+            ((-1, 0), k(a2)),
+            ((0, 1), k(b)),
+            ((0, -1), k(b2)),
+        ];
         return Some((sites, phase, score));
     }
     let (a, b, d, score) = best_l(ctx, s, &v)?;
     let phase = quadrant_phase(ctx, s, v[a], v[b])?;
-    Some((vec![((0, 0), s), ((1, 0), k(a)), ((0, 1), k(b)), ((1, 1), d)], phase, 10.0 + score))
+    Some((
+        vec![((0, 0), s), ((1, 0), k(a)), ((0, 1), k(b)), ((1, 1), d)],
+        phase,
+        10.0 + score,
+    ))
 }
 
 fn cosine(a: [f64; 2], b: [f64; 2]) -> f64 {
@@ -145,7 +155,8 @@ fn best_cross(v: &[[f64; 2]]) -> Option<([usize; 4], f64)> {
                     }
                     // nearer neighbours are preferred: a cross of farther candidates
                     // around a closer one is not this corner's
-                    let score = 0.1 * (sym(a, a2) + sym(b, b2)) + 0.1 * (a + a2 + b + b2) as f64 / 6.0;
+                    let score =
+                        0.1 * (sym(a, a2) + sym(b, b2)) + 0.1 * (a + a2 + b + b2) as f64 / 6.0;
                     if best.is_none_or(|(_, sc)| score < sc) {
                         best = Some(([a, a2, b, b2], score));
                     }
@@ -171,7 +182,11 @@ fn best_l(ctx: &Ctx, s: usize, v: &[[f64; 2]]) -> Option<(usize, usize, usize, f
             let mut far: Option<(f64, usize)> = None;
             ctx.index.visit(q, tol, |k| {
                 let d2 = (ctx.pos[k][0] - q[0]).powi(2) + (ctx.pos[k][1] - q[1]).powi(2);
-                if k != s && ctx.pol(s, k) > 0.3 && d2 < tol * tol && far.is_none_or(|(bd, _)| d2 < bd) {
+                if k != s
+                    && ctx.pol(s, k) > 0.3
+                    && d2 < tol * tol
+                    && far.is_none_or(|(bd, _)| d2 < bd)
+                {
                     far = Some((d2, k));
                 }
             });
@@ -194,7 +209,12 @@ fn quadrant_phase(ctx: &Ctx, s: usize, a: [f64; 2], b: [f64; 2]) -> Option<u8> {
         let c = [p[0] + 0.5 * (x[0] + y[0]), p[1] + 0.5 * (x[1] + y[1])];
         patch_median(ctx.g, c, x, y, 0.2, 4)
     };
-    let (c00, c10, c11, c01) = (cell(a, b)?, cell(neg(a), b)?, cell(neg(a), neg(b))?, cell(a, neg(b))?);
+    let (c00, c10, c11, c01) = (
+        cell(a, b)?,
+        cell(neg(a), b)?,
+        cell(neg(a), neg(b))?,
+        cell(a, neg(b))?,
+    );
     let thr = (0.3 * ctx.cands[s].contrast).max(3.0 * ctx.noise);
     if c00.max(c11) + thr <= c10.min(c01) {
         Some(0) // cells (0, 0) and (-1, -1) dark
@@ -233,12 +253,24 @@ fn accepts(ctx: &Ctx, at: &HashMap<Coord, usize>, phase: u8, t: Coord, k: usize)
         let Some(&n) = at.get(&nb) else { continue };
         // perpendicular step at the neighbour, from its own neighbours
         let e = if d.0 != 0 { (0, 1) } else { (1, 0) };
-        let perp = match (at.get(&(nb.0 + e.0, nb.1 + e.1)), at.get(&(nb.0 - e.0, nb.1 - e.1))) {
+        let perp = match (
+            at.get(&(nb.0 + e.0, nb.1 + e.1)),
+            at.get(&(nb.0 - e.0, nb.1 - e.1)),
+        ) {
             (Some(&q), _) => [ctx.pos[q][0] - ctx.pos[n][0], ctx.pos[q][1] - ctx.pos[n][1]],
             (None, Some(&q)) => [ctx.pos[n][0] - ctx.pos[q][0], ctx.pos[n][1] - ctx.pos[q][1]],
             _ => continue,
         };
-        match check_link(ctx.g, t, nb, ctx.pos[k], ctx.pos[n], perp, phase, ctx.thr(k, n)) {
+        match check_link(
+            ctx.g,
+            t,
+            nb,
+            ctx.pos[k],
+            ctx.pos[n],
+            perp,
+            phase,
+            ctx.thr(k, n),
+        ) {
             Check::Pass => pass += 1,
             Check::Fail => return false,
             Check::Unknown => {}
@@ -271,7 +303,9 @@ fn grow(ctx: &Ctx, seed: &Seed, phase: u8, taken: &mut [bool]) -> HashMap<Coord,
         targets.dedup();
         let mut proposals: Vec<(f64, Coord, usize)> = Vec::new();
         for &t in &targets {
-            let Some(l) = predict_any(&at, &ctx.pos, t) else { continue };
+            let Some(l) = predict_any(&at, &ctx.pos, t) else {
+                continue;
+            };
             let tol = 0.3 * l.pitch();
             let mut best: Option<(f64, usize)> = None;
             ctx.index.visit(l.p, tol, |k| {
@@ -298,7 +332,12 @@ fn grow(ctx: &Ctx, seed: &Seed, phase: u8, taken: &mut [bool]) -> HashMap<Coord,
             }
             at.insert(t, k);
             taken[k] = true;
-            ext = (ext.0.min(t.0), ext.1.max(t.0), ext.2.min(t.1), ext.3.max(t.1));
+            ext = (
+                ext.0.min(t.0),
+                ext.1.max(t.0),
+                ext.2.min(t.1),
+                ext.3.max(t.1),
+            );
             added += 1;
         }
         if added == 0 {
@@ -374,6 +413,6 @@ pub(crate) fn find_grids(ctx: &Ctx, max_grids: usize) -> Vec<Grid> {
             });
         }
     }
-    grids.sort_by(|a, b| b.at.len().cmp(&a.at.len()));
+    grids.sort_by_key(|g| std::cmp::Reverse(g.at.len()));
     grids
 }

@@ -17,7 +17,7 @@
 use crate::board::{Board, Symmetry};
 use crate::error::{Error, Result};
 
-use super::edges::{Side, OUTWARD};
+use super::edges::Side;
 
 /// `(col, row) = R_k (i, j) + t`.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
@@ -65,7 +65,7 @@ pub(crate) struct GridView<'a> {
     pub ext: (i32, i32, i32, i32),
     /// Colour phase: lattice cell `(i, j)` is dark iff `i + j + phase` is even.
     pub phase: u8,
-    /// Sides in the order of [`OUTWARD`].
+    /// Sides in the order of `edges::OUTWARD` (`-i, +i, -j, +j`).
     pub sides: [Side; 4],
     /// Image directions of `+i` and `+j` (a right-handed lattice: `cross(di, dj) > 0`).
     pub di: [f64; 2],
@@ -107,7 +107,8 @@ pub(crate) fn candidates(board: &Board, g: &GridView) -> Vec<Labelling> {
                 if !g.sites.iter().all(|&(i, j)| on_board(board, l.apply(i, j))) {
                     continue;
                 }
-                let ends_ok = (0..4).all(|s| g.sides[s] != Side::End || !on_board(board, outward(&l, g, s)));
+                let ends_ok =
+                    (0..4).all(|s| g.sides[s] != Side::End || !on_board(board, outward(&l, g, s)));
                 if ends_ok {
                     out.push(l);
                 }
@@ -132,7 +133,11 @@ fn outward(l: &Labelling, g: &GridView, s: usize) -> (i64, i64) {
 const SIDE_NAMES: [&str; 4] = ["-i", "+i", "-j", "+j"];
 
 /// The labelling of the grid, and the board symmetries that give the others.
-pub(crate) fn label(board: &Board, g: &GridView, mirrored: &GridView) -> Result<(Labelling, Vec<Symmetry>)> {
+pub(crate) fn label(
+    board: &Board,
+    g: &GridView,
+    mirrored: &GridView,
+) -> Result<(Labelling, Vec<Symmetry>)> {
     let (imin, imax, jmin, jmax) = g.ext;
     let (ni, nj) = (imax - imin + 1, jmax - jmin + 1);
     let ends = g.sides.iter().filter(|s| **s == Side::End).count();
@@ -140,7 +145,10 @@ pub(crate) fn label(board: &Board, g: &GridView, mirrored: &GridView) -> Result<
         "a grid of {ni} x {nj} corners ({} sites; sides ending at the board's outer squares: {ends} of 4)",
         g.sites.len()
     );
-    let want = format!("rig.json's board has {} rows x {} cols of inner corners", board.rows, board.cols);
+    let want = format!(
+        "rig.json's board has {} rows x {} cols of inner corners",
+        board.rows, board.cols
+    );
     let v = candidates(board, g);
     if v.is_empty() {
         let fits = |a: i32, b: i32| a as usize <= board.cols && b as usize <= board.rows;
@@ -151,7 +159,9 @@ pub(crate) fn label(board: &Board, g: &GridView, mirrored: &GridView) -> Result<
         } else if ends == 4 {
             format!("found a complete chessboard of {ni} x {nj} corners (the squares end on all four sides): {want}")
         } else {
-            format!("found {seen} whose square colours and ends fit no placement on the board: {want}")
+            format!(
+                "found {seen} whose square colours and ends fit no placement on the board: {want}"
+            )
         };
         return Err(Error::Detection(msg));
     }
@@ -176,19 +186,22 @@ pub(crate) fn label(board: &Board, g: &GridView, mirrored: &GridView) -> Result<
         )));
     }
     // squares that go on beyond a side the labelling puts at the board's edge
-    for s in 0..4 {
+    for (s, name) in SIDE_NAMES.iter().enumerate() {
         if g.sides[s] == Side::Continues && !on_board(board, outward(&first, g, s)) {
             return Err(Error::Detection(format!(
                 "found {seen}: squares continue beyond its {} side, where the board ends: the board in \
                  the image is larger than {want}, or its corners there were missed",
-                SIDE_NAMES[s]
+                name
             )));
         }
     }
     // within the orbit: +col pointing most along +u, then the fewest quarter turns
     let score = |l: &Labelling| {
         let (a, b) = rot((4 - l.k % 4) % 4, (1, 0));
-        let d = [a as f64 * g.di[0] + b as f64 * g.dj[0], a as f64 * g.di[1] + b as f64 * g.dj[1]];
+        let d = [
+            a as f64 * g.di[0] + b as f64 * g.dj[0],
+            a as f64 * g.di[1] + b as f64 * g.dj[1],
+        ];
         d[0] / (d[0].hypot(d[1])).max(1e-12)
     };
     let mut best = first;
@@ -198,7 +211,6 @@ pub(crate) fn label(board: &Board, g: &GridView, mirrored: &GridView) -> Result<
             best = *l;
         }
     }
-    let _ = OUTWARD;
     Ok((best, syms))
 }
 
@@ -210,7 +222,12 @@ mod tests {
         (0..ni).flat_map(|i| (0..nj).map(move |j| (i, j))).collect()
     }
 
-    fn view(sites: &[(i32, i32)], ext: (i32, i32, i32, i32), phase: u8, sides: [Side; 4]) -> GridView<'_> {
+    fn view(
+        sites: &[(i32, i32)],
+        ext: (i32, i32, i32, i32),
+        phase: u8,
+        sides: [Side; 4],
+    ) -> GridView<'_> {
         GridView {
             ext,
             phase,
@@ -227,11 +244,21 @@ mod tests {
         let s = full(9, 6);
         let u = [Side::Unknown; 4];
         // phase 0: cell (0, 0) dark; the board's square (0, 0) is dark: identity
-        let (l, syms) = label(&b, &view(&s, (0, 8, 0, 5), 0, u), &view(&s, (0, 5, 0, 8), 0, u)).unwrap();
+        let (l, syms) = label(
+            &b,
+            &view(&s, (0, 8, 0, 5), 0, u),
+            &view(&s, (0, 5, 0, 8), 0, u),
+        )
+        .unwrap();
         assert_eq!(l, Labelling { k: 0, t: (0, 0) });
         assert!(syms.is_empty());
         // swapped colours: the half turn
-        let (l, _) = label(&b, &view(&s, (0, 8, 0, 5), 1, u), &view(&s, (0, 5, 0, 8), 1, u)).unwrap();
+        let (l, _) = label(
+            &b,
+            &view(&s, (0, 8, 0, 5), 1, u),
+            &view(&s, (0, 5, 0, 8), 1, u),
+        )
+        .unwrap();
         assert_eq!(l, Labelling { k: 2, t: (8, 5) });
         assert_eq!(l.apply(0, 0), (8, 5));
         assert_eq!(l.inverse(8, 5), (0, 0));
@@ -242,16 +269,31 @@ mod tests {
         let b = Board::chessboard(6, 9, 20.0).unwrap();
         let s = full(7, 6);
         let u = [Side::Unknown; 4];
-        let e = label(&b, &view(&s, (0, 6, 0, 5), 0, u), &view(&s, (0, 5, 0, 6), 0, u)).unwrap_err();
+        let e = label(
+            &b,
+            &view(&s, (0, 6, 0, 5), 0, u),
+            &view(&s, (0, 5, 0, 6), 0, u),
+        )
+        .unwrap_err();
         assert!(e.to_string().contains("only 7 of 9 columns"), "{e}");
         let mut sides = u;
         sides[0] = Side::End;
-        let (l, _) = label(&b, &view(&s, (0, 6, 0, 5), 0, sides), &view(&s, (0, 5, 0, 6), 0, sides)).unwrap();
+        let (l, _) = label(
+            &b,
+            &view(&s, (0, 6, 0, 5), 0, sides),
+            &view(&s, (0, 5, 0, 6), 0, sides),
+        )
+        .unwrap();
         assert_eq!(l.apply(0, 0), (0, 0));
         // the other end: colours say the grid's cell (0, 0) is light there
         let mut sides = u;
         sides[1] = Side::End;
-        let (l, _) = label(&b, &view(&s, (0, 6, 0, 5), 0, sides), &view(&s, (0, 5, 0, 6), 0, sides)).unwrap();
+        let (l, _) = label(
+            &b,
+            &view(&s, (0, 6, 0, 5), 0, sides),
+            &view(&s, (0, 5, 0, 6), 0, sides),
+        )
+        .unwrap();
         assert_eq!(l.apply(6, 0), (8, 0));
     }
 
@@ -260,12 +302,24 @@ mod tests {
         let b = Board::chessboard(6, 8, 20.0).unwrap();
         let s = full(9, 6);
         let u = [Side::Unknown; 4];
-        let e = label(&b, &view(&s, (0, 8, 0, 5), 0, u), &view(&s, (0, 5, 0, 8), 0, u)).unwrap_err();
+        let e = label(
+            &b,
+            &view(&s, (0, 8, 0, 5), 0, u),
+            &view(&s, (0, 5, 0, 8), 0, u),
+        )
+        .unwrap_err();
         assert!(e.to_string().contains("9 x 6"), "{e}");
         let b = Board::chessboard(6, 10, 20.0).unwrap();
-        let e = label(&b, &view(&s, (0, 8, 0, 5), 0, [Side::End; 4]), &view(&s, (0, 5, 0, 8), 0, [Side::End; 4]))
-            .unwrap_err();
-        assert!(e.to_string().contains("complete chessboard of 9 x 6"), "{e}");
+        let e = label(
+            &b,
+            &view(&s, (0, 8, 0, 5), 0, [Side::End; 4]),
+            &view(&s, (0, 5, 0, 8), 0, [Side::End; 4]),
+        )
+        .unwrap_err();
+        assert!(
+            e.to_string().contains("complete chessboard of 9 x 6"),
+            "{e}"
+        );
     }
 
     #[test]
@@ -273,7 +327,12 @@ mod tests {
         let b = Board::chessboard(6, 8, 20.0).unwrap();
         let s = full(8, 6);
         let u = [Side::Unknown; 4];
-        let (_, syms) = label(&b, &view(&s, (0, 7, 0, 5), 0, u), &view(&s, (0, 5, 0, 7), 0, u)).unwrap();
+        let (_, syms) = label(
+            &b,
+            &view(&s, (0, 7, 0, 5), 0, u),
+            &view(&s, (0, 5, 0, 7), 0, u),
+        )
+        .unwrap();
         assert_eq!(syms.len(), 1);
         assert_eq!(syms[0].quarter_turns, 2);
     }

@@ -21,14 +21,6 @@ impl Local {
     pub fn pitch(&self) -> f64 {
         norm(self.di).min(norm(self.dj))
     }
-
-    /// Image position of the site displaced by `(a, b)` lattice steps.
-    pub fn at(&self, a: f64, b: f64) -> [f64; 2] {
-        [
-            self.p[0] + a * self.di[0] + b * self.dj[0],
-            self.p[1] + a * self.di[1] + b * self.dj[1],
-        ]
-    }
 }
 
 #[inline]
@@ -201,7 +193,10 @@ mod tests {
                     continue;
                 }
                 at.insert((i, j), pos.len());
-                pos.push([10.0 + 3.0 * i as f64 - j as f64, 20.0 + i as f64 + 4.0 * j as f64]);
+                pos.push([
+                    10.0 + 3.0 * i as f64 - j as f64,
+                    20.0 + i as f64 + 4.0 * j as f64,
+                ]);
             }
         }
         let l = predict(&at, &pos, (0, 0), 1).unwrap();

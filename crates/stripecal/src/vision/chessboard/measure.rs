@@ -40,12 +40,20 @@ impl Measured {
     fn prune(&mut self, tol: f64) {
         let mut at = self.at.clone();
         super::grid::leave_one_out(&mut at, &self.pos, tol);
-        let gone: Vec<Coord> = self.at.keys().filter(|t| !at.contains_key(t)).copied().collect();
+        let gone: Vec<Coord> = self
+            .at
+            .keys()
+            .filter(|t| !at.contains_key(t))
+            .copied()
+            .collect();
         for t in gone {
             if let Some(k) = self.at.remove(&t) {
                 self.failed.insert(
                     t,
-                    (Fail::NotCorner("inconsistent with its neighbours"), self.pos[k]),
+                    (
+                        Fail::NotCorner("inconsistent with its neighbours"),
+                        self.pos[k],
+                    ),
                 );
             }
         }
@@ -57,12 +65,22 @@ impl Measured {
         let lone: Vec<Coord> = self
             .at
             .keys()
-            .filter(|t| !DIRS.iter().any(|d| self.at.contains_key(&(t.0 + d.0, t.1 + d.1))))
+            .filter(|t| {
+                !DIRS
+                    .iter()
+                    .any(|d| self.at.contains_key(&(t.0 + d.0, t.1 + d.1)))
+            })
             .copied()
             .collect();
         for t in lone {
             if let Some(k) = self.at.remove(&t) {
-                self.failed.insert(t, (Fail::NotCorner("no measured corner next to it"), self.pos[k]));
+                self.failed.insert(
+                    t,
+                    (
+                        Fail::NotCorner("no measured corner next to it"),
+                        self.pos[k],
+                    ),
+                );
             }
         }
     }
@@ -76,6 +94,7 @@ impl Measured {
 /// Refines site `t` starting at `start` with the local lattice `l`; the contrast must
 /// be at least 40 % of the median of the measured sites within two steps (a corner of
 /// the same board under nearly the same light).
+#[allow(clippy::too_many_arguments)]
 pub(crate) fn measure_site(
     g: &Gray,
     m: &Measured,
@@ -86,7 +105,15 @@ pub(crate) fn measure_site(
     strict: bool,
     s: &Settings,
 ) -> Result<Saddle, Fail> {
-    let sd = refine(g, start, l.di, l.dj, Some(!cell_dark(t.0, t.1, phase)), strict, s)?;
+    let sd = refine(
+        g,
+        start,
+        l.di,
+        l.dj,
+        Some(!cell_dark(t.0, t.1, phase)),
+        strict,
+        s,
+    )?;
     let mut near: Vec<f64> = Vec::new();
     for di in -2..=2 {
         for dj in -2..=2 {
@@ -98,7 +125,9 @@ pub(crate) fn measure_site(
     if !near.is_empty() {
         near.sort_by(f64::total_cmp);
         if sd.contrast < 0.4 * near[near.len() / 2] {
-            return Err(Fail::NotCorner("too little contrast compared with the corners around it"));
+            return Err(Fail::NotCorner(
+                "too little contrast compared with the corners around it",
+            ));
         }
     }
     Ok(sd)
@@ -128,7 +157,9 @@ pub(crate) fn measure_grid(
         failed: HashMap::new(),
     };
     for (k, &t) in keys.iter().enumerate() {
-        let Some(l) = predict_any(&cat, &cpos, t) else { continue };
+        let Some(l) = predict_any(&cat, &cpos, t) else {
+            continue;
+        };
         match measure_site(g, &m, t, cpos[k], &l, phase, false, s) {
             Ok(sd) => m.insert(t, sd),
             Err(f) => {
@@ -154,7 +185,10 @@ fn extend(g: &Gray, m: &mut Measured, phase: u8, s: &Settings, cap: i32) {
                 let n = (t.0 + d.0, t.1 + d.1);
                 if !m.at.contains_key(&n) && !tried.contains(&n) {
                     targets.push(n);
-                } else if matches!(m.failed.get(&n), Some((Fail::Stripe | Fail::NotCorner(_), _))) {
+                } else if matches!(
+                    m.failed.get(&n),
+                    Some((Fail::Stripe | Fail::NotCorner(_), _))
+                ) {
                     let n2 = (t.0 + 2 * d.0, t.1 + 2 * d.1);
                     if !m.at.contains_key(&n2) && !tried.contains(&n2) {
                         targets.push(n2);
@@ -164,7 +198,9 @@ fn extend(g: &Gray, m: &mut Measured, phase: u8, s: &Settings, cap: i32) {
         }
         targets.sort_unstable();
         targets.dedup();
-        let Some(ext) = extent(m.at.keys()) else { return };
+        let Some(ext) = extent(m.at.keys()) else {
+            return;
+        };
         targets.retain(|t| {
             ext.1.max(t.0) - ext.0.min(t.0) < cap && ext.3.max(t.1) - ext.2.min(t.1) < cap
         });

@@ -42,19 +42,22 @@
 
 mod candidates;
 mod cells;
+mod checks;
 mod edges;
 mod grid;
 mod image;
 mod label;
 mod lattice;
 mod measure;
+mod model;
 mod refine;
 mod search;
+mod stripe;
 
 #[cfg(test)]
 mod tests;
 
-use std::collections::{HashMap, HashSet};
+use std::collections::HashSet;
 
 use crate::board::{Board, BoardKind};
 use crate::error::{Error, Result};
@@ -106,7 +109,10 @@ impl ChessboardOptions {
             return bad("min_response", self.min_response.to_string());
         }
         if !(self.max_window_radius_px >= 3.0 && self.max_window_radius_px <= 50.0) {
-            return bad("max_window_radius_px", self.max_window_radius_px.to_string());
+            return bad(
+                "max_window_radius_px",
+                self.max_window_radius_px.to_string(),
+            );
         }
         if !(1..=8).contains(&self.pyramid_levels) {
             return bad("pyramid_levels", self.pyramid_levels.to_string());
@@ -187,19 +193,41 @@ pub fn detect_chessboard(
     let mut m = measure::measure_grid(&g, &best.sites, best.phase, &settings, cap);
     if m.at.len() < 4 {
         return Err(Error::Detection(format!(
-            "no chessboard: the best grid ({} corners at 1/{} scale) kept {} corners after \
-             sub-pixel measurement (corner candidates per scale: {})",
+            "no chessboard: the best grid ({} corners at 1/{} scale, {} grown, {} inconsistent) \
+             kept {} corners after sub-pixel measurement (corner candidates per scale: {})",
             best.sites.len(),
             1usize << best.level,
+            best.grown,
+            best.inconsistent,
             m.at.len(),
             cand_text()
         )));
     }
     check_second_board(&grids, &m, board)?;
     let phase = best.phase;
-    let (swap, di, dj) = handedness(&m)?;
+    check_colours(&g, &m, phase, noise)?;
+    let (lab, alternatives) = label_grid(&g, &mut m, phase, noise, board)?;
+    // holes and board corners the grid did not reach
+    let board_sites: Vec<Coord> = board
+        .indices()
+        .map(|(r, c)| lab.inverse(c as i64, r as i64))
+        .collect();
+    measure::fill(&g, &mut m, &board_sites, phase, &settings);
+    Ok(assemble(board, &m, &lab, alternatives))
+}
+
+/// Board indices for the measured grid: the lattice made right-handed, the four sides
+/// tested, then [`label::label`].
+fn label_grid(
+    g: &Gray,
+    m: &mut measure::Measured,
+    phase: u8,
+    noise: f32,
+    board: &Board,
+) -> Result<(label::Labelling, Vec<crate::board::Symmetry>)> {
+    let (swap, di, dj) = handedness(m)?;
     if swap {
-        swap_axes(&mut m);
+        swap_axes(m);
     }
     let (di, dj) = if swap { (dj, di) } else { (di, dj) };
     let stripe_sites: HashSet<Coord> = m
@@ -208,11 +236,19 @@ pub fn detect_chessboard(
         .filter(|(_, (f, _))| *f == Fail::Stripe)
         .map(|(t, _)| *t)
         .collect();
-    let sides: [Side; 4] =
-        std::array::from_fn(|s| edges::side_status(&g, &m.at, &m.pos, phase, s, noise, &stripe_sites));
+    let sides: [Side; 4] = std::array::from_fn(|s| {
+        edges::side_status(g, &m.at, &m.pos, phase, s, noise, &stripe_sites)
+    });
     let sites: Vec<Coord> = m.at.keys().copied().collect();
     let ext = lattice::extent(sites.iter()).unwrap_or((0, 0, 0, 0));
-    let view = label::GridView { ext, phase, sides, di, dj, sites: &sites };
+    let view = label::GridView {
+        ext,
+        phase,
+        sides,
+        di,
+        dj,
+        sites: &sites,
+    };
     let msites: Vec<Coord> = sites.iter().map(|&(i, j)| (j, i)).collect();
     let mirrored = label::GridView {
         ext: (ext.2, ext.3, ext.0, ext.1),
@@ -222,14 +258,7 @@ pub fn detect_chessboard(
         dj: di,
         sites: &msites,
     };
-    let (lab, alternatives) = label::label(board, &view, &mirrored)?;
-    // holes and board corners the grid did not reach
-    let board_sites: Vec<Coord> = board
-        .indices()
-        .map(|(r, c)| lab.inverse(c as i64, r as i64))
-        .collect();
-    measure::fill(&g, &mut m, &board_sites, phase, &settings);
-    Ok(assemble(board, &m, &lab, alternatives))
+    label::label(board, &view, &mirrored)
 }
 
 /// Image directions of `+i`, `+j` from a global affine fit, and whether the lattice is
@@ -244,9 +273,9 @@ fn handedness(m: &measure::Measured) -> Result<(bool, [f64; 2], [f64; 2])> {
         bx += f * m.pos[k][0];
         by += f * m.pos[k][1];
     }
-    let inv = n
-        .try_inverse()
-        .ok_or_else(|| Error::Detection("no chessboard: the corners found lie on one line".into()))?;
+    let inv = n.try_inverse().ok_or_else(|| {
+        Error::Detection("no chessboard: the corners found lie on one line".into())
+    })?;
     let (ax, ay) = (inv * bx, inv * by);
     let (di, dj) = ([ax[0], ay[0]], [ax[1], ay[1]]);
     Ok((cross(di, dj) < 0.0, di, dj))
@@ -257,13 +286,30 @@ fn swap_axes(m: &mut measure::Measured) {
     m.failed = m.failed.iter().map(|(&(i, j), &f)| ((j, i), f)).collect();
 }
 
+/// The square colours seen at full resolution beside every link of the measured grid
+/// must agree with the phase the grid was grown with (at least 90 % of the links
+/// whose squares differ clearly).
+fn check_colours(g: &Gray, m: &measure::Measured, phase: u8, noise: f32) -> Result<()> {
+    let thr = |a: usize, b: usize| {
+        (0.15 * (m.pts[a].contrast + m.pts[b].contrast) as f32).max(3.0 * noise)
+    };
+    let Some((p, agree, disagree)) = cells::phase_of(g, &m.at, &m.pos, thr) else {
+        return Err(Error::Detection(format!(
+            "no chessboard: the squares beside the {} corners found do not differ in colour",
+            m.at.len()
+        )));
+    };
+    if p != phase || disagree * 10 > agree + disagree {
+        return Err(Error::Detection(format!(
+            "the square colours around the {} corners found do not alternate like a chessboard's              ({agree} links agree, {disagree} disagree)",
+            m.at.len()
+        )));
+    }
+    Ok(())
+}
+
 /// A second grid of at least half the board's corners away from the measured one.
 fn check_second_board(grids: &[search::Found], m: &measure::Measured, board: &Board) -> Result<()> {
-    let near = |p: [f64; 2]| {
-        m.pos
-            .iter()
-            .any(|q| (p[0] - q[0]).powi(2) + (p[1] - q[1]).powi(2) < 25.0f64.max(0.0))
-    };
     let pitch = {
         let ks: Vec<Coord> = m.at.keys().copied().collect();
         ks.iter()
@@ -277,7 +323,6 @@ fn check_second_board(grids: &[search::Found], m: &measure::Measured, board: &Bo
             .iter()
             .any(|q| (p[0] - q[0]).powi(2) + (p[1] - q[1]).powi(2) < tol2)
     };
-    let _ = near;
     let big = (board.len() / 2).max(9);
     for gr in grids.iter().skip(1) {
         if gr.sites.len() < big {
@@ -309,7 +354,9 @@ fn assemble(
     };
     let mut points: Vec<TargetPoint> = Vec::with_capacity(m.at.len());
     for (&(i, j), &k) in &m.at {
-        let Some((row, col)) = on_board(lab.apply(i, j)) else { continue };
+        let Some((row, col)) = on_board(lab.apply(i, j)) else {
+            continue;
+        };
         let s = &m.pts[k];
         let mut f = 0u8;
         if s.near_border {
@@ -343,9 +390,9 @@ fn assemble(
         })
         .collect();
     dropped.sort_by_key(|d| (d.row, d.col));
-    let pts: Vec<(usize, usize, f64, f64)> = points.iter().map(|p| (p.row, p.col, p.u, p.v)).collect();
+    let pts: Vec<(usize, usize, f64, f64)> =
+        points.iter().map(|p| (p.row, p.col, p.u, p.v)).collect();
     let (homography_rms_px, homography_max_px) = homography_residuals(board, &pts);
-    let _: HashMap<(), ()> = HashMap::new();
     TargetDetection {
         kind: BoardKind::Chessboard,
         points,

@@ -41,11 +41,10 @@ fn to_full(level: usize, p: [f64; 2]) -> [f64; 2] {
 }
 
 fn found(level: usize, g: &Grid, cands: &[Cand]) -> Found {
-    let sites = g
-        .at
-        .iter()
-        .map(|(&t, &k)| (t, to_full(level, [cands[k].x as f64, cands[k].y as f64])))
-        .collect();
+    let sites =
+        g.at.iter()
+            .map(|(&t, &k)| (t, to_full(level, [cands[k].x as f64, cands[k].y as f64])))
+            .collect();
     Found {
         level,
         sites,
@@ -84,6 +83,11 @@ pub(crate) fn search(g0: &Gray, noise: f32, o: &SearchOpts) -> (Vec<Found>, Sear
         }
     }
     // largest first; on ties the finer level
-    all.sort_by(|a, b| b.sites.len().cmp(&a.sites.len()).then(a.level.cmp(&b.level)));
+    all.sort_by(|a, b| {
+        b.sites
+            .len()
+            .cmp(&a.sites.len())
+            .then(a.level.cmp(&b.level))
+    });
     (all, stats)
 }

@@ -32,9 +32,15 @@ fn accurate_under_tilt_and_rotation() {
     let b = board69();
     let (w, h) = (640, 480);
     let mut all = Vec::new();
-    for (k, &(roll, tilt, axis)) in [(0.0, 0.0, 0.0), (17.0, 30.0, 10.0), (-35.0, 45.0, 70.0), (120.0, 40.0, 140.0), (200.0, 25.0, 45.0)]
-        .iter()
-        .enumerate()
+    for (k, &(roll, tilt, axis)) in [
+        (0.0, 0.0, 0.0),
+        (17.0, 30.0, 10.0),
+        (-35.0, 45.0, 70.0),
+        (120.0, 40.0, 140.0),
+        (200.0, 25.0, 45.0),
+    ]
+    .iter()
+    .enumerate()
     {
         let mut s = Scene::new(&b, w, h, roll, tilt, axis, 0.6);
         s.seed = 11 + k as u64;
@@ -46,7 +52,10 @@ fn accurate_under_tilt_and_rotation() {
         assert!(rms <= 0.02, "pose {k}: rms {rms}");
         all.push(rms);
         assert!(d.alternatives.is_empty());
-        assert!(d.points.iter().all(|p| p.quality_px > 0.0 && p.quality_px < 0.05));
+        assert!(d
+            .points
+            .iter()
+            .all(|p| p.quality_px > 0.0 && p.quality_px < 0.05));
     }
 }
 
@@ -62,7 +71,10 @@ fn indices_follow_the_contract_at_any_rotation() {
         let d = detect8(&img, w, h, &b).unwrap_or_else(|e| panic!("roll {roll}: {e}"));
         assert_eq!(d.points.len(), 54, "roll {roll}");
         let (rms, mx) = errors(&d, &s.truth(), &b);
-        assert!(mx < 0.1, "roll {roll}: labels wrong or inaccurate (rms {rms}, max {mx})");
+        assert!(
+            mx < 0.1,
+            "roll {roll}: labels wrong or inaccurate (rms {rms}, max {mx})"
+        );
     }
 }
 
@@ -76,7 +88,10 @@ fn mild_distortion_and_small_squares() {
     let d = detect8(&img, w, h, &b).unwrap();
     assert_eq!(d.points.len(), 54);
     let (rms, mx) = errors(&d, &s.truth(), &b);
-    println!("distortion: rms {rms:.4} max {mx:.4} homography rms {:.3}", d.homography_rms_px);
+    println!(
+        "distortion: rms {rms:.4} max {mx:.4} homography rms {:.3}",
+        d.homography_rms_px
+    );
     assert!(rms <= 0.02, "{rms}");
     // squares of about 11 px
     let s = Scene::new(&b, w, h, 12.0, 20.0, 0.0, 0.19);
@@ -171,17 +186,33 @@ fn stripe_across_the_board() {
         };
         let d = detect_chessboard(AnyView::U8(v), &b, &o).unwrap();
         let truth = s.truth();
-        let dist = |p: [f64; 2]| ((p[0] - 320.0) * 1.0 - (p[1] - 240.0) * 0.3).abs() / 1.09f64.sqrt();
-        let clean: Vec<&TargetPoint> = d.points.iter().filter(|p| !p.flags.has(PointFlags::STRIPE_CROSSED)).collect();
+        let dist =
+            |p: [f64; 2]| ((p[0] - 320.0) * 1.0 - (p[1] - 240.0) * 0.3).abs() / 1.09f64.sqrt();
+        let clean: Vec<&TargetPoint> = d
+            .points
+            .iter()
+            .filter(|p| !p.flags.has(PointFlags::STRIPE_CROSSED))
+            .collect();
         let (mut ss, mut mx) = (0.0f64, 0.0f64);
         for p in &clean {
             let t = truth[p.row * b.cols + p.col];
             let e = (p.u - t[0]).hypot(p.v - t[1]);
             ss += e * e;
             mx = mx.max(e);
-            assert!(dist(t) > 4.0, "({}, {}) at {:.1} px from the stripe kept unflagged", p.row, p.col, dist(t));
+            assert!(
+                dist(t) > 4.0,
+                "({}, {}) at {:.1} px from the stripe kept unflagged",
+                p.row,
+                p.col,
+                dist(t)
+            );
             if e > 0.05 {
-                println!("({}, {}) off by {e:.3} px at {:.1} px from the stripe", p.row, p.col, dist(t));
+                println!(
+                    "({}, {}) off by {e:.3} px at {:.1} px from the stripe",
+                    p.row,
+                    p.col,
+                    dist(t)
+                );
             }
         }
         let rms = (ss / clean.len() as f64).sqrt();
@@ -195,14 +226,21 @@ fn stripe_across_the_board() {
         if keep {
             assert!(crossed >= 2, "{:?}", d.dropped);
         } else {
-            assert!(d.dropped.len() >= 3 && d.dropped.iter().all(|x| x.reason.contains("stripe")), "{:?}", d.dropped);
+            assert!(
+                d.dropped.len() >= 3 && d.dropped.iter().all(|x| x.reason.contains("stripe")),
+                "{:?}",
+                d.dropped
+            );
             assert_eq!(crossed, 0);
         }
         assert!(clean.len() + d.dropped.len() + crossed >= 54 - 2);
         // every corner far from the stripe is measured
         for (k, t) in truth.iter().enumerate() {
             if dist(*t) > 14.0 {
-                assert!(clean.iter().any(|p| p.row * b.cols + p.col == k), "corner {k} missing");
+                assert!(
+                    clean.iter().any(|p| p.row * b.cols + p.col == k),
+                    "corner {k} missing"
+                );
             }
         }
     }
@@ -221,7 +259,10 @@ fn vignette(u: f64, v: f64, w: usize, h: usize) -> f64 {
 fn uneven_illumination() {
     let b = board69();
     let (w, h) = (640, 480);
-    for (name, gain) in [("gradient", gradient as fn(f64, f64, usize, usize) -> f64), ("vignette", vignette)] {
+    for (name, gain) in [
+        ("gradient", gradient as fn(f64, f64, usize, usize) -> f64),
+        ("vignette", vignette),
+    ] {
         let mut s = Scene::new(&b, w, h, -20.0, 35.0, 60.0, 0.7);
         s.gain = gain;
         let img = s.render();
@@ -270,7 +311,10 @@ fn wrong_board_size_says_what_was_found() {
     let smaller = Board::chessboard(6, 8, 20.0).unwrap();
     let e = detect8(&img, w, h, &smaller).unwrap_err();
     assert!(matches!(e, Error::Detection(_)), "{e}");
-    assert!(e.to_string().contains("9 x 6") || e.to_string().contains("6 x 9"), "{e}");
+    assert!(
+        e.to_string().contains("9 x 6") || e.to_string().contains("6 x 9"),
+        "{e}"
+    );
     let larger = Board::chessboard(6, 10, 20.0).unwrap();
     let e = detect8(&img, w, h, &larger).unwrap_err();
     assert!(matches!(e, Error::Detection(_)), "{e}");
@@ -290,7 +334,11 @@ fn two_boards_are_refused() {
             // left board shifted left, a copy of it on the right
             let xs = (x + 160).min(w - 1);
             let xr = x.saturating_sub(160);
-            let v = if x < w / 2 { left[y * w + xs] } else { left[y * w + xr] };
+            let v = if x < w / 2 {
+                left[y * w + xs]
+            } else {
+                left[y * w + xr]
+            };
             v.round() as u8
         })
         .collect();
@@ -307,9 +355,16 @@ fn partial_views() {
     s.t.x += 150.0 * s.t.z / s.f;
     let img = s.render();
     let truth = s.truth();
-    let visible = truth.iter().filter(|p| p[0] > 8.0 && p[0] < w as f64 - 8.0).count();
+    let visible = truth
+        .iter()
+        .filter(|p| p[0] > 8.0 && p[0] < w as f64 - 8.0)
+        .count();
     let d = detect8(&img, w, h, &b).unwrap();
-    assert!(d.points.len() >= visible - 6 && d.points.len() < 54, "{} of {visible}", d.points.len());
+    assert!(
+        d.points.len() >= visible - 6 && d.points.len() < 54,
+        "{} of {visible}",
+        d.points.len()
+    );
     let (_, mx) = errors(&d, &truth, &b);
     assert!(mx < 0.1, "partial view mislabelled: {mx}");
     // both ends cut: nothing fixes the columns
@@ -325,25 +380,48 @@ fn partial_views() {
 fn bad_images_are_typed_errors() {
     let b = board69();
     let tiny = [7u8; 64];
-    assert!(matches!(detect8(&tiny, 8, 8, &b), Err(Error::InvalidInput(_))));
+    assert!(matches!(
+        detect8(&tiny, 8, 8, &b),
+        Err(Error::InvalidInput(_))
+    ));
     for fill in [0u8, 128, 255] {
         let img = vec![fill; 64 * 48];
-        assert!(matches!(detect8(&img, 64, 48, &b), Err(Error::Detection(_))));
+        assert!(matches!(
+            detect8(&img, 64, 48, &b),
+            Err(Error::Detection(_))
+        ));
     }
     let mut rng = render::Rng(5);
-    let noise: Vec<u8> = (0..320 * 240).map(|_| (rng.uniform() * 255.0) as u8).collect();
+    let noise: Vec<u8> = (0..320 * 240)
+        .map(|_| (rng.uniform() * 255.0) as u8)
+        .collect();
     let e = detect8(&noise, 320, 240, &b).unwrap_err();
     assert!(matches!(e, Error::Detection(_)), "{e}");
     let circles = Board::hp3_paper();
     let img = vec![0u8; 64 * 48];
-    assert!(matches!(detect8(&img, 64, 48, &circles), Err(Error::InvalidInput(_))));
+    assert!(matches!(
+        detect8(&img, 64, 48, &circles),
+        Err(Error::InvalidInput(_))
+    ));
     let v = ImageView::from_slice(&img, 64, 48).unwrap();
     for o in [
-        ChessboardOptions { min_response: 1.5, ..Default::default() },
-        ChessboardOptions { max_window_radius_px: f64::NAN, ..Default::default() },
-        ChessboardOptions { pyramid_levels: 0, ..Default::default() },
+        ChessboardOptions {
+            min_response: 1.5,
+            ..Default::default()
+        },
+        ChessboardOptions {
+            max_window_radius_px: f64::NAN,
+            ..Default::default()
+        },
+        ChessboardOptions {
+            pyramid_levels: 0,
+            ..Default::default()
+        },
     ] {
-        assert!(matches!(detect_chessboard(AnyView::U8(v), &b, &o), Err(Error::InvalidInput(_))));
+        assert!(matches!(
+            detect_chessboard(AnyView::U8(v), &b, &o),
+            Err(Error::InvalidInput(_))
+        ));
     }
 }
 
@@ -355,7 +433,9 @@ fn clutter_around_the_board() {
     let mut img = s.render();
     // random dark and light rectangles and speckle away from the board
     let truth = s.truth();
-    let (x0, x1) = truth.iter().fold((f64::MAX, f64::MIN), |a, p| (a.0.min(p[0]), a.1.max(p[0])));
+    let (x0, x1) = truth
+        .iter()
+        .fold((f64::MAX, f64::MIN), |a, p| (a.0.min(p[0]), a.1.max(p[0])));
     let mut rng = render::Rng(3);
     for _ in 0..60 {
         let (cx, cy) = (rng.uniform() * w as f64, rng.uniform() * h as f64);
@@ -374,37 +454,4 @@ fn clutter_around_the_board() {
     assert_eq!(d.points.len(), 54);
     let (rms, mx) = errors(&d, &truth, &b);
     assert!(rms <= 0.02 && mx < 0.1, "{rms} {mx}");
-}
-
-#[test]
-#[ignore]
-fn debug_real() {
-    let path = std::env::var("CHESS_IMG").unwrap();
-    let rows: usize = std::env::var("CHESS_ROWS").unwrap().parse().unwrap();
-    let cols: usize = std::env::var("CHESS_COLS").unwrap().parse().unwrap();
-    let b = Board::chessboard(rows, cols, 10.0).unwrap();
-    let img = crate::io::load_gray(&path).unwrap();
-    let AnyView::U8(v) = img.view().unwrap() else { panic!() };
-    let (g, _, _) = Gray::from_view(&v);
-    let noise = image::noise_sigma(&g, 0.255);
-    println!("noise {noise}");
-    let so = search::SearchOpts { min_response: 0.3, levels: 5, board_len: b.len(), max_extent: 11 };
-    let (grids, stats) = search::search(&g, noise, &so);
-    println!("cands {:?}", stats.candidates);
-    for gr in &grids {
-        println!("grid level {} sites {} phase {}", gr.level, gr.sites.len(), gr.phase);
-    }
-    let settings = Settings { max_radius: 10.0, keep_stripe: false, noise: noise as f64 };
-    let m = measure::measure_grid(&g, &grids[0].sites, grids[0].phase, &settings, 11);
-    let mut keys: Vec<_> = m.at.keys().copied().collect();
-    keys.sort();
-    for t in keys {
-        let p = &m.pts[m.at[&t]];
-        println!("ok {t:?} {:.2} {:.2} c {:.1} q {:.4}", p.u, p.v, p.contrast, p.sigma_px);
-    }
-    let mut f: Vec<_> = m.failed.iter().collect();
-    f.sort_by_key(|x| *x.0);
-    for (t, (r, p)) in f {
-        println!("fail {t:?} {:.1} {:.1} {}", p[0], p[1], r.reason());
-    }
 }

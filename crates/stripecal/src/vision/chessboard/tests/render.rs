@@ -38,13 +38,22 @@ impl Scene {
     /// The board centred in the image, `width_frac` of the image width across, turned
     /// `roll` degrees in the image, tilted `tilt` degrees about an axis at `axis`
     /// degrees in the board plane.
-    pub fn new(board: &Board, w: usize, h: usize, roll: f64, tilt: f64, axis: f64, width_frac: f64) -> Scene {
+    pub fn new(
+        board: &Board,
+        w: usize,
+        h: usize,
+        roll: f64,
+        tilt: f64,
+        axis: f64,
+        width_frac: f64,
+    ) -> Scene {
         let f = 1.2 * w as f64;
         let e = board.pattern_extent();
         let bw = e[1] - e[0];
         let z = f * bw / (width_frac * w as f64);
         let ax = Vector3::new(axis.to_radians().cos(), axis.to_radians().sin(), 0.0);
-        let r_tilt = Rotation3::from_axis_angle(&nalgebra::Unit::new_normalize(ax), tilt.to_radians());
+        let r_tilt =
+            Rotation3::from_axis_angle(&nalgebra::Unit::new_normalize(ax), tilt.to_radians());
         let r_roll = Rotation3::from_axis_angle(&Vector3::z_axis(), roll.to_radians());
         let rot = (r_roll * r_tilt).into_inner();
         let c = Vector3::new(0.5 * (e[0] + e[1]), 0.5 * (e[2] + e[3]), 0.0);
@@ -114,7 +123,11 @@ impl Scene {
         const N: usize = 8;
         let (w, h) = (self.w, self.h);
         let (sw, sh) = (w * S, h * S);
-        let hm = Matrix3::from_columns(&[self.rot.column(0).into_owned(), self.rot.column(1).into_owned(), self.t]);
+        let hm = Matrix3::from_columns(&[
+            self.rot.column(0).into_owned(),
+            self.rot.column(1).into_owned(),
+            self.t,
+        ]);
         let hinv = hm.try_inverse().expect("invertible pose");
         let val = |u: f64, v: f64| match self.unproject(u, v, &hinv) {
             Some((x, y)) if self.board.ink_at(x, y).is_some() => self.dark,
@@ -132,7 +145,12 @@ impl Scene {
         let mut fine = vec![0f64; sw * sh];
         for y in 0..sh {
             for x in 0..sw {
-                let c = [cv[y * (sw + 1) + x], cv[y * (sw + 1) + x + 1], cv[(y + 1) * (sw + 1) + x], cv[(y + 1) * (sw + 1) + x + 1]];
+                let c = [
+                    cv[y * (sw + 1) + x],
+                    cv[y * (sw + 1) + x + 1],
+                    cv[(y + 1) * (sw + 1) + x],
+                    cv[(y + 1) * (sw + 1) + x + 1],
+                ];
                 let (u0, v0) = (x as f64 * sub - 0.5, y as f64 * sub - 0.5);
                 let a = if c.iter().all(|&p| p == c[0]) {
                     c[0]
@@ -140,7 +158,10 @@ impl Scene {
                     let mut acc = 0.0;
                     for sy in 0..N {
                         for sx in 0..N {
-                            acc += val(u0 + (sx as f64 + 0.5) * sub / N as f64, v0 + (sy as f64 + 0.5) * sub / N as f64);
+                            acc += val(
+                                u0 + (sx as f64 + 0.5) * sub / N as f64,
+                                v0 + (sy as f64 + 0.5) * sub / N as f64,
+                            );
                         }
                     }
                     acc / (N * N) as f64
@@ -178,7 +199,9 @@ impl Scene {
     pub fn render(&self) -> Vec<u8> {
         let f = self.render_f();
         let mut rng = Rng(self.seed);
-        f.iter().map(|&v| (v + self.noise * rng.normal()).round().clamp(0.0, 255.0) as u8).collect()
+        f.iter()
+            .map(|&v| (v + self.noise * rng.normal()).round().clamp(0.0, 255.0) as u8)
+            .collect()
     }
 
     /// The 16-bit image (the 8-bit scale times 257).
@@ -186,7 +209,11 @@ impl Scene {
         let f = self.render_f();
         let mut rng = Rng(self.seed);
         f.iter()
-            .map(|&v| ((v + self.noise * rng.normal()) * 257.0).round().clamp(0.0, 65535.0) as u16)
+            .map(|&v| {
+                ((v + self.noise * rng.normal()) * 257.0)
+                    .round()
+                    .clamp(0.0, 65535.0) as u16
+            })
             .collect()
     }
 }
@@ -197,7 +224,9 @@ pub fn blur(img: &[f64], w: usize, h: usize, s: f64) -> Vec<f64> {
         return img.to_vec();
     }
     let r = (4.0 * s).ceil() as i64;
-    let k: Vec<f64> = (-r..=r).map(|d| (-(d * d) as f64 / (2.0 * s * s)).exp()).collect();
+    let k: Vec<f64> = (-r..=r)
+        .map(|d| (-(d * d) as f64 / (2.0 * s * s)).exp())
+        .collect();
     let ks: f64 = k.iter().sum();
     let k: Vec<f64> = k.iter().map(|v| v / ks).collect();
     let mut tmp = vec![0f64; w * h];
@@ -230,7 +259,10 @@ pub struct Rng(pub u64);
 
 impl Rng {
     pub fn uniform(&mut self) -> f64 {
-        self.0 = self.0.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+        self.0 = self
+            .0
+            .wrapping_mul(6364136223846793005)
+            .wrapping_add(1442695040888963407);
         ((self.0 >> 11) as f64 + 0.5) / (1u64 << 53) as f64
     }
 
