@@ -27,7 +27,17 @@ fn pose(b: &Board) -> Matrix3<f64> {
     .into_inner();
     let c = Vector3::new(0.5 * (e[0] + e[1]), 0.5 * (e[2] + e[3]), 0.0);
     let t = Vector3::new(0.0, 0.0, z) - rot * c;
-    let k = Matrix3::new(f, 0.0, 0.5 * (W as f64 - 1.0), 0.0, f, 0.5 * (H as f64 - 1.0), 0.0, 0.0, 1.0);
+    let k = Matrix3::new(
+        f,
+        0.0,
+        0.5 * (W as f64 - 1.0),
+        0.0,
+        f,
+        0.5 * (H as f64 - 1.0),
+        0.0,
+        0.0,
+        1.0,
+    );
     k * Matrix3::from_columns(&[rot.column(0).into_owned(), rot.column(1).into_owned(), t])
 }
 
@@ -50,14 +60,22 @@ fn render(b: &Board, h: &Matrix3<f64>) -> Vec<u8> {
     for y in 0..sh {
         for x in 0..sw {
             let (u0, v0) = (x as f64 * sub - 0.5, y as f64 * sub - 0.5);
-            let c = [val(u0, v0), val(u0 + sub, v0), val(u0, v0 + sub), val(u0 + sub, v0 + sub)];
+            let c = [
+                val(u0, v0),
+                val(u0 + sub, v0),
+                val(u0, v0 + sub),
+                val(u0 + sub, v0 + sub),
+            ];
             fine[y * sw + x] = if c.iter().all(|&p| p == c[0]) {
                 c[0]
             } else {
                 let mut acc = 0.0;
                 for sy in 0..8 {
                     for sx in 0..8 {
-                        acc += val(u0 + (sx as f64 + 0.5) * sub / 8.0, v0 + (sy as f64 + 0.5) * sub / 8.0);
+                        acc += val(
+                            u0 + (sx as f64 + 0.5) * sub / 8.0,
+                            v0 + (sy as f64 + 0.5) * sub / 8.0,
+                        );
                     }
                 }
                 acc / 64.0
@@ -66,7 +84,9 @@ fn render(b: &Board, h: &Matrix3<f64>) -> Vec<u8> {
     }
     let s = 0.7 * S as f64;
     let r = (4.0 * s).ceil() as i64;
-    let k: Vec<f64> = (-r..=r).map(|d| (-((d * d) as f64) / (2.0 * s * s)).exp()).collect();
+    let k: Vec<f64> = (-r..=r)
+        .map(|d| (-((d * d) as f64) / (2.0 * s * s)).exp())
+        .collect();
     let ks: f64 = k.iter().sum();
     let blur = |src: &[f64], horizontal: bool| {
         let mut out = vec![0f64; sw * sh];
@@ -90,7 +110,9 @@ fn render(b: &Board, h: &Matrix3<f64>) -> Vec<u8> {
     let fine = blur(&blur(&fine, true), false);
     let mut state = 12345u64;
     let mut uniform = || {
-        state = state.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+        state = state
+            .wrapping_mul(6364136223846793005)
+            .wrapping_add(1442695040888963407);
         ((state >> 11) as f64 + 0.5) / (1u64 << 53) as f64
     };
     (0..W * H)
@@ -113,7 +135,11 @@ fn chessboard(c: &mut Criterion) {
     let board = Board::chessboard(6, 9, 20.0).unwrap();
     let h = pose(&board);
     let data = render(&board, &h);
-    let img = AnyGray::U8(GrayImage { width: W, height: H, data });
+    let img = AnyGray::U8(GrayImage {
+        width: W,
+        height: H,
+        data,
+    });
     if let Ok(path) = std::env::var("STRIPECAL_CHESS_PNG") {
         stripecal::io::save_gray_png(&path, &img).unwrap();
         let mut csv = String::from("row,col,u,v\n");

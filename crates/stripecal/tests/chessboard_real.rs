@@ -32,7 +32,11 @@ fn run(dir: &Path) -> (Board, Vec<(String, Result<TargetDetection>)>) {
         let name = line.split(',').next().unwrap_or_default().to_string();
         let img = load_gray(dir.join(&name)).expect("image");
         let t = Instant::now();
-        let d = detect_chessboard(img.view().unwrap(), &rig.board, &ChessboardOptions::default());
+        let d = detect_chessboard(
+            img.view().unwrap(),
+            &rig.board,
+            &ChessboardOptions::default(),
+        );
         let ms = t.elapsed().as_secs_f64() * 1e3;
         match &d {
             Ok(d) => println!(
@@ -62,12 +66,19 @@ fn visp_franka_every_view_complete() {
     for (name, d) in &res {
         let d = d.as_ref().unwrap_or_else(|e| panic!("{name}: {e}"));
         assert_eq!(d.points.len(), 54, "{name}: dropped {:?}", d.dropped);
-        assert!(d.alternatives.is_empty(), "{name}: 9 x 6 is fixed by its colours");
+        assert!(
+            d.alternatives.is_empty(),
+            "{name}: 9 x 6 is fixed by its colours"
+        );
         // the labelling is right-handed and row-major
         for p in &d.points {
             assert_eq!(d.points[p.row * board.cols + p.col], *p);
         }
-        assert!(d.homography_rms_px < 1.0, "{name}: homography rms {}", d.homography_rms_px);
+        assert!(
+            d.homography_rms_px < 1.0,
+            "{name}: homography rms {}",
+            d.homography_rms_px
+        );
     }
 }
 
@@ -88,5 +99,9 @@ fn etna_calib3_dark_views_with_a_laser_line() {
             assert!(matches!(e, stripecal::Error::Detection(_)), "{name}: {e}");
         }
     }
-    assert!(ok.len() >= 12, "only {} of 16 etna views detected", ok.len());
+    assert!(
+        ok.len() >= 12,
+        "only {} of 16 etna views detected",
+        ok.len()
+    );
 }
