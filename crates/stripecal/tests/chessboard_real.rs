@@ -8,6 +8,7 @@
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
+use stripecal::image::AnyGray;
 use stripecal::io::{load_gray, read_rig};
 use stripecal::vision::chessboard::{detect_chessboard, ChessboardOptions};
 use stripecal::vision::target::TargetDetection;
@@ -21,6 +22,55 @@ fn realdata() -> Option<PathBuf> {
         println!("skipped: {} does not exist", p.display());
         None
     }
+}
+
+/// Checks the contract's orientation on a complete detection: the image direction of
+/// increasing col crossed with that of increasing row is positive (u right, v down),
+/// and the square outside corner (0, 0) is dark (darker than its two neighbours
+/// outside the grid, which are light).
+fn check_contract(name: &str, img: &AnyGray, board: &Board, d: &TargetDetection) {
+    let at = |r: usize, c: usize| {
+        let p = d
+            .points
+            .iter()
+            .find(|p| p.row == r && p.col == c)
+            .expect("corner");
+        [p.u, p.v]
+    };
+    let (p00, p01, p10) = (at(0, 0), at(0, 1), at(1, 0));
+    let dc = [p01[0] - p00[0], p01[1] - p00[1]];
+    let dr = [p10[0] - p00[0], p10[1] - p00[1]];
+    assert!(
+        dc[0] * dr[1] - dc[1] * dr[0] > 0.0,
+        "{name}: mirrored labelling"
+    );
+    let AnyGray::U8(g) = img else { return };
+    // median of a 5 x 5 patch at p00 + a dc + b dr
+    let sample = |a: f64, b: f64| {
+        let (x, y) = (
+            p00[0] + a * dc[0] + b * dr[0],
+            p00[1] + a * dc[1] + b * dr[1],
+        );
+        let mut v: Vec<u8> = Vec::new();
+        for dy in -2i64..=2 {
+            for dx in -2i64..=2 {
+                let (xx, yy) = (x.round() as i64 + dx, y.round() as i64 + dy);
+                if xx >= 0 && yy >= 0 && (xx as usize) < g.width && (yy as usize) < g.height {
+                    v.push(g.data[yy as usize * g.width + xx as usize]);
+                }
+            }
+        }
+        v.sort_unstable();
+        v.get(v.len() / 2).copied().unwrap_or(0) as f64
+    };
+    let outside = sample(-0.5, -0.5);
+    let (left, above) = (sample(-0.5, 0.5), sample(0.5, -0.5));
+    assert!(
+        outside < left.min(above),
+        "{name}: the square outside corner (0, 0) is not dark ({outside} vs {left}, {above}); board {} x {}",
+        board.rows,
+        board.cols
+    );
 }
 
 /// `(image name, detection)` for every view of the dataset in `dir`.
@@ -52,6 +102,11 @@ fn run(dir: &Path) -> (Board, Vec<(String, Result<TargetDetection>)>) {
                 }
             ),
             Err(e) => println!("{name}: refused: {e} ({ms:.1} ms)"),
+        }
+        if let Ok(d) = &d {
+            if d.points.len() == rig.board.len() {
+                check_contract(&name, &img, &rig.board, d);
+            }
         }
         out.push((name, d));
     }

@@ -33,6 +33,22 @@
 //! [`ChessboardOptions::drop_stripe_crossed`] `false` keeps it, fitted without the
 //! stripe pixels and their mirror images, flagged [`PointFlags::STRIPE_CROSSED`].
 //!
+//! ## Accuracy and speed (measured when this was written)
+//!
+//! - Synthetic boards (the tests' exact renderer: PSF 0.7 px, noise 1 gray level,
+//!   8-bit, contrast 170): RMS 0.004-0.005 px against the true corners under tilts up
+//!   to 45 degrees, with mild distortion, squares of 11 to 140 px and strong
+//!   illumination gradients (0.006-0.008 px); 0.013 px RMS for a board whose edges
+//!   are exactly aligned with the pixel rows (the pixel box is not modelled, the one
+//!   case where its effect does not average out).
+//! - Real images: `tests/chessboard_real.rs`. On `visp_franka` the corners agree with
+//!   OpenCV's `findChessboardCorners` + `cornerSubPix` to 0.04-0.09 px (median per
+//!   view); `findChessboardCornersSB` differs from both by about 0.25 px, mostly a
+//!   shift along v (on the benchmark's synthetic image SB is 0.06 px RMS from the
+//!   truth, this detector 0.004 px).
+//! - `benches/benches/vision_chessboard.rs`: about 7-10 ms for a 768 x 576 image, one
+//!   thread, several times faster than `findChessboardCornersSB`.
+//!
 //! ## Mirror images
 //!
 //! Labellings are right-handed (spec/DATASET.md). A board whose pattern has a mirror
