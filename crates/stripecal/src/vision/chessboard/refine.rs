@@ -56,7 +56,7 @@ use super::checks::{quadrants, validate, worst_sector};
 use super::image::Gray;
 use super::lattice::{cross, norm};
 use super::model::{cost_of, normal, window, Mat, Vec11, NP};
-use super::stripe::{dark_sector_stripe, residual_stripe, stripe_mask};
+use super::stripe::{dark_sector_stripe, faint_line, residual_stripe, stripe_mask};
 
 /// A converged fit: parameters, final window pixels, normal matrix, cost, weight sum.
 type Fitted = (Vec11, Vec<[f64; 4]>, Mat, f64, f64);
@@ -302,7 +302,10 @@ pub(crate) fn refine(
     let angles = [di[1].atan2(di[0]), dj[1].atan2(dj[0])];
     let (mut th, mut px, mut h, mut cost, mut wsum) =
         fit(g, c0, angles, r, &mask).ok_or(Fail::NotCorner("the saddle fit failed"))?;
-    let more = residual_stripe(&th, &px, r, s.noise);
+    let more: HashSet<(i32, i32)> = residual_stripe(&th, &px, r, s.noise)
+        .union(&faint_line(g, [th[0], th[1]], r, light, dark, s.noise))
+        .copied()
+        .collect();
     let stripe = stripe || !more.is_empty();
     if !more.is_empty() {
         if !s.keep_stripe {

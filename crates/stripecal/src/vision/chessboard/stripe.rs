@@ -95,20 +95,82 @@ pub(crate) fn residual_stripe(
     stripe_of(bright, r)
 }
 
-/// Size of the largest 8-connected component of a pixel set.
-fn largest_component(px: &[(i32, i32)]) -> usize {
+/// A faint stripe above the light squares: pixels of the window around `c` brighter
+/// than the light squares' level (their medians, which a stripe does not move, unlike
+/// a fit that it pulls up) by a quarter of the contrast (and 6 noise sigmas) that form
+/// a long thin line (a connected part of at least `r` pixels, its scatter at least
+/// `1.5 r` long and under 0.35 times as wide). Bright grain at that level clumps into
+/// round patches, which do not count. Returns the line's pixels grown by one pixel.
+pub(crate) fn faint_line(
+    g: &Gray,
+    c: [f64; 2],
+    r: f64,
+    light: f64,
+    dark: f64,
+    noise: f64,
+) -> HashSet<(i32, i32)> {
+    let mut out = HashSet::new();
+    if !(light.is_finite() && dark.is_finite()) {
+        return out;
+    }
+    let thr = light + (0.25 * (light - dark)).max(6.0 * noise);
+    let mut px = Vec::new();
+    window(g, c, r, &HashSet::new(), &mut px);
+    let bright: Vec<(i32, i32)> = px
+        .iter()
+        .filter(|q| q[2] > thr)
+        .map(|q| ((q[0] + c[0]).round() as i32, (q[1] + c[1]).round() as i32))
+        .collect();
+    for part in components(&bright) {
+        if (part.len() as f64) < r || !long_and_thin(&part, 1.5 * r, 0.35) {
+            continue;
+        }
+        for (x, y) in part {
+            for dy in -1..=1 {
+                for dx in -1..=1 {
+                    out.insert((x + dx, y + dy));
+                }
+            }
+        }
+    }
+    out
+}
+
+/// Whether the scatter of a pixel set is at least `len` long (`sqrt(12 var)` along
+/// its major axis) and its minor / major standard deviation below `ratio`.
+fn long_and_thin(px: &[(i32, i32)], len: f64, ratio: f64) -> bool {
+    let n = px.len() as f64;
+    let (mx, my) = px
+        .iter()
+        .fold((0.0, 0.0), |a, p| (a.0 + p.0 as f64, a.1 + p.1 as f64));
+    let (mx, my) = (mx / n, my / n);
+    let (mut a, mut b, mut c) = (0.0, 0.0, 0.0);
+    for p in px {
+        let (x, y) = (p.0 as f64 - mx, p.1 as f64 - my);
+        a += x * x / n;
+        b += x * y / n;
+        c += y * y / n;
+    }
+    let tr = 0.5 * (a + c);
+    let d = (0.25 * (a - c) * (a - c) + b * b).sqrt();
+    let (l1, l2) = (tr + d, (tr - d).max(0.0));
+    (12.0 * l1).sqrt() >= len && (l2 / l1.max(1e-12)).sqrt() < ratio
+}
+
+/// The 8-connected components of a pixel set.
+fn components(px: &[(i32, i32)]) -> Vec<Vec<(i32, i32)>> {
     let set: HashSet<(i32, i32)> = px.iter().copied().collect();
     let mut seen: HashSet<(i32, i32)> = HashSet::new();
-    let mut best = 0;
+    let mut out = Vec::new();
     let mut stack = Vec::new();
     for &p in px {
         if !seen.insert(p) {
             continue;
         }
         stack.push(p);
-        let mut n = 0;
+        let mut part = Vec::new();
         while let Some((x, y)) = stack.pop() {
-            n += 1;
+            part.push((x, y));
             for dy in -1..=1 {
                 for dx in -1..=1 {
                     let q = (x + dx, y + dy);
@@ -118,9 +180,14 @@ fn largest_component(px: &[(i32, i32)]) -> usize {
                 }
             }
         }
-        best = best.max(n);
+        out.push(part);
     }
-    best
+    out
+}
+
+/// Size of the largest 8-connected component of a pixel set.
+fn largest_component(px: &[(i32, i32)]) -> usize {
+    components(px).iter().map(Vec::len).max().unwrap_or(0)
 }
 
 /// The pixels grown by one pixel when their largest connected part has at least

@@ -455,3 +455,33 @@ fn clutter_around_the_board() {
     let (rms, mx) = errors(&d, &truth, &b);
     assert!(rms <= 0.02 && mx < 0.1, "{rms} {mx}");
 }
+
+#[test]
+fn stripe_along_a_line_of_corners() {
+    // a fronto-parallel board with a stripe over the corners of column 4: the grid is
+    // bridged across it, the hidden corners are dropped, the labels stay right
+    let b = board69();
+    let (w, h) = (640, 480);
+    let s = Scene::new(&b, w, h, 0.0, 0.0, 0.0, 0.7);
+    let truth = s.truth();
+    let mut s = s;
+    let p = truth[4];
+    let q = truth[5 * b.cols + 4];
+    s.stripe = Some((p, [q[0] - p[0], q[1] - p[1]], 2.5, 300.0));
+    let img = s.render();
+    let d = detect8(&img, w, h, &b).unwrap();
+    let (rms, mx) = errors(&d, &truth, &b);
+    println!(
+        "stripe along column 4: {} points, {} dropped, rms {rms:.4} max {mx:.4}",
+        d.points.len(),
+        d.dropped.len()
+    );
+    assert!(mx < 0.05, "{mx}");
+    assert!(d.points.iter().all(|p| p.col != 4));
+    assert_eq!(d.points.len(), 48);
+    assert!(
+        d.dropped.iter().filter(|x| x.col == 4).count() >= 5,
+        "{:?}",
+        d.dropped
+    );
+}
