@@ -485,3 +485,57 @@ fn stripe_along_a_line_of_corners() {
         d.dropped
     );
 }
+
+#[test]
+fn odd_inputs_never_panic() {
+    // small images, strides, random content, a board cut into pieces: typed results only
+    let mut rng = render::Rng(9);
+    let boards = [
+        Board::chessboard(2, 2, 10.0).unwrap(),
+        board69(),
+        Board::chessboard(7, 7, 5.0).unwrap(),
+    ];
+    for k in 0..40 {
+        let w = 16 + (rng.uniform() * 60.0) as usize;
+        let h = 16 + (rng.uniform() * 60.0) as usize;
+        let stride = w + (rng.uniform() * 5.0) as usize;
+        let sq = 3.0 + rng.uniform() * 12.0;
+        let data: Vec<u8> = (0..stride * h)
+            .map(|i| {
+                let (x, y) = ((i % stride) as f64, (i / stride) as f64);
+                let chess = ((x / sq).floor() as i64 + (y / sq).floor() as i64) % 2 == 0;
+                let base = if k % 3 == 0 {
+                    rng.uniform() * 255.0
+                } else if chess {
+                    40.0
+                } else {
+                    210.0
+                };
+                (base + 20.0 * rng.uniform()).min(255.0) as u8
+            })
+            .collect();
+        let v = ImageView::new(&data, w, h, stride).unwrap();
+        for b in &boards {
+            match detect_chessboard(AnyView::U8(v), b, &ChessboardOptions::default()) {
+                Ok(d) => assert!(d.points.iter().all(|p| p.row < b.rows && p.col < b.cols)),
+                Err(e) => assert!(
+                    matches!(e, Error::Detection(_) | Error::InvalidInput(_)),
+                    "{e}"
+                ),
+            }
+        }
+    }
+}
+
+#[test]
+fn detect_target_routes_chessboards_here() {
+    let b = board69();
+    let (w, h) = (320, 240);
+    let img = Scene::new(&b, w, h, 5.0, 10.0, 0.0, 0.6).render();
+    let v = ImageView::from_slice(&img, w, h).unwrap();
+    let d = crate::vision::target::detect_target(AnyView::U8(v), &b, &Default::default()).unwrap();
+    assert_eq!(d.kind, BoardKind::Chessboard);
+    assert_eq!(d.points.len(), 54);
+    assert!(d.circles.is_none());
+    assert!(d.homography_rms_px < 0.05);
+}
