@@ -1,0 +1,234 @@
+//! The blurred X-junction model of [`super::refine`] (see there): its value and
+//! gradient, the window of pixels it is fitted to, and the normal equations.
+
+use std::collections::HashSet;
+
+use nalgebra::{SMatrix, SVector};
+
+use super::image::Gray;
+
+pub(crate) const NP: usize = 11;
+pub(crate) type Mat = SMatrix<f64, NP, NP>;
+pub(crate) type Vec11 = SVector<f64, NP>;
+
+/// `erf` (Abramowitz & Stegun 7.1.26, |error| < 1.5e-7) and `exp(-x^2)`.
+#[inline]
+pub(crate) fn erf_exp(x: f64) -> (f64, f64) {
+    let a = x.abs();
+    if a > 6.0 {
+        // erf within 3e-17 of +-1, exp(-36) below 3e-16
+        return (x.signum(), 0.0);
+    }
+    let t = 1.0 / (1.0 + 0.3275911 * a);
+    let e = (-a * a).exp();
+    let poly = ((((1.061405429 * t - 1.453152027) * t + 1.421413741) * t - 0.284496736) * t
+        + 0.254829592)
+        * t;
+    let y = 1.0 - poly * e;
+    (if x < 0.0 { -y } else { y }, e)
+}
+
+const TWO_OVER_SQRT_PI: f64 = std::f64::consts::FRAC_2_SQRT_PI;
+
+/// Window pixels: `(dx, dy, value, weight)` relative to the centre.
+pub(crate) fn window(
+    g: &Gray,
+    c: [f64; 2],
+    r: f64,
+    mask: &HashSet<(i32, i32)>,
+    out: &mut Vec<[f64; 4]>,
+) {
+    out.clear();
+    let (x0, x1) = (
+        (c[0] - r - 0.5).ceil() as i64,
+        (c[0] + r + 0.5).floor() as i64,
+    );
+    let (y0, y1) = (
+        (c[1] - r - 0.5).ceil() as i64,
+        (c[1] + r + 0.5).floor() as i64,
+    );
+    for y in y0.max(0)..=y1.min(g.h as i64 - 1) {
+        for x in x0.max(0)..=x1.min(g.w as i64 - 1) {
+            let (dx, dy) = (x as f64 - c[0], y as f64 - c[1]);
+            let w = (r + 0.5 - (dx * dx + dy * dy).sqrt()).clamp(0.0, 1.0);
+            if w <= 0.0 {
+                continue;
+            }
+            if !mask.is_empty() {
+                let (mx, my) = (
+                    (2.0 * c[0] - x as f64).round(),
+                    (2.0 * c[1] - y as f64).round(),
+                );
+                if mask.contains(&(x as i32, y as i32)) || mask.contains(&(mx as i32, my as i32)) {
+                    continue;
+                }
+            }
+            out.push([dx, dy, g.at(x as usize, y as usize) as f64, w]);
+        }
+    }
+}
+
+/// The model for one parameter vector (`th = [cx, cy, a1, a2, ln s, p0..p5]`), with
+/// the per-vector constants computed once.
+pub(crate) struct Model {
+    th: Vec11,
+    s1a: f64,
+    c1a: f64,
+    s2a: f64,
+    c2a: f64,
+    k: f64,
+    inv_r: f64,
+}
+
+impl Model {
+    pub fn new(th: &Vec11, inv_r: f64) -> Model {
+        let (s1a, c1a) = th[2].sin_cos();
+        let (s2a, c2a) = th[3].sin_cos();
+        Model {
+            th: *th,
+            s1a,
+            c1a,
+            s2a,
+            c2a,
+            k: std::f64::consts::FRAC_1_SQRT_2 * (-th[4]).exp(),
+            inv_r,
+        }
+    }
+
+    /// Model value and `M` at offset `(dx, dy)` from the centre.
+    #[inline]
+    pub fn value(&self, dx: f64, dy: f64) -> (f64, f64) {
+        let th = &self.th;
+        let s1 = -self.s1a * dx + self.c1a * dy;
+        let s2 = -self.s2a * dx + self.c2a * dy;
+        let m = erf_exp(self.k * s1).0 * erf_exp(self.k * s2).0;
+        let (ux, uy) = (dx * self.inv_r, dy * self.inv_r);
+        (
+            th[5] + th[6] * m + (th[7] + th[8] * m) * ux + (th[9] + th[10] * m) * uy,
+            m,
+        )
+    }
+
+    /// Model value and its gradient with respect to the 11 parameters.
+    #[inline]
+    pub fn eval(&self, dx: f64, dy: f64) -> (f64, Vec11) {
+        let (th, k, inv_r) = (&self.th, self.k, self.inv_r);
+        let (s1a, c1a, s2a, c2a) = (self.s1a, self.c1a, self.s2a, self.c2a);
+        let s1 = -s1a * dx + c1a * dy;
+        let s2 = -s2a * dx + c2a * dy;
+        let (e1, g1) = erf_exp(k * s1);
+        let (e2, g2) = erf_exp(k * s2);
+        let (g1, g2) = (TWO_OVER_SQRT_PI * g1, TWO_OVER_SQRT_PI * g2);
+        let m = e1 * e2;
+        let (ux, uy) = (dx * inv_r, dy * inv_r);
+        let f = th[5] + th[6] * m + (th[7] + th[8] * m) * ux + (th[9] + th[10] * m) * uy;
+        let a = th[6] + th[8] * ux + th[10] * uy;
+        let dm_ds1 = k * g1 * e2;
+        let dm_ds2 = k * g2 * e1;
+        let mut j = Vec11::zeros();
+        // s1 = n1 . (x - c): ds1/dcx = s1a, ds1/dcy = -c1a
+        j[0] = a * (dm_ds1 * s1a + dm_ds2 * s2a) - (th[7] + th[8] * m) * inv_r;
+        j[1] = a * (-dm_ds1 * c1a - dm_ds2 * c2a) - (th[9] + th[10] * m) * inv_r;
+        // ds1/da1 = -(c1a dx + s1a dy)
+        j[2] = a * dm_ds1 * -(c1a * dx + s1a * dy);
+        j[3] = a * dm_ds2 * -(c2a * dx + s2a * dy);
+        j[4] = -a * (s1 * dm_ds1 + s2 * dm_ds2);
+        j[5] = 1.0;
+        j[6] = m;
+        j[7] = ux;
+        j[8] = m * ux;
+        j[9] = uy;
+        j[10] = m * uy;
+        (f, j)
+    }
+}
+
+/// Normal equations of the window: `(J^T W J, J^T W r, cost, weight sum)`.
+pub(crate) fn normal(th: &Vec11, px: &[[f64; 4]], inv_r: f64) -> (Mat, Vec11, f64, f64) {
+    // upper triangle of J^T W J, row by row
+    let mut tri = [0f64; NP * (NP + 1) / 2];
+    let mut b = Vec11::zeros();
+    let (mut cost, mut wsum) = (0.0, 0.0);
+    let md = Model::new(th, inv_r);
+    for q in px {
+        let (f, j) = md.eval(q[0], q[1]);
+        let r = q[2] - f;
+        let mut k = 0;
+        for a in 0..NP {
+            let wa = q[3] * j[a];
+            for c in a..NP {
+                tri[k] += wa * j[c];
+                k += 1;
+            }
+        }
+        b.axpy(q[3] * r, &j, 1.0);
+        cost += q[3] * r * r;
+        wsum += q[3];
+    }
+    let mut h = Mat::zeros();
+    let mut k = 0;
+    for a in 0..NP {
+        for c in a..NP {
+            h[(a, c)] = tri[k];
+            h[(c, a)] = tri[k];
+            k += 1;
+        }
+    }
+    (h, b, cost, wsum)
+}
+
+pub(crate) fn cost_of(th: &Vec11, px: &[[f64; 4]], inv_r: f64) -> f64 {
+    let md = Model::new(th, inv_r);
+    px.iter()
+        .map(|q| {
+            let (f, _) = md.value(q[0], q[1]);
+            q[3] * (q[2] - f).powi(2)
+        })
+        .sum()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn erf_is_accurate() {
+        // reference values of erf
+        for (x, want) in [
+            (0.0, 0.0),
+            (0.5, 0.5204998778),
+            (1.0, 0.8427007929),
+            (-2.0, -0.9953222650),
+        ] {
+            let (e, ex) = erf_exp(x);
+            assert!((e - want).abs() < 3e-7, "{x}: {e}");
+            assert!((ex - (-x * x).exp()).abs() < 1e-15);
+        }
+    }
+
+    #[test]
+    fn model_gradient_matches_finite_differences() {
+        let th =
+            Vec11::from_column_slice(&[0.3, -0.2, 0.4, 1.9, 0.1, 100.0, 60.0, 3.0, -2.0, 1.0, 0.5]);
+        let inv_r = 1.0 / 6.0;
+        for &(x, y) in &[(1.2, 0.7), (-2.0, 1.5), (0.1, -0.3)] {
+            let (dx, dy) = (x - th[0], y - th[1]);
+            let (_, j) = Model::new(&th, inv_r).eval(dx, dy);
+            for k in 0..NP {
+                let h = 1e-6;
+                let mut tp = th;
+                tp[k] += h;
+                let mut tm = th;
+                tm[k] -= h;
+                let fp = Model::new(&tp, inv_r).value(x - tp[0], y - tp[1]).0;
+                let fm = Model::new(&tm, inv_r).value(x - tm[0], y - tm[1]).0;
+                let fd = (fp - fm) / (2.0 * h);
+                assert!(
+                    (fd - j[k]).abs() < 1e-4 * (1.0 + fd.abs()),
+                    "param {k}: {fd} vs {}",
+                    j[k]
+                );
+            }
+        }
+    }
+}

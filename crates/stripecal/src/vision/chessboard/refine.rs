@@ -1,0 +1,343 @@
+//! Sub-pixel saddle points: a blurred X-junction model fitted in a window that is
+//! re-centred on the estimate at every step.
+//!
+//! ## Model
+//!
+//! Two straight edges through the corner `c` at angles `a1`, `a2` (a projective image of
+//! a chessboard corner is exactly that, whatever the tilt), blurred by a Gaussian of
+//! width `s` (PSF and pixel area together):
+//!
+//! `M(x) = erf(n1 . (x - c) / (sqrt 2 s)) erf(n2 . (x - c) / (sqrt 2 s))`,
+//!
+//! and the image `I(x) = p0 + p1 M + (p2 + p3 M) dx / R + (p4 + p5 M) dy / R` with
+//! `(dx, dy) = x - c` and `R` the window radius. The `p2, p4` terms are an additive
+//! linear illumination gradient (ambient light), `p3, p5` a multiplicative one (the
+//! light on the board times its reflectance): a plain model without them is biased by
+//! a gradient across the window. All eleven parameters are fitted by
+//! Levenberg-Marquardt with the window (a disc of radius `R`, a one-pixel linear taper
+//! at its rim) centred on the current `c`.
+//!
+//! ## Why the window is symmetric
+//!
+//! Near its centre the model's blur of an oblique junction is only approximately a
+//! Gaussian blur, but both the image of the junction and the model family are point
+//! symmetric about their centre. With the window symmetric about `c` the cost is then
+//! symmetric under the point reflection about the true corner, so the fitted centre has
+//! no bias from the model's approximation (only the pixel grid breaks the symmetry, a
+//! small effect that averages out). The window radius stays below the distance to the
+//! neighbouring squares' far edges (from the local lattice vectors), so the model's two
+//! edges are all the window sees.
+//!
+//! ## Start
+//!
+//! The grid gives positions within a few pixels (coarse pyramid levels). A few steps of
+//! the gradient-orthogonality estimate (each gradient is orthogonal to the direction
+//! from the corner, solved in closed form) bring the start within a fraction of a pixel
+//! before the model fit.
+//!
+//! ## Quality and stripes
+//!
+//! The reported quality is the formal standard deviation of the position,
+//! `sqrt((C_uu + C_vv) / 2)` from `s^2 (J^T W J)^-1` with `s` the residual RMS: it
+//! grows with noise, blur, low contrast and any misfit.
+//!
+//! ## Checks
+//!
+//! Before the fit, the four squares around the start must look like a chessboard
+//! corner and a bright stripe across the window is looked for (`stripe`); after it,
+//! the position, contrast, blur, edge directions, square colours, residual RMS and the
+//! residual of each of the four sectors are checked (`checks`). A stripe drops the
+//! corner ([`Fail::Stripe`]) or, when kept, its pixels and their mirror images about
+//! the centre (so the window stays symmetric) are left out of the fit.
+
+use std::collections::HashSet;
+
+use super::checks::{quadrants, validate, worst_sector};
+use super::image::Gray;
+use super::lattice::{cross, norm};
+use super::model::{cost_of, normal, window, Mat, Vec11, NP};
+use super::stripe::{dark_sector_stripe, faint_line, residual_stripe, stripe_mask};
+
+/// A converged fit: parameters, final window pixels, normal matrix, cost, weight sum.
+type Fitted = (Vec11, Vec<[f64; 4]>, Mat, f64, f64);
+
+/// A measured corner.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct Saddle {
+    pub u: f64,
+    pub v: f64,
+    /// Formal standard deviation of the position, px.
+    pub sigma_px: f64,
+    /// Fitted contrast (light minus dark), image units.
+    pub contrast: f64,
+    /// The window had to be shrunk to fit, or ends within 2 px of the image border.
+    pub near_border: bool,
+    /// A bright stripe crosses the window (kept: the stripe pixels and their mirror
+    /// images were left out of the fit).
+    pub stripe: bool,
+}
+
+/// Why a corner could not be measured.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) enum Fail {
+    Stripe,
+    Border,
+    NotCorner(&'static str),
+}
+
+impl Fail {
+    pub fn reason(self) -> &'static str {
+        match self {
+            Fail::Stripe => "crossed by a bright stripe",
+            Fail::Border => "too close to the image border for a measuring window",
+            Fail::NotCorner(r) => r,
+        }
+    }
+}
+
+/// Settings of one refinement.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct Settings {
+    pub max_radius: f64,
+    pub keep_stripe: bool,
+    /// Image noise sigma, image units.
+    pub noise: f64,
+}
+
+/// Gradient-orthogonality estimate (a few closed-form steps).
+fn orthogonality_start(
+    g: &Gray,
+    start: [f64; 2],
+    r: f64,
+    mask: &HashSet<(i32, i32)>,
+) -> Option<[f64; 2]> {
+    let mut c = start;
+    let s2 = 2.0 * (0.5 * r).powi(2);
+    for _ in 0..10 {
+        let (mut a, mut b, mut d, mut bx, mut by) = (0.0, 0.0, 0.0, 0.0, 0.0);
+        let (x0, x1) = ((c[0] - r).ceil() as i64, (c[0] + r).floor() as i64);
+        let (y0, y1) = ((c[1] - r).ceil() as i64, (c[1] + r).floor() as i64);
+        for y in y0.max(1)..=y1.min(g.h as i64 - 2) {
+            for x in x0.max(1)..=x1.min(g.w as i64 - 2) {
+                if !mask.is_empty() {
+                    let (mx, my) = (
+                        (2.0 * c[0] - x as f64).round(),
+                        (2.0 * c[1] - y as f64).round(),
+                    );
+                    if mask.contains(&(x as i32, y as i32))
+                        || mask.contains(&(mx as i32, my as i32))
+                    {
+                        continue;
+                    }
+                }
+                let (xu, yu) = (x as usize, y as usize);
+                let gx = 0.5 * (g.at(xu + 1, yu) - g.at(xu - 1, yu)) as f64;
+                let gy = 0.5 * (g.at(xu, yu + 1) - g.at(xu, yu - 1)) as f64;
+                let (dx, dy) = (x as f64 - c[0], y as f64 - c[1]);
+                let w = (-(dx * dx + dy * dy) / s2).exp();
+                let (gxx, gxy, gyy) = (w * gx * gx, w * gx * gy, w * gy * gy);
+                a += gxx;
+                b += gxy;
+                d += gyy;
+                bx += gxx * x as f64 + gxy * y as f64;
+                by += gxy * x as f64 + gyy * y as f64;
+            }
+        }
+        let det = a * d - b * b;
+        if det.is_nan() || det <= 1e-12 * (a + d) * (a + d) {
+            return None;
+        }
+        let n = [(d * bx - b * by) / det, (a * by - b * bx) / det];
+        let step = norm([n[0] - c[0], n[1] - c[1]]);
+        c = n;
+        if !(step.is_finite()) {
+            return None;
+        }
+        if step < 0.02 {
+            break;
+        }
+    }
+    Some(c)
+}
+
+/// The fit itself: returns the parameters, the final window and its normal equations.
+fn fit(
+    g: &Gray,
+    c0: [f64; 2],
+    angles: [f64; 2],
+    r: f64,
+    mask: &HashSet<(i32, i32)>,
+) -> Option<Fitted> {
+    let inv_r = 1.0 / r;
+    let mut th = Vec11::zeros();
+    th[0] = c0[0];
+    th[1] = c0[1];
+    th[2] = angles[0];
+    th[3] = angles[1];
+    th[4] = 0.0;
+    let mut px = Vec::with_capacity(512);
+    window(g, c0, r, mask, &mut px);
+    if px.len() < 20 {
+        return None;
+    }
+    // linear part first: contrast and illumination for the starting geometry
+    {
+        let (h, b, _, _) = normal(&th, &px, inv_r);
+        let hl = h.fixed_view::<6, 6>(5, 5).into_owned();
+        let bl = b.fixed_rows::<6>(5).into_owned();
+        let sol = hl.cholesky()?.solve(&bl);
+        for k in 0..6 {
+            th[5 + k] = sol[k];
+        }
+    }
+    let mut lambda = 1e-3;
+    for _ in 0..40 {
+        window(g, [th[0], th[1]], r, mask, &mut px);
+        if px.len() < 20 {
+            return None;
+        }
+        // the parameters are relative to the centre: shifting the window keeps them
+        let (h, b, cost, _) = normal(&th, &px, inv_r);
+        let mut accepted = None;
+        for _ in 0..8 {
+            let mut ha = h;
+            for k in 0..NP {
+                ha[(k, k)] += lambda * h[(k, k)].max(1e-12);
+            }
+            let Some(ch) = ha.cholesky() else {
+                lambda *= 10.0;
+                continue;
+            };
+            let delta = ch.solve(&b);
+            let mut t2 = th + delta;
+            // the centre moved: keep the offsets relative to the trial centre
+            t2[4] = t2[4].clamp(-3.0, 3.0);
+            let trial: Vec<[f64; 4]> = px
+                .iter()
+                .map(|q| [q[0] - delta[0], q[1] - delta[1], q[2], q[3]])
+                .collect();
+            let c2 = cost_of(&t2, &trial, inv_r);
+            if c2.is_finite() && c2 <= cost {
+                lambda = (lambda / 3.0).max(1e-9);
+                accepted = Some((t2, delta));
+                break;
+            }
+            lambda *= 4.0;
+        }
+        let Some((t2, delta)) = accepted else {
+            break;
+        };
+        th = t2;
+        if delta[0].hypot(delta[1]) < 2e-4 && delta[2].abs() < 2e-4 && delta[3].abs() < 2e-4 {
+            break;
+        }
+    }
+    window(g, [th[0], th[1]], r, mask, &mut px);
+    let (h, _, cost, wsum) = normal(&th, &px, inv_r);
+    th.iter()
+        .all(|v| v.is_finite())
+        .then_some((th, px, h, cost, wsum))
+}
+
+/// Measures the corner near `start` with local lattice steps `di`, `dj` (image
+/// vectors to the `+i` and `+j` neighbours). `light_ij`: whether the square between the
+/// `+i` and `+j` edges is light, when known. `strict`: a site the candidates did not
+/// show (grid extension, holes), whose squares must agree closely (0.6, against 1.2 for
+/// a grid corner whose links were checked; glare on one square stays below 1).
+pub(crate) fn refine(
+    g: &Gray,
+    start: [f64; 2],
+    di: [f64; 2],
+    dj: [f64; 2],
+    light_ij: Option<bool>,
+    strict: bool,
+    s: &Settings,
+) -> Result<Saddle, Fail> {
+    let (li, lj) = (norm(di), norm(dj));
+    let area = cross(di, dj).abs();
+    if !(li > 1.0 && lj > 1.0 && area > 1.0 && start[0].is_finite() && start[1].is_finite()) {
+        return Err(Fail::NotCorner("degenerate local lattice"));
+    }
+    let d_far = area / li.max(lj);
+    let mut r = (0.75 * d_far - 1.5).clamp(2.5, s.max_radius.max(2.5));
+    let border = |c: [f64; 2]| {
+        let (w, h) = ((g.w - 1) as f64, (g.h - 1) as f64);
+        c[0].min(c[1]).min(w - c[0]).min(h - c[1]) - 1.5
+    };
+    let mut near_border = false;
+    let mut shrink = |c: [f64; 2], r: &mut f64| {
+        let rb = border(c);
+        if rb < *r {
+            if rb < 2.5 {
+                return Err(Fail::Border);
+            }
+            *r = rb;
+            near_border = true;
+        }
+        Ok(())
+    };
+    shrink(start, &mut r)?;
+    let ratio = if strict { 0.6 } else { 1.2 };
+    let (light, dark) = quadrants(g, start, di, dj, light_ij, s.noise, ratio)?;
+    let mask = stripe_mask(g, start, r, light, dark, s.noise);
+    let stripe = !mask.is_empty();
+    if stripe && !s.keep_stripe {
+        return Err(Fail::Stripe);
+    }
+    let tol = (0.35 * li.min(lj)).max(2.0);
+    let c0 =
+        orthogonality_start(g, start, r, &mask).ok_or(Fail::NotCorner("no gradient structure"))?;
+    if norm([c0[0] - start[0], c0[1] - start[1]]) > tol {
+        return Err(Fail::NotCorner(
+            "the saddle point is far from the predicted position",
+        ));
+    }
+    shrink(c0, &mut r)?;
+    let on_dark = dark_sector_stripe(g, c0, r, di, dj, light_ij, light, dark);
+    let stripe = stripe || !on_dark.is_empty();
+    if stripe && !s.keep_stripe {
+        return Err(Fail::Stripe);
+    }
+    let mask: HashSet<(i32, i32)> = mask.union(&on_dark).copied().collect();
+    let angles = [di[1].atan2(di[0]), dj[1].atan2(dj[0])];
+    let (mut th, mut px, mut h, mut cost, mut wsum) =
+        fit(g, c0, angles, r, &mask).ok_or(Fail::NotCorner("the saddle fit failed"))?;
+    let more: HashSet<(i32, i32)> = residual_stripe(&th, &px, r, s.noise)
+        .union(&faint_line(g, [th[0], th[1]], r, light, dark, s.noise))
+        .copied()
+        .collect();
+    let stripe = stripe || !more.is_empty();
+    if !more.is_empty() {
+        if !s.keep_stripe {
+            return Err(Fail::Stripe);
+        }
+        let all: HashSet<(i32, i32)> = mask.union(&more).copied().collect();
+        (th, px, h, cost, wsum) = fit(g, c0, angles, r, &all).ok_or(Fail::Stripe)?;
+    }
+    validate(&th, start, angles, r, tol, light_ij, s, di, dj)?;
+    if worst_sector(&th, &px, r) > 0.25 * 2.0 * th[6].abs() {
+        return Err(Fail::NotCorner(
+            "one of its four squares does not fit a corner model",
+        ));
+    }
+    let rms = (cost / wsum.max(1.0)).sqrt();
+    if rms > 0.25 * 2.0 * th[6].abs() + 2.0 * s.noise {
+        return Err(Fail::NotCorner("the image does not fit a corner model"));
+    }
+    let c = [th[0], th[1]];
+    near_border |= border(c) - r < 2.0;
+    let dof = (wsum - NP as f64).max(1.0);
+    let s2 = cost / dof;
+    let sigma_px = h
+        .try_inverse()
+        .map(|inv| (0.5 * s2 * (inv[(0, 0)] + inv[(1, 1)]).max(0.0)).sqrt())
+        .unwrap_or(f64::NAN);
+    Ok(Saddle {
+        u: c[0],
+        v: c[1],
+        sigma_px,
+        contrast: 2.0 * th[6].abs(),
+        near_border,
+        stripe,
+    })
+}
