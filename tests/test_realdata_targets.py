@@ -122,3 +122,83 @@ def test_rosi_circle_grid_against_opencv() -> None:
     )
     assert np.median(allv) <= 0.1
     assert max(medians) <= 0.1
+
+
+def test_visp_chessboard_against_opencv() -> None:
+    """Acceptance 2: the ViSP Franka set (chessboard 9 x 6 inner corners, 23.6 mm, 8
+    real 640 x 480 views): every view detected with all 54 corners, indexed per the
+    contract (right-handed, the square outside corner (0, 0) dark).
+
+    Against OpenCV on the same images: the corners agree with cv2.cornerSubPix (after
+    cv2.findChessboardCorners) within 0.1 px median; cv2.findChessboardCornersSB's
+    corners are printed, not asserted: they move by up to 0.35 px between its own flag
+    settings and sit 0.2-0.6 px from both ours and cornerSubPix (BENCHMARKS.md, "Vision:
+    targets"). Which set is more accurate is measured instead: the same 8-view camera
+    calibration (cv2.calibrateCamera, k1, k2) has a lower reprojection RMS with ours than
+    with either OpenCV detector's."""
+    cv2 = pytest.importorskip("cv2")
+    root, rig, images = dataset("visp_franka")
+    board = board_of(rig)
+    assert len(images) == 8 and (board.rows, board.cols) == (6, 9)
+    sb_flags = cv2.CALIB_CB_NORMALIZE_IMAGE | cv2.CALIB_CB_EXHAUSTIVE | cv2.CALIB_CB_ACCURACY
+    crit = (cv2.TERM_CRITERIA_EPS + cv2.TERM_CRITERIA_MAX_ITER, 100, 1e-4)
+    sets: Dict[str, List[F64]] = {"stripecal": [], "cornerSubPix": [], "findChessboardCornersSB": []}
+    d_sub: List[F64] = []
+    d_sb: List[F64] = []
+    indices = None
+    for p in images:
+        gray = cv2.imread(str(p), cv2.IMREAD_GRAYSCALE)
+        det = stripecal.detect_target(gray, board)
+        assert len(det) == 54 and det.alternatives == [], p.name
+        if indices is None:
+            indices = det.indices
+        assert np.array_equal(det.indices, indices)
+        pts = det.points
+        # the contract's orientation: col increases along +x, row along +y, right-handed
+        # (u right, v down), and the square outside corner (0, 0) is dark
+        p00, p01, p10, p11 = (pts[list(map(tuple, det.indices)).index(rc)] for rc in [(0, 0), (0, 1), (1, 0), (1, 1)])
+        dx, dy = p01 - p00, p10 - p00
+        assert dx[0] * dy[1] - dx[1] * dy[0] > 0, p.name
+        dark = p00 - 0.5 * (p11 - p00)  # square (-1, -1): dark
+        light = p00 + 0.5 * dx - 0.5 * dy  # square (0, -1): light
+        assert int(gray[int(round(dark[1])), int(round(dark[0]))]) < int(gray[int(round(light[1])), int(round(light[0]))]) - 30, p.name
+
+        def ordered(q: F64) -> F64:
+            d = np.linalg.norm(pts[:, None, :] - q[None, :, :], axis=2)
+            k = d.argmin(axis=1)
+            assert len(set(k.tolist())) == len(k) and d[np.arange(len(k)), k].max() < 3.0, p.name
+            return np.asarray(q[k], np.float64)
+
+        ok, c = cv2.findChessboardCorners(gray, (board.cols, board.rows))
+        assert ok, p.name
+        sub = ordered(cv2.cornerSubPix(gray, c, (5, 5), (-1, -1), crit).reshape(-1, 2).astype(np.float64))
+        ok, c = cv2.findChessboardCornersSB(gray, (board.cols, board.rows), flags=sb_flags)
+        assert ok, p.name
+        sb = ordered(np.asarray(c, np.float64).reshape(-1, 2))
+        sets["stripecal"].append(pts)
+        sets["cornerSubPix"].append(sub)
+        sets["findChessboardCornersSB"].append(sb)
+        d_sub.append(np.linalg.norm(pts - sub, axis=1))
+        d_sb.append(np.linalg.norm(pts - sb, axis=1))
+    assert indices is not None
+    obj = np.array([[c * board.pitch_mm, r * board.pitch_mm, 0.0] for r, c in indices], np.float32)
+    rms = {}
+    for name, pts_list in sets.items():
+        rms[name], *_ = cv2.calibrateCamera(
+            [obj] * len(pts_list),
+            [q.astype(np.float32) for q in pts_list],
+            (640, 480),
+            None,
+            None,
+            flags=cv2.CALIB_FIX_K3 | cv2.CALIB_ZERO_TANGENT_DIST,
+        )
+    ds, db = np.concatenate(d_sub), np.concatenate(d_sb)
+    print(
+        f"\nvisp_franka: 8/8 views, 432 corners; distance to cv2.cornerSubPix median {np.median(ds):.4f} px "
+        f"(per view {min(map(np.median, d_sub)):.4f}..{max(map(np.median, d_sub)):.4f}); to "
+        f"cv2.findChessboardCornersSB median {np.median(db):.4f} px (per view "
+        f"{min(map(np.median, d_sb)):.4f}..{max(map(np.median, d_sb)):.4f}); calibrateCamera RMS: "
+        + ", ".join(f"{k} {v:.4f} px" for k, v in rms.items())
+    )
+    assert np.median(ds) <= 0.1 and max(map(np.median, d_sub)) <= 0.1
+    assert rms["stripecal"] <= rms["cornerSubPix"] and rms["stripecal"] <= rms["findChessboardCornersSB"]

@@ -265,3 +265,44 @@ fn square_grid_with_one_marker() {
     let st = random_views("circles 8 x 8, one marker", &t);
     assert!(st.rms() <= 0.015, "RMS {} px", st.rms());
 }
+
+/// Chessboard (`hp3-chessboard`: 7 x 10 inner corners, rows + cols odd: the colours fix
+/// the orientation): corners within 0.02 px RMS of the truth.
+#[test]
+fn chessboard_on_random_views() {
+    let t = twin("hp3-chessboard", serde_json::json!({}));
+    let st = random_views("chessboard 7 x 10", &t);
+    assert!(st.rms() <= 0.02, "RMS {} px", st.rms());
+}
+
+/// A chessboard with rows + cols even (8 x 10): the half turn is reported, never
+/// guessed.
+#[test]
+fn chessboard_even_counts_reports_the_half_turn() {
+    let t = twin("hp3-chessboard", serde_json::json!({"board": {"rows": 6}}));
+    assert_eq!(t.board.symmetries().len(), 1);
+    let views = RandomViews {
+        count: 12,
+        seed: 6,
+        ..RandomViews::whole_board()
+    }
+    .sample(&t)
+    .unwrap();
+    let mut st = Stats::default();
+    for o in run(&t, &views, 0) {
+        match o {
+            Outcome::Detected(e, alts) => {
+                assert_eq!(alts, 1, "the half turn is reported");
+                st.add(&e);
+            }
+            Outcome::Refused(m) => panic!("whole-board view refused: {m}"),
+        }
+    }
+    eprintln!(
+        "chessboard 6 x 10: {} corners, RMS {:.4} px, max {:.4} px",
+        st.n,
+        st.rms(),
+        st.max
+    );
+    assert!(st.rms() <= 0.02, "RMS {} px", st.rms());
+}

@@ -763,7 +763,10 @@ pub fn calibrate_dataset_loaded(
     let (obs, mut warnings) = observe_dataset(ds, opts)?;
     if obs.len() < 3 {
         // Not an input the adjustment could start from: say which views and why.
-        let why: Vec<&String> = warnings.iter().filter(|w| w.contains("board not found")).collect();
+        let why: Vec<&String> = warnings
+            .iter()
+            .filter(|w| w.contains("board not found"))
+            .collect();
         return Err(Error::Detection(format!(
             "the board ({} x {} {}) was found in {} of {} views, at least 3 are needed: {}",
             ds.rig.board.rows,
@@ -771,7 +774,10 @@ pub fn calibrate_dataset_loaded(
             ds.rig.board.kind.name(),
             obs.len(),
             ds.views.len(),
-            why.iter().map(|w| w.as_str()).collect::<Vec<_>>().join("; ")
+            why.iter()
+                .map(|w| w.as_str())
+                .collect::<Vec<_>>()
+                .join("; ")
         )));
     }
     let mut rep = calibrate_observations(&obs, &ds.rig, opts)?;
