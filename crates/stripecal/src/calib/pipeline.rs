@@ -38,7 +38,7 @@ use crate::calib::{CircleObs, ViewObs};
 use crate::camera::{DistortionModel, PARAM_NAMES};
 use crate::error::{Error, Result};
 use crate::geometry::Iso3;
-use crate::io::{load_gray, load_gray_info, Calibration, Dataset, Quality, Rig};
+use crate::io::{load_gray_info, Calibration, Dataset, Quality, Rig};
 use crate::vision::stripe::{extract_stripe, flag_reflectance_edges, EdgeOptions, StripeOptions};
 use crate::vision::target::{detect_target, TargetOptions};
 
@@ -204,7 +204,11 @@ pub fn observe_dataset(
                 let lview = if single {
                     bview
                 } else {
-                    laser_img = load_gray(ds.image_path(lp))?;
+                    let (img, info) = load_gray_info(ds.image_path(lp))?;
+                    if info.lossy {
+                        lossy.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+                    }
+                    laser_img = img;
                     if laser_img.size() != board_img.size() {
                         return Err(Error::InvalidInput(format!(
                             "{tag}: {} and {} differ in size",
@@ -247,8 +251,8 @@ pub fn observe_dataset(
     let lossy = lossy.into_inner();
     if lossy > 0 {
         warnings.push(format!(
-            "{lossy} board image(s) are JPEG: lossy compression costs accuracy (accepted; PNG, \
-             TIFF or BMP keep every grey level)"
+            "{lossy} image(s) are JPEG: lossy compression costs accuracy (accepted; PNG, TIFF \
+             or BMP keep every grey level)"
         ));
     }
     for r in results {

@@ -293,10 +293,17 @@ pub(crate) fn measure<T: Pixel>(
         // the neighbours' shapes on this row: pixels inside them are not background
         spans.clear();
         spans.extend(others.iter().filter_map(|o| o.row_span(y as f64)));
-        for x in outer {
-            if inner.contains(&x) {
-                continue;
-            }
+        // the band: the outer span minus the inner one (two segments, or the whole
+        // outer span where the inner ellipse does not reach this row)
+        let (left, right) = if inner.is_empty() {
+            (outer.clone(), 0..0)
+        } else {
+            (
+                outer.start..inner.start.max(outer.start),
+                inner.end.min(outer.end)..outer.end,
+            )
+        };
+        for x in left.chain(right) {
             if decimate && (x + y) % 2 == 1 {
                 continue;
             }
@@ -511,7 +518,9 @@ pub(crate) fn measure<T: Pixel>(
             pts.push([gravity[0] + te * ux, gravity[1] + te * uy]);
         }
     }
-    let ellipse = fit_ellipse(&pts);
+    // the ellipse method's centre gets the full re-weighting; the gravity method's
+    // quality figure two rounds (the outlier removal included)
+    let ellipse = fit_ellipse(&pts, if ellipse_centre { 4 } else { 2 });
     Ok(Measure {
         gravity,
         ellipse,
@@ -547,8 +556,10 @@ fn conic_fit(p: &[[f64; 2]], wts: &[f64]) -> Option<Conic> {
     Some([s[0], s[1], 1.0 - s[0], s[2], s[3], s[4]])
 }
 
-/// Fits an ellipse to edge points (px); `None` if too few points or not an ellipse.
-pub(crate) fn fit_ellipse(pts: &[[f64; 2]]) -> Option<Ellipse> {
+/// Fits an ellipse to edge points (px) with `rounds` (at least 2) of gradient
+/// re-weighting, the second with outlier removal; `None` if too few points or not an
+/// ellipse.
+pub(crate) fn fit_ellipse(pts: &[[f64; 2]], rounds: usize) -> Option<Ellipse> {
     if pts.len() < 10 {
         return None;
     }
@@ -571,7 +582,7 @@ pub(crate) fn fit_ellipse(pts: &[[f64; 2]]) -> Option<Ellipse> {
     let mut wts = vec![1.0; q.len()];
     let mut c = conic_fit(&q, &wts)?;
     let mut dropped = false;
-    for it in 0..4 {
+    for it in 0..rounds.max(2) {
         // gradient re-weighting (Sampson-like), and one round of outlier removal
         let mut res = Vec::with_capacity(q.len());
         for (p, wt) in q.iter().zip(wts.iter_mut()) {
@@ -689,11 +700,11 @@ mod tests {
                 ]
             })
             .collect();
-        let e = fit_ellipse(&pts).unwrap();
+        let e = fit_ellipse(&pts, 4).unwrap();
         assert!((e.centre[0] - cx).abs() < 1e-9 && (e.centre[1] - cy).abs() < 1e-9);
         assert!((e.axes[0] - a).abs() < 1e-9 && (e.axes[1] - b).abs() < 1e-9);
         assert!((e.angle - th).abs() < 1e-9, "{}", e.angle);
         assert!(e.rms < 1e-9);
-        assert!(fit_ellipse(&pts[..5]).is_none());
+        assert!(fit_ellipse(&pts[..5], 4).is_none());
     }
 }
