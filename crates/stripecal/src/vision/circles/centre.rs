@@ -154,7 +154,7 @@ fn cols(cx: f64, span: Option<(f64, f64)>, w: usize) -> std::ops::Range<usize> {
             // ceil / floor by truncation of non-negative values (no libm call: the
             // baseline x86-64 has no rounding instruction)
             let (a, b) = (cx + lo, cx + hi);
-            if !(b >= 0.0) || a.is_nan() || w == 0 {
+            if b.is_nan() || b < 0.0 || a.is_nan() || w == 0 {
                 return 0..0;
             }
             let x0 = if a <= 0.0 {
