@@ -87,3 +87,30 @@ fn chessboard_meets_the_targets() {
         serde_json::json!({}),
     );
 }
+
+/// A grid without markers where one view's robot pose belongs to another view: its
+/// labelling cannot be told from the robot poses, so it is left out with the reason;
+/// the others calibrate.
+#[test]
+fn undecidable_view_is_left_out_with_the_reason() {
+    let dir = tempfile::tempdir().unwrap();
+    render(
+        "hp3-paper",
+        serde_json::json!({"board": {"markers": []}, "poses": {"count": 7}}),
+        dir.path(),
+    );
+    // view 2 gets view 5's joint readings
+    let csv = dir.path().join("calib/views.csv");
+    let text = std::fs::read_to_string(&csv).unwrap();
+    let mut lines: Vec<String> = text.lines().map(String::from).collect();
+    let joints = |l: &str| l.splitn(3, ',').nth(2).unwrap().to_string();
+    let head = |l: &str| l.splitn(3, ',').take(2).collect::<Vec<_>>().join(",");
+    lines[3] = format!("{},{}", head(&lines[3]), joints(&lines[6]));
+    std::fs::write(&csv, lines.join("\n") + "\n").unwrap();
+    let rep = calibrate_dataset(dir.path().join("calib"), &CalibrateOptions::default()).unwrap();
+    let v2 = rep.views.iter().find(|v| v.view == 2).unwrap();
+    let note = v2.note.clone().unwrap_or_default();
+    println!("view 2: {note}");
+    assert!(!v2.used && note.contains("orientation"), "{note}");
+    assert_eq!(rep.views.iter().filter(|v| v.used).count(), 6);
+}

@@ -14,13 +14,16 @@
 //! The cost of candidate `c` of view `i` against the decided views is the median over
 //! them of the pair mismatch `(d_angle / 0.2 deg)^2 + (d_pitch / 1 mm)^2` (the pitch term
 //! only where both rotations exceed 5 degrees, below which the axis is ill-defined).
-//! Views with a single candidate start decided; if there are none, the reference view's
+//! Views with a single candidate start decided; if there are none, the first view's
 //! first candidate does (that choice turns the board frame as a whole: it changes only
-//! `T_base_board`, spec/DATASET.md). Then, repeatedly, the undecided view whose best
-//! candidate is the most clearly better than its second is decided — clearly meaning a
-//! second-best cost above 25 (five sigmas) and ten times the best. A view that cannot be
-//! decided that way is left undecided (the caller leaves it out, saying why), never
-//! guessed. A last pass re-checks every decision against all the others.
+//! `T_base_board`, spec/DATASET.md), or the next view's if the first does not agree
+//! with the others (a wrong robot pose). Then, repeatedly, the undecided view whose
+//! best candidate is the most clearly better than its second is decided — clearly
+//! meaning a best cost within five sigmas (25) and a second-best cost above that and
+//! ten times the best. A view that cannot be decided that way is left undecided (the
+//! caller leaves it out, saying why), never guessed: both when its labellings fit
+//! equally well and when none fits (its robot pose or its image is wrong). A last pass
+//! re-checks every decision against all the others.
 
 use nalgebra::Vector3;
 
@@ -121,26 +124,51 @@ fn clear(best: f64, second: f64) -> bool {
     second > SECOND_MIN && second > RATIO * best
 }
 
-/// Chooses a candidate for every view (module docs); `reference` is the view whose
-/// first candidate fixes the board frame when no view has a single candidate.
-pub fn choose(views: &[Candidates], reference: usize) -> Vec<Decision> {
+/// Whether a best cost agrees with the noise model (five sigmas).
+fn consistent(best: f64) -> bool {
+    best <= SECOND_MIN
+}
+
+/// Chooses a candidate for every view (module docs). When no view has a single
+/// candidate, the first view whose first candidate agrees with the others fixes the
+/// board frame (a view whose robot pose is wrong cannot).
+pub fn choose(views: &[Candidates]) -> Vec<Decision> {
+    let n = views.len();
+    if n == 0 {
+        return Vec::new();
+    }
+    if views.iter().any(|v| v.b.len() == 1) {
+        return choose_from(views, None);
+    }
+    let first = choose_from(views, Some(0));
+    if matches!(first[0], Decision::Chosen { .. }) {
+        return first;
+    }
+    (1..n)
+        .map(|r| choose_from(views, Some(r)))
+        .zip(1..n)
+        .find(|(d, r)| matches!(d[*r], Decision::Chosen { .. }))
+        .map(|(d, _)| d)
+        .unwrap_or(first)
+}
+
+/// [`choose`] with `reference`'s first candidate fixing the frame (if given).
+fn choose_from(views: &[Candidates], reference: Option<usize>) -> Vec<Decision> {
     let n = views.len();
     let mut chosen: Vec<Option<usize>> = views
         .iter()
         .map(|v| (v.b.len() == 1).then_some(0))
         .collect();
-    if n == 0 {
-        return Vec::new();
+    if let Some(r) = reference.filter(|&r| r < n && !views[r].b.is_empty()) {
+        chosen[r] = Some(0);
     }
-    if chosen.iter().all(|c| c.is_none()) && reference < n && !views[reference].b.is_empty() {
-        chosen[reference] = Some(0);
-    }
+    // greedily, the clearest decision first
     loop {
         let mut best: Option<(f64, usize, usize)> = None;
         for i in (0..n).filter(|&i| chosen[i].is_none() && !views[i].b.is_empty()) {
             let c = costs(views, &chosen, i);
             let (k, b, s) = best_two(&c);
-            if clear(b, s) {
+            if clear(b, s) && consistent(b) {
                 let margin = s / b.max(1e-12);
                 if best.is_none_or(|(m, _, _)| margin > m) {
                     best = Some((margin, i, k));
@@ -150,7 +178,7 @@ pub fn choose(views: &[Candidates], reference: usize) -> Vec<Decision> {
         let Some((_, i, k)) = best else { break };
         chosen[i] = Some(k);
     }
-    // Re-check every multi-candidate decision against all the others.
+    // re-check every multi-candidate view against all the others
     (0..n)
         .map(|i| {
             if views[i].b.len() == 1 {
@@ -159,33 +187,42 @@ pub fn choose(views: &[Candidates], reference: usize) -> Vec<Decision> {
                     margin: f64::INFINITY,
                 };
             }
-            let others_decided = chosen
+            let others = chosen
                 .iter()
                 .enumerate()
                 .any(|(j, c)| j != i && c.is_some());
-            if !others_decided {
-                return match chosen[i] {
-                    // the reference alone: its choice is the board frame's
-                    Some(k) => Decision::Chosen {
-                        index: k,
+            if !others {
+                // alone: it fixes the frame only when there is nothing to check it with
+                return if n == 1 && chosen[i].is_some() {
+                    Decision::Chosen {
+                        index: 0,
                         margin: f64::INFINITY,
-                    },
-                    None => Decision::Undecided {
+                    }
+                } else {
+                    Decision::Undecided {
                         best: f64::INFINITY,
                         second: f64::INFINITY,
-                    },
+                    }
                 };
             }
             let c = costs(views, &chosen, i);
             let (k, b, s) = best_two(&c);
-            if i == reference && chosen[i] == Some(0) && views.iter().all(|v| v.b.len() != 1) {
-                // the reference's candidate defines the frame; report its agreement
-                return Decision::Chosen {
-                    index: 0,
-                    margin: if k == 0 { s / b.max(1e-12) } else { 0.0 },
+            if Some(i) == reference {
+                // its first candidate defines the frame: it must agree with the others
+                let second = c.iter().skip(1).copied().fold(f64::INFINITY, f64::min);
+                return if consistent(c[0]) && clear(c[0], second) {
+                    Decision::Chosen {
+                        index: 0,
+                        margin: second / c[0].max(1e-12),
+                    }
+                } else {
+                    Decision::Undecided {
+                        best: c[0],
+                        second,
+                    }
                 };
             }
-            if clear(b, s) && chosen[i].is_some() {
+            if chosen[i].is_some() && clear(b, s) && consistent(b) {
                 Decision::Chosen {
                     index: k,
                     margin: s / b.max(1e-12),
@@ -274,7 +311,7 @@ mod tests {
                 Candidates { a: *ak, b: cands }
             })
             .collect();
-        let d = choose(&views, 0);
+        let d = choose(&views);
         for (k, dk) in d.iter().enumerate() {
             let want = if k % 3 == 1 { 1 } else { 0 };
             match dk {
@@ -288,7 +325,7 @@ mod tests {
         // a view whose robot pose belongs to another view is not decided
         let mut bad = views.clone();
         bad[4].a = a[6];
-        let d = choose(&bad, 0);
+        let d = choose(&bad);
         assert!(matches!(d[4], Decision::Undecided { .. }), "{:?}", d[4]);
         assert!(matches!(d[5], Decision::Chosen { index: 0, .. }));
     }

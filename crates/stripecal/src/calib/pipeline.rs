@@ -340,7 +340,7 @@ fn resolve_labellings(
                 .collect(),
         })
         .collect();
-    let decisions = consensus::choose(&cands, 0);
+    let decisions = consensus::choose(&cands);
     let frame_fixed_by_first = items.iter().all(|(v, _)| !v.alternatives.is_empty());
     let mut out = Vec::with_capacity(items.len());
     for (k, (v, cb)) in items.iter().enumerate() {
@@ -365,10 +365,17 @@ fn resolve_labellings(
                 out.push(Ok((v2, cb * m.inverse())));
             }
             Decision::Undecided { best, second } => {
+                let why = if best > 25.0 {
+                    "none of its labellings agrees with the robot poses of the other views \
+                     (its robot pose, or its image, is wrong?)"
+                } else {
+                    "its labellings agree about equally well with the robot poses of the other \
+                     views"
+                };
                 let msg = format!(
-                    "view {}: left out: its orientation on the symmetric board cannot be told \
-                     from the robot poses (its two best labellings disagree with the other views \
-                     by {:.1} and {:.1} sigma, sigma = 0.2 deg / 1 mm of screw motion)",
+                    "view {}: left out: its orientation on the symmetric board cannot be told: \
+                     {why} (the two best disagree by {:.1} and {:.1} sigma; sigma = 0.2 deg / \
+                     1 mm of screw motion)",
                     v.view,
                     best.sqrt(),
                     second.sqrt()
