@@ -772,8 +772,9 @@ pub fn calibrate_dataset_loaded(
     opts: &CalibrateOptions,
 ) -> Result<CalibrationReport> {
     let (obs, mut warnings) = observe_dataset(ds, opts)?;
-    if obs.len() < 3 {
-        // Not an input the adjustment could start from: say which views and why.
+    if obs.len() < 3 && obs.len() < ds.views.len() {
+        // Not an input the adjustment could start from because views were refused: say
+        // which views and why.
         let why: Vec<&String> = warnings
             .iter()
             .filter(|w| w.contains("board not found"))

@@ -347,7 +347,7 @@ fn check_second_board(grids: &[search::Found], m: &measure::Measured, board: &Bo
         let away = gr.sites.values().filter(|&&p| !near_tol(p)).count();
         if 2 * away > gr.sites.len() {
             return Err(Error::Detection(format!(
-                "two chessboards in the image: grids of {} and {} corners (the board has {})",
+                "two boards in the image: two chessboard grids of {} and {} corners (the board has {})",
                 m.at.len(),
                 gr.sites.len(),
                 board.len()

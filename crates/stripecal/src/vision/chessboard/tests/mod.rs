@@ -343,7 +343,7 @@ fn two_boards_are_refused() {
         })
         .collect();
     let e = detect8(&img, w, h, &b).unwrap_err();
-    assert!(e.to_string().contains("two chessboards"), "{e}");
+    assert!(e.to_string().contains("two boards"), "{e}");
 }
 
 #[test]
