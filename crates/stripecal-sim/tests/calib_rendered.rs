@@ -7,7 +7,7 @@
 
 mod common;
 
-use common::{errors, row, Errs, HEADER};
+use common::{assert_targets, errors, row, Errs, HEADER};
 use stripecal::calib::pipeline::{calibrate_dataset, CalibrateOptions, Method};
 use stripecal_sim::{SimConfig, Twin};
 
@@ -99,16 +99,7 @@ fn fifteen_rendered_poses_meet_the_targets_and_five_beat_the_paper_method() {
         .collect();
     println!("{}", table.join("\n"));
     println!("5 poses, medians over seeds 1..5: {}", medians.join("; "));
-    assert!(
-        e.fu_rel < 1e-4 && e.fv_rel < 1e-4,
-        "fu/fv {} {}",
-        e.fu_rel,
-        e.fv_rel
-    );
-    assert!(e.u0 < 0.1 && e.v0 < 0.1, "u0/v0 {} {}", e.u0, e.v0);
-    assert!(e.plane_mm < 0.01, "plane {}", e.plane_mm);
-    assert!(e.x.0 < 0.005 && e.x.1 < 0.02, "X {:?}", e.x);
-    assert!(e.z.0 < 0.005 && e.z.1 < 0.02, "Z {:?}", e.z);
+    assert_targets("15 poses, one-stage", &e);
     for (name, f) in figures.iter() {
         let (m1, m0) = (med(&one_e, *f), med(&pap_e, *f));
         assert!(

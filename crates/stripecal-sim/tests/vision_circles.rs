@@ -6,6 +6,9 @@
 //! Printed figures (`cargo test -p stripecal-sim --test vision_circles -- --nocapture`)
 //! are the ones quoted in BENCHMARKS.md ("Vision: circles").
 
+mod common;
+
+use common::Stats;
 use rayon::prelude::*;
 
 use stripecal::image::AnyGray;
@@ -52,26 +55,6 @@ fn errors(g: &CircleGrid, truth: &[CircleTruth]) -> Result<Vec<f64>, String> {
         out.push(e);
     }
     Ok(out)
-}
-
-#[derive(Default, Debug)]
-struct Stats {
-    n: usize,
-    ss: f64,
-    max: f64,
-}
-
-impl Stats {
-    fn add(&mut self, e: &[f64]) {
-        for &x in e {
-            self.n += 1;
-            self.ss += x * x;
-            self.max = self.max.max(x);
-        }
-    }
-    fn rms(&self) -> f64 {
-        (self.ss / self.n.max(1) as f64).sqrt()
-    }
 }
 
 /// Board images of the twin's calibration poses for several seeds.

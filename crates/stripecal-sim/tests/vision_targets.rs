@@ -10,6 +10,9 @@
 //! asymmetric grid and the chessboard, 40 + 40 for the circle-grid variants, whose
 //! detector the 200 views of `vision_circles` already cover).
 
+mod common;
+
+use common::Stats;
 use std::collections::BTreeMap;
 
 use rayon::prelude::*;
@@ -68,26 +71,6 @@ fn check(board: &Board, d: &TargetDetection, truth: &[PointTruth]) -> Result<Vec
             p.map(|p| (p.row, p.col, p.u, p.v))
         )
     })
-}
-
-#[derive(Default)]
-struct Stats {
-    n: usize,
-    ss: f64,
-    max: f64,
-}
-
-impl Stats {
-    fn add(&mut self, e: &[f64]) {
-        for &x in e {
-            self.n += 1;
-            self.ss += x * x;
-            self.max = self.max.max(x);
-        }
-    }
-    fn rms(&self) -> f64 {
-        (self.ss / self.n.max(1) as f64).sqrt()
-    }
 }
 
 /// What happened to one view.
@@ -218,31 +201,38 @@ fn asymmetric_grid_even_rows_light_circles() {
         "hp3-asymmetric",
         serde_json::json!({"board": {"rows": 10, "dark_circles": false}}),
     );
-    assert_eq!(t.board.symmetries().len(), 1);
+    let st = half_turn_views("asymmetric 10 x 8, light circles", &t, 5);
+    assert!(st.rms() <= 0.015, "RMS {} px", st.rms());
+}
+
+/// 12 whole-board views of a board with one symmetry (a half turn): every one detected
+/// with that alternative reported; returns the error statistics.
+fn half_turn_views(name: &str, t: &Twin, seed: u64) -> Stats {
+    assert_eq!(t.board.symmetries().len(), 1, "{name}");
     let views = RandomViews {
         count: 12,
-        seed: 5,
+        seed,
         ..RandomViews::whole_board()
     }
-    .sample(&t)
+    .sample(t)
     .unwrap();
     let mut st = Stats::default();
-    for o in run(&t, &views, 0) {
+    for o in run(t, &views, 0) {
         match o {
             Outcome::Detected(e, alts) => {
-                assert_eq!(alts, 1, "the half turn is reported");
+                assert_eq!(alts, 1, "{name}: the half turn is reported");
                 st.add(&e);
             }
-            Outcome::Refused(m) => panic!("whole-board view refused: {m}"),
+            Outcome::Refused(m) => panic!("{name}: whole-board view refused: {m}"),
         }
     }
     eprintln!(
-        "asymmetric 10 x 8, light circles: {} points, RMS {:.4} px, max {:.4} px",
+        "{name}: {} points, RMS {:.4} px, max {:.4} px",
         st.n,
         st.rms(),
         st.max
     );
-    assert!(st.rms() <= 0.015, "RMS {} px", st.rms());
+    st
 }
 
 /// A symmetric circle grid without markers: whole views carry the half turn as the
@@ -283,29 +273,6 @@ fn chessboard_on_random_views() {
 #[test]
 fn chessboard_even_counts_reports_the_half_turn() {
     let t = twin("hp3-chessboard", serde_json::json!({"board": {"rows": 6}}));
-    assert_eq!(t.board.symmetries().len(), 1);
-    let views = RandomViews {
-        count: 12,
-        seed: 6,
-        ..RandomViews::whole_board()
-    }
-    .sample(&t)
-    .unwrap();
-    let mut st = Stats::default();
-    for o in run(&t, &views, 0) {
-        match o {
-            Outcome::Detected(e, alts) => {
-                assert_eq!(alts, 1, "the half turn is reported");
-                st.add(&e);
-            }
-            Outcome::Refused(m) => panic!("whole-board view refused: {m}"),
-        }
-    }
-    eprintln!(
-        "chessboard 6 x 10: {} corners, RMS {:.4} px, max {:.4} px",
-        st.n,
-        st.rms(),
-        st.max
-    );
+    let st = half_turn_views("chessboard 6 x 10", &t, 6);
     assert!(st.rms() <= 0.02, "RMS {} px", st.rms());
 }

@@ -96,3 +96,24 @@ pub fn assert_targets(label: &str, e: &Errs) {
     assert!(e.x.0 < 0.005 && e.x.1 < 0.02, "{label}: X {:?}", e.x);
     assert!(e.z.0 < 0.005 && e.z.1 < 0.02, "{label}: Z {:?}", e.z);
 }
+
+/// Error statistics of detected points: count, sum of squares, largest.
+#[derive(Default, Debug)]
+pub struct Stats {
+    pub n: usize,
+    pub ss: f64,
+    pub max: f64,
+}
+
+impl Stats {
+    pub fn add(&mut self, e: &[f64]) {
+        for &x in e {
+            self.n += 1;
+            self.ss += x * x;
+            self.max = self.max.max(x);
+        }
+    }
+    pub fn rms(&self) -> f64 {
+        (self.ss / self.n.max(1) as f64).sqrt()
+    }
+}

@@ -216,10 +216,7 @@ fn choose_from(views: &[Candidates], reference: Option<usize>) -> Vec<Decision> 
                         margin: second / c[0].max(1e-12),
                     }
                 } else {
-                    Decision::Undecided {
-                        best: c[0],
-                        second,
-                    }
+                    Decision::Undecided { best: c[0], second }
                 };
             }
             if chosen[i].is_some() && clear(b, s) && consistent(b) {

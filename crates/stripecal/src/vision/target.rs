@@ -148,17 +148,7 @@ impl TargetDetection {
                 }
             })
             .collect();
-        let dropped = g
-            .dropped
-            .iter()
-            .map(|d| DroppedPoint {
-                row: d.row,
-                col: d.col,
-                u: d.u,
-                v: d.v,
-                reason: d.reason,
-            })
-            .collect();
+        let dropped = g.dropped.clone();
         TargetDetection {
             kind: board.kind,
             points,

@@ -177,16 +177,9 @@ pub struct DetectedCircle {
     pub stripe_crossed: bool,
 }
 
-/// A circle of the grid that was indexed but left out of the result.
-#[derive(Debug, Clone, PartialEq)]
-pub struct DroppedCircle {
-    pub row: usize,
-    pub col: usize,
-    /// Rough position (the blob's pixel centroid), px.
-    pub u: f64,
-    pub v: f64,
-    pub reason: &'static str,
-}
+/// A circle of the grid that was indexed but left out of the result (its rough position
+/// is the blob's pixel centroid).
+pub type DroppedCircle = crate::vision::target::DroppedPoint;
 
 /// The result of [`detect_circles`].
 #[derive(Debug, Clone, PartialEq)]
