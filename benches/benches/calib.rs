@@ -8,8 +8,8 @@
 use criterion::{criterion_group, criterion_main, Criterion};
 use std::hint::black_box;
 
-use stripecal::calib::pipeline::{calibrate_observations, CalibrateOptions, Method};
 use stripecal::calib::ViewObs;
+use stripecal::pipeline::{calibrate_observations, CalibrateOptions, Method};
 use stripecal_sim::rng::Rng;
 use stripecal_sim::{noisy_observations, SimConfig, Twin};
 

@@ -15,7 +15,7 @@
 use criterion::{criterion_group, criterion_main, Criterion, Throughput};
 use std::hint::black_box;
 
-use stripecal::io::Calibration;
+use stripecal::model::Calibration;
 use stripecal::reconstruct::{
     ReconstructOptions, Reconstructor, ScanPoints, Triangulator, DEFAULT_MIN_RAY_PLANE_ANGLE_DEG,
 };

@@ -8,8 +8,8 @@
 use criterion::{criterion_group, criterion_main, Criterion, Throughput};
 use std::hint::black_box;
 
-use stripecal::image::{AnyGray, GrayImage};
-use stripecal::io::StripeDirection;
+use stripecal::model::image::{AnyGray, GrayImage};
+use stripecal::model::StripeDirection;
 use stripecal::vision::stripe::{
     extract_stripe, fit_line, flag_reflectance_edges, EdgeOptions, StripeExtractor, StripeMethod,
     StripeOptions,

@@ -11,7 +11,7 @@
 use criterion::{criterion_group, criterion_main, Criterion};
 use std::hint::black_box;
 
-use stripecal::image::AnyGray;
+use stripecal::model::image::AnyGray;
 use stripecal::vision::circles::CentreMethod;
 use stripecal::vision::target::{detect_target, TargetOptions};
 use stripecal::Board;

@@ -12,7 +12,7 @@ use stripecal::calib::camera::{calibrate_camera, CameraOptions};
 use stripecal::calib::conic::CentreModel;
 use stripecal::calib::joint::{joint_adjustment, JointOptions, JointStart};
 use stripecal::calib::laser_plane::fit_laser_plane;
-use stripecal::calib::pipeline::{calibrate_observations, CalibrateOptions, Method};
+use stripecal::pipeline::{calibrate_observations, CalibrateOptions, Method};
 use stripecal_sim::rng::Rng;
 use stripecal_sim::{noisy_observations, SimConfig, Twin};
 

@@ -4,8 +4,8 @@
 //! `check`: cols on the image vs auto on the transposed image, bit for bit) and seconds.
 //! Linux only. See BENCHMARKS.md "Vision: stripes".
 use std::hint::black_box;
-use stripecal::image::{AnyGray, GrayImage};
-use stripecal::io::StripeDirection;
+use stripecal::model::image::{AnyGray, GrayImage};
+use stripecal::model::StripeDirection;
 use stripecal::vision::stripe::{StripeExtractor, StripeOptions};
 use stripecal_sim::{SimConfig, Twin};
 

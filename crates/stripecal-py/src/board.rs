@@ -1,7 +1,7 @@
 //! `stripecal.Board`.
 
 use pyo3::prelude::*;
-use stripecal::board::{Board, BoardKind};
+use stripecal::model::board::{Board, BoardKind};
 
 use crate::convert::{nd, non_negative};
 use crate::errors::{invalid_input, ResultExt};

@@ -10,17 +10,17 @@ use pyo3::types::{PyDict, PyList, PySequence};
 
 use stripecal::calib::axzb::{solve_axzb_with, AxzbOptions, AxzbSolution};
 use stripecal::calib::laser_plane::fit_laser_plane as core_fit_laser_plane;
-use stripecal::geometry::{iso_from_matrix, Iso3};
+use stripecal::model::geometry::{iso_from_matrix, Iso3};
 
 use std::path::PathBuf;
 
 use stripecal::calib::camera::{calibrate_camera as core_calibrate_camera, CameraOptions};
 use stripecal::calib::conic::CentreModel;
-use stripecal::calib::pipeline::{
+use stripecal::calib::{CircleObs, ViewObs};
+use stripecal::model::camera::{DistortionModel, PARAM_NAMES};
+use stripecal::pipeline::{
     calibrate_dataset, calibrate_dataset_loaded, CalibrateOptions, CalibrationReport, Method,
 };
-use stripecal::calib::{CircleObs, ViewObs};
-use stripecal::camera::{DistortionModel, PARAM_NAMES};
 
 use crate::board::PyBoard;
 use crate::camera::PyCamera;

@@ -2,7 +2,7 @@
 
 use nalgebra::{Vector2, Vector3};
 use pyo3::prelude::*;
-use stripecal::camera::{Camera, DistortionModel};
+use stripecal::model::camera::{Camera, DistortionModel};
 use stripecal::Error;
 
 use crate::convert::{fixed, nd, positive_u32, rows_of, rows_to_py};

@@ -16,7 +16,7 @@ use pyo3::exceptions::{PyRuntimeError, PyTypeError, PyValueError};
 use pyo3::prelude::*;
 use pyo3::types::{PyBool, PyDict, PyFloat, PyInt, PyList, PyString, PyTuple};
 use serde_json::{Map, Number, Value};
-use stripecal::geometry::{iso_from_matrix, iso_to_matrix};
+use stripecal::model::geometry::{iso_from_matrix, iso_to_matrix};
 use stripecal::Iso3;
 
 use crate::errors::{invalid_input, map_err_at};

@@ -7,12 +7,13 @@ use numpy::{PyArray2, PyArrayDescrMethods, PyArrayMethods, PyUntypedArray, PyUnt
 use pyo3::exceptions::PyTypeError;
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
-use stripecal::image::{AnyGray, GrayImage};
 use stripecal::io::{
     load_gray, read_calibration, read_ply, read_rig, read_sphere_fit, read_truth, save_gray_png,
     write_calibration, write_ply as core_write_ply, write_rig, write_sphere_fit, write_truth,
-    Cloud, Dataset, PlyFormat, Scan,
+    PlyFormat,
 };
+use stripecal::model::image::{AnyGray, GrayImage};
+use stripecal::model::{Cloud, Dataset, Scan};
 
 use crate::convert::{f64_array, fmt_shape, nd, rows_of};
 use crate::errors::{invalid_input, ResultExt};

@@ -2,7 +2,7 @@
 
 use nalgebra::{Matrix3, Vector3};
 use pyo3::prelude::*;
-use stripecal::geometry::{
+use stripecal::model::geometry::{
     matrix_to_rotvec as core_m2r, nearest_rotation as core_nearest, rotvec_to_matrix as core_r2m,
 };
 

@@ -7,7 +7,7 @@ use numpy::{
 use pyo3::exceptions::PyTypeError;
 use pyo3::prelude::*;
 
-use stripecal::image::{AnyGray, GrayImage};
+use stripecal::model::image::{AnyGray, GrayImage};
 
 use crate::convert::type_name;
 use crate::errors::invalid_input;
@@ -112,16 +112,16 @@ pub fn gray_or_colour_from_py(obj: &Bound<'_, PyAny>, name: &str) -> PyResult<An
     let dt = a.dtype();
     let lost = || invalid_input(py, format!("{name}: colour conversion failed"));
     if dt.is_equiv_to(&numpy::dtype::<u8>(py)) {
-        let data =
-            stripecal::image::gray_from_interleaved(&copy_any::<u8>(a)?, c).ok_or_else(lost)?;
+        let data = stripecal::model::image::gray_from_interleaved(&copy_any::<u8>(a)?, c)
+            .ok_or_else(lost)?;
         Ok(AnyGray::U8(GrayImage {
             width: w,
             height: h,
             data,
         }))
     } else if dt.is_equiv_to(&numpy::dtype::<u16>(py)) {
-        let data =
-            stripecal::image::gray_from_interleaved(&copy_any::<u16>(a)?, c).ok_or_else(lost)?;
+        let data = stripecal::model::image::gray_from_interleaved(&copy_any::<u16>(a)?, c)
+            .ok_or_else(lost)?;
         Ok(AnyGray::U16(GrayImage {
             width: w,
             height: h,

@@ -37,7 +37,7 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     errors::register(m)?;
     m.add(
         "CAMERA_PARAM_NAMES",
-        pyo3::types::PyTuple::new(m.py(), stripecal::camera::PARAM_NAMES)?,
+        pyo3::types::PyTuple::new(m.py(), stripecal::model::camera::PARAM_NAMES)?,
     )?;
 
     m.add_class::<PyCamera>()?;

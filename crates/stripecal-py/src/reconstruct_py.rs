@@ -9,8 +9,9 @@ use nalgebra::Vector3;
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PySequence};
 
-use stripecal::image::AnyGray;
-use stripecal::io::{write_ply, PlyFormat, RobotReading};
+use stripecal::io::{write_ply, PlyFormat};
+use stripecal::model::image::AnyGray;
+use stripecal::model::RobotReading;
 use stripecal::reconstruct::{self as core, FitOptions, PlaneFit, ReconstructOptions, ScanPoints};
 use stripecal::vision::stripe::StripeDirection;
 

@@ -6,11 +6,12 @@ use nalgebra::Vector3;
 use pyo3::exceptions::PyTypeError;
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyTuple};
-use stripecal::geometry::Plane;
 use stripecal::io::{
     calibration_from_json, calibration_to_json, truth_from_json, truth_to_json, write_calibration,
-    write_sphere_fit, write_truth, Calibration, Quality, Sphere, SphereFit, Truth,
+    write_sphere_fit, write_truth,
 };
+use stripecal::model::geometry::Plane;
+use stripecal::model::{Calibration, Quality, Sphere, SphereFit, Truth};
 
 use crate::camera::PyCamera;
 use crate::convert::{fixed, iso_to_py, json_to_py, map_to_py, nd, opt_dict_to_map, py_to_iso};

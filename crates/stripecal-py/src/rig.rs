@@ -4,10 +4,9 @@ use std::path::{Path, PathBuf};
 
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyList};
-use stripecal::camera::DistortionModel;
-use stripecal::io::{
-    rig_from_json, rig_to_json, write_rig, Dataset, Rig, RobotReading, Scan, StripeDirection,
-};
+use stripecal::io::{rig_from_json, rig_to_json, write_rig};
+use stripecal::model::camera::DistortionModel;
+use stripecal::model::{Dataset, Rig, RobotReading, Scan, StripeDirection};
 use stripecal::Iso3;
 
 use crate::board::PyBoard;

@@ -1,7 +1,7 @@
 //! `stripecal.Robot`.
 
 use pyo3::prelude::*;
-use stripecal::kinematics::{DhJoint, IkOptions, Robot};
+use stripecal::model::kinematics::{DhJoint, IkOptions, Robot};
 use stripecal::Error;
 
 use crate::convert::{f64_array, fmt_shape, iso_to_py, isos_to_py, nd, py_to_iso};

@@ -8,7 +8,7 @@ use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyList};
 use serde_json::Value;
 
-use stripecal::image::AnyGray;
+use stripecal::model::image::AnyGray;
 use stripecal_sim::{SimConfig, SimError, Twin, ViewRender};
 
 use crate::convert::{f64_array, iso_to_py, json_to_py, nd};

@@ -8,7 +8,7 @@
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 
-use stripecal::image::AnyGray;
+use stripecal::model::image::AnyGray;
 use stripecal::vision::stripe::{
     self as core, EdgeOptions, LineFit, Stripe, StripeDirection, StripeMethod, StripeOptions,
 };
@@ -162,7 +162,7 @@ impl PyStripe {
     }
 }
 
-fn view<'a>(py: Python<'_>, img: &'a AnyGray) -> PyResult<stripecal::vision::AnyView<'a>> {
+fn view<'a>(py: Python<'_>, img: &'a AnyGray) -> PyResult<stripecal::model::image::AnyView<'a>> {
     img.view().py_err(py)
 }
 

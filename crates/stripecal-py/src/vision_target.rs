@@ -4,7 +4,7 @@
 
 use pyo3::prelude::*;
 
-use stripecal::board::Symmetry;
+use stripecal::model::board::Symmetry;
 use stripecal::vision::circles::CentreMethod;
 use stripecal::vision::target::{self as core, PointFlags, TargetOptions};
 

@@ -11,7 +11,7 @@
 use nalgebra::Vector3;
 use serde::{Deserialize, Serialize};
 
-use stripecal::geometry::{iso_from_rotvec, iso_to_rotvec, Iso3, Plane};
+use stripecal::model::geometry::{iso_from_rotvec, iso_to_rotvec, Iso3, Plane};
 use stripecal::{Board, BoardKind, Camera, DhJoint, DistortionModel, Robot};
 
 use crate::SimError;
@@ -523,7 +523,7 @@ impl SimConfig {
         if self.scan.enabled && !(self.scan.step_mm > 0.0 && self.scan.sphere_diameter_mm > 0.0) {
             return bad("scan", "step_mm and sphere_diameter_mm must be > 0".into());
         }
-        stripecal::io::StripeDirection::from_name(&self.stripe_direction)
+        stripecal::model::StripeDirection::from_name(&self.stripe_direction)
             .map_err(|e| SimError::Config(format!("stripe_direction: {e}")))?;
         Ok(())
     }

@@ -7,12 +7,13 @@ use std::sync::OnceLock;
 use nalgebra::{Point3, Vector3};
 use serde_json::{json, Value};
 
-use stripecal::geometry::{Iso3, Plane};
-use stripecal::image::AnyGray;
-use stripecal::io::{
-    self, Calibration, Rig, RobotReading, ScanFrame, Sphere, StripeDirection, Truth, View,
+use stripecal::io;
+use stripecal::model::geometry::{Iso3, Plane};
+use stripecal::model::image::AnyGray;
+use stripecal::model::kinematics::IkOptions;
+use stripecal::model::{
+    Calibration, Rig, RobotReading, ScanFrame, Sphere, StripeDirection, Truth, View,
 };
-use stripecal::kinematics::IkOptions;
 use stripecal::{Board, Camera, DistortionModel, Robot};
 
 use crate::config::{pose_cfg, pose_model, SimConfig};
@@ -687,7 +688,7 @@ fn auto_base_board(
     let r = nalgebra::Matrix3::from_columns(&[xb, yb, zb]);
     let c_board = crate::target::points_center(board);
     let t = target - r * c_board;
-    Ok(stripecal::geometry::iso_from_parts(&r, &t))
+    Ok(stripecal::model::geometry::iso_from_parts(&r, &t))
 }
 
 /// `views` with Gaussian noise of `circle_px` added to each circle-centre coordinate and

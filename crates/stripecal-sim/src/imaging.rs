@@ -3,7 +3,7 @@
 
 use rayon::prelude::*;
 
-use stripecal::image::{AnyGray, GrayImage};
+use stripecal::model::image::{AnyGray, GrayImage};
 use stripecal::Camera;
 
 use crate::config::ImagingCfg;

@@ -4,8 +4,8 @@
 
 use nalgebra::{Matrix3, Point3, Rotation3, Unit, UnitQuaternion, Vector3};
 
-use stripecal::geometry::Iso3;
-use stripecal::kinematics::IkOptions;
+use stripecal::model::geometry::Iso3;
+use stripecal::model::kinematics::IkOptions;
 use stripecal::{Camera, Robot};
 
 use crate::rng::Rng;
@@ -135,7 +135,7 @@ impl PoseProblem<'_> {
             let r = Matrix3::from_columns(&[x0, y0, z]);
             // distance along the axis to the board plane (z_board = 0) is s: position
             let o = look - z * s;
-            let board_cam = stripecal::geometry::iso_from_parts(&r, &o);
+            let board_cam = stripecal::model::geometry::iso_from_parts(&r, &o);
             let base_hand = self.base_board * board_cam * self.hand_cam.inverse();
             let q = match self
                 .robot

@@ -19,7 +19,7 @@
 
 use nalgebra::{Matrix3, Vector3};
 
-use stripecal::geometry::{Iso3, Plane};
+use stripecal::model::geometry::{Iso3, Plane};
 use stripecal::{Board, BoardKind};
 
 /// Surface ids used in materials and truth.

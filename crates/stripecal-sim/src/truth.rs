@@ -20,7 +20,7 @@
 use nalgebra::{Point3, Vector2, Vector3};
 use serde::Serialize;
 
-use stripecal::io::StripeDirection;
+use stripecal::model::StripeDirection;
 use stripecal::Camera;
 
 use crate::scene::{ImageScene, SURF_PLATE, SURF_SPHERE, SURF_TABLE};

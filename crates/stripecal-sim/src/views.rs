@@ -24,8 +24,8 @@
 use nalgebra::{Matrix3, Rotation3, Unit, Vector3};
 use rayon::prelude::*;
 
-use stripecal::geometry::{iso_from_parts, Iso3};
-use stripecal::image::AnyGray;
+use stripecal::model::geometry::{iso_from_parts, Iso3};
+use stripecal::model::image::AnyGray;
 
 use crate::rng::Rng;
 use crate::target::{pattern_inside, points_bbox, points_inside_quick};

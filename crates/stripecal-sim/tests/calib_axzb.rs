@@ -5,7 +5,7 @@
 use nalgebra::{Point3, Vector3};
 use stripecal::calib::axzb::{solve_axzb, solve_axzb_with, AxzbOptions};
 use stripecal::calib::laser_plane::{fit_laser_plane, stripe_line_in_view};
-use stripecal::geometry::{iso_from_rotvec, Iso3};
+use stripecal::model::geometry::{iso_from_rotvec, Iso3};
 use stripecal::Error;
 use stripecal_sim::rng::Rng;
 use stripecal_sim::truth::stripe_truth;

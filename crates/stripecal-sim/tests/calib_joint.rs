@@ -6,10 +6,10 @@
 
 use stripecal::calib::conic::{predict_centre, CentreModel};
 use stripecal::calib::laser_plane::stripe_line_in_view;
-use stripecal::calib::pipeline::{calibrate_observations, CalibrateOptions, Method};
 use stripecal::calib::{CircleObs, ViewObs};
-use stripecal::geometry::iso_to_rotvec;
-use stripecal::io::{Calibration, Rig};
+use stripecal::model::geometry::iso_to_rotvec;
+use stripecal::model::{Calibration, Rig};
+use stripecal::pipeline::{calibrate_observations, CalibrateOptions, Method};
 use stripecal::{Error, Iso3};
 use stripecal_sim::rng::Rng;
 use stripecal_sim::{noisy_observations, SimConfig, Twin};

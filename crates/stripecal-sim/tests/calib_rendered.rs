@@ -8,7 +8,7 @@
 mod common;
 
 use common::{assert_targets, errors, row, Errs, HEADER};
-use stripecal::calib::pipeline::{calibrate_dataset, CalibrateOptions, Method};
+use stripecal::pipeline::{calibrate_dataset, CalibrateOptions, Method};
 use stripecal_sim::{SimConfig, Twin};
 
 /// A named error figure.

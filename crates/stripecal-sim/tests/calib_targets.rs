@@ -11,7 +11,7 @@ mod common;
 
 use common::{assert_targets, errors, iso_err, row, HEADER};
 use stripecal::calib::consensus::symmetry_motion;
-use stripecal::calib::pipeline::{calibrate_dataset, CalibrateOptions};
+use stripecal::pipeline::{calibrate_dataset, CalibrateOptions};
 use stripecal_sim::{SimConfig, Twin};
 
 fn render(preset: &str, over: serde_json::Value, dir: &std::path::Path) -> Twin {

@@ -1,6 +1,7 @@
 //! Writing datasets: files per spec/DATASET.md that the core readers load unchanged.
 
-use stripecal::io::{read_truth, Dataset, RobotReading, Scan};
+use stripecal::io::read_truth;
+use stripecal::model::{Dataset, RobotReading, Scan};
 use stripecal_sim::{SimConfig, Twin};
 
 #[test]
@@ -62,7 +63,7 @@ fn single_image_mode_writes_one_image_per_view() {
     for v in &ds.views {
         assert_eq!(v.laser_image.as_ref(), Some(&v.board_image));
         let img = stripecal::io::load_gray(ds.image_path(&v.board_image)).unwrap();
-        assert!(matches!(img, stripecal::image::AnyGray::U16(_)));
+        assert!(matches!(img, stripecal::model::image::AnyGray::U16(_)));
     }
     assert!(!dir.path().join("scan").exists());
 }

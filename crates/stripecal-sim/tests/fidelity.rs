@@ -138,7 +138,7 @@ fn line_centroid(
 #[test]
 fn stripe_centroids_match_projected_intersections() {
     let twin = clean_twin(serde_json::json!({"seed": 3}));
-    let per_row = twin.direction != stripecal::io::StripeDirection::Rows;
+    let per_row = twin.direction != stripecal::model::StripeDirection::Rows;
     let sigma_px = twin.cfg.imaging.laser_sigma_mm * twin.camera.fu / 100.0;
     let half = (6.0 * sigma_px).ceil() as i64 + 2;
     let check = |lin: &stripecal_sim::render::LinearImage,

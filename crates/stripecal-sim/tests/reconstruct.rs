@@ -16,14 +16,14 @@
 //! leaves room for the edge-biased points the extractor does not flag.
 
 use nalgebra::{Point3, Vector3};
-use stripecal::geometry::Plane;
-use stripecal::io::RobotReading;
+use stripecal::model::geometry::Plane;
+use stripecal::model::image::AnyView;
+use stripecal::model::RobotReading;
 use stripecal::reconstruct::{
     fit_plane, fit_sphere, reconstruct_frames, triangulate, FitOptions, ReconstructOptions,
     Reconstructor, ScanPoints,
 };
 use stripecal::vision::stripe::FLAG_BIASED;
-use stripecal::vision::AnyView;
 use stripecal_sim::truth::stripe_truth;
 use stripecal_sim::{SimConfig, Twin};
 
@@ -104,7 +104,7 @@ fn exact_truth_pixels_lie_on_true_surfaces() {
 
 fn reconstruct_views(
     tw: &Twin,
-    imgs: &[stripecal::image::AnyGray],
+    imgs: &[stripecal::model::image::AnyGray],
     qs: &[Vec<f64>],
     opts: &ReconstructOptions,
 ) -> ScanPoints {

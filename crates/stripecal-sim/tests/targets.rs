@@ -10,8 +10,8 @@ use std::collections::HashSet;
 
 use nalgebra::{Matrix3, Point3, Vector2, Vector3};
 
-use stripecal::image::AnyGray;
-use stripecal::io::Dataset;
+use stripecal::model::image::AnyGray;
+use stripecal::model::Dataset;
 use stripecal::{Board, BoardKind};
 use stripecal_sim::scene::{SURF_INK0, SURF_NONE, SURF_PLATE, SURF_SPHERE, SURF_TABLE};
 use stripecal_sim::truth::PointTruth;

@@ -11,7 +11,7 @@ mod common;
 use common::Stats;
 use rayon::prelude::*;
 
-use stripecal::image::AnyGray;
+use stripecal::model::image::AnyGray;
 use stripecal::vision::circles::{detect_circles, CentreMethod, CircleGrid, CircleOptions};
 use stripecal::Error;
 use stripecal_sim::truth::CircleTruth;

@@ -12,8 +12,8 @@
 //! Renders are the cost here (about 1-2 s each in the dev profile): each test renders its
 //! views once and runs every variant on them.
 
-use stripecal::image::AnyGray;
-use stripecal::io::StripeDirection;
+use stripecal::model::image::AnyGray;
+use stripecal::model::StripeDirection;
 use stripecal::vision::stripe::{
     extract_stripe, flag_reflectance_edges, EdgeOptions, Stripe, StripeMethod, StripeOptions,
     FLAG_LOW_SIGNAL,
@@ -32,8 +32,10 @@ fn twin(overrides: serde_json::Value) -> Twin {
 }
 
 fn transpose(img: &AnyGray) -> AnyGray {
-    fn t<T: Copy + Default>(i: &stripecal::image::GrayImage<T>) -> stripecal::image::GrayImage<T> {
-        let mut o = stripecal::image::GrayImage::new(i.height, i.width);
+    fn t<T: Copy + Default>(
+        i: &stripecal::model::image::GrayImage<T>,
+    ) -> stripecal::model::image::GrayImage<T> {
+        let mut o = stripecal::model::image::GrayImage::new(i.height, i.width);
         for y in 0..i.height {
             for x in 0..i.width {
                 o.data[x * i.height + y] = i.data[y * i.width + x];
@@ -161,7 +163,7 @@ fn compare(stripe: &Stripe, truth: &[StripePointTruth], surface: &str, transpose
     s
 }
 
-fn view_of(img: &AnyGray) -> stripecal::vision::AnyView<'_> {
+fn view_of(img: &AnyGray) -> stripecal::model::image::AnyView<'_> {
     img.view().unwrap()
 }
 

@@ -17,7 +17,7 @@ use std::collections::BTreeMap;
 
 use rayon::prelude::*;
 
-use stripecal::board::Symmetry;
+use stripecal::model::board::Symmetry;
 use stripecal::vision::target::{detect_target, TargetDetection, TargetOptions};
 use stripecal::{Board, Error};
 use stripecal_sim::truth::PointTruth;

@@ -22,19 +22,17 @@
 //!
 //! Data flows one way: images -> vision -> calib -> calibration.json -> reconstruct.
 
-pub mod board;
 pub mod calib;
-pub mod camera;
 pub mod error;
-pub mod geometry;
-pub mod image;
 pub mod io;
-pub mod kinematics;
+pub mod model;
+pub mod numerics;
+pub mod pipeline;
 pub mod reconstruct;
 pub mod vision;
 
-pub use board::{Board, BoardKind};
-pub use camera::{Camera, DistortionModel};
 pub use error::{Error, Result};
-pub use geometry::{Iso3, Plane};
-pub use kinematics::{DhJoint, Robot};
+pub use model::board::{Board, BoardKind};
+pub use model::camera::{Camera, DistortionModel};
+pub use model::geometry::{Iso3, Plane};
+pub use model::kinematics::{DhJoint, Robot};

@@ -8,8 +8,8 @@
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
-use stripecal::image::AnyGray;
 use stripecal::io::{load_gray, read_rig};
+use stripecal::model::image::AnyGray;
 use stripecal::vision::chessboard::{detect_chessboard, ChessboardOptions};
 use stripecal::vision::target::TargetDetection;
 use stripecal::{Board, Result};

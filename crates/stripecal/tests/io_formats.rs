@@ -5,9 +5,13 @@ use std::path::{Path, PathBuf};
 
 use nalgebra::{UnitQuaternion, Vector3};
 use serde_json::json;
-use stripecal::geometry::iso_from_rotvec;
-use stripecal::image::{AnyGray, GrayImage};
 use stripecal::io::*;
+use stripecal::model::geometry::iso_from_rotvec;
+use stripecal::model::image::{AnyGray, GrayImage};
+use stripecal::model::{
+    Calibration, Cloud, Dataset, Quality, Rig, RobotReading, Scan, ScanFrame, Sphere, SphereFit,
+    StripeDirection, Truth, View,
+};
 use stripecal::{Board, BoardKind, Camera, DistortionModel, Error, Iso3, Plane, Robot};
 
 // ---------------------------------------------------------------- helpers

@@ -5,14 +5,15 @@
 use std::path::Path;
 
 use nalgebra::Vector3;
-use stripecal::camera::{Camera, DistortionModel};
-use stripecal::geometry::{iso_from_rotvec, Plane};
-use stripecal::image::{AnyGray, GrayImage};
-use stripecal::io::{save_gray_png, write_scan_csv, Calibration, RobotReading, Scan, ScanFrame};
+use stripecal::io::{save_gray_png, write_scan_csv};
+use stripecal::model::camera::{Camera, DistortionModel};
+use stripecal::model::geometry::{iso_from_rotvec, Plane};
+use stripecal::model::image::{AnyGray, GrayImage};
+use stripecal::model::image::{AnyView, ImageView};
+use stripecal::model::{Calibration, RobotReading, Scan, ScanFrame};
 use stripecal::reconstruct::{
     load_scan, reconstruct_frames, reconstruct_scan, ReconstructOptions, Reconstructor, ScanPoints,
 };
-use stripecal::vision::{AnyView, ImageView};
 use stripecal::{Error, Robot};
 
 const W: usize = 64;

@@ -3,8 +3,8 @@
 
 #![allow(dead_code)]
 
-use stripecal::geometry::Plane;
-use stripecal::io::Calibration;
+use stripecal::model::geometry::Plane;
+use stripecal::model::Calibration;
 use stripecal::{Camera, Iso3};
 use stripecal_sim::Twin;
 

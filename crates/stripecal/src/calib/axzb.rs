@@ -43,7 +43,9 @@ use faer::Mat;
 use nalgebra::{Matrix3, SMatrix, SVector, Vector3};
 
 use crate::error::{Error, Result};
-use crate::geometry::{iso_from_parts, matrix_to_rotvec, nearest_rotation, rotvec_to_matrix, Iso3};
+use crate::model::geometry::{
+    iso_from_parts, matrix_to_rotvec, nearest_rotation, rotvec_to_matrix, Iso3,
+};
 
 /// Refuse when the largest rotation between any two poses is below this (degrees).
 pub const MIN_ROTATION_DEG: f64 = 1.0;
@@ -459,7 +461,7 @@ impl Data<'_> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::geometry::iso_from_rotvec;
+    use crate::model::geometry::iso_from_rotvec;
 
     fn rv(x: f64, y: f64, z: f64) -> Vector3<f64> {
         Vector3::new(x, y, z)

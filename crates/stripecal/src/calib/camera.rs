@@ -15,7 +15,6 @@ use faer::MatMut;
 use nalgebra::{Vector2, Vector3};
 use rayon::prelude::*;
 
-use crate::board::Board;
 use crate::calib::conic::{
     centre_generic_n, quadrature_nodes, rot_times_exp_first_order, CentreModel, Dual, Scalar,
 };
@@ -26,9 +25,12 @@ use crate::calib::lm::{
 };
 use crate::calib::zhang::{pose_from_homography, zhang_intrinsics};
 use crate::calib::ViewObs;
-use crate::camera::{Camera, DistortionModel, PARAM_NAMES};
 use crate::error::{Error, Result};
-use crate::geometry::{iso_from_rotvec, iso_to_rotvec, matrix_to_rotvec, rotvec_to_matrix, Iso3};
+use crate::model::board::Board;
+use crate::model::camera::{Camera, DistortionModel, PARAM_NAMES};
+use crate::model::geometry::{
+    iso_from_rotvec, iso_to_rotvec, matrix_to_rotvec, rotvec_to_matrix, Iso3,
+};
 
 /// Options of [`calibrate_camera`].
 #[derive(Debug, Clone, PartialEq)]

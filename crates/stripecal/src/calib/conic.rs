@@ -33,7 +33,7 @@
 //! ## Jacobians
 //!
 //! Computed by forward-mode automatic differentiation ([`Dual`]), exact to round-off:
-//! - w.r.t. the camera parameters, in [`crate::camera::PARAM_NAMES`] order;
+//! - w.r.t. the camera parameters, in [`crate::model::camera::PARAM_NAMES`] order;
 //! - w.r.t. the pose as the 6-vector `delta = (w, v)` of the local parameterisation
 //!   `R = R0 Exp(w)` (rotation increment on the RIGHT, i.e. about the board axes) and
 //!   `t = t0 + v` (translation increment in the camera frame, mm). To chain: for a
@@ -44,9 +44,9 @@ use std::ops::{Add, Div, Mul, Neg, Sub};
 
 use nalgebra::{Matrix3, SMatrix, Vector2, Vector3};
 
-use crate::camera::{Camera, DistortionModel};
 use crate::error::{Error, Result};
-use crate::geometry::Iso3;
+use crate::model::camera::{Camera, DistortionModel};
+use crate::model::geometry::Iso3;
 
 /// Trapezoidal nodes of the exact centroid (exact for trigonometric polynomials of
 /// degree < 32; the integrands have degree <= 21).
@@ -511,7 +511,7 @@ pub fn centre_generic_n<T: Scalar>(
 pub struct CentrePrediction {
     /// Predicted imaged centre, px.
     pub uv: Vector2<f64>,
-    /// d(u, v)/d(camera parameters), columns in [`crate::camera::PARAM_NAMES`] order.
+    /// d(u, v)/d(camera parameters), columns in [`crate::model::camera::PARAM_NAMES`] order.
     pub d_camera: SMatrix<f64, 2, 9>,
     /// d(u, v)/d(delta), `delta = (w, v)`: `R = R0 Exp(w)`, `t = t0 + v` (module docs).
     pub d_pose: SMatrix<f64, 2, 6>,
@@ -602,8 +602,8 @@ pub fn rot_times_exp_first_order<T: Scalar>(r0: &Matrix3<f64>, w: &[T; 3]) -> [[
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::camera::DistortionModel;
-    use crate::geometry::{iso_from_rotvec, rotvec_to_matrix};
+    use crate::model::camera::DistortionModel;
+    use crate::model::geometry::{iso_from_rotvec, rotvec_to_matrix};
 
     #[test]
     fn k1_only_distortion_equals_the_full_formula_bit_for_bit() {
@@ -740,7 +740,7 @@ mod tests {
                         d[i] = s;
                         let r = r0 * rotvec_to_matrix(&Vector3::new(d[0], d[1], d[2]));
                         let t = t0.translation.vector + Vector3::new(d[3], d[4], d[5]);
-                        crate::geometry::iso_from_parts(&r, &t)
+                        crate::model::geometry::iso_from_parts(&r, &t)
                     };
                     let fd = (f(&cam, &step(h)) - f(&cam, &step(-h))) / (2.0 * h);
                     let an = pr.d_pose.column(i);

@@ -27,8 +27,8 @@
 
 use nalgebra::Vector3;
 
-use crate::board::{Board, Symmetry};
-use crate::geometry::Iso3;
+use crate::model::board::{Board, Symmetry};
+use crate::model::geometry::Iso3;
 
 /// The scales of the pair mismatch.
 const SIGMA_ANGLE_DEG: f64 = 0.2;
@@ -245,7 +245,7 @@ pub fn symmetry_motion(board: &Board, s: &Symmetry) -> Iso3 {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::geometry::iso_from_parts;
+    use crate::model::geometry::iso_from_parts;
     use nalgebra::{Rotation3, Unit};
 
     fn pose(axis: [f64; 3], angle_deg: f64, t: [f64; 3]) -> Iso3 {

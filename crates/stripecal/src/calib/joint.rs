@@ -46,7 +46,6 @@ use nalgebra::{DMatrix, Matrix3, Vector3};
 use rayon::prelude::*;
 use std::sync::atomic::{AtomicU64, AtomicUsize, Ordering};
 
-use crate::board::Board;
 use crate::calib::conic::{
     centre_generic_n, distort_generic, quadrature_nodes, rot_times_exp_first_order, CentreModel,
     Dual, Scalar,
@@ -56,9 +55,10 @@ use crate::calib::lm::{
     StopReason,
 };
 use crate::calib::ViewObs;
-use crate::camera::{Camera, PARAM_NAMES};
 use crate::error::{Error, Result};
-use crate::geometry::{
+use crate::model::board::Board;
+use crate::model::camera::{Camera, PARAM_NAMES};
+use crate::model::geometry::{
     iso_from_rotvec, iso_to_rotvec, matrix_to_rotvec, rotvec_to_matrix, Iso3, Plane,
 };
 
@@ -1161,7 +1161,7 @@ mod tests {
     use crate::calib::conic::predict_centre;
     use crate::calib::laser_plane::stripe_line_in_view;
     use crate::calib::CircleObs;
-    use crate::camera::DistortionModel;
+    use crate::model::camera::DistortionModel;
 
     struct Synth {
         cam: Camera,

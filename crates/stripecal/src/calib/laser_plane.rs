@@ -27,9 +27,9 @@
 use faer::Mat;
 use nalgebra::{Matrix3, Point3, Vector2, Vector3};
 
-use crate::camera::Camera;
 use crate::error::{Error, Result};
-use crate::geometry::{Iso3, Plane};
+use crate::model::camera::Camera;
+use crate::model::geometry::{Iso3, Plane};
 
 /// Refuse when the points' RMS extent across their common line is below this fraction of
 /// their extent along it.
@@ -450,8 +450,8 @@ pub fn stripe_line_in_view(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::camera::DistortionModel;
-    use crate::geometry::iso_from_rotvec;
+    use crate::model::camera::DistortionModel;
+    use crate::model::geometry::iso_from_rotvec;
 
     #[test]
     fn two_point_views_are_enough_and_exact() {

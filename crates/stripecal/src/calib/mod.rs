@@ -7,7 +7,7 @@
 //! - Per view i: `A_i = T_base_hand(q_i)`, `X = T_hand_cam`, `Z = T_base_board`,
 //!   `B_i = T_board_cam(i) = inverse(T_cam_board(i))`, and `A_i X = Z B_i`.
 //! - Observations are in pixels (spec convention: top-left pixel centre at (0, 0)).
-//! - Camera parameter vectors follow [`crate::camera::PARAM_NAMES`].
+//! - Camera parameter vectors follow [`crate::model::camera::PARAM_NAMES`].
 //! - Views keep their dataset row index (`ViewObs::view`) through every stage: a view
 //!   that fails is dropped whole, never shifted.
 
@@ -19,11 +19,10 @@ pub mod homography;
 pub mod joint;
 pub mod laser_plane;
 pub mod lm;
-pub mod pipeline;
 pub mod zhang;
 
-use crate::geometry::Iso3;
-use crate::io::RobotReading;
+use crate::model::geometry::Iso3;
+use crate::model::RobotReading;
 
 /// One detected circle: grid index and imaged centre.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -53,5 +52,5 @@ pub struct ViewObs {
     /// Board symmetries the view's image cannot decide: the circles could equally be
     /// labelled by any of them ([`crate::vision::target::TargetDetection::alternatives`]);
     /// the calibration chooses from the robot poses ([`consensus`]).
-    pub alternatives: Vec<crate::board::Symmetry>,
+    pub alternatives: Vec<crate::model::board::Symmetry>,
 }

@@ -16,7 +16,7 @@
 use nalgebra::{DMatrix, Matrix3, Vector3};
 
 use crate::error::{Error, Result};
-use crate::geometry::{iso_from_parts, nearest_rotation, Iso3};
+use crate::model::geometry::{iso_from_parts, nearest_rotation, Iso3};
 
 /// Pinhole intrinsics without skew.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -184,7 +184,7 @@ pub fn pose_from_homography(h: &Matrix3<f64>, k: &Matrix3<f64>) -> Result<Iso3> 
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::geometry::iso_from_rotvec;
+    use crate::model::geometry::iso_from_rotvec;
 
     fn hom(k: &Matrix3<f64>, t: &Iso3) -> Matrix3<f64> {
         let r = t.rotation.to_rotation_matrix().into_inner();

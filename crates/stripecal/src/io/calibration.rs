@@ -10,11 +10,11 @@ use super::json::{
     append_extra, invalid_message, num, parse, pose_value, to_pretty, vec3_value, Obj,
 };
 use super::rig::{distortion_model_from, robot_from, robot_value};
-use super::{Calibration, Quality, Sphere, SphereFit, Truth};
-use crate::camera::Camera;
 use crate::error::{Error, Result};
-use crate::geometry::{Iso3, Plane};
-use crate::kinematics::Robot;
+use crate::model::camera::Camera;
+use crate::model::geometry::{Iso3, Plane};
+use crate::model::kinematics::Robot;
+use crate::model::{Calibration, Quality, Sphere, SphereFit, Truth};
 
 /// The `format` value of calibration.json.
 pub(super) const CALIBRATION_FORMAT: &str = "stripecal/calibration@1";

@@ -14,10 +14,10 @@ use std::path::{Path, PathBuf};
 use nalgebra::{Quaternion, Translation3, UnitQuaternion};
 
 use super::atomic::{read_text, write_atomic};
-use super::{RobotReading, ScanFrame, View};
 use crate::error::{Error, Result};
-use crate::geometry::Iso3;
-use crate::kinematics::Robot;
+use crate::model::geometry::Iso3;
+use crate::model::kinematics::Robot;
+use crate::model::{RobotReading, ScanFrame, View};
 
 /// The flange-pose columns.
 const POSE_COLUMNS: [&str; 7] = ["x_mm", "y_mm", "z_mm", "qw", "qx", "qy", "qz"];

@@ -11,7 +11,7 @@ use image::{DynamicImage, ExtendedColorType, ImageEncoder, ImageFormat, ImageRea
 
 use super::atomic::write_atomic;
 use crate::error::{Error, Result};
-use crate::image::{gray_from_interleaved, AnyGray, GrayImage};
+use crate::model::image::{gray_from_interleaved, AnyGray, GrayImage};
 
 /// The largest image width or height [`load_gray`] accepts (pixels).
 pub const MAX_IMAGE_SIDE: u32 = 32768;

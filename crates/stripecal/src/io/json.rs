@@ -8,7 +8,7 @@ use nalgebra::Vector3;
 use serde_json::{Map, Value};
 
 use crate::error::{Error, Result};
-use crate::geometry::{iso_from_rotvec, iso_to_rotvec, Iso3};
+use crate::model::geometry::{iso_from_rotvec, iso_to_rotvec, Iso3};
 
 /// The location used for errors about the top-level object.
 const TOP: &str = "top level";

@@ -15,8 +15,8 @@ use std::fmt::Write as _;
 use std::path::Path;
 
 use super::atomic::write_atomic;
-use super::Cloud;
 use crate::error::{Error, Result};
+use crate::model::Cloud;
 
 /// The encoding of a written PLY file.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]

@@ -6,11 +6,11 @@ use serde_json::{Map, Value};
 
 use super::atomic::{read_text, write_atomic};
 use super::json::{invalid_message, num, parse, to_pretty, Obj, Val};
-use super::{Rig, StripeDirection};
-use crate::board::{Board, BoardKind};
-use crate::camera::DistortionModel;
 use crate::error::{Error, Result};
-use crate::kinematics::{DhJoint, Robot};
+use crate::model::board::{Board, BoardKind};
+use crate::model::camera::DistortionModel;
+use crate::model::kinematics::{DhJoint, Robot};
+use crate::model::{Rig, StripeDirection};
 
 /// The `format` value of rig.json.
 pub(super) const RIG_FORMAT: &str = "stripecal/rig@1";

@@ -32,8 +32,8 @@
 use nalgebra::{Matrix3, Matrix4, SymmetricEigen, Vector3, Vector4};
 
 use crate::error::{Error, Result};
-use crate::geometry::Plane;
-use crate::io::SphereFit;
+use crate::model::geometry::Plane;
+use crate::model::SphereFit;
 
 /// Options of the fits.
 #[derive(Debug, Clone, Copy, PartialEq)]

@@ -48,13 +48,13 @@ use std::path::Path;
 use nalgebra::{Matrix3, Vector3};
 use rayon::prelude::*;
 
-use crate::camera::Camera;
 use crate::error::{Error, Result};
-use crate::geometry::{Iso3, Plane};
-use crate::io::{Calibration, Cloud, RobotReading, Scan, StripeDirection};
-use crate::kinematics::Robot;
+use crate::model::camera::Camera;
+use crate::model::geometry::{Iso3, Plane};
+use crate::model::image::AnyView;
+use crate::model::kinematics::Robot;
+use crate::model::{Calibration, Cloud, RobotReading, Scan, StripeDirection};
 use crate::vision::stripe::{StripeExtractor, StripeOptions, StripePoint};
-use crate::vision::AnyView;
 
 pub use fit::{fit_plane, fit_sphere, FitOptions, PlaneFit, SphereFitResult};
 
@@ -775,8 +775,8 @@ pub fn load_scan(root: impl AsRef<Path>, calibration: &Calibration) -> Result<Sc
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::camera::DistortionModel;
-    use crate::geometry::iso_from_rotvec;
+    use crate::model::camera::DistortionModel;
+    use crate::model::geometry::iso_from_rotvec;
 
     fn camera(k: [f64; 5]) -> Camera {
         Camera::new(

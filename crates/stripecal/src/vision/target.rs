@@ -22,10 +22,10 @@
 
 use nalgebra::Vector2;
 
-use crate::board::{Board, BoardKind, Symmetry};
 use crate::error::Result;
+use crate::model::board::{Board, BoardKind, Symmetry};
+use crate::model::image::AnyView;
 use crate::vision::circles::{detect_circles, CircleGrid, CircleOptions};
-use crate::vision::AnyView;
 
 /// Per-point flags ([`TargetPoint::flags`]), a bit set.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default)]

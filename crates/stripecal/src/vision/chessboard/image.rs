@@ -1,7 +1,7 @@
 //! Float images for the detector: conversion from 8/16-bit views, 2 x 2 binning for
 //! the pyramid, bilinear sampling and a robust noise estimate.
 
-use crate::vision::{ImageView, Pixel};
+use crate::model::image::{ImageView, Pixel};
 
 /// A gray image of `f32` values in the source's units (0-255 or 0-65535).
 #[derive(Debug, Clone)]

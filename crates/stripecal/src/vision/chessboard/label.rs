@@ -14,8 +14,8 @@
 //! could sit at several places) or none (a board of another size, a mirror image,
 //! colours that do not fit) is an error that says what was seen.
 
-use crate::board::{Board, Symmetry};
 use crate::error::{Error, Result};
+use crate::model::board::{Board, Symmetry};
 
 use super::edges::Side;
 

@@ -75,12 +75,12 @@ mod tests;
 
 use std::collections::HashSet;
 
-use crate::board::{Board, BoardKind};
 use crate::error::{Error, Result};
+use crate::model::board::{Board, BoardKind};
+use crate::model::image::{AnyView, Pixel};
 use crate::vision::target::{
     homography_residuals, DroppedPoint, PointFlags, TargetDetection, TargetPoint,
 };
-use crate::vision::{AnyView, Pixel};
 
 use edges::Side;
 use image::Gray;
@@ -140,7 +140,7 @@ impl ChessboardOptions {
 /// Smallest image side accepted.
 pub const MIN_IMAGE_SIDE: usize = 16;
 
-fn gray_of<T: Pixel>(v: &crate::vision::ImageView<'_, T>) -> (Gray, f32, f32, f32) {
+fn gray_of<T: Pixel>(v: &crate::model::image::ImageView<'_, T>) -> (Gray, f32, f32, f32) {
     let (g, lo, hi) = Gray::from_view(v);
     (g, lo, hi, T::MAX)
 }
@@ -240,7 +240,7 @@ fn label_grid(
     phase: u8,
     noise: f32,
     board: &Board,
-) -> Result<(label::Labelling, Vec<crate::board::Symmetry>)> {
+) -> Result<(label::Labelling, Vec<crate::model::board::Symmetry>)> {
     let (swap, di, dj) = handedness(m)?;
     if swap {
         swap_axes(m);
@@ -362,7 +362,7 @@ fn assemble(
     board: &Board,
     m: &measure::Measured,
     lab: &label::Labelling,
-    alternatives: Vec<crate::board::Symmetry>,
+    alternatives: Vec<crate::model::board::Symmetry>,
 ) -> TargetDetection {
     let on_board = |(c, r): (i64, i64)| {
         (c >= 0 && r >= 0 && (c as usize) < board.cols && (r as usize) < board.rows)

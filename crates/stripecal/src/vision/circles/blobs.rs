@@ -14,7 +14,7 @@
 //! size, so they are returned separately ([`Blobs::cut`]) for the grid stage.
 
 use super::CircleOptions;
-use crate::vision::{ImageView, Pixel};
+use crate::model::image::{ImageView, Pixel};
 
 /// A grayscale image borrowed for the circle stages.
 #[derive(Clone, Copy)]

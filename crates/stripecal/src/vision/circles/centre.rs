@@ -35,7 +35,7 @@
 //!   the window.
 
 use super::blobs::{Blob, Img};
-use crate::vision::Pixel;
+use crate::model::image::Pixel;
 
 /// What was measured for one blob.
 #[derive(Debug, Clone, Copy)]

@@ -25,8 +25,8 @@
 
 use super::blobs::Blob;
 use super::lattice::{marker_area_ratio, predict_any, Coord, CoordMap, Grid};
-use crate::board::{Board, Symmetry};
 use crate::error::{Error, Result};
+use crate::model::board::{Board, Symmetry};
 
 /// What a node shows.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]

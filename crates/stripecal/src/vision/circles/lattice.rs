@@ -24,8 +24,8 @@
 use std::collections::HashMap;
 
 use super::blobs::Blob;
-use crate::board::{Board, BoardKind};
 use crate::error::{Error, Result};
+use crate::model::board::{Board, BoardKind};
 
 /// Lattice coordinates.
 pub(crate) type Coord = (i32, i32);

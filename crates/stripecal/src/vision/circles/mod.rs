@@ -53,9 +53,9 @@ mod centre;
 mod labels;
 mod lattice;
 
-use crate::board::Board;
 use crate::error::{Error, Result};
-use crate::vision::{AnyView, Pixel};
+use crate::model::board::Board;
+use crate::model::image::{AnyView, Pixel};
 
 use blobs::Img;
 
@@ -203,7 +203,7 @@ pub struct CircleGrid {
     pub markers_seen: usize,
     /// Board symmetries the view cannot decide (see
     /// [`crate::vision::target::TargetDetection::alternatives`]).
-    pub alternatives: Vec<crate::board::Symmetry>,
+    pub alternatives: Vec<crate::model::board::Symmetry>,
 }
 
 /// Smallest image side accepted.
@@ -346,8 +346,8 @@ fn detect_in<T: Pixel>(im: Img<'_, T>, board: &Board, opts: &CircleOptions) -> R
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::board::BoardKind;
-    use crate::vision::ImageView;
+    use crate::model::board::BoardKind;
+    use crate::model::image::ImageView;
 
     fn detect(data: &[u8], w: usize, h: usize) -> Result<CircleGrid> {
         let v = ImageView::from_slice(data, w, h)?;

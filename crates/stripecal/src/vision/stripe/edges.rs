@@ -18,7 +18,7 @@
 
 use super::{Stripe, StripeDirection, FLAG_EDGE};
 use crate::error::{Error, Result};
-use crate::vision::{AnyView, ImageView, Pixel};
+use crate::model::image::{AnyView, ImageView, Pixel};
 
 /// Options of [`flag_reflectance_edges`]. Gray levels on the 8-bit scale (x257 for
 /// 16-bit images).

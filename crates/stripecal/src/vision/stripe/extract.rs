@@ -5,7 +5,7 @@ use super::{
     FLAG_OBLIQUE, FLAG_SATURATED, FLAG_UNEVEN_BACKGROUND,
 };
 use crate::error::Result;
-use crate::vision::{AnyView, ImageView, Pixel};
+use crate::model::image::{AnyView, ImageView, Pixel};
 
 /// Pixels of a ridge-test block: the vectorised pass tests this many pixels at once, and
 /// only a block holding a response above the threshold is looked at further.

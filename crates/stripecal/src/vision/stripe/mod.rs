@@ -49,13 +49,13 @@ mod edges;
 mod extract;
 mod line;
 
-pub use crate::io::StripeDirection;
+pub use crate::model::StripeDirection;
 pub use edges::{flag_reflectance_edges, EdgeOptions};
 pub use extract::{resolve_direction, StripeExtractor};
 pub use line::{fit_line, fit_line_with, LineFit, LineFitOptions};
 
 use crate::error::{Error, Result};
-use crate::vision::AnyView;
+use crate::model::image::AnyView;
 
 /// The support of the point holds a saturated pixel (at full scale).
 pub const FLAG_SATURATED: u8 = 1;

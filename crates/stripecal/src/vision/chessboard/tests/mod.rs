@@ -3,7 +3,7 @@
 mod render;
 
 use super::*;
-use crate::vision::ImageView;
+use crate::model::image::ImageView;
 use render::Scene;
 
 fn detect8(img: &[u8], w: usize, h: usize, board: &Board) -> Result<TargetDetection> {

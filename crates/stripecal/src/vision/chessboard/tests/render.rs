@@ -5,7 +5,7 @@
 
 use nalgebra::{Matrix3, Rotation3, Vector3};
 
-use crate::board::Board;
+use crate::model::board::Board;
 
 /// A rendered scene's settings.
 #[derive(Debug, Clone)]

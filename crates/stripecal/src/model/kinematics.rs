@@ -12,7 +12,7 @@ use nalgebra::{
 };
 
 use crate::error::{Error, Result};
-use crate::geometry::{matrix_to_rotvec, Iso3};
+use crate::model::geometry::{matrix_to_rotvec, Iso3};
 
 /// One row of a DH table.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -181,7 +181,7 @@ impl Robot {
             t += r * tj;
             r *= rj;
         }
-        crate::geometry::iso_from_parts(&r, &t)
+        crate::model::geometry::iso_from_parts(&r, &t)
     }
 
     /// The geometric Jacobian (6 x N) at `q`: rows `[v; w]` (mm/rad and rad/rad) of the

@@ -27,7 +27,6 @@ use nalgebra::Vector2;
 use rayon::prelude::*;
 use serde_json::{json, Map, Value};
 
-use crate::board::Board;
 use crate::calib::axzb::{solve_axzb, AxzbSolution};
 use crate::calib::camera::{calibrate_camera, CameraCalibration, CameraOptions};
 use crate::calib::conic::CentreModel;
@@ -35,10 +34,12 @@ use crate::calib::consensus::{self, Candidates, Decision};
 use crate::calib::joint::{joint_adjustment, JointOptions, JointResult, JointStart};
 use crate::calib::laser_plane::{backproject_to_board, fit_laser_plane, LaserPlaneFit};
 use crate::calib::{CircleObs, ViewObs};
-use crate::camera::{DistortionModel, PARAM_NAMES};
 use crate::error::{Error, Result};
-use crate::geometry::Iso3;
-use crate::io::{load_gray_info, Calibration, Dataset, Quality, Rig};
+use crate::io::load_gray_info;
+use crate::model::board::Board;
+use crate::model::camera::{DistortionModel, PARAM_NAMES};
+use crate::model::geometry::Iso3;
+use crate::model::{Calibration, Dataset, Quality, Rig};
 use crate::vision::stripe::{extract_stripe, flag_reflectance_edges, EdgeOptions, StripeOptions};
 use crate::vision::target::{detect_target, TargetOptions};
 
@@ -267,7 +268,7 @@ pub fn observe_dataset(
 /// The board-frame rectangle the stripe points must fall in: a circle grid's centres
 /// grown by half a pitch, a chessboard's squares.
 fn grid_extent(board: &Board) -> (Vector2<f64>, Vector2<f64>) {
-    if board.kind == crate::board::BoardKind::Chessboard {
+    if board.kind == crate::model::board::BoardKind::Chessboard {
         let e = board.pattern_extent();
         return (Vector2::new(e[0], e[2]), Vector2::new(e[1], e[3]));
     }
@@ -314,7 +315,7 @@ fn resolve_labellings(
         );
     }
     // candidates: the detected labelling, then each alternative (T_board_cam = M B)
-    let motions: Vec<Vec<(Option<crate::board::Symmetry>, Iso3)>> = items
+    let motions: Vec<Vec<(Option<crate::model::board::Symmetry>, Iso3)>> = items
         .iter()
         .map(|(v, _)| {
             std::iter::once((None, Iso3::identity()))

@@ -1,0 +1,87 @@
+//! Loading a calibration dataset folder and a scan folder.
+
+use std::path::{Path, PathBuf};
+
+use super::{read_rig, read_scan_csv, read_views_csv};
+use crate::error::{Error, Result};
+use crate::model::kinematics::Robot;
+use crate::model::{Dataset, RobotReading, Scan};
+
+impl Dataset {
+    /// Loads `root/rig.json` and `root/views.csv` and checks that every image named
+    /// exists and that joint columns match the robot. Never reads truth.json.
+    pub fn load(root: impl AsRef<Path>) -> Result<Dataset> {
+        let root = root.as_ref().to_path_buf();
+        let rig = read_rig(root.join("rig.json"))?;
+        let views_path = root.join("views.csv");
+        let views = read_views_csv(&views_path, rig.robot.as_ref())?;
+        if views.is_empty() {
+            return Err(Error::format(
+                &views_path,
+                "line 2",
+                "views.csv has no views",
+            ));
+        }
+        if rig.robot.is_none() && matches!(views[0].reading, RobotReading::Joints(_)) {
+            return Err(Error::format(
+                &views_path,
+                "line 1",
+                "joint columns q1..qN need a robot (DH table) in rig.json; \
+                 without one, use the flange-pose columns x_mm,y_mm,z_mm,qw,qx,qy,qz",
+            ));
+        }
+        for v in &views {
+            check_image_exists(&root, &views_path, v.line, &v.board_image)?;
+            if let Some(l) = &v.laser_image {
+                check_image_exists(&root, &views_path, v.line, l)?;
+            }
+        }
+        Ok(Dataset { root, rig, views })
+    }
+
+    /// The full path of an image named in the dataset.
+    pub fn image_path(&self, rel: &Path) -> PathBuf {
+        self.root.join(rel)
+    }
+}
+
+impl Scan {
+    /// Loads `root/scan.csv` (and `root/rig.json` when present), checking images exist.
+    /// `robot` is used to check the joint count when the scan has no rig.json.
+    pub fn load(root: impl AsRef<Path>, robot: Option<&Robot>) -> Result<Scan> {
+        let root = root.as_ref().to_path_buf();
+        let rig_path = root.join("rig.json");
+        let rig = if rig_path.exists() {
+            Some(read_rig(&rig_path)?)
+        } else {
+            None
+        };
+        let robot = rig.as_ref().and_then(|r| r.robot.as_ref()).or(robot);
+        let csv_path = root.join("scan.csv");
+        let frames = read_scan_csv(&csv_path, robot)?;
+        if frames.is_empty() {
+            return Err(Error::format(&csv_path, "line 2", "scan has no frames"));
+        }
+        for f in &frames {
+            check_image_exists(&root, &csv_path, f.line, &f.image)?;
+        }
+        Ok(Scan { root, rig, frames })
+    }
+
+    /// The full path of an image named in the scan.
+    pub fn image_path(&self, rel: &Path) -> PathBuf {
+        self.root.join(rel)
+    }
+}
+
+fn check_image_exists(root: &Path, csv: &Path, line: usize, rel: &Path) -> Result<()> {
+    let p = root.join(rel);
+    if !p.is_file() {
+        return Err(Error::format(
+            csv,
+            format!("line {line}"),
+            format!("image {} does not exist", p.display()),
+        ));
+    }
+    Ok(())
+}

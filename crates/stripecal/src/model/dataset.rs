@@ -1,0 +1,127 @@
+//! The dataset records of spec/DATASET.md: the rig, the calibration views and the scan
+//! frames with their robot readings. Reading and writing them is `io`'s job.
+
+use std::path::PathBuf;
+
+use crate::error::{Error, Result};
+use crate::model::board::Board;
+use crate::model::camera::DistortionModel;
+use crate::model::geometry::Iso3;
+use crate::model::kinematics::Robot;
+
+/// The `stripe.direction` hint of rig.json.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum StripeDirection {
+    /// Decide from the image.
+    #[default]
+    Auto,
+    /// The stripe runs roughly along image rows: one stripe point per column.
+    Rows,
+    /// The stripe runs roughly along image columns: one stripe point per row.
+    Cols,
+}
+
+impl StripeDirection {
+    /// `auto`, `rows` or `cols`.
+    pub fn name(self) -> &'static str {
+        match self {
+            StripeDirection::Auto => "auto",
+            StripeDirection::Rows => "rows",
+            StripeDirection::Cols => "cols",
+        }
+    }
+
+    /// Parses `auto`, `rows` or `cols`.
+    pub fn from_name(s: &str) -> Result<Self> {
+        match s {
+            "auto" => Ok(StripeDirection::Auto),
+            "rows" => Ok(StripeDirection::Rows),
+            "cols" => Ok(StripeDirection::Cols),
+            other => Err(Error::InvalidInput(format!(
+                "unknown stripe direction {other:?}: expected \"auto\", \"rows\" or \"cols\""
+            ))),
+        }
+    }
+}
+
+/// The rig description (`rig.json`).
+#[derive(Debug, Clone, PartialEq)]
+pub struct Rig {
+    /// Image width (pixels).
+    pub width: u32,
+    /// Image height (pixels).
+    pub height: u32,
+    /// Distortion model calibration uses unless told otherwise (default `radial1`).
+    pub distortion_model: DistortionModel,
+    /// The calibration target.
+    pub board: Board,
+    /// The robot's nominal DH table; `None` when the controller reports flange poses.
+    pub robot: Option<Robot>,
+    /// Stripe direction hint.
+    pub stripe_direction: StripeDirection,
+}
+
+/// What the robot reported for one pose.
+#[derive(Debug, Clone, PartialEq)]
+pub enum RobotReading {
+    /// Encoder readings q1..qN in degrees.
+    Joints(Vec<f64>),
+    /// `T_base_hand` reported by the controller.
+    FlangePose(Iso3),
+}
+
+impl RobotReading {
+    /// `T_base_hand` for this reading: forward kinematics of `robot` for joints, the
+    /// pose itself for flange poses. Errors when joints are given without a robot.
+    pub fn base_hand(&self, robot: Option<&Robot>) -> Result<Iso3> {
+        match self {
+            RobotReading::FlangePose(t) => Ok(*t),
+            RobotReading::Joints(q) => match robot {
+                Some(r) => r.forward(q),
+                None => Err(Error::InvalidInput(
+                    "joint readings given but the rig has no robot (DH table)".into(),
+                )),
+            },
+        }
+    }
+}
+
+/// One row of views.csv.
+#[derive(Debug, Clone, PartialEq)]
+pub struct View {
+    /// The 1-based line of the row in views.csv (the header is line 1).
+    pub line: usize,
+    /// The board image (laser off), relative to the dataset folder as written.
+    pub board_image: PathBuf,
+    /// The laser image, `None` when the column is empty. May equal `board_image`.
+    pub laser_image: Option<PathBuf>,
+    /// Joint readings or the flange pose.
+    pub reading: RobotReading,
+}
+
+/// One row of scan.csv.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ScanFrame {
+    /// The 1-based line of the row in scan.csv.
+    pub line: usize,
+    /// The stripe image, relative to the scan folder as written.
+    pub image: PathBuf,
+    /// Joint readings or the flange pose.
+    pub reading: RobotReading,
+}
+
+/// A calibration dataset folder: rig.json + views.csv (+ images).
+#[derive(Debug, Clone, PartialEq)]
+pub struct Dataset {
+    pub root: PathBuf,
+    pub rig: Rig,
+    pub views: Vec<View>,
+}
+
+/// A scan folder: scan.csv (+ images, optional rig.json).
+#[derive(Debug, Clone, PartialEq)]
+pub struct Scan {
+    pub root: PathBuf,
+    pub rig: Option<Rig>,
+    pub frames: Vec<ScanFrame>,
+}

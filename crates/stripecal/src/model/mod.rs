@@ -1,0 +1,15 @@
+//! What the sensor and its world are: the camera, the calibration target, rigid
+//! geometry, the robot's kinematics, images, and the records datasets and results are
+//! made of. Everything else (vision, calib, reconstruct, pipeline, io) builds on these;
+//! nothing here imports from those layers.
+
+pub mod board;
+pub mod camera;
+mod dataset;
+pub mod geometry;
+pub mod image;
+pub mod kinematics;
+mod results;
+
+pub use dataset::{Dataset, Rig, RobotReading, Scan, ScanFrame, StripeDirection, View};
+pub use results::{Calibration, Cloud, Quality, Sphere, SphereFit, Truth};

@@ -1,0 +1,2 @@
+//! Numerical building blocks with no knowledge of the sensor: each piece of maths
+//! exists once here and the layers above call it.
