@@ -4,18 +4,20 @@
 //! on every platform and every future version of the dependency tree: the twin's
 //! datasets are test fixtures, and their reproducibility is part of the contract.
 
+use stripecal::numerics::rng::SplitMix64;
+
 /// xoshiro256++ (Blackman & Vigna), 256-bit state.
 #[derive(Debug, Clone)]
 pub struct Rng {
     s: [u64; 4],
 }
 
+/// One SplitMix64 step on `x` (the core crate's generator; xoshiro's seeding).
 fn splitmix64(x: &mut u64) -> u64 {
-    *x = x.wrapping_add(0x9E37_79B9_7F4A_7C15);
-    let mut z = *x;
-    z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-    z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-    z ^ (z >> 31)
+    let mut g = SplitMix64(*x);
+    let out = g.next_u64();
+    *x = g.0;
+    out
 }
 
 impl Rng {

@@ -29,6 +29,7 @@ use nalgebra::Vector3;
 
 use crate::model::board::{Board, Symmetry};
 use crate::model::geometry::Iso3;
+use crate::numerics::robust::median;
 
 /// The scales of the pair mismatch.
 const SIGMA_ANGLE_DEG: f64 = 0.2;
@@ -84,14 +85,6 @@ fn pair_cost(ai: &Iso3, bi: &Iso3, aj: &Iso3, bj: &Iso3) -> f64 {
     e
 }
 
-fn median(v: &mut [f64]) -> f64 {
-    if v.is_empty() {
-        return f64::INFINITY;
-    }
-    let m = v.len() / 2;
-    *v.select_nth_unstable_by(m, f64::total_cmp).1
-}
-
 /// Costs of every candidate of view `i` against the views in `decided`.
 fn costs(views: &[Candidates], chosen: &[Option<usize>], i: usize) -> Vec<f64> {
     views[i]
@@ -106,7 +99,7 @@ fn costs(views: &[Candidates], chosen: &[Option<usize>], i: usize) -> Vec<f64> {
                     (j != i).then(|| pair_cost(&views[i].a, bi, &views[j].a, &views[j].b[c]))
                 })
                 .collect();
-            median(&mut e)
+            median(&mut e).unwrap_or(f64::INFINITY)
         })
         .collect()
 }

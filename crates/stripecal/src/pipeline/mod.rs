@@ -40,6 +40,7 @@ use crate::model::board::Board;
 use crate::model::camera::{DistortionModel, PARAM_NAMES};
 use crate::model::geometry::Iso3;
 use crate::model::{Calibration, Dataset, Quality, Rig};
+use crate::numerics::robust::median;
 use crate::vision::stripe::{extract_stripe, flag_reflectance_edges, EdgeOptions, StripeOptions};
 use crate::vision::target::{detect_target, TargetOptions};
 
@@ -403,15 +404,6 @@ fn axzb_error(a: &Iso3, x: &Iso3, z: &Iso3, b: &Iso3) -> (f64, f64) {
     )
 }
 
-fn median(v: &mut [f64]) -> f64 {
-    v.sort_by(f64::total_cmp);
-    if v.is_empty() {
-        0.0
-    } else {
-        v[v.len() / 2]
-    }
-}
-
 /// Runs the pipeline on observations (see the module docs). `views` are the views whose
 /// board was found; `rig` gives the board, image size, distortion model and robot.
 pub fn calibrate_observations(
@@ -512,7 +504,7 @@ pub fn calibrate_observations(
     };
     let standoff = {
         let mut d: Vec<f64> = poses.iter().map(|p| p.translation.vector.norm()).collect();
-        median(&mut d)
+        median(&mut d).unwrap_or(0.0)
     };
     let mut axzb = solve(&keep)?;
     loop {
@@ -545,7 +537,10 @@ pub fn calibrate_observations(
                 rot.push(e.0);
                 tr.push(e.1);
             }
-            let (mr, mt) = (median(&mut rot), median(&mut tr));
+            let (mr, mt) = (
+                median(&mut rot).unwrap_or(0.0),
+                median(&mut tr).unwrap_or(0.0),
+            );
             let score = mr / opts.outlier_min_deg + mt / (opts.outlier_min_rel * standoff);
             if best.is_none_or(|b| score < b.0) {
                 best = Some((score, i, err_of(i), (mr, mt)));

@@ -34,6 +34,8 @@ use nalgebra::{Matrix3, Matrix4, SymmetricEigen, Vector3, Vector4};
 use crate::error::{Error, Result};
 use crate::model::geometry::Plane;
 use crate::model::SphereFit;
+use crate::numerics::rng::SplitMix64;
+use crate::numerics::robust::{median, robust_sigma};
 
 /// Options of the fits.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -211,22 +213,6 @@ fn sigma_floor(points: &[[f64; 3]]) -> f64 {
     1e-9 * (hi - lo).norm().max(1e-300)
 }
 
-fn median(v: &mut [f64]) -> f64 {
-    if v.is_empty() {
-        return 0.0;
-    }
-    let m = v.len() / 2;
-    let (_, x, _) = v.select_nth_unstable_by(m, |a, b| a.total_cmp(b));
-    *x
-}
-
-/// Robust sigma `1.4826 * median |r|`, reusing `buf`.
-fn robust_sigma(res: &[f64], buf: &mut Vec<f64>) -> f64 {
-    buf.clear();
-    buf.extend(res.iter().map(|r| r.abs()));
-    1.4826 * median(buf)
-}
-
 /// Generic trim loop: `fit(mask) -> (params, residuals of all points)`.
 fn trim_loop<P: Clone>(
     n: usize,
@@ -258,7 +244,7 @@ fn trim_loop<P: Clone>(
                 .filter(|(_, &m)| m)
                 .map(|(r, _)| r.abs()),
         );
-        sigma = (1.4826 * median(&mut buf)).max(sigma_floor);
+        sigma = (1.4826 * median(&mut buf).unwrap_or(0.0)).max(sigma_floor);
         let thr = opts.trim_sigma * sigma;
         let new: Vec<bool> = res.iter().map(|r| r.abs() <= thr).collect();
         if new == mask {
@@ -392,19 +378,6 @@ fn sphere_lm(
 /// A sphere's centre and radius, mm.
 type SphereParams = (Vector3<f64>, f64);
 
-/// Deterministic SplitMix64 sampler of the robust start.
-struct SplitMix(u64);
-
-impl SplitMix {
-    fn below(&mut self, n: usize) -> usize {
-        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
-        let mut z = self.0;
-        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-        ((z ^ (z >> 31)) % n as u64) as usize
-    }
-}
-
 /// The sphere through 4 points, or `None` when they are (nearly) coplanar.
 fn sphere_through(p: [Vector3<f64>; 4]) -> Option<(Vector3<f64>, f64)> {
     // 2 (p_i - p_0) . c = |p_i|^2 - |p_0|^2, i = 1..3 (relative to p_0 for conditioning).
@@ -462,7 +435,7 @@ fn sphere_robust_start(
         .collect();
     let k =
         ((opts.robust_quantile * subset.len() as f64).ceil() as usize).clamp(1, subset.len()) - 1;
-    let mut rng = SplitMix(0x5EED);
+    let mut rng = SplitMix64(0x5EED);
     let mut buf = Vec::with_capacity(subset.len());
     let mut best: Option<(f64, Vector3<f64>, f64)> = None;
     for _ in 0..ROBUST_SAMPLES {
@@ -667,24 +640,7 @@ pub fn fit_plane(points: &[[f64; 3]], opts: &FitOptions) -> Result<PlaneFit> {
 mod tests {
     use super::*;
 
-    /// SplitMix64 + Box-Muller: a deterministic normal generator for the tests.
-    struct Rng(u64);
-    impl Rng {
-        fn u64(&mut self) -> u64 {
-            self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
-            let mut z = self.0;
-            z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-            z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-            z ^ (z >> 31)
-        }
-        fn uniform(&mut self) -> f64 {
-            ((self.u64() >> 11) as f64 + 0.5) / (1u64 << 53) as f64
-        }
-        fn normal(&mut self) -> f64 {
-            let (a, b) = (self.uniform(), self.uniform());
-            (-2.0 * a.ln()).sqrt() * (std::f64::consts::TAU * b).cos()
-        }
-    }
+    use crate::numerics::rng::SplitMix64 as Rng;
 
     const D_TRUE: f64 = 44.8614;
 

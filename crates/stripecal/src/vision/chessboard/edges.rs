@@ -26,6 +26,7 @@ use nalgebra::Vector2;
 
 use super::image::Gray;
 use super::lattice::{cell_dark, extent, Coord};
+use crate::numerics::robust::median;
 
 /// What lies beyond one side of the grid.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -60,15 +61,6 @@ fn band_median(
             let p = crate::calib::homography::apply(h, &Vector2::new(li, lj))?;
             v.push(g.bilinear(p.x, p.y)?);
         }
-    }
-    let mid = v.len() / 2;
-    let (_, m, _) = v.select_nth_unstable_by(mid, f32::total_cmp);
-    Some(*m)
-}
-
-fn median(v: &mut [f32]) -> Option<f32> {
-    if v.is_empty() {
-        return None;
     }
     let mid = v.len() / 2;
     let (_, m, _) = v.select_nth_unstable_by(mid, f32::total_cmp);

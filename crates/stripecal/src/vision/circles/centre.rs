@@ -36,6 +36,7 @@
 
 use super::blobs::{Blob, Img};
 use crate::model::image::Pixel;
+use crate::numerics::robust::median;
 
 /// What was measured for one blob.
 #[derive(Debug, Clone, Copy)]
@@ -75,12 +76,6 @@ impl Fail {
             Fail::Background => "no usable background ring",
         }
     }
-}
-
-fn median(v: &mut [f64]) -> f64 {
-    let n = v.len();
-    let (_, m, _) = v.select_nth_unstable_by(n / 2, f64::total_cmp);
-    *m
 }
 
 /// Least-squares plane `z = p0 + p1 x + p2 y` through the kept points (the 3x3 normal
@@ -334,7 +329,7 @@ pub(crate) fn measure<T: Pixel>(
     let step = if ring.len() > 200 { 2 } else { 1 };
     let mut bg = {
         let mut z: Vec<f64> = ring.iter().step_by(step).map(|r| r.2).collect();
-        [median(&mut z), 0.0, 0.0]
+        [median(&mut z).unwrap_or(f64::NAN), 0.0, 0.0]
     };
     let mut sigma = 0.0;
     let mut res: Vec<f64> = Vec::with_capacity(ring.len());
@@ -347,7 +342,7 @@ pub(crate) fn measure<T: Pixel>(
         );
         absr.clear();
         absr.extend(res.iter().step_by(step).map(|r| r.abs()));
-        sigma = 1.4826 * median(&mut absr);
+        sigma = 1.4826 * median(&mut absr).unwrap_or(f64::NAN);
         let lim = 3.5 * sigma.max(0.3);
         for (k, r) in keep.iter_mut().zip(&res) {
             *k = r.abs() <= lim;
@@ -358,7 +353,7 @@ pub(crate) fn measure<T: Pixel>(
         bg = plane_fit(&ring, |k| keep[k]).ok_or(Fail::Background)?;
     }
     let core_n = core.len();
-    let fg = median(&mut core);
+    let fg = median(&mut core).unwrap_or(f64::NAN);
     let bg_c = bg[0];
     let s = if dark { -1.0 } else { 1.0 };
     let contrast = s * (fg - bg_c);

@@ -3,6 +3,7 @@
 //! inliers, re-classified once with the refined line.
 
 use crate::error::{Error, Result};
+use crate::numerics::rng::SplitMix64;
 
 /// Options of [`fit_line_with`].
 #[derive(Debug, Clone, PartialEq)]
@@ -52,22 +53,6 @@ impl LineFit {
 /// [`fit_line_with`] with default options (inliers within 1 px).
 pub fn fit_line(points: &[[f64; 2]]) -> Result<LineFit> {
     fit_line_with(points, &LineFitOptions::default())
-}
-
-/// SplitMix64: a tiny deterministic generator for the RANSAC samples.
-struct Rng(u64);
-
-impl Rng {
-    fn next(&mut self) -> u64 {
-        self.0 = self.0.wrapping_add(0x9e37_79b9_7f4a_7c15);
-        let mut z = self.0;
-        z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
-        z ^ (z >> 31)
-    }
-    fn below(&mut self, n: usize) -> usize {
-        (self.next() % n as u64) as usize
-    }
 }
 
 /// Total least squares over the selected points: `(centroid, unit direction)`.
@@ -138,7 +123,7 @@ pub fn fit_line_with(points: &[[f64; 2]], opts: &LineFitOptions) -> Result<LineF
     }
     let thr = opts.inlier_px;
     // RANSAC on pairs: most inliers, then smallest residual sum.
-    let mut rng = Rng(opts.seed);
+    let mut rng = SplitMix64(opts.seed);
     let mut best: Option<(usize, f64, [f64; 2], [f64; 2])> = None;
     let iters = if n == 2 { 1 } else { opts.iterations.max(1) };
     for _ in 0..iters {

@@ -1,0 +1,58 @@
+//! Robust statistics: the median and the MAD-based sigma.
+
+use std::cmp::Ordering;
+
+/// A float with a total order (`f32::total_cmp`, `f64::total_cmp`).
+pub trait TotalOrd: Copy {
+    /// The IEEE 754 total order.
+    fn total_order(&self, other: &Self) -> Ordering;
+}
+
+impl TotalOrd for f64 {
+    #[inline]
+    fn total_order(&self, other: &Self) -> Ordering {
+        self.total_cmp(other)
+    }
+}
+
+impl TotalOrd for f32 {
+    #[inline]
+    fn total_order(&self, other: &Self) -> Ordering {
+        self.total_cmp(other)
+    }
+}
+
+/// The median of `v` (for an even count, the upper of the two middle values: the element
+/// of rank `n / 2`), or `None` for an empty slice. Reorders `v` (a selection, O(n)).
+#[inline]
+pub fn median<T: TotalOrd>(v: &mut [T]) -> Option<T> {
+    if v.is_empty() {
+        return None;
+    }
+    let mid = v.len() / 2;
+    Some(*v.select_nth_unstable_by(mid, T::total_order).1)
+}
+
+/// The robust sigma `1.4826 * median |r|` of residuals `res` (0 for none), using `buf` as
+/// scratch space. For Gaussian residuals it estimates their standard deviation.
+pub fn robust_sigma(res: &[f64], buf: &mut Vec<f64>) -> f64 {
+    buf.clear();
+    buf.extend(res.iter().map(|r| r.abs()));
+    1.4826 * median(buf).unwrap_or(0.0)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn median_of_odd_even_and_empty() {
+        assert_eq!(median(&mut [3.0, 1.0, 2.0]), Some(2.0));
+        assert_eq!(median(&mut [4.0f32, 1.0, 3.0, 2.0]), Some(3.0));
+        assert_eq!(median::<f64>(&mut []), None);
+        assert_eq!(median(&mut [f64::NAN, 1.0, 2.0]), Some(2.0));
+        let mut buf = Vec::new();
+        assert_eq!(robust_sigma(&[], &mut buf), 0.0);
+        assert!((robust_sigma(&[-1.0, 1.0, 2.0], &mut buf) - 1.4826).abs() < 1e-15);
+    }
+}
