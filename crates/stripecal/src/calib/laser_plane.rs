@@ -24,12 +24,12 @@
 //! refused too. Nearly parallel stripe lines (largest angle between two views' lines
 //! below 5 deg) give a warning.
 
-use faer::Mat;
 use nalgebra::{Matrix3, Point3, Vector2, Vector3};
 
 use crate::error::{Error, Result};
 use crate::model::camera::Camera;
 use crate::model::geometry::{Iso3, Plane};
+use crate::numerics::tls;
 
 /// Refuse when the points' RMS extent across their common line is below this fraction of
 /// their extent along it.
@@ -115,31 +115,12 @@ pub fn backproject_to_board(
     }
 }
 
-/// Centroid and principal axes (columns, by decreasing singular value) of points, with
-/// the singular values of the centred point matrix.
+/// Centroid, principal axes (columns, by decreasing singular value) and singular values
+/// of points: [`crate::numerics::tls`].
 fn principal_axes(pts: &[Vector3<f64>]) -> Result<(Vector3<f64>, Matrix3<f64>, [f64; 3])> {
-    let n = pts.len();
-    let c = pts.iter().fold(Vector3::zeros(), |a, p| a + p) / n as f64;
-    // At least 3 rows (zero rows change nothing) so the SVD has 3 singular values.
-    let mut m = Mat::<f64>::zeros(n.max(3), 3);
-    for (i, p) in pts.iter().enumerate() {
-        let d = p - c;
-        for k in 0..3 {
-            m[(i, k)] = d[k];
-        }
-    }
-    let svd = m
-        .thin_svd()
-        .map_err(|e| Error::Degenerate(format!("laser plane: SVD of the points failed: {e:?}")))?;
-    let s = svd.S().column_vector();
-    let v = svd.V();
-    let mut axes = Matrix3::zeros();
-    for r in 0..3 {
-        for k in 0..3 {
-            axes[(r, k)] = v[(r, k)];
-        }
-    }
-    Ok((c, axes, [s[0], s[1], s[2]]))
+    let pa =
+        tls::principal_axes(pts).map_err(|e| Error::Degenerate(format!("laser plane: {e}")))?;
+    Ok((pa.centroid, pa.axes, pa.singular))
 }
 
 /// Fits the laser plane to stripe points on the board.

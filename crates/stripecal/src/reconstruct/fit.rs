@@ -29,13 +29,14 @@
 //! `normal_sigma = sqrt(diag(var a e1 e1^T + var b e2 e2^T))`, and `d = n . c + delta`
 //! gives `var d = var delta + var a (e1 . c)^2 + var b (e2 . c)^2`.
 
-use nalgebra::{Matrix3, Matrix4, SymmetricEigen, Vector3, Vector4};
+use nalgebra::{Matrix3, Matrix4, Vector3, Vector4};
 
 use crate::error::{Error, Result};
 use crate::model::geometry::Plane;
 use crate::model::SphereFit;
 use crate::numerics::rng::SplitMix64;
 use crate::numerics::robust::{median, robust_sigma};
+use crate::numerics::tls;
 
 /// Options of the fits.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -555,21 +556,22 @@ struct PlaneParams {
 }
 
 fn plane_tls(points: &[[f64; 3]], mask: &[bool]) -> Result<PlaneParams> {
-    let sel = || points.iter().zip(mask).filter(|(_, &m)| m).map(|(p, _)| p);
-    let k = sel().count() as f64;
-    let c = sel().fold(Vector3::zeros(), |a, p| a + Vector3::from(*p)) / k;
-    let mut s = Matrix3::zeros();
-    for p in sel() {
-        let q = Vector3::from(*p) - c;
-        s += q * q.transpose();
-    }
-    let eig = SymmetricEigen::new(s);
-    let mut idx = [0usize, 1, 2];
-    idx.sort_by(|&a, &b| eig.eigenvalues[a].total_cmp(&eig.eigenvalues[b]));
-    let (l0, l1) = (eig.eigenvalues[idx[0]], eig.eigenvalues[idx[1]]);
+    let sel: Vec<Vector3<f64>> = points
+        .iter()
+        .zip(mask)
+        .filter(|(_, &m)| m)
+        .map(|(p, _)| Vector3::from(*p))
+        .collect();
+    let k = sel.len() as f64;
+    let pa = tls::principal_axes(&sel)?;
+    let c = pa.centroid;
+    let (l0, l1, l2) = (
+        pa.singular[2].powi(2),
+        pa.singular[1].powi(2),
+        pa.singular[0].powi(2),
+    );
     // The points must spread in two directions well beyond their spread off the plane:
     // a single stripe on a plane is a line, and a line does not fix a plane.
-    let l2 = eig.eigenvalues[idx[2]];
     if !(l1 > PLANE_MIN_SPREAD_RATIO * PLANE_MIN_SPREAD_RATIO * l0.max(0.0) && l1 > 1e-12 * l2) {
         return Err(Error::Degenerate(format!(
             "plane fit: the points lie along a line (spread across it {:.3e} mm, off the \
@@ -578,8 +580,8 @@ fn plane_tls(points: &[[f64; 3]], mask: &[bool]) -> Result<PlaneParams> {
             (l0.max(0.0) / k).sqrt()
         )));
     }
-    let n = eig.eigenvectors.column(idx[0]).into_owned();
-    let e1 = eig.eigenvectors.column(idx[2]).into_owned();
+    let n = pa.axes.column(2).into_owned();
+    let e1 = pa.axes.column(0).into_owned();
     let e2 = n.cross(&e1);
     Ok(PlaneParams { n, c, e1, e2 })
 }
