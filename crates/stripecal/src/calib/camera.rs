@@ -19,10 +19,6 @@ use crate::calib::conic::{
     centre_generic_n, quadrature_nodes, rot_times_exp_first_order, CentreModel, Dual, Scalar,
 };
 use crate::calib::homography::fit_homography;
-use crate::calib::lm::{
-    dense_jacobian_from_rows, levenberg_marquardt, JacobianRows, LeastSquares, LmOptions,
-    StopReason,
-};
 use crate::calib::zhang::{pose_from_homography, zhang_intrinsics};
 use crate::calib::ViewObs;
 use crate::error::{Error, Result};
@@ -30,6 +26,10 @@ use crate::model::board::Board;
 use crate::model::camera::{Camera, DistortionModel, PARAM_NAMES};
 use crate::model::geometry::{
     iso_from_rotvec, iso_to_rotvec, matrix_to_rotvec, rotvec_to_matrix, Iso3,
+};
+use crate::numerics::lm::{
+    dense_jacobian_from_rows, levenberg_marquardt, JacobianRows, LeastSquares, LmOptions,
+    StopReason,
 };
 
 /// Options of [`calibrate_camera`].
@@ -506,7 +506,7 @@ mod tests {
                 }
             };
             let what = format!("{model:?}");
-            crate::calib::lm::assert_jacobian_matches_fd(&pr, &p, step, 1e-12, 1e-6, &what);
+            crate::numerics::lm::assert_jacobian_matches_fd(&pr, &p, step, 1e-12, 1e-6, &what);
         }
     }
 }

@@ -8,8 +8,8 @@
 use faer::MatMut;
 use nalgebra::{DMatrix, Matrix3, Vector2, Vector3};
 
-use crate::calib::lm::{levenberg_marquardt, LeastSquares, LmOptions};
 use crate::error::{Error, Result};
+use crate::numerics::lm::{levenberg_marquardt, LeastSquares, LmOptions};
 
 /// Applies `h` to a plane point; `None` when it maps to infinity.
 pub fn apply(h: &Matrix3<f64>, p: &Vector2<f64>) -> Option<Vector2<f64>> {

@@ -50,16 +50,16 @@ use crate::calib::conic::{
     centre_generic_n, distort_generic, quadrature_nodes, rot_times_exp_first_order, CentreModel,
     Dual, Scalar,
 };
-use crate::calib::lm::{
-    dense_jacobian_from_rows, levenberg_marquardt, JacobianRows, LeastSquares, LmOptions, LmResult,
-    StopReason,
-};
 use crate::calib::ViewObs;
 use crate::error::{Error, Result};
 use crate::model::board::Board;
 use crate::model::camera::{Camera, PARAM_NAMES};
 use crate::model::geometry::{
     iso_from_rotvec, iso_to_rotvec, matrix_to_rotvec, rotvec_to_matrix, Iso3, Plane,
+};
+use crate::numerics::lm::{
+    dense_jacobian_from_rows, levenberg_marquardt, JacobianRows, LeastSquares, LmOptions, LmResult,
+    StopReason,
 };
 
 /// Dual numbers over every parameter slot: camera 0..9, plane 9..12, X 12..18, Z 18..24.
@@ -1382,7 +1382,7 @@ mod tests {
                 1e-6
             }
         };
-        crate::calib::lm::assert_jacobian_matches_fd(&pr, &p, step, 1e-9, 1e-5, "joint");
+        crate::numerics::lm::assert_jacobian_matches_fd(&pr, &p, step, 1e-9, 1e-5, "joint");
     }
 
     #[test]

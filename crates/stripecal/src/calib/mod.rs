@@ -18,7 +18,6 @@ pub mod consensus;
 pub mod homography;
 pub mod joint;
 pub mod laser_plane;
-pub mod lm;
 pub mod zhang;
 
 use crate::model::geometry::Iso3;

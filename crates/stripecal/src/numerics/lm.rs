@@ -1048,7 +1048,7 @@ mod tests {
                     reweighting: false,
                     weights: one(),
                 };
-                crate::calib::lm::assert_jacobian_matches_fd(
+                crate::numerics::lm::assert_jacobian_matches_fd(
                     &pr,
                     &a.params,
                     |_| 1e-6,
