@@ -21,6 +21,7 @@ import numpy as np
 import stripecal
 import stripecal.sim
 from stripecal._progress import Progress
+from stripecal.types import SimConfig, TwinSummary
 
 
 def cmd_info(args: argparse.Namespace) -> int:
@@ -39,7 +40,7 @@ def _add_info(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     p.set_defaults(func=cmd_info)
 
 
-def _set_path(d: Dict[str, Any], dotted: str, value: Any) -> None:
+def _set_path(d: SimConfig, dotted: str, value: Any) -> None:
     keys = dotted.split(".")
     for k in keys[:-1]:
         d = d.setdefault(k, {})
@@ -48,9 +49,9 @@ def _set_path(d: Dict[str, Any], dotted: str, value: Any) -> None:
     d[keys[-1]] = value
 
 
-def _overrides(args: argparse.Namespace) -> Dict[str, Any]:
+def _overrides(args: argparse.Namespace) -> SimConfig:
     """The configuration overrides named by the simulate/demo options."""
-    over: Dict[str, Any] = {}
+    over: SimConfig = {}
     if getattr(args, "config", None):
         with open(args.config, encoding="utf-8") as f:
             try:
@@ -114,14 +115,14 @@ def _add_knobs(p: argparse.ArgumentParser) -> None:
     p.add_argument("--print-config", action="store_true", help="print the full configuration and exit")
 
 
-def _render(args: argparse.Namespace, out: str) -> Tuple[stripecal.sim.Twin, Dict[str, Any]]:
+def _render(args: argparse.Namespace, out: str) -> Tuple[stripecal.sim.Twin, TwinSummary]:
     cfg = stripecal.sim.preset(args.preset, _overrides(args))
     twin = stripecal.sim.Twin(cfg)
     summary = twin.write(out, Progress())
     return twin, summary
 
 
-def _print_summary(twin: stripecal.sim.Twin, summary: Dict[str, Any], elapsed: float) -> None:
+def _print_summary(twin: stripecal.sim.Twin, summary: TwinSummary, elapsed: float) -> None:
     cfg = twin.config
     cam = twin.camera
     print(f"preset {cfg['preset']}, seed {cfg['seed']}: camera {cam.width} x {cam.height}, "
@@ -142,8 +143,8 @@ def _print_summary(twin: stripecal.sim.Twin, summary: Dict[str, Any], elapsed: f
               f"  {v['circles_visible']:>3}/{total:<3}  {v['stripe_points_on_board']:>4} {lines}")
     print("  (joint readings in degrees; stand-off along the optical axis to the board plane;"
           " tilt between optical axis and board normal)")
-    if summary["scan_dir"] is not None:
-        sp = summary["sphere"]
+    sp = summary["sphere"]
+    if summary["scan_dir"] is not None and sp is not None:
         c = sp["center_mm"]
         print(f"\nball scan: {summary['scan_frames']} stripe images, sensor moving in a straight line in "
               f"{cfg['scan']['step_mm']} mm steps; ball diameter {sp['diameter_mm']} mm at "
@@ -175,7 +176,7 @@ def _add_simulate(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> N
 
 # The paper's Table 2 (ERRATA.md readings): laser plane d with the sign that puts it in
 # front of the camera; Z is not comparable (the paper's board frame is not recoverable).
-PAPER_TABLE2: Dict[str, Any] = {
+PAPER_TABLE2: Dict[str, float] = {
     "fu (px)": 1271.65, "fv (px)": 1322.52, "u0 (px)": 346.14, "v0 (px)": 262.60, "k1": 0.0002,
     "laser normal x": 0.6290, "laser normal y": -0.0492, "laser normal z": 0.7759, "laser d (mm)": 79.8728,
     "X rotvec x (rad)": -0.3087, "X rotvec y (rad)": 0.2362, "X rotvec z (rad)": 3.0369,
@@ -193,7 +194,7 @@ def _param_rows(cal: stripecal.Calibration, truth: stripecal.Truth) -> List[Tupl
             for n, v, s, t in parameter_rows(cal, truth)]
 
 
-def _demo_tables(cal: stripecal.Calibration, truth: stripecal.Truth, fit: Any, cloud_points: int) -> str:
+def _demo_tables(cal: stripecal.Calibration, truth: stripecal.Truth, fit: stripecal.SphereFit, cloud_points: int) -> str:
     lines = [f"{'parameter':<20} {'true':>13} {'estimate':>13} {'1 sigma':>9} {'error':>10} {'paper Table 2':>14}"]
     for name, v, s, t in _param_rows(cal, truth):
         p = PAPER_TABLE2.get(name)
@@ -284,7 +285,7 @@ def _add_demo(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     p.set_defaults(func=cmd_demo)
 
 
-def _fmt_sigma(value: float, sigma: Any) -> str:
+def _fmt_sigma(value: float, sigma: Optional[float]) -> str:
     if sigma is None:
         return f"{value:14.6f}"
     return f"{value:14.6f} +- {float(sigma):.2g}"
@@ -308,9 +309,9 @@ def print_calibration(cal: stripecal.Calibration) -> None:
     if views:
         print("\n  view  used  circles  stripe pts  circle RMS px  stripe RMS px  note")
         for v in views:
-            crms = v.get("circle_rms_px")
-            srms = v.get("stripe_rms_px")
-            note = v.get("note") or ("OUTLIER" if v.get("outlier") else "")
+            crms = v["circle_rms_px"]
+            srms = v["stripe_rms_px"]
+            note = v["note"] or ("OUTLIER" if v["outlier"] else "")
             print(f"  {v['view']:>4}  {'yes' if v['used'] else 'no':>4}  {v['circles']:>7}  {v['stripe_points']:>10}"
                   f"  {'' if crms is None else f'{crms:.4f}':>13}  {'' if srms is None else f'{srms:.4f}':>13}  {note}")
     for w in extra.get("warnings", []):

@@ -27,6 +27,7 @@ import numpy as np
 import numpy.typing as npt
 
 import stripecal
+from stripecal.types import CameraSigma, PlaneSigma, PoseSigma
 
 _Path = Union[str, "os.PathLike[str]"]
 F64 = npt.NDArray[np.float64]
@@ -110,17 +111,17 @@ def _stripe_figure(plt: Any, cal: stripecal.Calibration, out: Path) -> Optional[
 
 
 def _rms_figure(plt: Any, cal: stripecal.Calibration, out: Path) -> Optional[str]:
-    views = [v for v in cal.views if v.get("used")]
+    views = [v for v in cal.views if v["used"]]
     if not views:
         return None
     fig, ax = plt.subplots(figsize=(max(4.0, 0.6 * len(views) + 2), 3.2))
     x = np.arange(len(views))
-    c = [v.get("circle_rms_px") or 0.0 for v in views]
-    s = [v.get("stripe_rms_px") or 0.0 for v in views]
+    c = [v["circle_rms_px"] or 0.0 for v in views]
+    s = [v["stripe_rms_px"] or 0.0 for v in views]
     ax.bar(x - 0.2, c, 0.4, label="circles (2D RMS)")
     ax.bar(x + 0.2, s, 0.4, label="stripe (RMS distance)")
     for i, v in enumerate(views):
-        if v.get("outlier"):
+        if v["outlier"]:
             ax.annotate("outlier", (x[i], max(c[i], s[i])), ha="center", va="bottom", color="red", fontsize=8)
     ax.set_xticks(x)
     ax.set_xticklabels([str(v["view"]) for v in views])
@@ -161,38 +162,55 @@ def _cloud_figure(plt: Any, points: F64, colour: Optional[F64], out: Path) -> Op
     return _save(plt, fig, out, "cloud.png", tight=False)
 
 
-def parameter_rows(cal: stripecal.Calibration, truth: Optional[stripecal.Truth]) -> List[Tuple[str, float, Any, Optional[float]]]:
+Row = Tuple[str, float, Optional[float], Optional[float]]
+"""A parameter row: name, estimate, one-sigma (None when unknown), true value (None
+without a truth)."""
+
+
+def _at(values: Optional[Sequence[Optional[float]]], i: int) -> Optional[float]:
+    """Element ``i`` of a list of one-sigmas; None when the list is missing or short."""
+    if values is None or i >= len(values):
+        return None
+    return values[i]
+
+
+def parameter_rows(cal: stripecal.Calibration, truth: Optional[stripecal.Truth]) -> List[Row]:
     """(name, value, one-sigma or None, true value or None) per estimated number."""
     u = cal.uncertainty
     cam = cal.camera
-    cu = u.get("camera", {})
-    out: List[Tuple[str, float, Any, Optional[float]]] = []
-    for n in ("fu", "fv", "u0", "v0"):
-        out.append((f"{n} (px)", getattr(cam, n), cu.get(n), getattr(truth.camera, n) if truth else None))
-    ds = cu.get("distortion", [None] * 5)
+    cu: CameraSigma = u.get("camera", {})
+    intrinsics: List[Tuple[str, float, Optional[float], Optional[float]]] = [
+        ("fu", cam.fu, cu.get("fu"), truth.camera.fu if truth else None),
+        ("fv", cam.fv, cu.get("fv"), truth.camera.fv if truth else None),
+        ("u0", cam.u0, cu.get("u0"), truth.camera.u0 if truth else None),
+        ("v0", cam.v0, cu.get("v0"), truth.camera.v0 if truth else None),
+    ]
+    out: List[Row] = [(f"{n} (px)", v, s, t) for n, v, s, t in intrinsics]
+    ds = cu.get("distortion")
     for i, n in enumerate(("k1", "k2", "p1", "p2", "k3")):
-        if cam.distortion[i] != 0.0 or ds[i]:
-            out.append((n, float(cam.distortion[i]), ds[i], float(truth.camera.distortion[i]) if truth else None))
+        if cam.distortion[i] != 0.0 or _at(ds, i):
+            out.append((n, float(cam.distortion[i]), _at(ds, i), float(truth.camera.distortion[i]) if truth else None))
     n_, d_ = cal.laser_plane
-    lu = u.get("laser_plane", {})
-    tn: Optional[Tuple[Any, float]] = truth.laser_plane if truth else None
+    lu: PlaneSigma = u.get("laser_plane", {})
+    tn: Optional[Tuple[F64, float]] = truth.laser_plane if truth else None
     for i, a in enumerate("xyz"):
-        out.append((f"laser normal {a}", float(n_[i]), lu.get("normal", [None] * 3)[i], float(tn[0][i]) if tn else None))
+        out.append((f"laser normal {a}", float(n_[i]), _at(lu.get("normal"), i), float(tn[0][i]) if tn else None))
     out.append(("laser d (mm)", float(d_), lu.get("d_mm"), tn[1] if tn else None))
-    for key, label in (("hand_cam", "X"), ("base_board", "Z")):
-        m = getattr(cal, key)
+    poses: List[Tuple[str, F64, PoseSigma, Optional[F64]]] = [
+        ("X", cal.hand_cam, u.get("hand_cam", {}), truth.hand_cam if truth else None),
+        ("Z", cal.base_board, u.get("base_board", {}), truth.base_board if truth else None),
+    ]
+    for label, m, tu, tm in poses:
         rv = stripecal.matrix_to_rotvec(m[:3, :3])
-        tu = u.get(key, {})
-        tm = getattr(truth, key) if truth else None
         trv = stripecal.matrix_to_rotvec(tm[:3, :3]) if tm is not None else None
         if trv is not None and np.linalg.norm(rv - trv) > np.pi:
             # near 180 deg a rotation has two rotation vectors: show the truth's branch
             rv = rv * (1.0 - 2.0 * np.pi / np.linalg.norm(rv))
         for i, a in enumerate("xyz"):
-            out.append((f"{label} rotvec {a} (rad)", float(rv[i]), tu.get("rotation_vector", [None] * 3)[i],
+            out.append((f"{label} rotvec {a} (rad)", float(rv[i]), _at(tu.get("rotation_vector"), i),
                         float(trv[i]) if trv is not None else None))
         for i, a in enumerate("xyz"):
-            out.append((f"{label} t{a} (mm)", float(m[i, 3]), tu.get("translation_mm", [None] * 3)[i],
+            out.append((f"{label} t{a} (mm)", float(m[i, 3]), _at(tu.get("translation_mm"), i),
                         float(tm[i, 3]) if tm is not None else None))
     return out
 
@@ -243,12 +261,12 @@ def write_report(
     views = cal.views
     vr = []
     for v in views:
-        def f4(x: Any) -> str:
+        def f4(x: Optional[float]) -> str:
             return "" if x is None else f"{x:.4f}"
-        bad = ' style="color:#b00"' if v.get("outlier") or not v.get("used") else ""
-        vr.append(f"<tr{bad}><td>{v['view']}</td><td>{'yes' if v.get('used') else 'no'}</td><td>{v.get('circles', '')}</td>"
-                  f"<td>{v.get('stripe_points', '')}</td><td>{f4(v.get('circle_rms_px'))}</td>"
-                  f"<td>{f4(v.get('stripe_rms_px'))}</td><td>{html.escape(str(v.get('note') or ''))}</td></tr>")
+        bad = ' style="color:#b00"' if v["outlier"] or not v["used"] else ""
+        vr.append(f"<tr{bad}><td>{v['view']}</td><td>{'yes' if v['used'] else 'no'}</td><td>{v['circles']}</td>"
+                  f"<td>{v['stripe_points']}</td><td>{f4(v['circle_rms_px'])}</td>"
+                  f"<td>{f4(v['stripe_rms_px'])}</td><td>{html.escape(str(v['note'] or ''))}</td></tr>")
     warn = "".join(f"<li>{html.escape(str(w))}</li>" for w in e.get("warnings", []))
     extra_sections = "".join(f"<h2>{html.escape(h)}</h2><pre>{html.escape(t)}</pre>" for h, t in sections)
     imgs = "".join(f'<figure><img src="{f}" alt="{f}"><figcaption>{f}</figcaption></figure>' for f in figures)

@@ -26,7 +26,7 @@ from __future__ import annotations
 
 import json
 import os
-from typing import Any, Callable, Dict, List, Optional, Tuple, Union
+from typing import Any, Callable, List, Optional, Tuple, Union
 
 import numpy as np
 import numpy.typing as npt
@@ -34,6 +34,7 @@ import numpy.typing as npt
 from stripecal._core import Board, Camera, Robot, Truth
 from stripecal._core import Twin as _CoreTwin
 from stripecal._core import sim_config, sim_presets
+from stripecal.types import SimConfig, SimPose, TwinSummary, ViewRender
 
 __all__ = ["Twin", "preset", "presets"]
 
@@ -46,14 +47,14 @@ def presets() -> List[str]:
     return list(sim_presets())
 
 
-def preset(name: str = "hp3-paper", overrides: Optional[Dict[str, Any]] = None, **knobs: Any) -> Dict[str, Any]:
+def preset(name: str = "hp3-paper", overrides: Optional[SimConfig] = None, **knobs: Any) -> SimConfig:
     """The full configuration of preset ``name`` with ``overrides`` (a nested dict) and
     top-level ``knobs`` (e.g. ``seed=3``, ``imaging={"noise_gray": 2}``) merged over it.
     Nested dicts merge key by key; anything else replaces."""
-    merged: Dict[str, Any] = dict(overrides or {})
+    merged: SimConfig = dict(overrides or {})
     merged.update(knobs)
     text = sim_config(name, json.dumps(merged) if merged else None)
-    cfg: Dict[str, Any] = json.loads(text)
+    cfg: SimConfig = json.loads(text)
     return cfg
 
 
@@ -61,14 +62,14 @@ class Twin:
     """A rig's digital twin (see the module docstring). ``config`` is a full
     configuration dict (from :func:`preset`) or a preset name."""
 
-    def __init__(self, config: Union[Dict[str, Any], str] = "hp3-paper") -> None:
+    def __init__(self, config: Union[SimConfig, str] = "hp3-paper") -> None:
         cfg = preset(config) if isinstance(config, str) else config
         self._core = _CoreTwin(json.dumps(cfg))
 
     @property
-    def config(self) -> Dict[str, Any]:
+    def config(self) -> SimConfig:
         """The full configuration (a fresh dict)."""
-        cfg: Dict[str, Any] = json.loads(self._core.config_json)
+        cfg: SimConfig = json.loads(self._core.config_json)
         return cfg
 
     @property
@@ -122,7 +123,7 @@ class Twin:
         """The true parameters, as written to truth.json (without per-image keys)."""
         return self._core.truth(with_sphere)
 
-    def calibration_poses(self) -> List[Dict[str, Any]]:
+    def calibration_poses(self) -> List[SimPose]:
         """The calibration poses: ``q_deg`` (encoder readings), ``standoff_mm``,
         ``tilt_deg``, ``stripe_chord_mm``; explicit ones or sampled by seed."""
         return self._core.calibration_poses()
@@ -131,7 +132,7 @@ class Twin:
         """Encoder readings (N, J) of the scan sweep over the ball."""
         return self._core.scan_poses()
 
-    def render_view(self, q: npt.ArrayLike, index: int = 0) -> Dict[str, Any]:
+    def render_view(self, q: npt.ArrayLike, index: int = 0) -> ViewRender:
         """Renders a calibration view at encoder readings ``q`` (degrees). Keys:
         ``board_image``, ``laser_image`` (None in single-image mode), ``target_indices``
         (N, 2) (row, col) and ``target_points`` (N, 2): the true imaged target points
@@ -142,16 +143,18 @@ class Twin:
         (M, 2) and per-point ``stripe_surface``, ``stripe_incidence_deg``,
         ``stripe_view_deg``, ``stripe_edge_mm``, ``stripe_slope``,
         ``stripe_points_cam`` (M, 3), ``base_cam``.
-        ``index`` selects the noise stream (views of one dataset differ by index)."""
+        ``index`` selects the noise stream (views of one dataset differ by index).
+        The keys are documented field by field in :class:`stripecal.types.ViewRender`."""
         return self._core.render_view(q, index)
 
-    def render_scan_frame(self, q: npt.ArrayLike, index: int = 0) -> Dict[str, Any]:
+    def render_scan_frame(self, q: npt.ArrayLike, index: int = 0) -> ViewRender:
         """Renders a scan frame (the ball on the table) at ``q``; keys as
         :meth:`render_view` (``laser_image`` holds the frame)."""
         return self._core.render_scan_frame(q, index)
 
-    def write(self, out: Union[str, "os.PathLike[str]"], progress: Optional[Callable[[str, int, int], Any]] = None) -> Dict[str, Any]:
+    def write(self, out: Union[str, "os.PathLike[str]"], progress: Optional[Callable[[str, int, int], Any]] = None) -> TwinSummary:
         """Renders and writes ``out/calib`` and ``out/scan`` (each written under a
         temporary name, then renamed); returns a summary dict (``board_kind``, per view
-        ``circles_visible``: the imaged target points, whatever the kind)."""
+        ``circles_visible``: the imaged target points, whatever the kind; every key in
+        :class:`stripecal.types.TwinSummary`)."""
         return self._core.write(out, progress)

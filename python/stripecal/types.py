@@ -1,0 +1,518 @@
+"""Typed records of the dicts that stripecal returns (and accepts).
+
+The Rust extension ``stripecal._core`` returns plain ``dict`` objects; the classes here
+are :class:`typing.TypedDict` declarations of those dicts, so that a type checker knows
+every key and its type. They describe, they do not convert: at run time the values are
+the same dicts as ever (``isinstance(x, dict)``), and nothing in the package builds one of
+these classes. Each field is documented by the string literal that follows it.
+
+Conventions (frames, units, pixel centres): docs/conventions.md. Arrays are numpy arrays
+(``F64``: float64) with the shapes given in the field docs.
+
+Typing notes:
+
+- The stub of the extension (``_core.pyi``) imports these classes, so they must exist at
+  run time; this module is plain Python (no ``from __future__ import annotations``) and
+  imports nothing from the extension but :class:`~stripecal.Camera`.
+- The pure-Python modules of the package (this one, ``io``, ``vision``, ``calib``,
+  ``reconstruct``, ``sim``, ``cli``, ``report``) are typed inline and re-export with
+  ``__all__``: they need no ``.pyi`` of their own (``py.typed`` marks the package).
+- Records read from a file a user may have written (calibration.json's ``uncertainty``
+  and extra keys, a sphere fit's extra keys) are ``total=False``: a key the library
+  always writes may be missing from someone else's file, and unknown keys are kept.
+- Constructor arguments that take such a record accept the record or any ``dict`` of
+  JSON-like values (``...Input`` aliases): the extension needs a real ``dict``.
+- Two maps stay untyped (string keys to ``Any``) on purpose: :data:`SimConfig` (the twin's free-form,
+  nested configuration, validated by the Rust side) and ``Truth.extra`` (simulator
+  specific keys of truth.json).
+"""
+
+from typing import Any, Dict, List, Optional, TypedDict, Union
+
+import numpy as np
+import numpy.typing as npt
+
+from stripecal._core import Camera
+
+F64 = npt.NDArray[np.float64]
+"""A float64 numpy array."""
+I64 = npt.NDArray[np.int64]
+"""An int64 numpy array."""
+Gray = Union[npt.NDArray[np.uint8], npt.NDArray[np.uint16]]
+"""A 2D gray image, uint8 or uint16."""
+
+__all__ = [
+    "AxzbSolution",
+    "CalibrationExtra",
+    "CalibrationExtraInput",
+    "CalibrationQuality",
+    "CalibrationQualityInput",
+    "CalibrationUncertainty",
+    "CalibrationUncertaintyInput",
+    "CalibrationView",
+    "CameraCalibration",
+    "CameraParamSigma",
+    "CameraSigma",
+    "CircleDetection",
+    "DatasetView",
+    "DroppedCircle",
+    "F64",
+    "Gray",
+    "I64",
+    "LaserPlaneFit",
+    "PlaneSigma",
+    "PlyCloud",
+    "PoseSigma",
+    "ResidualSigma",
+    "SimConfig",
+    "SimPose",
+    "SphereFitExtra",
+    "SphereFitExtraInput",
+    "SphereInput",
+    "SphereTruth",
+    "TwinSphere",
+    "TwinSummary",
+    "TwinViewSummary",
+    "ViewRender",
+]
+
+
+# --- io: dataset folders and point clouds ---------------------------------------------
+
+
+class DatasetView(TypedDict):
+    """One view of a dataset folder (``Dataset.views``): a row of views.csv."""
+
+    line: int
+    """Line number of the view in views.csv."""
+    board_image: str
+    """Path of the board image, joined with the dataset folder."""
+    laser_image: Optional[str]
+    """Path of the laser image, or None (single-image datasets)."""
+    joints: Optional[F64]
+    """Encoder readings (J,) in degrees, or None when the view gives a flange pose."""
+    flange_pose: Optional[F64]
+    """``T_base_hand`` (4, 4) in mm, or None when the view gives joint readings."""
+
+
+class PlyCloud(TypedDict):
+    """A PLY point cloud as read by ``read_ply``."""
+
+    points: F64
+    """Points (N, 3), mm."""
+    properties: Dict[str, F64]
+    """Other per-point properties by PLY name, each (N,) float64 (e.g. ``view``, ``u``,
+    ``v``, ``intensity``, ``flags`` for clouds written by stripecal)."""
+
+
+# --- calib: calibration results -------------------------------------------------------
+
+
+class CalibrationQuality(TypedDict):
+    """Quality figures of a calibration (``Calibration.quality``)."""
+
+    circle_rms_px: float
+    """RMS target-point residual over the used views, px."""
+    stripe_rms_px: float
+    """RMS stripe-point distance from the predicted stripe line, px."""
+    views_used: int
+    """Number of views the calibration used."""
+
+
+CalibrationQualityInput = Union[CalibrationQuality, Dict[str, float]]
+"""What ``Calibration(quality=...)`` accepts: any of the three keys (missing ones are 0;
+unknown keys are an error)."""
+
+
+class CameraSigma(TypedDict, total=False):
+    """One-sigma of the camera parameters (``uncertainty["camera"]``); None where not
+    finite (unobservable)."""
+
+    fu: Optional[float]
+    """Focal length along u, px."""
+    fv: Optional[float]
+    """Focal length along v, px."""
+    u0: Optional[float]
+    """Principal point u, px."""
+    v0: Optional[float]
+    """Principal point v, px."""
+    distortion: List[Optional[float]]
+    """The five distortion coefficients ``k1, k2, p1, p2, k3`` (0 for those the model
+    does not estimate)."""
+
+
+class PlaneSigma(TypedDict, total=False):
+    """One-sigma of the laser plane (``uncertainty["laser_plane"]``)."""
+
+    normal: List[Optional[float]]
+    """Of the unit normal's three components."""
+    d_mm: Optional[float]
+    """Of the plane's distance ``d``, mm."""
+
+
+class PoseSigma(TypedDict, total=False):
+    """One-sigma of a rigid transform (``uncertainty["hand_cam"]``,
+    ``uncertainty["base_board"]``)."""
+
+    rotation_vector: List[Optional[float]]
+    """Of the rotation vector's three components, rad."""
+    translation_mm: List[Optional[float]]
+    """Of the translation's three components, mm."""
+
+
+class CalibrationUncertainty(TypedDict, total=False):
+    """One-sigma values of a calibration (``Calibration.uncertainty``), mirroring the
+    estimated values' keys. A ``paper``-method calibration has only ``camera`` and
+    ``laser_plane``."""
+
+    camera: CameraSigma
+    """The camera parameters."""
+    laser_plane: PlaneSigma
+    """The laser plane."""
+    hand_cam: PoseSigma
+    """``T_hand_cam`` (X); one-stage only."""
+    base_board: PoseSigma
+    """``T_base_board`` (Z); one-stage only."""
+
+
+CalibrationUncertaintyInput = Union[CalibrationUncertainty, Dict[str, object]]
+"""What ``Calibration(uncertainty=...)`` accepts: the record or any dict of JSON-like
+values (stored as given)."""
+
+
+class ResidualSigma(TypedDict):
+    """Residual standard deviations estimated by the adjustment, px."""
+
+    circle: float
+    """Of a target point's residual (per coordinate)."""
+    stripe: float
+    """Of a stripe point's distance from its predicted line."""
+
+
+class CalibrationView(TypedDict):
+    """Per-view figures of a calibration (``Calibration.views``)."""
+
+    view: int
+    """Index of the view in the dataset (views.csv order)."""
+    used: bool
+    """Whether the calibration used the view."""
+    circles: int
+    """Target points detected in the view (circle centres or chessboard corners)."""
+    stripe_points: int
+    """Stripe points on the board the adjustment used."""
+    circle_rms_px: Optional[float]
+    """RMS target residual of the view, px (None when not adjusted or not finite)."""
+    stripe_rms_px: Optional[float]
+    """RMS stripe residual of the view, px (None when not adjusted or not finite)."""
+    outlier: Optional[bool]
+    """Whether the adjustment flagged the view as an outlier (None when not
+    adjusted)."""
+    note: Optional[str]
+    """Why the view was left out, if it was."""
+
+
+class CalibrationExtra(TypedDict, total=False):
+    """The other top-level keys of calibration.json (``Calibration.extra``). The
+    library writes all but ``base_board_orientation`` and ``warnings`` (only when there
+    are some); a file written elsewhere may lack any of them or hold others."""
+
+    method: str
+    """``"one-stage"`` or ``"paper"``."""
+    centre_model: str
+    """The circle-centre model (e.g. ``"conic-exact"``)."""
+    base_board_orientation: str
+    """``"first view"`` when no view's image fixed the board frame's orientation and
+    the first view's labelling did (docs/conventions.md)."""
+    stripe_rms_mm: float
+    """RMS of the stripe points' distance from the laser plane, mm."""
+    residual_sigma_px: ResidualSigma
+    """Residual standard deviations estimated by the adjustment."""
+    views: List[CalibrationView]
+    """Per-view figures (also ``Calibration.views``)."""
+    warnings: List[str]
+    """Warnings of the calibration run (weak geometry, trimmed points, views left
+    out...)."""
+
+
+CalibrationExtraInput = Union[CalibrationExtra, Dict[str, object]]
+"""What ``Calibration(extra=...)`` accepts: the record or any dict of JSON-like values."""
+
+
+CameraParamSigma = TypedDict(
+    "CameraParamSigma",
+    {"fu": float, "fv": float, "u0": float, "v0": float, "k1": float, "k2": float,
+     "p1": float, "p2": float, "k3": float},
+)
+"""One-sigma of each camera parameter by name (the names of ``CAMERA_PARAM_NAMES``:
+``fu``, ``fv``, ``u0``, ``v0`` in px, the distortion coefficients ``k1, k2, p1, p2, k3``;
+NaN where unobservable, 0 where not estimated)."""
+
+
+class CameraCalibration(TypedDict):
+    """The camera calibrated alone (``calibrate_camera``)."""
+
+    camera: Camera
+    """The calibrated camera."""
+    cam_board: F64
+    """Board poses ``T_cam_board`` (K, 4, 4) of the K views used, mm."""
+    views_used: List[int]
+    """Indices in the input ``views`` of the views used."""
+    rms_px: float
+    """RMS target residual over the views used, px."""
+    per_view_rms_px: List[float]
+    """RMS target residual of each view used, px."""
+    camera_sigma: CameraParamSigma
+    """One-sigma of the camera parameters by name."""
+    initial_intrinsics: List[float]
+    """Zhang's closed-form start ``[fu, fv, u0, v0]``, px."""
+    unobservable: List[str]
+    """Names of the parameters the views do not determine."""
+    warnings: List[str]
+    """Warnings (weak geometry, views left out...)."""
+
+
+class LaserPlaneFit(TypedDict):
+    """The laser plane fitted to stripe points on the board (``fit_laser_plane``),
+    camera frame, ``n . p = d``."""
+
+    normal: F64
+    """Unit normal (3,)."""
+    d_mm: float
+    """Distance of the plane from the camera centre, mm (> 0)."""
+    rms_mm: float
+    """RMS distance of the points from the plane, mm."""
+    per_view_rms_mm: List[Optional[float]]
+    """RMS per view, mm (None for views without points)."""
+    n_points: int
+    """Points used."""
+    n_outliers: int
+    """Points rejected as outliers."""
+    normal_sigma: F64
+    """One-sigma of the normal's components (3,)."""
+    d_sigma_mm: float
+    """One-sigma of ``d``, mm."""
+    max_line_angle_deg: float
+    """Largest angle between the views' stripe lines, degrees (small: a weak fit)."""
+    span_across_mm: float
+    """Extent of the points across the stripe lines, mm."""
+    warnings: List[str]
+    """Warnings (weak geometry)."""
+
+
+class AxzbSolution(TypedDict):
+    """The solution of ``A_i X = Z B_i`` (``solve_axzb_full``) with its conditioning."""
+
+    X: F64
+    """``X`` (4, 4): the hand-eye transform ``T_hand_cam``."""
+    Z: F64
+    """``Z`` (4, 4): the robot-world transform ``T_base_board``."""
+    rotation_residual_rad: float
+    """RMS rotation residual over the pairs, rad."""
+    translation_residual: float
+    """RMS translation residual over the pairs, mm."""
+    axis_spread_deg: float
+    """Spread of the rotation axes of the motions, degrees (small: ill-conditioned)."""
+    max_rotation_deg: float
+    """Largest rotation among the motions, degrees."""
+    min_rotation_deg: float
+    """Smallest rotation among the motions, degrees."""
+    rotation_condition: float
+    """Condition number of the rotation part's linear system."""
+    refined: bool
+    """Whether the nonlinear refinement ran (``refine=True``) and was kept."""
+    warnings: List[str]
+    """Warnings (weak geometry)."""
+
+
+# --- vision: target detection ---------------------------------------------------------
+
+
+class DroppedCircle(TypedDict):
+    """An indexed circle left out of a detection."""
+
+    row: int
+    """Board row of the circle."""
+    col: int
+    """Board column of the circle."""
+    u: float
+    """Its measured centre u, px."""
+    v: float
+    """Its measured centre v, px."""
+    reason: str
+    """Why it was left out (e.g. crossed by the stripe)."""
+
+
+class CircleDetection(TypedDict):
+    """A circle-grid detection with its diagnostics (``detect_circles_full``); N
+    indexed circles."""
+
+    indices: I64
+    """Board indices (N, 2): ``(row, col)``."""
+    centres: F64
+    """Measured centres (N, 2): ``(u, v)``, px."""
+    quality_px: F64
+    """Per-circle fit residual (N,), px."""
+    area_px: F64
+    """Blob area (N,), px^2."""
+    axes_px: F64
+    """Ellipse semi-axes (N, 2), px."""
+    angle_rad: F64
+    """Ellipse orientation (N,), rad (major axis from +u towards +v)."""
+    stripe_crossed: npt.NDArray[np.bool_]
+    """Whether a stripe crosses the circle (N,)."""
+    dropped: List[DroppedCircle]
+    """Indexed circles left out."""
+    blobs: int
+    """Candidate blobs found."""
+    nodes_grown: int
+    """Grid nodes reached by growing from the seed."""
+    nodes_inconsistent: int
+    """Grid nodes refused as inconsistent with their neighbours."""
+    homography_rms_px: float
+    """RMS residual of a homography through the centres, px."""
+    homography_max_px: float
+    """Largest residual of that homography, px."""
+    method: str
+    """The centre method used (``"gravity"``, ``"conic"``...)."""
+
+
+# --- sim: the digital twin ------------------------------------------------------------
+
+# An untyped map on purpose: the twin's configuration is a free-form nested JSON object
+# (dozens of knobs in groups, validated key by key by the Rust side), so it is one alias.
+SimConfig = Dict[str, Any]
+"""A twin configuration: nested dict of knobs (see :mod:`stripecal.sim`)."""
+
+
+class SimPose(TypedDict):
+    """A calibration pose of the twin (``Twin.calibration_poses``)."""
+
+    q_deg: F64
+    """Encoder readings (J,), degrees."""
+    standoff_mm: float
+    """Stand-off along the optical axis to the board plane, mm."""
+    tilt_deg: float
+    """Angle between the optical axis and the board normal, degrees."""
+    stripe_chord_mm: float
+    """Length of the stripe on the board, mm."""
+
+
+class TwinViewSummary(SimPose):
+    """A calibration view written by ``Twin.write``: its pose and what it shows."""
+
+    circles_visible: int
+    """Imaged target points (circles or chessboard corners, whatever the kind)."""
+    stripe_points_on_board: int
+    """Stripe points on the board (one per scan line)."""
+
+
+class TwinSphere(TypedDict):
+    """The reference ball of a twin's scan, base frame."""
+
+    center_mm: List[float]
+    """Centre ``[x, y, z]``, mm."""
+    diameter_mm: float
+    """Diameter, mm."""
+
+
+class TwinSummary(TypedDict):
+    """What ``Twin.write`` wrote."""
+
+    calib_dir: str
+    """The calibration dataset folder (rig.json, views.csv, images/, truth.json)."""
+    scan_dir: Optional[str]
+    """The scan folder, or None when the scan is disabled."""
+    views: List[TwinViewSummary]
+    """One entry per calibration view."""
+    circles_total: int
+    """Target points on the board."""
+    board_kind: str
+    """``"circles"``, ``"asymmetric_circles"`` or ``"chessboard"``."""
+    scan_frames: int
+    """Scan frames written (0 without a scan)."""
+    scan_sphere_points: int
+    """Stripe points on the ball over all scan frames."""
+    stripe_direction: str
+    """``"rows"`` or ``"cols"``: how the stripe runs in the images."""
+    sphere: Optional[TwinSphere]
+    """The reference ball, or None."""
+
+
+class ViewRender(TypedDict):
+    """A rendered view or scan frame (``Twin.render_view``, ``Twin.render_scan_frame``)
+    with its truth; N target points, M stripe points."""
+
+    board_image: Optional[Gray]
+    """The board image (rows, cols); None for scan frames."""
+    laser_image: Optional[Gray]
+    """The laser image (the frame for scans); None in single-image mode."""
+    circle_indices: I64
+    """Same as ``target_indices`` (historical name)."""
+    circle_centers: F64
+    """Same as ``target_points`` (historical name)."""
+    target_indices: I64
+    """Board indices (N, 2) ``(row, col)`` of the imaged target points."""
+    target_points: F64
+    """True imaged target points (N, 2), px (circles: outline centroids; chessboard:
+    the projected corners)."""
+    circle_centers_projected: F64
+    """Projected target points (N, 2), px (for a chessboard equal to the truth)."""
+    stripe_points: F64
+    """True stripe points (M, 2), px."""
+    stripe_points_cam: F64
+    """The stripe points in the camera frame (M, 3), mm."""
+    stripe_surface: List[str]
+    """The surface each stripe point lies on: ``"board"``, ``"table"`` or ``"sphere"``."""
+    stripe_incidence_deg: F64
+    """Angle between the surface normal and the direction to the emitter (M,),
+    degrees."""
+    stripe_view_deg: F64
+    """Angle between the surface normal and the direction to the camera (M,),
+    degrees."""
+    stripe_edge_mm: F64
+    """Distance on the surface to the nearest reflectance edge (circle border, square
+    side, plate edge) (M,), mm; 99 where there is none nearby."""
+    stripe_slope: F64
+    """d(other coordinate) / d(scan-line coordinate) of the projected stripe (M,)."""
+    base_cam: F64
+    """``T_base_cam`` (4, 4) of the view, mm."""
+
+
+# --- reconstruct / truth: spheres -----------------------------------------------------
+
+
+class SphereTruth(TypedDict):
+    """The true reference ball of a scan (``Truth.sphere``), base frame."""
+
+    center_mm: F64
+    """Centre (3,), mm."""
+    diameter_mm: float
+    """Diameter, mm."""
+
+
+class SphereInput(TypedDict):
+    """What ``Truth(sphere=...)`` accepts: exactly these two keys."""
+
+    center_mm: npt.ArrayLike
+    """Centre (3,), mm."""
+    diameter_mm: float
+    """Diameter, mm."""
+
+
+class SphereFitExtra(TypedDict, total=False):
+    """Other keys of a sphere fit (``SphereFit.extra``), as ``fit_sphere`` writes
+    them; a file written elsewhere may lack them or hold others."""
+
+    diameter_sigma_mm: float
+    """One-sigma of the diameter (random part), mm."""
+    center_sigma_mm: List[float]
+    """One-sigma of the centre's components, mm."""
+    robust_sigma_mm: float
+    """Robust sigma of the radial residuals at the last trimming round, mm."""
+    max_residual_mm: float
+    """Largest absolute radial residual of an inlier, mm."""
+
+
+SphereFitExtraInput = Union[SphereFitExtra, Dict[str, object]]
+"""What ``SphereFit(extra=...)`` accepts: the record or any dict of JSON-like values."""
+
