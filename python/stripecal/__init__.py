@@ -17,41 +17,40 @@ image, or not indexable without guessing) are also ``ValueError``;
 ``ConvergenceError`` is also ``RuntimeError``. File-system failures raise the builtin
 ``OSError`` subclasses (``FileNotFoundError``...). Array arguments of the wrong type
 raise ``TypeError``.
+
+The API is grouped in submodules, each re-exported here (a name lives in exactly one):
+``stripecal.model`` (Camera, Robot, Board, rotations), ``stripecal.io`` (records, file
+readers and writers), ``stripecal.vision`` (target detection, stripe extraction),
+``stripecal.calib`` (calibration and its stages), ``stripecal.reconstruction`` (point
+clouds, sphere and plane fits), ``stripecal.sim`` (the digital twin) and
+``stripecal.errors``. ``stripecal.types`` declares the dicts the library returns as
+TypedDicts. The pure-Python modules are typed inline (``py.typed``); only the extension
+has a stub (``_core.pyi``).
 """
 
-from stripecal._core import (
-    CAMERA_PARAM_NAMES,
-    Board,
-    Calibration,
-    Camera,
-    Cloud,
+from stripecal._core import __version__ as __version__
+from stripecal.errors import (
     ConvergenceError,
-    Dataset,
     DegenerateError,
     DetectionError,
     FormatError,
     InvalidInputError,
-    LineFit,
-    PlaneFit,
-    Rig,
-    Robot,
-    Scan,
-    SphereFit,
-    Stripe,
     StripecalError,
-    TargetDetection,
+)
+from stripecal.model import (
+    CAMERA_PARAM_NAMES,
+    Board,
+    Camera,
+    Robot,
+    matrix_to_rotvec,
+    nearest_rotation,
+    rotvec_to_matrix,
+)
+from stripecal.io import (
+    Dataset,
+    Rig,
+    Scan,
     Truth,
-    __version__,
-    calibrate,
-    calibrate_camera,
-    detect_circles,
-    detect_circles_full,
-    detect_target,
-    extract_stripe,
-    fit_laser_plane,
-    fit_line,
-    fit_plane,
-    fit_sphere,
     load_calibration,
     load_dataset,
     load_image,
@@ -59,23 +58,45 @@ from stripecal._core import (
     load_scan,
     load_sphere_fit,
     load_truth,
-    matrix_to_rotvec,
-    nearest_rotation,
     read_ply,
-    reconstruct,
-    reconstruct_scan,
-    rotvec_to_matrix,
     save_calibration,
     save_image,
     save_rig,
     save_sphere_fit,
     save_truth,
-    solve_axzb,
-    solve_axzb_full,
-    triangulate,
     write_ply,
 )
-from stripecal import sim
+from stripecal.vision import (
+    LineFit,
+    Stripe,
+    TargetDetection,
+    detect_circles,
+    detect_circles_full,
+    detect_target,
+    extract_stripe,
+    fit_line,
+)
+from stripecal.calib import (
+    Calibration,
+    calibrate,
+    calibrate_camera,
+    fit_laser_plane,
+    solve_axzb,
+    solve_axzb_full,
+)
+
+# The area module is ``reconstruction``: ``stripecal.reconstruct`` is the function.
+from stripecal.reconstruction import (
+    Cloud,
+    PlaneFit,
+    SphereFit,
+    fit_plane,
+    fit_sphere,
+    reconstruct,
+    reconstruct_scan,
+    triangulate,
+)
+from stripecal import calib, errors, io, model, reconstruction, sim, types, vision
 
 __all__ = [
     "CAMERA_PARAM_NAMES",

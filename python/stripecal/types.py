@@ -380,7 +380,7 @@ class CircleDetection(TypedDict):
 
 # An untyped map on purpose: the twin's configuration is a free-form nested JSON object
 # (dozens of knobs in groups, validated key by key by the Rust side), so it is one alias.
-SimConfig = Dict[str, Any]
+SimConfig = Dict[str, Any]  # free-form: the twin's nested configuration JSON
 """A twin configuration: nested dict of knobs (see :mod:`stripecal.sim`)."""
 
 

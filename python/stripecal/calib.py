@@ -1,0 +1,29 @@
+"""Calibration: the camera, the laser plane, hand-eye ``X = T_hand_cam`` and
+robot-world ``Z = T_base_board``.
+
+- ``calibrate`` (a dataset folder -> :class:`Calibration`, one-stage adjustment or the
+  paper's stages), with one-sigma uncertainties and per-view figures (typed in
+  :mod:`stripecal.types`: ``CalibrationQuality``, ``CalibrationUncertainty``,
+  ``CalibrationView``, ``CalibrationExtra``).
+- The stages on their own: ``calibrate_camera``, ``fit_laser_plane``, ``solve_axzb`` /
+  ``solve_axzb_full`` (``A_i X = Z B_i``).
+
+Conventions (frames, units, laser plane ``n . p = d`` in the camera frame):
+docs/conventions.md.
+"""
+
+from stripecal._core import calibrate as calibrate
+from stripecal._core import calibrate_camera as calibrate_camera
+from stripecal._core import Calibration as Calibration
+from stripecal._core import fit_laser_plane as fit_laser_plane
+from stripecal._core import solve_axzb as solve_axzb
+from stripecal._core import solve_axzb_full as solve_axzb_full
+
+__all__ = [
+    "calibrate",
+    "calibrate_camera",
+    "Calibration",
+    "fit_laser_plane",
+    "solve_axzb",
+    "solve_axzb_full",
+]

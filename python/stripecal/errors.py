@@ -1,0 +1,25 @@
+"""The library's exceptions.
+
+``StripecalError`` is the base class of stripecal's own errors. ``FormatError`` (a bad
+file), ``InvalidInputError`` (a bad argument), ``DegenerateError`` (impossible geometry)
+and ``DetectionError`` (no target found in an image, or not indexable without guessing)
+are also ``ValueError``; ``ConvergenceError`` is also ``RuntimeError``. File-system
+failures raise the builtin ``OSError`` subclasses; array arguments of the wrong type raise
+``TypeError``.
+"""
+
+from stripecal._core import ConvergenceError as ConvergenceError
+from stripecal._core import DegenerateError as DegenerateError
+from stripecal._core import DetectionError as DetectionError
+from stripecal._core import FormatError as FormatError
+from stripecal._core import InvalidInputError as InvalidInputError
+from stripecal._core import StripecalError as StripecalError
+
+__all__ = [
+    "ConvergenceError",
+    "DegenerateError",
+    "DetectionError",
+    "FormatError",
+    "InvalidInputError",
+    "StripecalError",
+]

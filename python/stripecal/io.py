@@ -1,0 +1,55 @@
+"""Files: the dataset, scan, calibration, truth and sphere-fit records and their
+readers and writers, images and PLY point clouds.
+
+- Records: :class:`Rig` (rig.json), :class:`Dataset` (a calibration folder: rig.json,
+  views.csv, images), :class:`Scan` (a scan folder: scan.csv, images), :class:`Truth`
+  (truth.json written by simulators).
+- ``load_*`` / ``save_*`` for rig.json, datasets, scans, calibration.json, truth.json and
+  sphere-fit JSON (the ``Calibration`` and ``SphereFit`` records live with what makes
+  them: :mod:`stripecal.calib`, :mod:`stripecal.reconstruction`).
+- ``load_image`` / ``save_image`` (PNG or TIFF, 8 or 16 bit gray), ``read_ply`` /
+  ``write_ply``.
+
+Writers are atomic (a temporary file, then a rename). File formats and conventions:
+docs/conventions.md; typed records of the dicts returned here: :mod:`stripecal.types`.
+"""
+
+from stripecal._core import Dataset as Dataset
+from stripecal._core import load_calibration as load_calibration
+from stripecal._core import load_dataset as load_dataset
+from stripecal._core import load_image as load_image
+from stripecal._core import load_rig as load_rig
+from stripecal._core import load_scan as load_scan
+from stripecal._core import load_sphere_fit as load_sphere_fit
+from stripecal._core import load_truth as load_truth
+from stripecal._core import read_ply as read_ply
+from stripecal._core import Rig as Rig
+from stripecal._core import save_calibration as save_calibration
+from stripecal._core import save_image as save_image
+from stripecal._core import save_rig as save_rig
+from stripecal._core import save_sphere_fit as save_sphere_fit
+from stripecal._core import save_truth as save_truth
+from stripecal._core import Scan as Scan
+from stripecal._core import Truth as Truth
+from stripecal._core import write_ply as write_ply
+
+__all__ = [
+    "Dataset",
+    "load_calibration",
+    "load_dataset",
+    "load_image",
+    "load_rig",
+    "load_scan",
+    "load_sphere_fit",
+    "load_truth",
+    "read_ply",
+    "Rig",
+    "save_calibration",
+    "save_image",
+    "save_rig",
+    "save_sphere_fit",
+    "save_truth",
+    "Scan",
+    "Truth",
+    "write_ply",
+]
