@@ -12,4 +12,7 @@ pub mod kinematics;
 mod results;
 
 pub use dataset::{Dataset, Rig, RobotReading, Scan, ScanFrame, StripeDirection, View};
-pub use results::{Calibration, Cloud, Quality, Sphere, SphereFit, Truth};
+pub use results::{
+    AdjustmentSummary, Calibration, CameraSigma, Cloud, PlaneSigma, PoseSigma, Quality, Sphere,
+    SphereFit, Truth, Uncertainty, ViewRecord,
+};

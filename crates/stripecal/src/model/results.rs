@@ -76,3 +76,94 @@ pub struct Cloud {
     /// `points`.
     pub properties: Vec<(String, Vec<f64>)>,
 }
+
+/// One-sigma of a camera's parameters (calibration.json `uncertainty.camera`); a
+/// non-finite value (an unobservable parameter) is written as `null`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct CameraSigma {
+    pub fu: f64,
+    pub fv: f64,
+    pub u0: f64,
+    pub v0: f64,
+    /// In OpenCV order `[k1, k2, p1, p2, k3]`.
+    pub distortion: [f64; 5],
+}
+
+impl CameraSigma {
+    /// From the nine camera parameters' sigmas in [`crate::model::camera::PARAM_NAMES`]
+    /// order.
+    pub fn from_params(s: &[f64; 9]) -> Self {
+        CameraSigma {
+            fu: s[0],
+            fv: s[1],
+            u0: s[2],
+            v0: s[3],
+            distortion: [s[4], s[5], s[6], s[7], s[8]],
+        }
+    }
+}
+
+/// One-sigma of a laser plane (`uncertainty.laser_plane`).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct PlaneSigma {
+    /// Of each component of the unit normal.
+    pub normal: [f64; 3],
+    pub d_mm: f64,
+}
+
+/// One-sigma of a rigid transform (`uncertainty.hand_cam`, `uncertainty.base_board`).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct PoseSigma {
+    /// Of the rotation vector's components, radians.
+    pub rotation_vector: [f64; 3],
+    pub translation_mm: [f64; 3],
+}
+
+/// The `uncertainty` block of calibration.json: one-sigma of every estimated value under
+/// the value's own key. A block is `None` when the method does not estimate it (the
+/// paper's stages give only the camera's and the laser plane's).
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct Uncertainty {
+    pub camera: Option<CameraSigma>,
+    pub laser_plane: Option<PlaneSigma>,
+    pub hand_cam: Option<PoseSigma>,
+    pub base_board: Option<PoseSigma>,
+}
+
+/// What a calibration did with one view (an entry of calibration.json `views`).
+#[derive(Debug, Clone, PartialEq)]
+pub struct ViewRecord {
+    /// Row in views.csv (0-based).
+    pub view: usize,
+    /// Whether the adjustment used it.
+    pub used: bool,
+    /// Target points detected.
+    pub circles: usize,
+    /// Stripe points on the board the adjustment used.
+    pub stripe_points: usize,
+    /// RMS target residual of the view, px (`None` when not adjusted or not finite).
+    pub circle_rms_px: Option<f64>,
+    /// RMS stripe residual of the view, px.
+    pub stripe_rms_px: Option<f64>,
+    /// Whether the adjustment flagged the view as an outlier (`None` when not adjusted).
+    pub outlier: Option<bool>,
+    /// Why it was left out, if it was.
+    pub note: Option<String>,
+}
+
+/// How a calibration was made and its residual figures (calibration.json's `method`,
+/// `centre_model`, `base_board_orientation`, `stripe_rms_mm`, `residual_sigma_px`).
+#[derive(Debug, Clone, PartialEq)]
+pub struct AdjustmentSummary {
+    /// `one-stage` or `paper`.
+    pub method: String,
+    /// The circle-centre model's name.
+    pub centre_model: String,
+    /// `Some("first view")` when no view's image fixed the board frame's orientation
+    /// and the first view's labelling did.
+    pub base_board_orientation: Option<String>,
+    /// RMS of the stripe points' distance to the laser plane, mm.
+    pub stripe_rms_mm: f64,
+    /// Residual standard deviations `(circle, stripe)` px estimated from the fit.
+    pub residual_sigma_px: (f64, f64),
+}

@@ -1,0 +1,235 @@
+//! From observations to a calibration, as a sequence of stages: camera, labellings,
+//! stripe points on the board, `AX = ZB` with outliers, laser plane, adjustment, report.
+
+use nalgebra::Vector2;
+
+use super::labels::{resolve_labellings, Labelled};
+use super::outliers::solve_with_outliers;
+use super::report::{build_report, Stage};
+use super::{CalibrateOptions, CalibrationReport, Method, ViewStatus};
+use crate::calib::camera::{calibrate_camera, CameraCalibration, CameraOptions};
+use crate::calib::conic::CentreModel;
+use crate::calib::joint::{joint_adjustment, JointOptions, JointResult, JointStart};
+use crate::calib::laser_plane::{backproject_to_board, fit_laser_plane};
+use crate::calib::ViewObs;
+use crate::error::{Error, Result};
+use crate::model::board::{Board, BoardKind};
+use crate::model::camera::Camera;
+use crate::model::geometry::Iso3;
+use crate::model::Rig;
+
+/// Runs the pipeline on observations (see the module docs). `views` are the views whose
+/// board was found; `rig` gives the board, image size, distortion model and robot.
+pub fn calibrate_observations(
+    views: &[ViewObs],
+    rig: &Rig,
+    opts: &CalibrateOptions,
+) -> Result<CalibrationReport> {
+    check_poses_finite(views)?;
+    let board = &rig.board;
+    let mut warnings = Vec::new();
+    let mut status: Vec<ViewStatus> = views.iter().map(ViewStatus::observed).collect();
+    // 2. Camera.
+    let camcal = camera_stage(views, rig, opts)?;
+    warnings.extend(camcal.warnings.iter().cloned());
+    // Labellings the images leave open, from the robot poses.
+    let (labelled, frame_note) = resolve_labellings(views, &camcal.poses, board, &mut warnings);
+    for (view, note) in labelled.iter().filter_map(|l| l.as_ref().err()) {
+        if let Some(s) = status.iter_mut().find(|s| s.view == *view) {
+            s.note = Some(note.clone());
+        }
+    }
+    // 3. Stripe points on the board.
+    let (obs, poses) = stripes_on_board(&labelled, &camcal.camera, board);
+    // 4. Robot poses, AX = ZB with leave-one-out outlier rejection.
+    let (axzb, keep) = solve_with_outliers(&obs, &poses, opts, &mut warnings, &mut status)?;
+    warnings.extend(axzb.warnings.iter().cloned());
+    let (used_obs, used_poses) = kept(&obs, &poses, &keep);
+    check_usable(&used_obs, &warnings)?;
+    // Laser plane.
+    let pv: Vec<(Iso3, Vec<[f64; 2]>)> = used_poses
+        .iter()
+        .zip(&used_obs)
+        .map(|(p, v)| (*p, v.stripe.clone()))
+        .collect();
+    let plane = fit_laser_plane(&pv, &camcal.camera)?;
+    warnings.extend(plane.warnings.iter().cloned());
+    // 5. The adjustment (evaluated only, for the paper's method).
+    let start = JointStart {
+        camera: camcal.camera.clone(),
+        plane: plane.plane,
+        hand_cam: axzb.x,
+        base_board: axzb.z,
+    };
+    let adj = adjust(&used_obs, board, &start, opts)?;
+    warnings.extend(adj.warnings.iter().cloned());
+    mark_used(&mut status, &used_obs);
+    let stage = Stage {
+        camera: camcal,
+        plane,
+        axzb,
+        start,
+        adjustment: adj,
+        frame_note,
+        views_used: used_obs.len(),
+    };
+    Ok(build_report(stage, rig, opts, status, warnings))
+}
+
+fn check_poses_finite(views: &[ViewObs]) -> Result<()> {
+    for v in views {
+        if let Some(t) = v.base_hand {
+            if !t.to_homogeneous().iter().all(|x| x.is_finite()) {
+                return Err(Error::InvalidInput(format!(
+                    "view {}: the robot pose is not finite",
+                    v.view
+                )));
+            }
+        }
+    }
+    Ok(())
+}
+
+/// The camera calibration. The one-stage adjustment refines the camera with the
+/// requested centre model; its starting camera only needs the first-order conic model
+/// (much cheaper) and looser tolerances.
+fn camera_stage(
+    views: &[ViewObs],
+    rig: &Rig,
+    opts: &CalibrateOptions,
+) -> Result<CameraCalibration> {
+    let model = opts.distortion.unwrap_or(rig.distortion_model);
+    let one_stage = opts.method == Method::OneStage;
+    let mut cam_opts = CameraOptions {
+        centre_model: if one_stage && opts.centre_model == CentreModel::ConicExact {
+            CentreModel::Conic
+        } else {
+            opts.centre_model
+        },
+        ..Default::default()
+    };
+    if one_stage {
+        // A starting point: the joint adjustment converges from it.
+        cam_opts.lm.ftol = 1e-8;
+        cam_opts.lm.xtol = 1e-8;
+    }
+    calibrate_camera(views, &rig.board, rig.width, rig.height, model, &cam_opts)
+}
+
+/// The labelled views with their stripe points restricted to the target's extent on the
+/// board (points on the table or beyond the plate belong to another surface), and
+/// their `T_cam_board`.
+fn stripes_on_board(
+    labelled: &[Labelled],
+    camera: &Camera,
+    board: &Board,
+) -> (Vec<ViewObs>, Vec<Iso3>) {
+    let (lo, hi) = grid_extent(board);
+    let mut obs: Vec<ViewObs> = Vec::new();
+    let mut poses: Vec<Iso3> = Vec::new();
+    for (v, cb) in labelled.iter().filter_map(|l| l.as_ref().ok()) {
+        let bc = cb.inverse();
+        let stripe: Vec<[f64; 2]> = v
+            .stripe
+            .iter()
+            .filter(|uv| match backproject_to_board(camera, cb, uv) {
+                Ok(p) => {
+                    let q = bc * nalgebra::Point3::from(p);
+                    q.x >= lo.x && q.x <= hi.x && q.y >= lo.y && q.y <= hi.y
+                }
+                Err(_) => false,
+            })
+            .copied()
+            .collect();
+        obs.push(ViewObs {
+            stripe,
+            ..v.clone()
+        });
+        poses.push(*cb);
+    }
+    (obs, poses)
+}
+
+/// The board-frame rectangle the stripe points must fall in: a circle grid's centres
+/// grown by half a pitch, a chessboard's squares.
+fn grid_extent(board: &Board) -> (Vector2<f64>, Vector2<f64>) {
+    if board.kind == BoardKind::Chessboard {
+        let e = board.pattern_extent();
+        return (Vector2::new(e[0], e[2]), Vector2::new(e[1], e[3]));
+    }
+    let (mut lo, mut hi) = (
+        Vector2::new(f64::INFINITY, f64::INFINITY),
+        Vector2::new(f64::NEG_INFINITY, f64::NEG_INFINITY),
+    );
+    for (r, c) in board.indices() {
+        let p = board.center(r, c);
+        lo = lo.inf(&Vector2::new(p.x, p.y));
+        hi = hi.sup(&Vector2::new(p.x, p.y));
+    }
+    let m = 0.5 * board.pitch_mm;
+    (lo.add_scalar(-m), hi.add_scalar(m))
+}
+
+/// The views (and poses) marked in `keep`.
+fn kept(obs: &[ViewObs], poses: &[Iso3], keep: &[bool]) -> (Vec<ViewObs>, Vec<Iso3>) {
+    let used_obs = obs
+        .iter()
+        .zip(keep)
+        .filter(|(_, k)| **k)
+        .map(|(v, _)| v.clone())
+        .collect();
+    let used_poses = poses
+        .iter()
+        .zip(keep)
+        .filter(|(_, k)| **k)
+        .map(|(p, _)| *p)
+        .collect();
+    (used_obs, used_poses)
+}
+
+fn check_usable(used_obs: &[ViewObs], warnings: &[String]) -> Result<()> {
+    if used_obs.len() < 3 {
+        return Err(Error::InvalidInput(format!(
+            "calibration needs at least 3 usable views, {} left ({})",
+            used_obs.len(),
+            warnings.join("; ")
+        )));
+    }
+    if used_obs.iter().all(|v| v.stripe.is_empty()) {
+        return Err(Error::InvalidInput(
+            "no usable laser image: no view has stripe points on the board".into(),
+        ));
+    }
+    Ok(())
+}
+
+/// The one-stage adjustment from `start`; for the paper's method, zero iterations (the
+/// stages' values evaluated with the same residuals).
+fn adjust(
+    used_obs: &[ViewObs],
+    board: &Board,
+    start: &JointStart,
+    opts: &CalibrateOptions,
+) -> Result<JointResult> {
+    let mut jopts = JointOptions {
+        centre_model: opts.centre_model,
+        robust: opts.robust,
+        ..Default::default()
+    };
+    if opts.method == Method::Paper {
+        jopts.lm.max_iterations = 0;
+        jopts.robust = false;
+    }
+    joint_adjustment(used_obs, board, start, &jopts)
+}
+
+fn mark_used(status: &mut [ViewStatus], used_obs: &[ViewObs]) {
+    for s in status.iter_mut() {
+        if let Some(v) = used_obs.iter().find(|v| v.view == s.view) {
+            s.used = true;
+            s.stripe_used = v.stripe.len();
+        } else if s.note.is_none() {
+            s.note = Some("left out by the camera calibration".into());
+        }
+    }
+}
