@@ -120,3 +120,76 @@ pub fn calibration_extra(
 pub fn warnings_to_json(warnings: &[String]) -> Value {
     Value::Array(warnings.iter().map(|w| Value::from(w.as_str())).collect())
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn uncertainty_blocks_in_contract_order_with_null_for_unobservable() {
+        let u = Uncertainty {
+            camera: Some(CameraSigma {
+                fu: 0.5,
+                fv: 0.25,
+                u0: f64::NAN,
+                v0: 1.0,
+                distortion: [1e-4, 0.0, 0.0, 0.0, f64::INFINITY],
+            }),
+            laser_plane: Some(PlaneSigma {
+                normal: [1e-5, 2e-5, 3e-5],
+                d_mm: 0.001,
+            }),
+            hand_cam: None,
+            base_board: Some(PoseSigma {
+                rotation_vector: [1e-6; 3],
+                translation_mm: [0.1, 0.2, 0.3],
+            }),
+        };
+        let text = serde_json::to_string(&Value::Object(uncertainty_to_json(&u))).unwrap();
+        assert_eq!(
+            text,
+            r#"{"camera":{"fu":0.5,"fv":0.25,"u0":null,"v0":1.0,"distortion":[0.0001,0.0,0.0,0.0,null]},"laser_plane":{"normal":[0.00001,0.00002,0.00003],"d_mm":0.001},"base_board":{"rotation_vector":[1e-6,1e-6,1e-6],"translation_mm":[0.1,0.2,0.3]}}"#
+        );
+    }
+
+    #[test]
+    fn summary_views_and_warnings_in_order() {
+        let s = AdjustmentSummary {
+            method: "one-stage".into(),
+            centre_model: "conic-exact".into(),
+            base_board_orientation: Some("first view".into()),
+            stripe_rms_mm: 0.002,
+            residual_sigma_px: (0.004, f64::NAN),
+        };
+        let v = ViewRecord {
+            view: 2,
+            used: false,
+            circles: 88,
+            stripe_points: 0,
+            circle_rms_px: None,
+            stripe_rms_px: Some(0.02),
+            outlier: None,
+            note: Some("left out".into()),
+        };
+        let m = calibration_extra(&s, &[v], &[]);
+        let keys: Vec<&str> = m.keys().map(|k| k.as_str()).collect();
+        assert_eq!(
+            keys,
+            [
+                "method",
+                "centre_model",
+                "base_board_orientation",
+                "stripe_rms_mm",
+                "residual_sigma_px",
+                "views"
+            ]
+        );
+        assert_eq!(m["residual_sigma_px"]["stripe"], Value::Null);
+        assert_eq!(
+            serde_json::to_string(&m["views"][0]).unwrap(),
+            r#"{"view":2,"used":false,"circles":88,"stripe_points":0,"circle_rms_px":null,"stripe_rms_px":0.02,"outlier":null,"note":"left out"}"#
+        );
+        let w = calibration_extra(&s, &[], &["a".into()]);
+        assert_eq!(w["warnings"], serde_json::json!(["a"]));
+    }
+}

@@ -152,7 +152,7 @@ fn stripes_on_board(
 
 /// The board-frame rectangle the stripe points must fall in: a circle grid's centres
 /// grown by half a pitch, a chessboard's squares.
-fn grid_extent(board: &Board) -> (Vector2<f64>, Vector2<f64>) {
+pub(super) fn grid_extent(board: &Board) -> (Vector2<f64>, Vector2<f64>) {
     if board.kind == BoardKind::Chessboard {
         let e = board.pattern_extent();
         return (Vector2::new(e[0], e[2]), Vector2::new(e[1], e[3]));
@@ -171,7 +171,7 @@ fn grid_extent(board: &Board) -> (Vector2<f64>, Vector2<f64>) {
 }
 
 /// The views (and poses) marked in `keep`.
-fn kept(obs: &[ViewObs], poses: &[Iso3], keep: &[bool]) -> (Vec<ViewObs>, Vec<Iso3>) {
+pub(super) fn kept(obs: &[ViewObs], poses: &[Iso3], keep: &[bool]) -> (Vec<ViewObs>, Vec<Iso3>) {
     let used_obs = obs
         .iter()
         .zip(keep)
@@ -187,7 +187,7 @@ fn kept(obs: &[ViewObs], poses: &[Iso3], keep: &[bool]) -> (Vec<ViewObs>, Vec<Is
     (used_obs, used_poses)
 }
 
-fn check_usable(used_obs: &[ViewObs], warnings: &[String]) -> Result<()> {
+pub(super) fn check_usable(used_obs: &[ViewObs], warnings: &[String]) -> Result<()> {
     if used_obs.len() < 3 {
         return Err(Error::InvalidInput(format!(
             "calibration needs at least 3 usable views, {} left ({})",

@@ -26,6 +26,8 @@ mod labels;
 mod observe;
 mod outliers;
 mod report;
+#[cfg(test)]
+mod tests;
 
 use std::path::Path;
 

@@ -58,20 +58,34 @@ fn uncertainty(st: &Stage, method: Method) -> Uncertainty {
 }
 
 /// calibration.json's `views` entries: each view's status with its adjustment figures.
-pub(super) fn view_records(status: &[ViewStatus], adj: &JointResult) -> Vec<ViewRecord> {
+fn view_records(status: &[ViewStatus], adj: &JointResult) -> Vec<ViewRecord> {
+    let figures: Vec<(usize, f64, f64, bool)> = adj
+        .views
+        .iter()
+        .map(|r| (r.view, r.circle_rms_px, r.stripe_rms_px, r.outlier))
+        .collect();
+    view_records_from(status, &figures)
+}
+
+/// [`view_records`] from per-view `(view, circle rms px, stripe rms px, outlier)`; a
+/// non-finite figure is `None`.
+pub(super) fn view_records_from(
+    status: &[ViewStatus],
+    figures: &[(usize, f64, f64, bool)],
+) -> Vec<ViewRecord> {
     let finite = |x: f64| x.is_finite().then_some(x);
     status
         .iter()
         .map(|s| {
-            let r = adj.views.iter().find(|r| r.view == s.view);
+            let r = figures.iter().find(|r| r.0 == s.view);
             ViewRecord {
                 view: s.view,
                 used: s.used,
                 circles: s.circles,
                 stripe_points: s.stripe_used,
-                circle_rms_px: r.and_then(|r| finite(r.circle_rms_px)),
-                stripe_rms_px: r.and_then(|r| finite(r.stripe_rms_px)),
-                outlier: r.map(|r| r.outlier),
+                circle_rms_px: r.and_then(|r| finite(r.1)),
+                stripe_rms_px: r.and_then(|r| finite(r.2)),
+                outlier: r.map(|r| r.3),
                 note: s.note.clone(),
             }
         })

@@ -2,7 +2,7 @@
 //! stripe extraction, camera, plane, AX = ZB and the one-stage adjustment from a dataset
 //! folder, against truth.json's values.
 //!
-//! `cargo test -p stripecal-sim --test calib_rendered -- --nocapture` prints the table
+//! `cargo test -p stripecal --test calib_rendered -- --nocapture` prints the table
 //! recorded in docs/results/calibration.md.
 
 mod common;

@@ -3,7 +3,7 @@
 //! rotation, tilts to 45 deg, 0.7x..1.5x the stand-off, up to 30 % of the board outside
 //! the image), single-image views with the stripe across the board, light circles.
 //!
-//! Printed figures (`cargo test -p stripecal-sim --test vision_circles -- --nocapture`)
+//! Printed figures (`cargo test -p stripecal --test vision_circles -- --nocapture`)
 //! are the ones quoted in BENCHMARKS.md ("Vision: circles").
 
 mod common;

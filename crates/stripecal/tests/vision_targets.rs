@@ -4,7 +4,7 @@
 //! outside): zero misordered points, the detection rate of whole-board views, partial
 //! views' refusals counted by reason.
 //!
-//! `cargo test -p stripecal-sim --test vision_targets -- --nocapture` prints the
+//! `cargo test -p stripecal --test vision_targets -- --nocapture` prints the
 //! figures quoted in BENCHMARKS.md ("Vision: targets"). `STRIPECAL_TARGET_VIEWS=N`
 //! sets the number of random views of each sort (default 100 + 100 for the
 //! asymmetric grid and the chessboard, 40 + 40 for the circle-grid variants, whose
