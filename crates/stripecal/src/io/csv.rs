@@ -2,7 +2,8 @@
 //!
 //! A header line, then one row per pose. The leading columns name images
 //! (`board_image,laser_image` or `image`), the rest are either encoder readings
-//! `q1,...,qN` (degrees) or the flange pose `x_mm,y_mm,z_mm,qw,qx,qy,qz`.
+//! `q1,...,qN` (degrees) or the flange pose `x_mm,y_mm,z_mm,qw,qx,qy,qz` (the pose
+//! conventions are in [`super::poses`], one file each).
 //!
 //! Fields are separated by commas and trimmed; CRLF line ends, a UTF-8 byte-order mark
 //! and trailing empty lines are accepted. There is no quoting: a `"` anywhere is an
@@ -11,58 +12,20 @@
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
-use nalgebra::{Quaternion, Translation3, UnitQuaternion};
-
 use super::atomic::{read_text, write_atomic};
+use super::poses::{expected_header, first_columns, Layout};
 use crate::error::{Error, Result};
-use crate::model::geometry::Iso3;
 use crate::model::kinematics::Robot;
 use crate::model::{RobotReading, ScanFrame, View};
 
-/// The flange-pose columns.
-const POSE_COLUMNS: [&str; 7] = ["x_mm", "y_mm", "z_mm", "qw", "qx", "qy", "qz"];
-
-/// How far from 1 the norm of a flange-pose quaternion may be; it is then normalised.
-const QUATERNION_TOL: f64 = 1e-3;
-
 const VIEW_NAME_COLUMNS: [&str; 2] = ["board_image", "laser_image"];
 const SCAN_NAME_COLUMNS: [&str; 1] = ["image"];
-
-/// What follows the image columns.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-enum Layout {
-    /// `q1..qN`.
-    Joints(usize),
-    /// `x_mm,y_mm,z_mm,qw,qx,qy,qz`.
-    Pose,
-}
-
-impl Layout {
-    fn of(r: &RobotReading) -> Layout {
-        match r {
-            RobotReading::Joints(q) => Layout::Joints(q.len()),
-            RobotReading::FlangePose(_) => Layout::Pose,
-        }
-    }
-
-    fn column_names(self) -> Vec<String> {
-        match self {
-            Layout::Joints(n) => (1..=n).map(|i| format!("q{i}")).collect(),
-            Layout::Pose => POSE_COLUMNS.iter().map(|s| s.to_string()).collect(),
-        }
-    }
-}
 
 /// One parsed data row: image names (trimmed, possibly empty) and the reading.
 struct Row {
     line: usize,
     names: Vec<String>,
     reading: RobotReading,
-}
-
-fn expected_header(names: &[&str]) -> String {
-    let n = names.join(",");
-    format!("`{n},q1,...,qN` or `{n},{}`", POSE_COLUMNS.join(","))
 }
 
 fn reject_quotes(path: &Path, line_no: usize, line: &str) -> Result<()> {
@@ -102,31 +65,20 @@ fn parse_header(
         }
     }
     let rest = &fields[names.len()..];
-    let layout = match rest.first() {
-        None => {
-            return Err(at(format!(
-                "header has no joint or pose columns: expected {expected}"
-            )))
-        }
-        Some(&"x_mm") => Layout::Pose,
-        Some(&"q1") => Layout::Joints(rest.len()),
-        Some(f) => {
-            return Err(at(format!(
-            "header column {} is `{f}`, expected `q1` or `x_mm` (the header must be {expected})",
-            names.len() + 1
-        )))
-        }
-    };
-    let want = layout.column_names();
-    if layout == Layout::Pose && rest.len() != want.len() {
+    if rest.is_empty() {
         return Err(at(format!(
-            "flange-pose header has {} columns after the image columns, expected {} (`{}`)",
-            rest.len(),
-            want.len(),
-            POSE_COLUMNS.join(",")
+            "header has no joint or pose columns: expected {expected}"
         )));
     }
-    for (i, (got, want)) in rest.iter().zip(&want).enumerate() {
+    let layout = Layout::of_header(rest).ok_or_else(|| {
+        at(format!(
+            "header column {} is `{}`, expected {} (the header must be {expected})",
+            names.len() + 1,
+            rest[0],
+            first_columns()
+        ))
+    })?;
+    for (i, (got, want)) in rest.iter().zip(&layout.column_names()).enumerate() {
         if got != want {
             return Err(at(format!(
                 "header column {} is `{got}`, expected `{want}`",
@@ -134,13 +86,8 @@ fn parse_header(
             )));
         }
     }
-    if let (Layout::Joints(n), Some(r)) = (layout, robot) {
-        if n != r.dof() {
-            return Err(at(format!(
-                "header has {n} joint columns, robot has {} joints",
-                r.dof()
-            )));
-        }
+    if let Some(msg) = layout.convention.check_header(layout.n, robot) {
+        return Err(at(msg));
     }
     Ok(layout)
 }
@@ -206,10 +153,10 @@ fn parse_table(path: &Path, text: &str, names: &[&str], robot: Option<&Robot>) -
         for (raw, col) in fields[names.len()..].iter().zip(&value_columns) {
             values.push(parse_number(path, line_no, col, raw)?);
         }
-        let reading = match layout {
-            Layout::Joints(_) => RobotReading::Joints(values),
-            Layout::Pose => RobotReading::FlangePose(pose_from_row(path, line_no, &values)?),
-        };
+        let reading = layout
+            .convention
+            .reading(values)
+            .map_err(|(cols, msg)| Error::format(path, format!("line {line_no}, {cols}"), msg))?;
         rows.push(Row {
             line: line_no,
             names: row_names,
@@ -217,25 +164,6 @@ fn parse_table(path: &Path, text: &str, names: &[&str], robot: Option<&Robot>) -
         });
     }
     Ok(rows)
-}
-
-fn pose_from_row(path: &Path, line_no: usize, v: &[f64]) -> Result<Iso3> {
-    let q = Quaternion::new(v[3], v[4], v[5], v[6]);
-    let norm = q.norm();
-    if (norm - 1.0).abs() > QUATERNION_TOL {
-        return Err(Error::format(
-            path,
-            format!("line {line_no}, columns qw..qz"),
-            format!(
-                "quaternion (qw, qx, qy, qz) = ({}, {}, {}, {}) has norm {norm}, expected 1 (within {QUATERNION_TOL})",
-                v[3], v[4], v[5], v[6]
-            ),
-        ));
-    }
-    Ok(Iso3::from_parts(
-        Translation3::new(v[0], v[1], v[2]),
-        UnitQuaternion::from_quaternion(q),
-    ))
 }
 
 /// Reads views.csv: header `board_image,laser_image,q1,...,qN` or
@@ -307,14 +235,7 @@ fn name_field(what: &str, row: usize, p: Option<&Path>, required: bool) -> Resul
 }
 
 fn push_reading(out: &mut String, row: usize, r: &RobotReading) -> Result<()> {
-    let values: Vec<f64> = match r {
-        RobotReading::Joints(q) => q.clone(),
-        RobotReading::FlangePose(t) => {
-            let v = t.translation.vector;
-            let q = t.rotation.quaternion();
-            vec![v.x, v.y, v.z, q.w, q.i, q.j, q.k]
-        }
-    };
+    let (_, values) = Layout::of_reading(r);
     for x in values {
         if !x.is_finite() {
             return Err(Error::InvalidInput(format!(
@@ -335,10 +256,10 @@ fn common_layout<'a>(
 ) -> Result<Layout> {
     let mut layout = None;
     for (i, r) in readings.enumerate() {
-        let l = Layout::of(r);
+        let (l, _) = Layout::of_reading(r);
         match layout {
             None => {
-                if l == Layout::Joints(0) {
+                if l.n == 0 {
                     return Err(Error::InvalidInput(format!(
                         "{what} row 1 has no joint readings"
                     )));
@@ -349,8 +270,8 @@ fn common_layout<'a>(
                 return Err(Error::InvalidInput(format!(
                     "{what} row {} has {}, row 1 has {}: all rows must use the same columns",
                     i + 1,
-                    describe_layout(l),
-                    describe_layout(first)
+                    l.describe(),
+                    first.describe()
                 )))
             }
             Some(_) => {}
@@ -361,13 +282,6 @@ fn common_layout<'a>(
             "no {what} rows to write (the header depends on the rows)"
         ))
     })
-}
-
-fn describe_layout(l: Layout) -> String {
-    match l {
-        Layout::Joints(n) => format!("{n} joint readings"),
-        Layout::Pose => "a flange pose".into(),
-    }
 }
 
 fn header_line(names: &[&str], layout: Layout) -> String {

@@ -19,6 +19,7 @@ mod dataset;
 mod imageio;
 mod json;
 mod ply;
+mod poses;
 mod records;
 mod rig;
 
