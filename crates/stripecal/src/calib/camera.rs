@@ -15,9 +15,7 @@ use faer::MatMut;
 use nalgebra::{Vector2, Vector3};
 use rayon::prelude::*;
 
-use crate::calib::conic::{
-    centre_generic_n, quadrature_nodes, rot_times_exp_first_order, CentreModel, Dual, Scalar,
-};
+use crate::calib::conic::{centre_generic_n, quadrature_nodes, CentreModel, CentreScalar};
 use crate::calib::homography::fit_homography;
 use crate::calib::zhang::{pose_from_homography, zhang_intrinsics};
 use crate::calib::ViewObs;
@@ -27,10 +25,12 @@ use crate::model::camera::{Camera, DistortionModel, PARAM_NAMES};
 use crate::model::geometry::{
     iso_from_rotvec, iso_to_rotvec, matrix_to_rotvec, rotvec_to_matrix, Iso3,
 };
+use crate::numerics::dual::Dual;
 use crate::numerics::lm::{
     dense_jacobian_from_rows, levenberg_marquardt, JacobianRows, LeastSquares, LmOptions,
     StopReason,
 };
+use crate::numerics::mat3::rot_times_exp_first_order;
 
 /// Options of [`calibrate_camera`].
 #[derive(Debug, Clone, PartialEq)]
@@ -119,7 +119,7 @@ impl CamProblem<'_> {
         c
     }
     /// Predicted imaged centre of observation `o`'s circle (camera and pose generic).
-    fn predict<T: Scalar>(
+    fn predict<T: CentreScalar>(
         &self,
         cam: &[T; 9],
         pose: &([[T; 3]; 3], [T; 3]),

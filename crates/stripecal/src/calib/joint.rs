@@ -46,21 +46,21 @@ use nalgebra::{DMatrix, Matrix3, Vector3};
 use rayon::prelude::*;
 use std::sync::atomic::{AtomicU64, AtomicUsize, Ordering};
 
-use crate::calib::conic::{
-    centre_generic_n, distort_generic, quadrature_nodes, rot_times_exp_first_order, CentreModel,
-    Dual, Scalar,
-};
+use crate::calib::conic::{centre_generic_n, quadrature_nodes, CentreModel};
 use crate::calib::ViewObs;
 use crate::error::{Error, Result};
 use crate::model::board::Board;
+use crate::model::camera::{distort_generic, project_generic};
 use crate::model::camera::{Camera, PARAM_NAMES};
 use crate::model::geometry::{
     iso_from_rotvec, iso_to_rotvec, matrix_to_rotvec, rotvec_to_matrix, Iso3, Plane,
 };
+use crate::numerics::dual::{Dual, Scalar};
 use crate::numerics::lm::{
     dense_jacobian_from_rows, levenberg_marquardt, JacobianRows, LeastSquares, LmOptions, LmResult,
     StopReason,
 };
+use crate::numerics::mat3::{cross, dot, m3, matmul, matvec, rot_times_exp_first_order, transpose};
 
 /// Dual numbers over every parameter slot: camera 0..9, plane 9..12, X 12..18, Z 18..24.
 type D24 = Dual<24>;
@@ -274,36 +274,6 @@ impl State {
     }
 }
 
-fn m3<T: Scalar>(r: &Matrix3<f64>) -> [[T; 3]; 3] {
-    std::array::from_fn(|i| std::array::from_fn(|j| T::from_f64(r[(i, j)])))
-}
-
-fn matmul<T: Scalar>(a: &[[T; 3]; 3], b: &[[T; 3]; 3]) -> [[T; 3]; 3] {
-    std::array::from_fn(|i| {
-        std::array::from_fn(|j| a[i][0] * b[0][j] + a[i][1] * b[1][j] + a[i][2] * b[2][j])
-    })
-}
-
-fn transpose<T: Scalar>(a: &[[T; 3]; 3]) -> [[T; 3]; 3] {
-    std::array::from_fn(|i| std::array::from_fn(|j| a[j][i]))
-}
-
-fn matvec<T: Scalar>(a: &[[T; 3]; 3], v: &[T; 3]) -> [T; 3] {
-    std::array::from_fn(|i| a[i][0] * v[0] + a[i][1] * v[1] + a[i][2] * v[2])
-}
-
-fn cross<T: Scalar>(a: &[T; 3], b: &[T; 3]) -> [T; 3] {
-    [
-        a[1] * b[2] - a[2] * b[1],
-        a[2] * b[0] - a[0] * b[2],
-        a[0] * b[1] - a[1] * b[0],
-    ]
-}
-
-fn dot<T: Scalar>(a: &[T; 3], b: &[T; 3]) -> T {
-    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
-}
-
 /// `T_cam_board = (A X)^-1 Z` from the parts.
 fn cam_board<T: Scalar>(
     a: &Iso3,
@@ -348,15 +318,6 @@ fn stripe_line<T: Scalar>(
     Ok((p, u))
 }
 
-/// Pixel projection of a camera-frame point.
-#[inline]
-fn project<T: Scalar>(cam: &[T; 9], p: &[T; 3]) -> [T; 2] {
-    let x = p[0] / p[2];
-    let y = p[1] / p[2];
-    let (d, _) = distort_generic(&[cam[4], cam[5], cam[6], cam[7], cam[8]], x, y);
-    [cam[0] * d[0] + cam[2], cam[1] * d[1] + cam[3]]
-}
-
 /// Foot point of `target` on the image of the 3D line `p0 + s dir`: `s*`, and the unit
 /// normal of the image curve there. Gauss-Newton along the line from the distortion-free
 /// closest point.
@@ -394,7 +355,7 @@ fn foot_point(
                 "a view's stripe line passes behind the camera".into(),
             ));
         }
-        let uv = project(&cd, &p);
+        let uv = project_generic(&cd, &p);
         let res = [uv[0].v - target[0], uv[1].v - target[1]];
         let j = [uv[0].d[0], uv[1].d[0]];
         let jj = j[0] * j[0] + j[1] * j[1];
@@ -522,7 +483,7 @@ impl JointProblem<'_> {
                 let (sf, normal) = foot_point(&s.cam, &p0, &dir, [st.u, st.v], start)?;
                 cache.store(sf.to_bits(), Ordering::Relaxed);
                 let pt: [f64; 3] = std::array::from_fn(|i| p0[i] + sf * dir[i]);
-                let uv = project(&s.cam, &pt);
+                let uv = project_generic(&s.cam, &pt);
                 *out = normal[0] * (uv[0] - st.u) + normal[1] * (uv[1] - st.v);
                 Ok(())
             })?;
