@@ -310,3 +310,114 @@ impl JointParams {
             .collect()
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::model::geometry::Plane;
+
+    fn start(model: DistortionModel) -> JointStart {
+        let camera = Camera::new(
+            768,
+            576,
+            1270.0,
+            1320.0,
+            380.0,
+            290.0,
+            model,
+            [0.05, -0.01, 1e-3, -2e-3, 0.002],
+        )
+        .unwrap();
+        JointStart {
+            camera,
+            plane: Plane::new(Vector3::new(0.629, -0.0492, 0.7759), 79.87).unwrap(),
+            hand_cam: iso_from_rotvec(
+                &Vector3::new(-0.3087, 0.2362, 3.0369),
+                &Vector3::new(29.19, 5.37, 62.64),
+            ),
+            base_board: iso_from_rotvec(
+                &Vector3::new(0.1, 0.05, -0.4),
+                &Vector3::new(450.0, -20.0, 10.0),
+            ),
+        }
+    }
+
+    #[test]
+    fn names_and_columns_follow_the_blocks() {
+        let s = start(DistortionModel::Radial2);
+        let layout = ParamLayout::new(s.camera.model, s.plane.normal);
+        let names = layout.names();
+        let expected = [
+            "fu",
+            "fv",
+            "u0",
+            "v0",
+            "k1",
+            "k2",
+            "plane_a",
+            "plane_b",
+            "plane_d_mm",
+            "hand_cam_wx",
+            "hand_cam_wy",
+            "hand_cam_wz",
+            "hand_cam_tx_mm",
+            "hand_cam_ty_mm",
+            "hand_cam_tz_mm",
+            "base_board_wx",
+            "base_board_wy",
+            "base_board_wz",
+            "base_board_tx_mm",
+            "base_board_ty_mm",
+            "base_board_tz_mm",
+        ];
+        assert_eq!(names, expected);
+        assert_eq!(layout.num_params(), expected.len());
+        assert_eq!(layout.slots(Block::Plane), 9..12);
+        assert_eq!(layout.slots(Block::BaseBoard), 18..24);
+        assert_eq!(layout.first_column(Block::HandCam), 9);
+        let cols = layout.columns();
+        assert_eq!(cols[6], None, "p1 is fixed in radial2");
+        assert_eq!(cols[9], Some(6));
+    }
+
+    #[test]
+    fn encode_decode_and_retract_round_trip() {
+        let s = start(DistortionModel::OpenCv5);
+        let layout = ParamLayout::new(s.camera.model, s.plane.normal);
+        let p = layout.encode(&s);
+        assert_eq!(p.len(), layout.num_params());
+        let d = layout.decode(&p, &s.camera);
+        assert_eq!(d.cam, s.camera.params());
+        assert!((d.plane_n - s.plane.normal).norm() < 1e-15);
+        assert_eq!(d.plane_d, s.plane.d);
+        let x = layout.transform(&p, Block::HandCam);
+        assert!(
+            (x.to_homogeneous() - s.hand_cam.to_homogeneous())
+                .abs()
+                .max()
+                < 1e-12
+        );
+        // A rotation step is applied on the right: R Exp(w).
+        let mut dp = vec![0.0; p.len()];
+        let b = layout.first_column(Block::BaseBoard);
+        dp[b + 2] = 0.01;
+        dp[b + 4] = 2.0;
+        let mut out = vec![0.0; p.len()];
+        layout.retract(&p, &dp, &mut out);
+        let z0 = layout.transform(&p, Block::BaseBoard);
+        let z1 = layout.transform(&out, Block::BaseBoard);
+        let expect = z0.rotation.to_rotation_matrix().into_inner()
+            * rotvec_to_matrix(&Vector3::new(0.0, 0.0, 0.01));
+        let got = z1.rotation.to_rotation_matrix().into_inner();
+        assert!((got - expect).abs().max() < 1e-12);
+        assert!((z1.translation.vector.y - z0.translation.vector.y - 2.0).abs() < 1e-12);
+        // Additive blocks are unchanged by a zero step; a transform's rotation vector
+        // goes through its matrix (round-off only).
+        let x = layout.first_column(Block::HandCam);
+        assert_eq!(&out[..x], &p[..x]);
+        assert!(out[x..b]
+            .iter()
+            .zip(&p[x..b])
+            .all(|(a, c)| (a - c).abs() < 1e-12));
+    }
+}
