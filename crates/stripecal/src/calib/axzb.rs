@@ -121,6 +121,51 @@ pub fn solve_axzb(a: &[Iso3], b: &[Iso3]) -> Result<AxzbSolution> {
 /// Errors: [`Error::InvalidInput`] for different lengths or non-finite transforms,
 /// [`Error::Degenerate`] (with the figure) for pose sets that do not determine X and Z.
 pub fn solve_axzb_with(a: &[Iso3], b: &[Iso3], opts: &AxzbOptions) -> Result<AxzbSolution> {
+    check_inputs(a, b)?;
+    let ra: Vec<Matrix3<f64>> = a
+        .iter()
+        .map(|t| *t.rotation.to_rotation_matrix().matrix())
+        .collect();
+    let rb: Vec<Matrix3<f64>> = b
+        .iter()
+        .map(|t| *t.rotation.to_rotation_matrix().matrix())
+        .collect();
+    let ta: Vec<Vector3<f64>> = a.iter().map(|t| t.translation.vector).collect();
+    let tb: Vec<Vector3<f64>> = b.iter().map(|t| t.translation.vector).collect();
+    let (axis_spread_deg, max_rotation_deg, min_rotation_deg) = checked_motion_figures(&ra)?;
+    let (rx, rz, rotation_condition) = solve_rotations(&ra, &rb)?;
+    let (tx, tz) = solve_translations(&ra, &ta, &tb, &rz)?;
+    let data = Data {
+        ra: &ra,
+        rb: &rb,
+        ta: &ta,
+        tb: &tb,
+    };
+    let mut est = Est { rx, tx, rz, tz };
+    let mut refined = false;
+    if opts.refine {
+        (est, refined) = data.refine(est);
+    }
+    let (rotation_residual_rad, translation_residual_mm) = data.rms(&est);
+    let conditioning = Conditioning {
+        axis_spread_deg,
+        max_rotation_deg,
+        min_rotation_deg,
+        rotation_condition,
+    };
+    Ok(AxzbSolution {
+        x: iso_from_parts(&est.rx, &est.tx),
+        z: iso_from_parts(&est.rz, &est.tz),
+        rotation_residual_rad,
+        translation_residual_mm,
+        warnings: pose_set_warnings(&conditioning, rotation_residual_rad),
+        conditioning,
+        refined,
+    })
+}
+
+/// As many `A` as `B`, finite rigid transforms, at least 3 of them.
+fn check_inputs(a: &[Iso3], b: &[Iso3]) -> Result<()> {
     if a.len() != b.len() {
         return Err(Error::InvalidInput(format!(
             "AX = ZB needs as many A (robot poses) as B (board poses): got {} and {}",
@@ -146,18 +191,12 @@ pub fn solve_axzb_with(a: &[Iso3], b: &[Iso3], opts: &AxzbOptions) -> Result<Axz
             "AX = ZB needs at least 3 poses (relative motions about two distinct axes), got {n}"
         )));
     }
-    let ra: Vec<Matrix3<f64>> = a
-        .iter()
-        .map(|t| *t.rotation.to_rotation_matrix().matrix())
-        .collect();
-    let rb: Vec<Matrix3<f64>> = b
-        .iter()
-        .map(|t| *t.rotation.to_rotation_matrix().matrix())
-        .collect();
-    let ta: Vec<Vector3<f64>> = a.iter().map(|t| t.translation.vector).collect();
-    let tb: Vec<Vector3<f64>> = b.iter().map(|t| t.translation.vector).collect();
+    Ok(())
+}
 
-    let (axis_spread_deg, max_rotation_deg, min_rotation_deg) = motion_figures(&ra);
+/// [`motion_figures`], refusing pose sets that do not determine X and Z.
+fn checked_motion_figures(ra: &[Matrix3<f64>]) -> Result<(f64, f64, f64)> {
+    let (axis_spread_deg, max_rotation_deg, min_rotation_deg) = motion_figures(ra);
     if max_rotation_deg < MIN_ROTATION_DEG {
         return Err(Error::Degenerate(format!(
             "AX = ZB: largest rotation between poses {max_rotation_deg:.3} deg (need at least \
@@ -170,8 +209,16 @@ pub fn solve_axzb_with(a: &[Iso3], b: &[Iso3], opts: &AxzbOptions) -> Result<Axz
              least {MIN_AXIS_SPREAD_DEG} deg; rotate the hand about two or more different axes)"
         )));
     }
+    Ok((axis_spread_deg, max_rotation_deg, min_rotation_deg))
+}
 
-    // Step 1: rotations, 9N x 18 homogeneous system.
+/// Step 1 (module docs): `R_X`, `R_Z` from the `9N x 18` homogeneous system, and its
+/// condition figure `s_1 / s_17`.
+fn solve_rotations(
+    ra: &[Matrix3<f64>],
+    rb: &[Matrix3<f64>],
+) -> Result<(Matrix3<f64>, Matrix3<f64>, f64)> {
+    let n = ra.len();
     let mut m = Mat::<f64>::zeros(9 * n, 18);
     for i in 0..n {
         let r0 = 9 * i;
@@ -223,8 +270,17 @@ pub fn solve_axzb_with(a: &[Iso3], b: &[Iso3], opts: &AxzbOptions) -> Result<Axz
     let scale = 1.0 / det.cbrt();
     let rx = nearest_rotation(&(rx * scale));
     let rz = nearest_rotation(&(rz * scale));
+    Ok((rx, rz, rotation_condition))
+}
 
-    // Step 2: translations, 3N x 6 least squares.
+/// Step 2 (module docs): `t_X`, `t_Z` from the `3N x 6` least squares, rotations fixed.
+fn solve_translations(
+    ra: &[Matrix3<f64>],
+    ta: &[Vector3<f64>],
+    tb: &[Vector3<f64>],
+    rz: &Matrix3<f64>,
+) -> Result<(Vector3<f64>, Vector3<f64>)> {
+    let n = ra.len();
     let mut mt = Mat::<f64>::zeros(3 * n, 6);
     let mut rhs = Mat::<f64>::zeros(3 * n, 1);
     for i in 0..n {
@@ -245,51 +301,12 @@ pub fn solve_axzb_with(a: &[Iso3], b: &[Iso3], opts: &AxzbOptions) -> Result<Axz
             "AX = ZB: the translation system has no finite solution".into(),
         ));
     }
+    Ok((tx, tz))
+}
 
-    let data = Data {
-        ra: &ra,
-        rb: &rb,
-        ta: &ta,
-        tb: &tb,
-    };
-    let mut est = Est { rx, tx, rz, tz };
-    let (rot_rms, tr_rms) = data.rms(&est);
-    let mut refined = false;
-    if opts.refine {
-        let scale_t = ta
-            .iter()
-            .chain(tb.iter())
-            .map(|t| t.norm())
-            .fold(0.0_f64, f64::max)
-            .max(1e-300);
-        // Weights: inverse RMS of each residual kind (floored so exact data stays finite).
-        let wr = 1.0 / rot_rms.max(1e-14);
-        let wt = 1.0 / tr_rms.max(1e-14 * scale_t);
-        let before = data.cost(&est, wr, wt);
-        let mut cur = est;
-        let mut cur_cost = before;
-        for _ in 0..REFINE_MAX_ITER {
-            let Some(next) = data.gauss_newton_step(&cur, wr, wt) else {
-                break;
-            };
-            let c = data.cost(&next, wr, wt);
-            if c.is_nan() || c >= cur_cost {
-                break;
-            }
-            let gain = (cur_cost - c) / cur_cost.max(1e-300);
-            cur = next;
-            cur_cost = c;
-            if gain < 1e-12 {
-                break;
-            }
-        }
-        if cur_cost < before {
-            est = cur;
-            refined = true;
-        }
-    }
-    let (rotation_residual_rad, translation_residual_mm) = data.rms(&est);
-
+/// Warnings for a weak (but solvable) pose set and a large rotation residual.
+fn pose_set_warnings(c: &Conditioning, rotation_residual_rad: f64) -> Vec<String> {
+    let (max_rotation_deg, axis_spread_deg) = (c.max_rotation_deg, c.axis_spread_deg);
     let mut warnings = Vec::new();
     if max_rotation_deg < WEAK_ROTATION_DEG {
         warnings.push(format!(
@@ -309,20 +326,7 @@ pub fn solve_axzb_with(a: &[Iso3], b: &[Iso3], opts: &AxzbOptions) -> Result<Axz
             rotation_residual_rad.to_degrees()
         ));
     }
-    Ok(AxzbSolution {
-        x: iso_from_parts(&est.rx, &est.tx),
-        z: iso_from_parts(&est.rz, &est.tz),
-        rotation_residual_rad,
-        translation_residual_mm,
-        conditioning: Conditioning {
-            axis_spread_deg,
-            max_rotation_deg,
-            min_rotation_deg,
-            rotation_condition,
-        },
-        refined,
-        warnings,
-    })
+    warnings
 }
 
 /// Axis spread, largest and smallest relative rotation (degrees) of all pose pairs
@@ -412,6 +416,45 @@ impl Data<'_> {
                 wr * wr * rr.norm_squared() + wt * wt * rt.norm_squared()
             })
             .sum()
+    }
+
+    /// Step 3 (module docs): Gauss-Newton from `est` on the residuals weighted by the
+    /// inverse RMS of each kind at `est`; the refined estimate if it lowered the cost.
+    fn refine(&self, est: Est) -> (Est, bool) {
+        let (rot_rms, tr_rms) = self.rms(&est);
+        let scale_t = self
+            .ta
+            .iter()
+            .chain(self.tb.iter())
+            .map(|t| t.norm())
+            .fold(0.0_f64, f64::max)
+            .max(1e-300);
+        // Weights: inverse RMS of each residual kind (floored so exact data stays finite).
+        let wr = 1.0 / rot_rms.max(1e-14);
+        let wt = 1.0 / tr_rms.max(1e-14 * scale_t);
+        let before = self.cost(&est, wr, wt);
+        let mut cur = est;
+        let mut cur_cost = before;
+        for _ in 0..REFINE_MAX_ITER {
+            let Some(next) = self.gauss_newton_step(&cur, wr, wt) else {
+                break;
+            };
+            let c = self.cost(&next, wr, wt);
+            if c.is_nan() || c >= cur_cost {
+                break;
+            }
+            let gain = (cur_cost - c) / cur_cost.max(1e-300);
+            cur = next;
+            cur_cost = c;
+            if gain < 1e-12 {
+                break;
+            }
+        }
+        if cur_cost < before {
+            (cur, true)
+        } else {
+            (est, false)
+        }
     }
 
     /// One Gauss-Newton step over `[w_x, dt_x, w_z, dt_z]` with

@@ -15,9 +15,7 @@ use faer::MatMut;
 use nalgebra::{Vector2, Vector3};
 use rayon::prelude::*;
 
-use crate::calib::conic::{
-    centre_generic_n, quadrature_nodes, rot_times_exp_first_order, CentreModel, Dual, Scalar,
-};
+use crate::calib::conic::{centre_generic_n, quadrature_nodes, CentreModel, CentreScalar};
 use crate::calib::homography::fit_homography;
 use crate::calib::zhang::{pose_from_homography, zhang_intrinsics};
 use crate::calib::ViewObs;
@@ -27,10 +25,12 @@ use crate::model::camera::{Camera, DistortionModel, PARAM_NAMES};
 use crate::model::geometry::{
     iso_from_rotvec, iso_to_rotvec, matrix_to_rotvec, rotvec_to_matrix, Iso3,
 };
+use crate::numerics::dual::Dual;
 use crate::numerics::lm::{
-    dense_jacobian_from_rows, levenberg_marquardt, JacobianRows, LeastSquares, LmOptions,
+    dense_jacobian_from_rows, levenberg_marquardt, JacobianRows, LeastSquares, LmOptions, LmResult,
     StopReason,
 };
+use crate::numerics::mat3::rot_times_exp_first_order;
 
 /// Options of [`calibrate_camera`].
 #[derive(Debug, Clone, PartialEq)]
@@ -119,7 +119,7 @@ impl CamProblem<'_> {
         c
     }
     /// Predicted imaged centre of observation `o`'s circle (camera and pose generic).
-    fn predict<T: Scalar>(
+    fn predict<T: CentreScalar>(
         &self,
         cam: &[T; 9],
         pose: &([[T; 3]; 3], [T; 3]),
@@ -255,6 +255,46 @@ pub fn calibrate_camera(
     model: DistortionModel,
     opts: &CameraOptions,
 ) -> Result<CameraCalibration> {
+    check_inputs(views, board, width, height)?;
+    let mut warnings = Vec::new();
+    let used = view_homographies(views, board, opts.min_circles, &mut warnings)?;
+    let hs: Vec<_> = used.iter().map(|(_, h)| *h).collect();
+    let scale = 0.5 * (width as f64 + height as f64);
+    let k0 = zhang_intrinsics(&hs, None, scale)?;
+    let initial_intrinsics = [k0.fu, k0.fv, k0.u0, k0.v0];
+    let base = Camera::new(width, height, k0.fu, k0.fv, k0.u0, k0.v0, model, [0.0; 5])?;
+    let mut free = vec![0, 1, 2, 3];
+    for (i, f) in model.free_coefficients().iter().enumerate() {
+        if *f {
+            free.push(4 + i);
+        }
+    }
+    let (mut problem, p0) = start_problem(&base, free, &used, board, &k0.k(), opts)?;
+    // The exact centroid model is solved from the first-order conic model's solution
+    // (the two differ by the distortion curvature only: a few exact iterations).
+    let p0 = if opts.centre_model == CentreModel::ConicExact {
+        problem.model = CentreModel::Conic;
+        let first = levenberg_marquardt(&problem, &p0, &opts.lm)?.params;
+        problem.model = CentreModel::ConicExact;
+        first
+    } else {
+        p0
+    };
+    let res = levenberg_marquardt(&problem, &p0, &opts.lm)?;
+    let camera = base.with_params(&problem.cam_params(&res.params));
+    camera.validate()?;
+    Ok(collect_result(
+        &problem,
+        &res,
+        &used,
+        camera,
+        initial_intrinsics,
+        warnings,
+    ))
+}
+
+/// A valid board and image size, finite observations on the board's grid.
+fn check_inputs(views: &[ViewObs], board: &Board, width: u32, height: u32) -> Result<()> {
     board.validate()?;
     if width == 0 || height == 0 {
         return Err(Error::InvalidInput(format!(
@@ -277,15 +317,25 @@ pub fn calibrate_camera(
             }
         }
     }
-    let mut warnings = Vec::new();
+    Ok(())
+}
+
+/// The views with enough circles and a homography (board -> image), the others
+/// dropped with a warning; an error below 3 views.
+fn view_homographies<'v>(
+    views: &'v [ViewObs],
+    board: &Board,
+    min_circles: usize,
+    warnings: &mut Vec<String>,
+) -> Result<Vec<(&'v ViewObs, nalgebra::Matrix3<f64>)>> {
     let mut used: Vec<(&ViewObs, nalgebra::Matrix3<f64>)> = Vec::new();
     for v in views {
-        if v.circles.len() < opts.min_circles.max(4) {
+        if v.circles.len() < min_circles.max(4) {
             warnings.push(format!(
                 "view {}: dropped, only {} circles (need {})",
                 v.view,
                 v.circles.len(),
-                opts.min_circles.max(4)
+                min_circles.max(4)
             ));
             continue;
         }
@@ -314,22 +364,23 @@ pub fn calibrate_camera(
             }
         )));
     }
-    let hs: Vec<_> = used.iter().map(|(_, h)| *h).collect();
-    let scale = 0.5 * (width as f64 + height as f64);
-    let k0 = zhang_intrinsics(&hs, None, scale)?;
-    let initial_intrinsics = [k0.fu, k0.fv, k0.u0, k0.v0];
-    let base = Camera::new(width, height, k0.fu, k0.fv, k0.u0, k0.v0, model, [0.0; 5])?;
-    let kmat = k0.k();
-    let mut free = vec![0, 1, 2, 3];
-    for (i, f) in model.free_coefficients().iter().enumerate() {
-        if *f {
-            free.push(4 + i);
-        }
-    }
+    Ok(used)
+}
+
+/// The adjustment problem over the used views and its start: the `base` camera's free
+/// parameters, then each view's pose from its homography and the intrinsics `kmat`.
+fn start_problem<'a>(
+    base: &'a Camera,
+    free: Vec<usize>,
+    used: &[(&ViewObs, nalgebra::Matrix3<f64>)],
+    board: &Board,
+    kmat: &nalgebra::Matrix3<f64>,
+    opts: &CameraOptions,
+) -> Result<(CamProblem<'a>, Vec<f64>)> {
     let mut obs = Vec::new();
     let mut p0: Vec<f64> = free.iter().map(|&i| base.params()[i]).collect();
     for (vi, (v, h)) in used.iter().enumerate() {
-        let pose = pose_from_homography(h, &kmat)?;
+        let pose = pose_from_homography(h, kmat)?;
         let (rv, t) = iso_to_rotvec(&pose);
         p0.extend_from_slice(&[rv.x, rv.y, rv.z, t.x, t.y, t.z]);
         for c in &v.circles {
@@ -343,27 +394,28 @@ pub fn calibrate_camera(
             });
         }
     }
-    let mut problem = CamProblem {
-        base: &base,
-        free: free.clone(),
+    let problem = CamProblem {
+        base,
+        free,
         nviews: used.len(),
         obs,
         model: opts.centre_model,
     };
-    // The exact centroid model is solved from the first-order conic model's solution
-    // (the two differ by the distortion curvature only: a few exact iterations).
-    let p0 = if opts.centre_model == CentreModel::ConicExact {
-        problem.model = CentreModel::Conic;
-        let first = levenberg_marquardt(&problem, &p0, &opts.lm)?.params;
-        problem.model = CentreModel::ConicExact;
-        first
-    } else {
-        p0
-    };
-    let res = levenberg_marquardt(&problem, &p0, &opts.lm)?;
+    Ok((problem, p0))
+}
+
+/// The calibration of the solution `res` (giving `camera`): poses, sigmas, RMS values
+/// and unobservable names.
+fn collect_result(
+    problem: &CamProblem<'_>,
+    res: &LmResult,
+    used: &[(&ViewObs, nalgebra::Matrix3<f64>)],
+    camera: Camera,
+    initial_intrinsics: [f64; 4],
+    warnings: Vec<String>,
+) -> CameraCalibration {
+    let free = &problem.free;
     let nc = free.len();
-    let camera = base.with_params(&problem.cam_params(&res.params));
-    camera.validate()?;
     let mut camera_sigma = [0.0; 9];
     for (k, &i) in free.iter().enumerate() {
         camera_sigma[i] = res.sigma[k];
@@ -414,7 +466,7 @@ pub fn calibrate_camera(
             }
         })
         .collect();
-    Ok(CameraCalibration {
+    CameraCalibration {
         camera,
         poses,
         rms_px,
@@ -426,7 +478,7 @@ pub fn calibrate_camera(
         initial_intrinsics,
         unobservable,
         warnings,
-    })
+    }
 }
 
 #[cfg(test)]

@@ -40,13 +40,15 @@
 //!   parameter `s` that moves `T_cam_board`, `dw/ds = vee(R0^T dR/ds)` and
 //!   `dv/ds = dt/ds`.
 
-use std::ops::{Add, Div, Mul, Neg, Sub};
-
-use nalgebra::{Matrix3, SMatrix, Vector2, Vector3};
+use nalgebra::{SMatrix, Vector2, Vector3};
 
 use crate::error::{Error, Result};
-use crate::model::camera::{Camera, DistortionModel};
+use crate::model::camera::{
+    distort_generic, distortion_of, to_pixel_generic, Camera, DistortionModel,
+};
 use crate::model::geometry::Iso3;
+use crate::numerics::dual::{Dual, Scalar};
+use crate::numerics::mat3::{rot_times_exp_first_order, rows_f64};
 
 /// Trapezoidal nodes of the exact centroid (exact for trigonometric polynomials of
 /// degree < 32; the integrands have degree <= 21).
@@ -76,49 +78,15 @@ impl CentreModel {
 }
 
 // ---------------------------------------------------------------------------------
-// Forward-mode dual numbers.
+// The exact centroid over f64 and dual numbers.
 
-/// A number with `N` directional derivatives (forward-mode automatic differentiation).
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct Dual<const N: usize> {
-    pub v: f64,
-    pub d: [f64; N],
-}
-
-impl<const N: usize> Dual<N> {
-    /// A constant.
-    pub fn cst(v: f64) -> Self {
-        Dual { v, d: [0.0; N] }
-    }
-    /// The `i`-th variable with value `v`.
-    pub fn var(v: f64, i: usize) -> Self {
-        let mut d = [0.0; N];
-        if i < N {
-            d[i] = 1.0;
-        }
-        Dual { v, d }
-    }
-}
-
-/// The arithmetic the centre models need.
-pub trait Scalar:
-    Copy
-    + Add<Output = Self>
-    + Sub<Output = Self>
-    + Mul<Output = Self>
-    + Div<Output = Self>
-    + Neg<Output = Self>
-{
-    fn from_f64(x: f64) -> Self;
-    fn value(self) -> f64;
-    fn sqrt(self) -> Self;
-    fn scale(self, k: f64) -> Self;
-    /// Zero with zero derivatives (a coefficient that plays no part).
-    fn is_zero(&self) -> bool;
-    /// The exact centroid's offset from `D(e)` (see [`centroid_offset`]). Duals
-    /// differentiate it through a small inner dual over the inputs that vary (the five
-    /// ellipse parameters and the varying distortion coefficients), then chain: the
-    /// quadrature loop runs on at most 10 derivatives whatever `N`.
+/// A [`Scalar`] the centre models run on: it knows how to take the exact centroid's
+/// offset (see [`centroid_offset`]). Duals differentiate it through a small inner dual
+/// over the inputs that vary (the five ellipse parameters and the varying distortion
+/// coefficients), then chain: the quadrature loop runs on at most 10 derivatives
+/// whatever `N`.
+pub trait CentreScalar: Scalar {
+    /// The exact centroid's offset from `d = D(e)`.
     fn centroid_offset(
         k: &[Self; 5],
         e: &[Self; 5],
@@ -127,120 +95,13 @@ pub trait Scalar:
     ) -> [Self; 2];
 }
 
-impl Scalar for f64 {
-    #[inline]
-    fn from_f64(x: f64) -> Self {
-        x
-    }
-    #[inline]
-    fn value(self) -> f64 {
-        self
-    }
-    #[inline]
-    fn sqrt(self) -> Self {
-        f64::sqrt(self)
-    }
-    #[inline]
-    fn scale(self, k: f64) -> Self {
-        self * k
-    }
-    #[inline]
-    fn is_zero(&self) -> bool {
-        *self == 0.0
-    }
+impl CentreScalar for f64 {
     fn centroid_offset(k: &[f64; 5], e: &[f64; 5], d: &[f64; 2], table: &[(f64, f64)]) -> [f64; 2] {
         centroid_offset(k, e, d, table)
     }
 }
 
-impl<const N: usize> Add for Dual<N> {
-    type Output = Self;
-    #[inline]
-    fn add(mut self, o: Self) -> Self {
-        self.v += o.v;
-        for i in 0..N {
-            self.d[i] += o.d[i];
-        }
-        self
-    }
-}
-impl<const N: usize> Sub for Dual<N> {
-    type Output = Self;
-    #[inline]
-    fn sub(mut self, o: Self) -> Self {
-        self.v -= o.v;
-        for i in 0..N {
-            self.d[i] -= o.d[i];
-        }
-        self
-    }
-}
-impl<const N: usize> Mul for Dual<N> {
-    type Output = Self;
-    #[inline]
-    fn mul(self, o: Self) -> Self {
-        let mut d = [0.0; N];
-        for (i, di) in d.iter_mut().enumerate() {
-            *di = self.d[i] * o.v + self.v * o.d[i];
-        }
-        Dual { v: self.v * o.v, d }
-    }
-}
-impl<const N: usize> Div for Dual<N> {
-    type Output = Self;
-    #[inline]
-    fn div(self, o: Self) -> Self {
-        let inv = 1.0 / o.v;
-        let q = self.v * inv;
-        let mut d = [0.0; N];
-        for (i, di) in d.iter_mut().enumerate() {
-            *di = (self.d[i] - q * o.d[i]) * inv;
-        }
-        Dual { v: q, d }
-    }
-}
-impl<const N: usize> Neg for Dual<N> {
-    type Output = Self;
-    #[inline]
-    fn neg(mut self) -> Self {
-        self.v = -self.v;
-        for x in self.d.iter_mut() {
-            *x = -*x;
-        }
-        self
-    }
-}
-impl<const N: usize> Scalar for Dual<N> {
-    #[inline]
-    fn from_f64(x: f64) -> Self {
-        Dual::cst(x)
-    }
-    #[inline]
-    fn is_zero(&self) -> bool {
-        self.v == 0.0 && self.d.iter().all(|x| *x == 0.0)
-    }
-    #[inline]
-    fn value(self) -> f64 {
-        self.v
-    }
-    #[inline]
-    fn sqrt(self) -> Self {
-        let s = self.v.sqrt();
-        let k = 0.5 / s;
-        let mut d = self.d;
-        for x in d.iter_mut() {
-            *x *= k;
-        }
-        Dual { v: s, d }
-    }
-    #[inline]
-    fn scale(mut self, k: f64) -> Self {
-        self.v *= k;
-        for x in self.d.iter_mut() {
-            *x *= k;
-        }
-        self
-    }
+impl<const N: usize> CentreScalar for Dual<N> {
     /// `D(e)` is recomputed from the inner duals (so the offset's derivatives carry its
     /// dependence on the origin); the caller's `d` is not needed.
     fn centroid_offset(
@@ -307,56 +168,12 @@ fn chained_offset<const N: usize, const M: usize>(
 // ---------------------------------------------------------------------------------
 // Generic model.
 
-/// Distortion `[k1, k2, p1, p2, k3]` of normalised `(x, y)` and its Jacobian
-/// `[[dxd/dx, dxd/dy], [dyd/dx, dyd/dy]]`.
-#[inline]
-pub fn distort_generic<T: Scalar>(k: &[T; 5], x: T, y: T) -> ([T; 2], [[T; 2]; 2]) {
-    if k[1].is_zero() && k[2].is_zero() && k[3].is_zero() && k[4].is_zero() {
-        distort_k1(k[0], x, y)
-    } else {
-        distort_full(k, x, y)
-    }
-}
-
-/// [`distort_generic`] with `k2 = p1 = p2 = k3 = 0` (`radial1`): the same operations
-/// without the terms that vanish, so the same values bit for bit.
-#[inline]
-fn distort_k1<T: Scalar>(k1: T, x: T, y: T) -> ([T; 2], [[T; 2]; 2]) {
-    let one = T::from_f64(1.0);
-    let r2 = x * x + y * y;
-    let radial = one + r2 * k1;
-    let dradial = k1;
-    let xy = x * y;
-    let xd = x * radial;
-    let yd = y * radial;
-    let cross = (xy * dradial).scale(2.0);
-    let j00 = radial + (x * x * dradial).scale(2.0);
-    let j11 = radial + (y * y * dradial).scale(2.0);
-    ([xd, yd], [[j00, cross], [cross, j11]])
-}
-
-#[inline]
-fn distort_full<T: Scalar>(k: &[T; 5], x: T, y: T) -> ([T; 2], [[T; 2]; 2]) {
-    let [k1, k2, p1, p2, k3] = *k;
-    let one = T::from_f64(1.0);
-    let r2 = x * x + y * y;
-    let radial = one + r2 * (k1 + r2 * (k2 + r2 * k3));
-    let dradial = k1 + r2 * (k2.scale(2.0) + k3.scale(3.0) * r2);
-    let xy = x * y;
-    let xd = x * radial + p1.scale(2.0) * xy + p2 * (r2 + (x * x).scale(2.0));
-    let yd = y * radial + p1 * (r2 + (y * y).scale(2.0)) + p2.scale(2.0) * xy;
-    let cross = (xy * dradial + p1 * x + p2 * y).scale(2.0);
-    let j00 = radial + (x * x * dradial).scale(2.0) + (p1 * y).scale(2.0) + (p2 * x).scale(6.0);
-    let j11 = radial + (y * y * dradial).scale(2.0) + (p1 * y).scale(6.0) + (p2 * x).scale(2.0);
-    ([xd, yd], [[j00, cross], [cross, j11]])
-}
-
 /// Predicted imaged centre (pixels) of a circle, generic over the scalar type.
 ///
 /// `cam`: `[fu, fv, u0, v0, k1, k2, p1, p2, k3]`; `rot`, `t`: `T_cam_board`;
 /// `centre`: the circle centre on the board (z = 0), `radius` in mm; radius 0 is a
 /// point target (a chessboard corner), predicted by its projection whatever `model`.
-pub fn centre_generic<T: Scalar>(
+pub fn centre_generic<T: CentreScalar>(
     cam: &[T; 9],
     rot: &[[T; 3]; 3],
     t: &[T; 3],
@@ -434,7 +251,7 @@ pub fn centroid_offset<T: Scalar>(
 
 /// [`centre_generic`] with `nodes` trapezoidal nodes for the exact centroid (see
 /// [`quadrature_nodes`]: fewer than the model needs is inexact).
-pub fn centre_generic_n<T: Scalar>(
+pub fn centre_generic_n<T: CentreScalar>(
     cam: &[T; 9],
     rot: &[[T; 3]; 3],
     t: &[T; 3],
@@ -443,7 +260,7 @@ pub fn centre_generic_n<T: Scalar>(
     model: CentreModel,
     nodes: usize,
 ) -> Result<[T; 2]> {
-    let k = [cam[4], cam[5], cam[6], cam[7], cam[8]];
+    let k = distortion_of(cam);
     // A point target (a chessboard corner, radius 0) images as its projection: no
     // perspective or distortion bias, and no conic to take the centre of.
     let model = if radius == 0.0 {
@@ -500,7 +317,7 @@ pub fn centre_generic_n<T: Scalar>(
             }
         }
     };
-    Ok([cam[0] * xd + cam[2], cam[1] * yd + cam[3]])
+    Ok(to_pixel_generic(cam, [xd, yd]))
 }
 
 // ---------------------------------------------------------------------------------
@@ -517,10 +334,6 @@ pub struct CentrePrediction {
     pub d_pose: SMatrix<f64, 2, 6>,
 }
 
-fn rot_rows(r: &Matrix3<f64>) -> [[f64; 3]; 3] {
-    std::array::from_fn(|i| std::array::from_fn(|j| r[(i, j)]))
-}
-
 /// Predicted imaged centre (px) of the board circle centred at `centre` (board frame,
 /// z = 0) with `radius` mm, seen from the pose `cam_board` (`T_cam_board`).
 pub fn predict_centre(
@@ -534,7 +347,7 @@ pub fn predict_centre(
     let t = cam_board.translation.vector;
     let uv = centre_generic(
         &cam.params(),
-        &rot_rows(&r),
+        &rows_f64(&r),
         &[t.x, t.y, t.z],
         (centre.x, centre.y),
         radius,
@@ -578,63 +391,11 @@ pub fn predict_centre_with_jacobians(
     })
 }
 
-/// `R0 (I + [w]x)` for a dual `w` with value 0: `R0 Exp(w)` to first order, which is
-/// exact for the value and the first derivatives.
-pub fn rot_times_exp_first_order<T: Scalar>(r0: &Matrix3<f64>, w: &[T; 3]) -> [[T; 3]; 3] {
-    let zero = T::from_f64(0.0);
-    // [w]x
-    let wx = [
-        [zero, -w[2], w[1]],
-        [w[2], zero, -w[0]],
-        [-w[1], w[0], zero],
-    ];
-    std::array::from_fn(|i| {
-        std::array::from_fn(|j| {
-            let mut s = T::from_f64(r0[(i, j)]);
-            for (k, row) in wx.iter().enumerate() {
-                s = s + row[j].scale(r0[(i, k)]);
-            }
-            s
-        })
-    })
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
     use crate::model::camera::DistortionModel;
     use crate::model::geometry::{iso_from_rotvec, rotvec_to_matrix};
-
-    #[test]
-    fn k1_only_distortion_equals_the_full_formula_bit_for_bit() {
-        for k1 in [-0.31, 0.0, 0.05] {
-            for (x, y) in [(0.0, 0.0), (0.3, -0.2), (-0.45, 0.37), (1e-9, 2.0)] {
-                let k = [k1, 0.0, 0.0, 0.0, 0.0];
-                assert_eq!(distort_generic(&k, x, y), distort_full(&k, x, y));
-                // Duals: a varying k1, constant zero others, varying point.
-                type D = Dual<3>;
-                let kd = [
-                    D::var(k1, 0),
-                    D::cst(0.0),
-                    D::cst(0.0),
-                    D::cst(0.0),
-                    D::cst(0.0),
-                ];
-                let (xd, yd) = (D::var(x, 1), D::var(y, 2));
-                assert_eq!(distort_generic(&kd, xd, yd), distort_full(&kd, xd, yd));
-            }
-        }
-        // A varying zero coefficient is not "absent": the full formula is used.
-        let kd = [
-            Dual::<2>::var(0.1, 0),
-            Dual::var(0.0, 1),
-            Dual::cst(0.0),
-            Dual::cst(0.0),
-            Dual::cst(0.0),
-        ];
-        let (d, _) = distort_generic(&kd, Dual::cst(0.3), Dual::cst(0.4));
-        assert!(d[0].d[1] != 0.0, "d xd / d k2 must be r^4 x");
-    }
 
     fn cams() -> Vec<Camera> {
         let base = Camera::new(

@@ -134,6 +134,97 @@ fn principal_axes(pts: &[Vector3<f64>]) -> Result<(Vector3<f64>, Matrix3<f64>, [
 pub fn fit_laser_plane(views: &[(Iso3, Vec<[f64; 2]>)], camera: &Camera) -> Result<LaserPlaneFit> {
     camera.validate()?;
     let mut warnings = Vec::new();
+    let BoardPoints {
+        pts,
+        view_of,
+        line_dirs,
+    } = board_points(views, camera, &mut warnings)?;
+    let max_line_angle_deg = max_line_angle_deg(&line_dirs);
+    let (fit, inlier, n_out) = trimmed_fit(&pts)?;
+    let (c, axes, s) = fit;
+    let n_used = pts.len() - n_out;
+    let e1 = axes.column(0).into_owned();
+    let e2 = axes.column(1).into_owned();
+    let normal = axes.column(2).into_owned();
+    let plane = Plane::new(normal, normal.dot(&c))?;
+    let rms_mm = s[2] / (n_used as f64).sqrt();
+    let along = s[0] / (n_used as f64).sqrt();
+    let across = s[1] / (n_used as f64).sqrt();
+    if across < MIN_RELATIVE_SPAN * along || across < MIN_SPAN_OVER_RMS * rms_mm {
+        return Err(Error::Degenerate(format!(
+            "laser plane: the stripe points of all views lie on nearly one 3D line: they \
+             span {across:.4} mm (RMS) across it against {along:.2} mm along it and a fit \
+             residual of {rms_mm:.4} mm RMS (largest angle between two views' stripe lines \
+             {max_line_angle_deg:.2} deg); use board poses at different tilts or stand-offs"
+        )));
+    }
+    if max_line_angle_deg < WEAK_LINE_ANGLE_DEG {
+        warnings.push(format!(
+            "stripe lines nearly parallel (largest angle {max_line_angle_deg:.2} deg): the \
+             plane's tilt rests on their separation ({across:.2} mm RMS)"
+        ));
+    }
+    if n_out > 0 {
+        warnings.push(format!("{n_out} stripe points trimmed as outliers"));
+    }
+    let per_view_rms_mm = per_view_rms(&plane, &pts, &view_of, &inlier, views.len());
+    for (vi, r) in per_view_rms_mm.iter().enumerate() {
+        if let Some(r) = r {
+            if *r > 5.0 * rms_mm && *r > 1e-6 {
+                warnings.push(format!(
+                    "view {vi}: stripe RMS {r:.4} mm, more than 5 times the overall {rms_mm:.4} mm"
+                ));
+            }
+        }
+    }
+
+    // Uncertainty: tilts about the in-plane axes and the offset at the centroid.
+    let dof = (n_used as f64 - 3.0).max(1.0);
+    let var = s[2] * s[2] / dof;
+    let (l1, l2) = ((s[0] * s[0]).max(1e-300), (s[1] * s[1]).max(1e-300));
+    let cov_n = e1 * e1.transpose() * (var / l1) + e2 * e2.transpose() * (var / l2);
+    let var_d = var / n_used as f64 + var * e1.dot(&c).powi(2) / l1 + var * e2.dot(&c).powi(2) / l2;
+    let sigma = PlaneSigma {
+        normal: Vector3::new(
+            cov_n[(0, 0)].sqrt(),
+            cov_n[(1, 1)].sqrt(),
+            cov_n[(2, 2)].sqrt(),
+        ),
+        d_mm: var_d.sqrt(),
+    };
+    Ok(LaserPlaneFit {
+        plane,
+        rms_mm,
+        per_view_rms_mm,
+        n_points: n_used,
+        n_outliers: n_out,
+        sigma,
+        max_line_angle_deg,
+        span_across_mm: across,
+        warnings,
+    })
+}
+
+/// Centroid, principal axes (columns, by decreasing spread) and singular values.
+type AxesFit = (Vector3<f64>, Matrix3<f64>, [f64; 3]);
+
+/// The stripe points of every usable view on the board, camera frame.
+struct BoardPoints {
+    pts: Vec<Vector3<f64>>,
+    /// View index of each point.
+    view_of: Vec<usize>,
+    /// Direction of each view's stripe line (views with a non-degenerate spread).
+    line_dirs: Vec<Vector3<f64>>,
+}
+
+/// Back-projects every view's stripe points onto its board (views with fewer than
+/// [`MIN_POINTS_PER_VIEW`] points left out); errors on non-finite input or fewer than
+/// 2 views or 4 points.
+fn board_points(
+    views: &[(Iso3, Vec<[f64; 2]>)],
+    camera: &Camera,
+    warnings: &mut Vec<String>,
+) -> Result<BoardPoints> {
     let mut pts: Vec<Vector3<f64>> = Vec::new();
     let mut view_of: Vec<usize> = Vec::new();
     let mut line_dirs: Vec<Vector3<f64>> = Vec::new();
@@ -187,7 +278,15 @@ pub fn fit_laser_plane(views: &[(Iso3, Vec<[f64; 2]>)], camera: &Camera) -> Resu
             pts.len()
         )));
     }
-    // Largest angle between two views' lines (0..90 deg).
+    Ok(BoardPoints {
+        pts,
+        view_of,
+        line_dirs,
+    })
+}
+
+/// Largest angle between two views' lines (0..90 deg).
+fn max_line_angle_deg(line_dirs: &[Vector3<f64>]) -> f64 {
     let mut max_line_angle = 0.0_f64;
     for (i, a) in line_dirs.iter().enumerate() {
         for b in &line_dirs[i + 1..] {
@@ -195,9 +294,13 @@ pub fn fit_laser_plane(views: &[(Iso3, Vec<[f64; 2]>)], camera: &Camera) -> Resu
             max_line_angle = max_line_angle.max(c.acos());
         }
     }
-    let max_line_angle_deg = max_line_angle.to_degrees();
+    max_line_angle.to_degrees()
+}
 
-    // Fit with trimming.
+/// The plane fit (principal axes) with trimming: up to 3 rounds drop the points beyond
+/// `3.5 * 1.4826 MAD` of the plane distances, at most a tenth of the points in all.
+/// Returns the fit, the inlier flags and the number trimmed.
+fn trimmed_fit(pts: &[Vector3<f64>]) -> Result<(AxesFit, Vec<bool>, usize)> {
     let max_trim = pts.len() / 10;
     let mut inlier = vec![true; pts.len()];
     let mut n_out = 0usize;
@@ -242,81 +345,28 @@ pub fn fit_laser_plane(views: &[(Iso3, Vec<[f64; 2]>)], camera: &Camera) -> Resu
             n_out += 1;
         }
     }
-    let (c, axes, s) = fit;
-    let n_used = pts.len() - n_out;
-    let e1 = axes.column(0).into_owned();
-    let e2 = axes.column(1).into_owned();
-    let normal = axes.column(2).into_owned();
-    let plane = Plane::new(normal, normal.dot(&c))?;
-    let rms_mm = s[2] / (n_used as f64).sqrt();
-    let along = s[0] / (n_used as f64).sqrt();
-    let across = s[1] / (n_used as f64).sqrt();
-    if across < MIN_RELATIVE_SPAN * along || across < MIN_SPAN_OVER_RMS * rms_mm {
-        return Err(Error::Degenerate(format!(
-            "laser plane: the stripe points of all views lie on nearly one 3D line: they \
-             span {across:.4} mm (RMS) across it against {along:.2} mm along it and a fit \
-             residual of {rms_mm:.4} mm RMS (largest angle between two views' stripe lines \
-             {max_line_angle_deg:.2} deg); use board poses at different tilts or stand-offs"
-        )));
-    }
-    if max_line_angle_deg < WEAK_LINE_ANGLE_DEG {
-        warnings.push(format!(
-            "stripe lines nearly parallel (largest angle {max_line_angle_deg:.2} deg): the \
-             plane's tilt rests on their separation ({across:.2} mm RMS)"
-        ));
-    }
-    if n_out > 0 {
-        warnings.push(format!("{n_out} stripe points trimmed as outliers"));
-    }
+    Ok((fit, inlier, n_out))
+}
 
-    // Per-view RMS.
-    let mut acc = vec![(0.0_f64, 0usize); views.len()];
-    for ((p, &vi), &k) in pts.iter().zip(&view_of).zip(&inlier) {
+/// RMS distance from `plane` of each view's inliers (`None`: no inlier).
+fn per_view_rms(
+    plane: &Plane,
+    pts: &[Vector3<f64>],
+    view_of: &[usize],
+    inlier: &[bool],
+    nviews: usize,
+) -> Vec<Option<f64>> {
+    let mut acc = vec![(0.0_f64, 0usize); nviews];
+    for ((p, &vi), &k) in pts.iter().zip(view_of).zip(inlier) {
         if k {
             let d = plane.signed_distance(p);
             acc[vi].0 += d * d;
             acc[vi].1 += 1;
         }
     }
-    let per_view_rms_mm: Vec<Option<f64>> = acc
-        .iter()
+    acc.iter()
         .map(|&(s2, k)| (k > 0).then(|| (s2 / k as f64).sqrt()))
-        .collect();
-    for (vi, r) in per_view_rms_mm.iter().enumerate() {
-        if let Some(r) = r {
-            if *r > 5.0 * rms_mm && *r > 1e-6 {
-                warnings.push(format!(
-                    "view {vi}: stripe RMS {r:.4} mm, more than 5 times the overall {rms_mm:.4} mm"
-                ));
-            }
-        }
-    }
-
-    // Uncertainty: tilts about the in-plane axes and the offset at the centroid.
-    let dof = (n_used as f64 - 3.0).max(1.0);
-    let var = s[2] * s[2] / dof;
-    let (l1, l2) = ((s[0] * s[0]).max(1e-300), (s[1] * s[1]).max(1e-300));
-    let cov_n = e1 * e1.transpose() * (var / l1) + e2 * e2.transpose() * (var / l2);
-    let var_d = var / n_used as f64 + var * e1.dot(&c).powi(2) / l1 + var * e2.dot(&c).powi(2) / l2;
-    let sigma = PlaneSigma {
-        normal: Vector3::new(
-            cov_n[(0, 0)].sqrt(),
-            cov_n[(1, 1)].sqrt(),
-            cov_n[(2, 2)].sqrt(),
-        ),
-        d_mm: var_d.sqrt(),
-    };
-    Ok(LaserPlaneFit {
-        plane,
-        rms_mm,
-        per_view_rms_mm,
-        n_points: n_used,
-        n_outliers: n_out,
-        sigma,
-        max_line_angle_deg,
-        span_across_mm: across,
-        warnings,
-    })
+        .collect()
 }
 
 /// The predicted stripe of a view: the line where the laser plane meets the board.

@@ -1,7 +1,9 @@
 //! Numerical building blocks with no knowledge of the sensor: each piece of maths
 //! exists once here and the layers above call it.
 
+pub mod dual;
 pub mod lm;
+pub mod mat3;
 pub mod rng;
 pub mod robust;
 pub mod tls;

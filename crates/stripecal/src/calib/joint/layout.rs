@@ -1,0 +1,423 @@
+//! The parameter vector of the one-stage adjustment: which blocks it holds, where each
+//! sits (its dual-number slots and its solver columns), their names, how the vector
+//! decodes into parameters, how a step is applied (retraction), and how results and
+//! sigmas are read back.
+//!
+//! ## Blocks
+//!
+//! | block        | slots | columns (estimated)                  | update            |
+//! |--------------|-------|--------------------------------------|-------------------|
+//! | camera       | 9     | `fu fv u0 v0` + the model's free `k` | `p + dp`          |
+//! | laser plane  | 3     | `a, b, d`                            | `p + dp`          |
+//! | `X`, `Z`     | 6 each| rotation vector `w`, translation `t` | `R Exp(w)`, `t+v` |
+//!
+//! A *slot* is a position in the full parameter set (the dual numbers of the Jacobian
+//! run over all [`SLOTS`] of them); a *column* is a position in the solver's vector
+//! (estimated slots only, packed in block order). The laser plane's unit normal is
+//! `normalize(n0 + a e1 + b e2)` around the starting normal `n0` ([`PlaneChart`]).
+//!
+//! A new block is one [`BlockKind`] (its size, names, update and decoding) plus its
+//! registration in [`ParamLayout::new`].
+
+use std::ops::Range;
+
+use nalgebra::{Matrix3, Vector3};
+
+use crate::calib::joint::JointStart;
+use crate::model::camera::{Camera, DistortionModel, PARAM_NAMES};
+use crate::model::geometry::{
+    iso_from_rotvec, iso_to_rotvec, matrix_to_rotvec, rotvec_to_matrix, Iso3,
+};
+
+/// Number of slots (the dual-number width of the Jacobian): camera 9, plane 3, X 6, Z 6.
+pub(super) const SLOTS: usize = 24;
+
+/// The blocks of the parameter vector, in slot (and column) order.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(super) enum Block {
+    /// The camera parameters ([`PARAM_NAMES`] order).
+    Camera,
+    /// The laser plane's chart coordinates `a, b` and offset `d`, mm.
+    Plane,
+    /// `X = T_hand_cam`.
+    HandCam,
+    /// `Z = T_base_board`.
+    BaseBoard,
+}
+
+/// How a block's numbers behave.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(super) enum BlockKind {
+    /// Numbers updated by addition.
+    Euclidean,
+    /// A rigid transform stored as rotation vector and translation (mm), updated by
+    /// `R Exp(w)` (rotation about the transform's own axes) and `t + v`.
+    RigidTransform,
+}
+
+/// One registered block.
+#[derive(Debug, Clone)]
+struct BlockDef {
+    block: Block,
+    kind: BlockKind,
+    /// Names of the block's slots.
+    names: Vec<String>,
+    /// Which slots are estimated.
+    free: Vec<bool>,
+}
+
+impl BlockDef {
+    fn transform(block: Block, prefix: &str) -> BlockDef {
+        let names = ["wx", "wy", "wz", "tx_mm", "ty_mm", "tz_mm"]
+            .iter()
+            .map(|s| format!("{prefix}_{s}"))
+            .collect();
+        BlockDef {
+            block,
+            kind: BlockKind::RigidTransform,
+            names,
+            free: vec![true; 6],
+        }
+    }
+}
+
+/// The local chart of the laser plane's normal: `n = normalize(n0 + a e1 + b e2)`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(super) struct PlaneChart {
+    pub n0: Vector3<f64>,
+    pub e1: Vector3<f64>,
+    pub e2: Vector3<f64>,
+}
+
+impl PlaneChart {
+    /// The chart around the unit normal `n0`.
+    pub fn around(n0: Vector3<f64>) -> PlaneChart {
+        let (e1, e2) = tangent_basis(&n0);
+        PlaneChart { n0, e1, e2 }
+    }
+
+    /// The raw (unnormalised) normal `n0 + a e1 + b e2`.
+    pub fn raw_normal(&self, a: f64, b: f64) -> Vector3<f64> {
+        self.n0 + self.e1 * a + self.e2 * b
+    }
+}
+
+/// Two unit vectors completing `n` to an orthonormal basis.
+fn tangent_basis(n: &Vector3<f64>) -> (Vector3<f64>, Vector3<f64>) {
+    let helper = if n.x.abs() < 0.6 {
+        Vector3::x()
+    } else {
+        Vector3::y()
+    };
+    let e1 = n.cross(&helper).normalize();
+    let e2 = n.cross(&e1);
+    (e1, e2)
+}
+
+/// The values of a parameter vector decoded.
+#[derive(Debug, Clone)]
+pub(super) struct JointParams {
+    /// Camera parameters, [`PARAM_NAMES`] order (fixed ones from the base camera).
+    pub cam: [f64; 9],
+    pub plane_n: Vector3<f64>,
+    pub plane_d: f64,
+    pub x_rot: Matrix3<f64>,
+    pub x_t: Vector3<f64>,
+    pub z_rot: Matrix3<f64>,
+    pub z_t: Vector3<f64>,
+}
+
+/// The layout of the adjustment's parameter vector (module docs).
+#[derive(Debug, Clone)]
+pub(super) struct ParamLayout {
+    blocks: Vec<BlockDef>,
+    /// First slot of each block.
+    slot0: Vec<usize>,
+    /// First column of each block.
+    col0: Vec<usize>,
+    /// Column of each slot (`None`: fixed).
+    col_of_slot: Vec<Option<usize>>,
+    /// The laser plane's chart.
+    pub chart: PlaneChart,
+}
+
+impl ParamLayout {
+    /// The layout for a camera with `model` (its free distortion coefficients are
+    /// estimated with the four intrinsics) and a laser plane charted around the unit
+    /// normal `n0`.
+    pub fn new(model: DistortionModel, n0: Vector3<f64>) -> ParamLayout {
+        let mut cam_free = vec![true; 4];
+        cam_free.extend(model.free_coefficients());
+        let blocks = vec![
+            BlockDef {
+                block: Block::Camera,
+                kind: BlockKind::Euclidean,
+                names: PARAM_NAMES.iter().map(|s| s.to_string()).collect(),
+                free: cam_free,
+            },
+            BlockDef {
+                block: Block::Plane,
+                kind: BlockKind::Euclidean,
+                names: vec!["plane_a".into(), "plane_b".into(), "plane_d_mm".into()],
+                free: vec![true; 3],
+            },
+            BlockDef::transform(Block::HandCam, "hand_cam"),
+            BlockDef::transform(Block::BaseBoard, "base_board"),
+        ];
+        let (mut slot0, mut col0, mut col_of_slot) = (Vec::new(), Vec::new(), Vec::new());
+        let mut col = 0;
+        for b in &blocks {
+            slot0.push(col_of_slot.len());
+            col0.push(col);
+            for &f in &b.free {
+                col_of_slot.push(f.then_some(col));
+                col += usize::from(f);
+            }
+        }
+        debug_assert_eq!(col_of_slot.len(), SLOTS);
+        ParamLayout {
+            blocks,
+            slot0,
+            col0,
+            col_of_slot,
+            chart: PlaneChart::around(n0),
+        }
+    }
+
+    fn index(&self, block: Block) -> usize {
+        self.blocks
+            .iter()
+            .position(|b| b.block == block)
+            .expect("every block is registered")
+    }
+
+    /// The slots of a block.
+    pub fn slots(&self, block: Block) -> Range<usize> {
+        let i = self.index(block);
+        self.slot0[i]..self.slot0[i] + self.blocks[i].free.len()
+    }
+
+    /// The first column of a block (its estimated slots follow, packed).
+    pub fn first_column(&self, block: Block) -> usize {
+        self.col0[self.index(block)]
+    }
+
+    /// The column of every slot.
+    pub fn columns(&self) -> [Option<usize>; SLOTS] {
+        std::array::from_fn(|slot| self.col_of_slot[slot])
+    }
+
+    /// Length of the parameter vector.
+    pub fn num_params(&self) -> usize {
+        self.col_of_slot.iter().flatten().count()
+    }
+
+    /// Names of the parameter vector's entries.
+    pub fn names(&self) -> Vec<String> {
+        self.blocks
+            .iter()
+            .flat_map(|b| b.names.iter().zip(&b.free).filter(|(_, f)| **f))
+            .map(|(n, _)| n.clone())
+            .collect()
+    }
+
+    /// Indices (in [`PARAM_NAMES`] order) of the estimated camera parameters.
+    pub fn free_camera(&self) -> Vec<usize> {
+        let b = &self.blocks[self.index(Block::Camera)];
+        (0..b.free.len()).filter(|&i| b.free[i]).collect()
+    }
+
+    /// The parameter vector of a starting point: the camera's estimated parameters, the
+    /// plane's chart coordinates (0, 0) and offset, `X` and `Z` as rotation vector and
+    /// translation.
+    pub fn encode(&self, start: &JointStart) -> Vec<f64> {
+        let cp = start.camera.params();
+        let mut p: Vec<f64> = self.free_camera().iter().map(|&i| cp[i]).collect();
+        p.extend_from_slice(&[0.0, 0.0, start.plane.d]);
+        for t in [&start.hand_cam, &start.base_board] {
+            let (rv, tr) = iso_to_rotvec(t);
+            p.extend_from_slice(&[rv.x, rv.y, rv.z, tr.x, tr.y, tr.z]);
+        }
+        p
+    }
+
+    /// The parameters of vector `p`, the fixed camera parameters from `base`.
+    pub fn decode(&self, p: &[f64], base: &Camera) -> JointParams {
+        let mut cam = base.params();
+        for (k, i) in self.free_camera().into_iter().enumerate() {
+            cam[i] = p[k];
+        }
+        let o = self.first_column(Block::Plane);
+        let n = self.chart.raw_normal(p[o], p[o + 1]);
+        let x = self.first_column(Block::HandCam);
+        let z = self.first_column(Block::BaseBoard);
+        JointParams {
+            cam,
+            plane_n: n / n.norm(),
+            plane_d: p[o + 2],
+            x_rot: rotvec_to_matrix(&Vector3::new(p[x], p[x + 1], p[x + 2])),
+            x_t: Vector3::new(p[x + 3], p[x + 4], p[x + 5]),
+            z_rot: rotvec_to_matrix(&Vector3::new(p[z], p[z + 1], p[z + 2])),
+            z_t: Vector3::new(p[z + 3], p[z + 4], p[z + 5]),
+        }
+    }
+
+    /// The transform of a [`BlockKind::RigidTransform`] block of `p`.
+    pub fn transform(&self, p: &[f64], block: Block) -> Iso3 {
+        let b = self.first_column(block);
+        iso_from_rotvec(
+            &Vector3::new(p[b], p[b + 1], p[b + 2]),
+            &Vector3::new(p[b + 3], p[b + 4], p[b + 5]),
+        )
+    }
+
+    /// `out = p (+) dp`: addition, and `R Exp(w)`, `t + v` for the transforms.
+    pub fn retract(&self, p: &[f64], dp: &[f64], out: &mut [f64]) {
+        for (i, def) in self.blocks.iter().enumerate() {
+            let b = self.col0[i];
+            let len = def.free.iter().filter(|f| **f).count();
+            match def.kind {
+                BlockKind::Euclidean => {
+                    let r = b..b + len;
+                    for ((o, x), d) in out[r.clone()].iter_mut().zip(&p[r.clone()]).zip(&dp[r]) {
+                        *o = x + d;
+                    }
+                }
+                BlockKind::RigidTransform => {
+                    let r0 = rotvec_to_matrix(&Vector3::new(p[b], p[b + 1], p[b + 2]));
+                    let r = r0 * rotvec_to_matrix(&Vector3::new(dp[b], dp[b + 1], dp[b + 2]));
+                    let rv = matrix_to_rotvec(&r);
+                    for k in 0..3 {
+                        out[b + k] = rv[k];
+                        out[b + 3 + k] = p[b + 3 + k] + dp[b + 3 + k];
+                    }
+                }
+            }
+        }
+    }
+}
+
+impl JointParams {
+    /// `T_cam_board` of each view, `(R, t)`, from the robot poses `a`.
+    pub fn view_poses(&self, a: &[Iso3]) -> Vec<([[f64; 3]; 3], [f64; 3])> {
+        use crate::numerics::mat3::m3;
+        let xr: [[f64; 3]; 3] = m3(&self.x_rot);
+        let zr: [[f64; 3]; 3] = m3(&self.z_rot);
+        let xt = [self.x_t.x, self.x_t.y, self.x_t.z];
+        let zt = [self.z_t.x, self.z_t.y, self.z_t.z];
+        a.iter()
+            .map(|a| super::residuals::cam_board(a, &xr, &xt, &zr, &zt))
+            .collect()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::model::geometry::Plane;
+
+    fn start(model: DistortionModel) -> JointStart {
+        let camera = Camera::new(
+            768,
+            576,
+            1270.0,
+            1320.0,
+            380.0,
+            290.0,
+            model,
+            [0.05, -0.01, 1e-3, -2e-3, 0.002],
+        )
+        .unwrap();
+        JointStart {
+            camera,
+            plane: Plane::new(Vector3::new(0.629, -0.0492, 0.7759), 79.87).unwrap(),
+            hand_cam: iso_from_rotvec(
+                &Vector3::new(-0.3087, 0.2362, 3.0369),
+                &Vector3::new(29.19, 5.37, 62.64),
+            ),
+            base_board: iso_from_rotvec(
+                &Vector3::new(0.1, 0.05, -0.4),
+                &Vector3::new(450.0, -20.0, 10.0),
+            ),
+        }
+    }
+
+    #[test]
+    fn names_and_columns_follow_the_blocks() {
+        let s = start(DistortionModel::Radial2);
+        let layout = ParamLayout::new(s.camera.model, s.plane.normal);
+        let names = layout.names();
+        let expected = [
+            "fu",
+            "fv",
+            "u0",
+            "v0",
+            "k1",
+            "k2",
+            "plane_a",
+            "plane_b",
+            "plane_d_mm",
+            "hand_cam_wx",
+            "hand_cam_wy",
+            "hand_cam_wz",
+            "hand_cam_tx_mm",
+            "hand_cam_ty_mm",
+            "hand_cam_tz_mm",
+            "base_board_wx",
+            "base_board_wy",
+            "base_board_wz",
+            "base_board_tx_mm",
+            "base_board_ty_mm",
+            "base_board_tz_mm",
+        ];
+        assert_eq!(names, expected);
+        assert_eq!(layout.num_params(), expected.len());
+        assert_eq!(layout.slots(Block::Plane), 9..12);
+        assert_eq!(layout.slots(Block::BaseBoard), 18..24);
+        assert_eq!(layout.first_column(Block::HandCam), 9);
+        let cols = layout.columns();
+        assert_eq!(cols[6], None, "p1 is fixed in radial2");
+        assert_eq!(cols[9], Some(6));
+    }
+
+    #[test]
+    fn encode_decode_and_retract_round_trip() {
+        let s = start(DistortionModel::OpenCv5);
+        let layout = ParamLayout::new(s.camera.model, s.plane.normal);
+        let p = layout.encode(&s);
+        assert_eq!(p.len(), layout.num_params());
+        let d = layout.decode(&p, &s.camera);
+        assert_eq!(d.cam, s.camera.params());
+        assert!((d.plane_n - s.plane.normal).norm() < 1e-15);
+        assert_eq!(d.plane_d, s.plane.d);
+        let x = layout.transform(&p, Block::HandCam);
+        assert!(
+            (x.to_homogeneous() - s.hand_cam.to_homogeneous())
+                .abs()
+                .max()
+                < 1e-12
+        );
+        // A rotation step is applied on the right: R Exp(w).
+        let mut dp = vec![0.0; p.len()];
+        let b = layout.first_column(Block::BaseBoard);
+        dp[b + 2] = 0.01;
+        dp[b + 4] = 2.0;
+        let mut out = vec![0.0; p.len()];
+        layout.retract(&p, &dp, &mut out);
+        let z0 = layout.transform(&p, Block::BaseBoard);
+        let z1 = layout.transform(&out, Block::BaseBoard);
+        let expect = z0.rotation.to_rotation_matrix().into_inner()
+            * rotvec_to_matrix(&Vector3::new(0.0, 0.0, 0.01));
+        let got = z1.rotation.to_rotation_matrix().into_inner();
+        assert!((got - expect).abs().max() < 1e-12);
+        assert!((z1.translation.vector.y - z0.translation.vector.y - 2.0).abs() < 1e-12);
+        // Additive blocks are unchanged by a zero step; a transform's rotation vector
+        // goes through its matrix (round-off only).
+        let x = layout.first_column(Block::HandCam);
+        assert_eq!(&out[..x], &p[..x]);
+        assert!(out[x..b]
+            .iter()
+            .zip(&p[x..b])
+            .all(|(a, c)| (a - c).abs() < 1e-12));
+    }
+}

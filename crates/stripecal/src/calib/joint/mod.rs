@@ -1,0 +1,574 @@
+//! The one-stage adjustment: intrinsics, distortion, laser plane, hand-eye `X` and
+//! robot-world `Z` refined together in ONE Levenberg-Marquardt, the board pose of each
+//! view following from the robot.
+//!
+//! ## Model
+//!
+//! Per view i with `A_i = T_base_hand(q_i)` (known from the robot):
+//!
+//! ```text
+//! T_cam_board(i) = (A_i X)^-1 Z,   R_cb = R_X^T R_A^T R_Z,   t_cb = R_X^T (R_A^T (t_Z - t_A) - t_X)
+//! ```
+//!
+//! Residuals, in pixels:
+//! - circles: detected imaged centre minus the predicted imaged centre of the circle
+//!   (the bias-free conic model of [`crate::calib::conic`], default the exact area
+//!   centroid);
+//! - stripe points: signed image distance from the detected point to the image of the
+//!   line where the laser plane meets view i's board plane. The distance is measured to
+//!   the foot point `P(s*)` of the (distorted) image curve of the 3D line, found by
+//!   Gauss-Newton along the line; its derivative w.r.t. the parameters is, by the
+//!   envelope theorem, `n^T d pi(P(s*)) / d theta` at fixed `s*`, `n` the unit normal of
+//!   the image curve at the foot point.
+//!
+//! ## Parameters (state vector)
+//!
+//! `[free camera parameters (PARAM_NAMES order)] [plane a, b, d] [X: w, v] [Z: w, v]`.
+//! The laser plane's unit normal is `normalize(n0 + a e1 + b e2)` around the starting
+//! normal `n0` (`e1`, `e2` orthonormal, perpendicular to it), its offset `d` mm. The
+//! transforms are stored as rotation vector and translation; the solver's increment is
+//! `R Exp(w)` (rotation about the transform's own axes) and `t + v` (mm).
+//!
+//! ## Weighting and uncertainty
+//!
+//! Circle and stripe residuals have different noise. The adjustment estimates one
+//! standard deviation per residual type (variance components): after every accepted
+//! step it re-estimates `sigma_type^2 = SSR_type / (m_type - n m_type / m)` from the
+//! residuals and re-weights (`1 / sigma_type`); the solver does not stop while the
+//! weights still move (see [`LeastSquares::reweight`]). The covariance of the
+//! parameters is then `s^2 (J^T W J)^-1` with `s^2` the a-posteriori variance factor of
+//! the weighted residuals (about 1). Optional Huber loss on the weighted residuals
+//! (threshold 1.345 sigma). Jacobians by forward-mode automatic differentiation
+//! ([`crate::numerics::dual::Dual`]), checked against central differences in the tests.
+//!
+//! ## Files
+//!
+//! - `layout.rs`: the parameter vector (`ParamLayout`: blocks, slots, names,
+//!   decoding, retraction);
+//! - `residuals.rs`: the circle and stripe terms and their Jacobian rows;
+//! - `covariance.rs`: sigmas of the estimated numbers;
+//! - `report.rs`: per-view figures;
+//! - here: the public API and the solve schedule.
+
+mod covariance;
+mod layout;
+mod report;
+mod residuals;
+
+use nalgebra::{DMatrix, Vector3};
+
+use self::layout::{Block, ParamLayout};
+use self::residuals::{JointProblem, Terms};
+use crate::calib::conic::CentreModel;
+use crate::calib::ViewObs;
+use crate::error::{Error, Result};
+use crate::model::board::Board;
+use crate::model::camera::Camera;
+use crate::model::geometry::{Iso3, Plane};
+use crate::numerics::lm::{levenberg_marquardt, LmOptions, LmResult, StopReason};
+
+/// Variance-component re-estimations per solve: they settle in 2-3 on noisy data; a
+/// residual type fitted exactly (noise-free data, or a model that fits one type
+/// perfectly) would otherwise chase its sigma towards zero step after step.
+const MAX_REWEIGHTS: usize = 5;
+
+/// Huber threshold on the weighted residuals (in units of the residual's sigma).
+pub const HUBER_SIGMAS: f64 = 1.345;
+
+/// Options of [`joint_adjustment`].
+#[derive(Debug, Clone, PartialEq)]
+pub struct JointOptions {
+    /// Circle-centre model.
+    pub centre_model: CentreModel,
+    /// Solver options of each round.
+    pub lm: LmOptions,
+    /// Huber loss on the weighted residuals.
+    pub robust: bool,
+    /// Estimate one standard deviation per residual type (variance components) during
+    /// the solve (default true); otherwise the weights stay `1 / initial_sigma_px`.
+    pub variance_components: bool,
+    /// A view whose RMS of weighted residuals exceeds this (in sigmas) is reported as an
+    /// outlier (default 3).
+    pub outlier_sigmas: f64,
+    /// Starting standard deviations (circle, stripe), px.
+    pub initial_sigma_px: (f64, f64),
+}
+
+impl Default for JointOptions {
+    fn default() -> Self {
+        JointOptions {
+            centre_model: CentreModel::ConicExact,
+            // The weighted residuals have unit variance (variance components), so the
+            // cost is about (m - n) / 2 and a step that lowers it by `ftol * cost`
+            // moves the parameters by sqrt(2 ftol cost) sigmas: 1e-8 stops within
+            // 0.01 sigma for m = 10^4 (and to round-off on exact data, where each step
+            // gains orders of magnitude).
+            lm: LmOptions {
+                max_iterations: 100,
+                ftol: 1e-8,
+                xtol: 1e-10,
+                ..Default::default()
+            },
+            robust: false,
+            variance_components: true,
+            outlier_sigmas: 3.0,
+            initial_sigma_px: (0.02, 0.05),
+        }
+    }
+}
+
+/// Where the adjustment starts (the two-stage results).
+#[derive(Debug, Clone, PartialEq)]
+pub struct JointStart {
+    pub camera: Camera,
+    /// Laser plane, camera frame.
+    pub plane: Plane,
+    /// `X = T_hand_cam`.
+    pub hand_cam: Iso3,
+    /// `Z = T_base_board`.
+    pub base_board: Iso3,
+}
+
+/// One-sigma of an estimated transform.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct TransformSigma {
+    /// Of the rotation-vector components, rad.
+    pub rotation_vector: Vector3<f64>,
+    /// Of the translation, mm.
+    pub translation_mm: Vector3<f64>,
+}
+
+/// One-sigma of every estimated number.
+#[derive(Debug, Clone, PartialEq)]
+pub struct JointSigma {
+    /// Camera parameters in [`crate::model::camera::PARAM_NAMES`] order (0 for fixed
+    /// ones, NaN unobservable).
+    pub camera: [f64; 9],
+    /// Components of the plane's unit normal.
+    pub plane_normal: Vector3<f64>,
+    /// Plane offset, mm.
+    pub plane_d_mm: f64,
+    pub hand_cam: TransformSigma,
+    pub base_board: TransformSigma,
+}
+
+/// Per-view figures of the adjustment.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ViewReport {
+    /// `ViewObs::view` (dataset row).
+    pub view: usize,
+    pub circles: usize,
+    pub stripe_points: usize,
+    /// RMS of the 2D circle residuals, px (NaN without circles).
+    pub circle_rms_px: f64,
+    /// RMS of the stripe distances, px (NaN without stripe points).
+    pub stripe_rms_px: f64,
+    /// RMS of the stripe points' distances from the laser plane's line on the board,
+    /// mm (each point's image residual converted with its local scale).
+    pub stripe_rms_mm: f64,
+    /// Residuals far beyond the others' (see [`JointOptions::outlier_sigmas`]).
+    pub outlier: bool,
+}
+
+/// The result of [`joint_adjustment`].
+#[derive(Debug, Clone)]
+pub struct JointResult {
+    pub camera: Camera,
+    pub plane: Plane,
+    pub hand_cam: Iso3,
+    pub base_board: Iso3,
+    pub sigma: JointSigma,
+    /// RMS of the 2D circle residuals over all views, px.
+    pub circle_rms_px: f64,
+    /// RMS of the stripe distances, px.
+    pub stripe_rms_px: f64,
+    /// RMS of the stripe residuals in mm on the board.
+    pub stripe_rms_mm: f64,
+    /// Estimated standard deviations of one residual coordinate (circle, stripe), px.
+    pub sigma_px: (f64, f64),
+    pub views: Vec<ViewReport>,
+    /// Parameter names of the state vector, and its covariance (weighted, scaled by the
+    /// variance factor).
+    pub param_names: Vec<String>,
+    pub covariance: DMatrix<f64>,
+    pub iterations: usize,
+    pub stop_reason: StopReason,
+    pub unobservable: Vec<String>,
+    /// Per-circle values: `(view, row, col, u, v, du, dv)`, the detected centre `(u, v)`
+    /// and the residual predicted minus detected, px.
+    pub circle_residuals: Vec<(usize, usize, usize, f64, f64, f64, f64)>,
+    /// Stripe `(view, u, v, distance px)`.
+    pub stripe_residuals: Vec<(usize, f64, f64, f64)>,
+    pub warnings: Vec<String>,
+}
+
+/// The one-stage adjustment (module docs) over the views' circles and stripe points.
+///
+/// Every view used must carry `base_hand` (`T_base_hand`). Views without circles or
+/// without `base_hand` are skipped with a warning. Errors: [`Error::InvalidInput`] for
+/// fewer than 3 usable views, no stripe point at all, or non-finite observations;
+/// [`Error::Degenerate`] when a view's stripe line cannot be formed; solver errors are
+/// passed on.
+pub fn joint_adjustment(
+    views: &[ViewObs],
+    board: &Board,
+    start: &JointStart,
+    opts: &JointOptions,
+) -> Result<JointResult> {
+    board.validate()?;
+    start.camera.validate()?;
+    let mut warnings = Vec::new();
+    let terms = Terms::collect(views, board, &mut warnings)?;
+    check_terms(&terms)?;
+    let layout = ParamLayout::new(start.camera.model, start.plane.normal);
+    let mut problem = JointProblem::new(&start.camera, &layout, terms, opts);
+    let (res, iterations) = solve(&mut problem, layout.encode(start), opts)?;
+
+    let s = layout.decode(&res.params, &start.camera);
+    let camera = start.camera.with_params(&s.cam);
+    camera.validate()?;
+    let plane = Plane::new(s.plane_n, s.plane_d)?;
+    let sigma = covariance::joint_sigma(&layout, &res.params, &s, &res.covariance);
+    let reports = report::build(
+        &problem,
+        &s,
+        &res.residuals,
+        opts.outlier_sigmas,
+        &mut warnings,
+    );
+    let param_names = layout.names();
+    let unobservable = res
+        .unobservable
+        .iter()
+        .map(|&i| param_names[i].clone())
+        .collect::<Vec<_>>();
+    if !unobservable.is_empty() {
+        warnings.push(format!(
+            "unobservable parameters (their sigma is NaN): {}",
+            unobservable.join(", ")
+        ));
+    }
+    Ok(JointResult {
+        camera,
+        plane,
+        hand_cam: layout.transform(&res.params, Block::HandCam),
+        base_board: layout.transform(&res.params, Block::BaseBoard),
+        sigma,
+        circle_rms_px: reports.circle_rms_px,
+        stripe_rms_px: reports.stripe_rms_px,
+        stripe_rms_mm: reports.stripe_rms_mm,
+        sigma_px: reports.sigma_px,
+        views: reports.views,
+        param_names,
+        covariance: res.covariance,
+        iterations,
+        stop_reason: res.reason,
+        unobservable,
+        circle_residuals: reports.circle_residuals,
+        stripe_residuals: reports.stripe_residuals,
+        warnings,
+    })
+}
+
+/// At least 3 views and some stripe points.
+fn check_terms(terms: &Terms) -> Result<()> {
+    if terms.a.len() < 3 {
+        return Err(Error::InvalidInput(format!(
+            "the one-stage adjustment needs at least 3 views with a robot pose, got {}",
+            terms.a.len()
+        )));
+    }
+    if terms.stripes.is_empty() {
+        return Err(Error::InvalidInput(
+            "the one-stage adjustment needs stripe points (no view has any)".into(),
+        ));
+    }
+    Ok(())
+}
+
+/// The solve schedule from `p`: the last solve's result and the iterations of all.
+///
+/// Solves (residual model, Jacobian model, Huber). With the exact centroid model the
+/// steps are taken with the first-order conic model's Jacobian (the residuals are exact;
+/// an inexact Jacobian only changes the path, at a sixth of the cost), and a last solve
+/// with the exact Jacobian checks convergence (usually it stops at its first
+/// evaluation) and gives the covariance. The variance components are re-estimated
+/// after every accepted step. Huber, when robust, from the second solve on (the first,
+/// least squares, gives it a start and scale).
+fn solve(
+    problem: &mut JointProblem<'_>,
+    mut p: Vec<f64>,
+    opts: &JointOptions,
+) -> Result<(LmResult, usize)> {
+    let model = opts.centre_model;
+    let step_model = if model == CentreModel::ConicExact {
+        CentreModel::Conic
+    } else {
+        model
+    };
+    let mut solves = vec![(model, step_model, false)];
+    if opts.robust {
+        solves.push((model, step_model, true));
+    }
+    if step_model != model {
+        solves.push((model, model, opts.robust));
+    }
+    let mut res: Option<LmResult> = None;
+    let mut iterations = 0;
+    for (model, jacobian_model, huber) in solves {
+        let mut lm = opts.lm.clone();
+        if huber {
+            lm.huber = Some(HUBER_SIGMAS);
+        }
+        problem.prepare_solve(model, jacobian_model);
+        let r = levenberg_marquardt(&*problem, &p, &lm)?;
+        iterations += r.iterations;
+        p.clone_from(&r.params);
+        res = Some(r);
+    }
+    let Some(res) = res else {
+        return Err(Error::InvalidInput(
+            "the one-stage adjustment did not run".into(),
+        ));
+    };
+    Ok((res, iterations))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::residuals::{CircleTerm, StripeTerm};
+    use super::*;
+    use crate::calib::conic::predict_centre;
+    use crate::calib::laser_plane::stripe_line_in_view;
+    use crate::calib::CircleObs;
+    use crate::model::camera::DistortionModel;
+    use crate::model::geometry::{iso_from_rotvec, iso_to_rotvec};
+
+    struct Synth {
+        cam: Camera,
+        plane: Plane,
+        x: Iso3,
+        z: Iso3,
+        views: Vec<ViewObs>,
+    }
+
+    fn synth(model: DistortionModel, k: [f64; 5]) -> Synth {
+        let cam = Camera::new(768, 576, 1270.0, 1320.0, 380.0, 290.0, model, k).unwrap();
+        let plane = Plane::new(Vector3::new(0.629, -0.0492, 0.7759), 79.87).unwrap();
+        let x = iso_from_rotvec(
+            &Vector3::new(-0.3087, 0.2362, 3.0369),
+            &Vector3::new(29.19, 5.37, 62.64),
+        );
+        let board = Board::hp3_paper();
+        // Board 110 mm in front of the camera at view 0; other views rotate the hand.
+        let cb0 = iso_from_rotvec(
+            &Vector3::new(3.1, 0.05, 0.0),
+            &Vector3::new(-18.0, -12.0, 112.0),
+        );
+        let a0 = iso_from_rotvec(
+            &Vector3::new(0.0, 3.1, 0.0),
+            &Vector3::new(480.0, 0.0, 300.0),
+        );
+        let z = a0 * x * cb0;
+        let mut views = Vec::new();
+        for (i, d) in [
+            [0.0, 0.0, 0.0],
+            [0.15, 0.0, 0.05],
+            [0.0, 0.18, -0.1],
+            [-0.12, 0.1, 0.2],
+            [0.1, -0.15, -0.2],
+        ]
+        .iter()
+        .enumerate()
+        {
+            // Rotate the camera about a point on the board in front of it.
+            let bc0 = cb0.inverse();
+            let rot = iso_from_rotvec(&Vector3::new(d[0], d[1], d[2]), &Vector3::zeros());
+            let centre = iso_from_rotvec(&Vector3::zeros(), &Vector3::new(20.0, 15.0, 0.0));
+            let bc = centre * rot * centre.inverse() * bc0;
+            let cb = bc.inverse();
+            let a = z * cb.inverse() * x.inverse();
+            let mut circles = Vec::new();
+            for (r, c) in board.indices() {
+                let uv = predict_centre(
+                    &cam,
+                    &cb,
+                    &board.center(r, c),
+                    0.5 * board.diameter(r, c),
+                    CentreModel::ConicExact,
+                )
+                .unwrap();
+                circles.push(CircleObs {
+                    row: r,
+                    col: c,
+                    u: uv.x,
+                    v: uv.y,
+                });
+            }
+            let l = stripe_line_in_view(&plane, &cb, &cam).unwrap();
+            let stripe = (-20..20)
+                .map(|s| {
+                    let uv = cam
+                        .project(&(l.point_cam + l.direction_cam * (s as f64)))
+                        .unwrap();
+                    [uv.x, uv.y]
+                })
+                .collect();
+            views.push(ViewObs {
+                view: i,
+                circles,
+                stripe,
+                reading: None,
+                base_hand: Some(a),
+                alternatives: Vec::new(),
+            });
+        }
+        Synth {
+            cam,
+            plane,
+            x,
+            z,
+            views,
+        }
+    }
+
+    fn iso_err(a: &Iso3, b: &Iso3) -> (f64, f64) {
+        (
+            a.rotation.angle_to(&b.rotation),
+            (a.translation.vector - b.translation.vector).norm(),
+        )
+    }
+
+    fn perturbed_start(s: &Synth) -> JointStart {
+        let mut p = s.cam.params();
+        p[0] += 3.0;
+        p[1] -= 2.0;
+        p[2] += 1.5;
+        p[3] -= 1.0;
+        let d = iso_from_rotvec(
+            &Vector3::new(0.002, -0.001, 0.003),
+            &Vector3::new(0.3, -0.2, 0.4),
+        );
+        JointStart {
+            camera: s.cam.with_params(&p),
+            plane: Plane::new(
+                s.plane.normal + Vector3::new(0.01, -0.01, 0.005),
+                s.plane.d + 0.5,
+            )
+            .unwrap(),
+            hand_cam: s.x * d,
+            base_board: d * s.z,
+        }
+    }
+
+    #[test]
+    fn exact_observations_recover_every_parameter() {
+        for (model, k) in [
+            (DistortionModel::Radial1, [0.05, 0.0, 0.0, 0.0, 0.0]),
+            (DistortionModel::OpenCv5, [-0.2, 0.1, 1e-3, -1e-3, 0.02]),
+        ] {
+            let s = synth(model, k);
+            let start = perturbed_start(&s);
+            let r = joint_adjustment(
+                &s.views,
+                &Board::hp3_paper(),
+                &start,
+                &JointOptions::default(),
+            )
+            .unwrap();
+            let (p, t) = (r.camera.params(), s.cam.params());
+            for i in 0..9 {
+                assert!(
+                    (p[i] - t[i]).abs() <= 1e-6 * t[i].abs().max(1e-3),
+                    "{model:?} {i}: {} vs {}",
+                    p[i],
+                    t[i]
+                );
+            }
+            assert!((r.plane.normal - s.plane.normal).norm() < 1e-9);
+            assert!((r.plane.d - s.plane.d).abs() < 1e-7);
+            let (xr, xt) = iso_err(&r.hand_cam, &s.x);
+            let (zr, zt) = iso_err(&r.base_board, &s.z);
+            assert!(
+                xr < 1e-9 && xt < 1e-7 && zr < 1e-9 && zt < 1e-7,
+                "{xr} {xt} {zr} {zt}"
+            );
+            assert!(r.circle_rms_px < 1e-7 && r.stripe_rms_px < 1e-7);
+        }
+    }
+
+    #[test]
+    fn jacobian_matches_central_differences() {
+        let s = synth(DistortionModel::OpenCv5, [-0.2, 0.1, 1e-3, -1e-3, 0.02]);
+        let start = perturbed_start(&s);
+        let mut circles = Vec::new();
+        let mut stripes = Vec::new();
+        let board = Board::hp3_paper();
+        let mut a = Vec::new();
+        for (vi, v) in s.views.iter().enumerate() {
+            a.push(v.base_hand.unwrap());
+            for c in v.circles.iter().step_by(9) {
+                let ctr = board.center(c.row, c.col);
+                circles.push(CircleTerm {
+                    view: vi,
+                    row: c.row,
+                    col: c.col,
+                    centre: (ctr.x, ctr.y),
+                    radius: 0.5 * board.diameter(c.row, c.col),
+                    u: c.u + 0.3,
+                    v: c.v - 0.2,
+                });
+            }
+            for p in v.stripe.iter().step_by(7) {
+                stripes.push(StripeTerm {
+                    view: vi,
+                    u: p[0] + 0.4,
+                    v: p[1] - 0.3,
+                });
+            }
+        }
+        let layout = ParamLayout::new(start.camera.model, start.plane.normal);
+        let opts = JointOptions {
+            centre_model: CentreModel::ConicExact,
+            variance_components: false,
+            initial_sigma_px: (0.5, 2.0),
+            ..JointOptions::default()
+        };
+        let terms = Terms {
+            a,
+            used: (0..s.views.len()).collect(),
+            circles,
+            stripes,
+        };
+        let pr = JointProblem::new(&start.camera, &layout, terms, &opts);
+        let mut p: Vec<f64> = start.camera.params().to_vec();
+        p.extend_from_slice(&[0.01, -0.02, start.plane.d]);
+        for t in [&start.hand_cam, &start.base_board] {
+            let (rv, tr) = iso_to_rotvec(t);
+            p.extend_from_slice(&[rv.x, rv.y, rv.z, tr.x, tr.y, tr.z]);
+        }
+        let step = |j: usize| {
+            if j < 9 {
+                1e-5 * p[j].abs().max(1e-2)
+            } else {
+                1e-6
+            }
+        };
+        crate::numerics::lm::assert_jacobian_matches_fd(&pr, &p, step, 1e-9, 1e-5, "joint");
+    }
+
+    #[test]
+    fn too_few_views_and_no_stripe_are_typed_errors() {
+        let s = synth(DistortionModel::Radial1, [0.05, 0.0, 0.0, 0.0, 0.0]);
+        let start = perturbed_start(&s);
+        let b = Board::hp3_paper();
+        let e = joint_adjustment(&s.views[..2], &b, &start, &JointOptions::default()).unwrap_err();
+        assert!(matches!(e, Error::InvalidInput(_)), "{e}");
+        let mut v = s.views.clone();
+        for x in &mut v {
+            x.stripe.clear();
+        }
+        let e = joint_adjustment(&v, &b, &start, &JointOptions::default()).unwrap_err();
+        assert!(e.to_string().contains("stripe"), "{e}");
+    }
+}

@@ -1,0 +1,665 @@
+//! The adjustment's residuals and their Jacobian rows: circle terms (detected minus
+//! predicted imaged centre) and stripe terms (signed image distance to the imaged line
+//! where the laser plane meets the view's board), as a [`LeastSquares`] problem with
+//! variance-component re-weighting (module docs of [`super`]).
+
+use std::sync::atomic::{AtomicU64, AtomicUsize, Ordering};
+
+use faer::MatMut;
+use nalgebra::{Matrix3, Vector3};
+use rayon::prelude::*;
+
+use super::layout::{Block, JointParams, ParamLayout, SLOTS};
+use super::{JointOptions, MAX_REWEIGHTS};
+use crate::calib::conic::{centre_generic_n, quadrature_nodes, CentreModel};
+use crate::calib::ViewObs;
+use crate::error::{Error, Result};
+use crate::model::board::Board;
+use crate::model::camera::{distort_generic, project_generic, Camera};
+use crate::model::geometry::Iso3;
+use crate::numerics::dual::{Dual, Scalar};
+use crate::numerics::lm::{dense_jacobian_from_rows, JacobianRows, LeastSquares};
+use crate::numerics::mat3::{cross, dot, m3, matmul, matvec, rot_times_exp_first_order, transpose};
+
+/// Dual numbers over every parameter slot ([`ParamLayout`]).
+type DSlots = Dual<SLOTS>;
+
+/// One circle observation.
+#[derive(Debug, Clone, Copy)]
+pub(super) struct CircleTerm {
+    /// Index of the view among the views used.
+    pub view: usize,
+    pub row: usize,
+    pub col: usize,
+    /// Centre on the board, mm.
+    pub centre: (f64, f64),
+    pub radius: f64,
+    /// Detected imaged centre, px.
+    pub u: f64,
+    pub v: f64,
+}
+
+/// One stripe point.
+#[derive(Debug, Clone, Copy)]
+pub(super) struct StripeTerm {
+    /// Index of the view among the views used.
+    pub view: usize,
+    pub u: f64,
+    pub v: f64,
+}
+
+/// The observations of the views used.
+#[derive(Debug, Clone, Default)]
+pub(super) struct Terms {
+    /// `T_base_hand` of each used view.
+    pub a: Vec<Iso3>,
+    /// Dataset row (`ViewObs::view`) of each used view.
+    pub used: Vec<usize>,
+    pub circles: Vec<CircleTerm>,
+    pub stripes: Vec<StripeTerm>,
+}
+
+impl Terms {
+    /// The terms of the views with a robot pose and an observation (the others skipped
+    /// with a warning); errors on a non-finite observation or a circle off the board.
+    pub fn collect(views: &[ViewObs], board: &Board, warnings: &mut Vec<String>) -> Result<Terms> {
+        let mut t = Terms::default();
+        for v in views {
+            let Some(bh) = v.base_hand else {
+                warnings.push(format!("view {}: left out, no robot pose", v.view));
+                continue;
+            };
+            if v.circles.is_empty() && v.stripe.is_empty() {
+                warnings.push(format!("view {}: left out, no observation", v.view));
+                continue;
+            }
+            let vi = t.a.len();
+            t.a.push(bh);
+            t.used.push(v.view);
+            for c in &v.circles {
+                if !(c.u.is_finite() && c.v.is_finite())
+                    || c.row >= board.rows
+                    || c.col >= board.cols
+                {
+                    return Err(Error::InvalidInput(format!(
+                        "view {}: circle ({}, {}) at ({}, {}) is not a valid observation",
+                        v.view, c.row, c.col, c.u, c.v
+                    )));
+                }
+                let ctr = board.center(c.row, c.col);
+                t.circles.push(CircleTerm {
+                    view: vi,
+                    row: c.row,
+                    col: c.col,
+                    centre: (ctr.x, ctr.y),
+                    radius: 0.5 * board.diameter(c.row, c.col),
+                    u: c.u,
+                    v: c.v,
+                });
+            }
+            for s in &v.stripe {
+                if !(s[0].is_finite() && s[1].is_finite()) {
+                    return Err(Error::InvalidInput(format!(
+                        "view {}: stripe point ({}, {}) is not finite",
+                        v.view, s[0], s[1]
+                    )));
+                }
+                t.stripes.push(StripeTerm {
+                    view: vi,
+                    u: s[0],
+                    v: s[1],
+                });
+            }
+        }
+        Ok(t)
+    }
+}
+
+/// The adjustment as a least-squares problem.
+pub(super) struct JointProblem<'a> {
+    pub base: &'a Camera,
+    pub layout: &'a ParamLayout,
+    /// Centre model of the residuals.
+    pub model: CentreModel,
+    /// Centre model whose derivatives the Jacobian takes (`model` for the exact
+    /// Jacobian; the first-order `Conic` while the exact model's solve is under way:
+    /// an inexact Jacobian only changes the path, the last solve's is exact).
+    pub jacobian_model: CentreModel,
+    pub terms: Terms,
+    /// Weights `1 / sigma` of the circle and stripe residuals (f64 bits; re-estimated
+    /// during the solve when `variance_components` is set).
+    w_circle: AtomicU64,
+    w_stripe: AtomicU64,
+    /// Re-estimate the weights (variance components) in [`LeastSquares::reweight`].
+    variance_components: bool,
+    /// MAD instead of RMS for the sigmas (robust).
+    robust_sigma: bool,
+    /// Re-estimations left in the current solve (see [`MAX_REWEIGHTS`]).
+    reweights_left: AtomicUsize,
+    /// The last foot-point parameter of each stripe point (f64 bits; NaN: none): the
+    /// next evaluation starts there (a warm start; the result does not depend on it
+    /// beyond the 1e-11 px convergence tolerance).
+    foot_cache: Vec<AtomicU64>,
+}
+
+impl<'a> JointProblem<'a> {
+    /// The problem over `terms` with the options' centre model, weights and sigma
+    /// estimation.
+    pub fn new(
+        base: &'a Camera,
+        layout: &'a ParamLayout,
+        terms: Terms,
+        opts: &JointOptions,
+    ) -> JointProblem<'a> {
+        let foot_cache = (0..terms.stripes.len())
+            .map(|_| AtomicU64::new(f64::NAN.to_bits()))
+            .collect();
+        JointProblem {
+            base,
+            layout,
+            model: opts.centre_model,
+            jacobian_model: opts.centre_model,
+            terms,
+            w_circle: AtomicU64::new((1.0 / opts.initial_sigma_px.0).to_bits()),
+            w_stripe: AtomicU64::new((1.0 / opts.initial_sigma_px.1).to_bits()),
+            variance_components: opts.variance_components,
+            robust_sigma: opts.robust,
+            reweights_left: AtomicUsize::new(MAX_REWEIGHTS),
+            foot_cache,
+        }
+    }
+
+    /// Sets the centre models of the next solve and re-arms the re-weighting.
+    pub fn prepare_solve(&mut self, model: CentreModel, jacobian_model: CentreModel) {
+        self.model = model;
+        self.jacobian_model = jacobian_model;
+        self.reweights_left.store(MAX_REWEIGHTS, Ordering::Relaxed);
+    }
+
+    /// Weight of the circle residuals.
+    pub fn wc(&self) -> f64 {
+        f64::from_bits(self.w_circle.load(Ordering::Relaxed))
+    }
+
+    /// Weight of the stripe residuals.
+    pub fn ws(&self) -> f64 {
+        f64::from_bits(self.w_stripe.load(Ordering::Relaxed))
+    }
+
+    /// Standard deviations (circle, stripe) of the raw residuals behind the weighted
+    /// `r`: `sqrt(SSR_type / (m_type - n m_type / m))`, or 1.4826 MAD when robust;
+    /// floored at 1e-9 px (round-off of exact data).
+    fn sigmas(&self, r: &[f64]) -> (Option<f64>, f64) {
+        let n = self.num_params() as f64;
+        let m = r.len() as f64;
+        let mc = 2 * self.terms.circles.len();
+        let (rc, rs) = r.split_at(mc);
+        let est = |rr: &[f64], w: f64| -> f64 {
+            let mt = rr.len() as f64;
+            let dof = (mt - n * mt / m).max(1.0);
+            let s = if self.robust_sigma {
+                let mut a: Vec<f64> = rr.iter().map(|x| (x / w).abs()).collect();
+                a.sort_by(f64::total_cmp);
+                1.4826 * a.get(a.len() / 2).copied().unwrap_or(0.0)
+            } else {
+                (rr.iter().map(|x| (x / w).powi(2)).sum::<f64>() / dof).sqrt()
+            };
+            s.max(1e-9)
+        };
+        let sc = (mc > 0).then(|| est(rc, self.wc()));
+        (sc, est(rs, self.ws()))
+    }
+
+    fn decode(&self, p: &[f64]) -> JointParams {
+        self.layout.decode(p, self.base)
+    }
+
+    /// Stripe foot point from the warm-start cache, which it updates.
+    fn cached_foot_point(
+        &self,
+        k: usize,
+        cam: &[f64; 9],
+        p0: &[f64; 3],
+        dir: &[f64; 3],
+    ) -> Result<(f64, [f64; 2])> {
+        let (st, cache) = (&self.terms.stripes[k], &self.foot_cache[k]);
+        let start = f64::from_bits(cache.load(Ordering::Relaxed));
+        let (sf, normal) = foot_point(cam, p0, dir, [st.u, st.v], start)?;
+        cache.store(sf.to_bits(), Ordering::Relaxed);
+        Ok((sf, normal))
+    }
+
+    /// f64 residuals (unweighted): circles (2 each) then stripe points.
+    fn raw_residuals(&self, p: &[f64], r: &mut [f64]) -> Result<()> {
+        let s = self.decode(p);
+        let poses = s.view_poses(&self.terms.a);
+        let n1 = [s.plane_n.x, s.plane_n.y, s.plane_n.z];
+        let lines: Vec<Option<_>> = poses
+            .iter()
+            .map(|(rot, t)| stripe_line(&n1, s.plane_d, rot, t).ok())
+            .collect();
+        let nc = self.terms.circles.len();
+        let (rc, rs) = r.split_at_mut(2 * nc);
+        rc.par_chunks_mut(2)
+            .zip(self.terms.circles.par_iter())
+            .try_for_each(|(out, c)| -> Result<()> {
+                let (rot, t) = &poses[c.view];
+                let uv = centre_generic_n(
+                    &s.cam,
+                    rot,
+                    t,
+                    c.centre,
+                    c.radius,
+                    self.model,
+                    quadrature_nodes(self.base.model),
+                )?;
+                out[0] = uv[0] - c.u;
+                out[1] = uv[1] - c.v;
+                Ok(())
+            })?;
+        rs.par_iter_mut()
+            .enumerate()
+            .try_for_each(|(k, out)| -> Result<()> {
+                let st = &self.terms.stripes[k];
+                let Some((p0, dir)) = lines[st.view] else {
+                    return Err(parallel_error(st.view));
+                };
+                let (sf, normal) = self.cached_foot_point(k, &s.cam, &p0, &dir)?;
+                let pt: [f64; 3] = std::array::from_fn(|i| p0[i] + sf * dir[i]);
+                let uv = project_generic(&s.cam, &pt);
+                *out = normal[0] * (uv[0] - st.u) + normal[1] * (uv[1] - st.v);
+                Ok(())
+            })?;
+        Ok(())
+    }
+}
+
+/// Per-view quantities of a Jacobian evaluation: each view's `T_cam_board` (values),
+/// the chain of its pose increment to the `X` and `Z` slots, and its stripe line with
+/// derivatives over every slot.
+struct ViewLinearisation {
+    poses: Vec<([[f64; 3]; 3], [f64; 3])>,
+    /// `d(w, v) / d(X, Z slots)`: rows `(w, v)` of `T_cam_board`'s increment.
+    chains: Vec<[[f64; 12]; 6]>,
+    lines: Vec<Option<([DSlots; 3], [DSlots; 3])>>,
+}
+
+impl JointProblem<'_> {
+    /// The views' poses and stripe lines as duals over every slot, and the chains.
+    fn linearise_views(&self, p: &[f64], s: &JointParams) -> ViewLinearisation {
+        let layout = self.layout;
+        let (sp, sx, sz) = (
+            layout.slots(Block::Plane).start,
+            layout.slots(Block::HandCam).start,
+            layout.slots(Block::BaseBoard).start,
+        );
+        let o = layout.first_column(Block::Plane);
+        let chart = &layout.chart;
+        let a = DSlots::var(p[o], sp);
+        let b = DSlots::var(p[o + 1], sp + 1);
+        let nn: [DSlots; 3] = std::array::from_fn(|i| {
+            DSlots::cst(chart.n0[i]) + a.scale(chart.e1[i]) + b.scale(chart.e2[i])
+        });
+        let len = dot(&nn, &nn).sqrt();
+        let n1: [DSlots; 3] = std::array::from_fn(|i| nn[i] / len);
+        let d1 = DSlots::var(p[o + 2], sp + 2);
+        let wx: [DSlots; 3] = std::array::from_fn(|i| DSlots::var(0.0, sx + i));
+        let wz: [DSlots; 3] = std::array::from_fn(|i| DSlots::var(0.0, sz + i));
+        let xr = rot_times_exp_first_order(&s.x_rot, &wx);
+        let zr = rot_times_exp_first_order(&s.z_rot, &wz);
+        let xt: [DSlots; 3] = std::array::from_fn(|i| DSlots::var(s.x_t[i], sx + 3 + i));
+        let zt: [DSlots; 3] = std::array::from_fn(|i| DSlots::var(s.z_t[i], sz + 3 + i));
+        let poses: Vec<_> = self
+            .terms
+            .a
+            .iter()
+            .map(|a| cam_board(a, &xr, &xt, &zr, &zt))
+            .collect();
+        // Chain of each view's pose increment (w, v) of T_cam_board w.r.t. the X and Z
+        // slots: dw = vee(R0^T dR), dv = dt.
+        let chains = poses
+            .iter()
+            .map(|(rot, t)| {
+                let r0 = Matrix3::from_fn(|i, j| rot[i][j].v);
+                let mut m = [[0.0; 12]; 6];
+                #[allow(clippy::needless_range_loop)]
+                for k in 0..12 {
+                    let slot = sx + k;
+                    let dr = Matrix3::from_fn(|i, j| rot[i][j].d[slot]);
+                    let sk = r0.transpose() * dr;
+                    m[0][k] = 0.5 * (sk[(2, 1)] - sk[(1, 2)]);
+                    m[1][k] = 0.5 * (sk[(0, 2)] - sk[(2, 0)]);
+                    m[2][k] = 0.5 * (sk[(1, 0)] - sk[(0, 1)]);
+                    for i in 0..3 {
+                        m[3 + i][k] = t[i].d[slot];
+                    }
+                }
+                m
+            })
+            .collect();
+        let poses_f = poses
+            .iter()
+            .map(|(rot, t)| {
+                (
+                    std::array::from_fn(|i| std::array::from_fn(|j| rot[i][j].v)),
+                    std::array::from_fn(|i| t[i].v),
+                )
+            })
+            .collect();
+        let lines = poses
+            .iter()
+            .map(|(rot, t)| stripe_line(&n1, d1, rot, t).ok())
+            .collect();
+        ViewLinearisation {
+            poses: poses_f,
+            chains,
+            lines,
+        }
+    }
+
+    /// Weighted circle residuals `rc` and their dense Jacobian rows `vc` (2 rows of
+    /// `n` values per circle): duals over (camera 9, pose increment 6), chained to `X`
+    /// and `Z`.
+    fn circle_rows(
+        &self,
+        s: &JointParams,
+        views: &ViewLinearisation,
+        rc: &mut [f64],
+        vc: &mut [f64],
+    ) -> Result<()> {
+        type D15 = Dual<15>;
+        let n = self.num_params();
+        let col_of = self.layout.columns();
+        let sx = self.layout.slots(Block::HandCam).start;
+        // Fixed camera parameters are constants (zero coefficients then cost nothing).
+        let c15: [D15; 9] = std::array::from_fn(|i| {
+            if col_of[i].is_some() {
+                D15::var(s.cam[i], i)
+            } else {
+                D15::cst(s.cam[i])
+            }
+        });
+        let w15: [D15; 3] = std::array::from_fn(|i| D15::var(0.0, 9 + i));
+        let wc = self.wc();
+        let nodes = quadrature_nodes(self.base.model);
+        rc.par_chunks_mut(2)
+            .zip(vc.par_chunks_mut(2 * n))
+            .zip(self.terms.circles.par_iter())
+            .try_for_each(|((out, jrow), c)| -> Result<()> {
+                let (rot, t) = &views.poses[c.view];
+                let r0 = Matrix3::from_fn(|i, j| rot[i][j]);
+                let rd = rot_times_exp_first_order(&r0, &w15);
+                let td: [D15; 3] = std::array::from_fn(|i| D15::var(t[i], 12 + i));
+                let uv = centre_generic_n(
+                    &c15,
+                    &rd,
+                    &td,
+                    c.centre,
+                    c.radius,
+                    self.jacobian_model,
+                    nodes,
+                )?;
+                let value = if self.jacobian_model == self.model {
+                    [uv[0].v, uv[1].v]
+                } else {
+                    centre_generic_n(&s.cam, rot, t, c.centre, c.radius, self.model, nodes)?
+                };
+                out[0] = wc * (value[0] - c.u);
+                out[1] = wc * (value[1] - c.v);
+                let ch = &views.chains[c.view];
+                for (a, ua) in uv.iter().enumerate() {
+                    let row = &mut jrow[a * n..(a + 1) * n];
+                    for (slot, col) in col_of.iter().enumerate().take(9) {
+                        if let Some(col) = col {
+                            row[*col] = wc * ua.d[slot];
+                        }
+                    }
+                    for kk in 0..12 {
+                        let acc: f64 = (0..6).map(|q| ua.d[9 + q] * ch[q][kk]).sum();
+                        if let Some(col) = col_of[sx + kk] {
+                            row[col] = wc * acc;
+                        }
+                    }
+                }
+                Ok(())
+            })
+    }
+
+    /// Weighted stripe residuals `rs` and their dense Jacobian rows `vs`.
+    ///
+    /// Chain rule: `d res = n^T (d pi/d P (d p0 + s d dir) + d pi/d camera)`, the line's
+    /// derivatives (plane, `X`, `Z` slots) from the per-view duals, the projection's by
+    /// a small dual over `(x, y, k1..k3)` at the point.
+    fn stripe_rows(
+        &self,
+        s: &JointParams,
+        views: &ViewLinearisation,
+        rs: &mut [f64],
+        vs: &mut [f64],
+    ) -> Result<()> {
+        type D7 = Dual<7>;
+        let n = self.num_params();
+        let col_of = self.layout.columns();
+        let sp = self.layout.slots(Block::Plane).start;
+        let ws = self.ws();
+        rs.par_iter_mut()
+            .zip(vs.par_chunks_mut(n))
+            .enumerate()
+            .try_for_each(|(k, (out, row))| -> Result<()> {
+                let st = &self.terms.stripes[k];
+                let Some((p0, dir)) = views.lines[st.view] else {
+                    return Err(parallel_error(st.view));
+                };
+                let p0f = [p0[0].v, p0[1].v, p0[2].v];
+                let dirf = [dir[0].v, dir[1].v, dir[2].v];
+                let (sf, normal) = self.cached_foot_point(k, &s.cam, &p0f, &dirf)?;
+                let pf: [f64; 3] = std::array::from_fn(|i| p0f[i] + sf * dirf[i]);
+                let (x, y) = (pf[0] / pf[2], pf[1] / pf[2]);
+                let kd: [D7; 5] = std::array::from_fn(|i| {
+                    if col_of[4 + i].is_some() {
+                        D7::var(s.cam[4 + i], 2 + i)
+                    } else {
+                        D7::cst(s.cam[4 + i])
+                    }
+                });
+                let (d, _) = distort_generic(&kd, D7::var(x, 0), D7::var(y, 1));
+                let (fu, fv) = (s.cam[0], s.cam[1]);
+                let res = normal[0] * (fu * d[0].v + s.cam[2] - st.u)
+                    + normal[1] * (fv * d[1].v + s.cam[3] - st.v);
+                let (g0, g1) = (normal[0] * fu, normal[1] * fv);
+                let drx = g0 * d[0].d[0] + g1 * d[1].d[0];
+                let dry = g0 * d[0].d[1] + g1 * d[1].d[1];
+                let dp = [drx / pf[2], dry / pf[2], -(drx * x + dry * y) / pf[2]];
+                let mut full = [0.0; SLOTS];
+                full[0] = normal[0] * d[0].v;
+                full[1] = normal[1] * d[1].v;
+                full[2] = normal[0];
+                full[3] = normal[1];
+                for i in 0..5 {
+                    full[4 + i] = g0 * d[0].d[2 + i] + g1 * d[1].d[2 + i];
+                }
+                for (slot, o) in full.iter_mut().enumerate().skip(sp) {
+                    *o = (0..3)
+                        .map(|i| dp[i] * (p0[i].d[slot] + sf * dir[i].d[slot]))
+                        .sum();
+                }
+                *out = ws * res;
+                for (slot, v) in full.iter().enumerate() {
+                    if let Some(col) = col_of[slot] {
+                        row[col] = ws * v;
+                    }
+                }
+                Ok(())
+            })
+    }
+}
+
+impl LeastSquares for JointProblem<'_> {
+    fn num_params(&self) -> usize {
+        self.layout.num_params()
+    }
+    fn num_residuals(&self) -> usize {
+        2 * self.terms.circles.len() + self.terms.stripes.len()
+    }
+    fn residuals(&self, p: &[f64], r: &mut [f64]) -> Result<()> {
+        self.raw_residuals(p, r)?;
+        let nc = 2 * self.terms.circles.len();
+        for (i, x) in r.iter_mut().enumerate() {
+            *x *= if i < nc { self.wc() } else { self.ws() };
+        }
+        Ok(())
+    }
+    fn residuals_and_jacobian(&self, p: &[f64], r: &mut [f64], jac: MatMut<'_, f64>) -> Result<()> {
+        dense_jacobian_from_rows(self, p, r, jac)
+    }
+    fn jacobian_row_width(&self) -> Option<usize> {
+        // Every residual depends on (nearly) every parameter: dense rows.
+        Some(self.num_params())
+    }
+    fn residuals_and_jacobian_rows(
+        &self,
+        p: &[f64],
+        r: &mut [f64],
+        rows: &mut JacobianRows,
+    ) -> Result<()> {
+        let s = self.decode(p);
+        let views = self.linearise_views(p, &s);
+        let n = self.num_params();
+        let nc = self.terms.circles.len();
+        let (rc, rs) = r.split_at_mut(2 * nc);
+        // Dense rows: values of columns 0..n.
+        let (_, vals) = rows.parts_mut();
+        let (vc, vs) = vals.split_at_mut(2 * nc * n);
+        self.circle_rows(&s, &views, rc, vc)?;
+        self.stripe_rows(&s, &views, rs, vs)
+    }
+    fn reweight(&self, r: &[f64]) -> Option<Vec<f64>> {
+        if !self.variance_components
+            || self
+                .reweights_left
+                .fetch_update(Ordering::Relaxed, Ordering::Relaxed, |k| k.checked_sub(1))
+                .is_err()
+        {
+            return None;
+        }
+        let (sc, ss) = self.sigmas(r);
+        let (wc0, ws0) = (self.wc(), self.ws());
+        let wc1 = sc.map_or(wc0, |s| 1.0 / s);
+        let ws1 = 1.0 / ss;
+        self.w_circle.store(wc1.to_bits(), Ordering::Relaxed);
+        self.w_stripe.store(ws1.to_bits(), Ordering::Relaxed);
+        let nc = 2 * self.terms.circles.len();
+        let (fc, fs) = (wc1 / wc0, ws1 / ws0);
+        Some((0..r.len()).map(|i| if i < nc { fc } else { fs }).collect())
+    }
+    fn retract(&self, p: &[f64], dp: &[f64], out: &mut [f64]) {
+        self.layout.retract(p, dp, out);
+    }
+}
+
+fn parallel_error(view: usize) -> Error {
+    Error::Degenerate(format!(
+        "the laser plane is parallel to the board plane of view {view} (of the views used)"
+    ))
+}
+
+/// `T_cam_board = (A X)^-1 Z` from the parts.
+pub(super) fn cam_board<T: Scalar>(
+    a: &Iso3,
+    xr: &[[T; 3]; 3],
+    xt: &[T; 3],
+    zr: &[[T; 3]; 3],
+    zt: &[T; 3],
+) -> ([[T; 3]; 3], [T; 3]) {
+    let ra = a.rotation.to_rotation_matrix().into_inner();
+    let rat: [[T; 3]; 3] = m3(&ra.transpose());
+    let ta = a.translation.vector;
+    let xrt = transpose(xr);
+    let rot = matmul(&xrt, &matmul(&rat, zr));
+    let dz: [T; 3] = std::array::from_fn(|i| zt[i] - T::from_f64(ta[i]));
+    let inner = matvec(&rat, &dz);
+    let inner2: [T; 3] = std::array::from_fn(|i| inner[i] - xt[i]);
+    (rot, matvec(&xrt, &inner2))
+}
+
+/// The line where the laser plane `(n1, d1)` meets the board plane (third column of
+/// `rot`, through `t`): a point and a unit direction, camera frame.
+fn stripe_line<T: Scalar>(
+    n1: &[T; 3],
+    d1: T,
+    rot: &[[T; 3]; 3],
+    t: &[T; 3],
+) -> Result<([T; 3], [T; 3])> {
+    let n2 = [rot[0][2], rot[1][2], rot[2][2]];
+    let d2 = dot(&n2, t);
+    let dir = cross(n1, &n2);
+    let s2 = dot(&dir, &dir);
+    if s2.value().is_nan() || s2.value() <= 1e-18 {
+        return Err(Error::Degenerate(
+            "the laser plane is parallel to a view's board plane".into(),
+        ));
+    }
+    let a = cross(&n2, &dir);
+    let b = cross(&dir, n1);
+    let p: [T; 3] = std::array::from_fn(|i| (a[i] * d1 + b[i] * d2) / s2);
+    let s = s2.sqrt();
+    let u: [T; 3] = std::array::from_fn(|i| dir[i] / s);
+    Ok((p, u))
+}
+
+/// Foot point of `target` on the image of the 3D line `p0 + s dir`: `s*`, and the unit
+/// normal of the image curve there. Gauss-Newton along the line from the distortion-free
+/// closest point.
+fn foot_point(
+    cam: &[f64; 9],
+    p0: &[f64; 3],
+    dir: &[f64; 3],
+    target: [f64; 2],
+    start: f64,
+) -> Result<(f64, [f64; 2])> {
+    // Start: closest point of the 3D line to the distortion-free viewing ray.
+    let r = Vector3::new(
+        (target[0] - cam[2]) / cam[0],
+        (target[1] - cam[3]) / cam[1],
+        1.0,
+    )
+    .normalize();
+    let (pv, dv) = (Vector3::from(*p0), Vector3::from(*dir));
+    let b = dv.dot(&r);
+    let den = 1.0 - b * b;
+    let mut s = if start.is_finite() {
+        start
+    } else if den > 1e-12 {
+        (b * r.dot(&pv) - dv.dot(&pv)) / den
+    } else {
+        0.0
+    };
+    let cd: [Dual<1>; 9] = std::array::from_fn(|i| Dual::cst(cam[i]));
+    let mut normal = [0.0, 0.0];
+    for it in 0..30 {
+        let sd = Dual::<1>::var(s, 0);
+        let p: [Dual<1>; 3] = std::array::from_fn(|i| Dual::cst(p0[i]) + sd.scale(dir[i]));
+        if p[2].v <= 0.0 {
+            return Err(Error::Degenerate(
+                "a view's stripe line passes behind the camera".into(),
+            ));
+        }
+        let uv = project_generic(&cd, &p);
+        let res = [uv[0].v - target[0], uv[1].v - target[1]];
+        let j = [uv[0].d[0], uv[1].d[0]];
+        let jj = j[0] * j[0] + j[1] * j[1];
+        if jj.is_nan() || jj <= 1e-300 || !jj.is_finite() {
+            return Err(Error::Degenerate(
+                "a view's stripe line images as a point".into(),
+            ));
+        }
+        let jn = jj.sqrt();
+        normal = [-j[1] / jn, j[0] / jn];
+        let step = -(j[0] * res[0] + j[1] * res[1]) / jj;
+        s += step;
+        if (step * jn).abs() < 1e-11 || it == 29 {
+            break;
+        }
+    }
+    Ok((s, normal))
+}

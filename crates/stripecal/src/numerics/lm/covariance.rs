@@ -1,0 +1,73 @@
+//! The parameters' covariance at the solution, with rank-deficiency (unobservable
+//! parameter) detection.
+
+use nalgebra::DMatrix;
+
+/// Covariance `sigma2 * jtj^-1` with rank-deficiency detection (module docs): returns
+/// the covariance (NaN rows / columns for unobservable parameters) and their indices.
+pub fn covariance(jtj: &DMatrix<f64>, sigma2: f64, rank_tol: f64) -> (DMatrix<f64>, Vec<usize>) {
+    let n = jtj.nrows();
+    let d: Vec<f64> = (0..n).map(|i| jtj[(i, i)].max(0.0).sqrt()).collect();
+    let mut bad = vec![false; n];
+    for i in 0..n {
+        if d[i].is_nan() || d[i] <= 0.0 || !d[i].is_finite() {
+            bad[i] = true;
+        }
+    }
+    let good: Vec<usize> = (0..n).filter(|&i| !bad[i]).collect();
+    let scaled = DMatrix::from_fn(good.len(), good.len(), |a, b| {
+        jtj[(good[a], good[b])] / (d[good[a]] * d[good[b]])
+    });
+    // Cheap certificate of full rank: for the unit-diagonal `S`, `lambda_max <= trace =
+    // k` and `lambda_min >= 1 / trace(S^-1)`; when `k trace(S^-1) rank_tol <= 1` no
+    // eigenvalue is below `rank_tol lambda_max` and the eigen-decomposition is skipped.
+    let certified: Option<DMatrix<f64>> = if good.len() == n {
+        scaled
+            .clone()
+            .cholesky()
+            .map(|ch| ch.inverse())
+            .filter(|inv| {
+                let tr: f64 = (0..n).map(|i| inv[(i, i)]).sum();
+                tr.is_finite() && n as f64 * tr * rank_tol <= 1.0
+            })
+    } else {
+        None
+    };
+    if let Some(inv) = certified {
+        let cov = DMatrix::from_fn(n, n, |a, b| sigma2 * inv[(a, b)] / (d[a] * d[b]));
+        return (cov, Vec::new());
+    }
+    if !good.is_empty() {
+        let eig = scaled.clone().symmetric_eigen();
+        let emax = eig.eigenvalues.iter().cloned().fold(0.0f64, f64::max);
+        for (k, &ev) in eig.eigenvalues.iter().enumerate() {
+            if ev <= rank_tol * emax {
+                for a in 0..good.len() {
+                    if eig.eigenvectors[(a, k)].abs() > 0.1 {
+                        bad[good[a]] = true;
+                    }
+                }
+            }
+        }
+    }
+    let good: Vec<usize> = (0..n).filter(|&i| !bad[i]).collect();
+    let mut cov = DMatrix::from_element(n, n, f64::NAN);
+    if !good.is_empty() {
+        let sub = DMatrix::from_fn(good.len(), good.len(), |a, b| {
+            jtj[(good[a], good[b])] / (d[good[a]] * d[good[b]])
+        });
+        if let Some(ch) = sub.cholesky() {
+            let inv = ch.inverse();
+            for a in 0..good.len() {
+                for b in 0..good.len() {
+                    cov[(good[a], good[b])] = sigma2 * inv[(a, b)] / (d[good[a]] * d[good[b]]);
+                }
+            }
+        } else {
+            // numerically not positive definite: everything is suspect
+            return (cov, (0..n).collect());
+        }
+    }
+    let unobs = (0..n).filter(|&i| bad[i]).collect();
+    (cov, unobs)
+}

@@ -1,0 +1,152 @@
+//! What the solver minimises: the [`LeastSquares`] problem trait and the row storage of
+//! its Jacobian ([`JacobianRows`]).
+
+use faer::MatMut;
+
+use crate::error::{Error, Result};
+
+/// A least-squares problem `min sum_i rho(r_i(p))`.
+pub trait LeastSquares {
+    /// Number of parameters n.
+    fn num_params(&self) -> usize;
+    /// Number of residuals m.
+    fn num_residuals(&self) -> usize;
+    /// Residuals at `p` into `r` (length m).
+    fn residuals(&self, p: &[f64], r: &mut [f64]) -> Result<()>;
+    /// Residuals into `r` and the Jacobian `dr/dp` into `jac` (m x n, zero-filled on
+    /// entry) at `p`. Columns are derivatives w.r.t. the increment `dp` of
+    /// [`LeastSquares::retract`].
+    fn residuals_and_jacobian(&self, p: &[f64], r: &mut [f64], jac: MatMut<'_, f64>) -> Result<()>;
+    /// `p (+) dp` into `out`; default: addition. Override for manifold parameters
+    /// (rotations: `R Exp(dw)`), the Jacobian being w.r.t. `dp` at 0.
+    fn retract(&self, p: &[f64], dp: &[f64], out: &mut [f64]) {
+        for ((o, a), b) in out.iter_mut().zip(p).zip(dp) {
+            *o = a + b;
+        }
+    }
+    /// Re-weighting (variance components): called with the residuals at the start and
+    /// after every accepted step; a problem that changes its residual weights returns
+    /// the factor by which each residual's weight changed (the solver rescales the
+    /// residuals and Jacobian it holds). While a factor differs from 1 by more than
+    /// 1e-3 the solver does not stop on its cost or step tests. Default: `None`.
+    fn reweight(&self, _r: &[f64]) -> Option<Vec<f64>> {
+        None
+    }
+    /// `Some(w)` when every Jacobian row has at most `w` non-zeros and the problem
+    /// provides them by [`LeastSquares::residuals_and_jacobian_rows`] (the solver then
+    /// never forms the `m x n` Jacobian matrix; `w = n`: dense rows, see
+    /// [`JacobianRows`]); `None` (default): the dense matrix.
+    fn jacobian_row_width(&self) -> Option<usize> {
+        None
+    }
+    /// Residuals into `r` and the Jacobian by rows into `rows` (zero-filled on entry;
+    /// see [`JacobianRows`]). Only called when [`LeastSquares::jacobian_row_width`] is
+    /// `Some`.
+    fn residuals_and_jacobian_rows(
+        &self,
+        _p: &[f64],
+        _r: &mut [f64],
+        _rows: &mut JacobianRows,
+    ) -> Result<()> {
+        Err(Error::InvalidInput(
+            "this least-squares problem has no row Jacobian".into(),
+        ))
+    }
+}
+
+/// A Jacobian stored by rows of `width` (column, value) pairs: for problems in which
+/// each residual depends on a few parameters (a camera and one view's pose). Unused
+/// pairs are (0, 0.0); a column may appear more than once in a row (the values add).
+///
+/// When the width equals the number of parameters the rows are DENSE: row `i` holds
+/// the values of columns `0..n` in order, no columns are stored ([`Self::parts_mut`]
+/// returns an empty column slice) and the solver forms `J^T J` by a matrix product.
+#[derive(Debug, Clone)]
+pub struct JacobianRows {
+    pub(super) width: usize,
+    pub(super) dense: bool,
+    /// Sparse: the columns of every row; dense: `0..width` once.
+    pub(super) cols: Vec<usize>,
+    pub(super) vals: Vec<f64>,
+}
+
+impl JacobianRows {
+    /// `m` zero rows of `width` pairs; dense when `width == n`.
+    pub fn new(m: usize, width: usize, n: usize) -> Self {
+        let dense = width == n;
+        JacobianRows {
+            width,
+            dense,
+            cols: if dense {
+                (0..width).collect()
+            } else {
+                vec![0; m * width]
+            },
+            vals: vec![0.0; m * width],
+        }
+    }
+    /// Pairs per row.
+    pub fn width(&self) -> usize {
+        self.width
+    }
+    /// Whether the rows are dense (see the type's docs).
+    pub fn is_dense(&self) -> bool {
+        self.dense
+    }
+    /// Number of rows.
+    pub fn len(&self) -> usize {
+        self.vals.len() / self.width.max(1)
+    }
+    /// True without rows.
+    pub fn is_empty(&self) -> bool {
+        self.vals.is_empty()
+    }
+    /// Zero-fills every row.
+    pub fn clear(&mut self) {
+        if !self.dense {
+            self.cols.fill(0);
+        }
+        self.vals.fill(0.0);
+    }
+    /// Columns (empty when dense) and values of every row, row after row (`width`
+    /// each): split them with `chunks_mut(width)` (or rayon's `par_chunks_mut`).
+    pub fn parts_mut(&mut self) -> (&mut [usize], &mut [f64]) {
+        if self.dense {
+            (&mut [], &mut self.vals)
+        } else {
+            (&mut self.cols, &mut self.vals)
+        }
+    }
+    /// Columns and values of row `i`.
+    pub fn row(&self, i: usize) -> (&[usize], &[f64]) {
+        let w = self.width;
+        let c = if self.dense {
+            &self.cols[..]
+        } else {
+            &self.cols[i * w..(i + 1) * w]
+        };
+        (c, &self.vals[i * w..(i + 1) * w])
+    }
+}
+
+/// [`LeastSquares::residuals_and_jacobian`] of a problem that provides its Jacobian by
+/// rows: the rows scattered into the dense matrix (for tests and callers that want it).
+pub fn dense_jacobian_from_rows<P: LeastSquares + ?Sized>(
+    problem: &P,
+    p: &[f64],
+    r: &mut [f64],
+    mut jac: MatMut<'_, f64>,
+) -> Result<()> {
+    let w = problem.jacobian_row_width().ok_or_else(|| {
+        Error::InvalidInput("this least-squares problem has no row Jacobian".into())
+    })?;
+    let mut rows = JacobianRows::new(r.len(), w, problem.num_params());
+    problem.residuals_and_jacobian_rows(p, r, &mut rows)?;
+    for i in 0..rows.len() {
+        let (c, v) = rows.row(i);
+        for (&c, &v) in c.iter().zip(v) {
+            jac[(i, c)] += v;
+        }
+    }
+    Ok(())
+}
