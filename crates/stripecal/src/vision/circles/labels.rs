@@ -280,10 +280,10 @@ fn check_not_smaller(
         lat.push(nalgebra::Vector2::new(l.0 as f64, l.1 as f64));
         img.push(nalgebra::Vector2::new(blobs[b].cx, blobs[b].cy));
     }
-    let Ok(hm) = crate::calib::homography::dlt(&lat, &img) else {
+    let Ok(hm) = crate::numerics::homography::dlt(&lat, &img) else {
         return Ok(());
     };
-    let apply = crate::calib::homography::apply;
+    let apply = crate::numerics::homography::apply;
     // the largest circle diameter in lattice units
     let rad_units = (board.circle_diameter_mm.max(if board.markers.is_empty() {
         0.0

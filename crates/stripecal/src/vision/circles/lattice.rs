@@ -493,13 +493,13 @@ fn second_board(
         .values()
         .map(|&b| nalgebra::Vector2::new(blobs[b].cx, blobs[b].cy))
         .collect();
-    let Ok(h) = crate::calib::homography::dlt(&lat, &img) else {
+    let Ok(h) = crate::numerics::homography::dlt(&lat, &img) else {
         return Ok(());
     };
     let Some(hi) = h.try_inverse() else {
         return Ok(());
     };
-    let apply = crate::calib::homography::apply;
+    let apply = crate::numerics::homography::apply;
     for g in grids.iter().skip(1) {
         if g.len() < min {
             continue;
