@@ -1,5 +1,5 @@
 //! The normalised DLT homography (Hartley): `H` with `image ~ H plane` from point
-//! correspondences, and its application to a point.
+//! correspondences, its application to a point, and the residuals of the fit.
 //!
 //! `H` maps plane points `(x, y, 1)` to image points `w (u, v, 1)`; either side may be
 //! pixels, millimetres, lattice units or normalised coordinates, the code does not care.

@@ -27,6 +27,7 @@ use super::blobs::Blob;
 use super::lattice::{marker_area_ratio, predict_any, Coord, CoordMap, Grid};
 use crate::error::{Error, Result};
 use crate::model::board::{Board, Symmetry};
+use crate::vision::affine::AffineFit;
 
 /// What a node shows.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -436,18 +437,12 @@ pub(crate) fn label(
 /// The determinant of `A` in the affine fit `image = A (i, j) + b` over the measured
 /// nodes (its sign is the grid's handedness in the image); `None` for a degenerate grid.
 fn handedness(grid: &Grid, blobs: &[Blob]) -> Option<f64> {
-    let mut n = nalgebra::Matrix3::<f64>::zeros();
-    let mut bx = nalgebra::Vector3::<f64>::zeros();
-    let mut by = nalgebra::Vector3::<f64>::zeros();
+    let mut fit = AffineFit::new();
     for (&c, &b) in &grid.at {
         let (i, j) = Grid::board_coords(grid.kind, c);
-        let f = nalgebra::Vector3::new(i as f64, j as f64, 1.0);
-        n += f * f.transpose();
-        bx += f * blobs[b].cx;
-        by += f * blobs[b].cy;
+        fit.add((i as f64, j as f64), (blobs[b].cx, blobs[b].cy));
     }
-    let inv = n.try_inverse()?;
-    let (ax, ay) = (inv * bx, inv * by);
+    let (ax, ay) = fit.solve()?;
     Some(ax[0] * ay[1] - ax[1] * ay[0])
 }
 
