@@ -10,6 +10,7 @@
 //! - Errors are [`crate::Error`]; a detection that cannot be trusted is an error that
 //!   says what was found, never a guess.
 
+mod affine;
 pub mod chessboard;
 pub mod circles;
 pub mod stripe;

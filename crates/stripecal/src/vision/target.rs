@@ -172,17 +172,5 @@ pub fn homography_residuals(board: &Board, pts: &[(usize, usize, f64, f64)]) -> 
         .map(|&(r, c, _, _)| board.center(r, c).xy())
         .collect();
     let image: Vec<Vector2<f64>> = pts.iter().map(|&(_, _, u, v)| Vector2::new(u, v)).collect();
-    let Ok(h) = crate::calib::homography::dlt(&plane, &image) else {
-        return (f64::NAN, f64::NAN);
-    };
-    let (mut ss, mut mx) = (0.0f64, 0.0f64);
-    for (p, q) in plane.iter().zip(&image) {
-        let Some(x) = crate::calib::homography::apply(&h, p) else {
-            return (f64::NAN, f64::NAN);
-        };
-        let e = (x - q).norm();
-        ss += e * e;
-        mx = mx.max(e);
-    }
-    ((ss / pts.len() as f64).sqrt(), mx)
+    crate::numerics::homography::dlt_residuals(&plane, &image).unwrap_or((f64::NAN, f64::NAN))
 }

@@ -58,7 +58,7 @@ fn band_median(
             let bb = b.0 + (b.1 - b.0) * kb as f64 / 4.0;
             let li = aa * n.0 as f64 + bb * e.0 as f64;
             let lj = aa * n.1 as f64 + bb * e.1 as f64;
-            let p = crate::calib::homography::apply(h, &Vector2::new(li, lj))?;
+            let p = crate::numerics::homography::apply(h, &Vector2::new(li, lj))?;
             v.push(g.bilinear(p.x, p.y)?);
         }
     }
@@ -108,7 +108,7 @@ pub(crate) fn side_status(
     if plane.len() < 6 || extent(at.keys().filter(|t| a_of(t) >= amax - 3)).is_none() {
         return Side::Unknown;
     }
-    let Ok(h) = crate::calib::homography::dlt(&plane, &image) else {
+    let Ok(h) = crate::numerics::homography::dlt(&plane, &image) else {
         return Side::Unknown;
     };
     let am = amax as f64;

@@ -4,6 +4,8 @@
 
 use std::collections::HashMap;
 
+use crate::vision::affine::{neighbourhood, spans_plane};
+
 /// Integer lattice coordinates `(i, j)`.
 pub(crate) type Coord = (i32, i32);
 
@@ -46,38 +48,29 @@ pub(crate) fn predict(
     let mut bx = [0f64; 3];
     let mut by = [0f64; 3];
     let mut count = 0;
-    for di in -rad..=rad {
-        for dj in -rad..=rad {
-            if di == 0 && dj == 0 {
-                continue;
+    // (the products in this order, `wgt * f[r] * f[c]`: the circles' AffineFit rounds
+    // differently, and the corners must stay bit for bit)
+    for (di, dj) in neighbourhood(rad) {
+        let Some(&k) = at.get(&(t.0 + di, t.1 + dj)) else {
+            continue;
+        };
+        let p = *pos.get(k)?;
+        let wgt = 1.0 / (di * di + dj * dj) as f64;
+        let f = [di as f64, dj as f64, 1.0];
+        for r in 0..3 {
+            for c in 0..3 {
+                n[r][c] += wgt * f[r] * f[c];
             }
-            let Some(&k) = at.get(&(t.0 + di, t.1 + dj)) else {
-                continue;
-            };
-            let p = *pos.get(k)?;
-            let wgt = 1.0 / (di * di + dj * dj) as f64;
-            let f = [di as f64, dj as f64, 1.0];
-            for r in 0..3 {
-                for c in 0..3 {
-                    n[r][c] += wgt * f[r] * f[c];
-                }
-                bx[r] += wgt * f[r] * p[0];
-                by[r] += wgt * f[r] * p[1];
-            }
-            count += 1;
+            bx[r] += wgt * f[r] * p[0];
+            by[r] += wgt * f[r] * p[1];
         }
+        count += 1;
     }
     if count < 3 {
         return None;
     }
     let m = nalgebra::Matrix3::from_fn(|r, c| n[r][c]);
-    let s = m[(2, 2)];
-    let a = m[(0, 0)] - m[(0, 2)] * m[(0, 2)] / s;
-    let b = m[(0, 1)] - m[(0, 2)] * m[(1, 2)] / s;
-    let d = m[(1, 1)] - m[(1, 2)] * m[(1, 2)] / s;
-    let scale = m[(0, 0)] + m[(1, 1)];
-    let det2 = a * d - b * b;
-    if det2.is_nan() || det2 <= 1e-3 * scale * scale {
+    if !spans_plane(&m) {
         return None;
     }
     let inv = m.try_inverse()?;

@@ -36,6 +36,15 @@ impl Measured {
         }
     }
 
+    /// Moves the measured `sites` to the failed ones with the reason `why`.
+    fn fail_sites(&mut self, sites: Vec<Coord>, why: &'static str) {
+        for t in sites {
+            if let Some(k) = self.at.remove(&t) {
+                self.failed.insert(t, (Fail::NotCorner(why), self.pos[k]));
+            }
+        }
+    }
+
     /// Drops sites their neighbours do not predict within `tol` pitches.
     fn prune(&mut self, tol: f64) {
         let mut at = self.at.clone();
@@ -46,17 +55,7 @@ impl Measured {
             .filter(|t| !at.contains_key(t))
             .copied()
             .collect();
-        for t in gone {
-            if let Some(k) = self.at.remove(&t) {
-                self.failed.insert(
-                    t,
-                    (
-                        Fail::NotCorner("inconsistent with its neighbours"),
-                        self.pos[k],
-                    ),
-                );
-            }
-        }
+        self.fail_sites(gone, "inconsistent with its neighbours");
     }
 
     /// Drops sites without a measured 4-neighbour (a jump across a failed site that
@@ -72,17 +71,7 @@ impl Measured {
             })
             .copied()
             .collect();
-        for t in lone {
-            if let Some(k) = self.at.remove(&t) {
-                self.failed.insert(
-                    t,
-                    (
-                        Fail::NotCorner("no measured corner next to it"),
-                        self.pos[k],
-                    ),
-                );
-            }
-        }
+        self.fail_sites(lone, "no measured corner next to it");
     }
 
     /// Local lattice at `t` from the measured sites.

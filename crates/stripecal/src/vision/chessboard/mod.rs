@@ -280,19 +280,13 @@ fn label_grid(
 /// Image directions of `+i`, `+j` from a global affine fit, and whether the lattice is
 /// left-handed in the image (then `i` and `j` are swapped).
 fn handedness(m: &measure::Measured) -> Result<(bool, [f64; 2], [f64; 2])> {
-    let mut n = nalgebra::Matrix3::<f64>::zeros();
-    let mut bx = nalgebra::Vector3::<f64>::zeros();
-    let mut by = nalgebra::Vector3::<f64>::zeros();
+    let mut fit = crate::vision::affine::AffineFit::new();
     for (&(i, j), &k) in &m.at {
-        let f = nalgebra::Vector3::new(i as f64, j as f64, 1.0);
-        n += f * f.transpose();
-        bx += f * m.pos[k][0];
-        by += f * m.pos[k][1];
+        fit.add((i as f64, j as f64), (m.pos[k][0], m.pos[k][1]));
     }
-    let inv = n.try_inverse().ok_or_else(|| {
+    let (ax, ay) = fit.solve().ok_or_else(|| {
         Error::Detection("no chessboard: the corners found lie on one line".into())
     })?;
-    let (ax, ay) = (inv * bx, inv * by);
     let (di, dj) = ([ax[0], ay[0]], [ax[1], ay[1]]);
     Ok((cross(di, dj) < 0.0, di, dj))
 }

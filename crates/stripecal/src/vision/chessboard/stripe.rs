@@ -8,6 +8,27 @@ use super::image::Gray;
 use super::lattice::{cross, norm};
 use super::model::{window, Model, Vec11};
 
+/// The image pixels of the window samples `px` (offsets `[dx, dy, value, ..]` from `c`)
+/// that pass `keep`.
+fn pixels_where(px: &[[f64; 4]], c: [f64; 2], keep: impl Fn(&[f64; 4]) -> bool) -> Vec<(i32, i32)> {
+    px.iter()
+        .filter(|q| keep(q))
+        .map(|q| ((q[0] + c[0]).round() as i32, (q[1] + c[1]).round() as i32))
+        .collect()
+}
+
+/// The image pixels of the window of radius `r` around `c` whose samples pass `keep`.
+fn window_pixels_where(
+    g: &Gray,
+    c: [f64; 2],
+    r: f64,
+    keep: impl Fn(&[f64; 4]) -> bool,
+) -> Vec<(i32, i32)> {
+    let mut px = Vec::new();
+    window(g, c, r, &HashSet::new(), &mut px);
+    pixels_where(&px, c, keep)
+}
+
 /// A bright stripe in the window around `c`: the pixels brighter than the light
 /// squares by half the contrast (and 8 noise sigmas), see [`stripe_of`].
 pub(crate) fn stripe_mask(
@@ -22,13 +43,7 @@ pub(crate) fn stripe_mask(
         return HashSet::new();
     }
     let thr = light + (0.5 * (light - dark)).max(8.0 * noise);
-    let mut px = Vec::new();
-    window(g, c, r + 1.0, &HashSet::new(), &mut px);
-    let bright: Vec<(i32, i32)> = px
-        .iter()
-        .filter(|q| q[2] > thr)
-        .map(|q| ((q[0] + c[0]).round() as i32, (q[1] + c[1]).round() as i32))
-        .collect();
+    let bright = window_pixels_where(g, c, r + 1.0, |q| q[2] > thr);
     stripe_of(bright, r)
 }
 
@@ -57,22 +72,16 @@ pub(crate) fn dark_sector_stripe(
     };
     let thr = 0.5 * (light + dark);
     let (ni, nj) = (norm(di), norm(dj));
-    let mut px = Vec::new();
-    window(g, c, r, &HashSet::new(), &mut px);
-    let bright: Vec<(i32, i32)> = px
-        .iter()
-        .filter(|q| {
-            // lattice coordinates of the offset, and distances to the two edges
-            let a = cross([q[0], q[1]], dj) / det;
-            let b = cross(di, [q[0], q[1]]) / det;
-            let (to_i_edge, to_j_edge) = ((b * det / ni).abs(), (a * det / nj).abs());
-            // the sectors of (+i, +j) and (-i, -j) have the colour of light_ij
-            let like_ij = (a > 0.0) == (b > 0.0);
-            let in_dark = like_ij != light_ij;
-            to_i_edge > 3.5 && to_j_edge > 3.5 && in_dark && q[2] > thr
-        })
-        .map(|q| ((q[0] + c[0]).round() as i32, (q[1] + c[1]).round() as i32))
-        .collect();
+    let bright = window_pixels_where(g, c, r, |q| {
+        // lattice coordinates of the offset, and distances to the two edges
+        let a = cross([q[0], q[1]], dj) / det;
+        let b = cross(di, [q[0], q[1]]) / det;
+        let (to_i_edge, to_j_edge) = ((b * det / ni).abs(), (a * det / nj).abs());
+        // the sectors of (+i, +j) and (-i, -j) have the colour of light_ij
+        let like_ij = (a > 0.0) == (b > 0.0);
+        let in_dark = like_ij != light_ij;
+        to_i_edge > 3.5 && to_j_edge > 3.5 && in_dark && q[2] > thr
+    });
     stripe_of(bright, 0.5 * r)
 }
 
@@ -87,11 +96,7 @@ pub(crate) fn residual_stripe(
 ) -> HashSet<(i32, i32)> {
     let thr = (1.5 * th[6].abs()).max(8.0 * noise);
     let md = Model::new(th, 1.0 / r);
-    let bright: Vec<(i32, i32)> = px
-        .iter()
-        .filter(|q| q[2] - md.value(q[0], q[1]).0 > thr)
-        .map(|q| ((q[0] + th[0]).round() as i32, (q[1] + th[1]).round() as i32))
-        .collect();
+    let bright = pixels_where(px, [th[0], th[1]], |q| q[2] - md.value(q[0], q[1]).0 > thr);
     stripe_of(bright, r)
 }
 
@@ -114,13 +119,7 @@ pub(crate) fn faint_line(
         return out;
     }
     let thr = light + (0.25 * (light - dark)).max(6.0 * noise);
-    let mut px = Vec::new();
-    window(g, c, r, &HashSet::new(), &mut px);
-    let bright: Vec<(i32, i32)> = px
-        .iter()
-        .filter(|q| q[2] > thr)
-        .map(|q| ((q[0] + c[0]).round() as i32, (q[1] + c[1]).round() as i32))
-        .collect();
+    let bright = window_pixels_where(g, c, r, |q| q[2] > thr);
     for part in components(&bright) {
         if (part.len() as f64) < r || !long_and_thin(&part, 1.5 * r, 0.35) {
             continue;

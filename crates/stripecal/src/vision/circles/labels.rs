@@ -27,6 +27,7 @@ use super::blobs::Blob;
 use super::lattice::{marker_area_ratio, predict_any, Coord, CoordMap, Grid};
 use crate::error::{Error, Result};
 use crate::model::board::{Board, Symmetry};
+use crate::vision::affine::AffineFit;
 
 /// What a node shows.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -280,10 +281,10 @@ fn check_not_smaller(
         lat.push(nalgebra::Vector2::new(l.0 as f64, l.1 as f64));
         img.push(nalgebra::Vector2::new(blobs[b].cx, blobs[b].cy));
     }
-    let Ok(hm) = crate::calib::homography::dlt(&lat, &img) else {
+    let Ok(hm) = crate::numerics::homography::dlt(&lat, &img) else {
         return Ok(());
     };
-    let apply = crate::calib::homography::apply;
+    let apply = crate::numerics::homography::apply;
     // the largest circle diameter in lattice units
     let rad_units = (board.circle_diameter_mm.max(if board.markers.is_empty() {
         0.0
@@ -396,18 +397,6 @@ pub(crate) fn label(
         .collect();
     sites.sort_unstable_by_key(|&(c, _)| c);
     let markers_seen = sites.iter().filter(|s| s.1 == State::Marker).count();
-
-    // handedness: the affine image = A (i, j) + b over the measured nodes
-    let mut n = nalgebra::Matrix3::<f64>::zeros();
-    let mut bx = nalgebra::Vector3::<f64>::zeros();
-    let mut by = nalgebra::Vector3::<f64>::zeros();
-    for (&c, &b) in at {
-        let (i, j) = Grid::board_coords(grid.kind, c);
-        let f = nalgebra::Vector3::new(i as f64, j as f64, 1.0);
-        n += f * f.transpose();
-        bx += f * blobs[b].cx;
-        by += f * blobs[b].cy;
-    }
     let describe = |what: &str| {
         format!(
             "{what}: {}; grid of {} circles ({} grown, {} inconsistent), {markers_seen} markers seen \
@@ -419,12 +408,48 @@ pub(crate) fn label(
             board.markers.len()
         )
     };
-    let Some(inv) = n.try_inverse() else {
+    let Some(det_a) = handedness(grid, blobs) else {
         return Err(Error::Detection(describe("degenerate grid")));
     };
-    let (ax, ay) = (inv * bx, inv * by);
-    let det_a = ax[0] * ay[1] - ax[1] * ay[0];
+    let (placements, mirrored) = placements(&sites, board, det_a);
+    let Some(&(m0, t0)) = placements.first() else {
+        return Err(Error::Detection(describe(&no_placement(board, mirrored))));
+    };
+    let alternatives = alternatives(&placements, &sites, board, markers_seen)
+        .map_err(|why| Error::Detection(describe(&why)))?;
+    check_not_smaller(grid, blobs, board, &m0, t0, size, &describe)?;
+    let mut nodes: Vec<(usize, usize, usize)> = at
+        .iter()
+        .filter_map(|(&c, &b)| {
+            let (i, j) = Grid::board_coords(grid.kind, c);
+            let (i, j) = place(&m0, t0, (i as i64, j as i64));
+            board.from_lattice(i, j).map(|(r, cc)| (b, r, cc))
+        })
+        .collect();
+    nodes.sort_by_key(|&(_, r, c)| (r, c));
+    Ok(Labels {
+        nodes,
+        alternatives,
+        markers_seen,
+    })
+}
 
+/// The determinant of `A` in the affine fit `image = A (i, j) + b` over the measured
+/// nodes (its sign is the grid's handedness in the image); `None` for a degenerate grid.
+fn handedness(grid: &Grid, blobs: &[Blob]) -> Option<f64> {
+    let mut fit = AffineFit::new();
+    for (&c, &b) in &grid.at {
+        let (i, j) = Grid::board_coords(grid.kind, c);
+        fit.add((i as f64, j as f64), (blobs[b].cx, blobs[b].cy));
+    }
+    let (ax, ay) = fit.solve()?;
+    Some(ax[0] * ay[1] - ax[1] * ay[0])
+}
+
+/// Every placement of the sites on the board with each site's state matched and the
+/// handedness `det_a` of the image kept, in the order of [`LATTICE_MAPS`]; and the
+/// number of placements that fit only as a mirror image.
+fn placements(sites: &[((i64, i64), State)], board: &Board, det_a: f64) -> (Vec<Placement>, usize) {
     let (lo, hi) = {
         let (mut lo, mut hi) = ((i64::MAX, i64::MAX), (i64::MIN, i64::MIN));
         for (r, c) in board.indices() {
@@ -447,7 +472,7 @@ pub(crate) fn label(
         let mut fits_here = 0;
         for ti in (lo.0 - mlo.0)..=(hi.0 - mhi.0) {
             for tj in (lo.1 - mlo.1)..=(hi.1 - mhi.1) {
-                let ok = mapped.iter().zip(&sites).all(|(&(i, j), &(_, s))| {
+                let ok = mapped.iter().zip(sites).all(|(&(i, j), &(_, s))| {
                     match board.from_lattice(i + ti, j + tj) {
                         None => false,
                         Some((r, c)) => match s {
@@ -471,23 +496,34 @@ pub(crate) fn label(
             mirrored += fits_here;
         }
     }
+    (placements, mirrored)
+}
 
-    let Some(&(m0, t0)) = placements.first() else {
-        let why = if mirrored > 0 {
-            format!(
-                "the grid matches the board only as a mirror image ({mirrored} mirrored placements): \
-                 the board is seen from behind or the image is mirrored"
-            )
-        } else if board.markers.is_empty() {
-            "the grid does not fit on the board".to_string()
-        } else {
-            "markers not matched: no placement of the grid on the board puts the markers seen \
-             on the board's markers"
-                .to_string()
-        };
-        return Err(Error::Detection(describe(&why)));
-    };
-    // every placement must be a symmetry image of the first
+/// Why no placement fits (`mirrored` placements fit as a mirror image).
+fn no_placement(board: &Board, mirrored: usize) -> String {
+    if mirrored > 0 {
+        format!(
+            "the grid matches the board only as a mirror image ({mirrored} mirrored placements): \
+             the board is seen from behind or the image is mirrored"
+        )
+    } else if board.markers.is_empty() {
+        "the grid does not fit on the board".to_string()
+    } else {
+        "markers not matched: no placement of the grid on the board puts the markers seen \
+         on the board's markers"
+            .to_string()
+    }
+}
+
+/// The board symmetries relating every placement after the first to the first; `Err`
+/// with the reason when one is not a symmetry image (the labelling is ambiguous).
+fn alternatives(
+    placements: &[Placement],
+    sites: &[((i64, i64), State)],
+    board: &Board,
+    markers_seen: usize,
+) -> std::result::Result<Vec<Symmetry>, String> {
+    let (m0, t0) = placements[0];
     let syms = board.symmetries();
     let mut alternatives: Vec<Symmetry> = Vec::new();
     for &(m, t) in &placements[1..] {
@@ -502,41 +538,25 @@ pub(crate) fn label(
                     alternatives.push(*s);
                 }
             }
+            None if board.markers.is_empty() || markers_seen == 0 => {
+                return Err(format!(
+                    "cannot tell where on the board this part of it lies: the grid fits the \
+                     board in {} places (only part of the board is in the image, and {})",
+                    placements.len(),
+                    if board.markers.is_empty() {
+                        "the board has no markers"
+                    } else {
+                        "no marker is seen"
+                    }
+                ));
+            }
             None => {
-                let why = if board.markers.is_empty() || markers_seen == 0 {
-                    format!(
-                        "cannot tell where on the board this part of it lies: the grid fits the \
-                         board in {} places (only part of the board is in the image, and {})",
-                        placements.len(),
-                        if board.markers.is_empty() {
-                            "the board has no markers".to_string()
-                        } else {
-                            "no marker is seen".to_string()
-                        }
-                    )
-                } else {
-                    format!(
-                        "ambiguous grid: {} placements fit the markers seen",
-                        placements.len()
-                    )
-                };
-                return Err(Error::Detection(describe(&why)));
+                return Err(format!(
+                    "ambiguous grid: {} placements fit the markers seen",
+                    placements.len()
+                ));
             }
         }
     }
-    check_not_smaller(grid, blobs, board, &m0, t0, size, &describe)?;
-    let mut nodes: Vec<(usize, usize, usize)> = at
-        .iter()
-        .filter_map(|(&c, &b)| {
-            let (i, j) = Grid::board_coords(grid.kind, c);
-            let (i, j) = place(&m0, t0, (i as i64, j as i64));
-            board.from_lattice(i, j).map(|(r, cc)| (b, r, cc))
-        })
-        .collect();
-    nodes.sort_by_key(|&(_, r, c)| (r, c));
-    Ok(Labels {
-        nodes,
-        alternatives,
-        markers_seen,
-    })
+    Ok(alternatives)
 }

@@ -26,6 +26,7 @@ use std::collections::HashMap;
 use super::blobs::Blob;
 use crate::error::{Error, Result};
 use crate::model::board::{Board, BoardKind};
+use crate::vision::affine::{neighbourhood, spans_plane, AffineFit};
 
 /// Lattice coordinates.
 pub(crate) type Coord = (i32, i32);
@@ -89,45 +90,24 @@ pub(crate) fn predict(
     t: Coord,
     rad: i32,
 ) -> Option<([f64; 2], f64, f64)> {
-    let mut n = nalgebra::Matrix3::<f64>::zeros();
-    let mut bx = nalgebra::Vector3::<f64>::zeros();
-    let mut by = nalgebra::Vector3::<f64>::zeros();
+    let mut fit = AffineFit::new();
     let mut areas: Vec<f64> = Vec::with_capacity(24);
-    for di in -rad..=rad {
-        for dj in -rad..=rad {
-            if di == 0 && dj == 0 {
-                continue;
-            }
-            let Some(&b) = at.get(&(t.0 + di, t.1 + dj)) else {
-                continue;
-            };
-            let wgt = 1.0 / (di * di + dj * dj) as f64;
-            let f = nalgebra::Vector3::new(di as f64, dj as f64, 1.0);
-            n += f * f.transpose() * wgt;
-            bx += f * (wgt * blobs[b].cx);
-            by += f * (wgt * blobs[b].cy);
-            areas.push(blobs[b].area);
-        }
+    for (di, dj) in neighbourhood(rad) {
+        let Some(&b) = at.get(&(t.0 + di, t.1 + dj)) else {
+            continue;
+        };
+        let wgt = 1.0 / (di * di + dj * dj) as f64;
+        fit.add_weighted((di as f64, dj as f64), (blobs[b].cx, blobs[b].cy), wgt);
+        areas.push(blobs[b].area);
     }
     if areas.len() < 3 {
         return None;
     }
     // Collinear support: the 2x2 lattice part is (near) singular.
-    let scale = n[(0, 0)] + n[(1, 1)];
-    let det2 = {
-        // Schur complement of the constant term.
-        let s = n[(2, 2)];
-        let a = n[(0, 0)] - n[(0, 2)] * n[(0, 2)] / s;
-        let b = n[(0, 1)] - n[(0, 2)] * n[(1, 2)] / s;
-        let d = n[(1, 1)] - n[(1, 2)] * n[(1, 2)] / s;
-        a * d - b * b
-    };
-    if det2.is_nan() || det2 <= 1e-3 * scale * scale {
+    if !spans_plane(&fit.n) {
         return None;
     }
-    let inv = n.try_inverse()?;
-    let px = inv * bx;
-    let py = inv * by;
+    let (px, py) = fit.solve()?;
     let e1 = px[0].hypot(py[0]);
     let e2 = px[1].hypot(py[1]);
     let m = areas.len() / 2;
@@ -493,13 +473,13 @@ fn second_board(
         .values()
         .map(|&b| nalgebra::Vector2::new(blobs[b].cx, blobs[b].cy))
         .collect();
-    let Ok(h) = crate::calib::homography::dlt(&lat, &img) else {
+    let Ok(h) = crate::numerics::homography::dlt(&lat, &img) else {
         return Ok(());
     };
     let Some(hi) = h.try_inverse() else {
         return Ok(());
     };
-    let apply = crate::calib::homography::apply;
+    let apply = crate::numerics::homography::apply;
     for g in grids.iter().skip(1) {
         if g.len() < min {
             continue;

@@ -47,7 +47,10 @@
 
 mod edges;
 mod extract;
+mod gauss;
 mod line;
+mod peak;
+mod ridge;
 
 pub use crate::model::StripeDirection;
 pub use edges::{flag_reflectance_edges, EdgeOptions};
