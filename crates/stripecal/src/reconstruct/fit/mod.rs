@@ -5,8 +5,10 @@
 //!
 //! 1. Algebraic start (Kåsa): `|p|^2 + D x + E y + F z + G = 0` by linear least squares
 //!    over centred, scaled points; centre `-(D, E, F) / 2`, `R^2 = |c|^2 - G`.
-//! 2. Geometric fit: Levenberg-Marquardt on the residuals `r_i = |p_i - c| - R`
-//!    (Jacobian row `[-(p_i - c)^T / |p_i - c|, -1]`), to a relative step of 1e-12.
+//! 2. Geometric fit: the crate's Levenberg-Marquardt
+//!    ([`crate::numerics::lm::levenberg_marquardt`], default tolerances: it stops at the
+//!    cost's round-off floor) on the residuals `r_i = |p_i - c| - R` (Jacobian row
+//!    `[-(p_i - c)^T / |p_i - c|, -1]`).
 //! 3. Trimming (when `trim_sigma > 0`): the robust sigma of the residuals of ALL points
 //!    is `s = 1.4826 * median |r_i|`; points with `|r_i| > trim_sigma * s` are outliers;
 //!    the fit is redone on the inliers (from the previous solution) until the inlier set

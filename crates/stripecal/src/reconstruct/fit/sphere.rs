@@ -2,10 +2,12 @@
 //! geometric Levenberg-Marquardt, trimming and the Gauss-Markov uncertainty (the
 //! "Sphere" part of the [`super`] docs).
 
+use faer::MatMut;
 use nalgebra::{Matrix3, Matrix4, Vector3, Vector4};
 
 use crate::error::{Error, Result};
 use crate::model::SphereFit;
+use crate::numerics::lm::{levenberg_marquardt, LeastSquares, LmOptions};
 use crate::numerics::rng::SplitMix64;
 
 use super::trim::{bounding_box, check_points, sigma_floor, trim_loop};
@@ -106,7 +108,65 @@ fn sphere_algebraic(points: &[[f64; 3]], mask: &[bool]) -> Result<(Vector3<f64>,
     Ok((mean + c * scale, r2.sqrt() * scale))
 }
 
-/// Geometric LM over the masked points from `(c, r)`; returns `(c, r, J^T J)`.
+/// The geometric sphere fit as a least-squares problem: parameters `(cx, cy, cz, R)`,
+/// residuals `r_i = |p_i - c| - R` over the selected points, Jacobian rows
+/// `[-(p_i - c)^T / |p_i - c|, -1]` (`[0, 0, 0, -1]` for a point at the centre).
+struct SphereDistances {
+    points: Vec<Vector3<f64>>,
+}
+
+impl SphereDistances {
+    /// The problem over the masked points.
+    fn new(points: &[[f64; 3]], mask: &[bool]) -> SphereDistances {
+        SphereDistances {
+            points: points
+                .iter()
+                .zip(mask)
+                .filter(|(_, &m)| m)
+                .map(|(p, _)| Vector3::from(*p))
+                .collect(),
+        }
+    }
+}
+
+impl LeastSquares for SphereDistances {
+    fn num_params(&self) -> usize {
+        4
+    }
+    fn num_residuals(&self) -> usize {
+        self.points.len()
+    }
+    fn residuals(&self, p: &[f64], r: &mut [f64]) -> Result<()> {
+        let c = Vector3::new(p[0], p[1], p[2]);
+        for (ri, q) in r.iter_mut().zip(&self.points) {
+            *ri = (q - c).norm() - p[3];
+        }
+        Ok(())
+    }
+    fn residuals_and_jacobian(
+        &self,
+        p: &[f64],
+        r: &mut [f64],
+        mut jac: MatMut<'_, f64>,
+    ) -> Result<()> {
+        let c = Vector3::new(p[0], p[1], p[2]);
+        for (i, (ri, q)) in r.iter_mut().zip(&self.points).enumerate() {
+            let dv = q - c;
+            let dist = dv.norm();
+            *ri = dist - p[3];
+            if dist > 0.0 {
+                for k in 0..3 {
+                    jac[(i, k)] = -dv[k] / dist;
+                }
+            }
+            jac[(i, 3)] = -1.0;
+        }
+        Ok(())
+    }
+}
+
+/// Geometric fit over the masked points from `(c, r)` by the crate's Levenberg-Marquardt
+/// ([`levenberg_marquardt`], at most `max_iter` iterations); returns `(c, r, J^T J)`.
 fn sphere_lm(
     points: &[[f64; 3]],
     mask: &[bool],
@@ -114,68 +174,22 @@ fn sphere_lm(
     r0: f64,
     max_iter: usize,
 ) -> Result<(Vector3<f64>, f64, Matrix4<f64>)> {
-    let eval = |c: &Vector3<f64>, r: f64| -> (f64, Matrix4<f64>, Vector4<f64>) {
-        let mut cost = 0.0;
-        let mut jtj = Matrix4::zeros();
-        let mut jtr = Vector4::zeros();
-        for (p, _) in points.iter().zip(mask).filter(|(_, &m)| m) {
-            let dv = Vector3::from(*p) - c;
-            let dist = dv.norm();
-            let res = dist - r;
-            let j = if dist > 0.0 {
-                Vector4::new(-dv.x / dist, -dv.y / dist, -dv.z / dist, -1.0)
-            } else {
-                Vector4::new(0.0, 0.0, 0.0, -1.0)
-            };
-            cost += res * res;
-            jtj += j * j.transpose();
-            jtr += j * res;
-        }
-        (cost, jtj, jtr)
+    let problem = SphereDistances::new(points, mask);
+    let opts = LmOptions {
+        max_iterations: max_iter,
+        ..Default::default()
     };
-    let (mut c, mut r) = (c0, r0);
-    let (mut cost, mut jtj, mut jtr) = eval(&c, r);
-    let mut lambda = 1e-6;
-    for _ in 0..max_iter {
-        let mut a = jtj;
-        for i in 0..4 {
-            a[(i, i)] *= 1.0 + lambda;
-        }
-        let Some(ch) = a.cholesky() else {
-            lambda *= 10.0;
-            if lambda > 1e12 {
-                break;
-            }
-            continue;
-        };
-        let step = ch.solve(&(-jtr));
-        let c2 = c + step.fixed_rows::<3>(0);
-        let r2 = r + step[3];
-        let (cost2, jtj2, jtr2) = eval(&c2, r2);
-        if cost2 <= cost {
-            let small = step.norm() <= 1e-12 * (r.abs() + c.norm() + 1.0);
-            c = c2;
-            r = r2;
-            cost = cost2;
-            jtj = jtj2;
-            jtr = jtr2;
-            lambda = (lambda * 0.1).max(1e-12);
-            if small {
-                break;
-            }
-        } else {
-            lambda *= 10.0;
-            if lambda > 1e12 {
-                break;
-            }
-        }
-    }
+    let sol = levenberg_marquardt(&problem, &[c0.x, c0.y, c0.z, r0], &opts)?;
+    let (c, r) = (
+        Vector3::new(sol.params[0], sol.params[1], sol.params[2]),
+        sol.params[3],
+    );
     if !(r.is_finite() && r > 0.0 && c.iter().all(|x| x.is_finite())) {
         return Err(Error::Degenerate(format!(
             "sphere fit: no sphere (radius {r})"
         )));
     }
-    Ok((c, r.abs(), jtj))
+    Ok((c, r.abs(), Matrix4::from_fn(|i, j| sol.jtj[(i, j)])))
 }
 
 /// A sphere's centre and radius, mm.
