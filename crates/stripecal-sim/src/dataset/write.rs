@@ -37,8 +37,6 @@ impl Twin {
         // --- calibration dataset
         let calib_dir = out.join("calib");
         let tmp = staging_dir(out, "calib")?;
-        let img_dir = tmp.join("images");
-        std::fs::create_dir_all(&img_dir).map_err(|e| stripecal::Error::io(&img_dir, e))?;
         let mut views = Vec::new();
         let mut per_image = Vec::new();
         let mut view_circles = Vec::new();
@@ -92,8 +90,6 @@ impl Twin {
             let qs = self.scan_poses()?;
             let dir = out.join("scan");
             let tmp = staging_dir(out, "scan")?;
-            let img_dir = tmp.join("images");
-            std::fs::create_dir_all(&img_dir).map_err(|e| stripecal::Error::io(&img_dir, e))?;
             let mut frames = Vec::new();
             let mut per_image = Vec::new();
             for (k, q) in qs.iter().enumerate() {
@@ -161,12 +157,14 @@ fn stripe_json(pts: &[StripePointTruth], dir: StripeDirection, compact: bool) ->
     }
 }
 
+/// An empty staging folder `out/.name.partial-<pid>` with an empty `images` sub-folder.
 fn staging_dir(out: &Path, name: &str) -> Result<PathBuf, SimError> {
     let tmp = out.join(format!(".{name}.partial-{}", std::process::id()));
     if tmp.exists() {
         std::fs::remove_dir_all(&tmp).map_err(|e| stripecal::Error::io(&tmp, e))?;
     }
-    std::fs::create_dir_all(&tmp).map_err(|e| stripecal::Error::io(&tmp, e))?;
+    let img_dir = tmp.join("images");
+    std::fs::create_dir_all(&img_dir).map_err(|e| stripecal::Error::io(&img_dir, e))?;
     Ok(tmp)
 }
 

@@ -67,22 +67,8 @@ pub fn stripe_direction_from_plane(camera: &Camera, plane: &Plane) -> StripeDire
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::model::camera::DistortionModel;
+    use crate::reconstruct::triangulate::tests::camera;
     use nalgebra::Vector3;
-
-    fn camera(k: [f64; 5]) -> Camera {
-        Camera::new(
-            768,
-            576,
-            1271.65,
-            1322.52,
-            346.14,
-            262.6,
-            DistortionModel::OpenCv5,
-            k,
-        )
-        .unwrap()
-    }
 
     #[test]
     fn direction_from_plane() {

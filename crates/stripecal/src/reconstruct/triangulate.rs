@@ -215,12 +215,13 @@ pub(super) fn check_pose(t: &Iso3) -> Result<()> {
 }
 
 #[cfg(test)]
-mod tests {
+pub(super) mod tests {
     use super::*;
     use crate::model::camera::DistortionModel;
     use crate::model::geometry::iso_from_rotvec;
 
-    fn camera(k: [f64; 5]) -> Camera {
+    /// The paper's camera with distortion `k`.
+    pub(in crate::reconstruct) fn camera(k: [f64; 5]) -> Camera {
         Camera::new(
             768,
             576,
