@@ -1,7 +1,6 @@
 //! The twin as a whole: true parameters, poses, rendering of views and scan frames,
 //! and writing datasets in the files of spec/DATASET.md.
 
-use std::path::{Path, PathBuf};
 use std::sync::OnceLock;
 
 use nalgebra::{Point3, Vector3};
@@ -23,6 +22,10 @@ use crate::render::{LinearImage, Renderer};
 use crate::scene::{ImageScene, Laser, World};
 use crate::truth::{stripe_direction, stripe_truth, target_truth, PointTruth, StripePointTruth};
 use crate::SimError;
+
+mod write;
+
+pub use write::DatasetSummary;
 
 /// Plate thickness: the table lies this far behind the board surface, mm.
 pub const PLATE_THICKNESS_MM: f64 = 3.0;
@@ -66,21 +69,6 @@ pub struct ViewRender {
     pub stripe: Vec<StripePointTruth>,
     /// `T_base_cam` of the view.
     pub base_cam: Iso3,
-}
-
-/// What a written dataset contains.
-#[derive(Debug, Clone)]
-pub struct DatasetSummary {
-    pub calib_dir: PathBuf,
-    pub scan_dir: Option<PathBuf>,
-    pub views: Vec<PoseInfo>,
-    /// Per view: target points imaged (circles fully visible, corners inside the
-    /// image), stripe truth points on the board.
-    pub view_circles: Vec<usize>,
-    pub view_stripe_points: Vec<usize>,
-    pub scan_frames: usize,
-    pub scan_sphere_points: usize,
-    pub direction: StripeDirection,
 }
 
 impl Twin {
@@ -457,118 +445,6 @@ impl Twin {
         }
     }
 
-    /// Renders and writes `out/calib` (and `out/scan` when scans are enabled).
-    /// Each folder is written under a temporary name and renamed when complete.
-    /// `progress(stage, done, total)` is called on the calling thread.
-    pub fn write(
-        &self,
-        out: &Path,
-        progress: &mut dyn FnMut(&str, usize, usize),
-    ) -> Result<DatasetSummary, SimError> {
-        std::fs::create_dir_all(out).map_err(|e| stripecal::Error::io(out, e))?;
-        let poses = self.calibration_poses()?;
-        let rig = self.rig()?;
-        // --- calibration dataset
-        let calib_dir = out.join("calib");
-        let tmp = staging_dir(out, "calib")?;
-        let img_dir = tmp.join("images");
-        std::fs::create_dir_all(&img_dir).map_err(|e| stripecal::Error::io(&img_dir, e))?;
-        let mut views = Vec::new();
-        let mut per_image = Vec::new();
-        let mut view_circles = Vec::new();
-        let mut view_stripe = Vec::new();
-        for (i, pose) in poses.iter().enumerate() {
-            progress("calibration views", i, poses.len());
-            let r = self.render_view(&pose.q_deg, i)?;
-            let board_name = format!("images/view_{i:03}_board.png");
-            let laser_name = if self.cfg.imaging.single_image {
-                board_name.clone()
-            } else {
-                format!("images/view_{i:03}_laser.png")
-            };
-            if let Some(b) = &r.board_image {
-                io::save_gray_png(tmp.join(&board_name), b)?;
-            }
-            if let Some(l) = &r.laser_image {
-                io::save_gray_png(tmp.join(&laser_name), l)?;
-            }
-            views.push(View {
-                line: i + 2,
-                board_image: board_name.clone().into(),
-                laser_image: Some(laser_name.clone().into()),
-                reading: RobotReading::Joints(pose.q_deg.clone()),
-            });
-            view_circles.push(r.circles.len());
-            view_stripe.push(r.stripe.iter().filter(|p| p.surface == "board").count());
-            per_image.push(json!({
-                "board_image": board_name,
-                "laser_image": laser_name,
-                "q_deg": pose.q_deg,
-                "standoff_mm": pose.standoff_mm,
-                "tilt_deg": pose.tilt_deg,
-                "base_cam": pose_cfg(&r.base_cam),
-                "circles": r.circles,
-                "stripe": stripe_json(&r.stripe, self.direction, false),
-            }));
-        }
-        progress("calibration views", poses.len(), poses.len());
-        io::write_rig(tmp.join("rig.json"), &rig)?;
-        io::write_views_csv(tmp.join("views.csv"), &views)?;
-        let mut truth = self.truth(false);
-        truth.extra.insert("images".into(), Value::Array(per_image));
-        io::write_truth(tmp.join("truth.json"), &truth)?;
-        replace_dir(&tmp, &calib_dir)?;
-        // --- scan
-        let mut scan_dir = None;
-        let mut frames_n = 0;
-        let mut sphere_pts = 0;
-        if self.sphere.is_some() {
-            let qs = self.scan_poses()?;
-            let dir = out.join("scan");
-            let tmp = staging_dir(out, "scan")?;
-            let img_dir = tmp.join("images");
-            std::fs::create_dir_all(&img_dir).map_err(|e| stripecal::Error::io(&img_dir, e))?;
-            let mut frames = Vec::new();
-            let mut per_image = Vec::new();
-            for (k, q) in qs.iter().enumerate() {
-                progress("scan frames", k, qs.len());
-                let r = self.render_scan_frame(q, k)?;
-                let name = format!("images/scan_{k:04}.png");
-                if let Some(img) = &r.laser_image {
-                    io::save_gray_png(tmp.join(&name), img)?;
-                }
-                sphere_pts += r.stripe.iter().filter(|p| p.surface == "sphere").count();
-                frames.push(ScanFrame {
-                    line: k + 2,
-                    image: name.clone().into(),
-                    reading: RobotReading::Joints(q.clone()),
-                });
-                per_image.push(
-                    json!({"image": name, "stripe": stripe_json(&r.stripe, self.direction, true)}),
-                );
-            }
-            progress("scan frames", qs.len(), qs.len());
-            frames_n = qs.len();
-            io::write_rig(tmp.join("rig.json"), &rig)?;
-            io::write_scan_csv(tmp.join("scan.csv"), &frames)?;
-            let mut truth = self.truth(true);
-            truth.extra.insert("images".into(), Value::Array(per_image));
-            io::write_truth(tmp.join("truth.json"), &truth)?;
-            replace_dir(&tmp, &dir)?;
-            scan_dir = Some(dir);
-        }
-        Ok(DatasetSummary {
-            calib_dir,
-            scan_dir,
-            views: poses,
-            view_circles,
-            view_stripe_points: view_stripe,
-            scan_frames: frames_n,
-            scan_sphere_points: sphere_pts,
-            direction: self.direction,
-        })
-    }
-
     /// The exact observations of the calibration poses, as a detector would report them
     /// with no error: imaged-circle centres (area centroids of the projected outlines),
     /// stripe points on the board, and `T_base_hand` of the TRUE robot. For tests and
@@ -617,48 +493,6 @@ impl Twin {
             extra: Default::default(),
         }
     }
-}
-
-/// Stripe truth as JSON. `compact` (scans): `[u, v, surface, incidence_deg, view_deg,
-/// edge_mm]` rows; otherwise one object per point.
-fn stripe_json(pts: &[StripePointTruth], dir: StripeDirection, compact: bool) -> Value {
-    let r9 = |x: f64| (x * 1e9).round() / 1e9;
-    let r3 = |x: f64| (x * 1e3).round() / 1e3;
-    if compact {
-        let rows: Vec<Value> = pts
-            .iter()
-            .map(|p| {
-                json!([
-                    r9(p.u),
-                    r9(p.v),
-                    p.surface,
-                    r3(p.incidence_deg),
-                    r3(p.view_deg),
-                    r3(p.edge_mm)
-                ])
-            })
-            .collect();
-        json!({"direction": dir.name(), "columns": ["u", "v", "surface", "incidence_deg", "view_deg", "edge_mm"], "points": rows})
-    } else {
-        json!({"direction": dir.name(), "points": pts})
-    }
-}
-
-fn staging_dir(out: &Path, name: &str) -> Result<PathBuf, SimError> {
-    let tmp = out.join(format!(".{name}.partial-{}", std::process::id()));
-    if tmp.exists() {
-        std::fs::remove_dir_all(&tmp).map_err(|e| stripecal::Error::io(&tmp, e))?;
-    }
-    std::fs::create_dir_all(&tmp).map_err(|e| stripecal::Error::io(&tmp, e))?;
-    Ok(tmp)
-}
-
-fn replace_dir(tmp: &Path, target: &Path) -> Result<(), SimError> {
-    if target.exists() {
-        std::fs::remove_dir_all(target).map_err(|e| stripecal::Error::io(target, e))?;
-    }
-    std::fs::rename(tmp, target).map_err(|e| stripecal::Error::io(target, e))?;
-    Ok(())
 }
 
 /// Places the board flat on the table where the home pose sees its centre at the

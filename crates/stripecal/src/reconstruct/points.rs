@@ -1,0 +1,107 @@
+//! The reconstructed points of a scan (struct of arrays), their PLY cloud, and the
+//! frame tag errors carry.
+
+use crate::error::Error;
+use crate::model::Cloud;
+
+use super::DropCounts;
+
+/// Reconstructed points of one or many frames (struct of arrays, all the same length).
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct ScanPoints {
+    /// Points in the robot base frame, mm.
+    pub points_mm: Vec<[f64; 3]>,
+    /// Index of the frame each point comes from (the row of the input / scan.csv).
+    pub frame: Vec<u32>,
+    /// Sub-pixel stripe centre, px.
+    pub u_px: Vec<f64>,
+    pub v_px: Vec<f64>,
+    /// Stripe peak above the local background, gray levels of the image.
+    pub intensity: Vec<f32>,
+    /// The stripe point's `FLAG_*` bits.
+    pub flags: Vec<u8>,
+    /// Points dropped (all frames so far).
+    pub dropped: DropCounts,
+}
+
+impl ScanPoints {
+    /// Number of points.
+    pub fn len(&self) -> usize {
+        self.points_mm.len()
+    }
+
+    /// No points.
+    pub fn is_empty(&self) -> bool {
+        self.points_mm.is_empty()
+    }
+
+    /// Empties every vector, keeping their memory.
+    pub fn clear(&mut self) {
+        self.points_mm.clear();
+        self.frame.clear();
+        self.u_px.clear();
+        self.v_px.clear();
+        self.intensity.clear();
+        self.flags.clear();
+        self.dropped = DropCounts::default();
+    }
+
+    /// Appends another set (its frame indices kept as they are).
+    pub fn append(&mut self, o: &ScanPoints) {
+        self.points_mm.extend_from_slice(&o.points_mm);
+        self.frame.extend_from_slice(&o.frame);
+        self.u_px.extend_from_slice(&o.u_px);
+        self.v_px.extend_from_slice(&o.v_px);
+        self.intensity.extend_from_slice(&o.intensity);
+        self.flags.extend_from_slice(&o.flags);
+        self.dropped.add(&o.dropped);
+    }
+
+    /// The PLY cloud: `x y z` and the properties `view` (frame index), `u`, `v`,
+    /// `intensity`, `flags` (spec/DATASET.md "The point cloud").
+    pub fn to_cloud(&self) -> Cloud {
+        Cloud {
+            points: self.points_mm.clone(),
+            properties: vec![
+                (
+                    "view".into(),
+                    self.frame.iter().map(|&f| f as f64).collect(),
+                ),
+                ("u".into(), self.u_px.clone()),
+                ("v".into(), self.v_px.clone()),
+                (
+                    "intensity".into(),
+                    self.intensity.iter().map(|&f| f as f64).collect(),
+                ),
+                (
+                    "flags".into(),
+                    self.flags.iter().map(|&f| f as f64).collect(),
+                ),
+            ],
+        }
+    }
+}
+
+/// Puts `frame i` (and the scan.csv line, when known) in front of an error's message,
+/// keeping its kind.
+pub fn at_frame(e: Error, frame: usize, line: Option<usize>) -> Error {
+    let tag = match line {
+        Some(l) => format!("frame {frame} (scan.csv line {l})"),
+        None => format!("frame {frame}"),
+    };
+    match e {
+        Error::InvalidInput(m) => Error::InvalidInput(format!("{tag}: {m}")),
+        Error::Degenerate(m) => Error::Degenerate(format!("{tag}: {m}")),
+        Error::Detection(m) => Error::Detection(format!("{tag}: {m}")),
+        Error::Format {
+            path,
+            location,
+            message,
+        } => Error::Format {
+            path,
+            location: format!("{tag}: {location}"),
+            message,
+        },
+        other => other,
+    }
+}
