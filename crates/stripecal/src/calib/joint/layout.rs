@@ -306,7 +306,7 @@ impl JointParams {
         let xt = [self.x_t.x, self.x_t.y, self.x_t.z];
         let zt = [self.z_t.x, self.z_t.y, self.z_t.z];
         a.iter()
-            .map(|a| super::residuals::cam_board(a, &xr, &xt, &zr, &zt))
+            .map(|a| super::chain::cam_board(a, &xr, &xt, &zr, &zt))
             .collect()
     }
 }

@@ -50,6 +50,7 @@
 //! - `report.rs`: per-view figures;
 //! - here: the public API and the solve schedule.
 
+mod chain;
 mod covariance;
 mod layout;
 mod report;

@@ -9,6 +9,7 @@ use faer::MatMut;
 use nalgebra::{Matrix3, Vector3};
 use rayon::prelude::*;
 
+use super::chain::cam_board;
 use super::layout::{Block, JointParams, ParamLayout, SLOTS};
 use super::{JointOptions, MAX_REWEIGHTS};
 use crate::calib::conic::{centre_generic_n, quadrature_nodes, CentreModel};
@@ -19,7 +20,7 @@ use crate::model::camera::{distort_generic, project_generic, Camera};
 use crate::model::geometry::Iso3;
 use crate::numerics::dual::{Dual, Scalar};
 use crate::numerics::lm::{dense_jacobian_from_rows, JacobianRows, LeastSquares};
-use crate::numerics::mat3::{cross, dot, m3, matmul, matvec, rot_times_exp_first_order, transpose};
+use crate::numerics::mat3::{cross, dot, rot_times_exp_first_order};
 
 /// Dual numbers over every parameter slot ([`ParamLayout`]).
 type DSlots = Dual<SLOTS>;
@@ -561,25 +562,6 @@ fn parallel_error(view: usize) -> Error {
     Error::Degenerate(format!(
         "the laser plane is parallel to the board plane of view {view} (of the views used)"
     ))
-}
-
-/// `T_cam_board = (A X)^-1 Z` from the parts.
-pub(super) fn cam_board<T: Scalar>(
-    a: &Iso3,
-    xr: &[[T; 3]; 3],
-    xt: &[T; 3],
-    zr: &[[T; 3]; 3],
-    zt: &[T; 3],
-) -> ([[T; 3]; 3], [T; 3]) {
-    let ra = a.rotation.to_rotation_matrix().into_inner();
-    let rat: [[T; 3]; 3] = m3(&ra.transpose());
-    let ta = a.translation.vector;
-    let xrt = transpose(xr);
-    let rot = matmul(&xrt, &matmul(&rat, zr));
-    let dz: [T; 3] = std::array::from_fn(|i| zt[i] - T::from_f64(ta[i]));
-    let inner = matvec(&rat, &dz);
-    let inner2: [T; 3] = std::array::from_fn(|i| inner[i] - xt[i]);
-    (rot, matvec(&xrt, &inner2))
 }
 
 /// The line where the laser plane `(n1, d1)` meets the board plane (third column of
