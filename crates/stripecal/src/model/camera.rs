@@ -89,7 +89,7 @@ impl std::fmt::Display for DistortionModel {
 /// With `k2 = p1 = p2 = k3 = 0` exactly (value and derivatives) it takes a k1-only path
 /// that performs the same operations minus the vanishing terms: the same values bit for
 /// bit, at a fraction of the cost for dual numbers.
-#[inline]
+#[inline(always)]
 pub fn distort_generic<T: Scalar>(k: &[T; 5], x: T, y: T) -> ([T; 2], [[T; 2]; 2]) {
     if k[1].is_zero() && k[2].is_zero() && k[3].is_zero() && k[4].is_zero() {
         distort_k1(k[0], x, y)
@@ -100,7 +100,7 @@ pub fn distort_generic<T: Scalar>(k: &[T; 5], x: T, y: T) -> ([T; 2], [[T; 2]; 2
 
 /// [`distort_generic`] with `k2 = p1 = p2 = k3 = 0` (`radial1`): the same operations
 /// without the terms that vanish, so the same values bit for bit.
-#[inline]
+#[inline(always)]
 fn distort_k1<T: Scalar>(k1: T, x: T, y: T) -> ([T; 2], [[T; 2]; 2]) {
     let one = T::from_f64(1.0);
     let r2 = x * x + y * y;
@@ -116,7 +116,7 @@ fn distort_k1<T: Scalar>(k1: T, x: T, y: T) -> ([T; 2], [[T; 2]; 2]) {
 }
 
 /// The full five-coefficient formula of [`distort_generic`].
-#[inline]
+#[inline(always)]
 fn distort_full<T: Scalar>(k: &[T; 5], x: T, y: T) -> ([T; 2], [[T; 2]; 2]) {
     let [k1, k2, p1, p2, k3] = *k;
     let one = T::from_f64(1.0);
@@ -427,21 +427,22 @@ impl Camera {
     /// (`p1 = p2 = 0`) a 1D Newton iteration on the scale `r_n / r_d`
     /// ([`Camera::undistort_radial_scale`]) with the 2D one as fallback, otherwise the 2D
     /// one ([`Camera::undistort_from`], from the previous solution when it is near).
-    /// Both stop at ~1e-15 relative. Allocates nothing (except an error's message).
+    /// Both stop at ~1e-15 relative. `None` where the model folds (as
+    /// [`Camera::undistort`] refuses). Allocates nothing (except in the failing 2D case).
     #[inline]
     pub fn undistort_tracked(
         &self,
         xd: f64,
         yd: f64,
         track: &mut UndistortTrack,
-    ) -> Result<(f64, f64)> {
+    ) -> Option<(f64, f64)> {
         if track.no_distortion {
-            Ok((xd, yd))
+            Some((xd, yd))
         } else if track.radial_only {
             match self.undistort_radial_scale(xd, yd, track.scale) {
                 Some(s) => {
                     track.scale = s;
-                    Ok((xd * s, yd * s))
+                    Some((xd * s, yd * s))
                 }
                 None => {
                     track.scale = 1.0;
@@ -490,13 +491,13 @@ impl Camera {
     /// The 2D Newton ([`Camera::undistort_from`]) from the track's previous solution when
     /// it is near, else from the distorted point; records the solution in `track`.
     #[inline]
-    fn undistort_near(&self, xd: f64, yd: f64, track: &mut UndistortTrack) -> Result<(f64, f64)> {
+    fn undistort_near(&self, xd: f64, yd: f64, track: &mut UndistortTrack) -> Option<(f64, f64)> {
         let (x0, y0) = match track.xy {
             Some((gx, gy)) if (gx - xd).abs() + (gy - yd).abs() < 0.05 => (gx, gy),
             _ => (xd, yd),
         };
-        let p = self.undistort_from(xd, yd, x0, y0);
-        track.xy = p.as_ref().ok().copied();
+        let p = self.undistort_from(xd, yd, x0, y0).ok();
+        track.xy = p;
         p
     }
 }

@@ -136,7 +136,7 @@ impl Triangulator {
         let yd = (v - c.v0) * self.inv_fv;
         let (xn, yn) = c
             .undistort_tracked(xd, yd, track)
-            .map_err(|_| DropReason::Undistort)?;
+            .ok_or(DropReason::Undistort)?;
         let r = Vector3::new(xn, yn, 1.0);
         let den = self.n.dot(&r);
         // |n . r| / |r| >= sin(angle), and the plane in front (den > 0 since d > 0).
