@@ -235,7 +235,7 @@ fn name_field(what: &str, row: usize, p: Option<&Path>, required: bool) -> Resul
 }
 
 fn push_reading(out: &mut String, row: usize, r: &RobotReading) -> Result<()> {
-    let (_, values) = Layout::of_reading(r);
+    let (_, values) = Layout::of_reading(r)?;
     for x in values {
         if !x.is_finite() {
             return Err(Error::InvalidInput(format!(
@@ -256,7 +256,7 @@ fn common_layout<'a>(
 ) -> Result<Layout> {
     let mut layout = None;
     for (i, r) in readings.enumerate() {
-        let (l, _) = Layout::of_reading(r);
+        let (l, _) = Layout::of_reading(r)?;
         match layout {
             None => {
                 if l.n == 0 {

@@ -9,6 +9,7 @@
 mod flange_quaternion;
 mod joints;
 
+use crate::error::{Error, Result};
 use crate::model::kinematics::Robot;
 use crate::model::RobotReading;
 
@@ -24,7 +25,7 @@ pub(super) trait PoseConvention: Sync {
     fn check_header(&self, n: usize, robot: Option<&Robot>) -> Option<String>;
     /// The reading of one row's (finite) values; an error names the columns at fault and
     /// says what is wrong.
-    fn reading(&self, values: Vec<f64>) -> Result<RobotReading, (String, String)>;
+    fn reading(&self, values: Vec<f64>) -> std::result::Result<RobotReading, (String, String)>;
     /// The values of `r` in this convention's columns, or `None` when `r` is not written
     /// in this convention.
     fn values(&self, r: &RobotReading) -> Option<Vec<f64>>;
@@ -62,20 +63,25 @@ impl Layout {
             })
     }
 
-    /// The layout a reading is written in, with its values.
-    pub fn of_reading(r: &RobotReading) -> (Layout, Vec<f64>) {
-        for &convention in CONVENTIONS.iter() {
-            if let Some(v) = convention.values(r) {
-                return (
-                    Layout {
-                        convention,
-                        n: v.len(),
-                    },
-                    v,
-                );
-            }
-        }
-        unreachable!("every RobotReading has a convention that writes it")
+    /// The layout a reading is written in, with its values; an error when no
+    /// convention writes it (a reading variant without a registered convention).
+    pub fn of_reading(r: &RobotReading) -> Result<(Layout, Vec<f64>)> {
+        CONVENTIONS
+            .iter()
+            .find_map(|&convention| {
+                convention.values(r).map(|v| {
+                    (
+                        Layout {
+                            convention,
+                            n: v.len(),
+                        },
+                        v,
+                    )
+                })
+            })
+            .ok_or_else(|| {
+                Error::InvalidInput(format!("no pose convention writes the reading {r:?}"))
+            })
     }
 
     pub fn column_names(self) -> Vec<String> {
