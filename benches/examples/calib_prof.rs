@@ -85,7 +85,11 @@ fn main() {
             )
             .expect("camera")
         });
-        let cam = &paper.stages.camera;
+        let cam = paper
+            .stages
+            .camera
+            .as_ref()
+            .expect("the paper's camera stage");
         let pv: Vec<_> = cam
             .poses
             .iter()
@@ -106,9 +110,9 @@ fn main() {
         });
         let start = JointStart {
             camera: cam.camera.clone(),
-            plane: paper.stages.plane.plane,
-            hand_cam: paper.stages.axzb.x,
-            base_board: paper.stages.axzb.z,
+            plane: paper.stages.plane.as_ref().map(|p| p.plane),
+            hand_cam: paper.stages.axzb.as_ref().expect("AX = ZB").x,
+            base_board: paper.stages.axzb.as_ref().expect("AX = ZB").z,
         };
         median_ms("  one-stage adjustment", 30, || {
             joint_adjustment(&v, &rig.board, &start, &JointOptions::default()).expect("joint")

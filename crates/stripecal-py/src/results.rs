@@ -112,12 +112,17 @@ impl PyCalibration {
     ) -> PyResult<Self> {
         Ok(PyCalibration::from_inner(Calibration {
             camera: camera.get().inner.clone(),
-            laser_plane: plane_from_py(py, laser_plane)?,
+            laser_plane: if laser_plane.is_none() {
+                None
+            } else {
+                Some(plane_from_py(py, laser_plane)?)
+            },
             hand_cam: py_to_iso(hand_cam, "hand_cam")?,
             base_board: py_to_iso(base_board, "base_board")?,
             robot: robot.map(|r| r.get().inner.clone()),
             quality: quality_from_py(py, quality)?,
             uncertainty: opt_dict_to_map(uncertainty, "uncertainty")?,
+            covariance: None,
             extra: opt_dict_to_map(extra, "extra")?,
         }))
     }
@@ -128,10 +133,33 @@ impl PyCalibration {
         PyCamera::new_py(self.inner.camera.clone())
     }
 
-    /// `(normal (3,), d_mm)`: the laser plane `normal . p = d_mm` in the camera frame.
+    /// `(normal (3,), d_mm)`: the laser plane `normal . p = d_mm` in the camera frame;
+    /// None when it was not estimated (views without laser images).
     #[getter]
-    fn laser_plane<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyTuple>> {
-        plane_to_py(py, &self.inner.laser_plane)
+    fn laser_plane<'py>(&self, py: Python<'py>) -> PyResult<Option<Bound<'py, PyTuple>>> {
+        self.inner
+            .laser_plane
+            .as_ref()
+            .map(|p| plane_to_py(py, p))
+            .transpose()
+    }
+
+    /// `(names, matrix)`: the covariance of the estimated numbers (calibration.json
+    /// `covariance`; names like `camera.fu`, `laser_plane.normal[0]`), or None.
+    #[getter]
+    fn covariance<'py>(
+        &self,
+        py: Python<'py>,
+    ) -> PyResult<Option<(Vec<String>, Bound<'py, PyAny>)>> {
+        let Some(c) = &self.inner.covariance else {
+            return Ok(None);
+        };
+        let n = c.parameters.len();
+        let data: Vec<f64> = (0..n)
+            .flat_map(|i| (0..n).map(move |j| (i, j)))
+            .map(|(i, j)| c.matrix[(i, j)])
+            .collect();
+        Ok(Some((c.parameters.clone(), nd(py, &[n, n], data)?)))
     }
 
     /// `T_hand_cam` (the paper's X), shape (4, 4), mm.
@@ -222,12 +250,13 @@ impl PyCalibration {
     fn __repr__(&self) -> String {
         let c = &self.inner;
         format!(
-            "Calibration(camera={}x{} fu={:.3} fv={:.3}, laser_plane d_mm={:.3}, circle_rms_px={:.4}, views_used={})",
+            "Calibration(camera={}x{} fu={:.3} fv={:.3}, laser_plane {}, circle_rms_px={:.4}, views_used={})",
             c.camera.width,
             c.camera.height,
             c.camera.fu,
             c.camera.fv,
-            c.laser_plane.d,
+            c.laser_plane
+                .map_or("not estimated".to_string(), |p| format!("d_mm={:.3}", p.d)),
             c.quality.circle_rms_px,
             c.quality.views_used
         )

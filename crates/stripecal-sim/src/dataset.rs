@@ -484,12 +484,13 @@ impl Twin {
     pub fn true_calibration(&self) -> Calibration {
         Calibration {
             camera: self.camera.clone(),
-            laser_plane: self.laser_plane,
+            laser_plane: Some(self.laser_plane),
             hand_cam: self.hand_cam,
             base_board: self.base_board,
             robot: Some(self.robot_true.clone()),
             quality: Default::default(),
             uncertainty: Default::default(),
+            covariance: None,
             extra: Default::default(),
         }
     }

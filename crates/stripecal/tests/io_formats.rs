@@ -9,8 +9,8 @@ use stripecal::io::*;
 use stripecal::model::geometry::iso_from_rotvec;
 use stripecal::model::image::{AnyGray, GrayImage};
 use stripecal::model::{
-    Calibration, Cloud, Dataset, Quality, Rig, RobotReading, Scan, ScanFrame, Sphere, SphereFit,
-    StripeDirection, Truth, View,
+    Calibration, Cloud, Dataset, NamedCovariance, Quality, Rig, RobotReading, Scan, ScanFrame,
+    Sphere, SphereFit, StripeDirection, Truth, View,
 };
 use stripecal::{Board, BoardKind, Camera, DistortionModel, Error, Iso3, Plane, Robot};
 
@@ -667,7 +667,7 @@ fn calibration() -> Calibration {
     extra.insert("per_view_rms_px".into(), json!([0.1, 0.2]));
     Calibration {
         camera: camera(),
-        laser_plane: plane(),
+        laser_plane: Some(plane()),
         hand_cam: pose([-0.3087, 0.2362, 3.0369], [29.19, 5.37, 62.64]),
         base_board: pose([0.01, -0.02, 1.5], [600.0, -20.0, -150.0]),
         robot: Some(Robot::hp3()),
@@ -677,14 +677,20 @@ fn calibration() -> Calibration {
             views_used: 12,
         },
         uncertainty,
+        covariance: Some(NamedCovariance {
+            parameters: vec!["camera.fu".into(), "laser_plane.d_mm".into()],
+            matrix: nalgebra::DMatrix::from_row_slice(2, 2, &[0.0625, -1.5e-3, -1.5e-3, 1e-4]),
+        }),
         extra,
     }
 }
 
 fn assert_calibration_close(a: &Calibration, b: &Calibration) {
     assert_eq!(a.camera, b.camera);
-    assert!((a.laser_plane.normal - b.laser_plane.normal).norm() < 1e-15);
-    assert!((a.laser_plane.d - b.laser_plane.d).abs() < 1e-12);
+    let (pa, pb) = (a.laser_plane.unwrap(), b.laser_plane.unwrap());
+    assert!((pa.normal - pb.normal).norm() < 1e-15);
+    assert!((pa.d - pb.d).abs() < 1e-12);
+    assert_eq!(a.covariance, b.covariance);
     assert_iso_close(&a.hand_cam, &b.hand_cam, 1e-13);
     assert_iso_close(&a.base_board, &b.base_board, 1e-12);
     assert_eq!(a.robot, b.robot);
@@ -732,10 +738,65 @@ fn calibration_reads_the_spec_example() {
 }"#;
     let c = calibration_from_json(Path::new("calibration.json"), text).unwrap();
     assert_eq!(c.camera.fu, 1271.65);
-    assert!((c.laser_plane.normal.norm() - 1.0).abs() < 1e-15);
+    assert!((c.laser_plane.unwrap().normal.norm() - 1.0).abs() < 1e-15);
     assert_eq!(c.quality.views_used, 5);
     assert_eq!(c.base_board, Iso3::identity());
-    assert!(c.robot.is_none() && c.extra.is_empty());
+    assert!(c.robot.is_none() && c.extra.is_empty() && c.covariance.is_none());
+}
+
+#[test]
+fn calibration_without_a_laser_plane_writes_null_and_reads_back() {
+    let d = tmp();
+    let p = d.path().join("calibration.json");
+    let c = Calibration {
+        laser_plane: None,
+        ..calibration()
+    };
+    write_calibration(&p, &c).unwrap();
+    let text = std::fs::read_to_string(&p).unwrap();
+    assert!(text.contains("\"laser_plane\": null"), "{text}");
+    let back = read_calibration(&p).unwrap();
+    assert!(back.laser_plane.is_none());
+    assert_eq!(back.covariance, c.covariance);
+    // The key itself stays required.
+    let v: serde_json::Value = serde_json::from_str(&text).unwrap();
+    let mut m = v.as_object().unwrap().clone();
+    m.remove("laser_plane");
+    let Err(e) = calibration_from_json(
+        Path::new("c.json"),
+        &serde_json::Value::Object(m).to_string(),
+    ) else {
+        panic!("expected an error: {}", "laser_plane missing")
+    };
+    assert!(e.to_string().contains("laser_plane"), "{e}");
+}
+
+#[test]
+fn a_malformed_covariance_is_a_typed_error_naming_the_key() {
+    let base = calibration_to_json(&calibration());
+    for (bad, what) in [
+        (
+            r#"{"parameters": ["camera.fu"], "matrix": [[1.0, 0.0]]}"#,
+            "expected 1 values",
+        ),
+        (
+            r#"{"parameters": ["a", "b"], "matrix": [[1.0, 0.5], [0.2, 1.0]]}"#,
+            "not symmetric",
+        ),
+        (r#"{"parameters": ["a"], "matrix": [[-1.0]]}"#, "negative"),
+        (
+            r#"{"parameters": ["a", "b"], "matrix": [[1.0, 0.0]]}"#,
+            "expected 2 rows",
+        ),
+    ] {
+        let mut v: serde_json::Value = serde_json::from_str(&base).unwrap();
+        v["covariance"] = serde_json::from_str(bad).unwrap();
+        let Err(e) = calibration_from_json(Path::new("c.json"), &v.to_string()) else {
+            panic!("expected an error: {}", what)
+        };
+        let msg = e.to_string();
+        assert!(msg.contains("covariance") && msg.contains(what), "{msg}");
+    }
 }
 
 #[test]

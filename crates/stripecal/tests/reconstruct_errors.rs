@@ -32,7 +32,7 @@ fn calibration() -> Calibration {
             [0.01, 0.0, 0.0, 0.0, 0.0],
         )
         .unwrap(),
-        laser_plane: Plane::new(Vector3::new(0.629, -0.0492, 0.7759), 79.87).unwrap(),
+        laser_plane: Some(Plane::new(Vector3::new(0.629, -0.0492, 0.7759), 79.87).unwrap()),
         hand_cam: iso_from_rotvec(
             &Vector3::new(-0.3087, 0.2362, 3.0369),
             &Vector3::new(29.19, 5.37, 62.64),
@@ -41,8 +41,25 @@ fn calibration() -> Calibration {
         robot: Some(Robot::hp3()),
         quality: Default::default(),
         uncertainty: Default::default(),
+        covariance: None,
         extra: Default::default(),
     }
+}
+
+#[test]
+fn a_calibration_without_a_laser_plane_is_refused_saying_why() {
+    let c = Calibration {
+        laser_plane: None,
+        ..calibration()
+    };
+    let Err(e) = Reconstructor::new(&c, &ReconstructOptions::default()) else {
+        panic!("expected an error: {}", "no laser plane")
+    };
+    let msg = e.to_string();
+    assert!(
+        msg.contains("no laser plane") && msg.contains("--laser-only --from"),
+        "{msg}"
+    );
 }
 
 /// A dark image with a Gaussian stripe along the columns at `u = col`.

@@ -14,7 +14,7 @@ use crate::error::{Error, Result};
 use crate::model::camera::Camera;
 use crate::model::geometry::{Iso3, Plane};
 use crate::model::kinematics::Robot;
-use crate::model::{Calibration, Quality, Sphere, SphereFit, Truth};
+use crate::model::{Calibration, NamedCovariance, Quality, Sphere, SphereFit, Truth};
 
 /// The `format` value of calibration.json.
 pub(super) const CALIBRATION_FORMAT: &str = "stripecal/calibration@1";
@@ -25,7 +25,7 @@ pub(super) const TRUTH_FORMAT: &str = "stripecal/truth@1";
 /// with rounded numbers); the normal is renormalised on reading.
 const NORMAL_TOL: f64 = 1e-3;
 
-const CALIBRATION_KEYS: [&str; 8] = [
+const CALIBRATION_KEYS: [&str; 9] = [
     "format",
     "camera",
     "laser_plane",
@@ -34,6 +34,7 @@ const CALIBRATION_KEYS: [&str; 8] = [
     "robot",
     "quality",
     "uncertainty",
+    "covariance",
 ];
 
 const TRUTH_KEYS: [&str; 8] = [
@@ -109,6 +110,16 @@ fn plane_from(p: &Obj<'_>) -> Result<Plane> {
     Plane::new(n, d).map_err(|e| p.err(invalid_message(e)))
 }
 
+/// `laser_plane`: required, `null` when the calibration did not estimate it.
+fn opt_plane_from(root: &Obj<'_>) -> Result<Option<Plane>> {
+    if !root.map().contains_key("laser_plane") {
+        return Err(root.err("missing key `laser_plane` (null when not estimated)"));
+    }
+    root.opt_obj("laser_plane")?
+        .map(|p| plane_from(&p))
+        .transpose()
+}
+
 fn plane_value(p: &Plane) -> Value {
     let mut m = Map::new();
     m.insert("normal".into(), vec3_value(&p.normal));
@@ -119,7 +130,7 @@ fn plane_value(p: &Plane) -> Value {
 /// The parts calibration.json and truth.json share.
 struct Common {
     camera: Camera,
-    laser_plane: Plane,
+    laser_plane: Option<Plane>,
     hand_cam: Iso3,
     base_board: Iso3,
     robot: Option<Robot>,
@@ -128,7 +139,7 @@ struct Common {
 fn common_from(root: &Obj<'_>) -> Result<Common> {
     Ok(Common {
         camera: camera_from(&root.obj("camera")?)?,
-        laser_plane: plane_from(&root.obj("laser_plane")?)?,
+        laser_plane: opt_plane_from(root)?,
         hand_cam: root.obj("hand_cam")?.pose()?,
         base_board: root.obj("base_board")?.pose()?,
         robot: root.opt_obj("robot")?.map(|r| robot_from(&r)).transpose()?,
@@ -138,13 +149,13 @@ fn common_from(root: &Obj<'_>) -> Result<Common> {
 fn common_value(
     m: &mut Map<String, Value>,
     camera: &Camera,
-    plane: &Plane,
+    plane: Option<&Plane>,
     hand_cam: &Iso3,
     base_board: &Iso3,
     robot: Option<&Robot>,
 ) {
     m.insert("camera".into(), camera_value(camera));
-    m.insert("laser_plane".into(), plane_value(plane));
+    m.insert("laser_plane".into(), plane.map_or(Value::Null, plane_value));
     m.insert("hand_cam".into(), pose_value(hand_cam));
     m.insert("base_board".into(), pose_value(base_board));
     if let Some(r) = robot {
@@ -156,18 +167,20 @@ fn common_value(
 fn check_common(
     what: &str,
     camera: &Camera,
-    plane: &Plane,
+    plane: Option<&Plane>,
     poses: [(&str, &Iso3); 2],
     robot: Option<&Robot>,
 ) -> Result<()> {
     let bad = |m: String| Error::InvalidInput(format!("{what}: {m}"));
     camera.validate().map_err(|e| bad(invalid_message(e)))?;
-    let n = plane.normal.norm();
-    if !(plane.d.is_finite() && plane.d > 0.0 && (n - 1.0).abs() <= NORMAL_TOL) {
-        return Err(bad(format!(
-            "laser plane normal {:?} (norm {n}) / d {} must be a unit vector and a positive distance",
-            plane.normal, plane.d
-        )));
+    if let Some(plane) = plane {
+        let n = plane.normal.norm();
+        if !(plane.d.is_finite() && plane.d > 0.0 && (n - 1.0).abs() <= NORMAL_TOL) {
+            return Err(bad(format!(
+                "laser plane normal {:?} (norm {n}) / d {} must be a unit vector and a positive distance",
+                plane.normal, plane.d
+            )));
+        }
     }
     for (name, t) in poses {
         let finite = t.translation.vector.iter().all(|x| x.is_finite())
@@ -183,6 +196,77 @@ fn check_common(
 }
 
 // ---------------------------------------------------------------- calibration.json
+
+/// `covariance`: `parameters` (names) and a symmetric `matrix` of that size with a
+/// non-negative, finite diagonal.
+fn covariance_from(c: &Obj<'_>) -> Result<NamedCovariance> {
+    let names: Vec<String> = c
+        .req("parameters")?
+        .arr()?
+        .iter()
+        .map(|v| v.str().map(str::to_string))
+        .collect::<Result<_>>()?;
+    let mv = c.req("matrix")?;
+    let rows = mv.arr()?;
+    let n = names.len();
+    if rows.len() != n {
+        return Err(mv.err(format!(
+            "expected {n} rows (one per parameter), got {}",
+            rows.len()
+        )));
+    }
+    let mut matrix = nalgebra::DMatrix::<f64>::zeros(n, n);
+    for (i, row) in rows.iter().enumerate() {
+        let vals = row.arr()?;
+        if vals.len() != n {
+            return Err(row.err(format!("expected {n} values, got {}", vals.len())));
+        }
+        for (j, v) in vals.iter().enumerate() {
+            matrix[(i, j)] = v.f64()?;
+        }
+    }
+    for i in 0..n {
+        if matrix[(i, i)] < 0.0 {
+            return Err(mv.err(format!("the variance of {} is negative", names[i])));
+        }
+        for j in 0..i {
+            let (a, b) = (matrix[(i, j)], matrix[(j, i)]);
+            if (a - b).abs() > 1e-9 * (matrix[(i, i)] * matrix[(j, j)]).sqrt().max(1e-300) {
+                return Err(mv.err(format!(
+                    "the matrix is not symmetric: ({i}, {j}) = {a}, ({j}, {i}) = {b}"
+                )));
+            }
+        }
+    }
+    Ok(NamedCovariance {
+        parameters: names,
+        matrix,
+    })
+}
+
+fn covariance_value(c: &NamedCovariance) -> Value {
+    let mut m = Map::new();
+    m.insert(
+        "parameters".into(),
+        Value::Array(
+            c.parameters
+                .iter()
+                .map(|p| Value::from(p.as_str()))
+                .collect(),
+        ),
+    );
+    let rows = (0..c.matrix.nrows())
+        .map(|i| {
+            Value::Array(
+                (0..c.matrix.ncols())
+                    .map(|j| num(c.matrix[(i, j)]))
+                    .collect(),
+            )
+        })
+        .collect();
+    m.insert("matrix".into(), Value::Array(rows));
+    Value::Object(m)
+}
 
 /// Parses calibration.json text; `path` is used in error messages only.
 ///
@@ -205,6 +289,10 @@ pub fn calibration_from_json(path: &Path, text: &str) -> Result<Calibration> {
         .opt_obj("uncertainty")?
         .map(|u| u.map().clone())
         .unwrap_or_default();
+    let covariance = root
+        .opt_obj("covariance")?
+        .map(|c| covariance_from(&c))
+        .transpose()?;
     Ok(Calibration {
         camera: c.camera,
         laser_plane: c.laser_plane,
@@ -213,6 +301,7 @@ pub fn calibration_from_json(path: &Path, text: &str) -> Result<Calibration> {
         robot: c.robot,
         quality,
         uncertainty,
+        covariance,
         extra: root.extra(&CALIBRATION_KEYS),
     })
 }
@@ -225,7 +314,7 @@ pub fn calibration_to_json(c: &Calibration) -> String {
     common_value(
         &mut m,
         &c.camera,
-        &c.laser_plane,
+        c.laser_plane.as_ref(),
         &c.hand_cam,
         &c.base_board,
         c.robot.as_ref(),
@@ -236,6 +325,9 @@ pub fn calibration_to_json(c: &Calibration) -> String {
     q.insert("views_used".into(), Value::from(c.quality.views_used));
     m.insert("quality".into(), Value::Object(q));
     m.insert("uncertainty".into(), Value::Object(c.uncertainty.clone()));
+    if let Some(cov) = &c.covariance {
+        m.insert("covariance".into(), covariance_value(cov));
+    }
     append_extra(&mut m, &c.extra);
     to_pretty(&Value::Object(m))
 }
@@ -252,7 +344,7 @@ pub fn write_calibration(p: impl AsRef<Path>, c: &Calibration) -> Result<()> {
     check_common(
         "calibration",
         &c.camera,
-        &c.laser_plane,
+        c.laser_plane.as_ref(),
         [("hand_cam", &c.hand_cam), ("base_board", &c.base_board)],
         c.robot.as_ref(),
     )?;
@@ -282,6 +374,9 @@ pub fn truth_from_json(path: &Path, text: &str) -> Result<Truth> {
     let root = Obj::root(path, &doc)?;
     root.check_format(TRUTH_FORMAT)?;
     let c = common_from(&root)?;
+    let laser_plane = c
+        .laser_plane
+        .ok_or_else(|| root.err("`laser_plane` is null: a truth has a laser plane"))?;
     let sphere = match root.opt_obj("sphere")? {
         None => None,
         Some(s) => Some(Sphere {
@@ -303,7 +398,7 @@ pub fn truth_from_json(path: &Path, text: &str) -> Result<Truth> {
     };
     Ok(Truth {
         camera: c.camera,
-        laser_plane: c.laser_plane,
+        laser_plane,
         hand_cam: c.hand_cam,
         base_board: c.base_board,
         robot: c.robot,
@@ -321,7 +416,7 @@ pub fn truth_to_json(t: &Truth) -> String {
     common_value(
         &mut m,
         &t.camera,
-        &t.laser_plane,
+        Some(&t.laser_plane),
         &t.hand_cam,
         &t.base_board,
         t.robot.as_ref(),
@@ -353,7 +448,7 @@ pub fn write_truth(p: impl AsRef<Path>, t: &Truth) -> Result<()> {
     check_common(
         "truth",
         &t.camera,
-        &t.laser_plane,
+        Some(&t.laser_plane),
         [("hand_cam", &t.hand_cam), ("base_board", &t.base_board)],
         t.robot.as_ref(),
     )?;

@@ -34,5 +34,8 @@ pub use imageio::{
     load_gray, load_gray_info, save_gray_png, ImageInfo, MAX_IMAGE_BYTES, MAX_IMAGE_SIDE,
 };
 pub use ply::{read_ply, write_ply, PlyFormat};
-pub use records::{calibration_extra, uncertainty_to_json, view_record_to_json, warnings_to_json};
+pub use records::{
+    calibration_extra, self_checks_extra, uncertainty_to_json, view_record_to_json,
+    warnings_to_json,
+};
 pub use rig::{read_rig, rig_from_json, rig_to_json, write_rig};

@@ -8,7 +8,8 @@
 use serde_json::{Map, Value};
 
 use crate::model::{
-    AdjustmentSummary, CameraSigma, PlaneSigma, PoseSigma, Uncertainty, ViewRecord,
+    AdjustmentSummary, BoardScaleCheck, CameraSigma, LeaveOneOut, PlaneSigma, PoseSigma,
+    Uncertainty, ViewRecord,
 };
 
 /// A number, or `null` when it is not finite.
@@ -117,6 +118,56 @@ pub fn calibration_extra(
 }
 
 /// The `warnings` array.
+/// calibration.json's `board_scale` and `leave_one_out` keys (extra keys) of the checks
+/// that ran.
+pub fn self_checks_extra(
+    board_scale: Option<&BoardScaleCheck>,
+    loo: Option<&LeaveOneOut>,
+) -> Map<String, Value> {
+    let mut m = Map::new();
+    if let Some(c) = board_scale {
+        let mut b = Map::new();
+        b.insert("scale".into(), finite_or_null(c.scale));
+        b.insert("sigma".into(), finite_or_null(c.sigma));
+        b.insert("declared_mm".into(), finite_or_null(c.declared_mm));
+        b.insert("implied_mm".into(), finite_or_null(c.implied_mm));
+        b.insert("estimated".into(), Value::from(c.estimated));
+        b.insert("disagrees".into(), Value::from(c.disagrees));
+        b.insert("tolerance".into(), finite_or_null(c.tolerance));
+        m.insert("board_scale".into(), Value::Object(b));
+    }
+    if let Some(l) = loo {
+        let opt = |x: Option<f64>| x.map_or(Value::Null, finite_or_null);
+        let views = l
+            .views
+            .iter()
+            .map(|v| {
+                let mut o = Map::new();
+                o.insert("view".into(), Value::from(v.view));
+                o.insert("points".into(), Value::from(v.points));
+                o.insert("board_rms_px".into(), finite_or_null(v.board_rms_px));
+                o.insert("board_rms_mm".into(), finite_or_null(v.board_rms_mm));
+                o.insert("stripe_points".into(), Value::from(v.stripe_points));
+                o.insert("stripe_rms_mm".into(), opt(v.stripe_rms_mm));
+                Value::Object(o)
+            })
+            .collect();
+        let mut o = Map::new();
+        o.insert("views".into(), Value::Array(views));
+        o.insert(
+            "median_board_rms_px".into(),
+            finite_or_null(l.median_board_rms_px),
+        );
+        o.insert(
+            "median_board_rms_mm".into(),
+            finite_or_null(l.median_board_rms_mm),
+        );
+        o.insert("median_stripe_rms_mm".into(), opt(l.median_stripe_rms_mm));
+        m.insert("leave_one_out".into(), Value::Object(o));
+    }
+    m
+}
+
 pub fn warnings_to_json(warnings: &[String]) -> Value {
     Value::Array(warnings.iter().map(|w| Value::from(w.as_str())).collect())
 }

@@ -5,14 +5,16 @@
 
 pub mod board;
 pub mod camera;
+mod checks;
 mod dataset;
 pub mod geometry;
 pub mod image;
 pub mod kinematics;
 mod results;
 
+pub use checks::{BoardScaleCheck, LeaveOneOut, LooView};
 pub use dataset::{Dataset, Rig, RobotReading, Scan, ScanFrame, StripeDirection, View};
 pub use results::{
-    AdjustmentSummary, Calibration, CameraSigma, Cloud, PlaneSigma, PoseSigma, Quality, Sphere,
-    SphereFit, Truth, Uncertainty, ViewRecord,
+    AdjustmentSummary, Calibration, CameraSigma, Cloud, NamedCovariance, PlaneSigma, PoseSigma,
+    Quality, Sphere, SphereFit, Truth, Uncertainty, ViewRecord,
 };

@@ -1,11 +1,46 @@
 //! What calibration, simulation and measurement produce: the calibration, the twin's
 //! truth, sphere fits and point clouds. Reading and writing them is `io`'s job.
 
-use nalgebra::Vector3;
+use nalgebra::{DMatrix, Vector3};
 
 use crate::model::camera::Camera;
 use crate::model::geometry::{Iso3, Plane};
 use crate::model::kinematics::Robot;
+
+/// The covariance of a calibration's estimated numbers (calibration.json `covariance`):
+/// `parameters` names them by their keys (`camera.fu`, `laser_plane.normal[0]`,
+/// `hand_cam.rotation_vector[2]`, ...; vectors indexed), `matrix` is their covariance
+/// in that order (units of the numbers: px, mm, rad).
+#[derive(Debug, Clone, PartialEq)]
+pub struct NamedCovariance {
+    pub parameters: Vec<String>,
+    pub matrix: DMatrix<f64>,
+}
+
+impl NamedCovariance {
+    /// The index of a number.
+    pub fn index(&self, name: &str) -> Option<usize> {
+        self.parameters.iter().position(|p| p == name)
+    }
+
+    /// One-sigma of a number (`None` when it is not in the covariance).
+    pub fn sigma(&self, name: &str) -> Option<f64> {
+        self.index(name)
+            .map(|i| self.matrix[(i, i)].max(0.0).sqrt())
+    }
+
+    /// The covariance of the numbers whose names start with `prefix` (a block, e.g.
+    /// `camera.`), with their names.
+    pub fn block(&self, prefix: &str) -> NamedCovariance {
+        let idx: Vec<usize> = (0..self.parameters.len())
+            .filter(|&i| self.parameters[i].starts_with(prefix))
+            .collect();
+        NamedCovariance {
+            parameters: idx.iter().map(|&i| self.parameters[i].clone()).collect(),
+            matrix: DMatrix::from_fn(idx.len(), idx.len(), |r, c| self.matrix[(idx[r], idx[c])]),
+        }
+    }
+}
 
 /// Quality figures of a calibration (calibration.json `quality`).
 #[derive(Debug, Clone, PartialEq, Default)]
@@ -19,7 +54,9 @@ pub struct Quality {
 #[derive(Debug, Clone, PartialEq)]
 pub struct Calibration {
     pub camera: Camera,
-    pub laser_plane: Plane,
+    /// `None`: not estimated (a calibration from views without laser images; written
+    /// as `"laser_plane": null`, refused by reconstruction).
+    pub laser_plane: Option<Plane>,
     /// `T_hand_cam` (the paper's X).
     pub hand_cam: Iso3,
     /// `T_base_board` (the paper's Z).
@@ -29,6 +66,9 @@ pub struct Calibration {
     pub quality: Quality,
     /// One-sigma values mirroring the estimated values' structure (free-form JSON).
     pub uncertainty: serde_json::Map<String, serde_json::Value>,
+    /// The full covariance of the estimated numbers (`None` in files written before
+    /// the contract asked for it).
+    pub covariance: Option<NamedCovariance>,
     /// Any other top-level keys, kept on load and written back on save.
     pub extra: serde_json::Map<String, serde_json::Value>,
 }

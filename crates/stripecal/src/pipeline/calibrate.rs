@@ -3,14 +3,18 @@
 
 use nalgebra::Vector2;
 
+use super::board_scale::{check_board_scale, warning as board_scale_warning};
+use super::held::held;
 use super::labels::{resolve_labellings, Labelled};
+use super::laser_only::calibrate_held_chain;
+use super::loo::leave_one_out;
 use super::outliers::solve_with_outliers;
-use super::report::{build_report, Stage};
+use super::report::{build_report, SelfChecks, Stage};
 use super::{CalibrateOptions, CalibrationReport, Method, ViewStatus};
 use crate::calib::camera::{calibrate_camera, CameraCalibration, CameraOptions};
 use crate::calib::conic::CentreModel;
 use crate::calib::joint::{joint_adjustment, JointOptions, JointResult, JointStart};
-use crate::calib::laser_plane::{backproject_to_board, fit_laser_plane};
+use crate::calib::laser_plane::{backproject_to_board, fit_laser_plane, LaserPlaneFit};
 use crate::calib::ViewObs;
 use crate::error::{Error, Result};
 use crate::model::board::{Board, BoardKind};
@@ -26,6 +30,10 @@ pub fn calibrate_observations(
     opts: &CalibrateOptions,
 ) -> Result<CalibrationReport> {
     check_poses_finite(views)?;
+    let held = held(opts)?;
+    if let Some(h) = held.as_ref().filter(|h| h.chain_held()) {
+        return calibrate_held_chain(views, rig, opts, h);
+    }
     let board = &rig.board;
     let mut warnings = Vec::new();
     let mut status: Vec<ViewStatus> = views.iter().map(ViewStatus::observed).collect();
@@ -46,37 +54,100 @@ pub fn calibrate_observations(
     warnings.extend(axzb.warnings.iter().cloned());
     let (used_obs, used_poses) = kept(&obs, &poses, &keep);
     check_usable(&used_obs, &warnings)?;
-    // Laser plane.
-    let pv: Vec<(Iso3, Vec<[f64; 2]>)> = used_poses
-        .iter()
-        .zip(&used_obs)
-        .map(|(p, v)| (*p, v.stripe.clone()))
-        .collect();
-    let plane = fit_laser_plane(&pv, &camcal.camera)?;
-    warnings.extend(plane.warnings.iter().cloned());
+    // Laser plane, when there are laser images.
+    let plane = laser_plane_stage(&used_obs, &used_poses, &camcal.camera, &mut warnings)?;
     // 5. The adjustment (evaluated only, for the paper's method).
-    let start = JointStart {
+    let mut start = JointStart {
         camera: camcal.camera.clone(),
-        plane: plane.plane,
+        plane: plane.as_ref().map(|p| p.plane),
         hand_cam: axzb.x,
         base_board: axzb.z,
     };
-    let adj = adjust(&used_obs, board, &start, opts)?;
+    if let Some(h) = &held {
+        h.apply(&mut start);
+    }
+    let jopts = joint_options(opts);
+    let adj = joint_adjustment(&used_obs, board, &start, &jopts)?;
     warnings.extend(adj.warnings.iter().cloned());
     mark_used(&mut status, &used_obs);
+    let checks = self_checks(&used_obs, board, &adj, &jopts, opts, &mut warnings)?;
     let stage = Stage {
-        camera: camcal,
+        camera: Some(camcal),
         plane,
-        axzb,
+        axzb: Some(axzb),
         start,
         adjustment: adj,
         frame_note,
         views_used: used_obs.len(),
+        checks,
+        held: held.as_ref(),
     };
     Ok(build_report(stage, rig, opts, status, warnings))
 }
 
-fn check_poses_finite(views: &[ViewObs]) -> Result<()> {
+/// The laser plane's first estimate from the views' stripe points (`None` when no view
+/// has any: a calibration without a laser).
+fn laser_plane_stage(
+    used_obs: &[ViewObs],
+    used_poses: &[Iso3],
+    camera: &Camera,
+    warnings: &mut Vec<String>,
+) -> Result<Option<LaserPlaneFit>> {
+    if used_obs.iter().all(|v| v.stripe.is_empty()) {
+        warnings.push(
+            "no view has stripe points on the board (no laser images): the laser plane is not \
+             estimated (\"laser_plane\": null); add it later with `stripecal calibrate \
+             --laser-only --from CALIBRATION.json LASER_DATASET`"
+                .into(),
+        );
+        return Ok(None);
+    }
+    let pv: Vec<(Iso3, Vec<[f64; 2]>)> = used_poses
+        .iter()
+        .zip(used_obs)
+        .map(|(p, v)| (*p, v.stripe.clone()))
+        .collect();
+    let plane = fit_laser_plane(&pv, camera)?;
+    warnings.extend(plane.warnings.iter().cloned());
+    Ok(Some(plane))
+}
+
+/// The board-scale check and the leave-one-view-out figure of the one-stage
+/// calibration `adj` over `used` (none for the paper's method); a warning when the
+/// board's scale disagrees with the robot.
+pub(super) fn self_checks(
+    used: &[ViewObs],
+    board: &Board,
+    adj: &JointResult,
+    jopts: &JointOptions,
+    opts: &CalibrateOptions,
+    warnings: &mut Vec<String>,
+) -> Result<SelfChecks> {
+    if opts.method == Method::Paper {
+        return Ok(SelfChecks::default());
+    }
+    let chain_free = adj.free.camera || adj.free.hand_cam || adj.free.base_board;
+    let board_scale = if chain_free || adj.free.board_scale {
+        let c = check_board_scale(used, board, adj, jopts, opts.board_scale_tolerance)?;
+        if c.disagrees && !c.estimated {
+            warnings.push(board_scale_warning(&c, board));
+        }
+        Some(c)
+    } else {
+        None
+    };
+    let leave_one_out = if opts.leave_one_out {
+        leave_one_out(used, board, adj, jopts)?
+    } else {
+        None
+    };
+    Ok(SelfChecks {
+        board_scale,
+        leave_one_out,
+    })
+}
+
+pub(super) fn check_poses_finite(views: &[ViewObs]) -> Result<()> {
     for v in views {
         if let Some(t) = v.base_hand {
             if !t.to_homogeneous().iter().all(|x| x.is_finite()) {
@@ -119,7 +190,7 @@ fn camera_stage(
 /// The labelled views with their stripe points restricted to the target's extent on the
 /// board (points on the table or beyond the plate belong to another surface), and
 /// their `T_cam_board`.
-fn stripes_on_board(
+pub(super) fn stripes_on_board(
     labelled: &[Labelled],
     camera: &Camera,
     board: &Board,
@@ -195,35 +266,26 @@ pub(super) fn check_usable(used_obs: &[ViewObs], warnings: &[String]) -> Result<
             warnings.join("; ")
         )));
     }
-    if used_obs.iter().all(|v| v.stripe.is_empty()) {
-        return Err(Error::InvalidInput(
-            "no usable laser image: no view has stripe points on the board".into(),
-        ));
-    }
     Ok(())
 }
 
-/// The one-stage adjustment from `start`; for the paper's method, zero iterations (the
-/// stages' values evaluated with the same residuals).
-fn adjust(
-    used_obs: &[ViewObs],
-    board: &Board,
-    start: &JointStart,
-    opts: &CalibrateOptions,
-) -> Result<JointResult> {
+/// The adjustment's options: the pipeline's; for the paper's method, zero iterations
+/// (the stages' values evaluated with the same residuals).
+pub(super) fn joint_options(opts: &CalibrateOptions) -> JointOptions {
     let mut jopts = JointOptions {
         centre_model: opts.centre_model,
         robust: opts.robust,
+        free: opts.free,
         ..Default::default()
     };
     if opts.method == Method::Paper {
         jopts.lm.max_iterations = 0;
         jopts.robust = false;
     }
-    joint_adjustment(used_obs, board, start, &jopts)
+    jopts
 }
 
-fn mark_used(status: &mut [ViewStatus], used_obs: &[ViewObs]) {
+pub(super) fn mark_used(status: &mut [ViewStatus], used_obs: &[ViewObs]) {
     for s in status.iter_mut() {
         if let Some(v) = used_obs.iter().find(|v| v.view == s.view) {
             s.used = true;

@@ -21,8 +21,12 @@
 //! 5. `Method::Paper` stops here; `Method::OneStage` (default) runs
 //!    [`crate::calib::joint`] from these values.
 
+mod board_scale;
 mod calibrate;
+mod held;
 mod labels;
+mod laser_only;
+mod loo;
 mod observe;
 mod outliers;
 mod report;
@@ -34,13 +38,15 @@ use std::path::Path;
 use crate::calib::axzb::AxzbSolution;
 use crate::calib::camera::CameraCalibration;
 use crate::calib::conic::CentreModel;
-use crate::calib::joint::JointResult;
+use crate::calib::joint::{FreeBlocks, JointResult};
 use crate::calib::laser_plane::LaserPlaneFit;
 use crate::calib::ViewObs;
 use crate::error::{Error, Result};
 use crate::io::warnings_to_json;
 use crate::model::camera::DistortionModel;
-use crate::model::{AdjustmentSummary, Calibration, Dataset, ViewRecord};
+use crate::model::{
+    AdjustmentSummary, BoardScaleCheck, Calibration, Dataset, LeaveOneOut, ViewRecord,
+};
 use crate::vision::stripe::{EdgeOptions, StripeOptions};
 use crate::vision::target::TargetOptions;
 
@@ -97,6 +103,16 @@ pub struct CalibrateOptions {
     pub outlier_factor: f64,
     pub outlier_min_deg: f64,
     pub outlier_min_rel: f64,
+    /// The calibration to start from (`--from`): the blocks `free` holds keep its
+    /// values (and its uncertainty).
+    pub from: Option<Calibration>,
+    /// The blocks estimated (default: all but the board scale; `--fix`,
+    /// `--laser-only`, `--estimate-board-scale`).
+    pub free: FreeBlocks,
+    /// Compute the leave-one-view-out figure (default true; one-stage only).
+    pub leave_one_out: bool,
+    /// The board-scale check's tolerance on `|s - 1|` (default 0.01).
+    pub board_scale_tolerance: f64,
 }
 
 impl Default for CalibrateOptions {
@@ -112,6 +128,10 @@ impl Default for CalibrateOptions {
             outlier_factor: 8.0,
             outlier_min_deg: 0.1,
             outlier_min_rel: 0.005,
+            from: None,
+            free: FreeBlocks::default(),
+            leave_one_out: true,
+            board_scale_tolerance: 0.01,
         }
     }
 }
@@ -156,12 +176,13 @@ impl ViewStatus {
     }
 }
 
-/// The paper's stages.
+/// The paper's stages (`None`: the stage did not run: no laser, or its blocks were held
+/// from `--from`).
 #[derive(Debug, Clone)]
 pub struct Stages {
-    pub camera: CameraCalibration,
-    pub plane: LaserPlaneFit,
-    pub axzb: AxzbSolution,
+    pub camera: Option<CameraCalibration>,
+    pub plane: Option<LaserPlaneFit>,
+    pub axzb: Option<AxzbSolution>,
 }
 
 /// The result of the pipeline.
@@ -178,6 +199,11 @@ pub struct CalibrationReport {
     pub summary: AdjustmentSummary,
     /// calibration.json's `views` entries.
     pub records: Vec<ViewRecord>,
+    /// The board's scale against the robot (`None` for the paper's method).
+    pub board_scale: Option<BoardScaleCheck>,
+    /// The leave-one-view-out figures (`None`: fewer than 4 views, the paper's method,
+    /// or not asked for).
+    pub leave_one_out: Option<LeaveOneOut>,
     pub views: Vec<ViewStatus>,
     pub warnings: Vec<String>,
 }

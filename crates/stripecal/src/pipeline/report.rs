@@ -1,55 +1,70 @@
 //! The last stage: the calibration and its typed records (uncertainty, per-view records,
 //! the adjustment summary) from the stages' results. JSON is the io layer's job.
 
+use super::held::Held;
 use super::{CalibrateOptions, CalibrationReport, Method, Stages, ViewStatus};
 use crate::calib::axzb::AxzbSolution;
 use crate::calib::camera::CameraCalibration;
 use crate::calib::joint::{JointResult, JointStart};
 use crate::calib::laser_plane::LaserPlaneFit;
-use crate::io::{calibration_extra, uncertainty_to_json};
+use crate::io::{calibration_extra, self_checks_extra, uncertainty_to_json};
 use crate::model::{
-    AdjustmentSummary, Calibration, CameraSigma, PlaneSigma, PoseSigma, Quality, Rig, Uncertainty,
-    ViewRecord,
+    AdjustmentSummary, BoardScaleCheck, Calibration, CameraSigma, LeaveOneOut, PlaneSigma,
+    PoseSigma, Quality, Rig, Uncertainty, ViewRecord,
 };
 
+/// What the calibration says about itself (see [`super::calibrate::self_checks`]).
+#[derive(Debug, Clone, Default)]
+pub(super) struct SelfChecks {
+    pub board_scale: Option<BoardScaleCheck>,
+    pub leave_one_out: Option<LeaveOneOut>,
+}
+
 /// What the stages produced.
-pub(super) struct Stage {
-    pub camera: CameraCalibration,
-    pub plane: LaserPlaneFit,
-    pub axzb: AxzbSolution,
+pub(super) struct Stage<'a> {
+    pub camera: Option<CameraCalibration>,
+    pub plane: Option<LaserPlaneFit>,
+    pub axzb: Option<AxzbSolution>,
     /// The adjustment's starting values (the paper's result).
     pub start: JointStart,
     pub adjustment: JointResult,
     /// `Some("first view")` when the first view's labelling fixed the board frame.
     pub frame_note: Option<String>,
     pub views_used: usize,
+    pub checks: SelfChecks,
+    /// The blocks held from `--from`.
+    pub held: Option<&'a Held<'a>>,
 }
 
-/// The one-sigmas: the adjustment's covariance for the one-stage method; the camera
-/// calibration's and the plane fit's for the paper's.
-fn uncertainty(st: &Stage, method: Method) -> Uncertainty {
+/// The one-sigmas of the estimated blocks: the adjustment's covariance for the
+/// one-stage method; the camera calibration's and the plane fit's for the paper's.
+fn uncertainty(st: &Stage<'_>, method: Method) -> Uncertainty {
     match method {
         Method::OneStage => {
             let s = &st.adjustment.sigma;
+            let free = &st.adjustment.free;
             let pose = |t: &crate::calib::joint::TransformSigma| PoseSigma {
                 rotation_vector: t.rotation_vector.into(),
                 translation_mm: t.translation_mm.into(),
             };
             Uncertainty {
-                camera: Some(CameraSigma::from_params(&s.camera)),
-                laser_plane: Some(PlaneSigma {
+                camera: free.camera.then(|| CameraSigma::from_params(&s.camera)),
+                laser_plane: free.laser_plane.then(|| PlaneSigma {
                     normal: s.plane_normal.into(),
                     d_mm: s.plane_d_mm,
                 }),
-                hand_cam: Some(pose(&s.hand_cam)),
-                base_board: Some(pose(&s.base_board)),
+                hand_cam: free.hand_cam.then(|| pose(&s.hand_cam)),
+                base_board: free.base_board.then(|| pose(&s.base_board)),
             }
         }
         Method::Paper => Uncertainty {
-            camera: Some(CameraSigma::from_params(&st.camera.camera_sigma)),
-            laser_plane: Some(PlaneSigma {
-                normal: st.plane.sigma.normal.into(),
-                d_mm: st.plane.sigma.d_mm,
+            camera: st
+                .camera
+                .as_ref()
+                .map(|c| CameraSigma::from_params(&c.camera_sigma)),
+            laser_plane: st.plane.as_ref().map(|p| PlaneSigma {
+                normal: p.sigma.normal.into(),
+                d_mm: p.sigma.d_mm,
             }),
             hand_cam: None,
             base_board: None,
@@ -95,7 +110,7 @@ pub(super) fn view_records_from(
 /// The report: the calibration (the adjusted values, or the paper's stages' values)
 /// with its records, and the stages.
 pub(super) fn build_report(
-    st: Stage,
+    st: Stage<'_>,
     rig: &Rig,
     opts: &CalibrateOptions,
     status: Vec<ViewStatus>,
@@ -119,25 +134,51 @@ pub(super) fn build_report(
         residual_sigma_px: adj.sigma_px,
     };
     let records = view_records(&status, adj);
+    let mut unc = uncertainty_to_json(&uncertainty(&st, opts.method));
+    let mut extra = calibration_extra(&summary, &records, &warnings);
+    extra.extend(self_checks_extra(
+        st.checks.board_scale.as_ref(),
+        st.checks.leave_one_out.as_ref(),
+    ));
+    let covariance = match (opts.method, st.held) {
+        (Method::Paper, _) => None,
+        (Method::OneStage, None) => Some(adj.named_covariance.clone()),
+        (Method::OneStage, Some(h)) => {
+            h.add_uncertainty(&mut unc);
+            extra.insert("held_blocks".into(), serde_json::Value::from(h.names()));
+            h.covariance(&adj.named_covariance)
+        }
+    };
+    let robot = rig
+        .robot
+        .clone()
+        .or_else(|| st.held.and_then(|h| h.from.robot.clone()));
     let calibration = Calibration {
         camera,
         laser_plane,
         hand_cam,
         base_board,
-        robot: rig.robot.clone(),
+        robot,
         quality: Quality {
             circle_rms_px: adj.circle_rms_px,
-            stripe_rms_px: adj.stripe_rms_px,
+            stripe_rms_px: if adj.stripe_rms_px.is_finite() {
+                adj.stripe_rms_px
+            } else {
+                0.0
+            },
             views_used: st.views_used,
         },
-        uncertainty: uncertainty_to_json(&uncertainty(&st, opts.method)),
-        extra: calibration_extra(&summary, &records, &warnings),
+        uncertainty: unc,
+        covariance,
+        extra,
     };
     CalibrationReport {
         calibration,
         method: opts.method,
         summary,
         records,
+        board_scale: st.checks.board_scale,
+        leave_one_out: st.checks.leave_one_out,
         stages: Stages {
             camera: st.camera,
             plane: st.plane,

@@ -138,14 +138,12 @@ fn kept_views_and_usability() {
     assert!(e
         .to_string()
         .contains("at least 3 usable views, 2 left (view 1: gone)"));
+    // Views without stripe points are usable: the calibration then has no laser plane.
     let mut dark = o.clone();
     for v in &mut dark {
         v.stripe.clear();
     }
-    assert!(check_usable(&dark, &[])
-        .unwrap_err()
-        .to_string()
-        .contains("no usable laser image"));
+    assert!(check_usable(&dark, &[]).is_ok());
 }
 
 #[test]

@@ -9,7 +9,7 @@ use crate::model::kinematics::Robot;
 use crate::model::{Calibration, RobotReading, StripeDirection};
 use crate::vision::stripe::{StripeExtractor, StripePoint};
 
-use super::triangulate::check_pose;
+use super::triangulate::{check_pose, laser_plane_of};
 use super::{at_frame, stripe_direction_from_plane, ReconstructOptions, ScanPoints, Triangulator};
 
 /// One-frame reconstruction for line software (see the module docs). Not `Sync`-shared:
@@ -36,7 +36,7 @@ impl Reconstructor {
         let mut so = opts.stripe.clone();
         if so.direction == StripeDirection::Auto {
             so.direction =
-                stripe_direction_from_plane(&calibration.camera, &calibration.laser_plane);
+                stripe_direction_from_plane(&calibration.camera, laser_plane_of(calibration)?);
         }
         if let Some(r) = &calibration.robot {
             r.validate()?;

@@ -97,11 +97,11 @@ impl Triangulator {
         })
     }
 
-    /// From a calibration.
+    /// From a calibration; an error when it has no laser plane.
     pub fn from_calibration(c: &Calibration, min_ray_plane_angle_deg: f64) -> Result<Self> {
         Self::new(
             &c.camera,
-            &c.laser_plane,
+            laser_plane_of(c)?,
             &c.hand_cam,
             min_ray_plane_angle_deg,
         )
@@ -212,6 +212,18 @@ pub(super) fn check_pose(t: &Iso3) -> Result<()> {
     } else {
         Err(Error::InvalidInput("T_base_hand is not finite".into()))
     }
+}
+
+/// The calibration's laser plane; an error saying why when it has none.
+pub fn laser_plane_of(c: &Calibration) -> Result<&Plane> {
+    c.laser_plane.as_ref().ok_or_else(|| {
+        Error::InvalidInput(
+            "the calibration has no laser plane (\"laser_plane\": null: it was made from views \
+             without laser images), so it cannot triangulate stripe points; add the plane from \
+             laser views with `stripecal calibrate --laser-only --from CALIBRATION.json DATASET`"
+                .into(),
+        )
+    })
 }
 
 #[cfg(test)]

@@ -58,7 +58,13 @@ pub fn errors(t: &Twin, c: &Calibration) -> Errs {
         fv_rel: (e.fv - tr.fv).abs() / tr.fv,
         u0: (e.u0 - tr.u0).abs(),
         v0: (e.v0 - tr.v0).abs(),
-        plane_mm: plane_error_in_volume(tr, &t.laser_plane, &c.laser_plane, 80.0, 130.0),
+        plane_mm: plane_error_in_volume(
+            tr,
+            &t.laser_plane,
+            c.laser_plane.as_ref().expect("a laser plane"),
+            80.0,
+            130.0,
+        ),
         x: iso_err(&c.hand_cam, &t.hand_cam),
         z: iso_err(&c.base_board, &t.base_board),
     }

@@ -1,72 +1,115 @@
-//! One-sigma of every estimated number from the solver's covariance of the parameter
-//! vector: the camera's directly, the laser plane's normal through its chart
-//! (`n = normalize(n0 + a e1 + b e2)`), and the transforms' rotation vectors through
-//! the inverse right Jacobian of SO(3) (the solver's increment is `R Exp(w)`).
+//! The covariance of the calibration's numbers from the solver's covariance of the
+//! parameter vector, under the names of `calibration.json` (the contract's `covariance`
+//! key), and the one-sigmas read from its diagonal.
+//!
+//! The map from the solver's columns to the file's numbers is linear at the solution:
+//! the camera's numbers directly; the laser plane's unit normal through its chart
+//! (`n = normalize(n0 + a e1 + b e2)`: `dn = (I - n n^T) / |n0 + a e1 + b e2| [e1 e2]`),
+//! its offset directly; the transforms' rotation vectors through the inverse right
+//! Jacobian of SO(3) (the solver's increment is `R Exp(w)`), their translations
+//! directly; the board scale directly. With `J` that map, the file's covariance is
+//! `J C J^T`. Held blocks have no rows (their numbers are not estimated).
 
 use nalgebra::{DMatrix, Matrix3, Vector3};
 
 use super::layout::{Block, JointParams, ParamLayout};
 use super::{JointSigma, TransformSigma};
+use crate::model::camera::PARAM_NAMES;
+use crate::model::NamedCovariance;
 
-/// The sigmas at the solution `p` (decoded `s`) from the covariance `cov` of `p`.
-pub(super) fn joint_sigma(
+/// The contract's names of the camera's numbers, [`PARAM_NAMES`] order.
+fn camera_name(i: usize) -> String {
+    match PARAM_NAMES[i] {
+        "k1" => "camera.distortion[0]".into(),
+        "k2" => "camera.distortion[1]".into(),
+        "p1" => "camera.distortion[2]".into(),
+        "p2" => "camera.distortion[3]".into(),
+        "k3" => "camera.distortion[4]".into(),
+        other => format!("camera.{other}"),
+    }
+}
+
+/// The covariance of the estimated numbers under the file's names (module docs).
+/// `plane_sign` is -1 when the reported plane's normal is the chart's negated (a plane
+/// is written with `d >= 0`).
+pub(super) fn named_covariance(
     layout: &ParamLayout,
     p: &[f64],
     s: &JointParams,
     cov: &DMatrix<f64>,
-) -> JointSigma {
-    let mut cam_sigma = [0.0; 9];
-    for (k, i) in layout.free_camera().into_iter().enumerate() {
-        cam_sigma[i] = cov[(k, k)].sqrt();
+    plane_sign: f64,
+) -> NamedCovariance {
+    let n = layout.num_params();
+    let mut names: Vec<String> = Vec::new();
+    let mut rows: Vec<Vec<(usize, f64)>> = Vec::new();
+    let col = |slot: usize| layout.column(slot);
+    for (i, slot) in layout.slots(Block::Camera).enumerate() {
+        if let Some(c) = col(slot) {
+            names.push(camera_name(i));
+            rows.push(vec![(c, 1.0)]);
+        }
     }
-    let o = layout.first_column(Block::Plane);
+    let sp = layout.slots(Block::Plane).start;
+    if let (Some(ca), Some(cb), Some(cd)) = (col(sp), col(sp + 1), col(sp + 2)) {
+        let v = layout.full(p);
+        let raw = layout.chart.raw_normal(v[sp], v[sp + 1]);
+        let proj = (Matrix3::identity() - s.plane_n * s.plane_n.transpose()) / raw.norm();
+        let (de1, de2) = (proj * layout.chart.e1, proj * layout.chart.e2);
+        for k in 0..3 {
+            names.push(format!("laser_plane.normal[{k}]"));
+            rows.push(vec![(ca, plane_sign * de1[k]), (cb, plane_sign * de2[k])]);
+        }
+        names.push("laser_plane.d_mm".into());
+        rows.push(vec![(cd, plane_sign)]);
+    }
+    for (block, key, rot) in [
+        (Block::HandCam, "hand_cam", &s.x_rot),
+        (Block::BaseBoard, "base_board", &s.z_rot),
+    ] {
+        let b = layout.slots(block).start;
+        let Some(c0) = col(b) else { continue };
+        let jr = inverse_right_jacobian(&crate::model::geometry::matrix_to_rotvec(rot));
+        for k in 0..3 {
+            names.push(format!("{key}.rotation_vector[{k}]"));
+            rows.push((0..3).map(|j| (c0 + j, jr[(k, j)])).collect());
+        }
+        for k in 0..3 {
+            names.push(format!("{key}.translation_mm[{k}]"));
+            rows.push(vec![(c0 + 3 + k, 1.0)]);
+        }
+    }
+    if let Some(c) = col(layout.slots(Block::BoardScale).start) {
+        names.push("board.scale".into());
+        rows.push(vec![(c, 1.0)]);
+    }
+    let mut j = DMatrix::<f64>::zeros(rows.len(), n);
+    for (r, entries) in rows.iter().enumerate() {
+        for &(c, v) in entries {
+            j[(r, c)] = v;
+        }
+    }
+    let matrix = &j * cov * j.transpose();
+    NamedCovariance {
+        parameters: names,
+        matrix,
+    }
+}
+
+/// The one-sigmas of every number from the named covariance (0 for held numbers).
+pub(super) fn joint_sigma(named: &NamedCovariance) -> JointSigma {
+    let sd = |name: &str| named.sigma(name).unwrap_or(0.0);
+    let v3 = |prefix: &str| Vector3::from_fn(|k, _| sd(&format!("{prefix}[{k}]")));
+    let pose = |key: &str| TransformSigma {
+        rotation_vector: v3(&format!("{key}.rotation_vector")),
+        translation_mm: v3(&format!("{key}.translation_mm")),
+    };
     JointSigma {
-        camera: cam_sigma,
-        plane_normal: plane_normal_sigma(layout, p, s, cov),
-        plane_d_mm: cov[(o + 2, o + 2)].sqrt(),
-        hand_cam: transform_sigma(p, cov, layout.first_column(Block::HandCam)),
-        base_board: transform_sigma(p, cov, layout.first_column(Block::BaseBoard)),
-    }
-}
-
-/// Sigmas of the plane normal's components: `dn/d(a, b)` at the solution applied to
-/// the covariance of `(a, b)`.
-fn plane_normal_sigma(
-    layout: &ParamLayout,
-    p: &[f64],
-    s: &JointParams,
-    cov: &DMatrix<f64>,
-) -> Vector3<f64> {
-    let o = layout.first_column(Block::Plane);
-    let chart = &layout.chart;
-    let nraw = chart.raw_normal(p[o], p[o + 1]);
-    let l = nraw.norm();
-    let proj = (Matrix3::identity() - s.plane_n * s.plane_n.transpose()) / l;
-    let jn = nalgebra::Matrix3x2::from_columns(&[proj * chart.e1, proj * chart.e2]);
-    let cab = nalgebra::Matrix2::new(
-        cov[(o, o)],
-        cov[(o, o + 1)],
-        cov[(o + 1, o)],
-        cov[(o + 1, o + 1)],
-    );
-    let cn = jn * cab * jn.transpose();
-    // A normal flipped by Plane::new (d < 0) has the same sigmas.
-    Vector3::new(cn[(0, 0)].sqrt(), cn[(1, 1)].sqrt(), cn[(2, 2)].sqrt())
-}
-
-/// Sigmas of the transform whose rotation vector and translation start at column `b`.
-fn transform_sigma(p: &[f64], cov: &DMatrix<f64>, b: usize) -> TransformSigma {
-    let rv = Vector3::new(p[b], p[b + 1], p[b + 2]);
-    let jr = inverse_right_jacobian(&rv);
-    let cw = Matrix3::from_fn(|i, j| cov[(b + i, b + j)]);
-    let crv = jr * cw * jr.transpose();
-    TransformSigma {
-        rotation_vector: Vector3::new(crv[(0, 0)].sqrt(), crv[(1, 1)].sqrt(), crv[(2, 2)].sqrt()),
-        translation_mm: Vector3::new(
-            cov[(b + 3, b + 3)].sqrt(),
-            cov[(b + 4, b + 4)].sqrt(),
-            cov[(b + 5, b + 5)].sqrt(),
-        ),
+        camera: std::array::from_fn(|i| sd(&camera_name(i))),
+        plane_normal: v3("laser_plane.normal"),
+        plane_d_mm: sd("laser_plane.d_mm"),
+        hand_cam: pose("hand_cam"),
+        base_board: pose("base_board"),
+        board_scale: sd("board.scale"),
     }
 }
 

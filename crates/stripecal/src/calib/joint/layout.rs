@@ -10,11 +10,14 @@
 //! | camera       | 9     | `fu fv u0 v0` + the model's free `k` | `p + dp`          |
 //! | laser plane  | 3     | `a, b, d`                            | `p + dp`          |
 //! | `X`, `Z`     | 6 each| rotation vector `w`, translation `t` | `R Exp(w)`, `t+v` |
+//! | board scale  | 1     | `s` (every board coordinate times s) | `p + dp`          |
 //!
 //! A *slot* is a position in the full parameter set (the dual numbers of the Jacobian
 //! run over all [`SLOTS`] of them); a *column* is a position in the solver's vector
-//! (estimated slots only, packed in block order). The laser plane's unit normal is
-//! `normalize(n0 + a e1 + b e2)` around the starting normal `n0` ([`PlaneChart`]).
+//! (estimated slots only, packed in block order). A block that is not estimated
+//! ([`FreeBlocks`]) has no columns: its slots keep the starting values (`base`). The
+//! laser plane's unit normal is `normalize(n0 + a e1 + b e2)` around the starting
+//! normal `n0` ([`PlaneChart`]).
 //!
 //! A new block is one [`BlockKind`] (its size, names, update and decoding) plus its
 //! registration in [`ParamLayout::new`].
@@ -23,14 +26,15 @@ use std::ops::Range;
 
 use nalgebra::{Matrix3, Vector3};
 
-use crate::calib::joint::JointStart;
-use crate::model::camera::{Camera, DistortionModel, PARAM_NAMES};
+use crate::calib::joint::{FreeBlocks, JointStart};
+use crate::model::camera::PARAM_NAMES;
 use crate::model::geometry::{
     iso_from_rotvec, iso_to_rotvec, matrix_to_rotvec, rotvec_to_matrix, Iso3,
 };
 
-/// Number of slots (the dual-number width of the Jacobian): camera 9, plane 3, X 6, Z 6.
-pub(super) const SLOTS: usize = 24;
+/// Number of slots (the dual-number width of the Jacobian): camera 9, plane 3, X 6, Z 6,
+/// board scale 1.
+pub(super) const SLOTS: usize = 25;
 
 /// The blocks of the parameter vector, in slot (and column) order.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -43,6 +47,8 @@ pub(super) enum Block {
     HandCam,
     /// `Z = T_base_board`.
     BaseBoard,
+    /// The board's scale `s`: the printed board is `s` times rig.json's.
+    BoardScale,
 }
 
 /// How a block's numbers behave.
@@ -51,7 +57,8 @@ pub(super) enum BlockKind {
     /// Numbers updated by addition.
     Euclidean,
     /// A rigid transform stored as rotation vector and translation (mm), updated by
-    /// `R Exp(w)` (rotation about the transform's own axes) and `t + v`.
+    /// `R Exp(w)` (rotation about the transform's own axes) and `t + v`; estimated as a
+    /// whole or not at all.
     RigidTransform,
 }
 
@@ -67,7 +74,16 @@ struct BlockDef {
 }
 
 impl BlockDef {
-    fn transform(block: Block, prefix: &str) -> BlockDef {
+    fn euclidean(block: Block, names: &[&str], free: Vec<bool>) -> BlockDef {
+        BlockDef {
+            block,
+            kind: BlockKind::Euclidean,
+            names: names.iter().map(|s| s.to_string()).collect(),
+            free,
+        }
+    }
+
+    fn transform(block: Block, prefix: &str, free: bool) -> BlockDef {
         let names = ["wx", "wy", "wz", "tx_mm", "ty_mm", "tz_mm"]
             .iter()
             .map(|s| format!("{prefix}_{s}"))
@@ -76,7 +92,7 @@ impl BlockDef {
             block,
             kind: BlockKind::RigidTransform,
             names,
-            free: vec![true; 6],
+            free: vec![free; 6],
         }
     }
 }
@@ -125,6 +141,8 @@ pub(super) struct JointParams {
     pub x_t: Vector3<f64>,
     pub z_rot: Matrix3<f64>,
     pub z_t: Vector3<f64>,
+    /// The board's scale.
+    pub scale: f64,
 }
 
 /// The layout of the adjustment's parameter vector (module docs).
@@ -137,17 +155,29 @@ pub(super) struct ParamLayout {
     col0: Vec<usize>,
     /// Column of each slot (`None`: fixed).
     col_of_slot: Vec<Option<usize>>,
+    /// Every slot's value at the start: the fixed slots keep it.
+    base: [f64; SLOTS],
     /// The laser plane's chart.
     pub chart: PlaneChart,
 }
 
 impl ParamLayout {
-    /// The layout for a camera with `model` (its free distortion coefficients are
-    /// estimated with the four intrinsics) and a laser plane charted around the unit
-    /// normal `n0`.
-    pub fn new(model: DistortionModel, n0: Vector3<f64>) -> ParamLayout {
-        let mut cam_free = vec![true; 4];
-        cam_free.extend(model.free_coefficients());
+    /// The layout around `start`: the camera's four intrinsics and its model's free
+    /// distortion coefficients, the laser plane charted around the starting normal, `X`,
+    /// `Z` and the board scale (held at `scale` unless estimated), each estimated as
+    /// `free` says. Without a starting plane the plane block is held (it has no
+    /// observations then).
+    pub fn new(start: &JointStart, free: &FreeBlocks, scale: f64) -> ParamLayout {
+        let mut cam_free = vec![free.camera; 4];
+        cam_free.extend(
+            start
+                .camera
+                .model
+                .free_coefficients()
+                .iter()
+                .map(|&f| f && free.camera),
+        );
+        let plane_free = free.laser_plane && start.plane.is_some();
         let blocks = vec![
             BlockDef {
                 block: Block::Camera,
@@ -155,14 +185,14 @@ impl ParamLayout {
                 names: PARAM_NAMES.iter().map(|s| s.to_string()).collect(),
                 free: cam_free,
             },
-            BlockDef {
-                block: Block::Plane,
-                kind: BlockKind::Euclidean,
-                names: vec!["plane_a".into(), "plane_b".into(), "plane_d_mm".into()],
-                free: vec![true; 3],
-            },
-            BlockDef::transform(Block::HandCam, "hand_cam"),
-            BlockDef::transform(Block::BaseBoard, "base_board"),
+            BlockDef::euclidean(
+                Block::Plane,
+                &["plane_a", "plane_b", "plane_d_mm"],
+                vec![plane_free; 3],
+            ),
+            BlockDef::transform(Block::HandCam, "hand_cam", free.hand_cam),
+            BlockDef::transform(Block::BaseBoard, "base_board", free.base_board),
+            BlockDef::euclidean(Block::BoardScale, &["board_scale"], vec![free.board_scale]),
         ];
         let (mut slot0, mut col0, mut col_of_slot) = (Vec::new(), Vec::new(), Vec::new());
         let mut col = 0;
@@ -175,13 +205,17 @@ impl ParamLayout {
             }
         }
         debug_assert_eq!(col_of_slot.len(), SLOTS);
-        ParamLayout {
+        let n0 = start.plane.map_or(Vector3::z(), |p| p.normal);
+        let mut layout = ParamLayout {
             blocks,
             slot0,
             col0,
             col_of_slot,
+            base: [0.0; SLOTS],
             chart: PlaneChart::around(n0),
-        }
+        };
+        layout.base = layout.slot_values(start, scale);
+        layout
     }
 
     fn index(&self, block: Block) -> usize {
@@ -197,9 +231,9 @@ impl ParamLayout {
         self.slot0[i]..self.slot0[i] + self.blocks[i].free.len()
     }
 
-    /// The first column of a block (its estimated slots follow, packed).
-    pub fn first_column(&self, block: Block) -> usize {
-        self.col0[self.index(block)]
+    /// The column of a slot (`None`: held).
+    pub fn column(&self, slot: usize) -> Option<usize> {
+        self.col_of_slot[slot]
     }
 
     /// The column of every slot.
@@ -221,53 +255,73 @@ impl ParamLayout {
             .collect()
     }
 
-    /// Indices (in [`PARAM_NAMES`] order) of the estimated camera parameters.
-    pub fn free_camera(&self) -> Vec<usize> {
-        let b = &self.blocks[self.index(Block::Camera)];
-        (0..b.free.len()).filter(|&i| b.free[i]).collect()
-    }
-
-    /// The parameter vector of a starting point: the camera's estimated parameters, the
-    /// plane's chart coordinates (0, 0) and offset, `X` and `Z` as rotation vector and
-    /// translation.
-    pub fn encode(&self, start: &JointStart) -> Vec<f64> {
-        let cp = start.camera.params();
-        let mut p: Vec<f64> = self.free_camera().iter().map(|&i| cp[i]).collect();
-        p.extend_from_slice(&[0.0, 0.0, start.plane.d]);
-        for t in [&start.hand_cam, &start.base_board] {
+    /// Every slot's value at `start`: the camera's parameters, the plane's chart
+    /// coordinates (0, 0) and offset, `X` and `Z` as rotation vector and translation,
+    /// the board scale.
+    fn slot_values(&self, start: &JointStart, scale: f64) -> [f64; SLOTS] {
+        let mut v = [0.0; SLOTS];
+        v[self.slots(Block::Camera)].copy_from_slice(&start.camera.params());
+        let sp = self.slots(Block::Plane).start;
+        v[sp + 2] = start.plane.map_or(0.0, |p| p.d);
+        for (block, t) in [
+            (Block::HandCam, &start.hand_cam),
+            (Block::BaseBoard, &start.base_board),
+        ] {
             let (rv, tr) = iso_to_rotvec(t);
-            p.extend_from_slice(&[rv.x, rv.y, rv.z, tr.x, tr.y, tr.z]);
+            let s = self.slots(block).start;
+            v[s..s + 6].copy_from_slice(&[rv.x, rv.y, rv.z, tr.x, tr.y, tr.z]);
         }
-        p
+        v[self.slots(Block::BoardScale).start] = scale;
+        v
     }
 
-    /// The parameters of vector `p`, the fixed camera parameters from `base`.
-    pub fn decode(&self, p: &[f64], base: &Camera) -> JointParams {
-        let mut cam = base.params();
-        for (k, i) in self.free_camera().into_iter().enumerate() {
-            cam[i] = p[k];
+    /// The parameter vector of the start: its estimated slots.
+    pub fn encode(&self) -> Vec<f64> {
+        (0..SLOTS)
+            .filter(|&s| self.col_of_slot[s].is_some())
+            .map(|s| self.base[s])
+            .collect()
+    }
+
+    /// Every slot's value for the parameter vector `p` (held slots from the start).
+    pub fn full(&self, p: &[f64]) -> [f64; SLOTS] {
+        let mut v = self.base;
+        for (slot, col) in self.col_of_slot.iter().enumerate() {
+            if let Some(c) = col {
+                v[slot] = p[*c];
+            }
         }
-        let o = self.first_column(Block::Plane);
-        let n = self.chart.raw_normal(p[o], p[o + 1]);
-        let x = self.first_column(Block::HandCam);
-        let z = self.first_column(Block::BaseBoard);
+        v
+    }
+
+    /// The parameters of vector `p`.
+    pub fn decode(&self, p: &[f64]) -> JointParams {
+        let v = self.full(p);
+        let mut cam = [0.0; 9];
+        cam.copy_from_slice(&v[self.slots(Block::Camera)]);
+        let o = self.slots(Block::Plane).start;
+        let n = self.chart.raw_normal(v[o], v[o + 1]);
+        let x = self.slots(Block::HandCam).start;
+        let z = self.slots(Block::BaseBoard).start;
         JointParams {
             cam,
             plane_n: n / n.norm(),
-            plane_d: p[o + 2],
-            x_rot: rotvec_to_matrix(&Vector3::new(p[x], p[x + 1], p[x + 2])),
-            x_t: Vector3::new(p[x + 3], p[x + 4], p[x + 5]),
-            z_rot: rotvec_to_matrix(&Vector3::new(p[z], p[z + 1], p[z + 2])),
-            z_t: Vector3::new(p[z + 3], p[z + 4], p[z + 5]),
+            plane_d: v[o + 2],
+            x_rot: rotvec_to_matrix(&Vector3::new(v[x], v[x + 1], v[x + 2])),
+            x_t: Vector3::new(v[x + 3], v[x + 4], v[x + 5]),
+            z_rot: rotvec_to_matrix(&Vector3::new(v[z], v[z + 1], v[z + 2])),
+            z_t: Vector3::new(v[z + 3], v[z + 4], v[z + 5]),
+            scale: v[self.slots(Block::BoardScale).start],
         }
     }
 
     /// The transform of a [`BlockKind::RigidTransform`] block of `p`.
     pub fn transform(&self, p: &[f64], block: Block) -> Iso3 {
-        let b = self.first_column(block);
+        let v = self.full(p);
+        let b = self.slots(block).start;
         iso_from_rotvec(
-            &Vector3::new(p[b], p[b + 1], p[b + 2]),
-            &Vector3::new(p[b + 3], p[b + 4], p[b + 5]),
+            &Vector3::new(v[b], v[b + 1], v[b + 2]),
+            &Vector3::new(v[b + 3], v[b + 4], v[b + 5]),
         )
     }
 
@@ -276,6 +330,9 @@ impl ParamLayout {
         for (i, def) in self.blocks.iter().enumerate() {
             let b = self.col0[i];
             let len = def.free.iter().filter(|f| **f).count();
+            if len == 0 {
+                continue;
+            }
             match def.kind {
                 BlockKind::Euclidean => {
                     let r = b..b + len;
@@ -309,11 +366,23 @@ impl JointParams {
             .map(|a| super::chain::cam_board(a, &xr, &xt, &zr, &zt))
             .collect()
     }
+
+    /// The poses the board's points are imaged with: `(R, t / s)` of each
+    /// [`Self::view_poses`] (a board `s` times larger at `t` images like rig.json's board
+    /// at `t / s`: the central projection is scale-invariant).
+    pub fn circle_poses(&self, a: &[Iso3]) -> Vec<([[f64; 3]; 3], [f64; 3])> {
+        let k = 1.0 / self.scale;
+        self.view_poses(a)
+            .into_iter()
+            .map(|(r, t)| (r, [t[0] * k, t[1] * k, t[2] * k]))
+            .collect()
+    }
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::model::camera::{Camera, DistortionModel};
     use crate::model::geometry::Plane;
 
     fn start(model: DistortionModel) -> JointStart {
@@ -330,7 +399,7 @@ mod tests {
         .unwrap();
         JointStart {
             camera,
-            plane: Plane::new(Vector3::new(0.629, -0.0492, 0.7759), 79.87).unwrap(),
+            plane: Some(Plane::new(Vector3::new(0.629, -0.0492, 0.7759), 79.87).unwrap()),
             hand_cam: iso_from_rotvec(
                 &Vector3::new(-0.3087, 0.2362, 3.0369),
                 &Vector3::new(29.19, 5.37, 62.64),
@@ -345,7 +414,7 @@ mod tests {
     #[test]
     fn names_and_columns_follow_the_blocks() {
         let s = start(DistortionModel::Radial2);
-        let layout = ParamLayout::new(s.camera.model, s.plane.normal);
+        let layout = ParamLayout::new(&s, &FreeBlocks::default(), 1.0);
         let names = layout.names();
         let expected = [
             "fu",
@@ -374,7 +443,10 @@ mod tests {
         assert_eq!(layout.num_params(), expected.len());
         assert_eq!(layout.slots(Block::Plane), 9..12);
         assert_eq!(layout.slots(Block::BaseBoard), 18..24);
-        assert_eq!(layout.first_column(Block::HandCam), 9);
+        assert_eq!(
+            layout.column(layout.slots(Block::HandCam).start).unwrap(),
+            9
+        );
         let cols = layout.columns();
         assert_eq!(cols[6], None, "p1 is fixed in radial2");
         assert_eq!(cols[9], Some(6));
@@ -383,13 +455,15 @@ mod tests {
     #[test]
     fn encode_decode_and_retract_round_trip() {
         let s = start(DistortionModel::OpenCv5);
-        let layout = ParamLayout::new(s.camera.model, s.plane.normal);
-        let p = layout.encode(&s);
+        let layout = ParamLayout::new(&s, &FreeBlocks::default(), 1.0);
+        let p = layout.encode();
         assert_eq!(p.len(), layout.num_params());
-        let d = layout.decode(&p, &s.camera);
+        let d = layout.decode(&p);
         assert_eq!(d.cam, s.camera.params());
-        assert!((d.plane_n - s.plane.normal).norm() < 1e-15);
-        assert_eq!(d.plane_d, s.plane.d);
+        let plane = s.plane.unwrap();
+        assert!((d.plane_n - plane.normal).norm() < 1e-15);
+        assert_eq!(d.plane_d, plane.d);
+        assert_eq!(d.scale, 1.0);
         let x = layout.transform(&p, Block::HandCam);
         assert!(
             (x.to_homogeneous() - s.hand_cam.to_homogeneous())
@@ -399,7 +473,7 @@ mod tests {
         );
         // A rotation step is applied on the right: R Exp(w).
         let mut dp = vec![0.0; p.len()];
-        let b = layout.first_column(Block::BaseBoard);
+        let b = layout.column(layout.slots(Block::BaseBoard).start).unwrap();
         dp[b + 2] = 0.01;
         dp[b + 4] = 2.0;
         let mut out = vec![0.0; p.len()];
@@ -413,7 +487,7 @@ mod tests {
         assert!((z1.translation.vector.y - z0.translation.vector.y - 2.0).abs() < 1e-12);
         // Additive blocks are unchanged by a zero step; a transform's rotation vector
         // goes through its matrix (round-off only).
-        let x = layout.first_column(Block::HandCam);
+        let x = layout.column(layout.slots(Block::HandCam).start).unwrap();
         assert_eq!(&out[..x], &p[..x]);
         assert!(out[x..b]
             .iter()

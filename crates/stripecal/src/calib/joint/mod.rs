@@ -66,6 +66,7 @@ use crate::error::{Error, Result};
 use crate::model::board::Board;
 use crate::model::camera::Camera;
 use crate::model::geometry::{Iso3, Plane};
+use crate::model::NamedCovariance;
 use crate::numerics::lm::{levenberg_marquardt, LmOptions, LmResult, StopReason};
 
 /// Variance-component re-estimations per solve: they settle in 2-3 on noisy data; a
@@ -75,6 +76,46 @@ const MAX_REWEIGHTS: usize = 5;
 
 /// Huber threshold on the weighted residuals (in units of the residual's sigma).
 pub const HUBER_SIGMAS: f64 = 1.345;
+
+/// Which blocks the adjustment estimates; the others are held at their starting values
+/// (a calibration started from an earlier one, `--fix`, `--laser-only`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct FreeBlocks {
+    /// Intrinsics and the distortion model's coefficients.
+    pub camera: bool,
+    /// The laser plane (held anyway when there is no stripe point).
+    pub laser_plane: bool,
+    pub hand_cam: bool,
+    pub base_board: bool,
+    /// The board's printed scale (every board coordinate times `s`; the robot's
+    /// translations fix it). Held at [`JointOptions::board_scale`] by default.
+    pub board_scale: bool,
+}
+
+impl Default for FreeBlocks {
+    fn default() -> Self {
+        FreeBlocks {
+            camera: true,
+            laser_plane: true,
+            hand_cam: true,
+            base_board: true,
+            board_scale: false,
+        }
+    }
+}
+
+impl FreeBlocks {
+    /// Only the laser plane.
+    pub fn laser_only() -> Self {
+        FreeBlocks {
+            camera: false,
+            laser_plane: true,
+            hand_cam: false,
+            base_board: false,
+            board_scale: false,
+        }
+    }
+}
 
 /// Options of [`joint_adjustment`].
 #[derive(Debug, Clone, PartialEq)]
@@ -93,6 +134,10 @@ pub struct JointOptions {
     pub outlier_sigmas: f64,
     /// Starting standard deviations (circle, stripe), px.
     pub initial_sigma_px: (f64, f64),
+    /// The blocks estimated.
+    pub free: FreeBlocks,
+    /// The board's scale: its starting value, or its value when held (default 1).
+    pub board_scale: f64,
 }
 
 impl Default for JointOptions {
@@ -114,6 +159,8 @@ impl Default for JointOptions {
             variance_components: true,
             outlier_sigmas: 3.0,
             initial_sigma_px: (0.02, 0.05),
+            free: FreeBlocks::default(),
+            board_scale: 1.0,
         }
     }
 }
@@ -122,8 +169,9 @@ impl Default for JointOptions {
 #[derive(Debug, Clone, PartialEq)]
 pub struct JointStart {
     pub camera: Camera,
-    /// Laser plane, camera frame.
-    pub plane: Plane,
+    /// Laser plane, camera frame (`None`: no laser; the views then have no stripe
+    /// points).
+    pub plane: Option<Plane>,
     /// `X = T_hand_cam`.
     pub hand_cam: Iso3,
     /// `Z = T_base_board`.
@@ -151,6 +199,8 @@ pub struct JointSigma {
     pub plane_d_mm: f64,
     pub hand_cam: TransformSigma,
     pub base_board: TransformSigma,
+    /// The board scale's (0 when held).
+    pub board_scale: f64,
 }
 
 /// Per-view figures of the adjustment.
@@ -175,9 +225,14 @@ pub struct ViewReport {
 #[derive(Debug, Clone)]
 pub struct JointResult {
     pub camera: Camera,
-    pub plane: Plane,
+    /// The laser plane (`None` without a laser: no start and no stripe point).
+    pub plane: Option<Plane>,
     pub hand_cam: Iso3,
     pub base_board: Iso3,
+    /// The board's scale (estimated, or the held value).
+    pub board_scale: f64,
+    /// The blocks that were estimated.
+    pub free: FreeBlocks,
     pub sigma: JointSigma,
     /// RMS of the 2D circle residuals over all views, px.
     pub circle_rms_px: f64,
@@ -192,6 +247,8 @@ pub struct JointResult {
     /// variance factor).
     pub param_names: Vec<String>,
     pub covariance: DMatrix<f64>,
+    /// The covariance of the estimated numbers under calibration.json's names.
+    pub named_covariance: NamedCovariance,
     pub iterations: usize,
     pub stop_reason: StopReason,
     pub unobservable: Vec<String>,
@@ -220,16 +277,33 @@ pub fn joint_adjustment(
     start.camera.validate()?;
     let mut warnings = Vec::new();
     let terms = Terms::collect(views, board, &mut warnings)?;
-    check_terms(&terms)?;
-    let layout = ParamLayout::new(start.camera.model, start.plane.normal);
+    let free = free_blocks(&terms, start, opts)?;
+    let layout = ParamLayout::new(start, &free, opts.board_scale);
+    if layout.num_params() == 0 {
+        return Err(Error::InvalidInput(
+            "the one-stage adjustment has nothing to estimate: every block is held".into(),
+        ));
+    }
     let mut problem = JointProblem::new(&start.camera, &layout, terms, opts);
-    let (res, iterations) = solve(&mut problem, layout.encode(start), opts)?;
+    let (res, iterations) = solve(&mut problem, layout.encode(), opts)?;
 
-    let s = layout.decode(&res.params, &start.camera);
+    let s = layout.decode(&res.params);
     let camera = start.camera.with_params(&s.cam);
     camera.validate()?;
-    let plane = Plane::new(s.plane_n, s.plane_d)?;
-    let sigma = covariance::joint_sigma(&layout, &res.params, &s, &res.covariance);
+    let plane = if free.laser_plane {
+        Some(Plane::new(s.plane_n, s.plane_d)?)
+    } else {
+        start.plane
+    };
+    if !(s.scale.is_finite() && s.scale > 0.0) {
+        return Err(Error::Degenerate(format!(
+            "the board scale went to {} in the adjustment",
+            s.scale
+        )));
+    }
+    let plane_sign = plane.map_or(1.0, |pl| pl.normal.dot(&s.plane_n).signum());
+    let named = covariance::named_covariance(&layout, &res.params, &s, &res.covariance, plane_sign);
+    let sigma = covariance::joint_sigma(&named);
     let reports = report::build(
         &problem,
         &s,
@@ -249,11 +323,21 @@ pub fn joint_adjustment(
             unobservable.join(", ")
         ));
     }
+    // Held transforms are returned as given (not through their rotation vectors).
+    let transform = |free: bool, block: Block, held: &Iso3| {
+        if free {
+            layout.transform(&res.params, block)
+        } else {
+            *held
+        }
+    };
     Ok(JointResult {
         camera,
         plane,
-        hand_cam: layout.transform(&res.params, Block::HandCam),
-        base_board: layout.transform(&res.params, Block::BaseBoard),
+        hand_cam: transform(free.hand_cam, Block::HandCam, &start.hand_cam),
+        base_board: transform(free.base_board, Block::BaseBoard, &start.base_board),
+        board_scale: s.scale,
+        free,
         sigma,
         circle_rms_px: reports.circle_rms_px,
         stripe_rms_px: reports.stripe_rms_px,
@@ -262,6 +346,7 @@ pub fn joint_adjustment(
         views: reports.views,
         param_names,
         covariance: res.covariance,
+        named_covariance: named,
         iterations,
         stop_reason: res.reason,
         unobservable,
@@ -271,20 +356,37 @@ pub fn joint_adjustment(
     })
 }
 
-/// At least 3 views and some stripe points.
-fn check_terms(terms: &Terms) -> Result<()> {
-    if terms.a.len() < 3 {
+/// The blocks estimated: the options', with the laser plane held when there is no
+/// stripe point. Errors when the views cannot determine what is asked: fewer than 3
+/// views with a robot pose (2 with stripe points when only the laser plane is
+/// estimated), stripe points without a starting laser plane.
+fn free_blocks(terms: &Terms, start: &JointStart, opts: &JointOptions) -> Result<FreeBlocks> {
+    let mut free = opts.free;
+    if terms.stripes.is_empty() {
+        free.laser_plane = false;
+    } else if start.plane.is_none() {
+        return Err(Error::InvalidInput(
+            "the one-stage adjustment has stripe points but no starting laser plane".into(),
+        ));
+    }
+    let chain = free.camera || free.hand_cam || free.base_board || free.board_scale;
+    if chain && terms.a.len() < 3 {
         return Err(Error::InvalidInput(format!(
             "the one-stage adjustment needs at least 3 views with a robot pose, got {}",
             terms.a.len()
         )));
     }
-    if terms.stripes.is_empty() {
-        return Err(Error::InvalidInput(
-            "the one-stage adjustment needs stripe points (no view has any)".into(),
-        ));
+    if opts.free.laser_plane && !chain {
+        let mut with_stripe: Vec<usize> = terms.stripes.iter().map(|s| s.view).collect();
+        with_stripe.dedup();
+        if with_stripe.len() < 2 {
+            return Err(Error::InvalidInput(format!(
+                "the laser plane needs stripe points on the board in at least 2 views, got {}",
+                with_stripe.len()
+            )));
+        }
     }
-    Ok(())
+    Ok(free)
 }
 
 /// The solve schedule from `p`: the last solve's result and the iterations of all.
@@ -452,11 +554,13 @@ mod tests {
         );
         JointStart {
             camera: s.cam.with_params(&p),
-            plane: Plane::new(
-                s.plane.normal + Vector3::new(0.01, -0.01, 0.005),
-                s.plane.d + 0.5,
-            )
-            .unwrap(),
+            plane: Some(
+                Plane::new(
+                    s.plane.normal + Vector3::new(0.01, -0.01, 0.005),
+                    s.plane.d + 0.5,
+                )
+                .unwrap(),
+            ),
             hand_cam: s.x * d,
             base_board: d * s.z,
         }
@@ -486,8 +590,9 @@ mod tests {
                     t[i]
                 );
             }
-            assert!((r.plane.normal - s.plane.normal).norm() < 1e-9);
-            assert!((r.plane.d - s.plane.d).abs() < 1e-7);
+            let plane = r.plane.unwrap();
+            assert!((plane.normal - s.plane.normal).norm() < 1e-9);
+            assert!((plane.d - s.plane.d).abs() < 1e-7);
             let (xr, xt) = iso_err(&r.hand_cam, &s.x);
             let (zr, zt) = iso_err(&r.base_board, &s.z);
             assert!(
@@ -528,7 +633,12 @@ mod tests {
                 });
             }
         }
-        let layout = ParamLayout::new(start.camera.model, start.plane.normal);
+        // Every block free, the board scale too (away from 1, so that `t / s` matters).
+        let free = FreeBlocks {
+            board_scale: true,
+            ..FreeBlocks::default()
+        };
+        let layout = ParamLayout::new(&start, &free, 1.03);
         let opts = JointOptions {
             centre_model: CentreModel::ConicExact,
             variance_components: false,
@@ -543,11 +653,13 @@ mod tests {
         };
         let pr = JointProblem::new(&start.camera, &layout, terms, &opts);
         let mut p: Vec<f64> = start.camera.params().to_vec();
-        p.extend_from_slice(&[0.01, -0.02, start.plane.d]);
+        p.extend_from_slice(&[0.01, -0.02, start.plane.unwrap().d]);
         for t in [&start.hand_cam, &start.base_board] {
             let (rv, tr) = iso_to_rotvec(t);
             p.extend_from_slice(&[rv.x, rv.y, rv.z, tr.x, tr.y, tr.z]);
         }
+        p.push(1.03);
+        assert_eq!(p.len(), layout.num_params());
         let step = |j: usize| {
             if j < 9 {
                 1e-5 * p[j].abs().max(1e-2)
@@ -559,17 +671,168 @@ mod tests {
     }
 
     #[test]
-    fn too_few_views_and_no_stripe_are_typed_errors() {
+    fn too_few_views_and_stripes_without_a_plane_are_typed_errors() {
         let s = synth(DistortionModel::Radial1, [0.05, 0.0, 0.0, 0.0, 0.0]);
         let start = perturbed_start(&s);
         let b = Board::hp3_paper();
-        let e = joint_adjustment(&s.views[..2], &b, &start, &JointOptions::default()).unwrap_err();
+        let Err(e) = joint_adjustment(&s.views[..2], &b, &start, &JointOptions::default()) else {
+            panic!("expected an error: {}", "2 views are too few")
+        };
         assert!(matches!(e, Error::InvalidInput(_)), "{e}");
-        let mut v = s.views.clone();
-        for x in &mut v {
-            x.stripe.clear();
+        let no_plane = JointStart {
+            plane: None,
+            ..start.clone()
+        };
+        let Err(e) = joint_adjustment(&s.views, &b, &no_plane, &JointOptions::default()) else {
+            panic!("expected an error: {}", "stripes without a plane")
+        };
+        assert!(e.to_string().contains("laser plane"), "{e}");
+        let nothing = JointOptions {
+            free: FreeBlocks {
+                camera: false,
+                laser_plane: false,
+                hand_cam: false,
+                base_board: false,
+                board_scale: false,
+            },
+            ..JointOptions::default()
+        };
+        let Err(e) = joint_adjustment(&s.views, &b, &start, &nothing) else {
+            panic!("expected an error: {}", "nothing to estimate")
+        };
+        assert!(e.to_string().contains("nothing to estimate"), "{e}");
+    }
+
+    /// Views without stripe points (no laser): camera, X and Z are recovered exactly,
+    /// the plane is not estimated and has no covariance rows.
+    #[test]
+    fn without_a_laser_the_chain_is_recovered_and_the_plane_is_none() {
+        let mut s = synth(DistortionModel::Radial2, [0.05, -0.02, 0.0, 0.0, 0.0]);
+        for v in &mut s.views {
+            v.stripe.clear();
         }
-        let e = joint_adjustment(&v, &b, &start, &JointOptions::default()).unwrap_err();
-        assert!(e.to_string().contains("stripe"), "{e}");
+        let start = JointStart {
+            plane: None,
+            ..perturbed_start(&s)
+        };
+        let r = joint_adjustment(
+            &s.views,
+            &Board::hp3_paper(),
+            &start,
+            &JointOptions::default(),
+        )
+        .unwrap();
+        assert!(r.plane.is_none() && !r.free.laser_plane);
+        let (xr, xt) = iso_err(&r.hand_cam, &s.x);
+        let (zr, zt) = iso_err(&r.base_board, &s.z);
+        assert!(
+            xr < 1e-9 && xt < 1e-7 && zr < 1e-9 && zt < 1e-7,
+            "{xr} {xt} {zr} {zt}"
+        );
+        assert!((r.camera.fu - s.cam.fu).abs() < 1e-6);
+        let names = &r.named_covariance.parameters;
+        assert!(
+            names.iter().all(|n| !n.starts_with("laser_plane")),
+            "{names:?}"
+        );
+        assert!(names.contains(&"camera.distortion[1]".to_string()));
+        assert_eq!(r.sigma.plane_d_mm, 0.0);
+    }
+
+    /// A board printed 2 % larger than declared: with the scale free the adjustment
+    /// finds 1.02 exactly (and the chain), with it held the circles do not fit.
+    #[test]
+    fn a_free_board_scale_recovers_a_misprinted_board() {
+        let s = synth(DistortionModel::Radial1, [0.05, 0.0, 0.0, 0.0, 0.0]);
+        let board = Board::hp3_paper();
+        // The same images, explained by a board 2 % larger: rig.json's board seen from
+        // t / 1.02 (module docs of the layout) is what the true board gives at t.
+        // The synthetic views rotate the camera about one point of the board, which
+        // leaves the scale undetermined (it trades with X's translation): move the hand
+        // too, and drop the stripes (their lines would move with it).
+        let mut views = s.views.clone();
+        let scale = 1.02;
+        for (i, v) in views.iter_mut().enumerate() {
+            let shift = [
+                [0.0, 0.0, 0.0],
+                [15.0, -5.0, 10.0],
+                [-10.0, 12.0, -8.0],
+                [5.0, 9.0, 14.0],
+                [-12.0, -7.0, 4.0],
+            ][i];
+            let a =
+                v.base_hand.unwrap() * iso_from_rotvec(&Vector3::zeros(), &Vector3::from(shift));
+            v.base_hand = Some(a);
+            v.stripe.clear();
+            let cb = (a * s.x).inverse() * s.z;
+            let cb_img = Iso3::from_parts((cb.translation.vector / scale).into(), cb.rotation);
+            for c in &mut v.circles {
+                let uv = predict_centre(
+                    &s.cam,
+                    &cb_img,
+                    &board.center(c.row, c.col),
+                    0.5 * board.diameter(c.row, c.col),
+                    CentreModel::ConicExact,
+                )
+                .unwrap();
+                (c.u, c.v) = (uv.x, uv.y);
+            }
+        }
+        let opts = JointOptions {
+            free: FreeBlocks {
+                board_scale: true,
+                ..FreeBlocks::default()
+            },
+            ..JointOptions::default()
+        };
+        let start = JointStart {
+            plane: None,
+            ..perturbed_start(&s)
+        };
+        let r = joint_adjustment(&views, &board, &start, &opts).unwrap();
+        assert!(
+            (r.board_scale - scale).abs() < 1e-9,
+            "{} {} {} {:?} {:?}",
+            r.board_scale,
+            r.circle_rms_px,
+            r.stripe_rms_px,
+            r.stop_reason,
+            r.sigma.board_scale
+        );
+        let (xr, xt) = iso_err(&r.hand_cam, &s.x);
+        assert!(xr < 1e-9 && xt < 1e-6, "{xr} {xt}");
+        assert!(r.named_covariance.index("board.scale").is_some());
+        let held = joint_adjustment(&views, &board, &start, &JointOptions::default()).unwrap();
+        assert!(held.circle_rms_px > 0.05, "{}", held.circle_rms_px);
+    }
+
+    /// Only the laser plane free (`--laser-only`): it is recovered, the held blocks keep
+    /// their values bit for bit.
+    #[test]
+    fn laser_only_refines_the_plane_and_holds_the_rest() {
+        let s = synth(DistortionModel::Radial1, [0.05, 0.0, 0.0, 0.0, 0.0]);
+        let start = JointStart {
+            camera: s.cam.clone(),
+            plane: perturbed_start(&s).plane,
+            hand_cam: s.x,
+            base_board: s.z,
+        };
+        let opts = JointOptions {
+            free: FreeBlocks::laser_only(),
+            ..JointOptions::default()
+        };
+        // Two views suffice for the plane.
+        let r = joint_adjustment(&s.views[..2], &Board::hp3_paper(), &start, &opts).unwrap();
+        let plane = r.plane.unwrap();
+        assert!((plane.normal - s.plane.normal).norm() < 1e-9);
+        assert!((plane.d - s.plane.d).abs() < 1e-7);
+        assert_eq!(r.camera, s.cam);
+        assert_eq!(r.hand_cam, s.x);
+        assert_eq!(r.base_board, s.z);
+        assert_eq!(r.param_names, ["plane_a", "plane_b", "plane_d_mm"]);
+        let Err(e) = joint_adjustment(&s.views[..1], &Board::hp3_paper(), &start, &opts) else {
+            panic!("expected an error: {}", "one view cannot give a plane")
+        };
+        assert!(e.to_string().contains("at least 2 views"), "{e}");
     }
 }

@@ -212,7 +212,7 @@ impl<'a> JointProblem<'a> {
     }
 
     fn decode(&self, p: &[f64]) -> JointParams {
-        self.layout.decode(p, self.base)
+        self.layout.decode(p)
     }
 
     /// Stripe foot point from the warm-start cache, which it updates.
@@ -234,6 +234,7 @@ impl<'a> JointProblem<'a> {
     fn raw_residuals(&self, p: &[f64], r: &mut [f64]) -> Result<()> {
         let s = self.decode(p);
         let poses = s.view_poses(&self.terms.a);
+        let board_poses = s.circle_poses(&self.terms.a);
         let n1 = [s.plane_n.x, s.plane_n.y, s.plane_n.z];
         let lines: Vec<Option<_>> = poses
             .iter()
@@ -244,7 +245,7 @@ impl<'a> JointProblem<'a> {
         rc.par_chunks_mut(2)
             .zip(self.terms.circles.par_iter())
             .try_for_each(|(out, c)| -> Result<()> {
-                let (rot, t) = &poses[c.view];
+                let (rot, t) = &board_poses[c.view];
                 let uv = centre_generic_n(
                     &s.cam,
                     rot,
@@ -275,13 +276,18 @@ impl<'a> JointProblem<'a> {
     }
 }
 
-/// Per-view quantities of a Jacobian evaluation: each view's `T_cam_board` (values),
-/// the chain of its pose increment to the `X` and `Z` slots, and its stripe line with
+/// The slots after `X`'s first that a view's board pose depends on: `X`, `Z`, the board
+/// scale.
+const CHAIN: usize = 13;
+
+/// Per-view quantities of a Jacobian evaluation: the pose each view's board points are
+/// imaged with (`T_cam_board` with its translation divided by the board scale, values),
+/// the chain of its increment to the `X`, `Z` and scale slots, and its stripe line with
 /// derivatives over every slot.
 struct ViewLinearisation {
-    poses: Vec<([[f64; 3]; 3], [f64; 3])>,
-    /// `d(w, v) / d(X, Z slots)`: rows `(w, v)` of `T_cam_board`'s increment.
-    chains: Vec<[[f64; 12]; 6]>,
+    board_poses: Vec<([[f64; 3]; 3], [f64; 3])>,
+    /// `d(w, v) / d(X, Z, scale slots)`: rows `(w, v)` of the board pose's increment.
+    chains: Vec<[[f64; CHAIN]; 6]>,
     lines: Vec<Option<([DSlots; 3], [DSlots; 3])>>,
 }
 
@@ -289,21 +295,23 @@ impl JointProblem<'_> {
     /// The views' poses and stripe lines as duals over every slot, and the chains.
     fn linearise_views(&self, p: &[f64], s: &JointParams) -> ViewLinearisation {
         let layout = self.layout;
-        let (sp, sx, sz) = (
+        let (sp, sx, sz, ss) = (
             layout.slots(Block::Plane).start,
             layout.slots(Block::HandCam).start,
             layout.slots(Block::BaseBoard).start,
+            layout.slots(Block::BoardScale).start,
         );
-        let o = layout.first_column(Block::Plane);
+        debug_assert_eq!(ss, sx + CHAIN - 1);
+        let v = layout.full(p);
         let chart = &layout.chart;
-        let a = DSlots::var(p[o], sp);
-        let b = DSlots::var(p[o + 1], sp + 1);
+        let a = DSlots::var(v[sp], sp);
+        let b = DSlots::var(v[sp + 1], sp + 1);
         let nn: [DSlots; 3] = std::array::from_fn(|i| {
             DSlots::cst(chart.n0[i]) + a.scale(chart.e1[i]) + b.scale(chart.e2[i])
         });
         let len = dot(&nn, &nn).sqrt();
         let n1: [DSlots; 3] = std::array::from_fn(|i| nn[i] / len);
-        let d1 = DSlots::var(p[o + 2], sp + 2);
+        let d1 = DSlots::var(v[sp + 2], sp + 2);
         let wx: [DSlots; 3] = std::array::from_fn(|i| DSlots::var(0.0, sx + i));
         let wz: [DSlots; 3] = std::array::from_fn(|i| DSlots::var(0.0, sz + i));
         let xr = rot_times_exp_first_order(&s.x_rot, &wx);
@@ -316,15 +324,16 @@ impl JointProblem<'_> {
             .iter()
             .map(|a| cam_board(a, &xr, &xt, &zr, &zt))
             .collect();
-        // Chain of each view's pose increment (w, v) of T_cam_board w.r.t. the X and Z
-        // slots: dw = vee(R0^T dR), dv = dt.
+        // Chain of each view's board-pose increment (w, v) w.r.t. the X, Z and scale
+        // slots: dw = vee(R0^T dR), dv = d(t / s) = dt / s - t ds / s^2.
+        let inv_s = 1.0 / s.scale;
         let chains = poses
             .iter()
             .map(|(rot, t)| {
                 let r0 = Matrix3::from_fn(|i, j| rot[i][j].v);
-                let mut m = [[0.0; 12]; 6];
+                let mut m = [[0.0; CHAIN]; 6];
                 #[allow(clippy::needless_range_loop)]
-                for k in 0..12 {
+                for k in 0..CHAIN - 1 {
                     let slot = sx + k;
                     let dr = Matrix3::from_fn(|i, j| rot[i][j].d[slot]);
                     let sk = r0.transpose() * dr;
@@ -332,18 +341,21 @@ impl JointProblem<'_> {
                     m[1][k] = 0.5 * (sk[(0, 2)] - sk[(2, 0)]);
                     m[2][k] = 0.5 * (sk[(1, 0)] - sk[(0, 1)]);
                     for i in 0..3 {
-                        m[3 + i][k] = t[i].d[slot];
+                        m[3 + i][k] = t[i].d[slot] * inv_s;
                     }
+                }
+                for i in 0..3 {
+                    m[3 + i][CHAIN - 1] = -t[i].v * inv_s * inv_s;
                 }
                 m
             })
             .collect();
-        let poses_f = poses
+        let board_poses = poses
             .iter()
             .map(|(rot, t)| {
                 (
                     std::array::from_fn(|i| std::array::from_fn(|j| rot[i][j].v)),
-                    std::array::from_fn(|i| t[i].v),
+                    std::array::from_fn(|i| t[i].v * inv_s),
                 )
             })
             .collect();
@@ -352,7 +364,7 @@ impl JointProblem<'_> {
             .map(|(rot, t)| stripe_line(&n1, d1, rot, t).ok())
             .collect();
         ViewLinearisation {
-            poses: poses_f,
+            board_poses,
             chains,
             lines,
         }
@@ -387,7 +399,7 @@ impl JointProblem<'_> {
             .zip(vc.par_chunks_mut(2 * n))
             .zip(self.terms.circles.par_iter())
             .try_for_each(|((out, jrow), c)| -> Result<()> {
-                let (rot, t) = &views.poses[c.view];
+                let (rot, t) = &views.board_poses[c.view];
                 let r0 = Matrix3::from_fn(|i, j| rot[i][j]);
                 let rd = rot_times_exp_first_order(&r0, &w15);
                 let td: [D15; 3] = std::array::from_fn(|i| D15::var(t[i], 12 + i));
@@ -415,7 +427,7 @@ impl JointProblem<'_> {
                             row[*col] = wc * ua.d[slot];
                         }
                     }
-                    for kk in 0..12 {
+                    for kk in 0..CHAIN {
                         let acc: f64 = (0..6).map(|q| ua.d[9 + q] * ch[q][kk]).sum();
                         if let Some(col) = col_of[sx + kk] {
                             row[col] = wc * acc;

@@ -1,0 +1,149 @@
+//! The leave-one-view-out figure (DECISIONS 3): for each view used, the calibration is
+//! solved again without it (warm-started at the full solution), and the view's own
+//! observations are predicted from what the others determined and its robot pose
+//! alone:
+//!
+//! - its target points: `T_cam_board = (A X)^-1 Z` projected with the camera (the
+//!   circle-centre model of the adjustment), against the detected points: the RMS
+//!   length in px; and in mm on the board: each detected point's viewing ray meets the
+//!   predicted board plane, at a distance from the point's predicted position;
+//! - its stripe points (with a laser plane): each triangulated with the laser plane,
+//!   its distance from the predicted board plane, RMS in mm.
+//!
+//! This is the figure a user can quote for a real rig: no ground truth is needed, and
+//! the view is never part of the fit that predicts it. The refits run in parallel.
+
+use nalgebra::{Vector2, Vector3};
+use rayon::prelude::*;
+
+use crate::calib::conic::{predict_centre, CentreModel};
+use crate::calib::joint::{joint_adjustment, JointOptions, JointResult, JointStart};
+use crate::calib::ViewObs;
+use crate::error::{Error, Result};
+use crate::model::board::Board;
+use crate::model::camera::Camera;
+use crate::model::geometry::{Iso3, Plane};
+use crate::model::{LeaveOneOut, LooView};
+use crate::numerics::robust::median;
+
+/// The views a leave-one-out needs at least: every refit keeps 3.
+pub const MIN_VIEWS: usize = 4;
+
+/// The leave-one-out figures of the views `used` (all with a robot pose), from the full
+/// solution `full` and the options it was solved with. `None` with fewer than
+/// [`MIN_VIEWS`] views. A refit that fails is an error naming the view.
+pub(super) fn leave_one_out(
+    used: &[ViewObs],
+    board: &Board,
+    full: &JointResult,
+    jopts: &JointOptions,
+) -> Result<Option<LeaveOneOut>> {
+    if used.len() < MIN_VIEWS {
+        return Ok(None);
+    }
+    let start = JointStart {
+        camera: full.camera.clone(),
+        plane: full.plane,
+        hand_cam: full.hand_cam,
+        base_board: full.base_board,
+    };
+    let mut opts = jopts.clone();
+    opts.board_scale = full.board_scale;
+    let views: Vec<LooView> = (0..used.len())
+        .into_par_iter()
+        .map(|k| -> Result<LooView> {
+            let others: Vec<ViewObs> = used
+                .iter()
+                .enumerate()
+                .filter(|(i, _)| *i != k)
+                .map(|(_, v)| v.clone())
+                .collect();
+            let fit = joint_adjustment(&others, board, &start, &opts).map_err(|e| {
+                Error::InvalidInput(format!(
+                    "leave-one-out: the calibration without view {} failed: {e}",
+                    used[k].view
+                ))
+            })?;
+            predict_view(&used[k], board, &fit, opts.centre_model)
+        })
+        .collect::<Result<_>>()?;
+    let med = |f: &dyn Fn(&LooView) -> Option<f64>| {
+        let mut xs: Vec<f64> = views.iter().filter_map(f).collect();
+        median(&mut xs)
+    };
+    Ok(Some(LeaveOneOut {
+        median_board_rms_px: med(&|v| Some(v.board_rms_px)).unwrap_or(f64::NAN),
+        median_board_rms_mm: med(&|v| Some(v.board_rms_mm)).unwrap_or(f64::NAN),
+        median_stripe_rms_mm: med(&|v| v.stripe_rms_mm),
+        views,
+    }))
+}
+
+/// View `v`'s observations predicted by `fit` (which did not see it) from its robot
+/// pose.
+fn predict_view(
+    v: &ViewObs,
+    board: &Board,
+    fit: &JointResult,
+    model: CentreModel,
+) -> Result<LooView> {
+    let a = v.base_hand.ok_or_else(|| {
+        Error::InvalidInput(format!("leave-one-out: view {} has no robot pose", v.view))
+    })?;
+    let cb = (a * fit.hand_cam).inverse() * fit.base_board;
+    let s = fit.board_scale;
+    // The board's points are imaged as rig.json's board at t / s (see the layout).
+    let cb_img = Iso3::from_parts((cb.translation.vector / s).into(), cb.rotation);
+    let cam = &fit.camera;
+    let board_plane = Plane {
+        normal: cb.rotation * Vector3::z(),
+        d: (cb.rotation * Vector3::z()).dot(&cb.translation.vector),
+    };
+    let (mut ss_px, mut ss_mm) = (0.0, 0.0);
+    for c in &v.circles {
+        let centre = board.center(c.row, c.col);
+        let uv = predict_centre(
+            cam,
+            &cb_img,
+            &centre,
+            0.5 * board.diameter(c.row, c.col),
+            model,
+        )?;
+        ss_px += (uv.x - c.u).powi(2) + (uv.y - c.v).powi(2);
+        let predicted = cb * nalgebra::Point3::from(centre * s);
+        let hit = ray_on_plane(cam, [c.u, c.v], &board_plane).ok_or_else(|| {
+            Error::Degenerate(format!(
+                "leave-one-out: view {}: the ray of point ({}, {}) misses its predicted board plane",
+                v.view, c.row, c.col
+            ))
+        })?;
+        ss_mm += (hit - predicted.coords).norm_squared();
+    }
+    let n = v.circles.len().max(1) as f64;
+    let mut stripe_ss = 0.0;
+    let mut stripe_n = 0usize;
+    if let Some(plane) = &fit.plane {
+        for uv in &v.stripe {
+            if let Some(p) = ray_on_plane(cam, *uv, plane) {
+                stripe_ss += (board_plane.normal.dot(&p) - board_plane.d).powi(2);
+                stripe_n += 1;
+            }
+        }
+    }
+    Ok(LooView {
+        view: v.view,
+        points: v.circles.len(),
+        board_rms_px: (ss_px / n).sqrt(),
+        board_rms_mm: (ss_mm / n).sqrt(),
+        stripe_points: stripe_n,
+        stripe_rms_mm: (stripe_n > 0).then(|| (stripe_ss / stripe_n as f64).sqrt()),
+    })
+}
+
+/// Where the viewing ray of pixel `uv` meets `plane` (camera frame, mm); `None` when it
+/// cannot be undistorted, is parallel to the plane or meets it behind the camera.
+fn ray_on_plane(cam: &Camera, uv: [f64; 2], plane: &Plane) -> Option<Vector3<f64>> {
+    let ray = cam.unproject(&Vector2::new(uv[0], uv[1])).ok()?;
+    let t = plane.intersect_ray(&Vector3::zeros(), &ray)?;
+    (t > 0.0).then(|| ray * t)
+}
