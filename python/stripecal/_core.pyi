@@ -13,6 +13,7 @@ import numpy.typing as npt
 # The records of the dicts the extension returns (real TypedDicts, at run time too).
 from stripecal.types import (
     AxzbSolution,
+    BoardScaleCheck,
     CalibrationExtra,
     CalibrationExtraInput,
     CalibrationQuality,
@@ -24,6 +25,7 @@ from stripecal.types import (
     CircleDetection,
     DatasetView,
     LaserPlaneFit,
+    LeaveOneOut,
     PlyCloud,
     SimPose,
     SphereFitExtra,
@@ -289,7 +291,7 @@ class Calibration:
     def __new__(
         cls,
         camera: Camera,
-        laser_plane: Tuple[npt.ArrayLike, float],
+        laser_plane: Optional[Tuple[npt.ArrayLike, float]],
         hand_cam: npt.ArrayLike,
         base_board: npt.ArrayLike,
         robot: Optional[Robot] = None,
@@ -300,7 +302,9 @@ class Calibration:
     @property
     def camera(self) -> Camera: ...
     @property
-    def laser_plane(self) -> Tuple[_F64, float]: ...
+    def laser_plane(self) -> Optional[Tuple[_F64, float]]: ...
+    @property
+    def covariance(self) -> Optional[Tuple[List[str], _F64]]: ...
     @property
     def hand_cam(self) -> _F64: ...
     @property
@@ -315,6 +319,10 @@ class Calibration:
     def extra(self) -> CalibrationExtra: ...
     @property
     def views(self) -> List[CalibrationView]: ...
+    @property
+    def leave_one_out(self) -> Optional[LeaveOneOut]: ...
+    @property
+    def board_scale(self) -> Optional[BoardScaleCheck]: ...
     @property
     def circle_residuals(self) -> _F64: ...
     @property
@@ -583,6 +591,12 @@ def calibrate(
     method: str = "one-stage",
     robust: bool = False,
     centre_model: str = "conic-exact",
+    from_calibration: Optional[Union[Calibration, _Path]] = None,
+    fix: Sequence[str] = ...,
+    laser_only: bool = False,
+    estimate_board_scale: bool = False,
+    board_scale_tolerance: float = 0.01,
+    leave_one_out: bool = True,
 ) -> Calibration: ...
 def calibrate_camera(
     views: Sequence[Tuple[npt.ArrayLike, npt.ArrayLike]],

@@ -190,12 +190,14 @@ def parameter_rows(cal: stripecal.Calibration, truth: Optional[stripecal.Truth])
     for i, n in enumerate(("k1", "k2", "p1", "p2", "k3")):
         if cam.distortion[i] != 0.0 or _at(ds, i):
             out.append((n, float(cam.distortion[i]), _at(ds, i), float(truth.camera.distortion[i]) if truth else None))
-    n_, d_ = cal.laser_plane
-    lu: PlaneSigma = u.get("laser_plane", {})
-    tn: Optional[Tuple[F64, float]] = truth.laser_plane if truth else None
-    for i, a in enumerate("xyz"):
-        out.append((f"laser normal {a}", float(n_[i]), _at(lu.get("normal"), i), float(tn[0][i]) if tn else None))
-    out.append(("laser d (mm)", float(d_), lu.get("d_mm"), tn[1] if tn else None))
+    plane = cal.laser_plane
+    if plane is not None:  # None: not estimated (no laser images)
+        n_, d_ = plane
+        lu: PlaneSigma = u.get("laser_plane", {})
+        tn: Optional[Tuple[F64, float]] = truth.laser_plane if truth else None
+        for i, a in enumerate("xyz"):
+            out.append((f"laser normal {a}", float(n_[i]), _at(lu.get("normal"), i), float(tn[0][i]) if tn else None))
+        out.append(("laser d (mm)", float(d_), lu.get("d_mm"), tn[1] if tn else None))
     poses: List[Tuple[str, F64, PoseSigma, Optional[F64]]] = [
         ("X", cal.hand_cam, u.get("hand_cam", {}), truth.hand_cam if truth else None),
         ("Z", cal.base_board, u.get("base_board", {}), truth.base_board if truth else None),

@@ -43,6 +43,7 @@ Gray = Union[npt.NDArray[np.uint8], npt.NDArray[np.uint16]]
 
 __all__ = [
     "AxzbSolution",
+    "BoardScaleCheck",
     "CalibrationExtra",
     "CalibrationExtraInput",
     "CalibrationQuality",
@@ -60,6 +61,8 @@ __all__ = [
     "Gray",
     "I64",
     "LaserPlaneFit",
+    "LeaveOneOut",
+    "LeaveOneOutView",
     "PlaneSigma",
     "PlyCloud",
     "PoseSigma",
@@ -211,6 +214,63 @@ class CalibrationView(TypedDict):
     """Why the view was left out, if it was."""
 
 
+class LeaveOneOutView(TypedDict):
+    """One view's leave-one-view-out figures: its observations predicted by the
+    calibration solved without it, from its robot pose alone."""
+
+    view: int
+    """Index of the view in the dataset (views.csv order)."""
+    points: int
+    """Target points compared."""
+    board_rms_px: float
+    """RMS length of (predicted - detected) target point, px."""
+    board_rms_mm: float
+    """RMS distance on the predicted board plane between each detected point's viewing
+    ray and the point's predicted position, mm."""
+    stripe_points: int
+    """Stripe points compared (0 without laser image or laser plane)."""
+    stripe_rms_mm: Optional[float]
+    """RMS distance of its stripe points (triangulated with the laser plane) from its
+    predicted board plane, mm (None without stripe points)."""
+    disagrees: bool
+    """Whether the view disagrees with the others: ``board_rms_px`` beyond 3 times the
+    median over views."""
+
+
+class LeaveOneOut(TypedDict):
+    """The leave-one-view-out figures of a calibration (``Calibration.leave_one_out``):
+    the out-of-sample figure to quote for a real rig."""
+
+    views: List[LeaveOneOutView]
+    """Per view."""
+    median_board_rms_px: float
+    """Median over views of ``board_rms_px``."""
+    median_board_rms_mm: float
+    """Median over views of ``board_rms_mm``."""
+    median_stripe_rms_mm: Optional[float]
+    """Median over views with stripe points of ``stripe_rms_mm``."""
+
+
+class BoardScaleCheck(TypedDict):
+    """The board's printed scale as the robot's translations imply it
+    (``Calibration.board_scale``)."""
+
+    scale: float
+    """The scale the robot implies: the printed board is ``scale`` times rig.json's."""
+    sigma: float
+    """Its one-sigma (NaN when the poses do not determine it)."""
+    declared_mm: float
+    """rig.json's pitch (circle grids) or square (chessboards), mm."""
+    implied_mm: float
+    """``scale * declared_mm``."""
+    estimated: bool
+    """Whether the calibration freed the scale (``estimate_board_scale``)."""
+    disagrees: bool
+    """Whether rig.json disagrees: ``|scale - 1|`` beyond 3 sigma and the tolerance."""
+    tolerance: float
+    """The tolerance on ``|scale - 1|``."""
+
+
 class CalibrationExtra(TypedDict, total=False):
     """The other top-level keys of calibration.json (``Calibration.extra``). The
     library writes all but ``base_board_orientation`` and ``warnings`` (only when there
@@ -232,6 +292,13 @@ class CalibrationExtra(TypedDict, total=False):
     warnings: List[str]
     """Warnings of the calibration run (weak geometry, trimmed points, views left
     out...)."""
+    board_scale: BoardScaleCheck
+    """The board's scale against the robot."""
+    leave_one_out: LeaveOneOut
+    """The leave-one-view-out figures."""
+    held_blocks: List[str]
+    """The blocks held at the values of the calibration it started from (their
+    uncertainty is that file's; the others' is conditional on them)."""
 
 
 CalibrationExtraInput = Union[CalibrationExtra, Dict[str, object]]

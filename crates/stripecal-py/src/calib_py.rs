@@ -16,6 +16,7 @@ use std::path::PathBuf;
 
 use stripecal::calib::camera::{calibrate_camera as core_calibrate_camera, CameraOptions};
 use stripecal::calib::conic::CentreModel;
+use stripecal::calib::joint::FreeBlocks;
 use stripecal::calib::{CircleObs, ViewObs};
 use stripecal::model::camera::{DistortionModel, PARAM_NAMES};
 use stripecal::pipeline::{
@@ -193,6 +194,14 @@ fn parse_distortion(py: Python<'_>, s: Option<&str>) -> PyResult<Option<Distorti
 /// `robust`: Huber loss in the one-stage adjustment; `centre_model`: `"conic-exact"`
 /// (default), `"conic"` or `"naive"`.
 ///
+/// Starting from an earlier calibration (`from_calibration`: a `Calibration` or a
+/// calibration.json path): `fix` names the blocks held at its values (`"camera"`,
+/// `"laser_plane"`, `"hand_cam"`, `"base_board"`); `laser_only=True` holds all but the
+/// laser plane. `estimate_board_scale=True` frees the board's printed scale (the robot
+/// fixes it); otherwise it is checked (`extra["board_scale"]`, a warning when rig.json
+/// disagrees by more than 3 sigma and `board_scale_tolerance`). `leave_one_out=True`
+/// (default) computes the leave-one-view-out figure (`extra["leave_one_out"]`).
+///
 /// Returns a `Calibration` with quality, one-sigma `uncertainty`, per-view figures
 /// (`views`) and the run's residuals. Views whose board is not found, and views whose
 /// robot pose disagrees with their board pose, are left out with a warning naming them
@@ -201,7 +210,8 @@ fn parse_distortion(py: Python<'_>, s: Option<&str>) -> PyResult<Option<Distorti
 /// determine the result, `FormatError`/`OSError` for unreadable files. The GIL is
 /// released while it runs.
 #[pyfunction]
-#[pyo3(signature = (dataset, *, distortion = None, method = "one-stage", robust = false, centre_model = "conic-exact"))]
+#[pyo3(signature = (dataset, *, distortion = None, method = "one-stage", robust = false, centre_model = "conic-exact", from_calibration = None, fix = Vec::new(), laser_only = false, estimate_board_scale = false, board_scale_tolerance = 0.01, leave_one_out = true))]
+#[allow(clippy::too_many_arguments)]
 pub fn calibrate(
     py: Python<'_>,
     dataset: &Bound<'_, PyAny>,
@@ -209,12 +219,59 @@ pub fn calibrate(
     method: &str,
     robust: bool,
     centre_model: &str,
+    from_calibration: Option<&Bound<'_, PyAny>>,
+    fix: Vec<String>,
+    laser_only: bool,
+    estimate_board_scale: bool,
+    board_scale_tolerance: f64,
+    leave_one_out: bool,
 ) -> PyResult<PyCalibration> {
+    let from = match from_calibration {
+        None => None,
+        Some(c) => Some(if let Ok(pc) = c.cast::<PyCalibration>() {
+            pc.get().inner.clone()
+        } else {
+            let path: PathBuf = c.extract().map_err(|_| {
+                pyo3::exceptions::PyTypeError::new_err(format!(
+                    "from_calibration must be a Calibration or a path, got {}",
+                    crate::convert::type_name(c)
+                ))
+            })?;
+            py.detach(|| stripecal::io::read_calibration(&path)).py_err(py)?
+        }),
+    };
+    let mut free = if laser_only {
+        FreeBlocks::laser_only()
+    } else {
+        FreeBlocks::default()
+    };
+    for name in &fix {
+        match name.as_str() {
+            "camera" => free.camera = false,
+            "laser_plane" => free.laser_plane = false,
+            "hand_cam" => free.hand_cam = false,
+            "base_board" => free.base_board = false,
+            "robot" => {}
+            o => {
+                return Err(invalid_input(
+                    py,
+                    format!(
+                        "fix: unknown block {o:?}: expected camera, laser_plane, hand_cam, base_board or robot"
+                    ),
+                ))
+            }
+        }
+    }
+    free.board_scale = estimate_board_scale;
     let opts = CalibrateOptions {
         distortion: parse_distortion(py, distortion)?,
         method: Method::from_name(method).py_err(py)?,
         robust,
         centre_model: parse_centre_model(py, centre_model)?,
+        from,
+        free,
+        leave_one_out,
+        board_scale_tolerance,
         ..Default::default()
     };
     let rep = if let Ok(ds) = dataset.cast::<PyDataset>() {

@@ -209,6 +209,30 @@ impl PyCalibration {
         }
     }
 
+    /// The leave-one-view-out figures (`extra["leave_one_out"]`): `views` (per view:
+    /// `view`, `points`, `board_rms_px`, `board_rms_mm`, `stripe_points`,
+    /// `stripe_rms_mm`) and their medians; None when not computed.
+    #[getter]
+    fn leave_one_out<'py>(&self, py: Python<'py>) -> PyResult<Option<Bound<'py, PyAny>>> {
+        self.inner
+            .extra
+            .get("leave_one_out")
+            .map(|v| json_to_py(py, v))
+            .transpose()
+    }
+
+    /// The board's scale against the robot (`extra["board_scale"]`): `scale`, `sigma`,
+    /// `declared_mm`, `implied_mm`, `estimated`, `disagrees`, `tolerance`; None when not
+    /// computed.
+    #[getter]
+    fn board_scale<'py>(&self, py: Python<'py>) -> PyResult<Option<Bound<'py, PyAny>>> {
+        self.inner
+            .extra
+            .get("board_scale")
+            .map(|v| json_to_py(py, v))
+            .transpose()
+    }
+
     /// Circle residuals of the run that produced this calibration, `(N, 7)`:
     /// `view, row, col, u, v, du_px, dv_px`: the detected centre `(u, v)` and the
     /// residual, predicted minus detected. Empty `(0, 7)` for a calibration read from a

@@ -149,6 +149,7 @@ pub fn self_checks_extra(
                 o.insert("board_rms_mm".into(), finite_or_null(v.board_rms_mm));
                 o.insert("stripe_points".into(), Value::from(v.stripe_points));
                 o.insert("stripe_rms_mm".into(), opt(v.stripe_rms_mm));
+                o.insert("disagrees".into(), Value::from(v.disagrees));
                 Value::Object(o)
             })
             .collect();

@@ -41,7 +41,13 @@ pub struct LooView {
     /// RMS distance of the view's stripe points (triangulated with the laser plane)
     /// from its predicted board plane, mm (`None` without stripe points).
     pub stripe_rms_mm: Option<f64>,
+    /// Whether the view disagrees with the others: its `board_rms_px` beyond
+    /// [`LOO_DISAGREE_FACTOR`] times the median over views.
+    pub disagrees: bool,
 }
+
+/// A view whose leave-one-out figure exceeds this many times the median disagrees.
+pub const LOO_DISAGREE_FACTOR: f64 = 3.0;
 
 /// The leave-one-view-out figures of a calibration.
 #[derive(Debug, Clone, PartialEq)]

@@ -12,7 +12,7 @@ pub mod image;
 pub mod kinematics;
 mod results;
 
-pub use checks::{BoardScaleCheck, LeaveOneOut, LooView};
+pub use checks::{BoardScaleCheck, LeaveOneOut, LooView, LOO_DISAGREE_FACTOR};
 pub use dataset::{Dataset, Rig, RobotReading, Scan, ScanFrame, StripeDirection, View};
 pub use results::{
     AdjustmentSummary, Calibration, CameraSigma, Cloud, NamedCovariance, PlaneSigma, PoseSigma,

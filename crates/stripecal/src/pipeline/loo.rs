@@ -23,7 +23,7 @@ use crate::error::{Error, Result};
 use crate::model::board::Board;
 use crate::model::camera::Camera;
 use crate::model::geometry::{Iso3, Plane};
-use crate::model::{LeaveOneOut, LooView};
+use crate::model::{LeaveOneOut, LooView, LOO_DISAGREE_FACTOR};
 use crate::numerics::robust::median;
 
 /// The views a leave-one-out needs at least: every refit keeps 3.
@@ -49,7 +49,7 @@ pub(super) fn leave_one_out(
     };
     let mut opts = jopts.clone();
     opts.board_scale = full.board_scale;
-    let views: Vec<LooView> = (0..used.len())
+    let mut views: Vec<LooView> = (0..used.len())
         .into_par_iter()
         .map(|k| -> Result<LooView> {
             let others: Vec<ViewObs> = used
@@ -67,14 +67,18 @@ pub(super) fn leave_one_out(
             predict_view(&used[k], board, &fit, opts.centre_model)
         })
         .collect::<Result<_>>()?;
-    let med = |f: &dyn Fn(&LooView) -> Option<f64>| {
+    let med = |views: &[LooView], f: &dyn Fn(&LooView) -> Option<f64>| {
         let mut xs: Vec<f64> = views.iter().filter_map(f).collect();
         median(&mut xs)
     };
+    let median_px = med(&views, &|v| Some(v.board_rms_px)).unwrap_or(f64::NAN);
+    for v in &mut views {
+        v.disagrees = v.board_rms_px > LOO_DISAGREE_FACTOR * median_px;
+    }
     Ok(Some(LeaveOneOut {
-        median_board_rms_px: med(&|v| Some(v.board_rms_px)).unwrap_or(f64::NAN),
-        median_board_rms_mm: med(&|v| Some(v.board_rms_mm)).unwrap_or(f64::NAN),
-        median_stripe_rms_mm: med(&|v| v.stripe_rms_mm),
+        median_board_rms_px: median_px,
+        median_board_rms_mm: med(&views, &|v| Some(v.board_rms_mm)).unwrap_or(f64::NAN),
+        median_stripe_rms_mm: med(&views, &|v| v.stripe_rms_mm),
         views,
     }))
 }
@@ -137,6 +141,7 @@ fn predict_view(
         board_rms_mm: (ss_mm / n).sqrt(),
         stripe_points: stripe_n,
         stripe_rms_mm: (stripe_n > 0).then(|| (stripe_ss / stripe_n as f64).sqrt()),
+        disagrees: false,
     })
 }
 
