@@ -1003,3 +1003,39 @@ fn writers_round_trip_every_convention() {
         Err(Error::InvalidInput(_))
     ));
 }
+
+// ---------------------------------------------------------------- the twin
+
+#[test]
+fn twin_reports_the_nominal_robots_flange_pose_in_the_asked_columns() {
+    use stripecal_sim::config::SimConfig;
+    use stripecal_sim::dataset::Twin;
+
+    let base = SimConfig::hp3_paper();
+    let joints = Twin::new(base.clone()).unwrap();
+    let q = base.poses.home_q_deg.clone();
+    assert_eq!(joints.reading(&q).unwrap(), RobotReading::Joints(q.clone()));
+    for spec in ["ros", "kuka", "qx,qy,qz,qw,x_m,y_m,z_m"] {
+        let cfg = base
+            .with_overrides(&serde_json::json!({ "pose_columns": spec }))
+            .unwrap();
+        let twin = Twin::new(cfg).unwrap();
+        let RobotReading::FlangePose(t) = twin.reading(&q).unwrap() else {
+            panic!("{spec}: not a flange pose")
+        };
+        // The controller's pose is the NOMINAL robot's kinematics (rig.json's robot).
+        assert_eq!(t, twin.robot_nominal.forward(&q).unwrap());
+    }
+    let e = base
+        .with_overrides(&serde_json::json!({ "pose_columns": "abb" }))
+        .unwrap_err();
+    assert!(
+        e.to_string()
+            .contains("pose_columns: unknown pose convention"),
+        "{e}"
+    );
+    let e = base
+        .with_overrides(&serde_json::json!({ "pose_columns": "x_mm,y_mm,z_mm,qw,qx,qy" }))
+        .unwrap_err();
+    assert!(e.to_string().contains("but not qz"), "{e}");
+}
