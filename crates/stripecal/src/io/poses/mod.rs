@@ -378,7 +378,7 @@ impl PoseColumns {
         Ok(Iso3::from_parts(Translation3::from(t), rotation))
     }
 
-    /// The values of `T_base_hand` (mm) in column order.
+    /// The values of `T_base_hand` (mm) in column order (never `-0`).
     pub fn from_iso(&self, t: &Iso3) -> Vec<f64> {
         let tr = t.translation.vector / self.translation.mm_per_unit;
         let r = self.rotation.from_rotation(&t.rotation);
@@ -387,7 +387,7 @@ impl PoseColumns {
             .map(|slot| match *slot {
                 Slot::Translation(k) => tr[k],
                 Slot::Rotation(k) => r[k],
-            })
+            } + 0.0)
             .collect()
     }
 
