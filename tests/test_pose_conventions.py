@@ -13,7 +13,7 @@ from __future__ import annotations
 import itertools
 import shutil
 from pathlib import Path
-from typing import Callable, Dict, List, Optional, Sequence, Tuple
+from typing import Callable, Dict, List, Optional, Tuple
 
 import numpy as np
 import numpy.typing as npt
@@ -44,7 +44,7 @@ def Rz(a: float) -> F64:
     return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
 
 
-def rodrigues(r: Sequence[float]) -> F64:
+def rodrigues(r: npt.ArrayLike) -> F64:
     """R = I + sin(t) K + (1 - cos(t)) K^2, K the cross-product matrix of the unit axis."""
     v = np.asarray(r, dtype=np.float64)
     t = float(np.linalg.norm(v))
@@ -52,7 +52,8 @@ def rodrigues(r: Sequence[float]) -> F64:
         return np.eye(3)
     k = v / t
     K = np.array([[0.0, -k[2], k[1]], [k[2], 0.0, -k[0]], [-k[1], k[0], 0.0]])
-    return np.eye(3) + np.sin(t) * K + (1.0 - np.cos(t)) * (K @ K)
+    R: F64 = np.eye(3) + np.sin(t) * K + (1.0 - np.cos(t)) * (K @ K)
+    return R
 
 
 def quat_matrix(w: float, x: float, y: float, z: float) -> F64:
@@ -66,7 +67,7 @@ def quat_matrix(w: float, x: float, y: float, z: float) -> F64:
     )
 
 
-def rigid(R: F64, t_mm: Sequence[float]) -> F64:
+def rigid(R: F64, t_mm: npt.ArrayLike) -> F64:
     T = np.eye(4)
     T[:3, :3] = R
     T[:3, 3] = t_mm
@@ -467,14 +468,21 @@ def test_twin_with_pose_columns_gives_the_same_base_hand(twins: Dict[str, Path])
 
 def test_cli_calibrates_a_twin_with_pose_columns(twins: Dict[str, Path], tmp_path: Path,
                                                  capsys: pytest.CaptureFixture[str]) -> None:
+    """`stripecal simulate --set pose_columns=ur` (Universal Robots: metres and a rotation
+    vector) then `stripecal calibrate`: the same result as from the joint readings."""
+    assert main(["simulate", str(tmp_path / "ur"), "--seed", "2", "--poses", "4", "--no-scan",
+                 "--set", "pose_columns=ur"]) == 0
+    calib = tmp_path / "ur" / "calib"
+    assert (calib / "views.csv").read_text().splitlines()[0] == \
+        "board_image,laser_image,x_m,y_m,z_m,rx_rad,ry_rad,rz_rad"
     out = tmp_path / "cal.json"
-    assert main(["calibrate", str(twins["ros"] / "calib"), "-o", str(out)]) == 0
+    assert main(["calibrate", str(calib), "-o", str(out)]) == 0
     capsys.readouterr()
     cal = stripecal.load_calibration(out)
-    truth = stripecal.load_truth(twins["ros"] / "calib" / "truth.json")
+    truth = stripecal.load_truth(calib / "truth.json")
     assert cal.quality["views_used"] == 4
     assert np.linalg.norm(cal.hand_cam[:3, 3] - truth.hand_cam[:3, 3]) < 1.0
-    # the same calibration as from the joint readings (base_hand equal to 1e-13 mm)
+    # the same twin's joint readings (base_hand equal to ~1e-13 mm) calibrate the same
     ref = stripecal.calibrate(twins["joints"] / "calib")
     np.testing.assert_allclose(cal.hand_cam, ref.hand_cam, atol=1e-6)
 

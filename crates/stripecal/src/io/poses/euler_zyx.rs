@@ -9,13 +9,14 @@
 //!     | -sb     cb sc              cb cc            |
 //! ```
 //!
-//! Back from a matrix (KUKA's own `mat_to_rot` does the same): `a = atan2(r21, r11)`,
-//! then `M = Rz(-a) R = Ry(b) Rx(c)` gives `b = atan2(-r31, ca r11 + sa r21)` in
-//! `[-90, 90]` deg and `c = atan2(sa r13 - ca r23, ca r22 - sa r12)`. Taking `c` from `a`
-//! (rather than `atan2(r32, r33)` on its own) keeps the angles consistent near the
-//! gimbal lock `b = ±90` deg, where only `a - c` (`b = 90`) or `a + c` (`b = -90`) is
-//! defined: there `r11 = r21 = 0`, `a` comes out as whatever `atan2` makes of the
-//! rounding (often 0) and `c` takes the rest, so the matrix always round-trips.
+//! Back from a matrix (as the KRL routine `mat_to_rot` quoted on robot-forum.com does):
+//! `a = atan2(r21, r11)`, then `M = Rz(-a) R = Ry(b) Rx(c)` gives
+//! `b = atan2(-r31, ca r11 + sa r21)` in `[-90, 90]` deg and
+//! `c = atan2(sa r13 - ca r23, ca r22 - sa r12)`. Taking `c` from `a` (rather than
+//! `atan2(r32, r33)` on its own) keeps the angles consistent near the gimbal lock
+//! `b = ±90` deg, where only `c - a` (`b = 90`) or `c + a` (`b = -90`) is defined: there
+//! `r11 = r21 = 0`, `a` comes out as whatever `atan2` makes of the rounding (often 0) and
+//! `c` takes the rest, so the matrix always round-trips.
 
 use nalgebra::{UnitQuaternion, Vector3};
 
