@@ -108,12 +108,12 @@ pub fn matrix_to_pose<'py>(
     let a = f64_array(transform, "transform")?;
     let n = cols.len();
     match a.shape() {
-        [4, 4] => nd(py, &[n], cols.from_iso(&iso_at(py, &a, 0, "transform")?)),
+        [4, 4] => nd(py, &[n], cols.to_values(&iso_at(py, &a, 0, "transform")?)),
         [m, 4, 4] => {
             let mut data = Vec::with_capacity(m * n);
             for i in 0..*m {
                 let t = iso_at(py, &a, 16 * i, &format!("transform[{i}]"))?;
-                data.extend(cols.from_iso(&t));
+                data.extend(cols.to_values(&t));
             }
             nd(py, &[*m, n], data)
         }

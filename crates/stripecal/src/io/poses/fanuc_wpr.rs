@@ -24,7 +24,7 @@ impl RotationConvention for FanucWpr {
         Ok(euler_zyx::to_rotation(r, p, w))
     }
 
-    fn from_rotation(&self, q: &UnitQuaternion<f64>) -> Vec<f64> {
+    fn values(&self, q: &UnitQuaternion<f64>) -> Vec<f64> {
         let (r, p, w) = euler_zyx::from_rotation(q);
         vec![w.to_degrees(), p.to_degrees(), r.to_degrees()]
     }

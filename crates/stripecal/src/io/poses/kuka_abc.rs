@@ -28,7 +28,7 @@ impl RotationConvention for KukaAbc {
         ))
     }
 
-    fn from_rotation(&self, r: &UnitQuaternion<f64>) -> Vec<f64> {
+    fn values(&self, r: &UnitQuaternion<f64>) -> Vec<f64> {
         let (a, b, c) = euler_zyx::from_rotation(r);
         vec![a.to_degrees(), b.to_degrees(), c.to_degrees()]
     }

@@ -43,7 +43,7 @@ impl RotationConvention for RotationMatrix {
         Ok(quaternion_from_matrix(&nearest_rotation(&m)))
     }
 
-    fn from_rotation(&self, r: &UnitQuaternion<f64>) -> Vec<f64> {
+    fn values(&self, r: &UnitQuaternion<f64>) -> Vec<f64> {
         let m = r.to_rotation_matrix().into_inner();
         (0..9).map(|i| m[(i / 3, i % 3)]).collect()
     }

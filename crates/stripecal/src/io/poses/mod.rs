@@ -75,7 +75,7 @@ pub(crate) trait RotationConvention: Sync {
     /// wrong and shows the values.
     fn to_rotation(&self, values: &[f64]) -> std::result::Result<UnitQuaternion<f64>, String>;
     /// The values of a rotation in [`Self::columns`] order.
-    fn from_rotation(&self, r: &UnitQuaternion<f64>) -> Vec<f64>;
+    fn values(&self, r: &UnitQuaternion<f64>) -> Vec<f64>;
 }
 
 /// Every rotation convention; a header has exactly one.
@@ -379,9 +379,9 @@ impl PoseColumns {
     }
 
     /// The values of `T_base_hand` (mm) in column order (never `-0`).
-    pub fn from_iso(&self, t: &Iso3) -> Vec<f64> {
+    pub fn to_values(&self, t: &Iso3) -> Vec<f64> {
         let tr = t.translation.vector / self.translation.mm_per_unit;
-        let r = self.rotation.from_rotation(&t.rotation);
+        let r = self.rotation.values(&t.rotation);
         self.slots
             .iter()
             .map(|slot| match *slot {
@@ -409,7 +409,7 @@ pub fn pose_to_matrix(values: &[f64], columns: &[&str]) -> Result<Iso3> {
 /// The values of `T_base_hand` (mm) in the columns `columns` (as [`pose_to_matrix`]).
 pub fn matrix_to_pose(t: &Iso3, columns: &[&str]) -> Result<Vec<f64>> {
     let cols = PoseColumns::from_spec(columns).map_err(Error::InvalidInput)?;
-    Ok(cols.from_iso(t))
+    Ok(cols.to_values(t))
 }
 
 /// A table's value columns: joint readings or a flange pose.
@@ -437,7 +437,7 @@ impl Layout {
     pub fn of_reading(r: &RobotReading, pose: &PoseColumns) -> (Layout, Vec<f64>) {
         match r {
             RobotReading::Joints(q) => (Layout::Joints(q.len()), q.clone()),
-            RobotReading::FlangePose(t) => (Layout::Flange(pose.clone()), pose.from_iso(t)),
+            RobotReading::FlangePose(t) => (Layout::Flange(pose.clone()), pose.to_values(t)),
         }
     }
 

@@ -43,7 +43,7 @@ impl RotationConvention for UnitQuaternionColumns {
         Ok(UnitQuaternion::from_quaternion(q))
     }
 
-    fn from_rotation(&self, r: &UnitQuaternion<f64>) -> Vec<f64> {
+    fn values(&self, r: &UnitQuaternion<f64>) -> Vec<f64> {
         vec![r.w, r.i, r.j, r.k]
     }
 }

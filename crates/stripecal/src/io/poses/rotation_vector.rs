@@ -51,7 +51,7 @@ impl RotationConvention for RotationVector {
         Ok(UnitQuaternion::from_scaled_axis(r))
     }
 
-    fn from_rotation(&self, r: &UnitQuaternion<f64>) -> Vec<f64> {
+    fn values(&self, r: &UnitQuaternion<f64>) -> Vec<f64> {
         let v = quaternion_to_rotvec(r) * self.per_radian;
         vec![v.x, v.y, v.z]
     }
