@@ -79,8 +79,10 @@ __all__ = [
     "load_scan",
     "load_sphere_fit",
     "load_truth",
+    "matrix_to_pose",
     "matrix_to_rotvec",
     "nearest_rotation",
+    "pose_to_matrix",
     "read_ply",
     "reconstruct",
     "reconstruct_scan",
@@ -424,6 +426,8 @@ def load_image(path: _Path) -> Union[npt.NDArray[np.uint8], npt.NDArray[np.uint1
 def save_image(
     path: _Path, image: Union[npt.NDArray[np.uint8], npt.NDArray[np.uint16]]
 ) -> None: ...
+def pose_to_matrix(values: npt.ArrayLike, convention: Union[str, Sequence[str]]) -> _F64: ...
+def matrix_to_pose(transform: npt.ArrayLike, convention: Union[str, Sequence[str]]) -> _F64: ...
 def rotvec_to_matrix(rotvec: npt.ArrayLike) -> _F64: ...
 def matrix_to_rotvec(matrix: npt.ArrayLike) -> _F64: ...
 def nearest_rotation(matrix: npt.ArrayLike) -> _F64: ...

@@ -9,6 +9,10 @@ readers and writers, images and PLY point clouds.
   them: :mod:`stripecal.calib`, :mod:`stripecal.reconstruction`).
 - ``load_image`` / ``save_image`` (PNG or TIFF, 8 or 16 bit gray), ``read_ply`` /
   ``write_ply``.
+- ``pose_to_matrix`` / ``matrix_to_pose``: a robot controller's flange pose (the pose
+  columns views.csv and scan.csv may carry: ROS's ``x_m,y_m,z_m,qx,qy,qz,qw``, Universal
+  Robots' rotation vector, KUKA's A, B, C, Fanuc's W, P, R, a quaternion, a matrix) to
+  and from a 4x4 ``T_base_hand`` in mm.
 
 Writers are atomic (a temporary file, then a rename). File formats and conventions:
 docs/conventions.md; typed records of the dicts returned here: :mod:`stripecal.types`.
@@ -22,6 +26,8 @@ from stripecal._core import load_rig as load_rig
 from stripecal._core import load_scan as load_scan
 from stripecal._core import load_sphere_fit as load_sphere_fit
 from stripecal._core import load_truth as load_truth
+from stripecal._core import matrix_to_pose as matrix_to_pose
+from stripecal._core import pose_to_matrix as pose_to_matrix
 from stripecal._core import read_ply as read_ply
 from stripecal._core import Rig as Rig
 from stripecal._core import save_calibration as save_calibration
@@ -42,6 +48,8 @@ __all__ = [
     "load_scan",
     "load_sphere_fit",
     "load_truth",
+    "matrix_to_pose",
+    "pose_to_matrix",
     "read_ply",
     "Rig",
     "save_calibration",

@@ -13,6 +13,7 @@ mod errors;
 mod files;
 mod geometry;
 mod imageview;
+mod poses;
 mod reconstruct_py;
 mod results;
 mod rig;
@@ -64,6 +65,8 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(files::write_ply_py, m)?)?;
     m.add_function(wrap_pyfunction!(files::load_image, m)?)?;
     m.add_function(wrap_pyfunction!(files::save_image, m)?)?;
+    m.add_function(wrap_pyfunction!(poses::pose_to_matrix, m)?)?;
+    m.add_function(wrap_pyfunction!(poses::matrix_to_pose, m)?)?;
 
     m.add_function(wrap_pyfunction!(geometry::rotvec_to_matrix, m)?)?;
     m.add_function(wrap_pyfunction!(geometry::matrix_to_rotvec, m)?)?;

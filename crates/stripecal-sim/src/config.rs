@@ -227,6 +227,14 @@ pub struct SimConfig {
     pub working_range_mm: [f64; 2],
     /// rig.json `stripe.direction` hint: `auto`, `rows` or `cols`.
     pub stripe_direction: String,
+    /// How views.csv and scan.csv give the robot poses: `None` (the default) writes the
+    /// encoder readings `q1..qN`; a pose convention writes the flange pose a controller
+    /// would report instead, the NOMINAL robot's forward kinematics of the readings, in
+    /// those columns: a shorthand (`ros`, `ur`, `kuka`, `fanuc`, `quaternion`, `rotvec`,
+    /// `rotvec_deg`, `matrix`) or a header such as `"qx,qy,qz,qw,x_m,y_m,z_m"`
+    /// (`stripecal::io::PoseColumns::from_spec`). rig.json keeps the robot either way.
+    #[serde(default)]
+    pub pose_columns: Option<String>,
 }
 
 /// Names of the built-in presets.
@@ -342,6 +350,7 @@ impl SimConfig {
             },
             working_range_mm: [80.0, 130.0],
             stripe_direction: "auto".into(),
+            pose_columns: None,
         }
     }
 
@@ -525,7 +534,19 @@ impl SimConfig {
         }
         stripecal::model::StripeDirection::from_name(&self.stripe_direction)
             .map_err(|e| SimError::Config(format!("stripe_direction: {e}")))?;
+        self.pose_columns_model()?;
         Ok(())
+    }
+
+    /// The flange-pose columns of views.csv and scan.csv, `None` for joint readings.
+    pub fn pose_columns_model(&self) -> Result<Option<stripecal::io::PoseColumns>, SimError> {
+        self.pose_columns
+            .as_deref()
+            .map(|spec| {
+                stripecal::io::PoseColumns::from_spec(&[spec])
+                    .map_err(|e| SimError::Config(format!("pose_columns: {e}")))
+            })
+            .transpose()
     }
 
     /// The true camera.

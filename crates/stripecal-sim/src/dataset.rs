@@ -190,6 +190,17 @@ impl Twin {
         Ok(self.robot_true.forward(q_deg)? * self.hand_cam)
     }
 
+    /// What the controller reports for encoder readings `q_deg`, as views.csv and scan.csv
+    /// give it: the readings themselves, or with `pose_columns` set the flange pose the
+    /// controller computes from them with the NOMINAL robot (rig.json's), not the true one.
+    pub fn reading(&self, q_deg: &[f64]) -> Result<RobotReading, SimError> {
+        let joints = RobotReading::Joints(q_deg.to_vec());
+        Ok(match &self.cfg.pose_columns {
+            None => joints,
+            Some(_) => RobotReading::FlangePose(joints.base_hand(Some(&self.robot_nominal))?),
+        })
+    }
+
     /// The camera-frame scene of a pose (`with_sphere` for scan frames).
     pub fn scene(&self, q_deg: &[f64], with_sphere: bool) -> Result<ImageScene, SimError> {
         let world = if with_sphere {

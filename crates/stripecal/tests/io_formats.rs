@@ -466,13 +466,13 @@ fn views_csv_errors_name_the_line_and_column() {
         with_header("board_image,laser_image,x_mm,y_mm,z_mm,qw,qx", None),
         "views.csv",
         "line 1",
-        "flange-pose header has 5 columns",
+        "header has qw, qx but not qy, qz",
     );
     assert_format(
         with_header("board_image,laser_image,j1,j2,j3,j4,j5", None),
         "views.csv",
         "line 1",
-        "expected `q1` or `x_mm`",
+        "unknown column `j1`: expected joint readings `q1,...,qN` or pose columns",
     );
     let p = write(d.path(), "views.csv", "");
     assert_format(

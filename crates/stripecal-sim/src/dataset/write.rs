@@ -34,6 +34,7 @@ impl Twin {
         std::fs::create_dir_all(out).map_err(|e| stripecal::Error::io(out, e))?;
         let poses = self.calibration_poses()?;
         let rig = self.rig()?;
+        let pose_columns = self.cfg.pose_columns_model()?.unwrap_or_default();
         // --- calibration dataset
         let calib_dir = out.join("calib");
         let tmp = staging_dir(out, "calib")?;
@@ -60,7 +61,7 @@ impl Twin {
                 line: i + 2,
                 board_image: board_name.clone().into(),
                 laser_image: Some(laser_name.clone().into()),
-                reading: RobotReading::Joints(pose.q_deg.clone()),
+                reading: self.reading(&pose.q_deg)?,
             });
             view_circles.push(r.circles.len());
             view_stripe.push(r.stripe.iter().filter(|p| p.surface == "board").count());
@@ -77,7 +78,7 @@ impl Twin {
         }
         progress("calibration views", poses.len(), poses.len());
         io::write_rig(tmp.join("rig.json"), &rig)?;
-        io::write_views_csv(tmp.join("views.csv"), &views)?;
+        io::write_views_csv_with(tmp.join("views.csv"), &views, &pose_columns)?;
         let mut truth = self.truth(false);
         truth.extra.insert("images".into(), Value::Array(per_image));
         io::write_truth(tmp.join("truth.json"), &truth)?;
@@ -103,7 +104,7 @@ impl Twin {
                 frames.push(ScanFrame {
                     line: k + 2,
                     image: name.clone().into(),
-                    reading: RobotReading::Joints(q.clone()),
+                    reading: self.reading(q)?,
                 });
                 per_image.push(
                     json!({"image": name, "stripe": stripe_json(&r.stripe, self.direction, true)}),
@@ -112,7 +113,7 @@ impl Twin {
             progress("scan frames", qs.len(), qs.len());
             frames_n = qs.len();
             io::write_rig(tmp.join("rig.json"), &rig)?;
-            io::write_scan_csv(tmp.join("scan.csv"), &frames)?;
+            io::write_scan_csv_with(tmp.join("scan.csv"), &frames, &pose_columns)?;
             let mut truth = self.truth(true);
             truth.extra.insert("images".into(), Value::Array(per_image));
             io::write_truth(tmp.join("truth.json"), &truth)?;

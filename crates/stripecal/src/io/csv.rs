@@ -2,8 +2,18 @@
 //!
 //! A header line, then one row per pose. The leading columns name images
 //! (`board_image,laser_image` or `image`), the rest are either encoder readings
-//! `q1,...,qN` (degrees) or the flange pose `x_mm,y_mm,z_mm,qw,qx,qy,qz` (the pose
-//! conventions are in [`super::poses`], one file each).
+//! `q1,...,qN` (degrees, in that order) or the flange pose `T_base_hand` in a
+//! controller's convention, told by the column names and in any column order: a
+//! translation `x_mm,y_mm,z_mm` or `x_m,y_m,z_m` and one rotation `qw,qx,qy,qz`,
+//! `rx_rad,ry_rad,rz_rad`, `rx_deg,ry_deg,rz_deg`, `a_deg,b_deg,c_deg` (KUKA),
+//! `w_deg,p_deg,r_deg` (Fanuc) or `r11..r33` (the conventions are in [`super::poses`],
+//! one file each). A header that mixes conventions, lacks or repeats a column, or names an
+//! unknown one is an error on line 1; a row whose quaternion or matrix is not a rotation
+//! (within 1e-3) is an error naming its line.
+//!
+//! The writers write joint readings as they are and flange poses as
+//! `x_mm,y_mm,z_mm,qw,qx,qy,qz` unless given other [`PoseColumns`]
+//! ([`write_views_csv_with`], [`write_scan_csv_with`]).
 //!
 //! Fields are separated by commas and trimmed; CRLF line ends, a UTF-8 byte-order mark
 //! and trailing empty lines are accepted. There is no quoting: a `"` anywhere is an
@@ -13,7 +23,7 @@ use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
 use super::atomic::{read_text, write_atomic};
-use super::poses::{expected_header, first_columns, Layout};
+use super::poses::{expected_header, Layout, PoseColumns};
 use crate::error::{Error, Result};
 use crate::model::kinematics::Robot;
 use crate::model::{RobotReading, ScanFrame, View};
@@ -70,23 +80,8 @@ fn parse_header(
             "header has no joint or pose columns: expected {expected}"
         )));
     }
-    let layout = Layout::of_header(rest).ok_or_else(|| {
-        at(format!(
-            "header column {} is `{}`, expected {} (the header must be {expected})",
-            names.len() + 1,
-            rest[0],
-            first_columns()
-        ))
-    })?;
-    for (i, (got, want)) in rest.iter().zip(&layout.column_names()).enumerate() {
-        if got != want {
-            return Err(at(format!(
-                "header column {} is `{got}`, expected `{want}`",
-                names.len() + i + 1
-            )));
-        }
-    }
-    if let Some(msg) = layout.convention.check_header(layout.n, robot) {
+    let layout = Layout::of_header(rest, names.len() + 1).map_err(at)?;
+    if let Some(msg) = layout.check_robot(robot) {
         return Err(at(msg));
     }
     Ok(layout)
@@ -154,7 +149,6 @@ fn parse_table(path: &Path, text: &str, names: &[&str], robot: Option<&Robot>) -
             values.push(parse_number(path, line_no, col, raw)?);
         }
         let reading = layout
-            .convention
             .reading(values)
             .map_err(|(cols, msg)| Error::format(path, format!("line {line_no}, {cols}"), msg))?;
         rows.push(Row {
@@ -167,8 +161,9 @@ fn parse_table(path: &Path, text: &str, names: &[&str], robot: Option<&Robot>) -
 }
 
 /// Reads views.csv: header `board_image,laser_image,q1,...,qN` or
-/// `board_image,laser_image,x_mm,y_mm,z_mm,qw,qx,qy,qz`. With `robot`, N must equal its
-/// number of joints. An empty `laser_image` gives `None`.
+/// `board_image,laser_image,` and flange-pose columns in any convention and order (see
+/// the module docs), e.g. `board_image,laser_image,x_mm,y_mm,z_mm,qw,qx,qy,qz`. With
+/// `robot`, N must equal its number of joints. An empty `laser_image` gives `None`.
 pub fn read_views_csv(p: impl AsRef<Path>, robot: Option<&Robot>) -> Result<Vec<View>> {
     let path = p.as_ref();
     let text = read_text(path)?;
@@ -187,8 +182,8 @@ pub fn read_views_csv(p: impl AsRef<Path>, robot: Option<&Robot>) -> Result<Vec<
         .collect())
 }
 
-/// Reads scan.csv: header `image,q1,...,qN` or `image,x_mm,y_mm,z_mm,qw,qx,qy,qz`.
-/// With `robot`, N must equal its number of joints.
+/// Reads scan.csv: header `image,q1,...,qN` or `image,` and flange-pose columns (as
+/// [`read_views_csv`]). With `robot`, N must equal its number of joints.
 pub fn read_scan_csv(p: impl AsRef<Path>, robot: Option<&Robot>) -> Result<Vec<ScanFrame>> {
     let path = p.as_ref();
     let text = read_text(path)?;
@@ -234,8 +229,8 @@ fn name_field(what: &str, row: usize, p: Option<&Path>, required: bool) -> Resul
     Ok(s.to_string())
 }
 
-fn push_reading(out: &mut String, row: usize, r: &RobotReading) -> Result<()> {
-    let (_, values) = Layout::of_reading(r)?;
+fn push_reading(out: &mut String, row: usize, r: &RobotReading, pose: &PoseColumns) -> Result<()> {
+    let (_, values) = Layout::of_reading(r, pose);
     for x in values {
         if !x.is_finite() {
             return Err(Error::InvalidInput(format!(
@@ -253,20 +248,21 @@ fn push_reading(out: &mut String, row: usize, r: &RobotReading) -> Result<()> {
 fn common_layout<'a>(
     what: &str,
     readings: impl Iterator<Item = &'a RobotReading>,
+    pose: &PoseColumns,
 ) -> Result<Layout> {
-    let mut layout = None;
+    let mut layout: Option<Layout> = None;
     for (i, r) in readings.enumerate() {
-        let (l, _) = Layout::of_reading(r)?;
-        match layout {
+        let (l, _) = Layout::of_reading(r, pose);
+        match &layout {
             None => {
-                if l.n == 0 {
+                if l == Layout::Joints(0) {
                     return Err(Error::InvalidInput(format!(
                         "{what} row 1 has no joint readings"
                     )));
                 }
                 layout = Some(l);
             }
-            Some(first) if first != l => {
+            Some(first) if *first != l => {
                 return Err(Error::InvalidInput(format!(
                     "{what} row {} has {}, row 1 has {}: all rows must use the same columns",
                     i + 1,
@@ -284,7 +280,7 @@ fn common_layout<'a>(
     })
 }
 
-fn header_line(names: &[&str], layout: Layout) -> String {
+fn header_line(names: &[&str], layout: &Layout) -> String {
     let mut cols: Vec<String> = names.iter().map(|s| s.to_string()).collect();
     cols.extend(layout.column_names());
     let mut h = cols.join(",");
@@ -292,12 +288,18 @@ fn header_line(names: &[&str], layout: Layout) -> String {
     h
 }
 
-/// Writes views.csv atomically in the format [`read_views_csv`] reads. All views must
-/// use the same columns (same joint count, or all flange poses). `View::line` is
-/// ignored.
+/// Writes views.csv atomically in the format [`read_views_csv`] reads, flange poses as
+/// `x_mm,y_mm,z_mm,qw,qx,qy,qz`. All views must use the same columns (same joint count,
+/// or all flange poses). `View::line` is ignored.
 pub fn write_views_csv(p: impl AsRef<Path>, views: &[View]) -> Result<()> {
-    let layout = common_layout("views.csv", views.iter().map(|v| &v.reading))?;
-    let mut out = header_line(&VIEW_NAME_COLUMNS, layout);
+    write_views_csv_with(p, views, &PoseColumns::default())
+}
+
+/// [`write_views_csv`] with flange poses written in the columns `pose` (in its order),
+/// e.g. `PoseColumns::from_spec(&["ros"])`. Joint readings are written as they are.
+pub fn write_views_csv_with(p: impl AsRef<Path>, views: &[View], pose: &PoseColumns) -> Result<()> {
+    let layout = common_layout("views.csv", views.iter().map(|v| &v.reading), pose)?;
+    let mut out = header_line(&VIEW_NAME_COLUMNS, &layout);
     for (i, v) in views.iter().enumerate() {
         let row = i + 1;
         let board = name_field("board_image", row, Some(&v.board_image), true)?;
@@ -305,20 +307,30 @@ pub fn write_views_csv(p: impl AsRef<Path>, views: &[View]) -> Result<()> {
         out.push_str(&board);
         out.push(',');
         out.push_str(&laser);
-        push_reading(&mut out, row, &v.reading)?;
+        push_reading(&mut out, row, &v.reading, pose)?;
     }
     write_atomic(p, out.as_bytes())
 }
 
-/// Writes scan.csv atomically in the format [`read_scan_csv`] reads. All frames must
-/// use the same columns. `ScanFrame::line` is ignored.
+/// Writes scan.csv atomically in the format [`read_scan_csv`] reads, flange poses as
+/// `x_mm,y_mm,z_mm,qw,qx,qy,qz`. All frames must use the same columns.
+/// `ScanFrame::line` is ignored.
 pub fn write_scan_csv(p: impl AsRef<Path>, frames: &[ScanFrame]) -> Result<()> {
-    let layout = common_layout("scan.csv", frames.iter().map(|f| &f.reading))?;
-    let mut out = header_line(&SCAN_NAME_COLUMNS, layout);
+    write_scan_csv_with(p, frames, &PoseColumns::default())
+}
+
+/// [`write_scan_csv`] with flange poses written in the columns `pose` (in its order).
+pub fn write_scan_csv_with(
+    p: impl AsRef<Path>,
+    frames: &[ScanFrame],
+    pose: &PoseColumns,
+) -> Result<()> {
+    let layout = common_layout("scan.csv", frames.iter().map(|f| &f.reading), pose)?;
+    let mut out = header_line(&SCAN_NAME_COLUMNS, &layout);
     for (i, f) in frames.iter().enumerate() {
         let row = i + 1;
         out.push_str(&name_field("image", row, Some(&f.image), true)?);
-        push_reading(&mut out, row, &f.reading)?;
+        push_reading(&mut out, row, &f.reading, pose)?;
     }
     write_atomic(p, out.as_bytes())
 }

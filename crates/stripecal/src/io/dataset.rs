@@ -27,7 +27,7 @@ impl Dataset {
                 &views_path,
                 "line 1",
                 "joint columns q1..qN need a robot (DH table) in rig.json; \
-                 without one, use the flange-pose columns x_mm,y_mm,z_mm,qw,qx,qy,qz",
+                 without one, use flange-pose columns (e.g. x_mm,y_mm,z_mm,qw,qx,qy,qz)",
             ));
         }
         for v in &views {

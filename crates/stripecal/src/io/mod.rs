@@ -29,11 +29,18 @@ pub use calibration::{
     sphere_fit_to_json, truth_from_json, truth_to_json, write_calibration, write_sphere_fit,
     write_truth,
 };
-pub use csv::{read_scan_csv, read_views_csv, write_scan_csv, write_views_csv};
+pub use csv::{
+    read_scan_csv, read_views_csv, write_scan_csv, write_scan_csv_with, write_views_csv,
+    write_views_csv_with,
+};
 pub use imageio::{
     load_gray, load_gray_info, save_gray_png, ImageInfo, MAX_IMAGE_BYTES, MAX_IMAGE_SIDE,
 };
 pub use ply::{read_ply, write_ply, PlyFormat};
+pub use poses::{
+    convention_columns, convention_names, matrix_to_pose, pose_to_matrix, PoseColumns, MATRIX_TOL,
+    QUATERNION_TOL,
+};
 pub use records::{
     calibration_extra, self_checks_extra, uncertainty_to_json, view_record_to_json,
     warnings_to_json,

@@ -1,113 +1,488 @@
-//! The robot-pose columns of views.csv and scan.csv, one file per convention.
+//! The robot-pose columns of views.csv and scan.csv (spec/DATASET.md): encoder readings
+//! `q1,...,qN`, or the flange pose `T_base_hand` as the controller reports it.
 //!
-//! A convention names its value columns, checks a header's (their count, the robot's
-//! joint count), turns a row's numbers into a [`RobotReading`] and back. The readers
-//! tell the convention from the first value column of the header; the writers use the
-//! convention of the rows' readings. A new convention is one file here and one entry in
-//! [`CONVENTIONS`].
+//! ## Flange-pose columns
+//!
+//! The column NAMES say the convention, so the columns may come in any order
+//! (`qx,qy,qz,qw,x_m,y_m,z_m` is ROS's order). A header has one translation and one
+//! rotation, each complete:
+//!
+//! | columns | what | file |
+//! |---|---|---|
+//! | `x_mm,y_mm,z_mm` / `x_m,y_m,z_m` | translation, mm or m (kept in mm inside) | `translation.rs` |
+//! | `qw,qx,qy,qz` | unit quaternion | `quaternion.rs` |
+//! | `rx_rad,ry_rad,rz_rad` / `rx_deg,ry_deg,rz_deg` | rotation vector (axis times angle) | `rotation_vector.rs` |
+//! | `a_deg,b_deg,c_deg` | KUKA: `R = Rz(A) Ry(B) Rx(C)` | `kuka_abc.rs` |
+//! | `w_deg,p_deg,r_deg` | Fanuc / Yaskawa: `R = Rz(R) Ry(P) Rx(W)` | `fanuc_wpr.rs` |
+//! | `r11,...,r33` | rotation matrix, row by row | `matrix.rs` |
+//!
+//! [`PoseColumns`] is such a header's layout: it turns a row's values into `T_base_hand`
+//! ([`Iso3`], mm) and back. A quaternion or matrix slightly off (1e-3) is normalised; any
+//! other is an error. Everything after reading sees only `T_base_hand`
+//! (`RobotReading::FlangePose`).
+//!
+//! A new ROTATION convention is one file here implementing [`RotationConvention`] (its
+//! column names, values -> rotation and back) and one entry in [`ROTATIONS`] (and,
+//! optionally, a shorthand in [`SHORTHANDS`]); a new translation unit is one entry in
+//! `translation::TRANSLATIONS`. The header logic, the readers and the writers need no
+//! change.
+//!
+//! ## Shorthands
+//!
+//! [`convention_columns`] names the usual controller layouts (the Python API and the twin
+//! accept these names wherever a header is expected):
+//!
+//! | name | columns |
+//! |---|---|
+//! | `quaternion` | `x_mm,y_mm,z_mm,qw,qx,qy,qz` (what the writers use by default) |
+//! | `ros` | `x_m,y_m,z_m,qx,qy,qz,qw` (geometry_msgs/Pose) |
+//! | `rotvec` | `x_mm,y_mm,z_mm,rx_rad,ry_rad,rz_rad` |
+//! | `rotvec_deg` | `x_mm,y_mm,z_mm,rx_deg,ry_deg,rz_deg` |
+//! | `ur` | `x_m,y_m,z_m,rx_rad,ry_rad,rz_rad` (Universal Robots' TCP pose) |
+//! | `kuka` | `x_mm,y_mm,z_mm,a_deg,b_deg,c_deg` |
+//! | `fanuc` | `x_mm,y_mm,z_mm,w_deg,p_deg,r_deg` |
+//! | `matrix` | `x_mm,y_mm,z_mm,r11,r12,r13,r21,r22,r23,r31,r32,r33` |
 
-mod flange_quaternion;
+mod euler_zyx;
+mod fanuc_wpr;
 mod joints;
+mod kuka_abc;
+mod matrix;
+mod quaternion;
+mod rotation_vector;
+mod translation;
+
+use std::fmt;
+
+use nalgebra::{Translation3, UnitQuaternion, Vector3};
 
 use crate::error::{Error, Result};
+use crate::model::geometry::Iso3;
 use crate::model::kinematics::Robot;
 use crate::model::RobotReading;
+use translation::{Translation, TRANSLATIONS};
 
-/// One convention of robot-pose columns.
-pub(super) trait PoseConvention: Sync {
-    /// The first value column's name: it tells the convention from a header.
-    fn first_column(&self) -> &'static str;
-    /// The header's value columns as the contract writes them (`q1,...,qN`).
-    fn header_hint(&self) -> String;
-    /// The value column names of a header with `n` value columns.
-    fn columns(&self, n: usize) -> Vec<String>;
-    /// What is wrong with a header of `n` value columns beyond their names, if anything.
-    fn check_header(&self, n: usize, robot: Option<&Robot>) -> Option<String>;
-    /// The reading of one row's (finite) values; an error names the columns at fault and
-    /// says what is wrong.
-    fn reading(&self, values: Vec<f64>) -> std::result::Result<RobotReading, (String, String)>;
-    /// The values of `r` in this convention's columns, or `None` when `r` is not written
-    /// in this convention.
-    fn values(&self, r: &RobotReading) -> Option<Vec<f64>>;
-    /// How a row with `n` values is described in messages ("6 joint readings").
-    fn describe(&self, n: usize) -> String;
+pub use matrix::MATRIX_TOL;
+pub use quaternion::QUATERNION_TOL;
+
+/// One convention of rotation columns.
+pub(crate) trait RotationConvention: Sync {
+    /// The column names, in the order [`Self::to_rotation`] takes the values.
+    fn columns(&self) -> &'static [&'static str];
+    /// What the columns hold, for messages ("a unit quaternion").
+    fn describe(&self) -> &'static str;
+    /// The rotation of finite values in [`Self::columns`] order; an error says what is
+    /// wrong and shows the values.
+    fn to_rotation(&self, values: &[f64]) -> std::result::Result<UnitQuaternion<f64>, String>;
+    /// The values of a rotation in [`Self::columns`] order.
+    fn values(&self, r: &UnitQuaternion<f64>) -> Vec<f64>;
 }
 
-/// Every convention, in the order the header hint names them.
-pub(super) static CONVENTIONS: [&dyn PoseConvention; 2] =
-    [&joints::Joints, &flange_quaternion::FlangeQuaternion];
+/// Every rotation convention; a header has exactly one.
+static ROTATIONS: [&dyn RotationConvention; 6] = [
+    &quaternion::UnitQuaternionColumns,
+    &rotation_vector::RADIANS,
+    &rotation_vector::DEGREES,
+    &kuka_abc::KukaAbc,
+    &fanuc_wpr::FanucWpr,
+    &matrix::RotationMatrix,
+];
 
-/// A table's value columns: a convention and how many columns it has.
+/// The named layouts of [`convention_columns`], as headers.
+static SHORTHANDS: [(&str, &str); 8] = [
+    ("quaternion", "x_mm,y_mm,z_mm,qw,qx,qy,qz"),
+    ("ros", "x_m,y_m,z_m,qx,qy,qz,qw"),
+    ("rotvec", "x_mm,y_mm,z_mm,rx_rad,ry_rad,rz_rad"),
+    ("rotvec_deg", "x_mm,y_mm,z_mm,rx_deg,ry_deg,rz_deg"),
+    ("ur", "x_m,y_m,z_m,rx_rad,ry_rad,rz_rad"),
+    ("kuka", "x_mm,y_mm,z_mm,a_deg,b_deg,c_deg"),
+    ("fanuc", "x_mm,y_mm,z_mm,w_deg,p_deg,r_deg"),
+    (
+        "matrix",
+        "x_mm,y_mm,z_mm,r11,r12,r13,r21,r22,r23,r31,r32,r33",
+    ),
+];
+
+/// The shorthand names [`convention_columns`] knows.
+pub fn convention_names() -> Vec<&'static str> {
+    SHORTHANDS.iter().map(|(n, _)| *n).collect()
+}
+
+/// The columns of a named layout (see the module docs): `quaternion`, `ros`, `rotvec`,
+/// `rotvec_deg`, `ur`, `kuka`, `fanuc` or `matrix`; `None` for any other name.
+pub fn convention_columns(name: &str) -> Option<Vec<&'static str>> {
+    SHORTHANDS
+        .iter()
+        .find(|(n, _)| *n == name)
+        .map(|(_, h)| h.split(',').collect())
+}
+
+/// Where one value column goes.
+#[derive(Clone, Copy, PartialEq, Eq)]
+enum Slot {
+    /// Translation component 0..3.
+    Translation(usize),
+    /// Rotation value, index into the convention's columns.
+    Rotation(usize),
+}
+
+/// Which registry entry a column name belongs to, and where in it.
 #[derive(Clone, Copy)]
-pub(super) struct Layout {
-    pub convention: &'static dyn PoseConvention,
-    pub n: usize,
+enum Owner {
+    /// `TRANSLATIONS[group].columns[k]`.
+    Translation { group: usize, k: usize },
+    /// `ROTATIONS[group].columns()[k]`.
+    Rotation { group: usize, k: usize },
 }
 
-impl PartialEq for Layout {
-    fn eq(&self, other: &Self) -> bool {
-        self.convention.first_column() == other.convention.first_column() && self.n == other.n
+impl Owner {
+    fn of(name: &str) -> Option<Owner> {
+        TRANSLATIONS
+            .iter()
+            .enumerate()
+            .find_map(|(group, t)| {
+                let k = t.columns.iter().position(|c| *c == name)?;
+                Some(Owner::Translation { group, k })
+            })
+            .or_else(|| {
+                ROTATIONS.iter().enumerate().find_map(|(group, r)| {
+                    let k = r.columns().iter().position(|c| *c == name)?;
+                    Some(Owner::Rotation { group, k })
+                })
+            })
     }
+}
+
+/// The layout of a header's flange-pose columns: one translation unit and one rotation
+/// convention, in the header's column order.
+#[derive(Clone)]
+pub struct PoseColumns {
+    names: Vec<&'static str>,
+    translation: &'static Translation,
+    rotation: &'static dyn RotationConvention,
+    slots: Vec<Slot>,
+}
+
+impl PartialEq for PoseColumns {
+    fn eq(&self, other: &Self) -> bool {
+        self.names == other.names
+    }
+}
+
+impl fmt::Debug for PoseColumns {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(f, "PoseColumns({})", self.names.join(","))
+    }
+}
+
+impl Default for PoseColumns {
+    /// `x_mm,y_mm,z_mm,qw,qx,qy,qz`, what the writers use unless told otherwise.
+    fn default() -> Self {
+        Self::parse(&["x_mm", "y_mm", "z_mm", "qw", "qx", "qy", "qz"])
+            .expect("the default pose columns are valid")
+    }
+}
+
+/// `a, b and c` / `a` for messages.
+fn list(names: &[&str]) -> String {
+    names.join(", ")
+}
+
+/// The pose columns a header may have, for messages.
+fn pose_columns_hint() -> String {
+    let t: Vec<String> = TRANSLATIONS.iter().map(|t| t.columns.join(",")).collect();
+    let r: Vec<String> = ROTATIONS.iter().map(|r| r.columns().join(",")).collect();
+    format!(
+        "a translation ({}) and exactly one rotation ({}), in any order",
+        t.join(" or "),
+        r.join(" or ")
+    )
+}
+
+impl PoseColumns {
+    /// The layout of a header's pose columns `names` (trimmed, in header order). The
+    /// error says what is wrong: an unknown or duplicated column, two rotation
+    /// conventions or translation units, a missing column.
+    pub fn parse(names: &[&str]) -> std::result::Result<PoseColumns, String> {
+        let mut owners = Vec::with_capacity(names.len());
+        for (i, name) in names.iter().enumerate() {
+            if names[..i].contains(name) {
+                return Err(format!("column `{name}` appears twice"));
+            }
+            match Owner::of(name) {
+                Some(o) => owners.push(o),
+                None if joints::is_joint_column(name) => {
+                    return Err(format!(
+                        "column `{name}` is a joint reading: a header has joint readings \
+                         `q1,...,qN` or pose columns, not both"
+                    ))
+                }
+                None => {
+                    return Err(format!(
+                        "unknown column `{name}`: expected joint readings `q1,...,qN` or pose \
+                         columns: {}",
+                        pose_columns_hint()
+                    ))
+                }
+            }
+        }
+        // Per registry entry, the columns of it the header has (in header order).
+        let mut tr_present = vec![Vec::new(); TRANSLATIONS.len()];
+        let mut rot_present = vec![Vec::new(); ROTATIONS.len()];
+        for (name, o) in names.iter().zip(&owners) {
+            match *o {
+                Owner::Translation { group, .. } => tr_present[group].push(*name),
+                Owner::Rotation { group, .. } => rot_present[group].push(*name),
+            }
+        }
+        let used = |present: &[Vec<&str>]| -> Vec<usize> {
+            (0..present.len())
+                .filter(|&g| !present[g].is_empty())
+                .collect()
+        };
+        let (tr_used, rot_used) = (used(&tr_present), used(&rot_present));
+        if rot_used.len() > 1 {
+            let said: Vec<String> = rot_used
+                .iter()
+                .map(|&r| format!("{} ({})", list(&rot_present[r]), ROTATIONS[r].describe()))
+                .collect();
+            return Err(format!(
+                "header has {} rotation conventions: {}; give exactly one",
+                rot_used.len(),
+                said.join(" and ")
+            ));
+        }
+        if tr_used.len() > 1 {
+            let said: Vec<String> = tr_used
+                .iter()
+                .map(|&t| format!("{} ({})", list(&tr_present[t]), TRANSLATIONS[t].unit))
+                .collect();
+            return Err(format!(
+                "header has the translation in {}; give one unit",
+                said.join(" and ")
+            ));
+        }
+        let Some(&t) = tr_used.first() else {
+            return Err(format!(
+                "header has no translation columns: expected {}",
+                pose_columns_hint()
+            ));
+        };
+        let Some(&r) = rot_used.first() else {
+            return Err(format!(
+                "header has no rotation columns: expected {}",
+                pose_columns_hint()
+            ));
+        };
+        let (translation, rotation) = (&TRANSLATIONS[t], ROTATIONS[r]);
+        for (have, all) in [
+            (&tr_present[t], &translation.columns[..]),
+            (&rot_present[r], rotation.columns()),
+        ] {
+            let missing: Vec<&str> = all.iter().copied().filter(|c| !have.contains(c)).collect();
+            if !missing.is_empty() {
+                let have: Vec<&str> = all.iter().copied().filter(|c| have.contains(c)).collect();
+                return Err(format!(
+                    "header has {} but not {}",
+                    list(&have),
+                    list(&missing)
+                ));
+            }
+        }
+        let (names, slots) = owners
+            .iter()
+            .map(|o| match *o {
+                Owner::Translation { k, .. } => (translation.columns[k], Slot::Translation(k)),
+                Owner::Rotation { k, .. } => (rotation.columns()[k], Slot::Rotation(k)),
+            })
+            .unzip();
+        Ok(PoseColumns {
+            names,
+            translation,
+            rotation,
+            slots,
+        })
+    }
+
+    /// The layout named by `spec`: a single shorthand name (`"ros"`, see
+    /// [`convention_columns`]), a single comma-separated header (`"x_m,y_m,z_m,qx,qy,qz,qw"`)
+    /// or the column names one by one.
+    pub fn from_spec(spec: &[&str]) -> std::result::Result<PoseColumns, String> {
+        match spec {
+            [one] => match convention_columns(one.trim()) {
+                Some(cols) => Self::parse(&cols),
+                None => {
+                    let cols: Vec<&str> = one.split(',').map(str::trim).collect();
+                    if let [name] = cols[..] {
+                        if Owner::of(name).is_none() {
+                            return Err(format!(
+                                "unknown pose convention {name:?}: expected one of {} or pose \
+                                 column names",
+                                convention_names().join(", ")
+                            ));
+                        }
+                    }
+                    Self::parse(&cols)
+                }
+            },
+            _ => {
+                let cols: Vec<&str> = spec.iter().map(|s| s.trim()).collect();
+                Self::parse(&cols)
+            }
+        }
+    }
+
+    /// The column names in order.
+    pub fn names(&self) -> &[&'static str] {
+        &self.names
+    }
+
+    /// The number of columns.
+    pub fn len(&self) -> usize {
+        self.names.len()
+    }
+
+    /// Always false: a layout has a translation and a rotation.
+    pub fn is_empty(&self) -> bool {
+        self.names.is_empty()
+    }
+
+    /// The rotation's columns (in its own order), for messages.
+    pub fn rotation_columns(&self) -> &'static [&'static str] {
+        self.rotation.columns()
+    }
+
+    /// `T_base_hand` (mm) of one row's values in column order; an error says what is
+    /// wrong (a count, a non-finite value, a quaternion or matrix that is not a rotation).
+    pub fn to_iso(&self, values: &[f64]) -> std::result::Result<Iso3, String> {
+        if values.len() != self.names.len() {
+            return Err(format!(
+                "{} values given for the {} columns {}",
+                values.len(),
+                self.names.len(),
+                self.names.join(",")
+            ));
+        }
+        if let Some((x, name)) = values.iter().zip(&self.names).find(|(x, _)| !x.is_finite()) {
+            return Err(format!("{name} = {x} is not a finite number"));
+        }
+        let mut t = Vector3::zeros();
+        let mut r = vec![0.0; self.rotation.columns().len()];
+        for (&x, slot) in values.iter().zip(&self.slots) {
+            match *slot {
+                Slot::Translation(k) => t[k] = x * self.translation.mm_per_unit,
+                Slot::Rotation(k) => r[k] = x,
+            }
+        }
+        let rotation = self.rotation.to_rotation(&r)?;
+        Ok(Iso3::from_parts(Translation3::from(t), rotation))
+    }
+
+    /// The values of `T_base_hand` (mm) in column order (never `-0`).
+    pub fn to_values(&self, t: &Iso3) -> Vec<f64> {
+        let tr = t.translation.vector / self.translation.mm_per_unit;
+        let r = self.rotation.values(&t.rotation);
+        self.slots
+            .iter()
+            .map(|slot| match *slot {
+                Slot::Translation(k) => tr[k],
+                Slot::Rotation(k) => r[k],
+            } + 0.0)
+            .collect()
+    }
+
+    /// "a flange pose (x_m, y_m, z_m, qx, qy, qz, qw)", for messages.
+    pub fn describe(&self) -> String {
+        format!("a flange pose ({})", list(&self.names))
+    }
+}
+
+/// `T_base_hand` (mm) of a controller's pose values in the columns `columns` (the names
+/// of the values in order, e.g. `["x_m", "y_m", "z_m", "qx", "qy", "qz", "qw"]`; a single
+/// shorthand or comma-separated header is accepted too, see [`PoseColumns::from_spec`]).
+/// Errors ([`Error::InvalidInput`]) name what is wrong.
+pub fn pose_to_matrix(values: &[f64], columns: &[&str]) -> Result<Iso3> {
+    let cols = PoseColumns::from_spec(columns).map_err(Error::InvalidInput)?;
+    cols.to_iso(values).map_err(Error::InvalidInput)
+}
+
+/// The values of `T_base_hand` (mm) in the columns `columns` (as [`pose_to_matrix`]).
+pub fn matrix_to_pose(t: &Iso3, columns: &[&str]) -> Result<Vec<f64>> {
+    let cols = PoseColumns::from_spec(columns).map_err(Error::InvalidInput)?;
+    Ok(cols.to_values(t))
+}
+
+/// A table's value columns: joint readings or a flange pose.
+#[derive(Clone, Debug, PartialEq)]
+pub(super) enum Layout {
+    /// `q1..qN`, N columns.
+    Joints(usize),
+    /// Flange-pose columns.
+    Flange(PoseColumns),
 }
 
 impl Layout {
-    /// The layout of a header whose value columns are `rest`, when a convention knows it.
-    pub fn of_header(rest: &[&str]) -> Option<Layout> {
-        let first = *rest.first()?;
-        CONVENTIONS
-            .iter()
-            .find(|c| c.first_column() == first)
-            .map(|&convention| Layout {
-                convention,
-                n: rest.len(),
-            })
+    /// The layout of a header whose value columns are `rest`, the first of which is
+    /// header column `first` (1-based).
+    pub fn of_header(rest: &[&str], first: usize) -> std::result::Result<Layout, String> {
+        if rest.iter().any(|c| joints::is_joint_column(c)) {
+            joints::check_header(rest, first).map(Layout::Joints)
+        } else {
+            PoseColumns::parse(rest).map(Layout::Flange)
+        }
     }
 
-    /// The layout a reading is written in, with its values; an error when no
-    /// convention writes it (a reading variant without a registered convention).
-    pub fn of_reading(r: &RobotReading) -> Result<(Layout, Vec<f64>)> {
-        CONVENTIONS
-            .iter()
-            .find_map(|&convention| {
-                convention.values(r).map(|v| {
-                    (
-                        Layout {
-                            convention,
-                            n: v.len(),
-                        },
-                        v,
-                    )
-                })
-            })
-            .ok_or_else(|| {
-                Error::InvalidInput(format!("no pose convention writes the reading {r:?}"))
-            })
+    /// The layout a reading is written in, with its values: joints as they are, flange
+    /// poses in `pose`'s columns.
+    pub fn of_reading(r: &RobotReading, pose: &PoseColumns) -> (Layout, Vec<f64>) {
+        match r {
+            RobotReading::Joints(q) => (Layout::Joints(q.len()), q.clone()),
+            RobotReading::FlangePose(t) => (Layout::Flange(pose.clone()), pose.to_values(t)),
+        }
     }
 
-    pub fn column_names(self) -> Vec<String> {
-        self.convention.columns(self.n)
+    /// What is wrong with this layout for `robot` (the joint count), if anything.
+    pub fn check_robot(&self, robot: Option<&Robot>) -> Option<String> {
+        match self {
+            Layout::Joints(n) => joints::check_robot(*n, robot),
+            Layout::Flange(_) => None,
+        }
     }
 
-    pub fn describe(self) -> String {
-        self.convention.describe(self.n)
+    /// The value column names in order.
+    pub fn column_names(&self) -> Vec<String> {
+        match self {
+            Layout::Joints(n) => joints::columns(*n),
+            Layout::Flange(p) => p.names().iter().map(|s| s.to_string()).collect(),
+        }
+    }
+
+    /// The reading of one row's (finite) values; an error names the columns at fault
+    /// (for the location) and says what is wrong.
+    pub fn reading(&self, values: Vec<f64>) -> std::result::Result<RobotReading, (String, String)> {
+        match self {
+            Layout::Joints(_) => Ok(RobotReading::Joints(values)),
+            Layout::Flange(p) => p
+                .to_iso(&values)
+                .map(RobotReading::FlangePose)
+                .map_err(|m| (format!("columns {}", list(p.rotation_columns())), m)),
+        }
+    }
+
+    /// How a row is described in messages ("6 joint readings", "a flange pose (...)").
+    pub fn describe(&self) -> String {
+        match self {
+            Layout::Joints(n) => format!("{n} joint readings"),
+            Layout::Flange(p) => p.describe(),
+        }
     }
 }
 
-/// The contract's headers for image columns `names`: "`n,q1,...,qN` or `n,x_mm,...`".
+/// The contract's headers for image columns `names`, for messages.
 pub(super) fn expected_header(names: &[&str]) -> String {
     let n = names.join(",");
-    CONVENTIONS
-        .iter()
-        .map(|c| format!("`{n},{}`", c.header_hint()))
-        .collect::<Vec<_>>()
-        .join(" or ")
-}
-
-/// The first value columns the conventions start with: "`q1` or `x_mm`".
-pub(super) fn first_columns() -> String {
-    CONVENTIONS
-        .iter()
-        .map(|c| format!("`{}`", c.first_column()))
-        .collect::<Vec<_>>()
-        .join(" or ")
+    format!(
+        "`{n},q1,...,qN` or `{n},` followed by pose columns: {}",
+        pose_columns_hint()
+    )
 }
