@@ -303,8 +303,10 @@ def print_calibration(cal: stripecal.Calibration) -> None:
     for name, value, sigma, _ in parameter_rows(cal, None):
         print(f"  {name:<22}{_fmt_sigma(value, sigma or None)}")
     q = cal.quality
-    print(f"\n  residual RMS: circles {q['circle_rms_px']:.4f} px, stripe {q['stripe_rms_px']:.4f} px"
-          f" ({extra.get('stripe_rms_mm', float('nan')):.4f} mm)")
+    smm = extra.get("stripe_rms_mm")
+    stripe = (f", stripe {q['stripe_rms_px']:.4f} px ({smm:.4f} mm)" if cal.laser_plane is not None and smm is not None
+              else " (no stripe points)")
+    print(f"\n  residual RMS: circles {q['circle_rms_px']:.4f} px{stripe}")
     views = cal.views
     if views:
         print("\n  view  used  circles  stripe pts  circle RMS px  stripe RMS px  note")
@@ -314,8 +316,36 @@ def print_calibration(cal: stripecal.Calibration) -> None:
             note = v["note"] or ("OUTLIER" if v["outlier"] else "")
             print(f"  {v['view']:>4}  {'yes' if v['used'] else 'no':>4}  {v['circles']:>7}  {v['stripe_points']:>10}"
                   f"  {'' if crms is None else f'{crms:.4f}':>13}  {'' if srms is None else f'{srms:.4f}':>13}  {note}")
+    if cal.laser_plane is None:
+        print("\n  laser plane: not estimated (no laser images)")
+    bs = cal.board_scale
+    if bs is not None:
+        what = "estimated" if bs["estimated"] else "implied by the robot"
+        flag = "  DISAGREES with rig.json" if bs["disagrees"] else ""
+        print(f"\n  board scale {what}: {bs['scale']:.5f} +- {bs['sigma']:.5f}"
+              f" (rig.json {bs['declared_mm']:.3f} mm -> {bs['implied_mm']:.3f} mm){flag}")
+    print_leave_one_out(cal)
     for w in extra.get("warnings", []):
         print(f"  warning: {w}")
+
+
+def print_leave_one_out(cal: stripecal.Calibration) -> None:
+    """Prints the leave-one-view-out table: each view predicted from its robot pose by the
+    calibration solved without it."""
+    loo = cal.leave_one_out
+    if loo is None:
+        return
+    print("\n  leave-one-view-out (each view predicted from its robot pose by the calibration"
+          " without it)")
+    print("  view  points  board RMS px  board RMS mm  stripe RMS mm")
+    for v in loo["views"]:
+        s = v["stripe_rms_mm"]
+        flag = "  DISAGREES" if v["disagrees"] else ""
+        print(f"  {v['view']:>4}  {v['points']:>6}  {v['board_rms_px']:>12.4f}  {v['board_rms_mm']:>12.4f}"
+              f"  {'' if s is None else f'{s:.4f}':>13}{flag}")
+    ms = loo["median_stripe_rms_mm"]
+    print(f"  median      {loo['median_board_rms_px']:>12.4f}  {loo['median_board_rms_mm']:>12.4f}"
+          f"  {'' if ms is None else f'{ms:.4f}':>13}")
 
 
 def cmd_calibrate(args: argparse.Namespace) -> int:
@@ -323,7 +353,15 @@ def cmd_calibrate(args: argparse.Namespace) -> int:
     hand-eye X and robot-world Z, with one-sigma uncertainties; writes calibration.json
     and prints the parameters, residuals and per-view figures."""
     t0 = time.monotonic()
-    cal = stripecal.calibrate(args.dataset, distortion=args.distortion, method=args.method, robust=args.robust)
+    fix = [b.strip() for b in args.fix.split(",") if b.strip()] if args.fix else []
+    if (fix or args.laser_only) and not args.from_calibration:
+        raise stripecal.InvalidInputError("--fix and --laser-only hold blocks of an earlier calibration: give it with --from FILE")
+    cal = stripecal.calibrate(
+        args.dataset, distortion=args.distortion, method=args.method, robust=args.robust,
+        from_calibration=args.from_calibration, fix=fix, laser_only=args.laser_only,
+        estimate_board_scale=args.estimate_board_scale, board_scale_tolerance=args.board_scale_tolerance,
+        leave_one_out=not args.no_leave_one_out,
+    )
     elapsed = time.monotonic() - t0
     cal.save(args.output)
     print_calibration(cal)
@@ -344,6 +382,15 @@ def _add_calibrate(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> 
     p.add_argument("--method", choices=["one-stage", "paper"], default="one-stage",
                    help="one-stage (default): everything in one adjustment; paper: camera, plane, then AX = ZB")
     p.add_argument("--robust", action="store_true", help="Huber loss in the one-stage adjustment")
+    p.add_argument("--from", dest="from_calibration", metavar="CALIBRATION.json",
+                   help="start from an earlier calibration: the blocks named by --fix (or all but the laser plane with --laser-only) keep its values")
+    p.add_argument("--fix", metavar="BLOCKS", help="blocks held at the --from values: camera,laser_plane,hand_cam,base_board (comma-separated)")
+    p.add_argument("--laser-only", action="store_true", help="estimate the laser plane alone from laser views, everything else held from --from")
+    p.add_argument("--estimate-board-scale", action="store_true",
+                   help="free the board's printed scale (the robot's translations fix it); otherwise it is checked and a disagreement is warned about")
+    p.add_argument("--board-scale-tolerance", type=float, default=0.01, metavar="REL",
+                   help="the board-scale check warns when |scale - 1| exceeds 3 sigma and this (default 0.01)")
+    p.add_argument("--no-leave-one-out", action="store_true", help="skip the leave-one-view-out figure (one refit per view)")
     p.add_argument("--report", metavar="DIR", help="also write an HTML report with figures into DIR (needs matplotlib)")
     p.set_defaults(func=cmd_calibrate)
 

@@ -270,6 +270,7 @@ def write_report(
                   f"<td>{v['stripe_points']}</td><td>{f4(v['circle_rms_px'])}</td>"
                   f"<td>{f4(v['stripe_rms_px'])}</td><td>{html.escape(str(v['note'] or ''))}</td></tr>")
     warn = "".join(f"<li>{html.escape(str(w))}</li>" for w in e.get("warnings", []))
+    loo_html = _leave_one_out_html(cal)
     extra_sections = "".join(f"<h2>{html.escape(h)}</h2><pre>{html.escape(t)}</pre>" for h, t in sections)
     imgs = "".join(f'<figure><img src="{f}" alt="{f}"><figcaption>{f}</figcaption></figure>' for f in figures)
     doc = f"""<!DOCTYPE html>
@@ -280,12 +281,13 @@ img{{max-width:100%}} figure{{margin:1em 0}}</style></head><body>
 <h1>{html.escape(title)}</h1>
 <p>method <b>{html.escape(str(e.get('method', '?')))}</b>, camera model {html.escape(cal.camera.distortion_model)},
 {q['views_used']} views used. Residual RMS: circles <b>{q['circle_rms_px']:.4f} px</b>,
-stripe <b>{q['stripe_rms_px']:.4f} px</b> ({float(e.get('stripe_rms_mm', float('nan'))):.4f} mm).</p>
+stripe <b>{q['stripe_rms_px']:.4f} px</b> ({float(e.get('stripe_rms_mm') or float('nan')):.4f} mm){'' if cal.laser_plane is not None else ' (laser plane not estimated: no laser images)'}.</p>
 {('<h2>Warnings</h2><ul>' + warn + '</ul>') if warn else ''}
 <h2>Parameters</h2>
 <table><tr><th>parameter</th><th>value</th><th>1 sigma</th><th>true</th><th>error</th></tr>{''.join(tr)}</table>
 <h2>Views</h2>
 <table><tr><th>view</th><th>used</th><th>circles</th><th>stripe points</th><th>circle RMS px</th><th>stripe RMS px</th><th>note</th></tr>{''.join(vr)}</table>
+{loo_html}
 {extra_sections}
 <h2>Figures</h2>{imgs}
 </body></html>
@@ -295,6 +297,38 @@ stripe <b>{q['stripe_rms_px']:.4f} px</b> ({float(e.get('stripe_rms_mm', float('
     tmp.write_text(doc, encoding="utf-8")
     os.replace(tmp, path)
     return path
+
+
+def _leave_one_out_html(cal: stripecal.Calibration) -> str:
+    """The leave-one-view-out section: the table, and which views disagree by how much."""
+    loo = cal.leave_one_out
+    if loo is None:
+        return ""
+    rows = []
+    for v in loo["views"]:
+        s = v["stripe_rms_mm"]
+        bad = ' style="color:#b00"' if v["disagrees"] else ""
+        rows.append(f"<tr{bad}><td>{v['view']}</td><td>{v['points']}</td><td>{v['board_rms_px']:.4f}</td>"
+                    f"<td>{v['board_rms_mm']:.4f}</td><td>{'' if s is None else f'{s:.4f}'}</td>"
+                    f"<td>{'disagrees' if v['disagrees'] else ''}</td></tr>")
+    med_px = loo["median_board_rms_px"]
+    bad_views = [v for v in loo["views"] if v["disagrees"]]
+    if bad_views:
+        verdict = "Views that disagree with the others (beyond 3 times the median): " + ", ".join(
+            f"view {v['view']} ({v['board_rms_px']:.3f} px, {v['board_rms_px'] / med_px:.1f} times the median)"
+            for v in bad_views) + "."
+    else:
+        verdict = "No view disagrees with the others (none beyond 3 times the median)."
+    ms = loo["median_stripe_rms_mm"]
+    return (
+        "<h2>Leave-one-view-out</h2><p>Each view's target points predicted from its robot pose alone by the "
+        "calibration solved without it, against the detected points; stripe points triangulated with the "
+        f"laser plane against the predicted board plane. Median: <b>{med_px:.4f} px</b>, "
+        f"<b>{loo['median_board_rms_mm']:.4f} mm</b> on the board"
+        + ("" if ms is None else f", stripe <b>{ms:.4f} mm</b>") + f". {html.escape(verdict)}</p>"
+        "<table><tr><th>view</th><th>points</th><th>board RMS px</th><th>board RMS mm</th>"
+        f"<th>stripe RMS mm</th><th></th></tr>{''.join(rows)}</table>"
+    )
 
 
 __all__ = ["parameter_rows", "write_report"]

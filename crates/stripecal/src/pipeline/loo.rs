@@ -24,7 +24,7 @@ use crate::model::board::Board;
 use crate::model::camera::Camera;
 use crate::model::geometry::{Iso3, Plane};
 use crate::model::{LeaveOneOut, LooView, LOO_DISAGREE_FACTOR};
-use crate::numerics::robust::median;
+use crate::numerics::robust::median_mean;
 
 /// The views a leave-one-out needs at least: every refit keeps 3.
 pub const MIN_VIEWS: usize = 4;
@@ -69,7 +69,7 @@ pub(super) fn leave_one_out(
         .collect::<Result<_>>()?;
     let med = |views: &[LooView], f: &dyn Fn(&LooView) -> Option<f64>| {
         let mut xs: Vec<f64> = views.iter().filter_map(f).collect();
-        median(&mut xs)
+        median_mean(&mut xs)
     };
     let median_px = med(&views, &|v| Some(v.board_rms_px)).unwrap_or(f64::NAN);
     for v in &mut views {
