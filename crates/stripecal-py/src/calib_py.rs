@@ -237,7 +237,8 @@ pub fn calibrate(
                     crate::convert::type_name(c)
                 ))
             })?;
-            py.detach(|| stripecal::io::read_calibration(&path)).py_err(py)?
+            py.detach(|| stripecal::io::read_calibration(&path))
+                .py_err(py)?
         }),
     };
     let mut free = if laser_only {

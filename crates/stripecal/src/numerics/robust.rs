@@ -43,7 +43,10 @@ pub fn median_mean(xs: &mut [f64]) -> Option<f64> {
     }
     // After the selection, every element before rank n / 2 is <= it: the lower middle is
     // their maximum.
-    let lower = xs[..n / 2].iter().copied().fold(f64::NEG_INFINITY, f64::max);
+    let lower = xs[..n / 2]
+        .iter()
+        .copied()
+        .fold(f64::NEG_INFINITY, f64::max);
     Some(0.5 * (lower + upper))
 }
 
