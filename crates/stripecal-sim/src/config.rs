@@ -108,10 +108,19 @@ pub struct BoardCfg {
     pub square_mm: Option<f64>,
     /// Plate beyond the outer target points, mm (each side); see the type's docs.
     pub plate_margin_mm: f64,
+    /// Thickness of the plate (or sheet) the target is printed on: the table lies this
+    /// far behind the printed surface, a depth step where the plate ends, mm (default
+    /// [`crate::dataset::PLATE_THICKNESS_MM`]).
+    #[serde(default = "default_plate_thickness")]
+    pub plate_thickness_mm: f64,
 }
 
 fn default_board_kind() -> String {
     BoardKind::Circles.name().into()
+}
+
+fn default_plate_thickness() -> f64 {
+    crate::dataset::PLATE_THICKNESS_MM
 }
 
 /// How calibration poses are chosen.
@@ -138,6 +147,11 @@ pub struct PosesCfg {
     pub max_laser_incidence_deg: f64,
     /// Explicit encoder readings (deg) per view; when given, no sampling happens.
     pub explicit_q_deg: Option<Vec<Vec<f64>>>,
+    /// Poses with the stripe BESIDE the printed pattern: mostly on the plate around it
+    /// and crossing the plate's edge onto the table ([`crate::poses::StripeLayout`]),
+    /// instead of across the pattern (default `false`).
+    #[serde(default)]
+    pub stripe_beside_pattern: bool,
 }
 
 /// Image formation.
@@ -238,7 +252,13 @@ pub struct SimConfig {
 }
 
 /// Names of the built-in presets.
-pub const PRESETS: [&str; 4] = ["hp3-paper", "hp3-wide", "hp3-chessboard", "hp3-asymmetric"];
+pub const PRESETS: [&str; 5] = [
+    "hp3-paper",
+    "hp3-wide",
+    "hp3-chessboard",
+    "hp3-asymmetric",
+    "hp3-sheet",
+];
 
 impl SimConfig {
     /// A built-in preset by name.
@@ -248,6 +268,7 @@ impl SimConfig {
             "hp3-wide" => Ok(Self::hp3_wide()),
             "hp3-chessboard" => Ok(Self::hp3_chessboard()),
             "hp3-asymmetric" => Ok(Self::hp3_asymmetric()),
+            "hp3-sheet" => Ok(Self::hp3_sheet()),
             other => Err(SimError::Config(format!(
                 "unknown preset {other:?}; presets: {}",
                 PRESETS.join(", ")
@@ -306,6 +327,7 @@ impl SimConfig {
                 dark_circles: true,
                 square_mm: None,
                 plate_margin_mm: 4.0,
+                plate_thickness_mm: crate::dataset::PLATE_THICKNESS_MM,
             },
             poses: PosesCfg {
                 count: 5,
@@ -317,6 +339,7 @@ impl SimConfig {
                 margin_px: 12.0,
                 max_laser_incidence_deg: 65.0,
                 explicit_q_deg: None,
+                stripe_beside_pattern: false,
             },
             imaging: ImagingCfg {
                 bit_depth: 8,
@@ -395,6 +418,7 @@ impl SimConfig {
             dark_circles: true,
             square_mm: Some(4.8),
             plate_margin_mm: 10.0,
+            plate_thickness_mm: crate::dataset::PLATE_THICKNESS_MM,
         };
         c
     }
@@ -419,7 +443,47 @@ impl SimConfig {
             dark_circles: true,
             square_mm: None,
             plate_margin_mm: 4.0,
+            plate_thickness_mm: crate::dataset::PLATE_THICKNESS_MM,
         };
+        c
+    }
+
+    /// The paper's robot, camera and laser with the target of many real cells: a
+    /// chessboard (8 x 9 inner corners, 10 x 9 squares of 4 mm: 40 x 36 mm) printed on a
+    /// white sheet much larger than the pattern (it reaches 5 pitches, 20 mm, beyond the
+    /// outer corners: a 16 mm white border around the squares) lying 4 mm above the table
+    /// (a visible depth step where the sheet ends), the laser in the same image as the
+    /// board (`imaging.single_image`), and 15 poses with the stripe BESIDE the pattern:
+    /// mostly on the sheet, crossing the sheet's edge onto the table
+    /// (`poses.stripe_beside_pattern`). The pattern then fills only part of each image, so
+    /// the poses tilt up to 40 deg and turn up to 90 deg about the optical axis to keep the
+    /// camera (and through it the plane and hand-eye) as well determined as the other
+    /// presets'. rows + cols is odd: the colours fix the board's orientation. No scan.
+    pub fn hp3_sheet() -> SimConfig {
+        let mut c = Self::hp3_paper();
+        c.preset = "hp3-sheet".into();
+        c.board = BoardCfg {
+            kind: BoardKind::Chessboard.name().into(),
+            rows: 8,
+            cols: 9,
+            pitch_mm: 4.0,
+            circle_diameter_mm: 0.0,
+            marker_diameter_mm: 0.0,
+            markers: vec![],
+            dark_circles: true,
+            square_mm: Some(4.0),
+            plate_margin_mm: 20.0,
+            plate_thickness_mm: 4.0,
+        };
+        c.imaging.single_image = true;
+        c.poses.count = 15;
+        c.poses.stripe_beside_pattern = true;
+        c.poses.max_tilt_deg = 40.0;
+        c.poses.max_roll_deg = 90.0;
+        c.scan.enabled = false;
+        // As a real rig says (the sheet's edge and the table give a second stripe beside
+        // the first on some rows, which can mislead the automatic choice).
+        c.stripe_direction = "cols".into();
         c
     }
 
@@ -527,6 +591,13 @@ impl SimConfig {
             return bad(
                 "imaging.vignetting",
                 format!("{} must be < 1", im.vignetting),
+            );
+        }
+        let t = self.board.plate_thickness_mm;
+        if !(t.is_finite() && t >= 0.0) {
+            return bad(
+                "board.plate_thickness_mm",
+                format!("{t} must be finite and >= 0"),
             );
         }
         if self.scan.enabled && !(self.scan.step_mm > 0.0 && self.scan.sphere_diameter_mm > 0.0) {

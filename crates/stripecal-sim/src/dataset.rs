@@ -27,7 +27,8 @@ mod write;
 
 pub use write::DatasetSummary;
 
-/// Plate thickness: the table lies this far behind the board surface, mm.
+/// Plate thickness: the table lies this far behind the board surface, mm; the default of
+/// `board.plate_thickness_mm`.
 pub const PLATE_THICKNESS_MM: f64 = 3.0;
 
 /// The digital twin of one rig.
@@ -113,7 +114,7 @@ impl Twin {
             board: board.clone(),
             plate_margin_mm: cfg.board.plate_margin_mm,
             base_board,
-            plate_thickness_mm: PLATE_THICKNESS_MM,
+            plate_thickness_mm: cfg.board.plate_thickness_mm,
             sphere: None,
             plate_reflectance: plate,
             circle_reflectance: circle,
@@ -126,7 +127,7 @@ impl Twin {
             let c_board = Point3::new(
                 ctr.x + cfg.scan.sphere_offset_mm[0],
                 ctr.y + cfg.scan.sphere_offset_mm[1],
-                PLATE_THICKNESS_MM - r,
+                cfg.board.plate_thickness_mm - r,
             );
             Sphere {
                 center_mm: (base_board * c_board).coords,
@@ -228,6 +229,7 @@ impl Twin {
             max_joint_delta_deg: p.max_joint_delta_deg,
             margin_px: p.margin_px,
             max_laser_incidence_deg: p.max_laser_incidence_deg,
+            stripe_beside_pattern: p.stripe_beside_pattern,
             scene,
         }
     }

@@ -39,6 +39,8 @@ pub struct PoseProblem<'a> {
     pub max_joint_delta_deg: f64,
     pub margin_px: f64,
     pub max_laser_incidence_deg: f64,
+    /// The stripe beside the pattern instead of across it (see [`StripeLayout`]).
+    pub stripe_beside_pattern: bool,
     /// Builds the camera-frame scene for `T_base_cam` (for visibility checks).
     pub scene: &'a (dyn Fn(&Iso3) -> ImageScene + Sync),
 }
@@ -83,10 +85,26 @@ impl PoseProblem<'_> {
         } else if !target::pattern_inside(&scene, self.camera, self.margin_px, 32) {
             return Err("the chessboard's squares are not all inside the image margin".into());
         }
-        let (chord, mid) = stripe_chord(&scene);
+        let (chord, mut mid) = stripe_chord(&scene);
         let [x0, x1, y0, y1] = target::points_bbox(&board);
         let need = 0.5 * (x1 - x0).min(y1 - y0);
-        if chord < need {
+        if self.stripe_beside_pattern {
+            let l = stripe_layout(&scene, self.camera);
+            if l.sheet_mm < need || l.sheet_mm < 2.0 * l.pattern_mm || l.sheet_mm < l.table_mm {
+                return Err(format!(
+                    "stripe beside the pattern over {:.1} mm only ({:.1} mm on the pattern, \
+                     {:.1} mm on the table)",
+                    l.sheet_mm, l.pattern_mm, l.table_mm
+                ));
+            }
+            if l.table_mm < 2.0 * board.pitch_mm {
+                return Err(format!(
+                    "stripe on the table beyond the plate over {:.1} mm only",
+                    l.table_mm
+                ));
+            }
+            mid = l.sheet_mid;
+        } else if chord < need {
             return Err(format!("stripe crosses the grid over {chord:.1} mm only"));
         }
         // incidence of the laser at the chord's middle
@@ -108,7 +126,8 @@ impl PoseProblem<'_> {
 
     /// Samples `count` poses, deterministic by `seed`, spread in orientation.
     pub fn sample(&self, count: usize, seed: u64) -> Result<Vec<PoseInfo>, SimError> {
-        let board = (self.scene)(&Iso3::identity()).board().clone();
+        let scene0 = (self.scene)(&Iso3::identity());
+        let board = scene0.board().clone();
         let center = target::points_center(&board);
         let want = (count * 8).max(count + 8);
         let mut rng = Rng::new(seed, 0x905e5);
@@ -123,10 +142,16 @@ impl PoseProblem<'_> {
             let az = rng.range(0.0, std::f64::consts::TAU);
             let roll = rng.range(-1.0, 1.0) * self.max_roll_deg.to_radians();
             let s = rng.range(self.standoff[0], self.standoff[1]);
+            // Across the pattern: near its centre; beside it: anywhere over the plate.
+            let spread = if self.stripe_beside_pattern {
+                let [x0, x1, y0, y1] = scene0.plate_extent();
+                Vector3::new(0.5 * (x1 - x0), 0.5 * (y1 - y0), 0.0)
+            } else {
+                Vector3::new(1.0, 1.0, 0.0) * board.pitch_mm * 0.5
+            };
             let look = center
                 + Vector3::new(rng.range(-1.0, 1.0), rng.range(-1.0, 1.0), 0.0)
-                    * board.pitch_mm
-                    * 0.5;
+                    .component_mul(&spread);
             let axis = Unit::new_normalize(Vector3::new(az.cos(), az.sin(), 0.0));
             let z = Rotation3::from_axis_angle(&axis, tilt) * Vector3::z();
             let x0 = Vector3::x() - z * z.x;
@@ -257,6 +282,89 @@ pub fn stripe_chord(scene: &ImageScene) -> (f64, (f64, f64)) {
         }
     }
     best
+}
+
+/// Where the laser line lies in a view: its lengths (mm, along the line) in the image on
+/// the printed pattern ([`stripecal::Board::pattern_extent`]), on the plate beside the
+/// pattern, and on the table where the camera sees it past the plate's edge (the laser
+/// meets the table `plate_thickness_mm` behind the plate plane), and the middle of the
+/// part beside the pattern (board mm).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct StripeLayout {
+    pub pattern_mm: f64,
+    pub sheet_mm: f64,
+    pub table_mm: f64,
+    pub sheet_mid: (f64, f64),
+}
+
+/// The [`StripeLayout`] of a scene, from the laser's lines on the plate and table planes
+/// sampled every `1/2000` of three stand-offs (calibration scenes: no sphere).
+pub fn stripe_layout(scene: &ImageScene, camera: &Camera) -> StripeLayout {
+    let t = scene.cam_board;
+    let lp = scene.laser.plane.transformed(&t.inverse());
+    let (n, d) = (lp.normal, lp.d);
+    let nxy = (n.x * n.x + n.y * n.y).sqrt();
+    let mut out = StripeLayout {
+        pattern_mm: 0.0,
+        sheet_mm: 0.0,
+        table_mm: 0.0,
+        sheet_mid: (0.0, 0.0),
+    };
+    if nxy < 1e-9 {
+        return out;
+    }
+    let (pn, pd) = scene.plate_plane();
+    let (_, td) = scene.table_plane();
+    let depth = td - pd; // the table's z in the board frame
+    let dir = (-n.y / nxy, n.x / nxy);
+    let half = 3.0 * pd.abs().max(1.0);
+    let steps = 2000;
+    let ds = 2.0 * half / steps as f64;
+    let pat = scene.board().pattern_extent();
+    let plate = scene.plate_extent();
+    let inside = |e: &[f64; 4], x: f64, y: f64| x >= e[0] && x <= e[1] && y >= e[2] && y <= e[3];
+    let (mut s_lo, mut s_hi) = (f64::INFINITY, f64::NEG_INFINITY);
+    for (z, table) in [(0.0, false), (depth, true)] {
+        // the line n.x x + n.y y = d - n.z z in the plane board z = z
+        let c = (d - n.z * z) / nxy;
+        let foot = (n.x / nxy * c, n.y / nxy * c);
+        for k in 0..=steps {
+            let s = -half + k as f64 * ds;
+            let (x, y) = (foot.0 + s * dir.0, foot.1 + s * dir.1);
+            let p = (t * Point3::new(x, y, z)).coords;
+            if p.z <= 0.0 {
+                continue;
+            }
+            let Ok(uv) = camera.project(&p) else {
+                continue;
+            };
+            if !camera.contains(&uv, 0.0) {
+                continue;
+            }
+            if table {
+                // seen past the plate: the ray meets the plate plane outside the plate
+                let den = pn.dot(&p);
+                if den <= 0.0 {
+                    continue;
+                }
+                let (qx, qy) = scene.board_xy(&(p * (pd / den)));
+                if !inside(&plate, qx, qy) && scene.lit(crate::scene::SURF_TABLE, &p) {
+                    out.table_mm += ds;
+                }
+            } else if inside(&pat, x, y) {
+                out.pattern_mm += ds;
+            } else if inside(&plate, x, y) {
+                out.sheet_mm += ds;
+                s_lo = s_lo.min(s);
+                s_hi = s_hi.max(s);
+            }
+        }
+        if !table && s_lo <= s_hi {
+            let sm = 0.5 * (s_lo + s_hi);
+            out.sheet_mid = (foot.0 + sm * dir.0, foot.1 + sm * dir.1);
+        }
+    }
+    out
 }
 
 /// Where `T_base_cam` must be so that the laser plane passes through `point` with the

@@ -91,3 +91,35 @@ fn dh_errors_change_the_true_robot_only() {
     let truth = twin.truth(false);
     assert_eq!(truth.robot.unwrap(), twin.robot_true);
 }
+
+/// `hp3-sheet`: every pose puts the stripe mostly on the sheet beside the pattern and
+/// across the sheet's edge onto the table, `board.plate_thickness_mm` deep behind it
+/// (the default elsewhere: [`stripecal_sim::dataset::PLATE_THICKNESS_MM`]).
+#[test]
+fn sheet_preset_puts_the_stripe_beside_the_pattern_across_a_depth_step() {
+    use stripecal_sim::poses::stripe_layout;
+    assert_eq!(
+        SimConfig::hp3_paper().board.plate_thickness_mm,
+        stripecal_sim::dataset::PLATE_THICKNESS_MM
+    );
+    let twin = Twin::new(SimConfig::preset("hp3-sheet").unwrap()).unwrap();
+    assert!(twin.cfg.imaging.single_image && twin.cfg.poses.stripe_beside_pattern);
+    let poses = twin.calibration_poses().unwrap();
+    assert_eq!(poses.len(), 15);
+    for p in &poses {
+        let scene = twin.scene(&p.q_deg, false).unwrap();
+        let (_, plate_d) = scene.plate_plane();
+        let (_, table_d) = scene.table_plane();
+        assert!((table_d - plate_d - 4.0).abs() < 1e-12);
+        let l = stripe_layout(&scene, &twin.camera);
+        assert!(
+            l.sheet_mm >= 2.0 * l.pattern_mm && l.sheet_mm >= l.table_mm,
+            "{l:?}"
+        );
+        assert!(l.table_mm >= 2.0 * twin.board.pitch_mm, "{l:?}");
+    }
+    let e = SimConfig::hp3_paper()
+        .with_overrides(&serde_json::json!({"board": {"plate_thickness_mm": -1.0}}))
+        .unwrap_err();
+    assert!(e.to_string().contains("plate_thickness_mm"), "{e}");
+}

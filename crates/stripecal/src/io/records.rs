@@ -1,6 +1,7 @@
 //! calibration.json's typed records as JSON: the `uncertainty` block, the per-view
 //! `views` entries and the adjustment summary keys (`method`, `centre_model`,
-//! `base_board_orientation`, `stripe_rms_mm`, `residual_sigma_px`, `warnings`).
+//! `base_board_orientation`, `stripe_rms_mm`, `residual_sigma_px`, `stripe_off_plane`,
+//! `warnings`).
 //!
 //! Non-finite numbers (an unobservable parameter's sigma, a view without residuals) are
 //! written as `null`; key order is the contract's.
@@ -72,6 +73,7 @@ pub fn view_record_to_json(r: &ViewRecord) -> Value {
     m.insert("used".into(), Value::from(r.used));
     m.insert("circles".into(), Value::from(r.circles));
     m.insert("stripe_points".into(), Value::from(r.stripe_points));
+    m.insert("stripe_off_plane".into(), Value::from(r.stripe_off_plane));
     let opt = |x: Option<f64>| x.map_or(Value::Null, finite_or_null);
     m.insert("circle_rms_px".into(), opt(r.circle_rms_px));
     m.insert("stripe_rms_px".into(), opt(r.stripe_rms_px));
@@ -107,6 +109,10 @@ pub fn calibration_extra(
     s.insert("circle".into(), finite_or_null(summary.residual_sigma_px.0));
     s.insert("stripe".into(), finite_or_null(summary.residual_sigma_px.1));
     m.insert("residual_sigma_px".into(), Value::Object(s));
+    m.insert(
+        "stripe_off_plane".into(),
+        Value::from(summary.stripe_off_plane),
+    );
     m.insert(
         "views".into(),
         Value::Array(views.iter().map(view_record_to_json).collect()),
@@ -212,12 +218,14 @@ mod tests {
             base_board_orientation: Some("first view".into()),
             stripe_rms_mm: 0.002,
             residual_sigma_px: (0.004, f64::NAN),
+            stripe_off_plane: 7,
         };
         let v = ViewRecord {
             view: 2,
             used: false,
             circles: 88,
             stripe_points: 0,
+            stripe_off_plane: 3,
             circle_rms_px: None,
             stripe_rms_px: Some(0.02),
             outlier: None,
@@ -233,13 +241,15 @@ mod tests {
                 "base_board_orientation",
                 "stripe_rms_mm",
                 "residual_sigma_px",
+                "stripe_off_plane",
                 "views"
             ]
         );
         assert_eq!(m["residual_sigma_px"]["stripe"], Value::Null);
+        assert_eq!(m["stripe_off_plane"], Value::from(7));
         assert_eq!(
             serde_json::to_string(&m["views"][0]).unwrap(),
-            r#"{"view":2,"used":false,"circles":88,"stripe_points":0,"circle_rms_px":null,"stripe_rms_px":0.02,"outlier":null,"note":"left out"}"#
+            r#"{"view":2,"used":false,"circles":88,"stripe_points":0,"stripe_off_plane":3,"circle_rms_px":null,"stripe_rms_px":0.02,"outlier":null,"note":"left out"}"#
         );
         let w = calibration_extra(&s, &[], &["a".into()]);
         assert_eq!(w["warnings"], serde_json::json!(["a"]));

@@ -181,6 +181,9 @@ pub struct ViewRecord {
     pub circles: usize,
     /// Stripe points on the board the adjustment used.
     pub stripe_points: usize,
+    /// Stripe points rejected as off the board plane (beyond a depth step, on
+    /// something behind).
+    pub stripe_off_plane: usize,
     /// RMS target residual of the view, px (`None` when not adjusted or not finite).
     pub circle_rms_px: Option<f64>,
     /// RMS stripe residual of the view, px.
@@ -192,7 +195,8 @@ pub struct ViewRecord {
 }
 
 /// How a calibration was made and its residual figures (calibration.json's `method`,
-/// `centre_model`, `base_board_orientation`, `stripe_rms_mm`, `residual_sigma_px`).
+/// `centre_model`, `base_board_orientation`, `stripe_rms_mm`, `residual_sigma_px`,
+/// `stripe_off_plane`).
 #[derive(Debug, Clone, PartialEq)]
 pub struct AdjustmentSummary {
     /// `one-stage` or `paper`.
@@ -206,4 +210,6 @@ pub struct AdjustmentSummary {
     pub stripe_rms_mm: f64,
     /// Residual standard deviations `(circle, stripe)` px estimated from the fit.
     pub residual_sigma_px: (f64, f64),
+    /// Stripe points rejected as off the board plane, all views.
+    pub stripe_off_plane: usize,
 }

@@ -1,23 +1,22 @@
 //! From observations to a calibration, as a sequence of stages: camera, labellings,
 //! stripe points on the board, `AX = ZB` with outliers, laser plane, adjustment, report.
 
-use nalgebra::Vector2;
-
 use super::board_scale::{check_board_scale, warning as board_scale_warning};
 use super::held::held;
-use super::labels::{resolve_labellings, Labelled};
+use super::labels::resolve_labellings;
 use super::laser_only::calibrate_held_chain;
 use super::loo::leave_one_out;
 use super::outliers::solve_with_outliers;
 use super::report::{build_report, SelfChecks, Stage};
+use super::stripe_select::select_stripes;
 use super::{CalibrateOptions, CalibrationReport, Method, ViewStatus};
 use crate::calib::camera::{calibrate_camera, CameraCalibration, CameraOptions};
 use crate::calib::conic::CentreModel;
 use crate::calib::joint::{joint_adjustment, JointOptions, JointResult, JointStart};
-use crate::calib::laser_plane::{backproject_to_board, fit_laser_plane, LaserPlaneFit};
+use crate::calib::laser_plane::{fit_laser_plane, LaserPlaneFit};
 use crate::calib::ViewObs;
 use crate::error::{Error, Result};
-use crate::model::board::{Board, BoardKind};
+use crate::model::board::Board;
 use crate::model::camera::Camera;
 use crate::model::geometry::Iso3;
 use crate::model::Rig;
@@ -47,8 +46,8 @@ pub fn calibrate_observations(
             s.note = Some(note.clone());
         }
     }
-    // 3. Stripe points on the board.
-    let (obs, poses) = stripes_on_board(&labelled, &camcal.camera, board);
+    // 3. Stripe points on the board plane.
+    let (obs, poses) = select_stripes(&labelled, &camcal.camera, &mut status)?;
     // 4. Robot poses, AX = ZB with leave-one-out outlier rejection.
     let (axzb, keep) = solve_with_outliers(&obs, &poses, opts, &mut warnings, &mut status)?;
     warnings.extend(axzb.warnings.iter().cloned());
@@ -187,43 +186,13 @@ fn camera_stage(
     calibrate_camera(views, &rig.board, rig.width, rig.height, model, &cam_opts)
 }
 
-/// The labelled views with their stripe points restricted to the target's extent on the
-/// board (points on the table or beyond the plate belong to another surface), and
-/// their `T_cam_board`.
-pub(super) fn stripes_on_board(
-    labelled: &[Labelled],
-    camera: &Camera,
-    board: &Board,
-) -> (Vec<ViewObs>, Vec<Iso3>) {
-    let (lo, hi) = grid_extent(board);
-    let mut obs: Vec<ViewObs> = Vec::new();
-    let mut poses: Vec<Iso3> = Vec::new();
-    for (v, cb) in labelled.iter().filter_map(|l| l.as_ref().ok()) {
-        let bc = cb.inverse();
-        let stripe: Vec<[f64; 2]> = v
-            .stripe
-            .iter()
-            .filter(|uv| match backproject_to_board(camera, cb, uv) {
-                Ok(p) => {
-                    let q = bc * nalgebra::Point3::from(p);
-                    q.x >= lo.x && q.x <= hi.x && q.y >= lo.y && q.y <= hi.y
-                }
-                Err(_) => false,
-            })
-            .copied()
-            .collect();
-        obs.push(ViewObs {
-            stripe,
-            ..v.clone()
-        });
-        poses.push(*cb);
-    }
-    (obs, poses)
-}
-
-/// The board-frame rectangle the stripe points must fall in: a circle grid's centres
-/// grown by half a pitch, a chessboard's squares.
-pub(super) fn grid_extent(board: &Board) -> (Vector2<f64>, Vector2<f64>) {
+/// The board-frame rectangle the stripe points had to fall in before the selection by
+/// the board plane ([`super::stripe_select`]): a circle grid's centres grown by half a
+/// pitch, a chessboard's squares.
+#[cfg(test)]
+pub(super) fn grid_extent(board: &Board) -> (nalgebra::Vector2<f64>, nalgebra::Vector2<f64>) {
+    use crate::model::board::BoardKind;
+    use nalgebra::Vector2;
     if board.kind == BoardKind::Chessboard {
         let e = board.pattern_extent();
         return (Vector2::new(e[0], e[2]), Vector2::new(e[1], e[3]));

@@ -5,12 +5,11 @@
 //! pose images closest to the detections. The laser plane starts from its fit on these
 //! poses and is refined by the adjustment with everything else held.
 
-use super::calibrate::{
-    check_poses_finite, joint_options, mark_used, self_checks, stripes_on_board,
-};
+use super::calibrate::{check_poses_finite, joint_options, mark_used, self_checks};
 use super::held::Held;
 use super::labels::Labelled;
 use super::report::{build_report, Stage};
+use super::stripe_select::select_stripes;
 use super::{CalibrateOptions, CalibrationReport, ViewStatus};
 use crate::calib::conic::predict_centre;
 use crate::calib::joint::{joint_adjustment, JointStart};
@@ -44,7 +43,7 @@ pub(super) fn calibrate_held_chain(
             s.note = Some(note.clone());
         }
     }
-    let (obs, poses) = stripes_on_board(&labelled, &from.camera, board);
+    let (obs, poses) = select_stripes(&labelled, &from.camera, &mut status)?;
     let pv: Vec<(Iso3, Vec<[f64; 2]>)> = poses
         .iter()
         .zip(&obs)

@@ -11,9 +11,11 @@
 //!    or the reported flange pose. A view whose board is not found is left out with a
 //!    warning naming it; images and joints stay paired by row.
 //! 2. Camera ([`crate::calib::camera`]): Zhang, then LM with the bias-free centre model.
-//! 3. Stripe points on the board: each is intersected with its view's board plane and
-//!    kept when it falls inside the circle grid's extent grown by half a pitch (points on
-//!    the table or beyond the plate belong to another surface).
+//! 3. Stripe points on the board plane ([`stripe_select`]): each is intersected with its
+//!    view's board plane and kept when it is consistent with one laser plane over all
+//!    views, wherever it lies on that plane (the printed pattern, the sheet or plate
+//!    around it); points off the plane (beyond a depth step where the sheet ends, on
+//!    something behind) are rejected and counted per view.
 //! 4. Laser plane ([`crate::calib::laser_plane`]) and `AX = ZB`
 //!    ([`crate::calib::axzb`]). Views whose robot pose disagrees with their board pose
 //!    (`A_i X` vs `Z B_i`, leave-one-out) far beyond the others are left out as outliers
@@ -30,6 +32,7 @@ mod loo;
 mod observe;
 mod outliers;
 mod report;
+pub mod stripe_select;
 #[cfg(test)]
 mod tests;
 
@@ -53,6 +56,7 @@ use crate::vision::target::TargetOptions;
 pub use calibrate::calibrate_observations;
 pub use observe::observe_dataset;
 use observe::{observe, Observed};
+pub use stripe_select::{select_on_board_plane, StripeSelection};
 
 /// Which pipeline.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
@@ -145,6 +149,8 @@ pub struct ViewStatus {
     /// Stripe points extracted / used on the board.
     pub stripe_points: usize,
     pub stripe_used: usize,
+    /// Stripe points rejected as off the board plane ([`stripe_select`]).
+    pub stripe_off_plane: usize,
     pub used: bool,
     /// Why it was left out, if it was.
     pub note: Option<String>,
@@ -158,6 +164,7 @@ impl ViewStatus {
             circles: v.circles.len(),
             stripe_points: v.stripe.len(),
             stripe_used: 0,
+            stripe_off_plane: 0,
             used: false,
             note: None,
         }
@@ -170,6 +177,7 @@ impl ViewStatus {
             circles: 0,
             stripe_points: 0,
             stripe_used: 0,
+            stripe_off_plane: 0,
             used: false,
             note,
         }

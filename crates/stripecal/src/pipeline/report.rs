@@ -98,6 +98,7 @@ pub(super) fn view_records_from(
                 used: s.used,
                 circles: s.circles,
                 stripe_points: s.stripe_used,
+                stripe_off_plane: s.stripe_off_plane,
                 circle_rms_px: r.and_then(|r| finite(r.1)),
                 stripe_rms_px: r.and_then(|r| finite(r.2)),
                 outlier: r.map(|r| r.3),
@@ -132,6 +133,7 @@ pub(super) fn build_report(
         base_board_orientation: st.frame_note.clone(),
         stripe_rms_mm: adj.stripe_rms_mm,
         residual_sigma_px: adj.sigma_px,
+        stripe_off_plane: status.iter().map(|s| s.stripe_off_plane).sum(),
     };
     let records = view_records(&status, adj);
     let mut unc = uncertainty_to_json(&uncertainty(&st, opts.method));
