@@ -163,3 +163,18 @@ def test_report_writes_html_and_pngs(
         assert p.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" and p.stat().st_size > 5000
         assert f'src="{p.name}"' in text
     assert "fu (px)" in text and "a table" in text and "<td>yes</td>" in text
+
+
+def test_off_plane_stripe_points_are_reported(
+    calibration: stripecal.Calibration, capsys: pytest.CaptureFixture[str]
+) -> None:
+    # Every view record carries its count of stripe points rejected as off the board
+    # plane (here: the table beyond the plate), the summary their total.
+    views = calibration.views
+    assert all(isinstance(v["stripe_off_plane"], int) and v["stripe_off_plane"] >= 0 for v in views)
+    assert calibration.extra["stripe_off_plane"] == sum(v["stripe_off_plane"] for v in views)
+    from stripecal.cli import print_calibration
+
+    print_calibration(calibration)
+    assert "off plane" in capsys.readouterr().out
+    assert "hp3-sheet" in stripecal.sim.presets()

@@ -309,12 +309,14 @@ def print_calibration(cal: stripecal.Calibration) -> None:
     print(f"\n  residual RMS: circles {q['circle_rms_px']:.4f} px{stripe}")
     views = cal.views
     if views:
-        print("\n  view  used  circles  stripe pts  circle RMS px  stripe RMS px  note")
+        print("\n  view  used  circles  stripe pts  off plane  circle RMS px  stripe RMS px  note")
         for v in views:
             crms = v["circle_rms_px"]
             srms = v["stripe_rms_px"]
+            off = v.get("stripe_off_plane")  # absent from files written before it existed
             note = v["note"] or ("OUTLIER" if v["outlier"] else "")
             print(f"  {v['view']:>4}  {'yes' if v['used'] else 'no':>4}  {v['circles']:>7}  {v['stripe_points']:>10}"
+                  f"  {'' if off is None else off:>9}"
                   f"  {'' if crms is None else f'{crms:.4f}':>13}  {'' if srms is None else f'{srms:.4f}':>13}  {note}")
     if cal.laser_plane is None:
         print("\n  laser plane: not estimated (no laser images)")

@@ -15,7 +15,8 @@ preset and override what you need::
 
 Presets: ``hp3-paper`` (the paper's rig and 8 x 11 circle board), ``hp3-wide`` (a
 wide-angle, distorted camera), ``hp3-chessboard`` and ``hp3-asymmetric`` (the paper's
-rig with a chessboard or an asymmetric circle grid). ``board.kind`` selects the target:
+rig with a chessboard or an asymmetric circle grid), ``hp3-sheet`` (a chessboard on a
+large white sheet above the table, the laser beside the pattern, one image per view). ``board.kind`` selects the target:
 ``"circles"``, ``"asymmetric_circles"`` or ``"chessboard"`` (with ``board.square_mm``).
 
 Unknown keys are an error, so a misspelt knob never goes unnoticed. All rendering runs
@@ -43,7 +44,11 @@ def presets() -> List[str]:
     """Names of the built-in presets (``hp3-paper``: the paper's rig; ``hp3-wide``: a
     wide-angle, strongly distorted camera with 15 poses; ``hp3-chessboard``: the paper's
     rig with a 7 x 10 inner-corner chessboard of 4.8 mm squares; ``hp3-asymmetric``: the
-    paper's rig with an 11 x 8 asymmetric circle grid, pitch 7 mm, circles 2.5 mm)."""
+    paper's rig with an 11 x 8 asymmetric circle grid, pitch 7 mm, circles 2.5 mm;
+    ``hp3-sheet``: an 8 x 9 inner-corner chessboard of 4 mm squares on a white sheet
+    reaching 20 mm beyond its outer corners and lying 4 mm above the table, laser and
+    board in one image, 15 poses with the stripe mostly on the sheet beside the pattern
+    and across the sheet's edge onto the table)."""
     return list(sim_presets())
 
 

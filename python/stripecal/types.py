@@ -203,6 +203,9 @@ class CalibrationView(TypedDict):
     """Target points detected in the view (circle centres or chessboard corners)."""
     stripe_points: int
     """Stripe points on the board the adjustment used."""
+    stripe_off_plane: int
+    """Stripe points rejected as off the board plane (beyond a depth step where the
+    sheet ends, on something behind)."""
     circle_rms_px: Optional[float]
     """RMS target residual of the view, px (None when not adjusted or not finite)."""
     stripe_rms_px: Optional[float]
@@ -287,6 +290,8 @@ class CalibrationExtra(TypedDict, total=False):
     """RMS of the stripe points' distance from the laser plane, mm."""
     residual_sigma_px: ResidualSigma
     """Residual standard deviations estimated by the adjustment."""
+    stripe_off_plane: int
+    """Stripe points rejected as off the board plane, all views."""
     views: List[CalibrationView]
     """Per-view figures (also ``Calibration.views``)."""
     warnings: List[str]

@@ -296,8 +296,8 @@ fn residual(plane: &Plane, q: &Pt, sine: f64) -> f64 {
     plane.signed_distance(&q.p).abs() / sine * q.px_per_mm
 }
 
-/// Step 3: The noise scale (px) from the chords within each view; `None` when no view has
-/// enough points.
+/// The noise scale (px) from the chords within each view (module docs, step 3); `None`
+/// when no view has enough points.
 fn local_sigma(pts: &[Pt], nviews: usize) -> Option<f64> {
     let k = CHORD_STEP;
     let mut d: Vec<f64> = Vec::new();
@@ -324,8 +324,8 @@ fn local_sigma(pts: &[Pt], nviews: usize) -> Option<f64> {
     median(&mut d).map(|m| m / (0.6745 * 1.5f64.sqrt()))
 }
 
-/// 4.-5. The consensus plane, the robust sigma and the threshold (px); `None` when
-/// fewer than 2 views have points.
+/// The consensus plane, the robust sigma and the threshold (px) (module docs, steps 4
+/// and 5); `None` when fewer than 2 views have points.
 fn consensus(
     pts: &[Pt],
     normals: &[Vector3<f64>],
