@@ -247,21 +247,7 @@ pub fn calibrate(
         FreeBlocks::default()
     };
     for name in &fix {
-        match name.as_str() {
-            "camera" => free.camera = false,
-            "laser_plane" => free.laser_plane = false,
-            "hand_cam" => free.hand_cam = false,
-            "base_board" => free.base_board = false,
-            "robot" => {}
-            o => {
-                return Err(invalid_input(
-                    py,
-                    format!(
-                        "fix: unknown block {o:?}: expected camera, laser_plane, hand_cam, base_board or robot"
-                    ),
-                ))
-            }
-        }
+        free.hold(name).py_err(py)?;
     }
     free.board_scale = estimate_board_scale;
     let opts = CalibrateOptions {

@@ -77,7 +77,7 @@ pub struct LaserPlaneFit {
 }
 
 /// The board plane (board z = 0) in the camera frame.
-fn board_plane_in_cam(cam_board: &Iso3) -> Plane {
+pub fn board_plane_in_cam(cam_board: &Iso3) -> Plane {
     let n = cam_board.rotation * Vector3::z();
     Plane {
         normal: n,

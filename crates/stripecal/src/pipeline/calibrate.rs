@@ -146,7 +146,7 @@ pub(super) fn self_checks(
     })
 }
 
-pub(super) fn check_poses_finite(views: &[ViewObs]) -> Result<()> {
+fn check_poses_finite(views: &[ViewObs]) -> Result<()> {
     for v in views {
         if let Some(t) = v.base_hand {
             if !t.to_homogeneous().iter().all(|x| x.is_finite()) {

@@ -74,16 +74,7 @@ pub(super) fn resolve_labellings(
         match decisions[pos] {
             Decision::Chosen { index, .. } => {
                 let (sym, m) = motions[k][index];
-                let mut v2 = (*v).clone();
-                if let Some(s) = sym {
-                    for c in v2.circles.iter_mut() {
-                        if let Some((r, cc)) = s.apply(board, c.row, c.col) {
-                            (c.row, c.col) = (r, cc);
-                        }
-                    }
-                    v2.circles.sort_by_key(|c| (c.row, c.col));
-                }
-                v2.alternatives.clear();
+                let v2 = relabel(v, board, sym);
                 // T_cam_board of the new labelling: T_cam_board M^-1
                 out.push(Ok((v2, cb * m.inverse())));
             }
@@ -110,4 +101,20 @@ pub(super) fn resolve_labellings(
     }
     let note = frame_fixed_by_first.then(|| "first view".to_string());
     (out, note)
+}
+
+/// View `v` with its points relabelled by the board symmetry `sym` (`None`: as
+/// detected), its labelling decided (no alternatives left).
+pub(super) fn relabel(v: &ViewObs, board: &Board, sym: Option<Symmetry>) -> ViewObs {
+    let mut v2 = v.clone();
+    if let Some(s) = sym {
+        for c in v2.circles.iter_mut() {
+            if let Some((r, cc)) = s.apply(board, c.row, c.col) {
+                (c.row, c.col) = (r, cc);
+            }
+        }
+        v2.circles.sort_by_key(|c| (c.row, c.col));
+    }
+    v2.alternatives.clear();
+    v2
 }

@@ -5,9 +5,9 @@
 //! pose images closest to the detections. The laser plane starts from its fit on these
 //! poses and is refined by the adjustment with everything else held.
 
-use super::calibrate::{check_poses_finite, joint_options, mark_used, self_checks};
+use super::calibrate::{joint_options, mark_used, self_checks};
 use super::held::Held;
-use super::labels::Labelled;
+use super::labels::{relabel, Labelled};
 use super::report::{build_report, Stage};
 use super::stripe_select::select_stripes;
 use super::{CalibrateOptions, CalibrationReport, ViewStatus};
@@ -16,19 +16,19 @@ use crate::calib::joint::{joint_adjustment, JointStart};
 use crate::calib::laser_plane::fit_laser_plane;
 use crate::calib::ViewObs;
 use crate::error::{Error, Result};
-use crate::model::board::{Board, Symmetry};
+use crate::model::board::Board;
 use crate::model::camera::Camera;
 use crate::model::geometry::Iso3;
 use crate::model::Rig;
 
-/// The pipeline with the chain held (module docs).
+/// The pipeline with the chain held (module docs); `views`' robot poses are already
+/// checked finite by the caller.
 pub(super) fn calibrate_held_chain(
     views: &[ViewObs],
     rig: &Rig,
     opts: &CalibrateOptions,
     held: &Held<'_>,
 ) -> Result<CalibrationReport> {
-    check_poses_finite(views)?;
     let board = &rig.board;
     let from = held.from;
     let mut warnings = Vec::new();
@@ -118,20 +118,6 @@ fn predicted_labelling(
             ),
         )),
     }
-}
-
-fn relabel(v: &ViewObs, board: &Board, sym: Option<Symmetry>) -> ViewObs {
-    let mut v2 = v.clone();
-    if let Some(s) = sym {
-        for c in v2.circles.iter_mut() {
-            if let Some((r, cc)) = s.apply(board, c.row, c.col) {
-                (c.row, c.col) = (r, cc);
-            }
-        }
-        v2.circles.sort_by_key(|c| (c.row, c.col));
-    }
-    v2.alternatives.clear();
-    v2
 }
 
 /// RMS image distance between the view's points and their projections at `cb`.

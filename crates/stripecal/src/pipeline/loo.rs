@@ -18,6 +18,7 @@ use rayon::prelude::*;
 
 use crate::calib::conic::{predict_centre, CentreModel};
 use crate::calib::joint::{joint_adjustment, JointOptions, JointResult, JointStart};
+use crate::calib::laser_plane::board_plane_in_cam;
 use crate::calib::ViewObs;
 use crate::error::{Error, Result};
 use crate::model::board::Board;
@@ -99,10 +100,7 @@ fn predict_view(
     // The board's points are imaged as rig.json's board at t / s (see the layout).
     let cb_img = Iso3::from_parts((cb.translation.vector / s).into(), cb.rotation);
     let cam = &fit.camera;
-    let board_plane = Plane {
-        normal: cb.rotation * Vector3::z(),
-        d: (cb.rotation * Vector3::z()).dot(&cb.translation.vector),
-    };
+    let board_plane = board_plane_in_cam(&cb);
     let (mut ss_px, mut ss_mm) = (0.0, 0.0);
     for c in &v.circles {
         let centre = board.center(c.row, c.col);

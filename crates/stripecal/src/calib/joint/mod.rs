@@ -105,6 +105,26 @@ impl Default for FreeBlocks {
 }
 
 impl FreeBlocks {
+    /// Holds the block named `name` (DECISIONS 4's names: `camera`, `laser_plane`,
+    /// `hand_cam`, `base_board`; `robot` is accepted and changes nothing: the robot is
+    /// not estimated); an error for any other name.
+    pub fn hold(&mut self, name: &str) -> Result<()> {
+        match name {
+            "camera" => self.camera = false,
+            "laser_plane" => self.laser_plane = false,
+            "hand_cam" => self.hand_cam = false,
+            "base_board" => self.base_board = false,
+            "robot" => {}
+            o => {
+                return Err(Error::InvalidInput(format!(
+                    "unknown block {o:?} to hold: expected camera, laser_plane, hand_cam, \
+                     base_board or robot"
+                )))
+            }
+        }
+        Ok(())
+    }
+
     /// Only the laser plane.
     pub fn laser_only() -> Self {
         FreeBlocks {
@@ -701,6 +721,23 @@ mod tests {
             panic!("expected an error: {}", "nothing to estimate")
         };
         assert!(e.to_string().contains("nothing to estimate"), "{e}");
+    }
+
+    #[test]
+    fn blocks_are_held_by_their_contract_names() {
+        let mut f = FreeBlocks::default();
+        for n in ["camera", "hand_cam", "base_board", "robot"] {
+            f.hold(n).unwrap();
+        }
+        assert_eq!(
+            f,
+            FreeBlocks {
+                laser_plane: true,
+                ..FreeBlocks::laser_only()
+            }
+        );
+        let e = f.hold("plane").unwrap_err();
+        assert!(e.to_string().contains("unknown block \"plane\""), "{e}");
     }
 
     /// Views without stripe points (no laser): camera, X and Z are recovered exactly,
