@@ -167,6 +167,44 @@ fn rig_defaults_and_unknown_keys() {
     assert!(r.robot.is_none());
 }
 
+/// The robot's optional figures (spec, section Robot): read, written back, absent by
+/// default, refused when negative; the floors they put on the robot-pose noise.
+#[test]
+fn rig_robot_figures_round_trip() {
+    let r = rig_from_json(Path::new("rig.json"), RIG_JSON).unwrap();
+    let robot = r.robot.unwrap();
+    assert_eq!(
+        (robot.repeatability_mm, robot.encoder_sigma_deg),
+        (None, None)
+    );
+    assert_eq!(robot.pose_noise_floor(), (None, None));
+    let with = RIG_JSON.replacen(
+        "\"name\": \"R\",",
+        "\"name\": \"R\", \"repeatability_mm\": 0.02, \"encoder_sigma_deg\": 0.005,",
+        1,
+    );
+    let r = rig_from_json(Path::new("rig.json"), &with).unwrap();
+    let robot = r.robot.clone().unwrap();
+    assert_eq!(robot.repeatability_mm, Some(0.02));
+    assert_eq!(robot.encoder_sigma_deg, Some(0.005));
+    // 3 joints: sigma_q sqrt(3 / 3) per component of the flange rotation.
+    assert_eq!(robot.pose_noise_floor(), (Some(0.02), Some(0.005)));
+    let six = Robot::hp3().with_figures(None, Some(0.01)).unwrap();
+    assert!((six.pose_noise_floor().1.unwrap() - 0.01 * 2f64.sqrt()).abs() < 1e-15);
+    let d = tmp();
+    let p = d.path().join("rig.json");
+    write_rig(&p, &r).unwrap();
+    assert_eq!(read_rig(&p).unwrap(), r);
+    let bad = with.replacen("0.02", "-0.02", 1);
+    assert_format(
+        rig_from_json(Path::new("rig.json"), &bad).unwrap_err(),
+        "rig.json",
+        "robot.repeatability_mm",
+        "expected a non-negative number",
+    );
+    assert!(Robot::hp3().with_figures(Some(f64::NAN), None).is_err());
+}
+
 #[test]
 fn rig_errors_name_the_key() {
     let p = Path::new("/data/set/rig.json");

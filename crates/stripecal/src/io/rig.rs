@@ -154,8 +154,9 @@ fn board_from(b: &Obj<'_>) -> Result<Board> {
     Ok(board)
 }
 
-/// A robot `{"name": ..., "joints": [{theta0_deg, alpha_deg, a_mm, d_mm}, ...]}`.
-/// `name` is optional (default empty).
+/// A robot `{"name": ..., "joints": [{theta0_deg, alpha_deg, a_mm, d_mm}, ...],
+/// "repeatability_mm": ..., "encoder_sigma_deg": ...}`. `name` is optional (default
+/// empty), so are the two figures (finite, >= 0).
 pub(super) fn robot_from(r: &Obj<'_>) -> Result<Robot> {
     let name = r.opt_str("name")?.unwrap_or_default().to_string();
     let joints_val = r.req("joints")?;
@@ -173,7 +174,13 @@ pub(super) fn robot_from(r: &Obj<'_>) -> Result<Robot> {
             d_mm: j.f64("d_mm")?,
         });
     }
-    let robot = Robot { name, joints };
+    let figure = |key: &str| r.opt(key).map(|v| v.nonneg_f64()).transpose();
+    let robot = Robot {
+        name,
+        joints,
+        repeatability_mm: figure("repeatability_mm")?,
+        encoder_sigma_deg: figure("encoder_sigma_deg")?,
+    };
     robot.validate().map_err(|e| r.err(invalid_message(e)))?;
     Ok(robot)
 }
@@ -195,6 +202,14 @@ pub(super) fn robot_value(r: &Robot) -> Value {
     let mut m = Map::new();
     m.insert("name".into(), Value::from(r.name.clone()));
     m.insert("joints".into(), Value::Array(joints));
+    for (key, v) in [
+        ("repeatability_mm", r.repeatability_mm),
+        ("encoder_sigma_deg", r.encoder_sigma_deg),
+    ] {
+        if let Some(x) = v {
+            m.insert(key.into(), num(x));
+        }
+    }
     Value::Object(m)
 }
 

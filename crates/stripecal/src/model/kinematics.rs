@@ -51,13 +51,18 @@ impl DhJoint {
     }
 }
 
-/// A serial robot described by its DH table.
+/// A serial robot described by its DH table, with the maker's figures when a user gives
+/// them (rig.json `robot.repeatability_mm`, `robot.encoder_sigma_deg`).
 #[derive(Debug, Clone, PartialEq)]
 pub struct Robot {
     /// A name for reports (e.g. "MOTOMAN HP3").
     pub name: String,
     /// DH rows, base to flange.
     pub joints: Vec<DhJoint>,
+    /// The maker's pose repeatability, mm (`None`: not given).
+    pub repeatability_mm: Option<f64>,
+    /// One-sigma of a joint reading, degrees (`None`: not given).
+    pub encoder_sigma_deg: Option<f64>,
 }
 
 /// Options of [`Robot::inverse`].
@@ -96,15 +101,60 @@ impl Robot {
         let r = Robot {
             name: name.into(),
             joints,
+            repeatability_mm: None,
+            encoder_sigma_deg: None,
         };
         r.validate()?;
         Ok(r)
     }
 
-    /// Checks the table (non-empty, finite).
+    /// The same robot with the maker's figures (see [`Robot::pose_noise_floor`]).
+    pub fn with_figures(
+        mut self,
+        repeatability_mm: Option<f64>,
+        encoder_sigma_deg: Option<f64>,
+    ) -> Result<Robot> {
+        self.repeatability_mm = repeatability_mm;
+        self.encoder_sigma_deg = encoder_sigma_deg;
+        self.validate()?;
+        Ok(self)
+    }
+
+    /// The lower bounds the maker's figures put on the robot-pose noise of one flange
+    /// pose, as one-sigmas per component: `(translation mm, rotation deg)`.
+    ///
+    /// - Translation: `repeatability_mm` itself (a conservative reading: makers quote
+    ///   the repeatability as the radius that holds nearly every repeated pose).
+    /// - Rotation: the flange rotation that independent joint readings of one-sigma
+    ///   `encoder_sigma_deg` give: each joint turns the flange about its own unit axis,
+    ///   so the rotation vector's covariance is `sigma_q^2 sum_i z_i z_i^T`, whose trace
+    ///   is `N sigma_q^2` whatever the pose; per component `sigma_q sqrt(N / 3)` for N
+    ///   joints. (The translation the readings cause depends on the pose's lever arms
+    ///   and is left to the estimate.)
+    pub fn pose_noise_floor(&self) -> (Option<f64>, Option<f64>) {
+        let n = self.joints.len() as f64;
+        (
+            self.repeatability_mm,
+            self.encoder_sigma_deg.map(|s| s * (n / 3.0).sqrt()),
+        )
+    }
+
+    /// Checks the table (non-empty, finite) and the figures (finite, >= 0).
     pub fn validate(&self) -> Result<()> {
         if self.joints.is_empty() {
             return Err(Error::InvalidInput("robot has no joints".into()));
+        }
+        for (name, v) in [
+            ("repeatability_mm", self.repeatability_mm),
+            ("encoder_sigma_deg", self.encoder_sigma_deg),
+        ] {
+            if let Some(x) = v {
+                if !(x.is_finite() && x >= 0.0) {
+                    return Err(Error::InvalidInput(format!(
+                        "robot {name} {x} must be finite and >= 0"
+                    )));
+                }
+            }
         }
         for (i, j) in self.joints.iter().enumerate() {
             if ![j.theta0_deg, j.alpha_deg, j.a_mm, j.d_mm]
@@ -129,6 +179,8 @@ impl Robot {
             d_mm,
         };
         Robot {
+            repeatability_mm: None,
+            encoder_sigma_deg: None,
             name: "MOTOMAN HP3".into(),
             joints: vec![
                 row(0.0, -90.0, 100.0, 0.0),
