@@ -59,7 +59,8 @@ use faer::Mat;
 /// Test support: asserts that `residuals_and_jacobian` at `p` returns the residuals of
 /// `residuals` (to `rtol` absolute) and a Jacobian equal to central differences taken
 /// through [`LeastSquares::retract`] with step `step(j)` per column: the largest
-/// difference in a column at most `tol * max(largest |entry|, 1)`.
+/// difference in a column at most `tol * max(largest |entry|, 1)`. Returns the largest
+/// of those relative differences over the columns.
 #[cfg(test)]
 pub(crate) fn assert_jacobian_matches_fd<P: LeastSquares>(
     pr: &P,
@@ -68,7 +69,7 @@ pub(crate) fn assert_jacobian_matches_fd<P: LeastSquares>(
     rtol: f64,
     tol: f64,
     what: &str,
-) {
+) -> f64 {
     let (m, n) = (pr.num_residuals(), pr.num_params());
     let mut r = vec![0.0; m];
     let mut jac = Mat::<f64>::zeros(m, n);
@@ -79,6 +80,7 @@ pub(crate) fn assert_jacobian_matches_fd<P: LeastSquares>(
         r.iter().zip(&r2).all(|(a, b)| (a - b).abs() < rtol),
         "{what}: residuals differ"
     );
+    let mut worst = 0.0f64;
     for j in 0..n {
         let h = step(j);
         let mut dp = vec![0.0; n];
@@ -100,7 +102,9 @@ pub(crate) fn assert_jacobian_matches_fd<P: LeastSquares>(
             num <= tol * den.max(1.0),
             "{what} column {j}: {num:e} of {den:e}"
         );
+        worst = worst.max(num / den.max(1.0));
     }
+    worst
 }
 
 #[cfg(test)]
@@ -287,10 +291,22 @@ mod tests {
             }
             Ok(())
         }
-        fn reweight(&self, r: &[f64]) -> Option<Vec<f64>> {
+        fn reweight(
+            &self,
+            r: &[f64],
+            leverages: &mut dyn FnMut() -> Option<Vec<f64>>,
+        ) -> Option<Vec<f64>> {
             if !self.reweighting {
                 return None;
             }
+            // The leverages add up to n (3) in every storage.
+            let h = leverages().expect("leverages");
+            assert!(
+                (h.iter().sum::<f64>() - 3.0).abs() < 1e-9,
+                "{}",
+                h.iter().sum::<f64>()
+            );
+            assert!(h.iter().all(|x| (0.0..=1.0 + 1e-12).contains(x)));
             let h = r.len() / 2;
             let mut f = vec![1.0; r.len()];
             for (g, part) in [&r[..h], &r[h..]].into_iter().enumerate() {
@@ -357,6 +373,58 @@ mod tests {
                     );
                     assert!((a.sigma[k] - b.sigma[k]).abs() < 1e-9 * a.sigma[k].max(1e-9) + 1e-12);
                 }
+            }
+        }
+    }
+
+    /// The leverages of every Jacobian storage (dense matrix, dense rows, sparse rows
+    /// with a split column) equal the hat matrix's diagonal `w_i j_i^T (J^T W J)^-1 j_i`
+    /// written out, with and without Huber weights.
+    #[test]
+    fn leverages_are_the_hat_matrix_diagonal() {
+        let (x, y) = data(true);
+        let p = [1.9, -0.68, 0.51];
+        let expo = || Expo {
+            x: x.clone(),
+            y: y.clone(),
+            dup: false,
+        };
+        let m = x.len();
+        for huber in [None, Some(0.02)] {
+            let plain = expo();
+            let mut r = vec![0.0; m];
+            let mut jac = Mat::<f64>::zeros(m, 3);
+            plain
+                .residuals_and_jacobian(&p, &mut r, jac.as_mut())
+                .unwrap();
+            let w: Vec<f64> = r.iter().map(|&x| normal::huber_weight(x, huber)).collect();
+            let jm = nalgebra::DMatrix::from_fn(m, 3, |i, j| jac[(i, j)]);
+            let wm = nalgebra::DMatrix::from_diagonal(&nalgebra::DVector::from_vec(w.clone()));
+            let inv = (jm.transpose() * &wm * &jm).try_inverse().unwrap();
+            let expect: Vec<f64> = (0..m)
+                .map(|i| w[i] * (jm.row(i) * &inv * jm.row(i).transpose())[(0, 0)])
+                .collect();
+            let check = |h: Vec<f64>, what: &str| {
+                for (a, b) in h.iter().zip(&expect) {
+                    assert!((a - b).abs() < 1e-10, "{what} {huber:?}: {a} vs {b}");
+                }
+            };
+            let mut work = normal::Work::new(m, 3, None);
+            work.evaluate(&plain, &p, &mut r).unwrap();
+            check(work.leverages(&r, huber).unwrap(), "dense matrix");
+            for width in [3, 5] {
+                let pr = ExpoRows {
+                    inner: expo(),
+                    width,
+                    reweighting: false,
+                    weights: [
+                        AtomicU64::new(1f64.to_bits()),
+                        AtomicU64::new(1f64.to_bits()),
+                    ],
+                };
+                let mut work = normal::Work::new(m, 3, Some(width));
+                work.evaluate(&pr, &p, &mut r).unwrap();
+                check(work.leverages(&r, huber).unwrap(), "rows");
             }
         }
     }

@@ -220,4 +220,69 @@ impl Work {
         }
         Ok((jtj, g))
     }
+
+    /// The leverage of every residual at `r` (see [`LeastSquares::reweight`]): `h_i =
+    /// w_i j_i^T N^-1 j_i`, `N = J^T W J` inverted after Jacobi scaling; `None` when `N`
+    /// is not positive definite. Dense rows and the dense matrix: `N^-1 J^T` by one
+    /// matrix product; sparse rows: each run of rows with the same columns gathers its
+    /// block of `N^-1` once.
+    pub(super) fn leverages(&mut self, r: &[f64], huber: Option<f64>) -> Option<Vec<f64>> {
+        let (jtj, _) = self.normal_equations(r, huber).ok()?;
+        let n = self.n;
+        let d: Vec<f64> = (0..n)
+            .map(|i| 1.0 / jtj[(i, i)].max(1e-300).sqrt())
+            .collect();
+        let scaled = DMatrix::from_fn(n, n, |a, b| jtj[(a, b)] * d[a] * d[b]);
+        let si = scaled.cholesky()?.inverse();
+        let inv = DMatrix::from_fn(n, n, |a, b| si[(a, b)] * d[a] * d[b]);
+        let wt: Vec<f64> = r.iter().map(|&x| huber_weight(x, huber)).collect();
+        let mut h = vec![0.0; self.m];
+        let inv_f = Mat::<f64>::from_fn(n, n, |a, b| inv[(a, b)]);
+        // `J^T` (n x m) of the dense storages, then `h_i = w_i (J^T)_i . (N^-1 J^T)_i`.
+        let dense_t: Option<faer::MatRef<'_, f64>> = match &self.rows {
+            Some(rows) if rows.dense => {
+                Some(faer::MatRef::from_column_major_slice(&rows.vals, n, self.m))
+            }
+            Some(_) => None,
+            None => Some(self.jac.as_ref().transpose()),
+        };
+        if let Some(jt) = dense_t {
+            let mut x = Mat::<f64>::zeros(n, self.m);
+            faer::linalg::matmul::matmul(
+                x.as_mut(),
+                Accum::Replace,
+                inv_f.as_ref(),
+                jt,
+                1.0,
+                Par::Seq,
+            );
+            for (i, hi) in h.iter_mut().enumerate() {
+                *hi = wt[i] * (0..n).map(|k| jt[(k, i)] * x[(k, i)]).sum::<f64>();
+            }
+        } else if let Some(rows) = &self.rows {
+            let w = rows.width;
+            let mut block = vec![0.0; w * w];
+            let mut cur: Option<&[usize]> = None;
+            for (i, hi) in h.iter_mut().enumerate() {
+                let (c, v) = rows.row(i);
+                if cur != Some(c) {
+                    for (a, &ca) in c.iter().enumerate() {
+                        for (b, &cb) in c.iter().enumerate() {
+                            block[a * w + b] = inv[(ca, cb)];
+                        }
+                    }
+                    cur = Some(c);
+                }
+                let mut acc = 0.0;
+                for (a, &va) in v.iter().enumerate() {
+                    if va != 0.0 {
+                        let brow = &block[a * w..(a + 1) * w];
+                        acc += va * brow.iter().zip(v).map(|(x, y)| x * y).sum::<f64>();
+                    }
+                }
+                *hi = wt[i] * acc;
+            }
+        }
+        h.iter().all(|x| x.is_finite()).then_some(h)
+    }
 }

@@ -29,7 +29,18 @@ pub trait LeastSquares {
     /// the factor by which each residual's weight changed (the solver rescales the
     /// residuals and Jacobian it holds). While a factor differs from 1 by more than
     /// 1e-3 the solver does not stop on its cost or step tests. Default: `None`.
-    fn reweight(&self, _r: &[f64]) -> Option<Vec<f64>> {
+    ///
+    /// `leverages` computes, when called, every residual's leverage at the current point
+    /// and weights: `h_i = w_i j_i^T N^-1 j_i` with `N = J^T W J` (`W` the Huber weights
+    /// `w_i`, 1 without Huber), the diagonal of the hat matrix. The redundancy of a group
+    /// g of residuals is then `r_g = m_g - sum_g h_i = m_g - tr(N^-1 N_g)` (Förstner),
+    /// and the redundancies of all residuals add up to `m - n`. It costs about one
+    /// normal-equation product and one inverse; `None` when `N` is not positive definite.
+    fn reweight(
+        &self,
+        _r: &[f64],
+        _leverages: &mut dyn FnMut() -> Option<Vec<f64>>,
+    ) -> Option<Vec<f64>> {
         None
     }
     /// `Some(w)` when every Jacobian row has at most `w` non-zeros and the problem

@@ -190,7 +190,7 @@ impl<'a, P: LeastSquares + ?Sized> Solver<'a, P> {
         let mut r = vec![0.0; m];
         let mut work = Work::new(m, n, problem.jacobian_row_width());
         work.evaluate(problem, &p, &mut r)?;
-        if let Some(f) = problem.reweight(&r) {
+        if let Some(f) = problem.reweight(&r, &mut || work.leverages(&r, opts.huber)) {
             work.rescale(&f, &mut r);
         }
         let (jtj, g) = work.normal_equations(&r, opts.huber)?;
@@ -327,7 +327,11 @@ impl<'a, P: LeastSquares + ?Sized> Solver<'a, P> {
         std::mem::swap(&mut self.p, &mut self.p_try);
         self.work.evaluate(self.problem, &self.p, &mut self.r)?;
         self.weights_moving = false;
-        if let Some(f) = self.problem.reweight(&self.r) {
+        let (work, r) = (&mut self.work, &self.r);
+        if let Some(f) = self
+            .problem
+            .reweight(r, &mut || work.leverages(r, opts.huber))
+        {
             self.weights_moving = f.iter().any(|x| (x - 1.0).abs() > WEIGHT_TOL);
             self.work.rescale(&f, &mut self.r);
         }
