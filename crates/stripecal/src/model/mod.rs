@@ -16,5 +16,5 @@ pub use checks::{BoardScaleCheck, LeaveOneOut, LooView, LOO_DISAGREE_FACTOR};
 pub use dataset::{Dataset, Rig, RobotReading, Scan, ScanFrame, StripeDirection, View};
 pub use results::{
     AdjustmentSummary, Calibration, CameraSigma, Cloud, NamedCovariance, PlaneSigma, PoseSigma,
-    Quality, Sphere, SphereFit, Truth, Uncertainty, ViewRecord,
+    Quality, RobotPoseNoise, RobotPoseView, Sphere, SphereFit, Truth, Uncertainty, ViewRecord,
 };

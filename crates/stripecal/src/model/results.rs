@@ -194,6 +194,43 @@ pub struct ViewRecord {
     pub note: Option<String>,
 }
 
+/// The robot-pose noise a one-stage calibration estimated (calibration.json
+/// `robot_pose_noise`): the standard deviations of the flange pose's translation and
+/// rotation (per component, flange frame) that the robot's poses carry beyond the model,
+/// and per view the correction its images asked of its pose with a test of it.
+#[derive(Debug, Clone, PartialEq)]
+pub struct RobotPoseNoise {
+    /// One-sigma of a flange translation component, mm.
+    pub sigma_translation_mm: f64,
+    /// One-sigma of a flange rotation component, degrees.
+    pub sigma_rotation_deg: f64,
+    /// Whether the translation's sigma sits at its floor (the estimate is below it).
+    pub translation_at_floor: bool,
+    /// Whether the rotation's sigma sits at its floor.
+    pub rotation_at_floor: bool,
+    /// The floors, mm and degrees: the robot's figures (rig.json) when given, never less
+    /// than the adjustment's own resolution floor.
+    pub floor_translation_mm: f64,
+    pub floor_rotation_deg: f64,
+    /// Per view used.
+    pub views: Vec<RobotPoseView>,
+}
+
+/// One view's robot-pose correction (an entry of `robot_pose_noise.views`).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct RobotPoseView {
+    /// Row in views.csv (0-based).
+    pub view: usize,
+    /// Length of the flange-frame translation correction, mm.
+    pub translation_mm: f64,
+    /// Angle of the rotation correction, degrees.
+    pub rotation_deg: f64,
+    /// The view's test value: its correction against its own predicted covariance,
+    /// as a standard normal deviate (about N(0, 1) for a view that agrees with the
+    /// noise model; above about 4 it disagrees). NaN when not computable.
+    pub test: f64,
+}
+
 /// How a calibration was made and its residual figures (calibration.json's `method`,
 /// `centre_model`, `base_board_orientation`, `stripe_rms_mm`, `residual_sigma_px`,
 /// `stripe_off_plane`).

@@ -65,7 +65,7 @@ pub fn calibrate_observations(
     if let Some(h) = &held {
         h.apply(&mut start);
     }
-    let jopts = joint_options(opts);
+    let jopts = joint_options(opts, rig);
     let adj = joint_adjustment(&used_obs, board, &start, &jopts)?;
     warnings.extend(adj.warnings.iter().cloned());
     mark_used(&mut status, &used_obs);
@@ -238,18 +238,25 @@ pub(super) fn check_usable(used_obs: &[ViewObs], warnings: &[String]) -> Result<
     Ok(())
 }
 
-/// The adjustment's options: the pipeline's; for the paper's method, zero iterations
-/// (the stages' values evaluated with the same residuals).
-pub(super) fn joint_options(opts: &CalibrateOptions) -> JointOptions {
+/// The adjustment's options: the pipeline's, with the robot's figures (rig.json) as
+/// floors of the robot-pose noise; for the paper's method, zero iterations (the stages'
+/// values evaluated with the same residuals) and the robot poses exact (its rigid
+/// model).
+pub(super) fn joint_options(opts: &CalibrateOptions, rig: &Rig) -> JointOptions {
     let mut jopts = JointOptions {
         centre_model: opts.centre_model,
         robust: opts.robust,
         free: opts.free,
+        robot_floor: rig
+            .robot
+            .as_ref()
+            .map_or((None, None), |r| r.pose_noise_floor()),
         ..Default::default()
     };
     if opts.method == Method::Paper {
         jopts.lm.max_iterations = 0;
         jopts.robust = false;
+        jopts.robot_noise = false;
     }
     jopts
 }

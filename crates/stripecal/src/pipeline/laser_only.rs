@@ -67,7 +67,7 @@ pub(super) fn calibrate_held_chain(
         base_board: from.base_board,
     };
     held.apply(&mut start);
-    let jopts = joint_options(opts);
+    let jopts = joint_options(opts, rig);
     let adj = joint_adjustment(&obs, board, &start, &jopts)?;
     warnings.extend(adj.warnings.iter().cloned());
     mark_used(&mut status, &obs);

@@ -115,7 +115,7 @@ pub(super) fn joint_sigma(named: &NamedCovariance) -> JointSigma {
 
 /// `d rotvec / d w` for `rotvec(R Exp(w))` at `w = 0`: the inverse right Jacobian of SO(3)
 /// at `r`.
-fn inverse_right_jacobian(r: &Vector3<f64>) -> Matrix3<f64> {
+pub(super) fn inverse_right_jacobian(r: &Vector3<f64>) -> Matrix3<f64> {
     let th = r.norm();
     let k = r.cross_matrix();
     let c = if th < 1e-6 {

@@ -12,15 +12,25 @@
 //! | `X`, `Z`     | 6 each| rotation vector `w`, translation `t` | `R Exp(w)`, `t+v` |
 //! | board scale  | 1     | `s` (every board coordinate times s) | `p + dp`          |
 //!
-//! A *slot* is a position in the full parameter set (the dual numbers of the Jacobian
-//! run over all [`SLOTS`] of them); a *column* is a position in the solver's vector
-//! (estimated slots only, packed in block order). A block that is not estimated
-//! ([`FreeBlocks`]) has no columns: its slots keep the starting values (`base`). The
-//! laser plane's unit normal is `normalize(n0 + a e1 + b e2)` around the starting
-//! normal `n0` ([`PlaneChart`]).
+//! Per-view blocks (one instance per view used):
+//!
+//! | block        | values | columns (estimated)                 | update            |
+//! |--------------|--------|-------------------------------------|-------------------|
+//! | robot pose   | 6      | flange-frame correction `D_i`: `w`, `t` | `R Exp(w)`, `t+v` |
+//!
+//! A *slot* is a position in the full set of global parameters (the dual numbers of the
+//! Jacobian run over all [`SLOTS`] of them); a *column* is a position in the solver's
+//! vector: the estimated global slots packed in block order, then each view's estimated
+//! per-view values (view after view, blocks in registration order). A block that is not
+//! estimated ([`FreeBlocks`]) has no columns: its slots keep the starting values
+//! (`base`), a per-view block's values the identity. Per-view blocks have no slots: a
+//! view's residuals reach them through the slots of the global block they perturb (the
+//! robot-pose correction through `X`'s, [`super::robot_noise`]). The laser plane's unit
+//! normal is `normalize(n0 + a e1 + b e2)` around the starting normal `n0`
+//! ([`PlaneChart`]).
 //!
 //! A new block is one [`BlockKind`] (its size, names, update and decoding) plus its
-//! registration in [`ParamLayout::new`].
+//! registration in [`ParamLayout::new`], global or per view.
 
 use std::ops::Range;
 
@@ -29,7 +39,7 @@ use nalgebra::{Matrix3, Vector3};
 use crate::calib::joint::{FreeBlocks, JointStart};
 use crate::model::camera::PARAM_NAMES;
 use crate::model::geometry::{
-    iso_from_rotvec, iso_to_rotvec, matrix_to_rotvec, rotvec_to_matrix, Iso3,
+    iso_from_parts, iso_from_rotvec, iso_to_rotvec, matrix_to_rotvec, rotvec_to_matrix, Iso3,
 };
 
 /// Number of slots (the dual-number width of the Jacobian): camera 9, plane 3, X 6, Z 6,
@@ -49,6 +59,8 @@ pub(super) enum Block {
     BaseBoard,
     /// The board's scale `s`: the printed board is `s` times rig.json's.
     BoardScale,
+    /// Per view: the correction `D_i` of the robot's flange pose, `A_i' = A_i D_i`.
+    RobotPose,
 }
 
 /// How a block's numbers behave.
@@ -69,8 +81,10 @@ struct BlockDef {
     kind: BlockKind,
     /// Names of the block's slots.
     names: Vec<String>,
-    /// Which slots are estimated.
+    /// Which slots (values) are estimated.
     free: Vec<bool>,
+    /// One instance per view (no slots) instead of one global block.
+    per_view: bool,
 }
 
 impl BlockDef {
@@ -80,6 +94,7 @@ impl BlockDef {
             kind: BlockKind::Euclidean,
             names: names.iter().map(|s| s.to_string()).collect(),
             free,
+            per_view: false,
         }
     }
 
@@ -93,7 +108,21 @@ impl BlockDef {
             kind: BlockKind::RigidTransform,
             names,
             free: vec![free; 6],
+            per_view: false,
         }
+    }
+
+    /// The block once per view.
+    fn per_view(self) -> BlockDef {
+        BlockDef {
+            per_view: true,
+            ..self
+        }
+    }
+
+    /// Number of estimated values.
+    fn estimated(&self) -> usize {
+        self.free.iter().filter(|f| **f).count()
     }
 }
 
@@ -143,20 +172,30 @@ pub(super) struct JointParams {
     pub z_t: Vector3<f64>,
     /// The board's scale.
     pub scale: f64,
+    /// Per view used: the robot-pose correction `D_i = (R, t)` (empty when not
+    /// estimated: the robot poses are taken as exact).
+    pub corrections: Vec<(Matrix3<f64>, Vector3<f64>)>,
 }
 
 /// The layout of the adjustment's parameter vector (module docs).
 #[derive(Debug, Clone)]
 pub(super) struct ParamLayout {
     blocks: Vec<BlockDef>,
-    /// First slot of each block.
+    /// First slot of each global block (per-view blocks: unused).
     slot0: Vec<usize>,
-    /// First column of each block.
+    /// First column of each global block; of a per-view block, its first column within
+    /// a view's columns.
     col0: Vec<usize>,
     /// Column of each slot (`None`: fixed).
     col_of_slot: Vec<Option<usize>>,
     /// Every slot's value at the start: the fixed slots keep it.
     base: [f64; SLOTS],
+    /// Columns of the global blocks (the per-view columns follow them).
+    n_global: usize,
+    /// Dataset row of each view (for names); one instance of each per-view block each.
+    view_ids: Vec<usize>,
+    /// Estimated values per view (all per-view blocks).
+    per_view_cols: usize,
     /// The laser plane's chart.
     pub chart: PlaneChart,
 }
@@ -165,9 +204,16 @@ impl ParamLayout {
     /// The layout around `start`: the camera's four intrinsics and its model's free
     /// distortion coefficients, the laser plane charted around the starting normal, `X`,
     /// `Z` and the board scale (held at `scale` unless estimated), each estimated as
-    /// `free` says. Without a starting plane the plane block is held (it has no
-    /// observations then).
-    pub fn new(start: &JointStart, free: &FreeBlocks, scale: f64) -> ParamLayout {
+    /// `free` says; per view of `view_ids` (dataset rows) a robot-pose correction,
+    /// estimated when `robot_noise`. Without a starting plane the plane block is held
+    /// (it has no observations then).
+    pub fn new(
+        start: &JointStart,
+        free: &FreeBlocks,
+        scale: f64,
+        view_ids: &[usize],
+        robot_noise: bool,
+    ) -> ParamLayout {
         let mut cam_free = vec![free.camera; 4];
         cam_free.extend(
             start
@@ -184,6 +230,7 @@ impl ParamLayout {
                 kind: BlockKind::Euclidean,
                 names: PARAM_NAMES.iter().map(|s| s.to_string()).collect(),
                 free: cam_free,
+                per_view: false,
             },
             BlockDef::euclidean(
                 Block::Plane,
@@ -193,11 +240,17 @@ impl ParamLayout {
             BlockDef::transform(Block::HandCam, "hand_cam", free.hand_cam),
             BlockDef::transform(Block::BaseBoard, "base_board", free.base_board),
             BlockDef::euclidean(Block::BoardScale, &["board_scale"], vec![free.board_scale]),
+            BlockDef::transform(Block::RobotPose, "robot", robot_noise).per_view(),
         ];
         let (mut slot0, mut col0, mut col_of_slot) = (Vec::new(), Vec::new(), Vec::new());
-        let mut col = 0;
+        let (mut col, mut view_col) = (0, 0);
         for b in &blocks {
             slot0.push(col_of_slot.len());
+            if b.per_view {
+                col0.push(view_col);
+                view_col += b.estimated();
+                continue;
+            }
             col0.push(col);
             for &f in &b.free {
                 col_of_slot.push(f.then_some(col));
@@ -212,6 +265,9 @@ impl ParamLayout {
             col0,
             col_of_slot,
             base: [0.0; SLOTS],
+            n_global: col,
+            view_ids: view_ids.to_vec(),
+            per_view_cols: view_col,
             chart: PlaneChart::around(n0),
         };
         layout.base = layout.slot_values(start, scale);
@@ -225,10 +281,38 @@ impl ParamLayout {
             .expect("every block is registered")
     }
 
-    /// The slots of a block.
+    /// The slots of a global block.
     pub fn slots(&self, block: Block) -> Range<usize> {
         let i = self.index(block);
+        debug_assert!(!self.blocks[i].per_view, "{block:?} has no slots");
         self.slot0[i]..self.slot0[i] + self.blocks[i].free.len()
+    }
+
+    /// The columns of view `v`'s instance of a per-view block (`None`: not estimated).
+    pub fn view_columns(&self, block: Block, v: usize) -> Option<Range<usize>> {
+        let i = self.index(block);
+        let def = &self.blocks[i];
+        debug_assert!(def.per_view, "{block:?} is not per view");
+        let len = def.estimated();
+        (len > 0 && v < self.view_ids.len()).then(|| {
+            let c = self.n_global + v * self.per_view_cols + self.col0[i];
+            c..c + len
+        })
+    }
+
+    /// Whether a per-view block is estimated.
+    pub fn per_view_free(&self, block: Block) -> bool {
+        self.blocks[self.index(block)].estimated() > 0
+    }
+
+    /// Columns of the global blocks (the first ones of the vector).
+    pub fn num_global(&self) -> usize {
+        self.n_global
+    }
+
+    /// Number of views (instances of each per-view block).
+    pub fn num_views(&self) -> usize {
+        self.view_ids.len()
     }
 
     /// The column of a slot (`None`: held).
@@ -243,16 +327,32 @@ impl ParamLayout {
 
     /// Length of the parameter vector.
     pub fn num_params(&self) -> usize {
-        self.col_of_slot.iter().flatten().count()
+        self.n_global + self.view_ids.len() * self.per_view_cols
     }
 
-    /// Names of the parameter vector's entries.
+    /// Names of the parameter vector's entries: the global blocks' names, then the
+    /// per-view ones as `view{row}_{name}` (`row` the view's dataset row).
     pub fn names(&self) -> Vec<String> {
-        self.blocks
+        let estimated = |b: &BlockDef| -> Vec<String> {
+            b.names
+                .iter()
+                .zip(&b.free)
+                .filter(|(_, f)| **f)
+                .map(|(n, _)| n.clone())
+                .collect()
+        };
+        let mut names: Vec<String> = self
+            .blocks
             .iter()
-            .flat_map(|b| b.names.iter().zip(&b.free).filter(|(_, f)| **f))
-            .map(|(n, _)| n.clone())
-            .collect()
+            .filter(|b| !b.per_view)
+            .flat_map(estimated)
+            .collect();
+        for id in &self.view_ids {
+            for b in self.blocks.iter().filter(|b| b.per_view) {
+                names.extend(estimated(b).iter().map(|n| format!("view{id}_{n}")));
+            }
+        }
+        names
     }
 
     /// Every slot's value at `start`: the camera's parameters, the plane's chart
@@ -275,12 +375,15 @@ impl ParamLayout {
         v
     }
 
-    /// The parameter vector of the start: its estimated slots.
+    /// The parameter vector of the start: its estimated slots, then the per-view
+    /// blocks at the identity (zero corrections).
     pub fn encode(&self) -> Vec<f64> {
-        (0..SLOTS)
+        let mut p: Vec<f64> = (0..SLOTS)
             .filter(|&s| self.col_of_slot[s].is_some())
             .map(|s| self.base[s])
-            .collect()
+            .collect();
+        p.resize(self.num_params(), 0.0);
+        p
     }
 
     /// Every slot's value for the parameter vector `p` (held slots from the start).
@@ -312,6 +415,16 @@ impl ParamLayout {
             z_rot: rotvec_to_matrix(&Vector3::new(v[z], v[z + 1], v[z + 2])),
             z_t: Vector3::new(v[z + 3], v[z + 4], v[z + 5]),
             scale: v[self.slots(Block::BoardScale).start],
+            corrections: (0..self.num_views())
+                .map_while(|i| self.view_columns(Block::RobotPose, i))
+                .map(|c| {
+                    let b = c.start;
+                    (
+                        rotvec_to_matrix(&Vector3::new(p[b], p[b + 1], p[b + 2])),
+                        Vector3::new(p[b + 3], p[b + 4], p[b + 5]),
+                    )
+                })
+                .collect(),
         }
     }
 
@@ -325,44 +438,74 @@ impl ParamLayout {
         )
     }
 
-    /// `out = p (+) dp`: addition, and `R Exp(w)`, `t + v` for the transforms.
+    /// `out = p (+) dp`: addition, and `R Exp(w)`, `t + v` for the transforms (every
+    /// view's instance of a per-view block alike).
     pub fn retract(&self, p: &[f64], dp: &[f64], out: &mut [f64]) {
         for (i, def) in self.blocks.iter().enumerate() {
-            let b = self.col0[i];
-            let len = def.free.iter().filter(|f| **f).count();
+            let len = def.estimated();
             if len == 0 {
                 continue;
             }
-            match def.kind {
-                BlockKind::Euclidean => {
-                    let r = b..b + len;
-                    for ((o, x), d) in out[r.clone()].iter_mut().zip(&p[r.clone()]).zip(&dp[r]) {
-                        *o = x + d;
-                    }
+            if def.per_view {
+                for v in 0..self.num_views() {
+                    let b = self.n_global + v * self.per_view_cols + self.col0[i];
+                    retract_block(def.kind, b..b + len, p, dp, out);
                 }
-                BlockKind::RigidTransform => {
-                    let r0 = rotvec_to_matrix(&Vector3::new(p[b], p[b + 1], p[b + 2]));
-                    let r = r0 * rotvec_to_matrix(&Vector3::new(dp[b], dp[b + 1], dp[b + 2]));
-                    let rv = matrix_to_rotvec(&r);
-                    for k in 0..3 {
-                        out[b + k] = rv[k];
-                        out[b + 3 + k] = p[b + 3 + k] + dp[b + 3 + k];
-                    }
-                }
+            } else {
+                let b = self.col0[i];
+                retract_block(def.kind, b..b + len, p, dp, out);
+            }
+        }
+    }
+}
+
+/// The update of one block's columns `r`.
+fn retract_block(kind: BlockKind, r: Range<usize>, p: &[f64], dp: &[f64], out: &mut [f64]) {
+    match kind {
+        BlockKind::Euclidean => {
+            for ((o, x), d) in out[r.clone()].iter_mut().zip(&p[r.clone()]).zip(&dp[r]) {
+                *o = x + d;
+            }
+        }
+        BlockKind::RigidTransform => {
+            let b = r.start;
+            let r0 = rotvec_to_matrix(&Vector3::new(p[b], p[b + 1], p[b + 2]));
+            let r = r0 * rotvec_to_matrix(&Vector3::new(dp[b], dp[b + 1], dp[b + 2]));
+            let rv = matrix_to_rotvec(&r);
+            for k in 0..3 {
+                out[b + k] = rv[k];
+                out[b + 3 + k] = p[b + 3 + k] + dp[b + 3 + k];
             }
         }
     }
 }
 
 impl JointParams {
-    /// `T_cam_board` of each view, `(R, t)`, from the robot poses `a`.
+    /// The flange poses the views are imaged from: the robot poses `a` corrected,
+    /// `A_i D_i` (as given when the corrections are not estimated).
+    pub fn flange_poses(&self, a: &[Iso3]) -> Vec<Iso3> {
+        if self.corrections.is_empty() {
+            return a.to_vec();
+        }
+        a.iter()
+            .zip(&self.corrections)
+            .map(|(a, (r, t))| {
+                let ra = a.rotation.to_rotation_matrix().into_inner();
+                iso_from_parts(&(ra * r), &(ra * t + a.translation.vector))
+            })
+            .collect()
+    }
+
+    /// `T_cam_board` of each view, `(R, t)`, from the robot poses `a` (corrected,
+    /// [`Self::flange_poses`]).
     pub fn view_poses(&self, a: &[Iso3]) -> Vec<([[f64; 3]; 3], [f64; 3])> {
         use crate::numerics::mat3::m3;
         let xr: [[f64; 3]; 3] = m3(&self.x_rot);
         let zr: [[f64; 3]; 3] = m3(&self.z_rot);
         let xt = [self.x_t.x, self.x_t.y, self.x_t.z];
         let zt = [self.z_t.x, self.z_t.y, self.z_t.z];
-        a.iter()
+        self.flange_poses(a)
+            .iter()
             .map(|a| super::chain::cam_board(a, &xr, &xt, &zr, &zt))
             .collect()
     }
@@ -414,7 +557,7 @@ mod tests {
     #[test]
     fn names_and_columns_follow_the_blocks() {
         let s = start(DistortionModel::Radial2);
-        let layout = ParamLayout::new(&s, &FreeBlocks::default(), 1.0);
+        let layout = ParamLayout::new(&s, &FreeBlocks::default(), 1.0, &[], false);
         let names = layout.names();
         let expected = [
             "fu",
@@ -455,7 +598,7 @@ mod tests {
     #[test]
     fn encode_decode_and_retract_round_trip() {
         let s = start(DistortionModel::OpenCv5);
-        let layout = ParamLayout::new(&s, &FreeBlocks::default(), 1.0);
+        let layout = ParamLayout::new(&s, &FreeBlocks::default(), 1.0, &[], false);
         let p = layout.encode();
         assert_eq!(p.len(), layout.num_params());
         let d = layout.decode(&p);

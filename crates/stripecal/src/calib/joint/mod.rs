@@ -4,11 +4,17 @@
 //!
 //! ## Model
 //!
-//! Per view i with `A_i = T_base_hand(q_i)` (known from the robot):
+//! Per view i with `A_i = T_base_hand(q_i)` (from the robot):
 //!
 //! ```text
 //! T_cam_board(i) = (A_i X)^-1 Z,   R_cb = R_X^T R_A^T R_Z,   t_cb = R_X^T (R_A^T (t_Z - t_A) - t_X)
 //! ```
+//!
+//! The robot's poses are not exact: with [`JointOptions::robot_noise`] (the default)
+//! each view's `A_i` is corrected, `A_i D_i`, by a small flange-frame transform `D_i`
+//! whose prior is the robot-pose noise, two more variance components (translation mm,
+//! rotation) estimated with the image's ([`robot_noise`]). Without it the poses are
+//! taken as exact (the paper's rigid model).
 //!
 //! Residuals, in pixels:
 //! - circles: detected imaged centre minus the predicted imaged centre of the circle
@@ -23,7 +29,8 @@
 //!
 //! ## Parameters (state vector)
 //!
-//! `[free camera parameters (PARAM_NAMES order)] [plane a, b, d] [X: w, v] [Z: w, v]`.
+//! `[free camera parameters (PARAM_NAMES order)] [plane a, b, d] [X: w, v] [Z: w, v]
+//! [board scale]`, then per view `[D_i: w, v]` with the robot-pose noise.
 //! The laser plane's unit normal is `normalize(n0 + a e1 + b e2)` around the starting
 //! normal `n0` (`e1`, `e2` orthonormal, perpendicular to it), its offset `d` mm. The
 //! transforms are stored as rotation vector and translation; the solver's increment is
@@ -31,21 +38,30 @@
 //!
 //! ## Weighting and uncertainty
 //!
-//! Circle and stripe residuals have different noise. The adjustment estimates one
-//! standard deviation per residual type (variance components): after every accepted
-//! step it re-estimates `sigma_type^2 = SSR_type / (m_type - n m_type / m)` from the
-//! residuals and re-weights (`1 / sigma_type`); the solver does not stop while the
-//! weights still move (see [`LeastSquares::reweight`]). The covariance of the
-//! parameters is then `s^2 (J^T W J)^-1` with `s^2` the a-posteriori variance factor of
-//! the weighted residuals (about 1). Optional Huber loss on the weighted residuals
-//! (threshold 1.345 sigma). Jacobians by forward-mode automatic differentiation
-//! ([`crate::numerics::dual::Dual`]), checked against central differences in the tests.
+//! Circle residuals, stripe residuals and the robot-pose corrections' rotation and
+//! translation have different noise. The adjustment estimates one standard deviation
+//! per group (variance components): after every accepted step it re-estimates
+//! `sigma_g^2 = SSR_g / r_g` with the group's redundancy `r_g = m_g - tr(N^-1 N_g)`
+//! (Förstner; `N = J^T W J`, `N_g` the group's share, the trace the sum of its
+//! residuals' leverages: a prior row whose correction the images determine has a
+//! redundancy near 1, one they leave to the prior near 0) and re-weights (`1 /
+//! sigma_g`); the solver does not stop while the weights still move (see
+//! [`crate::numerics::lm::LeastSquares::reweight`]). The robot-pose sigmas have floors
+//! ([`robot_noise`]). The covariance of the parameters is then `s^2 (J^T W J)^-1` with
+//! `s^2` the a-posteriori variance factor of the weighted residuals (about 1); with the
+//! robot-pose noise it is the covariance with the corrections estimated alongside, so
+//! every block's sigma includes the robot's part. Optional Huber loss on the weighted
+//! residuals (threshold 1.345 sigma). Jacobians by forward-mode automatic
+//! differentiation ([`crate::numerics::dual::Dual`]), checked against central
+//! differences in the tests.
 //!
 //! ## Files
 //!
 //! - `layout.rs`: the parameter vector (`ParamLayout`: blocks, slots, names,
 //!   decoding, retraction);
 //! - `residuals.rs`: the circle and stripe terms and their Jacobian rows;
+//! - `robot_noise.rs`: the per-view robot-pose correction, its prior rows, floors and
+//!   per-view test;
 //! - `covariance.rs`: sigmas of the estimated numbers;
 //! - `report.rs`: per-view figures;
 //! - here: the public API and the solve schedule.
@@ -55,6 +71,7 @@ mod covariance;
 mod layout;
 mod report;
 mod residuals;
+mod robot_noise;
 
 use nalgebra::{DMatrix, Vector3};
 
@@ -66,13 +83,15 @@ use crate::error::{Error, Result};
 use crate::model::board::Board;
 use crate::model::camera::Camera;
 use crate::model::geometry::{Iso3, Plane};
-use crate::model::NamedCovariance;
+use crate::model::{NamedCovariance, RobotPoseNoise};
 use crate::numerics::lm::{levenberg_marquardt, LmOptions, LmResult, StopReason};
 
-/// Variance-component re-estimations per solve: they settle in 2-3 on noisy data; a
-/// residual type fitted exactly (noise-free data, or a model that fits one type
-/// perfectly) would otherwise chase its sigma towards zero step after step.
-const MAX_REWEIGHTS: usize = 5;
+/// Variance-component re-estimations per solve: they settle in 2-3 on noisy data (4-6
+/// with the robot-pose noise, which starts at its floor while the images' sigmas still
+/// hold the robot's error); a residual type fitted exactly (noise-free data, or a model
+/// that fits one type perfectly) would otherwise chase its sigma towards zero step after
+/// step.
+const MAX_REWEIGHTS: usize = 8;
 
 /// Huber threshold on the weighted residuals (in units of the residual's sigma).
 pub const HUBER_SIGMAS: f64 = 1.345;
@@ -158,6 +177,17 @@ pub struct JointOptions {
     pub free: FreeBlocks,
     /// The board's scale: its starting value, or its value when held (default 1).
     pub board_scale: f64,
+    /// Correct every view's robot pose by its own small transform, the robot-pose noise
+    /// estimated as two variance components (default true; module docs). False: the
+    /// robot poses are exact (the paper's rigid model).
+    pub robot_noise: bool,
+    /// Floors of the robot-pose noise from the robot's figures, one-sigma per component:
+    /// translation mm, rotation deg ([`crate::Robot::pose_noise_floor`]; default none).
+    pub robot_floor: (Option<f64>, Option<f64>),
+    /// Starting standard deviations of the robot-pose noise (translation mm, rotation
+    /// deg): the weights of the first evaluation, and throughout without variance
+    /// components.
+    pub initial_robot_sigma: (f64, f64),
 }
 
 impl Default for JointOptions {
@@ -181,6 +211,9 @@ impl Default for JointOptions {
             initial_sigma_px: (0.02, 0.05),
             free: FreeBlocks::default(),
             board_scale: 1.0,
+            robot_noise: true,
+            robot_floor: (None, None),
+            initial_robot_sigma: (0.05, 0.01),
         }
     }
 }
@@ -262,9 +295,14 @@ pub struct JointResult {
     pub stripe_rms_mm: f64,
     /// Estimated standard deviations of one residual coordinate (circle, stripe), px.
     pub sigma_px: (f64, f64),
+    /// The robot-pose noise estimated with the corrections (`None` without them:
+    /// [`JointOptions::robot_noise`] off).
+    pub robot_noise: Option<RobotPoseNoise>,
     pub views: Vec<ViewReport>,
-    /// Parameter names of the state vector, and its covariance (weighted, scaled by the
-    /// variance factor).
+    /// Names of the state vector's global parameters (the calibration's; the per-view
+    /// robot-pose corrections are in [`Self::robot_noise`]), and their covariance
+    /// (weighted, scaled by the variance factor; with the corrections estimated
+    /// alongside).
     pub param_names: Vec<String>,
     pub covariance: DMatrix<f64>,
     /// The covariance of the estimated numbers under calibration.json's names.
@@ -298,14 +336,38 @@ pub fn joint_adjustment(
     let mut warnings = Vec::new();
     let terms = Terms::collect(views, board, &mut warnings)?;
     let free = free_blocks(&terms, start, opts)?;
-    let layout = ParamLayout::new(start, &free, opts.board_scale);
-    if layout.num_params() == 0 {
+    let layout = ParamLayout::new(
+        start,
+        &free,
+        opts.board_scale,
+        &terms.used,
+        opts.robot_noise,
+    );
+    if layout.num_global() == 0 {
         return Err(Error::InvalidInput(
             "the one-stage adjustment has nothing to estimate: every block is held".into(),
         ));
     }
+    let (mut p0, mut pre_iterations, mut sigma_px) = (layout.encode(), 0, None);
+    if layout.per_view_free(Block::RobotPose) && opts.lm.max_iterations > 0 {
+        // The rigid model first (the robot poses exact, the first solve of the schedule
+        // only): the corrections then start from X and Z at their rigid optimum and
+        // hold only what the views disagree on, instead of taking up the starting
+        // values' error along the directions only their prior determines (common to
+        // every view: X's and Z's own).
+        let rigid = ParamLayout::new(start, &free, opts.board_scale, &terms.used, false);
+        let mut pre = JointProblem::new(&start.camera, &rigid, terms.clone(), opts);
+        let (r, it) = solve(&mut pre, rigid.encode(), opts, true)?;
+        p0[..rigid.num_params()].copy_from_slice(&r.params);
+        pre_iterations = it;
+        sigma_px = Some((1.0 / pre.wc(), 1.0 / pre.ws()));
+    }
     let mut problem = JointProblem::new(&start.camera, &layout, terms, opts);
-    let (res, iterations) = solve(&mut problem, layout.encode(), opts)?;
+    if let Some(s) = sigma_px {
+        problem.set_image_sigmas(s);
+    }
+    let (res, iterations) = solve(&mut problem, p0, opts, false)?;
+    let iterations = iterations + pre_iterations;
 
     let s = layout.decode(&res.params);
     let camera = start.camera.with_params(&s.cam);
@@ -324,19 +386,56 @@ pub fn joint_adjustment(
     let plane_sign = plane.map_or(1.0, |pl| pl.normal.dot(&s.plane_n).signum());
     let named = covariance::named_covariance(&layout, &res.params, &s, &res.covariance, plane_sign);
     let sigma = covariance::joint_sigma(&named);
+    let n_image = res.residuals.len()
+        - if problem.robot_noise() {
+            6 * s.corrections.len()
+        } else {
+            0
+        };
     let reports = report::build(
         &problem,
         &s,
-        &res.residuals,
+        &res.residuals[..n_image],
         opts.outlier_sigmas,
         &mut warnings,
     );
-    let param_names = layout.names();
+    let robot_noise = problem.robot_noise().then(|| {
+        let state = problem.robot_state();
+        let r = robot_noise::report(
+            &layout,
+            &s,
+            &res.covariance,
+            res.sigma2,
+            problem.robot_weights(),
+            &state,
+            &problem.terms.used,
+        );
+        if r.translation_at_floor || r.rotation_at_floor {
+            warnings.push(format!(
+                "robot-pose noise at its floor ({}): {:.3} mm, {:.4} deg",
+                [
+                    (r.translation_at_floor, "translation"),
+                    (r.rotation_at_floor, "rotation")
+                ]
+                .iter()
+                .filter(|(f, _)| *f)
+                .map(|(_, n)| *n)
+                .collect::<Vec<_>>()
+                .join(", "),
+                r.sigma_translation_mm,
+                r.sigma_rotation_deg
+            ));
+        }
+        r
+    });
+    let all_names = layout.names();
     let unobservable = res
         .unobservable
         .iter()
-        .map(|&i| param_names[i].clone())
+        .map(|&i| all_names[i].clone())
         .collect::<Vec<_>>();
+    let ng = layout.num_global();
+    let param_names = all_names[..ng].to_vec();
     if !unobservable.is_empty() {
         warnings.push(format!(
             "unobservable parameters (their sigma is NaN): {}",
@@ -363,9 +462,10 @@ pub fn joint_adjustment(
         stripe_rms_px: reports.stripe_rms_px,
         stripe_rms_mm: reports.stripe_rms_mm,
         sigma_px: reports.sigma_px,
+        robot_noise,
         views: reports.views,
         param_names,
-        covariance: res.covariance,
+        covariance: res.covariance.view((0, 0), (ng, ng)).into_owned(),
         named_covariance: named,
         iterations,
         stop_reason: res.reason,
@@ -409,7 +509,8 @@ fn free_blocks(terms: &Terms, start: &JointStart, opts: &JointOptions) -> Result
     Ok(free)
 }
 
-/// The solve schedule from `p`: the last solve's result and the iterations of all.
+/// The solve schedule from `p`: the last solve's result and the iterations of all
+/// (`first_only`: the first solve alone).
 ///
 /// Solves (residual model, Jacobian model, Huber). With the exact centroid model the
 /// steps are taken with the first-order conic model's Jacobian (the residuals are exact;
@@ -422,6 +523,7 @@ fn solve(
     problem: &mut JointProblem<'_>,
     mut p: Vec<f64>,
     opts: &JointOptions,
+    first_only: bool,
 ) -> Result<(LmResult, usize)> {
     let model = opts.centre_model;
     let step_model = if model == CentreModel::ConicExact {
@@ -435,6 +537,9 @@ fn solve(
     }
     if step_model != model {
         solves.push((model, model, opts.robust));
+    }
+    if first_only {
+        solves.truncate(1);
     }
     let mut res: Option<LmResult> = None;
     let mut iterations = 0;
@@ -658,36 +763,55 @@ mod tests {
             board_scale: true,
             ..FreeBlocks::default()
         };
-        let layout = ParamLayout::new(&start, &free, 1.03);
-        let opts = JointOptions {
-            centre_model: CentreModel::ConicExact,
-            variance_components: false,
-            initial_sigma_px: (0.5, 2.0),
-            ..JointOptions::default()
-        };
         let terms = Terms {
             a,
             used: (0..s.views.len()).collect(),
             circles,
             stripes,
         };
-        let pr = JointProblem::new(&start.camera, &layout, terms, &opts);
-        let mut p: Vec<f64> = start.camera.params().to_vec();
-        p.extend_from_slice(&[0.01, -0.02, start.plane.unwrap().d]);
-        for t in [&start.hand_cam, &start.base_board] {
-            let (rv, tr) = iso_to_rotvec(t);
-            p.extend_from_slice(&[rv.x, rv.y, rv.z, tr.x, tr.y, tr.z]);
-        }
-        p.push(1.03);
-        assert_eq!(p.len(), layout.num_params());
-        let step = |j: usize| {
-            if j < 9 {
-                1e-5 * p[j].abs().max(1e-2)
-            } else {
-                1e-6
+        // Without and with the robot-pose corrections, these away from the identity
+        // (the prior rows' inverse right Jacobian then matters); X held too, its slots'
+        // derivatives still reach the corrections.
+        for (robot, x_free) in [(false, true), (true, true), (true, false)] {
+            let free = FreeBlocks {
+                hand_cam: x_free,
+                ..free
+            };
+            let layout = ParamLayout::new(&start, &free, 1.03, &terms.used, robot);
+            let opts = JointOptions {
+                centre_model: CentreModel::ConicExact,
+                variance_components: false,
+                initial_sigma_px: (0.5, 2.0),
+                initial_robot_sigma: (0.2, 0.05),
+                ..JointOptions::default()
+            };
+            let pr = JointProblem::new(&start.camera, &layout, terms.clone(), &opts);
+            let mut p: Vec<f64> = start.camera.params().to_vec();
+            p.extend_from_slice(&[0.01, -0.02, start.plane.unwrap().d]);
+            let held = [&start.hand_cam, &start.base_board];
+            for t in held.iter().skip(usize::from(!x_free)) {
+                let (rv, tr) = iso_to_rotvec(t);
+                p.extend_from_slice(&[rv.x, rv.y, rv.z, tr.x, tr.y, tr.z]);
             }
-        };
-        crate::numerics::lm::assert_jacobian_matches_fd(&pr, &p, step, 1e-9, 1e-5, "joint");
+            p.push(1.03);
+            if robot {
+                for k in 0..terms.a.len() {
+                    let k = k as f64;
+                    p.extend_from_slice(&[0.02 * k, -0.01, 0.03, 0.3, -0.2 * k, 0.1]);
+                }
+            }
+            assert_eq!(p.len(), layout.num_params());
+            let step = |j: usize| {
+                if j < 9 {
+                    1e-5 * p[j].abs().max(1e-2)
+                } else {
+                    1e-6
+                }
+            };
+            let worst =
+                crate::numerics::lm::assert_jacobian_matches_fd(&pr, &p, step, 1e-9, 1e-5, "joint");
+            println!("robot-pose corrections {robot}, X free {x_free}: largest relative FD difference {worst:.2e}");
+        }
     }
 
     #[test]
@@ -839,8 +963,22 @@ mod tests {
         let (xr, xt) = iso_err(&r.hand_cam, &s.x);
         assert!(xr < 1e-9 && xt < 1e-6, "{xr} {xt}");
         assert!(r.named_covariance.index("board.scale").is_some());
-        let held = joint_adjustment(&views, &board, &start, &JointOptions::default()).unwrap();
+        // Held at 1 with the robot poses exact, the circles do not fit; with the
+        // robot-pose corrections they do, X and Z taking up most of the misprint and
+        // each view's correction the rest (0.05-0.3 mm here), and the robot-pose noise
+        // says so, far above its floor.
+        let rigid = JointOptions {
+            robot_noise: false,
+            ..JointOptions::default()
+        };
+        let held = joint_adjustment(&views, &board, &start, &rigid).unwrap();
         assert!(held.circle_rms_px > 0.05, "{}", held.circle_rms_px);
+        let held = joint_adjustment(&views, &board, &start, &JointOptions::default()).unwrap();
+        let noise = held.robot_noise.unwrap();
+        assert!(
+            noise.sigma_translation_mm > 0.05 && !noise.translation_at_floor,
+            "{noise:?}"
+        );
     }
 
     /// Only the laser plane free (`--laser-only`): it is recovered, the held blocks keep

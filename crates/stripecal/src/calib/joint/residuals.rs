@@ -1,16 +1,25 @@
 //! The adjustment's residuals and their Jacobian rows: circle terms (detected minus
-//! predicted imaged centre) and stripe terms (signed image distance to the imaged line
-//! where the laser plane meets the view's board), as a [`LeastSquares`] problem with
+//! predicted imaged centre), stripe terms (signed image distance to the imaged line
+//! where the laser plane meets the view's board) and, with the robot-pose noise, each
+//! view's prior rows ([`super::robot_noise`]), as a [`LeastSquares`] problem with
 //! variance-component re-weighting (module docs of [`super`]).
+//!
+//! Residual order: circles (2 each), stripe points, then 6 prior rows per view
+//! (rotation, translation). Jacobian rows: dense (every column) without the robot-pose
+//! noise; with it, each row holds the global columns and its view's six correction
+//! columns (sparse rows: a view's rows share their columns, so the solver sums them per
+//! view before the scatter).
 
 use std::sync::atomic::{AtomicU64, AtomicUsize, Ordering};
+use std::sync::Mutex;
 
 use faer::MatMut;
-use nalgebra::{Matrix3, Vector3};
+use nalgebra::{Matrix3, Matrix6, Vector3};
 use rayon::prelude::*;
 
 use super::chain::cam_board;
 use super::layout::{Block, JointParams, ParamLayout, SLOTS};
+use super::robot_noise::{self, Floors, RobotNoiseState, RESOLUTION_FLOOR};
 use super::{JointOptions, MAX_REWEIGHTS};
 use crate::calib::conic::{centre_generic_n, quadrature_nodes, CentreModel};
 use crate::calib::ViewObs;
@@ -116,6 +125,22 @@ impl Terms {
     }
 }
 
+/// The residual groups, each with its own standard deviation (variance component).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(super) enum Group {
+    /// Circle-centre coordinates, px.
+    Circle,
+    /// Stripe-point distances, px.
+    Stripe,
+    /// The robot-pose corrections' rotation-vector components, rad.
+    RobotRotation,
+    /// The robot-pose corrections' translation components, mm.
+    RobotTranslation,
+}
+
+/// Floor of the image groups' sigmas, px (round-off of exact data).
+const IMAGE_SIGMA_FLOOR_PX: f64 = 1e-9;
+
 /// The adjustment as a least-squares problem.
 pub(super) struct JointProblem<'a> {
     pub base: &'a Camera,
@@ -127,10 +152,15 @@ pub(super) struct JointProblem<'a> {
     /// an inexact Jacobian only changes the path, the last solve's is exact).
     pub jacobian_model: CentreModel,
     pub terms: Terms,
-    /// Weights `1 / sigma` of the circle and stripe residuals (f64 bits; re-estimated
-    /// during the solve when `variance_components` is set).
-    w_circle: AtomicU64,
-    w_stripe: AtomicU64,
+    /// Weights `1 / sigma` of the groups ([`Group`] order; f64 bits; re-estimated during
+    /// the solve when `variance_components` is set).
+    weights: [AtomicU64; 4],
+    /// Whether the robot-pose corrections are estimated (prior rows, sparse rows).
+    robot: bool,
+    /// The robot's figures as floors of the robot-pose sigmas.
+    robot_figures: Floors,
+    /// What the robot-pose groups keep between evaluations.
+    robot_state: Mutex<RobotNoiseState>,
     /// Re-estimate the weights (variance components) in [`LeastSquares::reweight`].
     variance_components: bool,
     /// MAD instead of RMS for the sigmas (robust).
@@ -155,14 +185,31 @@ impl<'a> JointProblem<'a> {
         let foot_cache = (0..terms.stripes.len())
             .map(|_| AtomicU64::new(f64::NAN.to_bits()))
             .collect();
+        let (t0, r0) = opts.initial_robot_sigma;
+        let w = |sigma: f64| AtomicU64::new((1.0 / sigma).to_bits());
+        let robot_figures = Floors {
+            rotation_rad: opts.robot_floor.1.unwrap_or(0.0).to_radians(),
+            translation_mm: opts.robot_floor.0.unwrap_or(0.0),
+        };
+        let robot_state = RobotNoiseState {
+            floors: robot_figures,
+            ..Default::default()
+        };
         JointProblem {
             base,
             layout,
             model: opts.centre_model,
             jacobian_model: opts.centre_model,
             terms,
-            w_circle: AtomicU64::new((1.0 / opts.initial_sigma_px.0).to_bits()),
-            w_stripe: AtomicU64::new((1.0 / opts.initial_sigma_px.1).to_bits()),
+            weights: [
+                w(opts.initial_sigma_px.0),
+                w(opts.initial_sigma_px.1),
+                w(r0.to_radians()),
+                w(t0),
+            ],
+            robot: layout.per_view_free(Block::RobotPose),
+            robot_figures,
+            robot_state: Mutex::new(robot_state),
             variance_components: opts.variance_components,
             robust_sigma: opts.robust,
             reweights_left: AtomicUsize::new(MAX_REWEIGHTS),
@@ -177,42 +224,197 @@ impl<'a> JointProblem<'a> {
         self.reweights_left.store(MAX_REWEIGHTS, Ordering::Relaxed);
     }
 
+    /// Sets the image groups' standard deviations (circle, stripe), px: a start from an
+    /// earlier solve of the same observations.
+    pub fn set_image_sigmas(&mut self, (sc, ss): (f64, f64)) {
+        self.weights[Group::Circle as usize] = AtomicU64::new((1.0 / sc).to_bits());
+        self.weights[Group::Stripe as usize] = AtomicU64::new((1.0 / ss).to_bits());
+    }
+
+    /// Weight (`1 / sigma`) of a group.
+    pub fn weight(&self, g: Group) -> f64 {
+        f64::from_bits(self.weights[g as usize].load(Ordering::Relaxed))
+    }
+
     /// Weight of the circle residuals.
     pub fn wc(&self) -> f64 {
-        f64::from_bits(self.w_circle.load(Ordering::Relaxed))
+        self.weight(Group::Circle)
     }
 
     /// Weight of the stripe residuals.
     pub fn ws(&self) -> f64 {
-        f64::from_bits(self.w_stripe.load(Ordering::Relaxed))
+        self.weight(Group::Stripe)
     }
 
-    /// Standard deviations (circle, stripe) of the raw residuals behind the weighted
-    /// `r`: `sqrt(SSR_type / (m_type - n m_type / m))`, or 1.4826 MAD when robust;
-    /// floored at 1e-9 px (round-off of exact data).
-    fn sigmas(&self, r: &[f64]) -> (Option<f64>, f64) {
-        let n = self.num_params() as f64;
-        let m = r.len() as f64;
-        let mc = 2 * self.terms.circles.len();
-        let (rc, rs) = r.split_at(mc);
-        let est = |rr: &[f64], w: f64| -> f64 {
-            let mt = rr.len() as f64;
-            let dof = (mt - n * mt / m).max(1.0);
-            let s = if self.robust_sigma {
-                let mut a: Vec<f64> = rr.iter().map(|x| (x / w).abs()).collect();
-                a.sort_by(f64::total_cmp);
-                1.4826 * a.get(a.len() / 2).copied().unwrap_or(0.0)
-            } else {
-                (rr.iter().map(|x| (x / w).powi(2)).sum::<f64>() / dof).sqrt()
+    /// Weights of the robot-pose prior rows (rotation, translation).
+    pub fn robot_weights(&self) -> (f64, f64) {
+        (
+            self.weight(Group::RobotRotation),
+            self.weight(Group::RobotTranslation),
+        )
+    }
+
+    /// Whether the robot-pose corrections are estimated.
+    pub fn robot_noise(&self) -> bool {
+        self.robot
+    }
+
+    /// The robot-pose groups' state (floors in force, at-floor flags).
+    pub fn robot_state(&self) -> RobotNoiseState {
+        self.robot_state
+            .lock()
+            .map(|s| s.clone())
+            .unwrap_or_default()
+    }
+
+    /// First prior row (after the circles and the stripe points).
+    fn prior_offset(&self) -> usize {
+        2 * self.terms.circles.len() + self.terms.stripes.len()
+    }
+
+    /// The group of each residual.
+    fn groups(&self) -> Vec<Group> {
+        let mut g = vec![Group::Circle; 2 * self.terms.circles.len()];
+        g.resize(self.prior_offset(), Group::Stripe);
+        if self.robot {
+            for _ in 0..self.terms.a.len() {
+                g.extend([Group::RobotRotation; 3]);
+                g.extend([Group::RobotTranslation; 3]);
+            }
+        }
+        g
+    }
+
+    /// Values per Jacobian row: every column (dense) without the robot-pose noise, the
+    /// global columns and the view's six correction columns with it.
+    fn row_width(&self) -> usize {
+        if self.robot {
+            self.layout.num_global() + 6
+        } else {
+            self.num_params()
+        }
+    }
+
+    /// The re-estimated standard deviation of each group behind the weighted residuals
+    /// `r`: `sqrt(SSR_g / r_g)`, the redundancy `r_g = m_g - sum_g h_i` from the
+    /// leverages `h` (Förstner), or `m_g - n m_g / m` when they are not available; for
+    /// the image groups 1.4826 MAD instead when robust. `None` for a group without
+    /// residuals or redundancy (its weight stays).
+    fn group_sigmas(&self, r: &[f64], h: Option<&[f64]>) -> [Option<f64>; 4] {
+        let (n, m) = (self.num_params() as f64, r.len() as f64);
+        let groups = self.groups();
+        std::array::from_fn(|gi| {
+            let g = [
+                Group::Circle,
+                Group::Stripe,
+                Group::RobotRotation,
+                Group::RobotTranslation,
+            ][gi];
+            let w = self.weight(g);
+            let idx: Vec<usize> = (0..r.len()).filter(|&i| groups[i] == g).collect();
+            if idx.is_empty() {
+                return None;
+            }
+            let mg = idx.len() as f64;
+            let red = match h {
+                Some(h) => mg - idx.iter().map(|&i| h[i]).sum::<f64>(),
+                None => mg - n * mg / m,
             };
-            s.max(1e-9)
-        };
-        let sc = (mc > 0).then(|| est(rc, self.wc()));
-        (sc, est(rs, self.ws()))
+            let image = matches!(g, Group::Circle | Group::Stripe);
+            if image && self.robust_sigma {
+                let mut a: Vec<f64> = idx.iter().map(|&i| (r[i] / w).abs()).collect();
+                a.sort_by(f64::total_cmp);
+                return Some(1.4826 * a[a.len() / 2]);
+            }
+            // A group the rest of the adjustment explains (almost) entirely has no
+            // redundancy to estimate its sigma from.
+            if red < 0.5 {
+                return None;
+            }
+            Some((idx.iter().map(|&i| (r[i] / w).powi(2)).sum::<f64>() / red).sqrt())
+        })
     }
 
     fn decode(&self, p: &[f64]) -> JointParams {
         self.layout.decode(p)
+    }
+
+    /// The view of each residual row (circles, stripe points, prior rows).
+    fn row_views(&self) -> impl Iterator<Item = usize> + '_ {
+        let t = &self.terms;
+        let circles = t.circles.iter().flat_map(|c| [c.view, c.view]);
+        let stripes = t.stripes.iter().map(|s| s.view);
+        let priors = (0..t.a.len()).flat_map(|v| [v; 6]);
+        circles.chain(stripes).chain(priors)
+    }
+
+    /// Keeps each view's information on its correction from its circles and from its
+    /// stripe points (unit weight: the rows' values divided by the group's weight), for
+    /// the resolution floor ([`super::robot_noise`]).
+    fn store_image_information(&self, vals: &[f64], w: usize, ng: usize) {
+        let mut info = vec![[Matrix6::<f64>::zeros(); 2]; self.terms.a.len()];
+        let nc = 2 * self.terms.circles.len();
+        let (wc, ws) = (self.wc(), self.ws());
+        for (i, (row, view)) in vals
+            .chunks_exact(w)
+            .zip(self.row_views())
+            .take(self.prior_offset())
+            .enumerate()
+        {
+            let (k, wg) = if i < nc { (0, wc) } else { (1, ws) };
+            let g = &row[ng..ng + 6];
+            let m = &mut info[view][k];
+            for a in 0..6 {
+                for b in 0..6 {
+                    m[(a, b)] += g[a] * g[b] / (wg * wg);
+                }
+            }
+        }
+        if let Ok(mut st) = self.robot_state.lock() {
+            st.info = info;
+        }
+    }
+
+    /// The robot-pose groups' new weights from their sigmas `sig` ([`Group`] order;
+    /// the image groups' already in `new`): each sigma at least its floor, the larger of
+    /// the robot's figure and the resolution floor; a group without redundancy keeps its
+    /// sigma, floored.
+    fn reweight_robot(&self, sig: &[Option<f64>; 4], new: &mut [f64; 4]) {
+        let Ok(mut st) = self.robot_state.lock() else {
+            return;
+        };
+        let sigma_px = (
+            1.0 / new[Group::Circle as usize],
+            1.0 / new[Group::Stripe as usize],
+        );
+        let (res_r, res_t) = robot_noise::resolution(&st.info, sigma_px).unwrap_or((0.0, 0.0));
+        let floors = Floors {
+            rotation_rad: self
+                .robot_figures
+                .rotation_rad
+                .max(RESOLUTION_FLOOR * res_r),
+            translation_mm: self
+                .robot_figures
+                .translation_mm
+                .max(RESOLUTION_FLOOR * res_t),
+        };
+        let mut at_floor = [false; 2];
+        for (k, (g, floor)) in [
+            (Group::RobotRotation, floors.rotation_rad),
+            (Group::RobotTranslation, floors.translation_mm),
+        ]
+        .into_iter()
+        .enumerate()
+        {
+            let s = sig[g as usize].unwrap_or(1.0 / new[g as usize]);
+            at_floor[k] = s <= floor;
+            let s = s.max(floor);
+            if s > 0.0 && s.is_finite() {
+                new[g as usize] = 1.0 / s;
+            }
+        }
+        st.floors = floors;
+        st.at_floor = (at_floor[0], at_floor[1]);
     }
 
     /// Stripe foot point from the warm-start cache, which it updates.
@@ -289,6 +491,9 @@ struct ViewLinearisation {
     /// `d(w, v) / d(X, Z, scale slots)`: rows `(w, v)` of the board pose's increment.
     chains: Vec<[[f64; CHAIN]; 6]>,
     lines: Vec<Option<([DSlots; 3], [DSlots; 3])>>,
+    /// With the robot-pose noise: each view's map from its correction to `X`'s
+    /// increment ([`robot_noise::correction_map`]).
+    maps: Vec<Matrix6<f64>>,
 }
 
 impl JointProblem<'_> {
@@ -318,11 +523,15 @@ impl JointProblem<'_> {
         let zr = rot_times_exp_first_order(&s.z_rot, &wz);
         let xt: [DSlots; 3] = std::array::from_fn(|i| DSlots::var(s.x_t[i], sx + 3 + i));
         let zt: [DSlots; 3] = std::array::from_fn(|i| DSlots::var(s.z_t[i], sz + 3 + i));
-        let poses: Vec<_> = self
-            .terms
-            .a
+        let poses: Vec<_> = s
+            .flange_poses(&self.terms.a)
             .iter()
             .map(|a| cam_board(a, &xr, &xt, &zr, &zt))
+            .collect();
+        let maps = s
+            .corrections
+            .iter()
+            .map(|(rd, _)| robot_noise::correction_map(&s.x_rot, &s.x_t, rd))
             .collect();
         // Chain of each view's board-pose increment (w, v) w.r.t. the X, Z and scale
         // slots: dw = vee(R0^T dR), dv = d(t / s) = dt / s - t ds / s^2.
@@ -367,12 +576,14 @@ impl JointProblem<'_> {
             board_poses,
             chains,
             lines,
+            maps,
         }
     }
 
-    /// Weighted circle residuals `rc` and their dense Jacobian rows `vc` (2 rows of
-    /// `n` values per circle): duals over (camera 9, pose increment 6), chained to `X`
-    /// and `Z`.
+    /// Weighted circle residuals `rc` and their Jacobian rows `vc` (2 rows of
+    /// [`Self::row_width`] values per circle): duals over (camera 9, pose increment 6),
+    /// chained to `X`, `Z` and the board scale, and through `X`'s to the view's
+    /// correction.
     fn circle_rows(
         &self,
         s: &JointParams,
@@ -381,7 +592,8 @@ impl JointProblem<'_> {
         vc: &mut [f64],
     ) -> Result<()> {
         type D15 = Dual<15>;
-        let n = self.num_params();
+        let w = self.row_width();
+        let ng = self.layout.num_global();
         let col_of = self.layout.columns();
         let sx = self.layout.slots(Block::HandCam).start;
         // Fixed camera parameters are constants (zero coefficients then cost nothing).
@@ -396,7 +608,7 @@ impl JointProblem<'_> {
         let wc = self.wc();
         let nodes = quadrature_nodes(self.base.model);
         rc.par_chunks_mut(2)
-            .zip(vc.par_chunks_mut(2 * n))
+            .zip(vc.par_chunks_mut(2 * w))
             .zip(self.terms.circles.par_iter())
             .try_for_each(|((out, jrow), c)| -> Result<()> {
                 let (rot, t) = &views.board_poses[c.view];
@@ -421,16 +633,26 @@ impl JointProblem<'_> {
                 out[1] = wc * (value[1] - c.v);
                 let ch = &views.chains[c.view];
                 for (a, ua) in uv.iter().enumerate() {
-                    let row = &mut jrow[a * n..(a + 1) * n];
+                    let row = &mut jrow[a * w..(a + 1) * w];
                     for (slot, col) in col_of.iter().enumerate().take(9) {
                         if let Some(col) = col {
                             row[*col] = wc * ua.d[slot];
                         }
                     }
+                    let mut gx = [0.0; 6];
                     for kk in 0..CHAIN {
                         let acc: f64 = (0..6).map(|q| ua.d[9 + q] * ch[q][kk]).sum();
+                        if kk < 6 {
+                            gx[kk] = acc;
+                        }
                         if let Some(col) = col_of[sx + kk] {
                             row[col] = wc * acc;
+                        }
+                    }
+                    if let Some(m) = views.maps.get(c.view) {
+                        let d = robot_noise::correction_columns(&gx, m);
+                        for (o, v) in row[ng..ng + 6].iter_mut().zip(d) {
+                            *o = wc * v;
                         }
                     }
                 }
@@ -438,7 +660,8 @@ impl JointProblem<'_> {
             })
     }
 
-    /// Weighted stripe residuals `rs` and their dense Jacobian rows `vs`.
+    /// Weighted stripe residuals `rs` and their Jacobian rows `vs` ([`Self::row_width`]
+    /// values each).
     ///
     /// Chain rule: `d res = n^T (d pi/d P (d p0 + s d dir) + d pi/d camera)`, the line's
     /// derivatives (plane, `X`, `Z` slots) from the per-view duals, the projection's by
@@ -451,12 +674,14 @@ impl JointProblem<'_> {
         vs: &mut [f64],
     ) -> Result<()> {
         type D7 = Dual<7>;
-        let n = self.num_params();
+        let w = self.row_width();
+        let ng = self.layout.num_global();
         let col_of = self.layout.columns();
         let sp = self.layout.slots(Block::Plane).start;
+        let sx = self.layout.slots(Block::HandCam).start;
         let ws = self.ws();
         rs.par_iter_mut()
-            .zip(vs.par_chunks_mut(n))
+            .zip(vs.par_chunks_mut(w))
             .enumerate()
             .try_for_each(|(k, (out, row))| -> Result<()> {
                 let st = &self.terms.stripes[k];
@@ -502,6 +727,13 @@ impl JointProblem<'_> {
                         row[col] = ws * v;
                     }
                 }
+                if let Some(m) = views.maps.get(st.view) {
+                    let gx: [f64; 6] = std::array::from_fn(|k| full[sx + k]);
+                    let d = robot_noise::correction_columns(&gx, m);
+                    for (o, v) in row[ng..ng + 6].iter_mut().zip(d) {
+                        *o = ws * v;
+                    }
+                }
                 Ok(())
             })
     }
@@ -512,13 +744,23 @@ impl LeastSquares for JointProblem<'_> {
         self.layout.num_params()
     }
     fn num_residuals(&self) -> usize {
-        2 * self.terms.circles.len() + self.terms.stripes.len()
+        self.prior_offset()
+            + if self.robot {
+                6 * self.terms.a.len()
+            } else {
+                0
+            }
     }
     fn residuals(&self, p: &[f64], r: &mut [f64]) -> Result<()> {
-        self.raw_residuals(p, r)?;
+        let (image, prior) = r.split_at_mut(self.prior_offset());
+        self.raw_residuals(p, image)?;
         let nc = 2 * self.terms.circles.len();
-        for (i, x) in r.iter_mut().enumerate() {
-            *x *= if i < nc { self.wc() } else { self.ws() };
+        let (wc, ws) = (self.wc(), self.ws());
+        for (i, x) in image.iter_mut().enumerate() {
+            *x *= if i < nc { wc } else { ws };
+        }
+        if self.robot {
+            robot_noise::prior_residuals(&self.decode(p), self.robot_weights(), prior);
         }
         Ok(())
     }
@@ -526,8 +768,9 @@ impl LeastSquares for JointProblem<'_> {
         dense_jacobian_from_rows(self, p, r, jac)
     }
     fn jacobian_row_width(&self) -> Option<usize> {
-        // Every residual depends on (nearly) every parameter: dense rows.
-        Some(self.num_params())
+        // Every image residual depends on (nearly) every global parameter, and on its
+        // view's correction.
+        Some(self.row_width())
     }
     fn residuals_and_jacobian_rows(
         &self,
@@ -537,16 +780,39 @@ impl LeastSquares for JointProblem<'_> {
     ) -> Result<()> {
         let s = self.decode(p);
         let views = self.linearise_views(p, &s);
-        let n = self.num_params();
+        let w = self.row_width();
         let nc = self.terms.circles.len();
-        let (rc, rs) = r.split_at_mut(2 * nc);
-        // Dense rows: values of columns 0..n.
-        let (_, vals) = rows.parts_mut();
-        let (vc, vs) = vals.split_at_mut(2 * nc * n);
+        let (image, rp) = r.split_at_mut(self.prior_offset());
+        let (rc, rs) = image.split_at_mut(2 * nc);
+        // Dense rows: values of columns 0..n; sparse: the global columns, then the
+        // view's correction.
+        let (cols, vals) = rows.parts_mut();
+        let (vimage, vp) = vals.split_at_mut(self.prior_offset() * w);
+        let (vc, vs) = vimage.split_at_mut(2 * nc * w);
         self.circle_rows(&s, &views, rc, vc)?;
-        self.stripe_rows(&s, &views, rs, vs)
+        self.stripe_rows(&s, &views, rs, vs)?;
+        if self.robot {
+            let ng = self.layout.num_global();
+            robot_noise::prior_rows(&s, self.robot_weights(), rp, vp, w, ng);
+            for (row, view) in cols.chunks_exact_mut(w).zip(self.row_views()) {
+                for (k, c) in row.iter_mut().enumerate().take(ng) {
+                    *c = k;
+                }
+                if let Some(vc) = self.layout.view_columns(Block::RobotPose, view) {
+                    for (c, v) in row[ng..].iter_mut().zip(vc) {
+                        *c = v;
+                    }
+                }
+            }
+            self.store_image_information(vals, w, ng);
+        }
+        Ok(())
     }
-    fn reweight(&self, r: &[f64]) -> Option<Vec<f64>> {
+    fn reweight(
+        &self,
+        r: &[f64],
+        leverages: &mut dyn FnMut() -> Option<Vec<f64>>,
+    ) -> Option<Vec<f64>> {
         if !self.variance_components
             || self
                 .reweights_left
@@ -555,15 +821,28 @@ impl LeastSquares for JointProblem<'_> {
         {
             return None;
         }
-        let (sc, ss) = self.sigmas(r);
-        let (wc0, ws0) = (self.wc(), self.ws());
-        let wc1 = sc.map_or(wc0, |s| 1.0 / s);
-        let ws1 = 1.0 / ss;
-        self.w_circle.store(wc1.to_bits(), Ordering::Relaxed);
-        self.w_stripe.store(ws1.to_bits(), Ordering::Relaxed);
-        let nc = 2 * self.terms.circles.len();
-        let (fc, fs) = (wc1 / wc0, ws1 / ws0);
-        Some((0..r.len()).map(|i| if i < nc { fc } else { fs }).collect())
+        let h = leverages();
+        let sig = self.group_sigmas(r, h.as_deref());
+        let old: [f64; 4] =
+            std::array::from_fn(|g| f64::from_bits(self.weights[g].load(Ordering::Relaxed)));
+        let mut new = old;
+        for g in [Group::Circle, Group::Stripe] {
+            if let Some(s) = sig[g as usize] {
+                new[g as usize] = 1.0 / s.max(IMAGE_SIGMA_FLOOR_PX);
+            }
+        }
+        if self.robot {
+            self.reweight_robot(&sig, &mut new);
+        }
+        for (a, w) in self.weights.iter().zip(&new) {
+            a.store(w.to_bits(), Ordering::Relaxed);
+        }
+        Some(
+            self.groups()
+                .iter()
+                .map(|&g| new[g as usize] / old[g as usize])
+                .collect(),
+        )
     }
     fn retract(&self, p: &[f64], dp: &[f64], out: &mut [f64]) {
         self.layout.retract(p, dp, out);

@@ -1,0 +1,345 @@
+//! The robot-pose noise: a per-view correction of the robot's flange pose, its prior
+//! (pseudo-observation) rows, the variance components of its translation and rotation,
+//! their floors, and the per-view test.
+//!
+//! ## Model
+//!
+//! Every robot is off by something (repeatability, kinematic errors). View i is imaged
+//! from `A_i' = A_i D_i`, `D_i = (R_D, t_D)` a small rigid correction in the flange
+//! frame, stored as rotation vector `w` and translation (mm) and updated like the other
+//! transforms (`R_D Exp(dw)`, `t_D + dv`). Its prior is the robot-pose noise: six
+//! pseudo-observations of zero per view,
+//!
+//! ```text
+//! rotvec(R_D) / sigma_r,   t_D / sigma_t        (rad, mm; per component)
+//! ```
+//!
+//! `sigma_t` (mm) and `sigma_r` (rad) are two more variance components, estimated with
+//! the circles' and the stripe points' (module docs of [`super`]).
+//!
+//! ## Jacobian
+//!
+//! `D_i` enters view i's chain `A_i D_i X`. Perturbing it by `(dw, dv)` moves the chain
+//! as a perturbation `(w, v)` of `X` does with `w = R_X^T dw`, `v = -[t_X]x dw + R_D^T
+//! dv` (`A D Exp(dw) X = A D X Exp(R_X^T dw)`, and the translations match to first
+//! order), so a view's correction columns are its rows' derivatives over `X`'s slots
+//! (the dual numbers run over every slot, held or not) times that 6 x 6 map
+//! ([`correction_map`]). The prior rows' derivatives: the inverse right Jacobian of the
+//! rotation vector for `rotvec(R_D Exp(dw))`, the identity for the translation.
+//!
+//! ## Floors
+//!
+//! A sigma is never below its floor:
+//! - the robot's figures when rig.json gives them ([`crate::Robot::pose_noise_floor`]:
+//!   `repeatability_mm` for the translation, the flange rotation of `encoder_sigma_deg`
+//!   for the rotation);
+//! - and in any case the adjustment's resolution: [`RESOLUTION_FLOOR`] times the
+//!   precision with which a view's own image determines its flange pose (the median over
+//!   the views of the RMS one-sigma per component of the correction from the view's
+//!   circles and stripe points alone). Robot-pose noise far below what one view
+//!   resolves cannot be told from image noise: on a perfect robot (the twin) the
+//!   estimate would otherwise creep towards zero re-weighting after re-weighting, and on
+//!   exact observations the prior would outweigh the images by orders of magnitude
+//!   beyond what the normal equations resolve. At the floor the robot-pose noise adds
+//!   [`RESOLUTION_FLOOR`]^2 (9 %) of a view's own image variance to its flange pose.
+//!
+//! ## The per-view test
+//!
+//! A view's six pseudo-observations have the residuals `v` (its correction) with the
+//! cofactor `Q_vv = s^2 (P^-1 - A N^-1 A^T)` (`A` their design rows, `P` their weights,
+//! `s^2` the variance factor): the part of the prior's variance that the rest of the
+//! adjustment does not explain (its redundancy). `T = v^T Q_vv^+ v` is chi-square with
+//! `k = rank Q_vv` (6) degrees of freedom when the view agrees with the noise model; it
+//! is reported as the standard normal deviate of the same tail probability
+//! (Wilson-Hilferty), `((T/k)^(1/3) - 1 + 2/(9k)) / sqrt(2/(9k))`: Baarda's w-test
+//! generalised to the view's six-dimensional correction, about N(0, 1) for a view that
+//! agrees, above about 4 for one that does not (a one-sided probability of 3e-5).
+//!
+//! The robot-pose sigmas in a view's `P` are the variance components without that view
+//! (externally studentised: its share of the groups' sums of squares and redundancies
+//! taken out, floors kept), so that a view that disagrees is not measured against the
+//! sigmas it inflates itself.
+
+use nalgebra::{DMatrix, Matrix3, Matrix6, Vector3, Vector6};
+
+use super::covariance::inverse_right_jacobian;
+use super::layout::{Block, JointParams, ParamLayout};
+use crate::model::geometry::matrix_to_rotvec;
+use crate::model::{RobotPoseNoise, RobotPoseView};
+
+/// The resolution floor of the robot-pose sigmas, in units of the precision a view's
+/// own image gives its flange pose (module docs).
+pub(super) const RESOLUTION_FLOOR: f64 = 0.3;
+
+/// The robot's figures as floors of the sigmas: rotation rad, translation mm (0: none).
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub(super) struct Floors {
+    pub rotation_rad: f64,
+    pub translation_mm: f64,
+}
+
+/// What the robot-pose groups keep between an evaluation and the re-weighting that
+/// follows it.
+#[derive(Debug, Clone, Default)]
+pub(super) struct RobotNoiseState {
+    /// Per view: the information (unit weight) of its correction from its circles and
+    /// from its stripe points, `sum g g^T` over the rows' correction columns.
+    pub info: Vec<[Matrix6<f64>; 2]>,
+    /// The floors in force (the figures and the resolution), rotation rad, translation
+    /// mm.
+    pub floors: Floors,
+    /// Whether the rotation and the translation sigma sit at their floor.
+    pub at_floor: (bool, bool),
+}
+
+/// `(w, v) = M (dw, dv)`: the perturbation of `X` that a perturbation of the correction
+/// `D = (r_d, .)` is, for `X = (x_rot, x_t)` (module docs).
+pub(super) fn correction_map(
+    x_rot: &Matrix3<f64>,
+    x_t: &Vector3<f64>,
+    r_d: &Matrix3<f64>,
+) -> Matrix6<f64> {
+    let mut m = Matrix6::zeros();
+    m.fixed_view_mut::<3, 3>(0, 0).copy_from(&x_rot.transpose());
+    m.fixed_view_mut::<3, 3>(3, 0)
+        .copy_from(&(-x_t.cross_matrix()));
+    m.fixed_view_mut::<3, 3>(3, 3).copy_from(&r_d.transpose());
+    m
+}
+
+/// A row's correction columns from its derivatives `g` over `X`'s six slots.
+#[inline]
+pub(super) fn correction_columns(g: &[f64; 6], m: &Matrix6<f64>) -> [f64; 6] {
+    std::array::from_fn(|j| (0..6).map(|k| g[k] * m[(k, j)]).sum())
+}
+
+/// The prior's raw values of each view: `[rotvec(R_D); t_D]`.
+pub(super) fn prior_values(s: &JointParams) -> Vec<Vector6<f64>> {
+    s.corrections
+        .iter()
+        .map(|(r, t)| {
+            let w = matrix_to_rotvec(r);
+            Vector6::new(w.x, w.y, w.z, t.x, t.y, t.z)
+        })
+        .collect()
+}
+
+/// Weighted prior residuals (6 per view: rotation, then translation) with weights
+/// `(w_rot, w_trans)`.
+pub(super) fn prior_residuals(s: &JointParams, (wr, wt): (f64, f64), r: &mut [f64]) {
+    for (out, v) in r.chunks_exact_mut(6).zip(prior_values(s)) {
+        for k in 0..3 {
+            out[k] = wr * v[k];
+            out[3 + k] = wt * v[3 + k];
+        }
+    }
+}
+
+/// The weighted 6 x 6 Jacobian of a view's prior rows over its correction columns.
+pub(super) fn prior_jacobian(rotvec: &Vector3<f64>, (wr, wt): (f64, f64)) -> Matrix6<f64> {
+    let mut j = Matrix6::zeros();
+    j.fixed_view_mut::<3, 3>(0, 0)
+        .copy_from(&(inverse_right_jacobian(rotvec) * wr));
+    j.fixed_view_mut::<3, 3>(3, 3)
+        .copy_from(&(Matrix3::identity() * wt));
+    j
+}
+
+/// The prior rows: weighted residuals `r` (6 per view) and their rows of `width` values,
+/// the correction's six at `n_global..n_global + 6` (the row's columns are the
+/// problem's: the global ones, then the view's correction).
+pub(super) fn prior_rows(
+    s: &JointParams,
+    weights: (f64, f64),
+    r: &mut [f64],
+    vals: &mut [f64],
+    width: usize,
+    n_global: usize,
+) {
+    prior_residuals(s, weights, r);
+    for (rows, v) in vals.chunks_exact_mut(6 * width).zip(prior_values(s)) {
+        let j = prior_jacobian(&Vector3::new(v[0], v[1], v[2]), weights);
+        for (a, row) in rows.chunks_exact_mut(width).enumerate() {
+            for b in 0..6 {
+                row[n_global + b] = j[(a, b)];
+            }
+        }
+    }
+}
+
+/// The median over views of the precision their own images give their corrections:
+/// RMS one-sigma per component of the rotation (rad) and of the translation (mm), with
+/// the circles' and stripe points' standard deviations `sigma_px` (views whose images do
+/// not determine all six are skipped; `None` when no view does).
+pub(super) fn resolution(info: &[[Matrix6<f64>; 2]], sigma_px: (f64, f64)) -> Option<(f64, f64)> {
+    let (mut rot, mut trans) = (Vec::new(), Vec::new());
+    for [c, s] in info {
+        let i = c / sigma_px.0.powi(2) + s / sigma_px.1.powi(2);
+        let Some(cov) = i.cholesky().map(|ch| ch.inverse()) else {
+            continue;
+        };
+        let tr = |o: usize| (cov[(o, o)] + cov[(o + 1, o + 1)] + cov[(o + 2, o + 2)]) / 3.0;
+        let (a, b) = (tr(0), tr(3));
+        if a.is_finite() && b.is_finite() {
+            rot.push(a.max(0.0).sqrt());
+            trans.push(b.max(0.0).sqrt());
+        }
+    }
+    let median = |mut x: Vec<f64>| -> Option<f64> {
+        x.sort_by(f64::total_cmp);
+        (!x.is_empty()).then(|| 0.5 * (x[(x.len() - 1) / 2] + x[x.len() / 2]))
+    };
+    Some((median(rot)?, median(trans)?))
+}
+
+/// The standard normal deviate of a chi-square value `t` with `k` degrees of freedom
+/// (Wilson-Hilferty).
+pub(super) fn chi2_to_normal(t: f64, k: usize) -> f64 {
+    let k = k as f64;
+    let c = 2.0 / (9.0 * k);
+    ((t / k).cbrt() - (1.0 - c)) / c.sqrt()
+}
+
+/// The report of the solution `s` (parameter covariance `cov`, variance factor `s2`,
+/// final weights `(w_rot, w_trans)`) over the views used (dataset rows `used`).
+pub(super) fn report(
+    layout: &ParamLayout,
+    s: &JointParams,
+    cov: &DMatrix<f64>,
+    s2: f64,
+    weights: (f64, f64),
+    state: &RobotNoiseState,
+    used: &[usize],
+) -> RobotPoseNoise {
+    // Per view: weighted residuals u, and the hat block H = J C J^T / s^2 of its rows.
+    let per_view: Vec<(Vector6<f64>, Option<Matrix6<f64>>)> = prior_values(s)
+        .iter()
+        .enumerate()
+        .map(|(i, v)| {
+            let u = Vector6::from_fn(|k, _| v[k] * if k < 3 { weights.0 } else { weights.1 });
+            let h = layout.view_columns(Block::RobotPose, i).and_then(|c| {
+                let cvv = cov.view((c.start, c.start), (6, 6));
+                let cvv = Matrix6::from_fn(|a, b| cvv[(a, b)]);
+                let j = prior_jacobian(&Vector3::new(v[0], v[1], v[2]), weights);
+                let h = j * cvv * j.transpose() / s2;
+                (s2 > 0.0 && h.iter().all(|x| x.is_finite())).then_some(h)
+            });
+            (u, h)
+        })
+        .collect();
+    // The groups' weighted sums of squares and redundancies, for the sigmas without a
+    // view (module docs).
+    let mut totals = [(0.0, 0.0); 2];
+    for (u, h) in &per_view {
+        for k in 0..6 {
+            let t = &mut totals[k / 3];
+            t.0 += u[k] * u[k];
+            t.1 += h.map_or(1.0, |h| 1.0 - h[(k, k)]);
+        }
+    }
+    let floors = [
+        state.floors.rotation_rad * weights.0,
+        state.floors.translation_mm * weights.1,
+    ];
+    let views = used
+        .iter()
+        .zip(&per_view)
+        .zip(prior_values(s))
+        .map(|((&view, (u, h)), v)| {
+            let test = h.map_or(f64::NAN, |h| {
+                // Each group's sigma without the view, relative to the group's (both
+                // in weighted units: 1 is the group's sigma), floored.
+                let rel: [f64; 2] = std::array::from_fn(|g| {
+                    let o = 3 * g;
+                    let ss = (o..o + 3).map(|k| u[k] * u[k]).sum::<f64>();
+                    let r = (o..o + 3).map(|k| 1.0 - h[(k, k)]).sum::<f64>();
+                    let (tss, tr) = totals[g];
+                    if tr - r < 0.5 {
+                        return 1.0;
+                    }
+                    ((tss - ss).max(0.0) / (tr - r) / s2).sqrt().max(floors[g])
+                });
+                let scaled = Vector6::from_fn(|k, _| u[k] / rel[k / 3]);
+                view_test(&scaled, &h, s2)
+            });
+            RobotPoseView {
+                view,
+                translation_mm: Vector3::new(v[3], v[4], v[5]).norm(),
+                rotation_deg: Vector3::new(v[0], v[1], v[2]).norm().to_degrees(),
+                test,
+            }
+        })
+        .collect();
+    RobotPoseNoise {
+        sigma_translation_mm: 1.0 / weights.1,
+        sigma_rotation_deg: (1.0 / weights.0).to_degrees(),
+        translation_at_floor: state.at_floor.1,
+        rotation_at_floor: state.at_floor.0,
+        floor_translation_mm: state.floors.translation_mm,
+        floor_rotation_deg: state.floors.rotation_rad.to_degrees(),
+        views,
+    }
+}
+
+/// The test of one view (module docs) from its weighted prior residuals `u` and the hat
+/// block `h` of its rows: `T = u^T (s^2 (I - H))^+ u` as a standard normal deviate.
+fn view_test(u: &Vector6<f64>, h: &Matrix6<f64>, s2: f64) -> f64 {
+    let q = (Matrix6::identity() - h) * s2;
+    let q = 0.5 * (q + q.transpose());
+    let eig = q.symmetric_eigen();
+    let (mut t, mut k) = (0.0, 0);
+    for (e, w) in eig.eigenvalues.iter().zip(eig.eigenvectors.column_iter()) {
+        if *e > 1e-6 * s2 {
+            t += w.dot(u).powi(2) / e;
+            k += 1;
+        }
+    }
+    if k == 0 {
+        f64::NAN
+    } else {
+        chi2_to_normal(t, k)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::model::geometry::{iso_from_parts, rotvec_to_matrix};
+
+    /// `A D(dw, dv) X` equals `A D X(w, v)` with `(w, v) = M (dw, dv)` to first order.
+    #[test]
+    fn a_correction_is_a_perturbation_of_x() {
+        let xr = rotvec_to_matrix(&Vector3::new(-0.3, 0.24, 3.0));
+        let xt = Vector3::new(29.0, 5.4, 62.6);
+        let dr = rotvec_to_matrix(&Vector3::new(0.01, -0.02, 0.015));
+        let dt = Vector3::new(0.3, -0.1, 0.2);
+        let m = correction_map(&xr, &xt, &dr);
+        let x = |w: &Vector3<f64>, v: &Vector3<f64>| {
+            iso_from_parts(&(xr * rotvec_to_matrix(w)), &(xt + v))
+        };
+        let d = |w: &Vector3<f64>, v: &Vector3<f64>| {
+            iso_from_parts(&(dr * rotvec_to_matrix(w)), &(dt + v))
+        };
+        let z = Vector3::zeros();
+        let h = 1e-6;
+        for j in 0..6 {
+            let mut e = Vector6::zeros();
+            e[j] = h;
+            let (dw, dv) = (e.fixed_rows::<3>(0).into(), e.fixed_rows::<3>(3).into());
+            let wv = m * e;
+            let (w, v) = (wv.fixed_rows::<3>(0).into(), wv.fixed_rows::<3>(3).into());
+            let a = d(&dw, &dv) * x(&z, &z);
+            let b = d(&z, &z) * x(&w, &v);
+            let err = (a.to_homogeneous() - b.to_homogeneous()).abs().max();
+            assert!(err < 1e-10, "column {j}: {err:e}");
+        }
+    }
+
+    #[test]
+    fn wilson_hilferty_matches_known_quantiles() {
+        // chi2(6): median 5.348, 99.9 % 22.458, 99.997 % about 31.5.
+        assert!(chi2_to_normal(5.348, 6).abs() < 0.01);
+        assert!((chi2_to_normal(22.458, 6) - 3.090).abs() < 0.05);
+        assert!((chi2_to_normal(31.5, 6) - 4.0).abs() < 0.1);
+    }
+}
