@@ -14,7 +14,9 @@ use crate::error::{Error, Result};
 use crate::model::camera::Camera;
 use crate::model::geometry::{Iso3, Plane};
 use crate::model::kinematics::Robot;
-use crate::model::{Calibration, NamedCovariance, Quality, Sphere, SphereFit, Truth};
+use crate::model::{
+    Calibration, NamedCovariance, Quality, RobotPoseNoise, RobotPoseView, Sphere, SphereFit, Truth,
+};
 
 /// The `format` value of calibration.json.
 pub(super) const CALIBRATION_FORMAT: &str = "stripecal/calibration@1";
@@ -268,12 +270,54 @@ fn covariance_value(c: &NamedCovariance) -> Value {
     Value::Object(m)
 }
 
+/// `robot_pose_noise` (see [`super::robot_pose_noise_extra`]); a `null` (or absent)
+/// number reads as NaN.
+fn robot_pose_noise_from(o: &Obj<'_>) -> Result<RobotPoseNoise> {
+    let num = |o: &Obj<'_>, key: &str| -> Result<f64> {
+        Ok(o.opt(key).map(|v| v.f64()).transpose()?.unwrap_or(f64::NAN))
+    };
+    let f = o.obj("at_floor")?;
+    let floor = o.opt_obj("floor")?;
+    let floor_num = |key: &str| floor.as_ref().map_or(Ok(f64::NAN), |f| num(f, key));
+    let mut views = Vec::new();
+    for item in o.req("views")?.arr()? {
+        let v = item.obj()?;
+        views.push(RobotPoseView {
+            view: v.count("view")?,
+            translation_mm: num(&v, "translation_mm")?,
+            rotation_deg: num(&v, "rotation_deg")?,
+            test: num(&v, "test")?,
+        });
+    }
+    Ok(RobotPoseNoise {
+        sigma_translation_mm: num(o, "translation_mm")?,
+        sigma_rotation_deg: num(o, "rotation_deg")?,
+        translation_at_floor: f.req("translation")?.bool()?,
+        rotation_at_floor: f.req("rotation")?.bool()?,
+        floor_translation_mm: floor_num("translation_mm")?,
+        floor_rotation_deg: floor_num("rotation_deg")?,
+        views,
+    })
+}
+
+/// The robot-pose noise a calibration holds (its extra key `robot_pose_noise`), `None`
+/// when it has none (the paper's method, files written before it existed); an error
+/// when the key is malformed.
+pub fn calibration_robot_pose_noise(c: &Calibration) -> Result<Option<RobotPoseNoise>> {
+    let Some(v) = c.extra.get("robot_pose_noise") else {
+        return Ok(None);
+    };
+    let root = Obj::root(Path::new("calibration.json"), v)?;
+    robot_pose_noise_from(&root).map(Some)
+}
+
 /// Parses calibration.json text; `path` is used in error messages only.
 ///
 /// Required: `format`, `camera` (all of `width, height, fu, fv, u0, v0,
 /// distortion_model, distortion[5]`), `laser_plane` (`normal` of norm 1 within 1e-3,
 /// renormalised; `d_mm > 0`), `hand_cam`, `base_board`, `quality`. Optional: `robot`,
-/// `uncertainty` (any object). Other top-level keys are kept in `extra`.
+/// `uncertainty` (any object), `robot_pose_noise` (checked; kept in `extra` with the
+/// other top-level keys).
 pub fn calibration_from_json(path: &Path, text: &str) -> Result<Calibration> {
     let doc = parse(path, text)?;
     let root = Obj::root(path, &doc)?;
@@ -293,6 +337,9 @@ pub fn calibration_from_json(path: &Path, text: &str) -> Result<Calibration> {
         .opt_obj("covariance")?
         .map(|c| covariance_from(&c))
         .transpose()?;
+    if let Some(n) = root.opt_obj("robot_pose_noise")? {
+        robot_pose_noise_from(&n)?;
+    }
     Ok(Calibration {
         camera: c.camera,
         laser_plane: c.laser_plane,

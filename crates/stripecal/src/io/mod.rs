@@ -25,9 +25,9 @@ mod rig;
 
 pub use atomic::write_atomic;
 pub use calibration::{
-    calibration_from_json, calibration_to_json, read_calibration, read_sphere_fit, read_truth,
-    sphere_fit_to_json, truth_from_json, truth_to_json, write_calibration, write_sphere_fit,
-    write_truth,
+    calibration_from_json, calibration_robot_pose_noise, calibration_to_json, read_calibration,
+    read_sphere_fit, read_truth, sphere_fit_to_json, truth_from_json, truth_to_json,
+    write_calibration, write_sphere_fit, write_truth,
 };
 pub use csv::{
     read_scan_csv, read_views_csv, write_scan_csv, write_scan_csv_with, write_views_csv,
@@ -42,7 +42,7 @@ pub use poses::{
     QUATERNION_TOL,
 };
 pub use records::{
-    calibration_extra, self_checks_extra, uncertainty_to_json, view_record_to_json,
-    warnings_to_json,
+    calibration_extra, robot_pose_noise_extra, self_checks_extra, uncertainty_to_json,
+    view_record_to_json, warnings_to_json,
 };
 pub use rig::{read_rig, rig_from_json, rig_to_json, write_rig};

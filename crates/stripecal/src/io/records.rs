@@ -1,7 +1,7 @@
 //! calibration.json's typed records as JSON: the `uncertainty` block, the per-view
-//! `views` entries and the adjustment summary keys (`method`, `centre_model`,
+//! `views` entries, the adjustment summary keys (`method`, `centre_model`,
 //! `base_board_orientation`, `stripe_rms_mm`, `residual_sigma_px`, `stripe_off_plane`,
-//! `warnings`).
+//! `warnings`) and the robot-pose noise (`robot_pose_noise`).
 //!
 //! Non-finite numbers (an unobservable parameter's sigma, a view without residuals) are
 //! written as `null`; key order is the contract's.
@@ -10,7 +10,7 @@ use serde_json::{Map, Value};
 
 use crate::model::{
     AdjustmentSummary, BoardScaleCheck, CameraSigma, LeaveOneOut, PlaneSigma, PoseSigma,
-    Uncertainty, ViewRecord,
+    RobotPoseNoise, Uncertainty, ViewRecord,
 };
 
 /// A number, or `null` when it is not finite.
@@ -172,6 +172,47 @@ pub fn self_checks_extra(
         o.insert("median_stripe_rms_mm".into(), opt(l.median_stripe_rms_mm));
         m.insert("leave_one_out".into(), Value::Object(o));
     }
+    m
+}
+
+/// calibration.json's `robot_pose_noise` key (an extra key): `translation_mm` and
+/// `rotation_deg` (one-sigma per component), `at_floor` (`translation`, `rotation`),
+/// `floor` (`translation_mm`, `rotation_deg`) and `views` (`view`, `translation_mm`,
+/// `rotation_deg`, `test`; a non-finite test is `null`). Read back by
+/// [`super::calibration_robot_pose_noise`].
+pub fn robot_pose_noise_extra(n: &RobotPoseNoise) -> Map<String, Value> {
+    let mut o = Map::new();
+    o.insert(
+        "translation_mm".into(),
+        finite_or_null(n.sigma_translation_mm),
+    );
+    o.insert("rotation_deg".into(), finite_or_null(n.sigma_rotation_deg));
+    let mut f = Map::new();
+    f.insert("translation".into(), Value::from(n.translation_at_floor));
+    f.insert("rotation".into(), Value::from(n.rotation_at_floor));
+    o.insert("at_floor".into(), Value::Object(f));
+    let mut f = Map::new();
+    f.insert(
+        "translation_mm".into(),
+        finite_or_null(n.floor_translation_mm),
+    );
+    f.insert("rotation_deg".into(), finite_or_null(n.floor_rotation_deg));
+    o.insert("floor".into(), Value::Object(f));
+    let views = n
+        .views
+        .iter()
+        .map(|v| {
+            let mut m = Map::new();
+            m.insert("view".into(), Value::from(v.view));
+            m.insert("translation_mm".into(), finite_or_null(v.translation_mm));
+            m.insert("rotation_deg".into(), finite_or_null(v.rotation_deg));
+            m.insert("test".into(), finite_or_null(v.test));
+            Value::Object(m)
+        })
+        .collect();
+    o.insert("views".into(), Value::Array(views));
+    let mut m = Map::new();
+    m.insert("robot_pose_noise".into(), Value::Object(o));
     m
 }
 

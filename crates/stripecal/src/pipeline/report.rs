@@ -7,7 +7,9 @@ use crate::calib::axzb::AxzbSolution;
 use crate::calib::camera::CameraCalibration;
 use crate::calib::joint::{JointResult, JointStart};
 use crate::calib::laser_plane::LaserPlaneFit;
-use crate::io::{calibration_extra, self_checks_extra, uncertainty_to_json};
+use crate::io::{
+    calibration_extra, robot_pose_noise_extra, self_checks_extra, uncertainty_to_json,
+};
 use crate::model::{
     AdjustmentSummary, BoardScaleCheck, Calibration, CameraSigma, LeaveOneOut, PlaneSigma,
     PoseSigma, Quality, Rig, Uncertainty, ViewRecord,
@@ -142,6 +144,9 @@ pub(super) fn build_report(
         st.checks.board_scale.as_ref(),
         st.checks.leave_one_out.as_ref(),
     ));
+    if let (Method::OneStage, Some(n)) = (opts.method, &adj.robot_noise) {
+        extra.extend(robot_pose_noise_extra(n));
+    }
     let covariance = match (opts.method, st.held) {
         (Method::Paper, _) => None,
         (Method::OneStage, None) => Some(adj.named_covariance.clone()),
