@@ -760,6 +760,63 @@ fn calibration_round_trips() {
     assert_calibration_close(&read_calibration(&p).unwrap(), &no_robot);
 }
 
+/// `robot_pose_noise` (an extra key): written from the record, read back typed (a NaN
+/// test as `null`), absent from files without it, and a malformed one is a format
+/// error naming the key.
+#[test]
+fn calibration_robot_pose_noise_round_trips() {
+    use stripecal::model::{RobotPoseNoise, RobotPoseView};
+    let n = RobotPoseNoise {
+        sigma_translation_mm: 0.05,
+        sigma_rotation_deg: 0.012,
+        translation_at_floor: false,
+        rotation_at_floor: true,
+        floor_translation_mm: 0.02,
+        floor_rotation_deg: 0.012,
+        views: vec![
+            RobotPoseView {
+                view: 0,
+                translation_mm: 0.07,
+                rotation_deg: 0.01,
+                test: -0.4,
+            },
+            RobotPoseView {
+                view: 3,
+                translation_mm: 0.9,
+                rotation_deg: 0.2,
+                test: f64::NAN,
+            },
+        ],
+    };
+    let mut c = calibration();
+    assert!(calibration_robot_pose_noise(&c).unwrap().is_none());
+    c.extra.extend(robot_pose_noise_extra(&n));
+    let d = tmp();
+    let p = d.path().join("calibration.json");
+    write_calibration(&p, &c).unwrap();
+    let text = fs::read_to_string(&p).unwrap();
+    assert!(
+        text.contains("\"robot_pose_noise\": {\n    \"translation_mm\": 0.05,"),
+        "{text}"
+    );
+    let back = calibration_robot_pose_noise(&read_calibration(&p).unwrap())
+        .unwrap()
+        .unwrap();
+    assert!(back.views[1].test.is_nan());
+    let mut same = back.clone();
+    same.views[1].test = 0.0;
+    let mut expect = n.clone();
+    expect.views[1].test = 0.0;
+    assert_eq!(same, expect);
+    let bad = text.replacen("\"rotation\": true", "\"rotation\": 1", 1);
+    assert_format(
+        calibration_from_json(Path::new("calibration.json"), &bad).unwrap_err(),
+        "calibration.json",
+        "robot_pose_noise.at_floor.rotation",
+        "expected",
+    );
+}
+
 #[test]
 fn calibration_reads_the_spec_example() {
     let text = r#"{
