@@ -79,6 +79,27 @@ def test_calibration_carries_views_residuals_and_round_trips(
     assert doc["format"] == "stripecal/calibration@1"
     assert set(doc["uncertainty"]) == {"camera", "laser_plane", "hand_cam", "base_board"}
     assert doc["method"] == "one-stage"
+    rn = cal.robot_pose_noise
+    back_rn = back.robot_pose_noise
+    assert rn is not None and back_rn is not None
+    # The file's numbers read back to the last digit or so (JSON float parsing).
+    assert back_rn["views"] == [pytest.approx(v, rel=1e-12) for v in rn["views"]]
+    assert back_rn["translation_mm"] == pytest.approx(rn["translation_mm"], rel=1e-12)
+    assert set(rn) == {"translation_mm", "rotation_deg", "at_floor", "floor", "views"}
+    assert [v["view"] for v in rn["views"]] == list(range(5))
+    # The twin's robot is perfect: its noise sits at the floors, far below a real arm's.
+    assert rn["at_floor"] == {"translation": True, "rotation": True}
+    assert rn["translation_mm"] is not None and rn["translation_mm"] < 0.01
+
+
+def test_print_calibration_states_the_robot_pose_noise(
+    calibration: stripecal.Calibration, capsys: pytest.CaptureFixture[str]
+) -> None:
+    from stripecal.cli import print_calibration
+
+    print_calibration(calibration)
+    line = [x for x in capsys.readouterr().out.splitlines() if "robot-pose noise:" in x]
+    assert len(line) == 1 and "mm," in line[0] and "deg (at floor: translation, rotation)" in line[0]
 
 
 def test_paper_method_runs_and_both_meet_the_hand_eye_targets(
@@ -87,6 +108,7 @@ def test_paper_method_runs_and_both_meet_the_hand_eye_targets(
     path, truth = dataset
     paper = stripecal.calibrate(stripecal.load_dataset(path), method="paper")
     assert paper.extra["method"] == "paper"
+    assert paper.robot_pose_noise is None  # the paper's rigid model
 
     def terr(c: stripecal.Calibration, key: str) -> float:
         return float(np.linalg.norm(getattr(c, key)[:3, 3] - getattr(truth, key)[:3, 3]))

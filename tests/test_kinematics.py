@@ -76,6 +76,21 @@ def test_forward_of_a_custom_robot_and_list_input() -> None:
         )
 
 
+def test_robot_figures_round_trip_through_rig_json() -> None:
+    rows = [(10.0, -90.0, 50.0, 300.0), (-5.0, 0.0, 250.0, 0.0), (0.0, 90.0, 0.0, 20.0)]
+    plain = stripecal.Robot(rows, name="three")
+    assert plain.repeatability_mm is None and plain.encoder_sigma_deg is None
+    robot = stripecal.Robot(rows, name="three", repeatability_mm=0.03, encoder_sigma_deg=0.004)
+    assert robot.repeatability_mm == 0.03 and robot.encoder_sigma_deg == 0.004
+    assert robot != plain
+    rig = stripecal.Rig((640, 480), stripecal.Board.hp3_paper(), robot=robot)
+    back = stripecal.Rig.from_json(rig.to_json())
+    assert back.robot == robot
+    assert '"repeatability_mm": 0.03' in rig.to_json()
+    with pytest.raises(stripecal.InvalidInputError, match="repeatability_mm"):
+        stripecal.Robot(rows, repeatability_mm=-1.0)
+
+
 def test_inverse_recovers_a_nearby_pose() -> None:
     robot = stripecal.Robot.hp3()
     q_true = np.array([4.0, 6.0, -5.0, 12.0, -80.0, -20.0])

@@ -27,6 +27,7 @@ from stripecal.types import (
     LaserPlaneFit,
     LeaveOneOut,
     PlyCloud,
+    RobotPoseNoise,
     SimPose,
     SphereFitExtra,
     SphereFitExtraInput,
@@ -152,11 +153,22 @@ class Camera:
 
 @final
 class Robot:
-    def __new__(cls, joints: npt.ArrayLike, name: str = "robot") -> Robot: ...
+    def __new__(
+        cls,
+        joints: npt.ArrayLike,
+        name: str = "robot",
+        *,
+        repeatability_mm: Optional[float] = None,
+        encoder_sigma_deg: Optional[float] = None,
+    ) -> Robot: ...
     @staticmethod
     def hp3() -> Robot: ...
     @property
     def name(self) -> str: ...
+    @property
+    def repeatability_mm(self) -> Optional[float]: ...
+    @property
+    def encoder_sigma_deg(self) -> Optional[float]: ...
     @property
     def dof(self) -> int: ...
     @property
@@ -325,6 +337,8 @@ class Calibration:
     def leave_one_out(self) -> Optional[LeaveOneOut]: ...
     @property
     def board_scale(self) -> Optional[BoardScaleCheck]: ...
+    @property
+    def robot_pose_noise(self) -> Optional[RobotPoseNoise]: ...
     @property
     def circle_residuals(self) -> _F64: ...
     @property

@@ -326,6 +326,11 @@ def print_calibration(cal: stripecal.Calibration) -> None:
         flag = "  DISAGREES with rig.json" if bs["disagrees"] else ""
         print(f"\n  board scale {what}: {bs['scale']:.5f} +- {bs['sigma']:.5f}"
               f" (rig.json {bs['declared_mm']:.3f} mm -> {bs['implied_mm']:.3f} mm){flag}")
+    rn = cal.robot_pose_noise
+    if rn is not None and rn["translation_mm"] is not None and rn["rotation_deg"] is not None:
+        floor = [k for k, v in rn["at_floor"].items() if v]
+        print(f"\n  robot-pose noise: {rn['translation_mm']:.3g} mm, {rn['rotation_deg']:.3g} deg"
+              f" ({'at floor: ' + ', '.join(floor) if floor else 'estimated'})")
     print_leave_one_out(cal)
     for w in extra.get("warnings", []):
         print(f"  warning: {w}")

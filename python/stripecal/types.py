@@ -67,6 +67,10 @@ __all__ = [
     "PlyCloud",
     "PoseSigma",
     "ResidualSigma",
+    "RobotPoseAtFloor",
+    "RobotPoseFloor",
+    "RobotPoseNoise",
+    "RobotPoseNoiseView",
     "SimConfig",
     "SimPose",
     "SphereFitExtra",
@@ -274,6 +278,57 @@ class BoardScaleCheck(TypedDict):
     """The tolerance on ``|scale - 1|``."""
 
 
+class RobotPoseAtFloor(TypedDict):
+    """Which robot-pose sigmas sit at their floor (``RobotPoseNoise.at_floor``)."""
+
+    translation: bool
+    """The translation's sigma is its floor (the estimate is below it)."""
+    rotation: bool
+    """The rotation's sigma is its floor."""
+
+
+class RobotPoseFloor(TypedDict):
+    """The floors of the robot-pose sigmas (``RobotPoseNoise.floor``): rig.json's
+    ``robot.repeatability_mm`` and ``robot.encoder_sigma_deg`` (at the flange) when given,
+    never below the adjustment's resolution floor."""
+
+    translation_mm: Optional[float]
+    """Of a translation component, mm."""
+    rotation_deg: Optional[float]
+    """Of a rotation component, degrees."""
+
+
+class RobotPoseNoiseView(TypedDict):
+    """One view's robot-pose correction (``RobotPoseNoise.views``)."""
+
+    view: int
+    """Index of the view in the dataset (views.csv order)."""
+    translation_mm: Optional[float]
+    """Length of the correction's translation (flange frame), mm."""
+    rotation_deg: Optional[float]
+    """Angle of the correction's rotation, degrees."""
+    test: Optional[float]
+    """The view's correction against its own predicted covariance, as a standard normal
+    deviate: about N(0, 1) when the view agrees with the noise model, above about 4 when
+    it disagrees (None when not computable)."""
+
+
+class RobotPoseNoise(TypedDict):
+    """The robot-pose noise the one-stage adjustment estimated with a correction of every
+    view's flange pose (``Calibration.robot_pose_noise``)."""
+
+    translation_mm: Optional[float]
+    """One-sigma of a flange translation component, mm."""
+    rotation_deg: Optional[float]
+    """One-sigma of a flange rotation component, degrees."""
+    at_floor: RobotPoseAtFloor
+    """Which of the two sits at its floor."""
+    floor: RobotPoseFloor
+    """The floors."""
+    views: List[RobotPoseNoiseView]
+    """Per view used."""
+
+
 class CalibrationExtra(TypedDict, total=False):
     """The other top-level keys of calibration.json (``Calibration.extra``). The
     library writes all but ``base_board_orientation`` and ``warnings`` (only when there
@@ -301,6 +356,8 @@ class CalibrationExtra(TypedDict, total=False):
     """The board's scale against the robot."""
     leave_one_out: LeaveOneOut
     """The leave-one-view-out figures."""
+    robot_pose_noise: RobotPoseNoise
+    """The robot-pose noise estimated by the one-stage adjustment."""
     held_blocks: List[str]
     """The blocks held at the values of the calibration it started from (their
     uncertainty is that file's; the others' is conditional on them)."""

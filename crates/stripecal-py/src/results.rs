@@ -233,6 +233,20 @@ impl PyCalibration {
             .transpose()
     }
 
+    /// The robot-pose noise the adjustment estimated (`extra["robot_pose_noise"]`):
+    /// `translation_mm` and `rotation_deg` (one-sigma per component of the flange pose),
+    /// `at_floor` (`translation`, `rotation`), `floor` and per view `views` (`view`,
+    /// `translation_mm`, `rotation_deg` of its correction, `test`: above about 4 the view
+    /// disagrees); None when not estimated (the paper's method).
+    #[getter]
+    fn robot_pose_noise<'py>(&self, py: Python<'py>) -> PyResult<Option<Bound<'py, PyAny>>> {
+        self.inner
+            .extra
+            .get("robot_pose_noise")
+            .map(|v| json_to_py(py, v))
+            .transpose()
+    }
+
     /// Circle residuals of the run that produced this calibration, `(N, 7)`:
     /// `view, row, col, u, v, du_px, dv_px`: the detected centre `(u, v)` and the
     /// residual, predicted minus detected. Empty `(0, 7)` for a calibration read from a

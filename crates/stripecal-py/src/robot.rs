@@ -8,7 +8,9 @@ use crate::convert::{f64_array, fmt_shape, iso_to_py, isos_to_py, nd, py_to_iso}
 use crate::errors::{invalid_input, map_err_at, ResultExt};
 
 /// A serial robot from its standard DH table: `A_i = Rz(theta_i) Tz(d_i) Tx(a_i)
-/// Rx(alpha_i)` with `theta_i = q_i - theta0_i` (degrees), `T_base_hand = A_1 ... A_N`.
+/// Rx(alpha_i)` with `theta_i = q_i - theta0_i` (degrees), `T_base_hand = A_1 ... A_N`;
+/// optionally the maker's figures `repeatability_mm` and `encoder_sigma_deg` (rig.json),
+/// lower bounds of the robot-pose noise the calibration estimates.
 #[pyclass(name = "Robot", module = "stripecal", frozen, eq)]
 #[derive(Debug, Clone, PartialEq)]
 pub struct PyRobot {
@@ -47,8 +49,14 @@ impl PyRobot {
 #[pymethods]
 impl PyRobot {
     #[new]
-    #[pyo3(signature = (joints, name = "robot"))]
-    fn new(py: Python<'_>, joints: &Bound<'_, PyAny>, name: &str) -> PyResult<Self> {
+    #[pyo3(signature = (joints, name = "robot", *, repeatability_mm = None, encoder_sigma_deg = None))]
+    fn new(
+        py: Python<'_>,
+        joints: &Bound<'_, PyAny>,
+        name: &str,
+        repeatability_mm: Option<f64>,
+        encoder_sigma_deg: Option<f64>,
+    ) -> PyResult<Self> {
         let a = f64_array(joints, "joints")?;
         if a.ndim() != 2 || a.shape()[1] != 4 {
             return Err(invalid_input(
@@ -68,7 +76,10 @@ impl PyRobot {
                 d_mm: r[3],
             })
             .collect();
-        Robot::new(name, rows).py_err(py).map(PyRobot::new_py)
+        Robot::new(name, rows)
+            .and_then(|r| r.with_figures(repeatability_mm, encoder_sigma_deg))
+            .py_err(py)
+            .map(PyRobot::new_py)
     }
 
     /// The MOTOMAN HP3 of the paper (Table 1 as corrected in ERRATA.md).
@@ -81,6 +92,18 @@ impl PyRobot {
     #[getter]
     fn name(&self) -> &str {
         &self.inner.name
+    }
+
+    /// The maker's pose repeatability, mm, or None.
+    #[getter]
+    fn repeatability_mm(&self) -> Option<f64> {
+        self.inner.repeatability_mm
+    }
+
+    /// One-sigma of a joint reading, degrees, or None.
+    #[getter]
+    fn encoder_sigma_deg(&self) -> Option<f64> {
+        self.inner.encoder_sigma_deg
     }
 
     /// Number of joints.
