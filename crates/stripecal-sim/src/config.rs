@@ -152,6 +152,14 @@ pub struct PosesCfg {
     /// instead of across the pattern (default `false`).
     #[serde(default)]
     pub stripe_beside_pattern: bool,
+    /// One-sigma (degrees) of Gaussian noise added to every joint reading of the
+    /// calibration views as views.csv gives them (and [`crate::Twin::exact_observations`]'s
+    /// robot poses), drawn per view from the seed; the images are rendered at the true
+    /// readings: a robot whose readings are off (repeatability, encoder noise), the
+    /// robot-pose noise the calibration estimates. truth.json's `images` then hold the
+    /// reported readings too (`q_reading_deg`). The scan's readings stay exact. Default 0.
+    #[serde(default)]
+    pub reading_noise_deg: f64,
 }
 
 /// Image formation.
@@ -340,6 +348,7 @@ impl SimConfig {
                 max_laser_incidence_deg: 65.0,
                 explicit_q_deg: None,
                 stripe_beside_pattern: false,
+                reading_noise_deg: 0.0,
             },
             imaging: ImagingCfg {
                 bit_depth: 8,
@@ -542,6 +551,13 @@ impl SimConfig {
             }
         } else if self.poses.count < 1 {
             return bad("poses.count", "must be at least 1".into());
+        }
+        let rn = self.poses.reading_noise_deg;
+        if !(rn.is_finite() && rn >= 0.0) {
+            return bad(
+                "poses.reading_noise_deg",
+                format!("{rn} must be finite and >= 0"),
+            );
         }
         let [a, b] = self.poses.standoff_mm;
         if !(a > 0.0 && b >= a) {

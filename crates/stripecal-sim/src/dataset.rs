@@ -31,6 +31,9 @@ pub use write::DatasetSummary;
 /// `board.plate_thickness_mm`.
 pub const PLATE_THICKNESS_MM: f64 = 3.0;
 
+/// First random stream of the reading noise (one stream per calibration view).
+const READING_NOISE_STREAM: u64 = 0x7265_6164_0000;
+
 /// The digital twin of one rig.
 pub struct Twin {
     pub cfg: SimConfig,
@@ -200,6 +203,21 @@ impl Twin {
             None => joints,
             Some(_) => RobotReading::FlangePose(joints.base_hand(Some(&self.robot_nominal))?),
         })
+    }
+
+    /// The joint readings the robot reports for calibration view `index` at the true
+    /// readings `q_deg`: those plus Gaussian noise of `poses.reading_noise_deg` per
+    /// joint, drawn from the seed and the view's index (unchanged without noise).
+    pub fn reported_q(&self, index: usize, q_deg: &[f64]) -> Vec<f64> {
+        let sigma = self.cfg.poses.reading_noise_deg;
+        if sigma == 0.0 {
+            return q_deg.to_vec();
+        }
+        let mut rng = crate::rng::Rng::new(
+            self.cfg.seed,
+            READING_NOISE_STREAM.wrapping_add(index as u64),
+        );
+        q_deg.iter().map(|q| q + sigma * rng.normal()).collect()
     }
 
     /// The camera-frame scene of a pose (`with_sphere` for scan frames).
@@ -460,8 +478,9 @@ impl Twin {
 
     /// The exact observations of the calibration poses, as a detector would report them
     /// with no error: imaged-circle centres (area centroids of the projected outlines),
-    /// stripe points on the board, and `T_base_hand` of the TRUE robot. For tests and
-    /// benchmarks of the calibration from points.
+    /// stripe points on the board, and `T_base_hand` of the TRUE robot at the reported
+    /// readings ([`Self::reported_q`]: the true ones unless `poses.reading_noise_deg`).
+    /// For tests and benchmarks of the calibration from points.
     pub fn exact_observations(&self) -> Result<Vec<stripecal::calib::ViewObs>, SimError> {
         use stripecal::calib::{CircleObs, ViewObs};
         let mut out = Vec::new();
@@ -485,8 +504,8 @@ impl Twin {
                 view: i,
                 circles,
                 stripe,
-                reading: Some(RobotReading::Joints(p.q_deg.clone())),
-                base_hand: Some(self.robot_true.forward(&p.q_deg)?),
+                reading: Some(RobotReading::Joints(self.reported_q(i, &p.q_deg))),
+                base_hand: Some(self.robot_true.forward(&self.reported_q(i, &p.q_deg))?),
                 alternatives: Vec::new(),
             });
         }

@@ -92,6 +92,43 @@ fn dh_errors_change_the_true_robot_only() {
     assert_eq!(truth.robot.unwrap(), twin.robot_true);
 }
 
+/// `poses.reading_noise_deg`: the reported readings (views.csv, the observations' robot
+/// poses) carry Gaussian noise of that sigma, reproducibly by seed; the true poses (the
+/// images) do not move; zero noise reports the true readings.
+#[test]
+fn reading_noise_moves_the_reported_readings_only() {
+    let cfg = |noise: f64| {
+        SimConfig::hp3_paper()
+            .with_overrides(&serde_json::json!({"poses": {"count": 8, "reading_noise_deg": noise}}))
+            .unwrap()
+    };
+    let exact = Twin::new(cfg(0.0)).unwrap();
+    let noisy = Twin::new(cfg(0.02)).unwrap();
+    let poses = exact.calibration_poses().unwrap();
+    assert_eq!(poses, noisy.calibration_poses().unwrap());
+    let (a, b) = (
+        exact.exact_observations().unwrap(),
+        noisy.exact_observations().unwrap(),
+    );
+    let mut d = Vec::new();
+    for (i, ((va, vb), p)) in a.iter().zip(&b).zip(&poses).enumerate() {
+        assert_eq!(va.circles, vb.circles, "the images are the true poses'");
+        assert_eq!(exact.reported_q(i, &p.q_deg), p.q_deg);
+        let q = noisy.reported_q(i, &p.q_deg);
+        assert_eq!(q, noisy.reported_q(i, &p.q_deg));
+        assert_eq!(vb.reading, Some(RobotReading::Joints(q.clone())));
+        assert_eq!(vb.base_hand, Some(noisy.robot_true.forward(&q).unwrap()));
+        d.extend(q.iter().zip(&p.q_deg).map(|(x, y)| x - y));
+    }
+    let rms = (d.iter().map(|x| x * x).sum::<f64>() / d.len() as f64).sqrt();
+    // 48 draws: the RMS within 30 % of the sigma.
+    assert!((0.014..0.026).contains(&rms), "{rms}");
+    let e = SimConfig::hp3_paper()
+        .with_overrides(&serde_json::json!({"poses": {"reading_noise_deg": -1.0}}))
+        .unwrap_err();
+    assert!(e.to_string().contains("poses.reading_noise_deg"), "{e}");
+}
+
 /// `hp3-sheet`: every pose puts the stripe mostly on the sheet beside the pattern and
 /// across the sheet's edge onto the table, `board.plate_thickness_mm` deep behind it
 /// (the default elsewhere: [`stripecal_sim::dataset::PLATE_THICKNESS_MM`]).

@@ -61,11 +61,11 @@ impl Twin {
                 line: i + 2,
                 board_image: board_name.clone().into(),
                 laser_image: Some(laser_name.clone().into()),
-                reading: self.reading(&pose.q_deg)?,
+                reading: self.reading(&self.reported_q(i, &pose.q_deg))?,
             });
             view_circles.push(r.circles.len());
             view_stripe.push(r.stripe.iter().filter(|p| p.surface == "board").count());
-            per_image.push(json!({
+            let mut entry = json!({
                 "board_image": board_name,
                 "laser_image": laser_name,
                 "q_deg": pose.q_deg,
@@ -74,7 +74,11 @@ impl Twin {
                 "base_cam": pose_cfg(&r.base_cam),
                 "circles": r.circles,
                 "stripe": stripe_json(&r.stripe, self.direction, false),
-            }));
+            });
+            if self.cfg.poses.reading_noise_deg > 0.0 {
+                entry["q_reading_deg"] = json!(self.reported_q(i, &pose.q_deg));
+            }
+            per_image.push(entry);
         }
         progress("calibration views", poses.len(), poses.len());
         io::write_rig(tmp.join("rig.json"), &rig)?;
