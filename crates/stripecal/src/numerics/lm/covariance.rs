@@ -22,14 +22,10 @@ pub fn covariance(jtj: &DMatrix<f64>, sigma2: f64, rank_tol: f64) -> (DMatrix<f6
     // k` and `lambda_min >= 1 / trace(S^-1)`; when `k trace(S^-1) rank_tol <= 1` no
     // eigenvalue is below `rank_tol lambda_max` and the eigen-decomposition is skipped.
     let certified: Option<DMatrix<f64>> = if good.len() == n {
-        scaled
-            .clone()
-            .cholesky()
-            .map(|ch| ch.inverse())
-            .filter(|inv| {
-                let tr: f64 = (0..n).map(|i| inv[(i, i)]).sum();
-                tr.is_finite() && n as f64 * tr * rank_tol <= 1.0
-            })
+        spd_inverse(&scaled).filter(|inv| {
+            let tr: f64 = (0..n).map(|i| inv[(i, i)]).sum();
+            tr.is_finite() && n as f64 * tr * rank_tol <= 1.0
+        })
     } else {
         None
     };
@@ -56,8 +52,7 @@ pub fn covariance(jtj: &DMatrix<f64>, sigma2: f64, rank_tol: f64) -> (DMatrix<f6
         let sub = DMatrix::from_fn(good.len(), good.len(), |a, b| {
             jtj[(good[a], good[b])] / (d[good[a]] * d[good[b]])
         });
-        if let Some(ch) = sub.cholesky() {
-            let inv = ch.inverse();
+        if let Some(inv) = spd_inverse(&sub) {
             for a in 0..good.len() {
                 for b in 0..good.len() {
                     cov[(good[a], good[b])] = sigma2 * inv[(a, b)] / (d[good[a]] * d[good[b]]);
@@ -70,4 +65,14 @@ pub fn covariance(jtj: &DMatrix<f64>, sigma2: f64, rank_tol: f64) -> (DMatrix<f6
     }
     let unobs = (0..n).filter(|&i| bad[i]).collect();
     (cov, unobs)
+}
+
+/// The inverse of a symmetric positive definite matrix (Cholesky, faer); `None` when it
+/// is not positive definite.
+fn spd_inverse(a: &DMatrix<f64>) -> Option<DMatrix<f64>> {
+    use faer::linalg::solvers::DenseSolveCore;
+    let n = a.nrows();
+    let m = faer::Mat::<f64>::from_fn(n, n, |i, j| a[(i, j)]);
+    let inv = m.llt(faer::Side::Lower).ok()?.inverse();
+    Some(DMatrix::from_fn(n, n, |i, j| inv[(i, j)]))
 }

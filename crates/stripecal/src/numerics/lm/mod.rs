@@ -50,7 +50,7 @@ mod problem;
 mod solver;
 
 pub use covariance::covariance;
-pub use problem::{dense_jacobian_from_rows, JacobianRows, LeastSquares};
+pub use problem::{dense_jacobian_from_rows, JacobianRows, LeastSquares, Leverages};
 pub use solver::{levenberg_marquardt, LmOptions, LmResult, StopReason};
 
 #[cfg(test)]
@@ -291,16 +291,12 @@ mod tests {
             }
             Ok(())
         }
-        fn reweight(
-            &self,
-            r: &[f64],
-            leverages: &mut dyn FnMut() -> Option<Vec<f64>>,
-        ) -> Option<Vec<f64>> {
+        fn reweight(&self, r: &[f64], leverages: &mut Leverages<'_>) -> Option<Vec<f64>> {
             if !self.reweighting {
                 return None;
             }
             // The leverages add up to n (3) in every storage.
-            let h = leverages().expect("leverages");
+            let h = leverages(std::slice::from_ref(&(0..r.len()))).expect("leverages");
             assert!(
                 (h.iter().sum::<f64>() - 3.0).abs() < 1e-9,
                 "{}",
@@ -411,7 +407,17 @@ mod tests {
             };
             let mut work = normal::Work::new(m, 3, None);
             work.evaluate(&plain, &p, &mut r).unwrap();
-            check(work.leverages(&r, huber).unwrap(), "dense matrix");
+            check(
+                work.leverages(&r, huber, std::slice::from_ref(&(0..m)))
+                    .unwrap(),
+                "dense matrix",
+            );
+            // Some rows only: the others 0.
+            let part = work.leverages(&r, huber, &[3..9, 20..m + 5]).unwrap();
+            for (i, (a, b)) in part.iter().zip(&expect).enumerate() {
+                let inside = (3..9).contains(&i) || i >= 20;
+                assert!((a - if inside { *b } else { 0.0 }).abs() < 1e-10, "{i}");
+            }
             for width in [3, 5] {
                 let pr = ExpoRows {
                     inner: expo(),
@@ -424,7 +430,18 @@ mod tests {
                 };
                 let mut work = normal::Work::new(m, 3, Some(width));
                 work.evaluate(&pr, &p, &mut r).unwrap();
-                check(work.leverages(&r, huber).unwrap(), "rows");
+                check(
+                    work.leverages(&r, huber, std::slice::from_ref(&(0..m)))
+                        .unwrap(),
+                    "rows",
+                );
+                let part = work
+                    .leverages(&r, huber, std::slice::from_ref(&(5..30)))
+                    .unwrap();
+                for (i, (a, b)) in part.iter().zip(&expect).enumerate() {
+                    let inside = (5..30).contains(&i);
+                    assert!((a - if inside { *b } else { 0.0 }).abs() < 1e-10, "{i}");
+                }
             }
         }
     }

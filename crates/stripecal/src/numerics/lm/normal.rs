@@ -1,6 +1,9 @@
 //! The solver's Jacobian storage (dense, or by rows) and its (Huber-weighted) normal
 //! equations `J^T W J`, `J^T W r`.
 
+use std::ops::Range;
+
+use faer::linalg::solvers::DenseSolveCore;
 use faer::{Accum, Mat, Par};
 use nalgebra::{DMatrix, DVector};
 
@@ -137,43 +140,51 @@ impl Work {
                     };
                     dense_t = Some(faer::MatRef::from_column_major_slice(vals, n, m));
                 } else {
-                    // Rows with the same columns as the previous (same view) are summed
-                    // into a small w x w block; the block is scattered into the n x n
-                    // matrix when the columns change.
+                    // Runs of rows with the same columns (a view's) are one small
+                    // product each: their values are the run's J^T stored column-major
+                    // (w x len); the w x w block is scattered into the n x n matrix.
                     let acc = jtj.as_mut_slice();
-                    let mut block = vec![0.0; w * w];
-                    let mut cur: Option<usize> = None;
-                    let flush = |acc: &mut [f64], block: &mut [f64], cols: &[usize]| {
+                    let mut block = Mat::<f64>::zeros(w, w);
+                    let mut gb = Mat::<f64>::zeros(w, 1);
+                    for (i0, i1) in runs(rows) {
+                        let len = i1 - i0;
+                        let raw = &rows.vals[i0 * w..i1 * w];
+                        let vals: &[f64] = if huber.is_some() {
+                            self.scratch.clear();
+                            self.scratch.extend_from_slice(raw);
+                            for (v, s) in self.scratch.chunks_exact_mut(w).zip(&sw[i0..i1]) {
+                                v.iter_mut().for_each(|x| *x *= s);
+                            }
+                            &self.scratch
+                        } else {
+                            raw
+                        };
+                        let jt = faer::MatRef::from_column_major_slice(vals, w, len);
+                        let rv = faer::MatRef::from_column_major_slice(&rw[i0..i1], len, 1);
+                        faer::linalg::matmul::matmul(
+                            block.as_mut(),
+                            Accum::Replace,
+                            jt,
+                            jt.transpose(),
+                            1.0,
+                            Par::Seq,
+                        );
+                        faer::linalg::matmul::matmul(
+                            gb.as_mut(),
+                            Accum::Replace,
+                            jt,
+                            rv,
+                            1.0,
+                            Par::Seq,
+                        );
+                        let cols = rows.row(i0).0;
                         for (a, &ca) in cols.iter().enumerate() {
+                            g[ca] += gb[(a, 0)];
                             let col = &mut acc[ca * n..(ca + 1) * n];
                             for (b, &cb) in cols.iter().enumerate() {
-                                col[cb] += block[a * w + b];
+                                col[cb] += block[(a, b)];
                             }
                         }
-                        block.fill(0.0);
-                    };
-                    for (i, (&ri, &si)) in r.iter().zip(&sw).enumerate() {
-                        let wt = si * si;
-                        let (c, v) = rows.row(i);
-                        if let Some(k) = cur {
-                            if rows.row(k).0 != c {
-                                flush(acc, &mut block, rows.row(k).0);
-                                cur = Some(i);
-                            }
-                        } else {
-                            cur = Some(i);
-                        }
-                        for (a, (&ca, &va)) in c.iter().zip(v).enumerate() {
-                            let wva = wt * va;
-                            g[ca] += wva * ri;
-                            let brow = &mut block[a * w..(a + 1) * w];
-                            for (bb, &vb) in brow.iter_mut().zip(v) {
-                                *bb += wva * vb;
-                            }
-                        }
-                    }
-                    if let Some(k) = cur {
-                        flush(acc, &mut block, rows.row(k).0);
                     }
                     dense_t = None;
                 }
@@ -221,23 +232,32 @@ impl Work {
         Ok((jtj, g))
     }
 
-    /// The leverage of every residual at `r` (see [`LeastSquares::reweight`]): `h_i =
-    /// w_i j_i^T N^-1 j_i`, `N = J^T W J` inverted after Jacobi scaling; `None` when `N`
-    /// is not positive definite. Dense rows and the dense matrix: `N^-1 J^T` by one
-    /// matrix product; sparse rows: each run of rows with the same columns gathers its
-    /// block of `N^-1` once.
-    pub(super) fn leverages(&mut self, r: &[f64], huber: Option<f64>) -> Option<Vec<f64>> {
+    /// The leverages of the residuals in `wanted` (row ranges; the others 0) at `r` (see
+    /// [`LeastSquares::reweight`]): `h_i = w_i j_i^T N^-1 j_i`, `N = J^T W J` inverted
+    /// after Jacobi scaling (faer's Cholesky); `None` when `N` is not positive definite.
+    /// Dense rows and the dense matrix: `N^-1 J^T` by one matrix product per range;
+    /// sparse rows: one product per run of rows with the same columns, with its block of
+    /// `N^-1`.
+    pub(super) fn leverages(
+        &mut self,
+        r: &[f64],
+        huber: Option<f64>,
+        wanted: &[Range<usize>],
+    ) -> Option<Vec<f64>> {
         let (jtj, _) = self.normal_equations(r, huber).ok()?;
         let n = self.n;
         let d: Vec<f64> = (0..n)
             .map(|i| 1.0 / jtj[(i, i)].max(1e-300).sqrt())
             .collect();
-        let scaled = DMatrix::from_fn(n, n, |a, b| jtj[(a, b)] * d[a] * d[b]);
-        let si = scaled.cholesky()?.inverse();
-        let inv = DMatrix::from_fn(n, n, |a, b| si[(a, b)] * d[a] * d[b]);
-        let wt: Vec<f64> = r.iter().map(|&x| huber_weight(x, huber)).collect();
+        let scaled = Mat::<f64>::from_fn(n, n, |a, b| jtj[(a, b)] * d[a] * d[b]);
+        let si = scaled.llt(faer::Side::Lower).ok()?.inverse();
+        let inv = Mat::<f64>::from_fn(n, n, |a, b| si[(a, b)] * d[a] * d[b]);
         let mut h = vec![0.0; self.m];
-        let inv_f = Mat::<f64>::from_fn(n, n, |a, b| inv[(a, b)]);
+        let wanted: Vec<Range<usize>> = wanted
+            .iter()
+            .map(|g| g.start.min(self.m)..g.end.min(self.m))
+            .filter(|g| !g.is_empty())
+            .collect();
         // `J^T` (n x m) of the dense storages, then `h_i = w_i (J^T)_i . (N^-1 J^T)_i`.
         let dense_t: Option<faer::MatRef<'_, f64>> = match &self.rows {
             Some(rows) if rows.dense => {
@@ -246,43 +266,67 @@ impl Work {
             Some(_) => None,
             None => Some(self.jac.as_ref().transpose()),
         };
+        // The rows i0..i1 with their J^T (w x len) and `N^-1` restricted to their
+        // columns.
+        let mut fill = |i0: usize, jt: faer::MatRef<'_, f64>, block: faer::MatRef<'_, f64>| {
+            let mut x = Mat::<f64>::zeros(jt.nrows(), jt.ncols());
+            faer::linalg::matmul::matmul(x.as_mut(), Accum::Replace, block, jt, 1.0, Par::Seq);
+            for (k, hi) in h[i0..i0 + jt.ncols()].iter_mut().enumerate() {
+                *hi = huber_weight(r[i0 + k], huber) * dot(jt.col(k), x.col(k));
+            }
+        };
         if let Some(jt) = dense_t {
-            let mut x = Mat::<f64>::zeros(n, self.m);
-            faer::linalg::matmul::matmul(
-                x.as_mut(),
-                Accum::Replace,
-                inv_f.as_ref(),
-                jt,
-                1.0,
-                Par::Seq,
-            );
-            for (i, hi) in h.iter_mut().enumerate() {
-                *hi = wt[i] * (0..n).map(|k| jt[(k, i)] * x[(k, i)]).sum::<f64>();
+            for g in &wanted {
+                fill(g.start, jt.subcols(g.start, g.len()), inv.as_ref());
             }
         } else if let Some(rows) = &self.rows {
             let w = rows.width;
-            let mut block = vec![0.0; w * w];
-            let mut cur: Option<&[usize]> = None;
-            for (i, hi) in h.iter_mut().enumerate() {
-                let (c, v) = rows.row(i);
-                if cur != Some(c) {
-                    for (a, &ca) in c.iter().enumerate() {
-                        for (b, &cb) in c.iter().enumerate() {
-                            block[a * w + b] = inv[(ca, cb)];
-                        }
+            for (i0, i1) in runs(rows) {
+                let c = rows.row(i0).0;
+                let mut block: Option<Mat<f64>> = None;
+                for g in &wanted {
+                    let (a, b) = (i0.max(g.start), i1.min(g.end));
+                    if a >= b {
+                        continue;
                     }
-                    cur = Some(c);
+                    let block = block
+                        .get_or_insert_with(|| Mat::<f64>::from_fn(w, w, |p, q| inv[(c[p], c[q])]));
+                    let jt =
+                        faer::MatRef::from_column_major_slice(&rows.vals[a * w..b * w], w, b - a);
+                    fill(a, jt, block.as_ref());
                 }
-                let mut acc = 0.0;
-                for (a, &va) in v.iter().enumerate() {
-                    if va != 0.0 {
-                        let brow = &block[a * w..(a + 1) * w];
-                        acc += va * brow.iter().zip(v).map(|(x, y)| x * y).sum::<f64>();
-                    }
-                }
-                *hi = wt[i] * acc;
             }
         }
         h.iter().all(|x| x.is_finite()).then_some(h)
+    }
+}
+
+/// The runs `(first, end)` of consecutive sparse rows with the same columns.
+fn runs(rows: &JacobianRows) -> Vec<(usize, usize)> {
+    let m = rows.len();
+    let mut out = Vec::new();
+    let mut i0 = 0;
+    while i0 < m {
+        let c = rows.row(i0).0;
+        let mut i1 = i0 + 1;
+        while i1 < m && rows.row(i1).0 == c {
+            i1 += 1;
+        }
+        out.push((i0, i1));
+        i0 = i1;
+    }
+    out
+}
+
+/// `a . b` of two columns.
+fn dot(a: faer::ColRef<'_, f64>, b: faer::ColRef<'_, f64>) -> f64 {
+    match (a.try_as_col_major(), b.try_as_col_major()) {
+        (Some(a), Some(b)) => a
+            .as_slice()
+            .iter()
+            .zip(b.as_slice())
+            .map(|(x, y)| x * y)
+            .sum(),
+        _ => a.iter().zip(b.iter()).map(|(x, y)| x * y).sum(),
     }
 }

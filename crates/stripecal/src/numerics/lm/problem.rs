@@ -5,6 +5,11 @@ use faer::MatMut;
 
 use crate::error::{Error, Result};
 
+/// What [`LeastSquares::reweight`] is given to compute leverages: the row ranges wanted
+/// in, every residual's leverage out (0 outside the ranges; `None` when the normal
+/// matrix is not positive definite).
+pub type Leverages<'a> = dyn FnMut(&[std::ops::Range<usize>]) -> Option<Vec<f64>> + 'a;
+
 /// A least-squares problem `min sum_i rho(r_i(p))`.
 pub trait LeastSquares {
     /// Number of parameters n.
@@ -30,17 +35,15 @@ pub trait LeastSquares {
     /// residuals and Jacobian it holds). While a factor differs from 1 by more than
     /// 1e-3 the solver does not stop on its cost or step tests. Default: `None`.
     ///
-    /// `leverages` computes, when called, every residual's leverage at the current point
-    /// and weights: `h_i = w_i j_i^T N^-1 j_i` with `N = J^T W J` (`W` the Huber weights
+    /// `leverages(rows)` computes, when called, the leverages of the residuals in the
+    /// row ranges `rows` (the others are returned as 0) at the current point and
+    /// weights: `h_i = w_i j_i^T N^-1 j_i` with `N = J^T W J` (`W` the Huber weights
     /// `w_i`, 1 without Huber), the diagonal of the hat matrix. The redundancy of a group
-    /// g of residuals is then `r_g = m_g - sum_g h_i = m_g - tr(N^-1 N_g)` (Förstner),
-    /// and the redundancies of all residuals add up to `m - n`. It costs about one
-    /// normal-equation product and one inverse; `None` when `N` is not positive definite.
-    fn reweight(
-        &self,
-        _r: &[f64],
-        _leverages: &mut dyn FnMut() -> Option<Vec<f64>>,
-    ) -> Option<Vec<f64>> {
+    /// g of residuals is then `r_g = m_g - sum_g h_i = m_g - tr(N^-1 N_g)` (Förstner);
+    /// the leverages of all residuals add up to `n`, so one group's may be left out and
+    /// taken as the rest. It costs about one normal-equation product and one inverse,
+    /// plus a product per requested row; `None` when `N` is not positive definite.
+    fn reweight(&self, _r: &[f64], _leverages: &mut Leverages<'_>) -> Option<Vec<f64>> {
         None
     }
     /// `Some(w)` when every Jacobian row has at most `w` non-zeros and the problem

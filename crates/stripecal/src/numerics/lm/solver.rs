@@ -1,6 +1,7 @@
 //! The Levenberg-Marquardt iteration (module docs of [`super`]): options, result and the
 //! damped-step loop.
 
+use faer::linalg::solvers::Solve;
 use nalgebra::{DMatrix, DVector};
 
 use super::covariance::covariance;
@@ -190,7 +191,7 @@ impl<'a, P: LeastSquares + ?Sized> Solver<'a, P> {
         let mut r = vec![0.0; m];
         let mut work = Work::new(m, n, problem.jacobian_row_width());
         work.evaluate(problem, &p, &mut r)?;
-        if let Some(f) = problem.reweight(&r, &mut || work.leverages(&r, opts.huber)) {
+        if let Some(f) = problem.reweight(&r, &mut |rows| work.leverages(&r, opts.huber, rows)) {
             work.rescale(&f, &mut r);
         }
         let (jtj, g) = work.normal_equations(&r, opts.huber)?;
@@ -260,13 +261,20 @@ impl<'a, P: LeastSquares + ?Sized> Solver<'a, P> {
     /// Solves the damped system and tries the step.
     fn trial(&mut self) -> Result<Trial> {
         let (n, m, opts) = (self.n, self.m, self.opts);
-        let mut a = self.jtj.clone();
-        for i in 0..n {
-            a[(i, i)] += self.lambda * self.diag[i];
-        }
-        let dp = match a.cholesky() {
-            Some(ch) => ch.solve(&(-&self.g)),
-            None => {
+        let a = faer::Mat::<f64>::from_fn(n, n, |i, j| {
+            self.jtj[(i, j)]
+                + if i == j {
+                    self.lambda * self.diag[i]
+                } else {
+                    0.0
+                }
+        });
+        let dp = match a.llt(faer::Side::Lower) {
+            Ok(ch) => {
+                let x = ch.solve(faer::Mat::<f64>::from_fn(n, 1, |i, _| -self.g[i]));
+                DVector::from_fn(n, |i, _| x[(i, 0)])
+            }
+            Err(_) => {
                 self.lambda *= 10.0;
                 if self.lambda > 1e30 {
                     return Ok(Trial::Stop(StopReason::NoDecrease));
@@ -330,7 +338,7 @@ impl<'a, P: LeastSquares + ?Sized> Solver<'a, P> {
         let (work, r) = (&mut self.work, &self.r);
         if let Some(f) = self
             .problem
-            .reweight(r, &mut || work.leverages(r, opts.huber))
+            .reweight(r, &mut |rows| work.leverages(r, opts.huber, rows))
         {
             self.weights_moving = f.iter().any(|x| (x - 1.0).abs() > WEIGHT_TOL);
             self.work.rescale(&f, &mut self.r);
