@@ -595,6 +595,69 @@ mod tests {
         assert_eq!(cols[9], Some(6));
     }
 
+    /// Per-view blocks: their columns after the global ones, view after view, their
+    /// names by dataset row, the identity at the start, the transforms' update for each
+    /// view's instance; none when not estimated.
+    #[test]
+    fn per_view_blocks_follow_the_global_columns() {
+        let s = start(DistortionModel::Radial1);
+        let free = FreeBlocks::default();
+        let layout = ParamLayout::new(&s, &free, 1.0, &[3, 7], true);
+        let ng = layout.num_global();
+        assert_eq!(ng, 5 + 3 + 12);
+        assert_eq!(layout.num_params(), ng + 12);
+        assert_eq!(
+            layout.view_columns(Block::RobotPose, 1),
+            Some(ng + 6..ng + 12)
+        );
+        assert_eq!(layout.view_columns(Block::RobotPose, 2), None);
+        let names = layout.names();
+        assert_eq!(names[ng], "view3_robot_wx");
+        assert_eq!(names[ng + 11], "view7_robot_tz_mm");
+        let p = layout.encode();
+        assert!(p[ng..].iter().all(|x| *x == 0.0));
+        let d = layout.decode(&p);
+        assert_eq!(d.corrections.len(), 2);
+        assert_eq!(d.corrections[1].0, Matrix3::identity());
+        let a = [iso_from_rotvec(&Vector3::new(0.1, 0.2, 0.3), &Vector3::new(1.0, 2.0, 3.0)); 2];
+        for (f, a) in d.flange_poses(&a).iter().zip(&a) {
+            assert!((f.to_homogeneous() - a.to_homogeneous()).abs().max() < 1e-15);
+        }
+        // A step on view 1's correction: R Exp(w), t + v, nothing else moves.
+        let mut dp = vec![0.0; p.len()];
+        dp[ng + 6] = 0.01;
+        dp[ng + 10] = -0.5;
+        let mut out = vec![0.0; p.len()];
+        layout.retract(&p, &dp, &mut out);
+        let d1 = layout.decode(&out);
+        assert!(
+            (d1.corrections[1].0 - rotvec_to_matrix(&Vector3::new(0.01, 0.0, 0.0)))
+                .abs()
+                .max()
+                < 1e-15
+        );
+        assert_eq!(d1.corrections[1].1, Vector3::new(0.0, -0.5, 0.0));
+        assert_eq!(d1.corrections[0].0, Matrix3::identity());
+        assert!(out[..ng]
+            .iter()
+            .zip(&p[..ng])
+            .all(|(a, b)| (a - b).abs() < 1e-12));
+        // A_i D_i.
+        let f = d1.flange_poses(&a);
+        let expect =
+            a[1] * iso_from_rotvec(&Vector3::new(0.01, 0.0, 0.0), &Vector3::new(0.0, -0.5, 0.0));
+        assert!(
+            (f[1].to_homogeneous() - expect.to_homogeneous())
+                .abs()
+                .max()
+                < 1e-12
+        );
+        let rigid = ParamLayout::new(&s, &free, 1.0, &[3, 7], false);
+        assert_eq!(rigid.num_params(), ng);
+        assert!(rigid.decode(&rigid.encode()).corrections.is_empty());
+        assert!(!rigid.per_view_free(Block::RobotPose));
+    }
+
     #[test]
     fn encode_decode_and_retract_round_trip() {
         let s = start(DistortionModel::OpenCv5);

@@ -86,7 +86,7 @@ use crate::model::geometry::{Iso3, Plane};
 use crate::model::{NamedCovariance, RobotPoseNoise};
 use crate::numerics::lm::{levenberg_marquardt, LmOptions, LmResult, StopReason};
 
-/// Variance-component re-estimations per solve: they settle in 2-3 on noisy data (4-6
+/// Variance-component re-estimations per solve: they settle in 2-3 on noisy data (more
 /// with the robot-pose noise, which starts at its floor while the images' sigmas still
 /// hold the robot's error); a residual type fitted exactly (noise-free data, or a model
 /// that fits one type perfectly) would otherwise chase its sigma towards zero step after
@@ -348,26 +348,26 @@ pub fn joint_adjustment(
             "the one-stage adjustment has nothing to estimate: every block is held".into(),
         ));
     }
-    let (mut p0, mut pre_iterations, mut sigma_px) = (layout.encode(), 0, None);
-    if layout.per_view_free(Block::RobotPose) && opts.lm.max_iterations > 0 {
-        // The rigid model first (the robot poses exact, the first solve of the schedule
-        // only): the corrections then start from X and Z at their rigid optimum and
-        // hold only what the views disagree on, instead of taking up the starting
-        // values' error along the directions only their prior determines (common to
-        // every view: X's and Z's own).
+    let mut problem = JointProblem::new(&start.camera, &layout, terms.clone(), opts);
+    let (mut res, mut iterations) = solve(&mut problem, layout.encode(), opts, false)?;
+    if layout.per_view_free(Block::RobotPose) && !res.unobservable.is_empty() {
+        // The corrections took up the starting values' error along the directions only
+        // their prior determines (common to every view: X's and Z's own), and the
+        // normal equations could not resolve them once the images fitted (exact
+        // observations from a poor start). Again from the rigid model's solution (the
+        // robot poses exact, the first solve of the schedule), where the corrections
+        // hold only what the views disagree on.
         let rigid = ParamLayout::new(start, &free, opts.board_scale, &terms.used, false);
         let mut pre = JointProblem::new(&start.camera, &rigid, terms.clone(), opts);
-        let (r, it) = solve(&mut pre, rigid.encode(), opts, true)?;
+        let (r, pre_iterations) = solve(&mut pre, rigid.encode(), opts, true)?;
+        let mut p0 = layout.encode();
         p0[..rigid.num_params()].copy_from_slice(&r.params);
-        pre_iterations = it;
-        sigma_px = Some((1.0 / pre.wc(), 1.0 / pre.ws()));
+        problem = JointProblem::new(&start.camera, &layout, terms, opts);
+        problem.continue_from(&pre);
+        let (r, it) = solve(&mut problem, p0, opts, false)?;
+        res = r;
+        iterations += pre_iterations + it;
     }
-    let mut problem = JointProblem::new(&start.camera, &layout, terms, opts);
-    if let Some(s) = sigma_px {
-        problem.set_image_sigmas(s);
-    }
-    let (res, iterations) = solve(&mut problem, p0, opts, false)?;
-    let iterations = iterations + pre_iterations;
 
     let s = layout.decode(&res.params);
     let camera = start.camera.with_params(&s.cam);
@@ -400,33 +400,15 @@ pub fn joint_adjustment(
         &mut warnings,
     );
     let robot_noise = problem.robot_noise().then(|| {
-        let state = problem.robot_state();
-        let r = robot_noise::report(
+        robot_noise::report(
             &layout,
             &s,
             &res.covariance,
             res.sigma2,
             problem.robot_weights(),
-            &state,
+            &problem.robot_state(),
             &problem.terms.used,
-        );
-        if r.translation_at_floor || r.rotation_at_floor {
-            warnings.push(format!(
-                "robot-pose noise at its floor ({}): {:.3} mm, {:.4} deg",
-                [
-                    (r.translation_at_floor, "translation"),
-                    (r.rotation_at_floor, "rotation")
-                ]
-                .iter()
-                .filter(|(f, _)| *f)
-                .map(|(_, n)| *n)
-                .collect::<Vec<_>>()
-                .join(", "),
-                r.sigma_translation_mm,
-                r.sigma_rotation_deg
-            ));
-        }
-        r
+        )
     });
     let all_names = layout.names();
     let unobservable = res

@@ -28,7 +28,7 @@ use crate::model::board::Board;
 use crate::model::camera::{distort_generic, project_generic, Camera};
 use crate::model::geometry::Iso3;
 use crate::numerics::dual::{Dual, Scalar};
-use crate::numerics::lm::{dense_jacobian_from_rows, JacobianRows, LeastSquares};
+use crate::numerics::lm::{dense_jacobian_from_rows, JacobianRows, LeastSquares, Leverages};
 use crate::numerics::mat3::{cross, dot, rot_times_exp_first_order};
 
 /// Dual numbers over every parameter slot ([`ParamLayout`]).
@@ -224,11 +224,15 @@ impl<'a> JointProblem<'a> {
         self.reweights_left.store(MAX_REWEIGHTS, Ordering::Relaxed);
     }
 
-    /// Sets the image groups' standard deviations (circle, stripe), px: a start from an
-    /// earlier solve of the same observations.
-    pub fn set_image_sigmas(&mut self, (sc, ss): (f64, f64)) {
-        self.weights[Group::Circle as usize] = AtomicU64::new((1.0 / sc).to_bits());
-        self.weights[Group::Stripe as usize] = AtomicU64::new((1.0 / ss).to_bits());
+    /// Starts where `earlier`, a solve of the same observations, ended: its image
+    /// groups' weights and its stripe foot points.
+    pub fn continue_from(&mut self, earlier: &JointProblem<'_>) {
+        for g in [Group::Circle, Group::Stripe] {
+            self.weights[g as usize] = AtomicU64::new(earlier.weight(g).to_bits());
+        }
+        for (a, b) in self.foot_cache.iter().zip(&earlier.foot_cache) {
+            a.store(b.load(Ordering::Relaxed), Ordering::Relaxed);
+        }
     }
 
     /// Weight (`1 / sigma`) of a group.
@@ -295,14 +299,46 @@ impl<'a> JointProblem<'a> {
         }
     }
 
+    /// The row ranges of the groups ([`Group`] order; the robot-pose groups' rows
+    /// interleave, view by view, within the last range).
+    fn group_ranges(&self) -> [std::ops::Range<usize>; 3] {
+        let (nc, po) = (2 * self.terms.circles.len(), self.prior_offset());
+        let np = if self.robot {
+            6 * self.terms.a.len()
+        } else {
+            0
+        };
+        [0..nc, nc..po, po..po + np]
+    }
+
     /// The re-estimated standard deviation of each group behind the weighted residuals
     /// `r`: `sqrt(SSR_g / r_g)`, the redundancy `r_g = m_g - sum_g h_i` from the
-    /// leverages `h` (Förstner), or `m_g - n m_g / m` when they are not available; for
-    /// the image groups 1.4826 MAD instead when robust. `None` for a group without
-    /// residuals or redundancy (its weight stays).
-    fn group_sigmas(&self, r: &[f64], h: Option<&[f64]>) -> [Option<f64>; 4] {
+    /// leverages (Förstner; the largest group's sum taken as `n` less the others'), or
+    /// `m_g - n m_g / m` when they are not available; for the image groups 1.4826 MAD
+    /// instead when robust. `None` for a group without residuals or redundancy (its
+    /// weight stays).
+    fn group_sigmas(&self, r: &[f64], leverages: &mut Leverages<'_>) -> [Option<f64>; 4] {
         let (n, m) = (self.num_params() as f64, r.len() as f64);
-        let groups = self.groups();
+        let ranges = self.group_ranges();
+        let largest = (0..3).max_by_key(|&k| ranges[k].len()).unwrap_or(0);
+        let wanted: Vec<_> = (0..3)
+            .filter(|&k| k != largest)
+            .map(|k| ranges[k].clone())
+            .collect();
+        let h = leverages(&wanted);
+        // Per group: count, weighted sum of squares, sum of leverages.
+        let mut acc = [(0usize, 0.0, 0.0); 4];
+        for (i, g) in self.groups().into_iter().enumerate() {
+            let a = &mut acc[g as usize];
+            a.0 += 1;
+            a.1 += r[i] * r[i];
+            a.2 += h.as_ref().map_or(0.0, |h| h[i]);
+        }
+        let group_of_range = [Group::Circle, Group::Stripe, Group::RobotRotation];
+        if h.is_some() {
+            let rest: f64 = acc.iter().map(|a| a.2).sum();
+            acc[group_of_range[largest] as usize].2 = n - rest;
+        }
         std::array::from_fn(|gi| {
             let g = [
                 Group::Circle,
@@ -310,28 +346,26 @@ impl<'a> JointProblem<'a> {
                 Group::RobotRotation,
                 Group::RobotTranslation,
             ][gi];
-            let w = self.weight(g);
-            let idx: Vec<usize> = (0..r.len()).filter(|&i| groups[i] == g).collect();
-            if idx.is_empty() {
+            let (count, ss, lev) = acc[gi];
+            if count == 0 {
                 return None;
             }
-            let mg = idx.len() as f64;
-            let red = match h {
-                Some(h) => mg - idx.iter().map(|&i| h[i]).sum::<f64>(),
-                None => mg - n * mg / m,
+            let w = self.weight(g);
+            let mg = count as f64;
+            let red = if h.is_some() {
+                mg - lev
+            } else {
+                mg - n * mg / m
             };
-            let image = matches!(g, Group::Circle | Group::Stripe);
-            if image && self.robust_sigma {
-                let mut a: Vec<f64> = idx.iter().map(|&i| (r[i] / w).abs()).collect();
+            if matches!(g, Group::Circle | Group::Stripe) && self.robust_sigma {
+                let range = &ranges[gi];
+                let mut a: Vec<f64> = r[range.clone()].iter().map(|x| (x / w).abs()).collect();
                 a.sort_by(f64::total_cmp);
                 return Some(1.4826 * a[a.len() / 2]);
             }
             // A group the rest of the adjustment explains (almost) entirely has no
             // redundancy to estimate its sigma from.
-            if red < 0.5 {
-                return None;
-            }
-            Some((idx.iter().map(|&i| (r[i] / w).powi(2)).sum::<f64>() / red).sqrt())
+            (red >= 0.5).then(|| (ss / (w * w) / red).sqrt())
         })
     }
 
@@ -808,11 +842,7 @@ impl LeastSquares for JointProblem<'_> {
         }
         Ok(())
     }
-    fn reweight(
-        &self,
-        r: &[f64],
-        leverages: &mut dyn FnMut() -> Option<Vec<f64>>,
-    ) -> Option<Vec<f64>> {
+    fn reweight(&self, r: &[f64], leverages: &mut Leverages<'_>) -> Option<Vec<f64>> {
         if !self.variance_components
             || self
                 .reweights_left
@@ -821,8 +851,7 @@ impl LeastSquares for JointProblem<'_> {
         {
             return None;
         }
-        let h = leverages();
-        let sig = self.group_sigmas(r, h.as_deref());
+        let sig = self.group_sigmas(r, leverages);
         let old: [f64; 4] =
             std::array::from_fn(|g| f64::from_bits(self.weights[g].load(Ordering::Relaxed)));
         let mut new = old;
