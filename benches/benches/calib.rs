@@ -2,12 +2,14 @@
 //! acceptance 6): 15 views of the `hp3-paper` twin (exact imaged-circle centres and
 //! board stripe points plus Gaussian noise of 0.01 / 0.03 px), through Zhang, the camera
 //! adjustment, the laser plane, AX = ZB with the outlier check and the one-stage
-//! adjustment, on ONE thread (a one-thread rayon pool). Also the paper method alone.
+//! adjustment, on ONE thread (a one-thread rayon pool). Also the paper method alone, and
+//! the one-stage adjustment alone with and without the robot-pose noise.
 //! Run: `cargo bench -p stripecal-benches --bench calib`; figures go to BENCHMARKS.md.
 
 use criterion::{criterion_group, criterion_main, Criterion};
 use std::hint::black_box;
 
+use stripecal::calib::joint::{joint_adjustment, JointOptions, JointStart};
 use stripecal::calib::ViewObs;
 use stripecal::pipeline::{calibrate_observations, CalibrateOptions, Method};
 use stripecal_sim::rng::Rng;
@@ -55,6 +57,41 @@ fn calib(c: &mut Criterion) {
         };
         g.bench_function(name, |b| {
             b.iter(|| pool.install(|| calibrate_observations(black_box(&v), &rig, &opts).unwrap()))
+        });
+    }
+    // The one-stage adjustment alone from the stages' values, with the robot-pose noise
+    // (the default) and with the robot poses exact (the rigid model).
+    let rep = pool
+        .install(|| {
+            calibrate_observations(
+                &v,
+                &rig,
+                &CalibrateOptions {
+                    leave_one_out: false,
+                    ..Default::default()
+                },
+            )
+        })
+        .unwrap();
+    let axzb = rep.stages.axzb.as_ref().unwrap();
+    let start = JointStart {
+        camera: rep.stages.camera.as_ref().unwrap().camera.clone(),
+        plane: rep.stages.plane.as_ref().map(|p| p.plane),
+        hand_cam: axzb.x,
+        base_board: axzb.z,
+    };
+    for (name, robot_noise) in [
+        ("joint_adjustment_15_views_robot_noise", true),
+        ("joint_adjustment_15_views_rigid", false),
+    ] {
+        let opts = JointOptions {
+            robot_noise,
+            ..Default::default()
+        };
+        g.bench_function(name, |b| {
+            b.iter(|| {
+                pool.install(|| joint_adjustment(black_box(&v), &rig.board, &start, &opts).unwrap())
+            })
         });
     }
     g.finish();
