@@ -86,12 +86,10 @@ use crate::model::geometry::{Iso3, Plane};
 use crate::model::{NamedCovariance, RobotPoseNoise};
 use crate::numerics::lm::{levenberg_marquardt, LmOptions, LmResult, StopReason};
 
-/// Variance-component re-estimations per solve: they settle in 2-3 on noisy data (more
-/// with the robot-pose noise, which starts at its floor while the images' sigmas still
-/// hold the robot's error); a residual type fitted exactly (noise-free data, or a model
-/// that fits one type perfectly) would otherwise chase its sigma towards zero step after
-/// step.
-const MAX_REWEIGHTS: usize = 8;
+/// Variance-component re-estimations per solve: they settle in 2-3 on noisy data; a
+/// residual type fitted exactly (noise-free data, or a model that fits one type
+/// perfectly) would otherwise chase its sigma towards zero step after step.
+const MAX_REWEIGHTS: usize = 5;
 
 /// Huber threshold on the weighted residuals (in units of the residual's sigma).
 pub const HUBER_SIGMAS: f64 = 1.345;

@@ -161,6 +161,8 @@ pub(super) struct JointProblem<'a> {
     robot_figures: Floors,
     /// What the robot-pose groups keep between evaluations.
     robot_state: Mutex<RobotNoiseState>,
+    /// The runs of consecutive residual rows of one view: `(view, first, end)`.
+    view_runs: Vec<(usize, usize, usize)>,
     /// Re-estimate the weights (variance components) in [`LeastSquares::reweight`].
     variance_components: bool,
     /// MAD instead of RMS for the sigmas (robust).
@@ -195,6 +197,7 @@ impl<'a> JointProblem<'a> {
             floors: robot_figures,
             ..Default::default()
         };
+        let view_runs = view_runs(&terms);
         JointProblem {
             base,
             layout,
@@ -210,6 +213,7 @@ impl<'a> JointProblem<'a> {
             robot: layout.per_view_free(Block::RobotPose),
             robot_figures,
             robot_state: Mutex::new(robot_state),
+            view_runs,
             variance_components: opts.variance_components,
             robust_sigma: opts.robust,
             reweights_left: AtomicUsize::new(MAX_REWEIGHTS),
@@ -373,36 +377,32 @@ impl<'a> JointProblem<'a> {
         self.layout.decode(p)
     }
 
-    /// The view of each residual row (circles, stripe points, prior rows).
-    fn row_views(&self) -> impl Iterator<Item = usize> + '_ {
-        let t = &self.terms;
-        let circles = t.circles.iter().flat_map(|c| [c.view, c.view]);
-        let stripes = t.stripes.iter().map(|s| s.view);
-        let priors = (0..t.a.len()).flat_map(|v| [v; 6]);
-        circles.chain(stripes).chain(priors)
-    }
-
     /// Keeps each view's information on its correction from its circles and from its
     /// stripe points (unit weight: the rows' values divided by the group's weight), for
-    /// the resolution floor ([`super::robot_noise`]).
+    /// the resolution floor ([`super::robot_noise`]): `D^T D` of each run of the view's
+    /// rows, `D` their six correction values (at `ng` in rows of `w` values).
     fn store_image_information(&self, vals: &[f64], w: usize, ng: usize) {
         let mut info = vec![[Matrix6::<f64>::zeros(); 2]; self.terms.a.len()];
-        let nc = 2 * self.terms.circles.len();
+        let (nc, po) = (2 * self.terms.circles.len(), self.prior_offset());
         let (wc, ws) = (self.wc(), self.ws());
-        for (i, (row, view)) in vals
-            .chunks_exact(w)
-            .zip(self.row_views())
-            .take(self.prior_offset())
-            .enumerate()
-        {
-            let (k, wg) = if i < nc { (0, wc) } else { (1, ws) };
-            let g = &row[ng..ng + 6];
-            let m = &mut info[view][k];
-            for a in 0..6 {
-                for b in 0..6 {
-                    m[(a, b)] += g[a] * g[b] / (wg * wg);
-                }
-            }
+        let mut m = faer::Mat::<f64>::zeros(6, 6);
+        for &(view, i0, i1) in self.view_runs.iter().filter(|r| r.1 < po) {
+            let d = faer::MatRef::from_column_major_slice_with_stride(
+                &vals[i0 * w + ng..(i1 - 1) * w + ng + 6],
+                6,
+                i1 - i0,
+                w,
+            );
+            faer::linalg::matmul::matmul(
+                m.as_mut(),
+                faer::Accum::Replace,
+                d,
+                d.transpose(),
+                1.0,
+                faer::Par::Seq,
+            );
+            let (k, wg) = if i0 < nc { (0, wc) } else { (1, ws) };
+            info[view][k] += Matrix6::from_fn(|a, b| m[(a, b)] / (wg * wg));
         }
         if let Ok(mut st) = self.robot_state.lock() {
             st.info = info;
@@ -828,14 +828,13 @@ impl LeastSquares for JointProblem<'_> {
         if self.robot {
             let ng = self.layout.num_global();
             robot_noise::prior_rows(&s, self.robot_weights(), rp, vp, w, ng);
-            for (row, view) in cols.chunks_exact_mut(w).zip(self.row_views()) {
-                for (k, c) in row.iter_mut().enumerate().take(ng) {
-                    *c = k;
-                }
+            let mut template: Vec<usize> = (0..w).collect();
+            for &(view, i0, i1) in &self.view_runs {
                 if let Some(vc) = self.layout.view_columns(Block::RobotPose, view) {
-                    for (c, v) in row[ng..].iter_mut().zip(vc) {
-                        *c = v;
-                    }
+                    template[ng..].iter_mut().zip(vc).for_each(|(c, v)| *c = v);
+                }
+                for row in cols[i0 * w..i1 * w].chunks_exact_mut(w) {
+                    row.copy_from_slice(&template);
                 }
             }
             self.store_image_information(vals, w, ng);
@@ -876,6 +875,23 @@ impl LeastSquares for JointProblem<'_> {
     fn retract(&self, p: &[f64], dp: &[f64], out: &mut [f64]) {
         self.layout.retract(p, dp, out);
     }
+}
+
+/// The runs of consecutive residual rows of one view and one kind, `(view, first,
+/// end)`: circles (2 rows each), stripe points, then 6 prior rows per view.
+fn view_runs(t: &Terms) -> Vec<(usize, usize, usize)> {
+    let (nc, po) = (2 * t.circles.len(), 2 * t.circles.len() + t.stripes.len());
+    let circles = t.circles.iter().flat_map(|c| [c.view, c.view]);
+    let stripes = t.stripes.iter().map(|s| s.view);
+    let priors = (0..t.a.len()).flat_map(|v| [v; 6]);
+    let mut runs: Vec<(usize, usize, usize)> = Vec::new();
+    for (i, v) in circles.chain(stripes).chain(priors).enumerate() {
+        match runs.last_mut() {
+            Some(r) if r.0 == v && i != nc && i != po => r.2 = i + 1,
+            _ => runs.push((v, i, i + 1)),
+        }
+    }
+    runs
 }
 
 fn parallel_error(view: usize) -> Error {

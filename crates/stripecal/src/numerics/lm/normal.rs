@@ -45,6 +45,10 @@ pub(super) struct Work {
     jac: Mat<f64>,
     jtj_f: Mat<f64>,
     scratch: Vec<f64>,
+    /// Sparse rows: the runs of rows with the same columns at the last evaluation.
+    runs: Vec<(usize, usize)>,
+    /// The leverages' product buffer.
+    lev_buf: Mat<f64>,
 }
 
 impl Work {
@@ -60,6 +64,8 @@ impl Work {
             },
             jtj_f: Mat::zeros(n, n),
             scratch: Vec::new(),
+            runs: Vec::new(),
+            lev_buf: Mat::zeros(0, 0),
         }
     }
 
@@ -74,6 +80,9 @@ impl Work {
             Some(rows) => {
                 rows.clear();
                 problem.residuals_and_jacobian_rows(p, r, rows)?;
+                if !rows.dense {
+                    self.runs = runs(rows);
+                }
             }
             None => {
                 self.jac.fill(0.0);
@@ -146,7 +155,7 @@ impl Work {
                     let acc = jtj.as_mut_slice();
                     let mut block = Mat::<f64>::zeros(w, w);
                     let mut gb = Mat::<f64>::zeros(w, 1);
-                    for (i0, i1) in runs(rows) {
+                    for &(i0, i1) in &self.runs {
                         let len = i1 - i0;
                         let raw = &rows.vals[i0 * w..i1 * w];
                         let vals: &[f64] = if huber.is_some() {
@@ -268,9 +277,21 @@ impl Work {
         };
         // The rows i0..i1 with their J^T (w x len) and `N^-1` restricted to their
         // columns.
+        // One buffer for `N^-1 J^T` of every range and run, kept between calls.
+        let mut buf = std::mem::replace(&mut self.lev_buf, Mat::zeros(0, 0));
         let mut fill = |i0: usize, jt: faer::MatRef<'_, f64>, block: faer::MatRef<'_, f64>| {
-            let mut x = Mat::<f64>::zeros(jt.nrows(), jt.ncols());
-            faer::linalg::matmul::matmul(x.as_mut(), Accum::Replace, block, jt, 1.0, Par::Seq);
+            if buf.nrows() < jt.nrows() || buf.ncols() < jt.ncols() {
+                buf = Mat::zeros(jt.nrows().max(buf.nrows()), jt.ncols().max(buf.ncols()));
+            }
+            faer::linalg::matmul::matmul(
+                buf.as_mut().submatrix_mut(0, 0, jt.nrows(), jt.ncols()),
+                Accum::Replace,
+                block,
+                jt,
+                1.0,
+                Par::Seq,
+            );
+            let x = buf.as_ref().submatrix(0, 0, jt.nrows(), jt.ncols());
             for (k, hi) in h[i0..i0 + jt.ncols()].iter_mut().enumerate() {
                 *hi = huber_weight(r[i0 + k], huber) * dot(jt.col(k), x.col(k));
             }
@@ -281,7 +302,7 @@ impl Work {
             }
         } else if let Some(rows) = &self.rows {
             let w = rows.width;
-            for (i0, i1) in runs(rows) {
+            for &(i0, i1) in &self.runs {
                 let c = rows.row(i0).0;
                 let mut block: Option<Mat<f64>> = None;
                 for g in &wanted {
@@ -297,6 +318,7 @@ impl Work {
                 }
             }
         }
+        self.lev_buf = buf;
         h.iter().all(|x| x.is_finite()).then_some(h)
     }
 }
