@@ -319,8 +319,8 @@ impl<'a> JointProblem<'a> {
     /// `r`: `sqrt(SSR_g / r_g)`, the redundancy `r_g = m_g - sum_g h_i` from the
     /// leverages (Förstner; the largest group's sum taken as `n` less the others'), or
     /// `m_g - n m_g / m` when they are not available; for the image groups 1.4826 MAD
-    /// instead when robust. `None` for a group without residuals or redundancy (its
-    /// weight stays).
+    /// instead when robust. `None` for a group without residuals or without redundancy
+    /// (its weight stays).
     fn group_sigmas(&self, r: &[f64], leverages: &mut Leverages<'_>) -> [Option<f64>; 4] {
         let (n, m) = (self.num_params() as f64, r.len() as f64);
         let ranges = self.group_ranges();
@@ -367,9 +367,12 @@ impl<'a> JointProblem<'a> {
                 a.sort_by(f64::total_cmp);
                 return Some(1.4826 * a[a.len() / 2]);
             }
-            // A group the rest of the adjustment explains (almost) entirely has no
-            // redundancy to estimate its sigma from.
-            (red >= 0.5).then(|| (ss / (w * w) / red).sqrt())
+            // A group the rest of the adjustment explains entirely has no redundancy to
+            // estimate its sigma from. A small one is kept: a prior much tighter than
+            // the images (a robot-pose sigma at its floor) has a redundancy of about
+            // (sigma / image precision)^2 per row, and so has its sum of squares, so
+            // their ratio still moves the sigma where the data put it.
+            (red > 1e-9 * mg).then(|| (ss / (w * w) / red).sqrt())
         })
     }
 
