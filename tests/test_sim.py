@@ -91,6 +91,24 @@ def test_write_dataset_loads_and_is_deterministic(tmp_path: Path) -> None:
         assert (tmp_path / "a" / "calib" / name).read_bytes() == (tmp_path / "b" / "calib" / name).read_bytes()
 
 
+def test_reading_noise_moves_the_readings_not_the_images(tmp_path: Path) -> None:
+    """`poses.reading_noise_deg`: views.csv reports noisy joint readings, the images (and
+    the true readings in truth.json) stay those of the true poses."""
+    assert sim.preset("hp3-paper")["poses"]["reading_noise_deg"] == 0.0
+    cfg = small(seed=5, scan={"enabled": False}, poses={"count": 3, "reading_noise_deg": 0.05})
+    sim.Twin(cfg).write(tmp_path / "noisy")
+    sim.Twin(small(seed=5, scan={"enabled": False})).write(tmp_path / "exact")
+    noisy = stripecal.load_dataset(tmp_path / "noisy" / "calib").joints
+    exact = stripecal.load_dataset(tmp_path / "exact" / "calib").joints
+    d = noisy - exact
+    assert d.shape == (3, 6) and 0 < np.abs(d).max() < 0.3
+    images = stripecal.load_truth(tmp_path / "noisy" / "calib" / "truth.json").extra["images"]
+    np.testing.assert_allclose(np.array([im["q_deg"] for im in images]), exact, atol=1e-9)
+    np.testing.assert_allclose(np.array([im["q_reading_deg"] for im in images]), noisy, atol=1e-9)
+    for name in ["images/view_001_board.png", "images/view_002_laser.png"]:
+        assert (tmp_path / "noisy" / "calib" / name).read_bytes() == (tmp_path / "exact" / "calib" / name).read_bytes()
+
+
 def test_progress_callback_errors_propagate(tmp_path: Path) -> None:
     def boom(stage: str, done: int, total: int) -> None:
         raise RuntimeError("stop")
