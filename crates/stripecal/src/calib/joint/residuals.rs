@@ -141,6 +141,11 @@ pub(super) enum Group {
 /// Floor of the image groups' sigmas, px (round-off of exact data).
 const IMAGE_SIGMA_FLOOR_PX: f64 = 1e-9;
 
+/// Relative change of a robot-pose sigma below which its re-estimate is not applied:
+/// half the standard error of a variance component from ~50 prior rows (1 / sqrt(2 r),
+/// r ~ 3 views - 6, is 11 % for 15 views).
+const ROBOT_SIGMA_DEAD_BAND: f64 = 0.05;
+
 /// The adjustment as a least-squares problem.
 pub(super) struct JointProblem<'a> {
     pub base: &'a Camera,
@@ -414,8 +419,9 @@ impl<'a> JointProblem<'a> {
 
     /// The robot-pose groups' new weights from their sigmas `sig` ([`Group`] order;
     /// the image groups' already in `new`): each sigma at least its floor, the larger of
-    /// the robot's figure and the resolution floor; a group without redundancy keeps its
-    /// sigma, floored.
+    /// the robot's figure and the resolution floor; a group without redundancy, or whose
+    /// sigma moves less than [`ROBOT_SIGMA_DEAD_BAND`], keeps its sigma, floored. A sigma
+    /// within the dead band of its floor is at its floor.
     fn reweight_robot(&self, sig: &[Option<f64>; 4], new: &mut [f64; 4]) {
         let Ok(mut st) = self.robot_state.lock() else {
             return;
@@ -443,10 +449,16 @@ impl<'a> JointProblem<'a> {
         .into_iter()
         .enumerate()
         {
-            let s = sig[g as usize].unwrap_or(1.0 / new[g as usize]);
-            at_floor[k] = s <= floor;
-            let s = s.max(floor);
+            let old = 1.0 / new[g as usize];
+            let mut s = sig[g as usize].unwrap_or(old).max(floor);
+            // A change within the dead band is below what the component resolves: the
+            // sigma stays (floored), and the solver is not kept from stopping by a sigma
+            // creeping near its floor.
+            if (s / old - 1.0).abs() <= ROBOT_SIGMA_DEAD_BAND {
+                s = old.max(floor);
+            }
             if s > 0.0 && s.is_finite() {
+                at_floor[k] = s <= floor * (1.0 + ROBOT_SIGMA_DEAD_BAND);
                 new[g as usize] = 1.0 / s;
             }
         }
