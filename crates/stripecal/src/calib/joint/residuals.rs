@@ -19,7 +19,9 @@ use rayon::prelude::*;
 
 use super::chain::cam_board;
 use super::layout::{Block, JointParams, ParamLayout, SLOTS};
-use super::robot_noise::{self, Floors, RobotNoiseState, RESOLUTION_FLOOR};
+use super::robot_noise::{
+    self, Floors, RobotNoiseState, ABSOLUTE_FLOOR_DEG, ABSOLUTE_FLOOR_MM, RESOLUTION_CAP,
+};
 use super::{JointOptions, MAX_REWEIGHTS};
 use crate::calib::conic::{centre_generic_n, quadrature_nodes, CentreModel};
 use crate::calib::ViewObs;
@@ -419,7 +421,8 @@ impl<'a> JointProblem<'a> {
 
     /// The robot-pose groups' new weights from their sigmas `sig` ([`Group`] order;
     /// the image groups' already in `new`): each sigma at least its floor, the larger of
-    /// the robot's figure and the resolution floor; a group without redundancy, or whose
+    /// the robot's figure and the adjustment's own ([`super::robot_noise`]); a group
+    /// without redundancy, or whose
     /// sigma moves less than [`ROBOT_SIGMA_DEAD_BAND`], keeps its sigma, floored. A sigma
     /// within the dead band of its floor is at its floor.
     fn reweight_robot(&self, sig: &[Option<f64>; 4], new: &mut [f64; 4]) {
@@ -431,15 +434,22 @@ impl<'a> JointProblem<'a> {
             1.0 / new[Group::Stripe as usize],
         );
         let (res_r, res_t) = robot_noise::resolution(&st.info, sigma_px).unwrap_or((0.0, 0.0));
+        let own = |absolute: f64, res: f64| {
+            if res > 0.0 {
+                absolute.min(RESOLUTION_CAP * res)
+            } else {
+                absolute
+            }
+        };
         let floors = Floors {
             rotation_rad: self
                 .robot_figures
                 .rotation_rad
-                .max(RESOLUTION_FLOOR * res_r),
+                .max(own(ABSOLUTE_FLOOR_DEG.to_radians(), res_r)),
             translation_mm: self
                 .robot_figures
                 .translation_mm
-                .max(RESOLUTION_FLOOR * res_t),
+                .max(own(ABSOLUTE_FLOOR_MM, res_t)),
         };
         let mut at_floor = [false; 2];
         for (k, (g, floor)) in [

@@ -29,26 +29,29 @@
 //!
 //! ## Floors
 //!
-//! A sigma is never below its floor:
+//! A sigma is never below its floor, the larger of
 //! - the robot's figures when rig.json gives them ([`crate::Robot::pose_noise_floor`]:
 //!   `repeatability_mm` for the translation, the flange rotation of `encoder_sigma_deg`
 //!   for the rotation);
-//! - and in any case the adjustment's resolution: [`RESOLUTION_FLOOR`] times the
-//!   precision with which a view's own image determines a component of its flange pose
-//!   (the median over the views of the RMS over the three components of `1 /
-//!   sqrt(I_kk)`, `I` the information of the correction from the view's circles and
-//!   stripe points alone: each component's precision with the others known, the
-//!   finest the image resolves). Robot-pose noise far below what one view resolves
-//!   cannot be told from image noise: its variance component is then barely
-//!   determined, and on a perfect robot (white image noise) the estimate would creep
-//!   towards zero re-weighting after re-weighting. At the floor the robot-pose noise
-//!   adds [`RESOLUTION_FLOOR`]^2 (0.1 %) of a view's own image variance to a component
-//!   of its flange pose, so a perfect robot calibrates as the rigid model does; the
-//!   prior then outweighs the images on the corrections, which keeps the normal
-//!   equations well conditioned (it is a prior far weaker than the images that they
-//!   cannot resolve). The rendered twin's images disagree among themselves by more than
-//!   their noise (the detectors' small pose-dependent biases): there the estimate
-//!   leaves the floor at about 0.08 um and 3e-5 deg, and X and Z move by a few um.
+//! - and the adjustment's own floor: [`ABSOLUTE_FLOOR_MM`] and [`ABSOLUTE_FLOOR_DEG`]
+//!   (an order of magnitude below the best industrial arms' repeatability and encoder
+//!   figures), but at most [`RESOLUTION_CAP`] times the precision with which a view's
+//!   own image determines a component of its flange pose (the median over the views of
+//!   the RMS over the three components of `1 / sqrt(I_kk)`, `I` the information of the
+//!   correction from the view's circles and stripe points alone).
+//!
+//! Why a floor: robot-pose noise far below what the views resolve cannot be told from
+//! what the images themselves get wrong. On a perfect robot with white image noise the
+//! estimate would creep towards zero re-weighting after re-weighting; on the rendered
+//! twin the images disagree among themselves by a little more than their noise (the
+//! detectors' small pose-dependent biases: about 0.02-0.08 um and 3e-5 deg of apparent
+//! robot noise), which the adjustment would otherwise report as robot-pose noise and
+//! hold each view's correction against, so that a perfect robot's views would fail
+//! their tests. Why the cap: on exact observations the images resolve the poses to
+//! round-off, and a prior far weaker than the images along the directions only the
+//! prior determines (a correction common to every view is X's or Z's own) leaves the
+//! normal equations unable to resolve them; at most 100 times the images' precision
+//! keeps that ratio below 1e4.
 //!
 //! The variance components start at the floors (the corrections start at zero), and
 //! a group whose prior is much tighter than the images keeps being re-estimated: its
@@ -78,9 +81,15 @@ use super::layout::{Block, JointParams, ParamLayout};
 use crate::model::geometry::matrix_to_rotvec;
 use crate::model::{RobotPoseNoise, RobotPoseView};
 
-/// The resolution floor of the robot-pose sigmas, in units of the precision a view's
-/// own image gives a component of its flange pose (module docs).
-pub(super) const RESOLUTION_FLOOR: f64 = 0.03;
+/// The adjustment's own floor of the translation sigma, mm (module docs).
+pub(super) const ABSOLUTE_FLOOR_MM: f64 = 1e-3;
+
+/// The adjustment's own floor of the rotation sigma, degrees (module docs).
+pub(super) const ABSOLUTE_FLOOR_DEG: f64 = 1e-4;
+
+/// The adjustment's own floors are at most this many times the precision a view's own
+/// image gives a component of its flange pose (module docs).
+pub(super) const RESOLUTION_CAP: f64 = 100.0;
 
 /// The robot's figures as floors of the sigmas: rotation rad, translation mm (0: none).
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
