@@ -16,6 +16,12 @@ use crate::error::{Error, Result};
 /// A rigid transform (rotation then translation), `p_a = T_a_b * p_b`.
 pub type Iso3 = nalgebra::Isometry3<f64>;
 
+/// The largest rotation-vector angle the file readers accept (radians): far beyond any
+/// real rotation vector (a controller's, a calibration's), and small enough for the
+/// angle and the axis to be computed without overflow (`norm` squares the components,
+/// which overflows beyond ~1e154 and turns the axis into NaN).
+pub(crate) const MAX_ROTVEC_ANGLE_RAD: f64 = 1e6;
+
 /// The rotation matrix of a rotation vector (axis times angle, radians).
 pub fn rotvec_to_matrix(r: &Vector3<f64>) -> Matrix3<f64> {
     let theta2 = r.norm_squared();
