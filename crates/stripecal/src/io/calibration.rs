@@ -225,23 +225,43 @@ fn covariance_from(c: &Obj<'_>) -> Result<NamedCovariance> {
             matrix[(i, j)] = v.f64()?;
         }
     }
+    let cov = NamedCovariance {
+        parameters: names,
+        matrix,
+    };
+    check_covariance(&cov).map_err(|m| mv.err(m))?;
+    Ok(cov)
+}
+
+/// What the reader requires of a covariance (and so the writer checks): one row and
+/// column per parameter, finite values, a non-negative diagonal, symmetry (to 1e-9 of
+/// the standard deviations' product).
+fn check_covariance(c: &NamedCovariance) -> std::result::Result<(), String> {
+    let (n, m) = (c.parameters.len(), &c.matrix);
+    if m.nrows() != n || m.ncols() != n {
+        return Err(format!(
+            "expected a {n} x {n} matrix (one row and column per parameter), got {} x {}",
+            m.nrows(),
+            m.ncols()
+        ));
+    }
+    if let Some(x) = m.iter().find(|x| !x.is_finite()) {
+        return Err(format!("the matrix has a non-finite value {x}"));
+    }
     for i in 0..n {
-        if matrix[(i, i)] < 0.0 {
-            return Err(mv.err(format!("the variance of {} is negative", names[i])));
+        if m[(i, i)] < 0.0 {
+            return Err(format!("the variance of {} is negative", c.parameters[i]));
         }
         for j in 0..i {
-            let (a, b) = (matrix[(i, j)], matrix[(j, i)]);
-            if (a - b).abs() > 1e-9 * (matrix[(i, i)] * matrix[(j, j)]).sqrt().max(1e-300) {
-                return Err(mv.err(format!(
+            let (a, b) = (m[(i, j)], m[(j, i)]);
+            if !((a - b).abs() <= 1e-9 * (m[(i, i)] * m[(j, j)]).sqrt().max(1e-300)) {
+                return Err(format!(
                     "the matrix is not symmetric: ({i}, {j}) = {a}, ({j}, {i}) = {b}"
-                )));
+                ));
             }
         }
     }
-    Ok(NamedCovariance {
-        parameters: names,
-        matrix,
-    })
+    Ok(())
 }
 
 fn covariance_value(c: &NamedCovariance) -> Value {
@@ -358,6 +378,10 @@ pub fn write_calibration(p: impl AsRef<Path>, c: &Calibration) -> Result<()> {
             "calibration: quality RMS values {} / {} must be finite and non-negative",
             q.circle_rms_px, q.stripe_rms_px
         )));
+    }
+    if let Some(cov) = &c.covariance {
+        check_covariance(cov)
+            .map_err(|m| Error::InvalidInput(format!("calibration: covariance: {m}")))?;
     }
     write_atomic(p, calibration_to_json(c).as_bytes())
 }

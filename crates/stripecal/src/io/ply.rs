@@ -352,7 +352,9 @@ fn read_binary(
 ) -> Result<()> {
     let big = h.encoding == Encoding::BigEndian;
     let mut pos = 0usize;
-    for e in &h.elements {
+    // An element without properties has no data, whatever its count says (which may be
+    // 2^64 - 1: not a loop to run).
+    for e in h.elements.iter().filter(|e| !e.props.is_empty()) {
         let is_vertex = e.name == "vertex";
         for i in 0..e.count {
             for (k, p) in e.props.iter().enumerate() {
@@ -446,7 +448,7 @@ fn read_ascii(
         Error::format(path, format!("line {line}"), "ASCII PLY data is not text")
     })?;
     let mut tokens = Tokens::new(text, h.lines + 1);
-    for e in &h.elements {
+    for e in h.elements.iter().filter(|e| !e.props.is_empty()) {
         let is_vertex = e.name == "vertex";
         for i in 0..e.count {
             for (k, p) in e.props.iter().enumerate() {

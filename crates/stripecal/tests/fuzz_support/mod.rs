@@ -637,12 +637,23 @@ fn number_spans(b: &[u8]) -> Vec<(usize, usize)> {
 }
 
 fn replace_number(b: &mut Vec<u8>, r: &mut SplitMix64) -> String {
+    replace_number_with(b, r, &HOSTILE_NUMBERS)
+}
+
+/// Numbers a file could plausibly hold instead of the right one (the file stays
+/// syntactically valid: the mutation reaches the numerics).
+pub const PLAUSIBLE_NUMBERS: [&str; 14] = [
+    "0", "1", "2", "3", "7", "12", "4.9", "0.5", "-90", "180", "1000", "2.5", "-0.001", "45",
+];
+
+/// Replaces one numeric token of `b` by one of `choices`; returns what it did.
+pub fn replace_number_with(b: &mut Vec<u8>, r: &mut SplitMix64, choices: &[&str]) -> String {
     let spans = number_spans(b);
     if spans.is_empty() {
         return "no number to replace".into();
     }
     let (s, e) = spans[r.below(spans.len())];
-    let new = HOSTILE_NUMBERS[r.below(HOSTILE_NUMBERS.len())];
+    let new = choices[r.below(choices.len())];
     let old = String::from_utf8_lossy(&b[s..e]).to_string();
     b.splice(s..e, new.bytes());
     format!("number {old:?} at {s} -> {new:?}")
