@@ -180,6 +180,13 @@ fn choose_from(views: &[Candidates], reference: Option<usize>) -> Vec<Decision> 
                     margin: f64::INFINITY,
                 };
             }
+            if views[i].b.is_empty() {
+                // no candidate at all: nothing to choose
+                return Decision::Undecided {
+                    best: f64::INFINITY,
+                    second: f64::INFINITY,
+                };
+            }
             let others = chosen
                 .iter()
                 .enumerate()

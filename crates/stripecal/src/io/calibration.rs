@@ -254,7 +254,8 @@ fn check_covariance(c: &NamedCovariance) -> std::result::Result<(), String> {
         }
         for j in 0..i {
             let (a, b) = (m[(i, j)], m[(j, i)]);
-            if !((a - b).abs() <= 1e-9 * (m[(i, i)] * m[(j, j)]).sqrt().max(1e-300)) {
+            // a and b are finite (checked above), so a - b is not NaN
+            if (a - b).abs() > 1e-9 * (m[(i, i)] * m[(j, j)]).sqrt().max(1e-300) {
                 return Err(format!(
                     "the matrix is not symmetric: ({i}, {j}) = {a}, ({j}, {i}) = {b}"
                 ));

@@ -343,7 +343,7 @@ impl<'a> Obj<'a> {
     pub fn pose(&self) -> Result<Iso3> {
         let r = self.vec3("rotation_vector")?;
         let angle = r.norm();
-        if !(angle <= MAX_ROTVEC_ANGLE_RAD) {
+        if !angle.is_finite() || angle > MAX_ROTVEC_ANGLE_RAD {
             return Err(self.req("rotation_vector")?.err(format!(
                 "expected a rotation vector (radians) of angle at most {MAX_ROTVEC_ANGLE_RAD:e}, \
                  got one of angle {angle:e}"

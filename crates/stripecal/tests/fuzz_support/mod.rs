@@ -567,8 +567,8 @@ pub fn mutate_once(b: &mut Vec<u8>, r: &mut SplitMix64) -> String {
             // overwrite 1..8 bytes with random ones (headers, lengths)
             let i = r.below(n);
             let k = 1 + r.below(8.min(n - i));
-            for j in i..i + k {
-                b[j] = (r.next_u64() & 0xff) as u8;
+            for x in &mut b[i..i + k] {
+                *x = (r.next_u64() & 0xff) as u8;
             }
             format!("randomise {k} bytes at {i}")
         }

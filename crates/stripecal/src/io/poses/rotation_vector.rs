@@ -50,7 +50,7 @@ impl RotationConvention for RotationVector {
     fn to_rotation(&self, v: &[f64]) -> Result<UnitQuaternion<f64>, String> {
         let r = Vector3::new(v[0], v[1], v[2]) / self.per_radian;
         let angle = r.norm();
-        if !(angle <= MAX_ROTVEC_ANGLE_RAD) {
+        if !angle.is_finite() || angle > MAX_ROTVEC_ANGLE_RAD {
             return Err(format!(
                 "rotation vector ({}, {}, {}) has an angle of {angle:e} rad: expected at most \
                  {MAX_ROTVEC_ANGLE_RAD:e} rad (a controller reports at most a turn)",
