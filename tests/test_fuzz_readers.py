@@ -11,7 +11,7 @@ Whatever a reader accepts is valid (finite poses, images whose shape matches the
 size) and goes back through its writer. Pose conventions round-trip as rotation
 MATRICES.
 
-Budget: the ``stripecal-fuzz`` profile runs ``100 * STRIPECAL_FUZZ_CASES`` examples per
+Budget: the ``stripecal-fuzz`` profile runs ``200 * STRIPECAL_FUZZ_CASES`` examples per
 property (default 1) with ``deadline=None``, derandomised (the same examples every run,
 no example database), so a failure reproduces; hypothesis prints the failing example.
 """
@@ -36,7 +36,7 @@ import stripecal  # noqa: E402
 SCALE = int(os.environ.get("STRIPECAL_FUZZ_CASES", "1") or "1")
 settings.register_profile(
     "stripecal-fuzz",
-    max_examples=100 * max(SCALE, 1),
+    max_examples=200 * max(SCALE, 1),
     deadline=None,
     derandomize=True,
     database=None,

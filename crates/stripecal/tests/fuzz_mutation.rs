@@ -287,7 +287,7 @@ fn run_case(case: &str, kind: Kind, path: &Path, writer_dir: &Path) -> &'static 
                     |d| {
                         let back = io::read_calibration(d).unwrap();
                         assert_eq!(back.camera, cal.camera, "{c}: calibration re-read");
-                        assert_eq!(back.covariance, cal.covariance, "{c}");
+                        assert!(same_covariance(&back.covariance, &cal.covariance), "{c}");
                     },
                 );
             }
@@ -423,7 +423,7 @@ fn rewrite(
 #[test]
 fn mutated_files_give_typed_errors_or_valid_values() {
     let seeds = seed_files();
-    let n = cases(4000);
+    let n = cases(12000);
     let master = seed();
     let mut r = rng(2);
     let dir = tempfile::tempdir().unwrap();
@@ -635,7 +635,7 @@ fn huge_and_empty_image_headers_are_errors() {
 #[test]
 fn writers_refuse_cleanly_or_write_completely() {
     let mut r = rng(3);
-    let n = cases(60);
+    let n = cases(200);
     let dir = tempfile::tempdir().unwrap();
     let hostile = [
         f64::NAN,
@@ -979,7 +979,7 @@ fn mutated_dataset_folders_load_and_calibrate_or_fail_typed() {
         .collect();
     images.sort();
     let mut r = rng(4);
-    let n = cases(24);
+    let n = cases(48);
     for i in 0..n {
         let dir = tempfile::tempdir().unwrap();
         let root = dir.path().join("calib");
@@ -1103,7 +1103,7 @@ fn ply_element_without_properties_and_a_huge_count_is_read_at_once() {
 }
 
 /// write_calibration wrote covariances the reader refuses (asymmetric, negative or
-/// non-finite, the wrong size): found by the writer campaign, refused now and the old
+/// infinite, the wrong size): found by the writer campaign, refused now and the old
 /// file kept.
 #[test]
 fn write_calibration_refuses_a_covariance_the_reader_would_refuse() {
@@ -1112,7 +1112,8 @@ fn write_calibration_refuses_a_covariance_the_reader_would_refuse() {
     for (what, edit) in [
         ("asymmetric", (1usize, 2usize, 1e300)),
         ("negative variance", (0, 0, -1.0)),
-        ("NaN", (2, 0, f64::NAN)),
+        ("infinite", (2, 0, f64::INFINITY)),
+        ("NaN without its mirror", (2, 0, f64::NAN)),
     ] {
         let mut c = calibration();
         c.covariance.as_mut().unwrap().matrix[(edit.0, edit.1)] = edit.2;
@@ -1131,6 +1132,20 @@ fn write_calibration_refuses_a_covariance_the_reader_would_refuse() {
         );
         assert!(refused, "{what}: written");
     }
+    // a number the adjustment did not determine (its row and column NaN, as
+    // calibrate_dataset reports it) is written as null and read back: found by the
+    // dataset campaign, whose calibration of a twin with three joint readings changed
+    // could not be saved
+    let mut c = calibration();
+    let cov = c.covariance.as_mut().unwrap();
+    cov.matrix.row_mut(1).fill(f64::NAN);
+    cov.matrix.column_mut(1).fill(f64::NAN);
+    let p = dir.path().join("nan.json");
+    io::write_calibration(&p, &c).unwrap();
+    let text = std::fs::read_to_string(&p).unwrap();
+    assert!(text.contains("null"), "{text}");
+    let back = io::read_calibration(&p).unwrap();
+    assert!(same_covariance(&back.covariance, &c.covariance));
     let mut c = calibration();
     c.covariance.as_mut().unwrap().parameters.pop();
     assert!(matches!(

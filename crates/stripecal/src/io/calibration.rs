@@ -198,7 +198,9 @@ fn check_common(
 // ---------------------------------------------------------------- calibration.json
 
 /// `covariance`: `parameters` (names) and a symmetric `matrix` of that size with a
-/// non-negative, finite diagonal.
+/// non-negative diagonal. `null` entries (the rows and columns of a number the data did
+/// not determine, which the adjustment reports as NaN, as `uncertainty` does) are read
+/// as NaN.
 fn covariance_from(c: &Obj<'_>) -> Result<NamedCovariance> {
     let names: Vec<String> = c
         .req("parameters")?
@@ -222,7 +224,7 @@ fn covariance_from(c: &Obj<'_>) -> Result<NamedCovariance> {
             return Err(row.err(format!("expected {n} values, got {}", vals.len())));
         }
         for (j, v) in vals.iter().enumerate() {
-            matrix[(i, j)] = v.f64()?;
+            matrix[(i, j)] = if v.is_null() { f64::NAN } else { v.f64()? };
         }
     }
     let cov = NamedCovariance {
@@ -234,8 +236,9 @@ fn covariance_from(c: &Obj<'_>) -> Result<NamedCovariance> {
 }
 
 /// What the reader requires of a covariance (and so the writer checks): one row and
-/// column per parameter, finite values, a non-negative diagonal, symmetry (to 1e-9 of
-/// the standard deviations' product).
+/// column per parameter, finite values or NaN (`null` in the file: not determined), a
+/// non-negative diagonal, symmetry (to 1e-9 of the standard deviations' product; NaN
+/// where its mirror is NaN).
 fn check_covariance(c: &NamedCovariance) -> std::result::Result<(), String> {
     let (n, m) = (c.parameters.len(), &c.matrix);
     if m.nrows() != n || m.ncols() != n {
@@ -245,8 +248,8 @@ fn check_covariance(c: &NamedCovariance) -> std::result::Result<(), String> {
             m.ncols()
         ));
     }
-    if let Some(x) = m.iter().find(|x| !x.is_finite()) {
-        return Err(format!("the matrix has a non-finite value {x}"));
+    if let Some(x) = m.iter().find(|x| x.is_infinite()) {
+        return Err(format!("the matrix has an infinite value {x}"));
     }
     for i in 0..n {
         if m[(i, i)] < 0.0 {
@@ -254,8 +257,12 @@ fn check_covariance(c: &NamedCovariance) -> std::result::Result<(), String> {
         }
         for j in 0..i {
             let (a, b) = (m[(i, j)], m[(j, i)]);
-            // a and b are finite (checked above), so a - b is not NaN
-            if (a - b).abs() > 1e-9 * (m[(i, i)] * m[(j, j)]).sqrt().max(1e-300) {
+            if a.is_nan() && b.is_nan() {
+                continue;
+            }
+            // at most one is NaN here: then a - b is NaN, which is asymmetric too
+            let d = (a - b).abs();
+            if d.is_nan() || d > 1e-9 * (m[(i, i)] * m[(j, j)]).sqrt().max(1e-300) {
                 return Err(format!(
                     "the matrix is not symmetric: ({i}, {j}) = {a}, ({j}, {i}) = {b}"
                 ));

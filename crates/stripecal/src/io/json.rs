@@ -104,6 +104,11 @@ impl<'a> Val<'a> {
         self.err(format!("expected {what}, got {}", describe(self.v)))
     }
 
+    /// Whether the value is `null`.
+    pub fn is_null(&self) -> bool {
+        self.v.is_null()
+    }
+
     /// A finite number.
     pub fn f64(&self) -> Result<f64> {
         match self.v.as_f64() {

@@ -414,6 +414,22 @@ pub fn image_seeds() -> Vec<(String, Vec<u8>)> {
 
 // ---------------------------------------------------------------- checks of results
 
+/// Covariances equal entry by entry, NaN (a number not determined) equal to NaN.
+pub fn same_covariance(a: &Option<NamedCovariance>, b: &Option<NamedCovariance>) -> bool {
+    match (a, b) {
+        (None, None) => true,
+        (Some(a), Some(b)) => {
+            a.parameters == b.parameters
+                && a.matrix.shape() == b.matrix.shape()
+                && a.matrix
+                    .iter()
+                    .zip(b.matrix.iter())
+                    .all(|(x, y)| x == y || (x.is_nan() && y.is_nan()))
+        }
+        _ => false,
+    }
+}
+
 pub fn finite_iso(t: &Iso3) -> bool {
     t.translation.vector.iter().all(|x| x.is_finite())
         && t.rotation.coords.iter().all(|x| x.is_finite())
