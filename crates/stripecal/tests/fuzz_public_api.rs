@@ -891,6 +891,24 @@ fn numerics_take_hostile_values() {
             }
         }
     }
+    // the trait's default methods
+    use lm::LeastSquares;
+    let toy = Toy {
+        n: 2,
+        m: 3,
+        nan_at: None,
+        fail: false,
+    };
+    let mut out = [0.0; 2];
+    toy.retract(&[1.0, f64::NAN], &[f64::INFINITY], &mut out);
+    assert!(toy.reweight(&[f64::NAN]).is_none() && toy.jacobian_row_width().is_none());
+    let mut rows = lm::JacobianRows::new(3, 2, 2);
+    must_err(
+        "residuals_and_jacobian_rows (default)",
+        &toy.residuals_and_jacobian_rows(&[0.0; 2], &mut [0.0; 3], &mut rows),
+    );
+    let r = std::panic::catch_unwind(|| lm::JacobianRows::new(usize::MAX, 2, 5));
+    assert!(r.is_err(), "an overflowing size is a clear panic");
     let mut rows = lm::JacobianRows::new(3, 2, 5);
     assert_eq!(
         (rows.width(), rows.len(), rows.is_dense(), rows.is_empty()),
@@ -1532,6 +1550,15 @@ fn io_functions_take_impossible_paths_and_hostile_records() {
     };
     assert!(serde_json::to_string(&io::view_record_to_json(&rec)).is_ok());
     assert!(serde_json::to_string(&io::warnings_to_json(&["".into(), "\u{0}".into()])).is_ok());
+    // rig.json text of a rig whose public fields were set by hand: the text is made,
+    // and write_rig refuses what the reader would refuse
+    let mut rig = fuzz_support_rig();
+    rig.board.pitch_mm = f64::NAN;
+    let _ = io::rig_to_json(&rig);
+    assert!(matches!(
+        io::write_rig(dir.path().join("rig.json"), &rig),
+        Err(Error::InvalidInput(_))
+    ));
     let summary = AdjustmentSummary {
         method: String::new(),
         centre_model: "\u{feff}".into(),
@@ -1543,6 +1570,10 @@ fn io_functions_take_impossible_paths_and_hostile_records() {
     let extra = io::calibration_extra(&summary, &[rec], &[]);
     assert!(serde_json::to_string(&extra).is_ok());
     let _ = io::self_checks_extra(None, None);
+}
+
+fn fuzz_support_rig() -> model::Rig {
+    io::rig_from_json(Path::new("rig.json"), fuzz_support::RIG_JSON).unwrap()
 }
 
 // ---------------------------------------------------------------- pipeline
