@@ -26,12 +26,10 @@ from typing import Any, Callable
 
 import numpy as np
 import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
 
-hypothesis = pytest.importorskip("hypothesis")
-from hypothesis import HealthCheck, given, settings  # noqa: E402
-from hypothesis import strategies as st  # noqa: E402
-
-import stripecal  # noqa: E402
+import stripecal
 
 SCALE = int(os.environ.get("STRIPECAL_FUZZ_CASES", "1") or "1")
 settings.register_profile(
