@@ -14,7 +14,9 @@ Errors: ``StripecalError`` is the base class of the library's own errors;
 ``FormatError`` (bad file), ``InvalidInputError`` (bad argument) and
 ``DegenerateError`` (impossible geometry) and ``DetectionError`` (no target found in an
 image, or not indexable without guessing) are also ``ValueError``;
-``ConvergenceError`` is also ``RuntimeError``. File-system failures raise the builtin
+``ConvergenceError`` is also ``RuntimeError``; ``CalibrationQualityError`` (a
+calibration that failed its quality gates, carrying it for inspection) is also
+``ValueError``. File-system failures raise the builtin
 ``OSError`` subclasses (``FileNotFoundError``...). Array arguments of the wrong type
 raise ``TypeError``.
 
@@ -30,6 +32,7 @@ has a stub (``_core.pyi``).
 
 from stripecal._core import __version__ as __version__
 from stripecal.errors import (
+    CalibrationQualityError,
     ConvergenceError,
     DegenerateError,
     DetectionError,
@@ -106,6 +109,7 @@ __all__ = [
     "Calibration",
     "Camera",
     "Cloud",
+    "CalibrationQualityError",
     "ConvergenceError",
     "Dataset",
     "DegenerateError",

@@ -27,6 +27,7 @@ from stripecal.types import (
     LaserPlaneFit,
     LeaveOneOut,
     PlyCloud,
+    QualityCheck,
     SimPose,
     SphereFitExtra,
     SphereFitExtraInput,
@@ -45,6 +46,7 @@ __all__ = [
     "Calibration",
     "Camera",
     "Cloud",
+    "CalibrationQualityError",
     "ConvergenceError",
     "Dataset",
     "DegenerateError",
@@ -109,6 +111,9 @@ class InvalidInputError(StripecalError, ValueError): ...
 class ConvergenceError(StripecalError, RuntimeError): ...
 class DegenerateError(StripecalError, ValueError): ...
 class DetectionError(StripecalError, ValueError): ...
+class CalibrationQualityError(StripecalError, ValueError):
+    checks: List[QualityCheck]
+    calibration: Optional[Calibration]
 
 @final
 class Camera:
@@ -601,6 +606,7 @@ def calibrate(
     estimate_board_scale: bool = False,
     board_scale_tolerance: float = 0.01,
     leave_one_out: bool = True,
+    accept_poor: bool = False,
 ) -> Calibration: ...
 def calibrate_camera(
     views: Sequence[Tuple[npt.ArrayLike, npt.ArrayLike]],

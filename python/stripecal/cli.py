@@ -21,7 +21,7 @@ import numpy as np
 import stripecal
 import stripecal.sim
 from stripecal._progress import Progress
-from stripecal.types import SimConfig, TwinSummary
+from stripecal.types import QualityCheck, SimConfig, TwinSummary
 
 
 def cmd_info(args: argparse.Namespace) -> int:
@@ -327,8 +327,22 @@ def print_calibration(cal: stripecal.Calibration) -> None:
         print(f"\n  board scale {what}: {bs['scale']:.5f} +- {bs['sigma']:.5f}"
               f" (rig.json {bs['declared_mm']:.3f} mm -> {bs['implied_mm']:.3f} mm){flag}")
     print_leave_one_out(cal)
+    print_checks(q.get("checks", []), q.get("accepted_poor", False))
     for w in extra.get("warnings", []):
         print(f"  warning: {w}")
+
+
+def print_checks(checks: Sequence[QualityCheck], accepted_poor: bool) -> None:
+    """Prints the quality gates' verdicts."""
+    if not checks:
+        return
+    print("\n  quality checks")
+    for c in checks:
+        mark = "ok" if c["passed"] else "FAILED"
+        print(f"  {c['name']:<11} {mark:<6} {c['message']}")
+    if accepted_poor:
+        print("\n  ACCEPTED POOR: this calibration failed a quality check and was kept with"
+              " --accept-poor; do not use it to accept or reject parts")
 
 
 def print_leave_one_out(cal: stripecal.Calibration) -> None:
@@ -353,17 +367,35 @@ def print_leave_one_out(cal: stripecal.Calibration) -> None:
 def cmd_calibrate(args: argparse.Namespace) -> int:
     """Calibrates a dataset folder (rig.json, views.csv, images): camera, laser plane,
     hand-eye X and robot-world Z, with one-sigma uncertainties; writes calibration.json
-    and prints the parameters, residuals and per-view figures."""
+    and prints the parameters, residuals and per-view figures. A calibration that fails a
+    quality check (views whose robot pose does not fit their images and cannot be left
+    out, undetermined parameters, no convergence) is printed for inspection and NOT
+    written; the exit status is 1 (--accept-poor writes it, marked)."""
     t0 = time.monotonic()
     fix = [b.strip() for b in args.fix.split(",") if b.strip()] if args.fix else []
     if (fix or args.laser_only) and not args.from_calibration:
         raise stripecal.InvalidInputError("--fix and --laser-only hold blocks of an earlier calibration: give it with --from FILE")
-    cal = stripecal.calibrate(
-        args.dataset, distortion=args.distortion, method=args.method, robust=args.robust,
-        from_calibration=args.from_calibration, fix=fix, laser_only=args.laser_only,
-        estimate_board_scale=args.estimate_board_scale, board_scale_tolerance=args.board_scale_tolerance,
-        leave_one_out=not args.no_leave_one_out,
-    )
+    try:
+        cal = stripecal.calibrate(
+            args.dataset, distortion=args.distortion, method=args.method, robust=args.robust,
+            from_calibration=args.from_calibration, fix=fix, laser_only=args.laser_only,
+            estimate_board_scale=args.estimate_board_scale, board_scale_tolerance=args.board_scale_tolerance,
+            leave_one_out=not args.no_leave_one_out, accept_poor=args.accept_poor,
+        )
+    except stripecal.CalibrationQualityError as e:
+        if e.calibration is not None:
+            print("the calibration below FAILED its quality checks (shown for inspection):\n")
+            print_calibration(e.calibration)
+        else:
+            print_checks(e.checks, False)
+        failed = ", ".join(c["name"] for c in e.checks)
+        print(f"\nstripecal calibrate: error: the calibration failed its quality checks ({failed}); "
+              f"nothing written to {args.output}"
+              + (" (--accept-poor writes it anyway, marked)" if e.calibration is not None else ""),
+              file=sys.stderr)
+        for c in e.checks:
+            print(f"  {c['name']}: {c['message']}", file=sys.stderr)
+        return 1
     elapsed = time.monotonic() - t0
     cal.save(args.output)
     print_calibration(cal)
@@ -393,6 +425,8 @@ def _add_calibrate(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> 
     p.add_argument("--board-scale-tolerance", type=float, default=0.01, metavar="REL",
                    help="the board-scale check warns when |scale - 1| exceeds 3 sigma and this (default 0.01)")
     p.add_argument("--no-leave-one-out", action="store_true", help="skip the leave-one-view-out figure (one refit per view)")
+    p.add_argument("--accept-poor", action="store_true",
+                   help="write a calibration that failed a quality check anyway, marked quality.accepted_poor (default: exit 1, nothing written)")
     p.add_argument("--report", metavar="DIR", help="also write an HTML report with figures into DIR (needs matplotlib)")
     p.set_defaults(func=cmd_calibrate)
 

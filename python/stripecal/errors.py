@@ -3,11 +3,14 @@
 ``StripecalError`` is the base class of stripecal's own errors. ``FormatError`` (a bad
 file), ``InvalidInputError`` (a bad argument), ``DegenerateError`` (impossible geometry)
 and ``DetectionError`` (no target found in an image, or not indexable without guessing)
-are also ``ValueError``; ``ConvergenceError`` is also ``RuntimeError``. File-system
+are also ``ValueError``; ``ConvergenceError`` is also ``RuntimeError``. ``CalibrationQualityError`` (also
+``ValueError``) is a calibration that failed its quality gates: its ``checks`` say which
+and why, its ``calibration`` holds the result for inspection (None when none exists). File-system
 failures raise the builtin ``OSError`` subclasses; array arguments of the wrong type raise
 ``TypeError``.
 """
 
+from stripecal._core import CalibrationQualityError as CalibrationQualityError
 from stripecal._core import ConvergenceError as ConvergenceError
 from stripecal._core import DegenerateError as DegenerateError
 from stripecal._core import DetectionError as DetectionError
@@ -16,6 +19,7 @@ from stripecal._core import InvalidInputError as InvalidInputError
 from stripecal._core import StripecalError as StripecalError
 
 __all__ = [
+    "CalibrationQualityError",
     "ConvergenceError",
     "DegenerateError",
     "DetectionError",

@@ -8,6 +8,7 @@
 //! | `NotConverged`                | `ConvergenceError(StripecalError, RuntimeError)`   |
 //! | `Degenerate`                  | `DegenerateError(StripecalError, ValueError)`      |
 //! | `Detection`                   | `DetectionError(StripecalError, ValueError)`       |
+//! | `Quality`                     | `CalibrationQualityError(StripecalError, ValueError)` |
 
 use std::io::ErrorKind;
 
@@ -26,6 +27,7 @@ static INVALID_INPUT_ERROR: PyOnceLock<Py<PyType>> = PyOnceLock::new();
 static CONVERGENCE_ERROR: PyOnceLock<Py<PyType>> = PyOnceLock::new();
 static DEGENERATE_ERROR: PyOnceLock<Py<PyType>> = PyOnceLock::new();
 static DETECTION_ERROR: PyOnceLock<Py<PyType>> = PyOnceLock::new();
+static QUALITY_ERROR: PyOnceLock<Py<PyType>> = PyOnceLock::new();
 
 /// Creates `class name(*bases)` with a docstring, shown as `stripecal.<name>`.
 fn new_exception<'py>(
@@ -101,7 +103,39 @@ pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
          without guessing; the message says what was found.",
         py.get_type::<PyValueError>(),
     )?;
+    with(
+        &QUALITY_ERROR,
+        "CalibrationQualityError",
+        "A calibration that failed its quality gates (views that disagree and cannot be \
+         left out, undetermined parameters, no convergence): not trustworthy, so not \
+         returned. `checks` lists the failed checks (dicts: name, passed, message, views); \
+         `calibration` is the calibration for inspection (None when none could be \
+         computed). `calibrate(..., accept_poor=True)` returns it instead, marked.",
+        py.get_type::<PyValueError>(),
+    )?;
     Ok(())
+}
+
+/// A `CalibrationQualityError` with its `checks` and `calibration` attributes.
+pub fn quality_error(
+    py: Python<'_>,
+    failure: &stripecal::model::QualityFailure,
+    calibration: Option<Py<PyAny>>,
+) -> PyErr {
+    let err = PyErr::from_type(
+        exc_type(py, &QUALITY_ERROR, py.get_type::<PyValueError>()),
+        failure.to_string(),
+    );
+    let value = err.value(py);
+    let set = || -> PyResult<()> {
+        value.setattr("checks", crate::results::checks_to_py(py, &failure.failed)?)?;
+        value.setattr("calibration", calibration.unwrap_or_else(|| py.None()))?;
+        Ok(())
+    };
+    match set() {
+        Ok(()) => err,
+        Err(e) => e,
+    }
 }
 
 fn exc_type<'py>(
@@ -165,6 +199,7 @@ pub fn map_err_at(py: Python<'_>, e: Error, context: &str) -> PyErr {
             exc_type(py, &DETECTION_ERROR, py.get_type::<PyValueError>()),
             prefix(e.to_string()),
         ),
+        Error::Quality(f) => quality_error(py, &f, None),
     }
 }
 

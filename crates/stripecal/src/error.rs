@@ -44,6 +44,12 @@ pub enum Error {
     /// indexed without guessing; the message says what was found.
     #[error("detection failed: {0}")]
     Detection(String),
+    /// A calibration that is not trustworthy: its quality gates failed (views that
+    /// disagree and cannot be left out, undetermined parameters, no convergence). It
+    /// carries the failed checks and, when one could be computed, the calibration for
+    /// inspection ([`crate::model::QualityFailure`]).
+    #[error("{0}")]
+    Quality(Box<crate::model::QualityFailure>),
 }
 
 /// `Result` with the crate's [`Error`].
