@@ -94,3 +94,14 @@ def test_good_calibrations_are_not_rejected(noise: float, tmp_path: Path) -> Non
         stripecal.sim.Twin(cfg).write(str(out))
         cal = stripecal.calibrate(out / "calib", leave_one_out=False)
         assert all(c["passed"] and c["views"] == [] for c in cal.quality["checks"]), cal.quality["checks"]
+
+
+def test_report_shows_the_checks_and_the_accepted_poor_banner(clean: Path, tmp_path: Path) -> None:
+    pytest.importorskip("matplotlib")
+    from stripecal.report import write_report
+
+    ds = _swapped(clean, tmp_path / "swapped", 2, 4)
+    cal = stripecal.calibrate(ds, leave_one_out=False, accept_poor=True)
+    text = write_report(tmp_path / "rep", cal).read_text()
+    assert "Quality checks" in text and "ACCEPTED POOR" in text and "FAILED" in text
+    assert "views 2 and 4" in text
