@@ -85,7 +85,8 @@ pub struct Consensus {
     /// The median motion between pairs of robot poses (rotation deg, translation mm).
     pub motion: (f64, f64),
     /// Whether the members' median errors are within [`PairingOptions::coherence`] of
-    /// the motion (module docs); `false` means no consensus at all.
+    /// the motion (module docs); `false` means no consensus at all. `true` when no
+    /// subset of views determines `X` and `Z` (nothing can be told).
     pub coherent: bool,
     /// The limits applied (deg, mm).
     pub limit: (f64, f64),
@@ -330,9 +331,9 @@ fn finish(
     let n = a.len();
     let limit = limits(med, floor, opts.factor);
     let motion = motion(a);
-    let coherent = solution.is_some()
-        && med.0 <= opts.coherence * motion.0
-        && med.1 <= opts.coherence * motion.1;
+    // without any solution nothing can be told (the caller's solve says why)
+    let coherent = solution.is_none()
+        || (med.0 <= opts.coherence * motion.0 && med.1 <= opts.coherence * motion.1);
     let members: Vec<usize> = (0..n).filter(|&i| agrees[i]).collect();
     let (errs, fits_pose_of) = match &solution {
         Some(s) => {
