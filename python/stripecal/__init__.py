@@ -14,9 +14,10 @@ Errors: ``StripecalError`` is the base class of the library's own errors;
 ``FormatError`` (bad file), ``InvalidInputError`` (bad argument) and
 ``DegenerateError`` (impossible geometry) and ``DetectionError`` (no target found in an
 image, or not indexable without guessing) are also ``ValueError``;
-``ConvergenceError`` is also ``RuntimeError``. File-system failures raise the builtin
-``OSError`` subclasses (``FileNotFoundError``...). Array arguments of the wrong type
-raise ``TypeError``.
+``ConvergenceError`` is also ``RuntimeError``; ``BadImageError`` (a scan frame's image
+that cannot be used, naming the frame and the file) is a ``FormatError``. File-system
+failures raise the builtin ``OSError`` subclasses (``FileNotFoundError``...). Array
+arguments of the wrong type raise ``TypeError``.
 
 The API is grouped in submodules, each re-exported here (a name lives in exactly one):
 ``stripecal.model`` (Camera, Robot, Board, rotations), ``stripecal.io`` (records, file
@@ -30,6 +31,7 @@ has a stub (``_core.pyi``).
 
 from stripecal._core import __version__ as __version__
 from stripecal.errors import (
+    BadImageError,
     ConvergenceError,
     DegenerateError,
     DetectionError,
@@ -101,6 +103,7 @@ from stripecal.reconstruction import (
 from stripecal import calib, errors, io, model, reconstruction, sim, types, vision
 
 __all__ = [
+    "BadImageError",
     "CAMERA_PARAM_NAMES",
     "Board",
     "Calibration",

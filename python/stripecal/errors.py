@@ -6,8 +6,13 @@ and ``DetectionError`` (no target found in an image, or not indexable without gu
 are also ``ValueError``; ``ConvergenceError`` is also ``RuntimeError``. File-system
 failures raise the builtin ``OSError`` subclasses; array arguments of the wrong type raise
 ``TypeError``.
+
+``BadImageError`` is the ``FormatError`` of a scan frame whose image cannot be used
+(``reconstruct_scan``); its attributes ``frame``, ``line``, ``path`` and ``reason`` say
+which frame (index and scan.csv line), which file and what is wrong.
 """
 
+from stripecal._core import BadImageError as BadImageError
 from stripecal._core import ConvergenceError as ConvergenceError
 from stripecal._core import DegenerateError as DegenerateError
 from stripecal._core import DetectionError as DetectionError
@@ -16,6 +21,7 @@ from stripecal._core import InvalidInputError as InvalidInputError
 from stripecal._core import StripecalError as StripecalError
 
 __all__ = [
+    "BadImageError",
     "ConvergenceError",
     "DegenerateError",
     "DetectionError",
