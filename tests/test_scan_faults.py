@@ -196,8 +196,13 @@ def test_progress_exception_stops_the_run(twin, long_scan) -> None:  # type: ign
         if done > 0:
             os.kill(os.getpid(), signal.SIGINT)
 
-    with pytest.raises(KeyboardInterrupt):
-        stripecal.reconstruct_scan(cal, long_scan, progress=progress)
+    # Python's own handler, even when this test runs with SIGINT ignored
+    previous = signal.signal(signal.SIGINT, signal.default_int_handler)
+    try:
+        with pytest.raises(KeyboardInterrupt):
+            stripecal.reconstruct_scan(cal, long_scan, progress=progress)
+    finally:
+        signal.signal(signal.SIGINT, previous)
     assert len(calls) == 2 and calls[1] < 400 * FRAMES, calls
 
     class Stop(Exception):
@@ -220,6 +225,13 @@ def child_env() -> Dict[str, str]:
     return env
 
 
+def default_sigint() -> None:
+    """In the child before exec: SIGINT at its default, so that Python installs its
+    KeyboardInterrupt handler even when this test runs with SIGINT ignored (a background
+    job of a non-interactive shell, nohup): ignored signals stay ignored across exec."""
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+
+
 def run_on_pty(args: List[str], cwd: Path, ready: Callable[[str], bool], sig: int) -> Tuple[int, str, str]:
     """Runs ``python -m stripecal ARGS`` with stderr on a pseudo-terminal (so that the
     progress bar is drawn), sends `sig` once `ready(stderr so far)`, and returns
@@ -229,7 +241,8 @@ def run_on_pty(args: List[str], cwd: Path, ready: Callable[[str], bool], sig: in
 
     master, slave = pty.openpty()
     proc = subprocess.Popen([sys.executable, "-m", "stripecal", *args], cwd=cwd, env=child_env(),
-                            stdin=subprocess.DEVNULL, stdout=subprocess.PIPE, stderr=slave)
+                            stdin=subprocess.DEVNULL, stdout=subprocess.PIPE, stderr=slave,
+                            preexec_fn=default_sigint)
     os.close(slave)
     buf = b""
     sent = False
@@ -332,7 +345,8 @@ def test_sigint_during_calibrate_writes_nothing(twin, tmp_path) -> None:  # type
             target.write_bytes(earlier)
         proc = subprocess.Popen([sys.executable, "-m", "stripecal", "calibrate", str(data), "-o", str(target)],
                                 cwd=tmp_path, env=child_env(), stdin=subprocess.DEVNULL,
-                                stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+                                stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                                preexec_fn=default_sigint)
         while proc.poll() is None and cpu_seconds(proc.pid) < 0.8:
             time.sleep(0.02)
         assert proc.poll() is None, "the calibration ended before it could be interrupted: give it more views"

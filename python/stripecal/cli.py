@@ -651,9 +651,11 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
     and an earlier file at the output path is unchanged. ``reconstruct`` stops between
     chunks of frames and ignores Ctrl-C once it writes its file; ``calibrate`` stops when
     its current computation returns (the core cannot be interrupted mid-way) and, should
-    the interrupt come after it wrote its file, says so."""
+    the interrupt come after it wrote its file, says so. ``simulate`` and ``demo`` write
+    their folders file by file: they say the folder may be incomplete."""
     command = "?"
-    output: Optional[str] = None
+    output: Optional[str] = None  # a file the command writes at its end, atomically
+    folder: Optional[str] = None  # a folder it writes file by file (simulate, demo)
     before: Optional[Tuple[int, int, int]] = None
     try:
         parser = build_parser()
@@ -663,8 +665,9 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
         if func is None:
             parser.print_help(sys.stderr)
             return 2
-        out = getattr(args, "output", None)
+        out, fold = getattr(args, "output", None), getattr(args, "out", None)
         output = out if isinstance(out, str) else None
+        folder = fold if isinstance(fold, str) else None
         before = _file_state(output)
         try:
             return func(args)
@@ -675,7 +678,12 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
         if getattr(sys.stderr, "isatty", lambda: False)():
             sys.stderr.write("\n")  # end a progress bar's line
         now = _file_state(output)
-        what = f"{output} was already written" if now is not None and now != before else "nothing written"
+        if now is not None and now != before:
+            what = f"{output} was already written"
+        elif folder is not None:
+            what = f"{folder} may be incomplete"
+        else:
+            what = "nothing written"
         print(f"stripecal {command}: interrupted; {what}", file=sys.stderr)
         return 130
     finally:
