@@ -29,6 +29,7 @@ from stripecal.types import (
     PlyCloud,
     QualityCheck,
     SimPose,
+    SkippedFrame,
     SphereFitExtra,
     SphereFitExtraInput,
     SphereInput,
@@ -41,6 +42,7 @@ _Path = Union[str, os.PathLike[str]]
 _F64 = npt.NDArray[np.float64]
 
 __all__ = [
+    "BadImageError",
     "Board",
     "CAMERA_PARAM_NAMES",
     "Calibration",
@@ -114,6 +116,12 @@ class DetectionError(StripecalError, ValueError): ...
 class CalibrationQualityError(StripecalError, ValueError):
     checks: List[QualityCheck]
     calibration: Optional[Calibration]
+
+class BadImageError(FormatError):
+    frame: int
+    line: int
+    path: str
+    reason: str
 
 @final
 class Camera:
@@ -635,6 +643,8 @@ class Cloud:
     def flags(self) -> npt.NDArray[np.uint8]: ...
     @property
     def dropped(self) -> Dict[str, int]: ...
+    @property
+    def skipped_frames(self) -> List[SkippedFrame]: ...
     def save(self, path: _Path, ascii: bool = False) -> None: ...
     def __len__(self) -> int: ...
 
@@ -678,6 +688,7 @@ def reconstruct_scan(
     min_ray_plane_angle_deg: float = 2.0,
     drop_flags: int = 0,
     progress: Optional[Callable[[int, int, int], Any]] = None,
+    on_bad_image: str = "stop",
 ) -> Cloud: ...
 def triangulate(
     calibration: Calibration, uv: npt.ArrayLike, base_hand: npt.ArrayLike

@@ -70,6 +70,7 @@ __all__ = [
     "ResidualSigma",
     "SimConfig",
     "SimPose",
+    "SkippedFrame",
     "SphereFitExtra",
     "SphereFitExtraInput",
     "SphereInput",
@@ -107,6 +108,22 @@ class PlyCloud(TypedDict):
     properties: Dict[str, F64]
     """Other per-point properties by PLY name, each (N,) float64 (e.g. ``view``, ``u``,
     ``v``, ``intensity``, ``flags`` for clouds written by stripecal)."""
+
+
+class SkippedFrame(TypedDict):
+    """A scan frame left out because its image could not be used
+    (``Cloud.skipped_frames`` after ``reconstruct_scan(..., on_bad_image="skip")``)."""
+
+    frame: int
+    """Index of the frame: its row of scan.csv after the header, from 0 (the ``view``
+    property of the other frames' points)."""
+    line: int
+    """Its line in scan.csv (the header is line 1)."""
+    path: str
+    """The image file, joined with the scan folder."""
+    reason: str
+    """What is wrong: does not exist, cannot be read, cannot be decoded (truncated or
+    corrupted), the wrong size, or another bit depth than the scan's other frames."""
 
 
 # --- calib: calibration results -------------------------------------------------------

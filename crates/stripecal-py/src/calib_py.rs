@@ -214,7 +214,8 @@ fn parse_distortion(py: Python<'_>, s: Option<&str>) -> PyResult<Option<Distorti
 /// (in `extra["warnings"]`). Raises `InvalidInputError` for fewer than 3 usable views
 /// or no usable laser image, `DegenerateError` for pose sets or stripes that do not
 /// determine the result, `FormatError`/`OSError` for unreadable files. The GIL is
-/// released while it runs.
+/// released while it runs; a Ctrl-C (SIGINT) during the run raises `KeyboardInterrupt`
+/// when the core returns (the result is dropped), not at once.
 #[pyfunction]
 #[pyo3(signature = (dataset, *, distortion = None, method = "one-stage", robust = false, centre_model = "conic-exact", from_calibration = None, fix = Vec::new(), laser_only = false, estimate_board_scale = false, board_scale_tolerance = 0.01, leave_one_out = true, accept_poor = false))]
 #[allow(clippy::too_many_arguments)]
@@ -281,6 +282,9 @@ pub fn calibrate(
         })?;
         py.detach(|| calibrate_dataset(&path, &opts))
     };
+    // A Ctrl-C while the core ran (the GIL released, Python could not act on it): the
+    // result is dropped and KeyboardInterrupt raised, so no caller goes on to write it.
+    py.check_signals()?;
     match result {
         Ok(rep) => Ok(report_to_py(rep)),
         Err(stripecal::Error::Quality(f)) => {
