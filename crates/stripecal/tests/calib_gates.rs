@@ -203,3 +203,33 @@ fn a_pose_column_one_row_off_is_reported_as_such() {
         assert!(msg.contains(word), "{msg}");
     }
 }
+
+#[test]
+fn undetermined_numbers_fail_the_determined_gate() {
+    use stripecal::pipeline::gates::{determined, UNDETERMINED_FRACTION};
+    let (views, rig) = views15();
+    let rep = calibrate_observations(&views[..6], &rig, &CalibrateOptions::default()).unwrap();
+    let adj = rep.adjustment.clone();
+    let cam = &rep.calibration.camera;
+    assert!(determined(&adj, cam, Some(300.0)).passed);
+    // X's translation along z known to 20 mm at a 300 mm stand-off: beyond 5 %
+    let mut a = adj.clone();
+    a.sigma.hand_cam.translation_mm[2] = 20.0;
+    let c = determined(&a, cam, Some(300.0));
+    assert!(
+        !c.passed && c.message.contains("hand_cam.translation_mm[2]"),
+        "{}",
+        c.message
+    );
+    // just inside the limit passes
+    a.sigma.hand_cam.translation_mm[2] = 0.99 * UNDETERMINED_FRACTION * 300.0;
+    assert!(determined(&a, cam, Some(300.0)).passed);
+    // a focal length without a sigma (rank deficiency)
+    let mut b = adj.clone();
+    b.sigma.camera[0] = f64::NAN;
+    let c = determined(&b, cam, Some(300.0));
+    assert!(!c.passed && c.message.contains("fu"), "{}", c.message);
+    let mut u = adj;
+    u.unobservable = vec!["k3".into()];
+    assert!(!determined(&u, cam, None).passed);
+}

@@ -112,11 +112,7 @@ pub(super) fn views_check(
 /// principal point of the image size, the plane offset of itself, unit normals and
 /// rotation vectors of one radian, translations of the stand-off `standoff_mm` (when
 /// known), the board scale of 1.
-pub(super) fn determined(
-    adj: &JointResult,
-    camera: &Camera,
-    standoff_mm: Option<f64>,
-) -> QualityCheck {
+pub fn determined(adj: &JointResult, camera: &Camera, standoff_mm: Option<f64>) -> QualityCheck {
     let f = UNDETERMINED_FRACTION;
     let s = &adj.sigma;
     let mut bad: Vec<String> = adj
@@ -192,7 +188,7 @@ pub(super) fn determined(
 
 /// The `converged` gate (the one-stage adjustment only: the paper's method evaluates
 /// its stages without iterating).
-pub(super) fn converged(adj: &JointResult, method: Method) -> QualityCheck {
+pub fn converged(adj: &JointResult, method: Method) -> QualityCheck {
     if method == Method::OneStage && adj.stop_reason == StopReason::MaxIterations {
         return QualityCheck::fail(
             "converged",

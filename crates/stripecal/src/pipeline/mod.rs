@@ -28,7 +28,7 @@
 
 mod board_scale;
 mod calibrate;
-mod gates;
+pub mod gates;
 mod held;
 mod labels;
 mod laser_only;
