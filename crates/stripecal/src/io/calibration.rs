@@ -14,7 +14,7 @@ use crate::error::{Error, Result};
 use crate::model::camera::Camera;
 use crate::model::geometry::{Iso3, Plane};
 use crate::model::kinematics::Robot;
-use crate::model::{Calibration, NamedCovariance, Quality, Sphere, SphereFit, Truth};
+use crate::model::{Calibration, NamedCovariance, Quality, QualityCheck, Sphere, SphereFit, Truth};
 
 /// The `format` value of calibration.json.
 pub(super) const CALIBRATION_FORMAT: &str = "stripecal/calibration@1";
@@ -312,6 +312,8 @@ pub fn calibration_from_json(path: &Path, text: &str) -> Result<Calibration> {
         circle_rms_px: q.nonneg_f64("circle_rms_px")?,
         stripe_rms_px: q.nonneg_f64("stripe_rms_px")?,
         views_used: q.count("views_used")?,
+        checks: quality_checks_from(&q)?,
+        accepted_poor: q.opt_bool("accepted_poor")?.unwrap_or(false),
     };
     let uncertainty = root
         .opt_obj("uncertainty")?
@@ -351,6 +353,10 @@ pub fn calibration_to_json(c: &Calibration) -> String {
     q.insert("circle_rms_px".into(), num(c.quality.circle_rms_px));
     q.insert("stripe_rms_px".into(), num(c.quality.stripe_rms_px));
     q.insert("views_used".into(), Value::from(c.quality.views_used));
+    q.insert("accepted_poor".into(), Value::from(c.quality.accepted_poor));
+    if !c.quality.checks.is_empty() {
+        q.insert("checks".into(), quality_checks_value(&c.quality.checks));
+    }
     m.insert("quality".into(), Value::Object(q));
     m.insert("uncertainty".into(), Value::Object(c.uncertainty.clone()));
     if let Some(cov) = &c.covariance {
@@ -358,6 +364,47 @@ pub fn calibration_to_json(c: &Calibration) -> String {
     }
     append_extra(&mut m, &c.extra);
     to_pretty(&Value::Object(m))
+}
+
+/// `quality.checks`: `[{"name", "passed", "message", "views": [...]}, ...]` (optional).
+fn quality_checks_from(q: &Obj<'_>) -> Result<Vec<QualityCheck>> {
+    let Some(list) = q.opt("checks") else {
+        return Ok(Vec::new());
+    };
+    list.arr()?
+        .iter()
+        .map(|v| {
+            let o = v.obj()?;
+            Ok(QualityCheck {
+                name: o.req("name")?.str()?.to_string(),
+                passed: o.req("passed")?.bool()?,
+                message: o.req("message")?.str()?.to_string(),
+                views: match o.opt("views") {
+                    Some(vs) => vs.arr()?.iter().map(|x| x.count()).collect::<Result<_>>()?,
+                    None => Vec::new(),
+                },
+            })
+        })
+        .collect()
+}
+
+fn quality_checks_value(checks: &[QualityCheck]) -> Value {
+    Value::Array(
+        checks
+            .iter()
+            .map(|c| {
+                let mut o = Map::new();
+                o.insert("name".into(), Value::from(c.name.clone()));
+                o.insert("passed".into(), Value::from(c.passed));
+                o.insert("message".into(), Value::from(c.message.clone()));
+                o.insert(
+                    "views".into(),
+                    Value::Array(c.views.iter().map(|&v| Value::from(v)).collect()),
+                );
+                Value::Object(o)
+            })
+            .collect(),
+    )
 }
 
 /// Reads `calibration.json`.

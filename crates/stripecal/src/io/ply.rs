@@ -563,13 +563,16 @@ fn check_cloud(c: &Cloud) -> Result<()> {
     Ok(())
 }
 
-fn header_text(c: &Cloud, f: PlyFormat) -> String {
+fn header_text(c: &Cloud, f: PlyFormat, comments: &[String]) -> String {
     let mut h = String::from("ply\n");
     h.push_str(match f {
         PlyFormat::BinaryLittleEndian => "format binary_little_endian 1.0\n",
         PlyFormat::Ascii => "format ascii 1.0\n",
     });
     h.push_str("comment stripecal point cloud: x y z in mm, robot base frame\n");
+    for text in comments {
+        let _ = writeln!(h, "comment {text}");
+    }
     let _ = writeln!(h, "element vertex {}", c.points.len());
     for name in ["x", "y", "z"] {
         let _ = writeln!(h, "property double {name}");
@@ -585,8 +588,25 @@ fn header_text(c: &Cloud, f: PlyFormat) -> String {
 /// Errors when a property's length differs from the number of points or its name is
 /// not a valid PLY name (or is `x`, `y`, `z` or repeated).
 pub fn write_ply(p: impl AsRef<Path>, c: &Cloud, f: PlyFormat) -> Result<()> {
+    write_ply_with_comments(p, c, f, &[])
+}
+
+/// [`write_ply`] with extra header lines `comment TEXT`, one per entry (after the
+/// stripecal comment; readers skip them). A comment with a control character (a line
+/// break) is [`Error::InvalidInput`].
+pub fn write_ply_with_comments(
+    p: impl AsRef<Path>,
+    c: &Cloud,
+    f: PlyFormat,
+    comments: &[String],
+) -> Result<()> {
     check_cloud(c)?;
-    let header = header_text(c, f);
+    if let Some(bad) = comments.iter().find(|t| t.chars().any(char::is_control)) {
+        return Err(Error::InvalidInput(format!(
+            "PLY comment {bad:?} has a control character (comments are one line each)"
+        )));
+    }
+    let header = header_text(c, f, comments);
     let per_point = 3 + c.properties.len();
     let out = match f {
         PlyFormat::BinaryLittleEndian => {

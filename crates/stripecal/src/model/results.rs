@@ -51,6 +51,11 @@ pub struct Quality {
     pub circle_rms_px: f64,
     pub stripe_rms_px: f64,
     pub views_used: usize,
+    /// The quality gates' verdicts (`quality.checks`; empty in files written before
+    /// the gates existed).
+    pub checks: Vec<super::QualityCheck>,
+    /// A calibration that failed a gate and was kept anyway (`--accept-poor`).
+    pub accepted_poor: bool,
 }
 
 /// A calibration result (`calibration.json`).

@@ -1,4 +1,4 @@
-//! Consensus over views: which of each view's candidate board poses agrees with the
+//! The labelling search: which of each view's candidate board poses agrees with the
 //! robot poses of the others.
 //!
 //! A view's labelling may be undecided by its image (a symmetric board:
