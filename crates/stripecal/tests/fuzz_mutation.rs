@@ -868,7 +868,16 @@ fn check_dataset_error(case: &str, e: &Error, root: &Path) {
                 "{case}: {e} names a file outside the dataset"
             );
         }
-        Error::InvalidInput(_)
+        Error::BadImage(f) => {
+            assert!(
+                f.path.starts_with(root),
+                "{case}: {e} names a file outside the dataset"
+            );
+        }
+        Error::Cancelled => panic!("{case}: cancelled, but nothing asked to stop"),
+        // a quality gate refused the calibration: a typed error that says why
+        Error::Quality(_)
+        | Error::InvalidInput(_)
         | Error::Degenerate(_)
         | Error::Detection(_)
         | Error::NotConverged { .. } => {}

@@ -1818,7 +1818,7 @@ fn reconstruction_takes_hostile_values() {
             &truth,
             &scan,
             &ReconstructOptions::default(),
-            &mut |_, _, _| {},
+            &mut |_, _, _| std::ops::ControlFlow::Continue(()),
         )
         .map(|p| p.points_mm)
     });
@@ -2102,4 +2102,156 @@ fn vision_takes_hostile_images_and_options() {
         assert_eq!(CentreMethod::from_name(m.name()).unwrap(), m);
     }
     assert!(CentreMethod::from_name("").is_err() && StripeMethod::from_name("x").is_err());
+}
+
+// ---------------------------------------------------------------- added on main meanwhile
+
+/// The public functions the quality-gate and scan-fault work added while this campaign
+/// ran: `consensus::{find_consensus, find_shift, pairing::pose_error}`, `Consensus::{agreeing,
+/// members, outliers, swapped_pairs}`, `QualityCheck::{pass, fail}`,
+/// `pipeline::gates::{determined, converged}`, `reconstruct::BadImage::{name,
+/// from_name}`, `ScanPoints::ply_comments`, `io::write_ply_with_comments`, `Scan::read`.
+#[test]
+fn functions_added_with_the_gates_take_hostile_values() {
+    use calib::consensus::pairing::pose_error;
+    use calib::consensus::{find_consensus, find_shift, PairingOptions};
+    let f = fixture();
+    let t = f.twin.true_calibration();
+    let poses = f.twin.calibration_poses().unwrap();
+    let robot = f.twin.rig().unwrap().robot.unwrap();
+    let a: Vec<Iso3> = poses
+        .iter()
+        .map(|p| robot.forward(&p.q_deg).unwrap())
+        .collect();
+    let b: Vec<Iso3> = a
+        .iter()
+        .map(|ai| (ai * t.hand_cam).inverse() * t.base_board)
+        .collect();
+    let id = Iso3::identity();
+    let mut sets = vec![
+        ("the twin", a.clone(), b.clone()),
+        ("empty", vec![], vec![]),
+        ("mismatched", a.clone(), b[..2].to_vec()),
+        ("identical", vec![id; 6], vec![id; 6]),
+        ("NaN", vec![iso_bad(f64::NAN); 5], b.clone()),
+        ("huge", vec![iso_bad(1e308); 5], vec![iso_bad(-1e308); 5]),
+    ];
+    let mut swapped = (a.clone(), b.clone());
+    swapped.0.swap(1, 3);
+    sets.push(("two rows swapped", swapped.0, swapped.1));
+    for (what, a, b) in sets {
+        for opts in [
+            PairingOptions::default(),
+            PairingOptions {
+                factor: f64::NAN,
+                min_deg: -1.0,
+                min_rel: f64::INFINITY,
+                max_subsets: 0,
+                coherence: -1.0,
+            },
+        ] {
+            let (a2, b2, o2) = (a.clone(), b.clone(), opts);
+            let name = format!("find_consensus ({what})");
+            probe(&name, move || {
+                if let Ok(c) = find_consensus(&a2, &b2, &o2) {
+                    let n = a2.len();
+                    assert!(c.members().iter().chain(&c.outliers()).all(|&i| i < n));
+                    assert!(c.agreeing() <= n);
+                    for (i, j) in c.swapped_pairs() {
+                        assert!(i < n && j < n);
+                    }
+                }
+                for rows in [vec![], vec![0, 1, 2], vec![usize::MAX, 7, 1 << 40]] {
+                    for agree in [0, 3, usize::MAX] {
+                        if let Some(s) = find_shift(&rows, &a2, &b2, agree, &o2) {
+                            let _ = format!("{s:?}");
+                        }
+                    }
+                }
+                if let (Some(x), Some(y)) = (a2.first(), b2.first()) {
+                    let _ = pose_error(x, &iso_bad(f64::NAN), y, y);
+                }
+            });
+        }
+    }
+    // quality checks and the gates of an adjustment
+    let pass = stripecal::model::QualityCheck::pass("", "");
+    let fail = stripecal::model::QualityCheck::fail("\u{0}", "x", vec![usize::MAX]);
+    assert!(pass.passed && !fail.passed);
+    use calib::joint::{joint_adjustment, JointOptions, JointStart};
+    let start = JointStart {
+        camera: t.camera.clone(),
+        plane: t.laser_plane,
+        hand_cam: t.hand_cam,
+        base_board: t.base_board,
+    };
+    let adj = joint_adjustment(&f.obs, &f.twin.board, &start, &JointOptions::default()).unwrap();
+    let mut nan_cam = t.camera.clone();
+    nan_cam.fu = f64::NAN;
+    for cam in [t.camera.clone(), nan_cam] {
+        for standoff in [None, Some(f64::NAN), Some(-1.0), Some(0.0), Some(1e308)] {
+            let c = probe("gates::determined", {
+                let (adj, cam) = (adj.clone(), cam.clone());
+                move || pipeline::gates::determined(&adj, &cam, standoff)
+            });
+            assert!(!c.message.is_empty());
+        }
+    }
+    for m in [pipeline::Method::Paper, pipeline::Method::OneStage] {
+        let _ = pipeline::gates::converged(&adj, m);
+    }
+    // scan faults: names, comments, the scan reader without image checks
+    for s in ["stop", "skip", "", "STOP"] {
+        if let Ok(b) = reconstruct::BadImage::from_name(s) {
+            assert_eq!(b.name(), s);
+        }
+    }
+    let mut pts = ScanPoints::default();
+    pts.skipped.push(stripecal::BadFrame {
+        frame: usize::MAX,
+        line: 0,
+        path: "a\nb\u{7f}.png".into(),
+        reason: "line\r\nbreak\u{0}".into(),
+    });
+    let comments = pts.ply_comments();
+    let dir = tempfile::tempdir().unwrap();
+    let p = dir.path().join("c.ply");
+    // the comments of a skipped frame with control characters still make a valid file
+    io::write_ply_with_comments(
+        &p,
+        &fuzz_support::cloud(4, true),
+        io::PlyFormat::Ascii,
+        &comments,
+    )
+    .unwrap();
+    assert_eq!(io::read_ply(&p).unwrap().points.len(), 4);
+    for bad in ["a\nb", "\r", "end_header\nelement vertex 9", "\u{0}"] {
+        let r = io::write_ply_with_comments(
+            &p,
+            &fuzz_support::cloud(2, false),
+            io::PlyFormat::BinaryLittleEndian,
+            &[bad.to_string()],
+        );
+        assert!(matches!(r, Err(Error::InvalidInput(_))), "{bad:?}");
+        assert_eq!(
+            io::read_ply(&p).unwrap().points.len(),
+            4,
+            "a refused write changed the file"
+        );
+    }
+    for ok in ["end_header", "element vertex 1", "", "é ü \u{feff}"] {
+        io::write_ply_with_comments(
+            &p,
+            &fuzz_support::cloud(3, false),
+            io::PlyFormat::Ascii,
+            &[ok.to_string()],
+        )
+        .unwrap();
+        assert_eq!(io::read_ply(&p).unwrap().points.len(), 3, "comment {ok:?}");
+    }
+    assert!(fuzz_support::temporaries(dir.path()).is_empty());
+    must_err(
+        "Scan::read (empty folder)",
+        &model::Scan::read(dir.path(), None).map(|s| s.frames.len()),
+    );
 }

@@ -793,6 +793,8 @@ fn arb_calibration() -> impl Strategy<Value = Calibration> {
                     circle_rms_px: c,
                     stripe_rms_px: s,
                     views_used: n,
+                    checks: Vec::new(),
+                    accepted_poor: false,
                 },
                 uncertainty: Map::new(),
                 covariance: cov,

@@ -176,6 +176,8 @@ pub fn calibration() -> Calibration {
             circle_rms_px: 0.05,
             stripe_rms_px: 0.08,
             views_used: 5,
+            checks: Vec::new(),
+            accepted_poor: false,
         },
         uncertainty,
         covariance: Some(NamedCovariance {

@@ -398,6 +398,7 @@ pub struct Shift {
 /// is view `k`'s row in views.csv, `a[k]`, `b[k]` its robot and board poses. Returns the
 /// shift (1 or 2 rows either way) under which at least two thirds of the shifted pairs
 /// agree, when that is more than twice as many as agree unshifted (`agree_unshifted`).
+/// `None` too when `rows`, `a` and `b` differ in length.
 pub fn find_shift(
     rows: &[usize],
     a: &[Iso3],
@@ -405,6 +406,9 @@ pub fn find_shift(
     agree_unshifted: usize,
     opts: &PairingOptions,
 ) -> Option<Shift> {
+    if rows.len() != a.len() || a.len() != b.len() {
+        return None;
+    }
     let mut best: Option<Shift> = None;
     for s in [1isize, -1, 2, -2] {
         let (mut sa, mut sb) = (Vec::new(), Vec::new());
@@ -424,7 +428,7 @@ pub fn find_shift(
         let agreeing = c.agreeing();
         let pairs = sa.len();
         if 3 * agreeing >= 2 * pairs
-            && agreeing > 2 * agree_unshifted
+            && agreeing > agree_unshifted.saturating_mul(2)
             && best
                 .as_ref()
                 .is_none_or(|b| agreeing * b.pairs > b.agreeing * pairs)
