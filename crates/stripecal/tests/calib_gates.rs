@@ -129,6 +129,12 @@ fn two_swapped_of_fifteen_are_left_out_and_the_rest_matches_the_clean_calibratio
         .collect();
     let reference = calibrate_observations(&thirteen, &rig, &opts).unwrap();
     let (a, b) = (values(&rep.calibration), values(&reference.calibration));
+    let worst = a
+        .iter()
+        .zip(&b)
+        .map(|((_, x, _), (_, y, s))| (x - y).abs() / s)
+        .fold(0.0, f64::max);
+    println!("largest |difference| / sigma against the clean 13 views: {worst:.3e}");
     for ((n, x, _), (_, y, s)) in a.iter().zip(&b) {
         assert!((x - y).abs() <= *s, "{n}: {x} vs clean 13 views {y} +- {s}");
     }
