@@ -14,7 +14,10 @@ Errors: ``StripecalError`` is the base class of the library's own errors;
 ``FormatError`` (bad file), ``InvalidInputError`` (bad argument) and
 ``DegenerateError`` (impossible geometry) and ``DetectionError`` (no target found in an
 image, or not indexable without guessing) are also ``ValueError``;
-``ConvergenceError`` is also ``RuntimeError``. File-system failures raise the builtin
+``ConvergenceError`` is also ``RuntimeError``; ``CalibrationQualityError`` (a
+calibration that failed its quality gates, carrying it for inspection) is also
+``ValueError``; ``BadImageError`` (a scan frame's image that cannot be used, naming the
+frame and the file) is a ``FormatError``. File-system failures raise the builtin
 ``OSError`` subclasses (``FileNotFoundError``...). Array arguments of the wrong type
 raise ``TypeError``.
 
@@ -30,6 +33,8 @@ has a stub (``_core.pyi``).
 
 from stripecal._core import __version__ as __version__
 from stripecal.errors import (
+    BadImageError,
+    CalibrationQualityError,
     ConvergenceError,
     DegenerateError,
     DetectionError,
@@ -101,11 +106,13 @@ from stripecal.reconstruction import (
 from stripecal import calib, errors, io, model, reconstruction, sim, types, vision
 
 __all__ = [
+    "BadImageError",
     "CAMERA_PARAM_NAMES",
     "Board",
     "Calibration",
     "Camera",
     "Cloud",
+    "CalibrationQualityError",
     "ConvergenceError",
     "Dataset",
     "DegenerateError",

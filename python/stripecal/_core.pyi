@@ -27,8 +27,10 @@ from stripecal.types import (
     LaserPlaneFit,
     LeaveOneOut,
     PlyCloud,
+    QualityCheck,
     RobotPoseNoise,
     SimPose,
+    SkippedFrame,
     SphereFitExtra,
     SphereFitExtraInput,
     SphereInput,
@@ -41,11 +43,13 @@ _Path = Union[str, os.PathLike[str]]
 _F64 = npt.NDArray[np.float64]
 
 __all__ = [
+    "BadImageError",
     "Board",
     "CAMERA_PARAM_NAMES",
     "Calibration",
     "Camera",
     "Cloud",
+    "CalibrationQualityError",
     "ConvergenceError",
     "Dataset",
     "DegenerateError",
@@ -110,6 +114,15 @@ class InvalidInputError(StripecalError, ValueError): ...
 class ConvergenceError(StripecalError, RuntimeError): ...
 class DegenerateError(StripecalError, ValueError): ...
 class DetectionError(StripecalError, ValueError): ...
+class CalibrationQualityError(StripecalError, ValueError):
+    checks: List[QualityCheck]
+    calibration: Optional[Calibration]
+
+class BadImageError(FormatError):
+    frame: int
+    line: int
+    path: str
+    reason: str
 
 @final
 class Camera:
@@ -615,6 +628,7 @@ def calibrate(
     estimate_board_scale: bool = False,
     board_scale_tolerance: float = 0.01,
     leave_one_out: bool = True,
+    accept_poor: bool = False,
 ) -> Calibration: ...
 def calibrate_camera(
     views: Sequence[Tuple[npt.ArrayLike, npt.ArrayLike]],
@@ -643,6 +657,8 @@ class Cloud:
     def flags(self) -> npt.NDArray[np.uint8]: ...
     @property
     def dropped(self) -> Dict[str, int]: ...
+    @property
+    def skipped_frames(self) -> List[SkippedFrame]: ...
     def save(self, path: _Path, ascii: bool = False) -> None: ...
     def __len__(self) -> int: ...
 
@@ -686,6 +702,7 @@ def reconstruct_scan(
     min_ray_plane_angle_deg: float = 2.0,
     drop_flags: int = 0,
     progress: Optional[Callable[[int, int, int], Any]] = None,
+    on_bad_image: str = "stop",
 ) -> Cloud: ...
 def triangulate(
     calibration: Calibration, uv: npt.ArrayLike, base_hand: npt.ArrayLike

@@ -9,10 +9,13 @@ The CLI only parses arguments, calls the library and prints: no numerics here.
 from __future__ import annotations
 
 import argparse
+import inspect
 import json
 import os
 import platform
+import signal
 import sys
+import threading
 import time
 from typing import Any, Callable, Dict, List, Optional, Sequence, Tuple
 
@@ -21,7 +24,7 @@ import numpy as np
 import stripecal
 import stripecal.sim
 from stripecal._progress import Progress
-from stripecal.types import SimConfig, TwinSummary
+from stripecal.types import QualityCheck, SimConfig, TwinSummary
 
 
 def cmd_info(args: argparse.Namespace) -> int:
@@ -332,8 +335,22 @@ def print_calibration(cal: stripecal.Calibration) -> None:
         print(f"\n  robot-pose noise: {rn['translation_mm']:.3g} mm, {rn['rotation_deg']:.3g} deg"
               f" ({'at floor: ' + ', '.join(floor) if floor else 'estimated'})")
     print_leave_one_out(cal)
+    print_checks(q.get("checks", []), q.get("accepted_poor", False))
     for w in extra.get("warnings", []):
         print(f"  warning: {w}")
+
+
+def print_checks(checks: Sequence[QualityCheck], accepted_poor: bool) -> None:
+    """Prints the quality gates' verdicts."""
+    if not checks:
+        return
+    print("\n  quality checks")
+    for c in checks:
+        mark = "ok" if c["passed"] else "FAILED"
+        print(f"  {c['name']:<11} {mark:<6} {c['message']}")
+    if accepted_poor:
+        print("\n  ACCEPTED POOR: this calibration failed a quality check and was kept with"
+              " --accept-poor; do not use it to accept or reject parts")
 
 
 def print_leave_one_out(cal: stripecal.Calibration) -> None:
@@ -358,17 +375,35 @@ def print_leave_one_out(cal: stripecal.Calibration) -> None:
 def cmd_calibrate(args: argparse.Namespace) -> int:
     """Calibrates a dataset folder (rig.json, views.csv, images): camera, laser plane,
     hand-eye X and robot-world Z, with one-sigma uncertainties; writes calibration.json
-    and prints the parameters, residuals and per-view figures."""
+    and prints the parameters, residuals and per-view figures. A calibration that fails a
+    quality check (views whose robot pose does not fit their images and cannot be left
+    out, undetermined parameters, no convergence) is printed for inspection and NOT
+    written; the exit status is 1 (--accept-poor writes it, marked)."""
     t0 = time.monotonic()
     fix = [b.strip() for b in args.fix.split(",") if b.strip()] if args.fix else []
     if (fix or args.laser_only) and not args.from_calibration:
         raise stripecal.InvalidInputError("--fix and --laser-only hold blocks of an earlier calibration: give it with --from FILE")
-    cal = stripecal.calibrate(
-        args.dataset, distortion=args.distortion, method=args.method, robust=args.robust,
-        from_calibration=args.from_calibration, fix=fix, laser_only=args.laser_only,
-        estimate_board_scale=args.estimate_board_scale, board_scale_tolerance=args.board_scale_tolerance,
-        leave_one_out=not args.no_leave_one_out,
-    )
+    try:
+        cal = stripecal.calibrate(
+            args.dataset, distortion=args.distortion, method=args.method, robust=args.robust,
+            from_calibration=args.from_calibration, fix=fix, laser_only=args.laser_only,
+            estimate_board_scale=args.estimate_board_scale, board_scale_tolerance=args.board_scale_tolerance,
+            leave_one_out=not args.no_leave_one_out, accept_poor=args.accept_poor,
+        )
+    except stripecal.CalibrationQualityError as e:
+        if e.calibration is not None:
+            print("the calibration below FAILED its quality checks (shown for inspection):\n")
+            print_calibration(e.calibration)
+        else:
+            print_checks(e.checks, False)
+        failed = ", ".join(c["name"] for c in e.checks)
+        print(f"\nstripecal calibrate: error: the calibration failed its quality checks ({failed}); "
+              f"nothing written to {args.output}"
+              + (" (--accept-poor writes it anyway, marked)" if e.calibration is not None else ""),
+              file=sys.stderr)
+        for c in e.checks:
+            print(f"  {c['name']}: {c['message']}", file=sys.stderr)
+        return 1
     elapsed = time.monotonic() - t0
     cal.save(args.output)
     print_calibration(cal)
@@ -398,6 +433,8 @@ def _add_calibrate(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> 
     p.add_argument("--board-scale-tolerance", type=float, default=0.01, metavar="REL",
                    help="the board-scale check warns when |scale - 1| exceeds 3 sigma and this (default 0.01)")
     p.add_argument("--no-leave-one-out", action="store_true", help="skip the leave-one-view-out figure (one refit per view)")
+    p.add_argument("--accept-poor", action="store_true",
+                   help="write a calibration that failed a quality check anyway, marked quality.accepted_poor (default: exit 1, nothing written)")
     p.add_argument("--report", metavar="DIR", help="also write an HTML report with figures into DIR (needs matplotlib)")
     p.set_defaults(func=cmd_calibrate)
 
@@ -459,8 +496,21 @@ def _add_detect(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> Non
 def cmd_reconstruct(args: argparse.Namespace) -> int:
     """Reconstructs a scan folder (scan.csv + stripe images, spec/DATASET.md) with a
     calibration into a point cloud in the robot base frame (PLY: double x y z in mm plus
-    per-point view, u, v, intensity, flags). The file is written only when every frame
-    succeeded."""
+    per-point view, u, v, intensity, flags).
+
+    A frame whose image cannot be used (missing or unreadable, truncated or corrupted,
+    not the calibrated camera's size, another bit depth than most of the scan's frames)
+    stops the run with an error naming the frame, its scan.csv line, the file and what
+    is wrong (--on-bad-image stop, the default: exit status 1, nothing written). With
+    --on-bad-image skip such frames are left out: they are listed here and in the PLY
+    header (comment skipped_frames N, then one comment per frame). A frame that shows
+    no stripe is not a bad image.
+
+    The file is written only after every frame is done, atomically (a temporary file
+    in the same folder renamed over it): it is complete, or absent and an earlier file
+    at that path is left as it was. Ctrl-C (SIGINT) stops the run between chunks of
+    frames, writes nothing and exits with status 130; once the file is being written,
+    Ctrl-C is ignored and the command completes."""
     cal = stripecal.load_calibration(args.calibration)
     bar = Progress()
     t0 = time.monotonic()
@@ -480,23 +530,37 @@ def cmd_reconstruct(args: argparse.Namespace) -> int:
         min_ray_plane_angle_deg=args.min_angle_deg,
         drop_flags=drop,
         progress=progress,
+        on_bad_image=args.on_bad_image,
     )
     dt = time.monotonic() - t0
-    if len(cloud) == 0:
-        raise stripecal.DetectionError(f"{args.scan_dir}: no stripe point in any frame; nothing written")
-    cloud.save(args.output, ascii=args.ascii)
     frames = seen["frames"]
+    skipped = cloud.skipped_frames
+    if len(cloud) == 0:
+        why = f" ({len(skipped)} of {frames} frames skipped as bad images)" if skipped else ""
+        raise stripecal.DetectionError(f"{args.scan_dir}: no stripe point in any frame{why}; nothing written")
+    _uninterruptible()
+    cloud.save(args.output, ascii=args.ascii)
+    used = f"{frames - len(skipped)} of {frames} frames ({len(skipped)} skipped)" if skipped else f"{frames} frames"
     d = cloud.dropped
-    print(f"{len(cloud)} points from {frames} frames in {dt:.2f} s "
+    print(f"{len(cloud)} points from {used} in {dt:.2f} s "
           f"({frames / dt:.1f} frames/s, {len(cloud) / dt:,.0f} points/s)")
     print(f"dropped: {d['grazing']} grazing rays, {d['undistort']} outside the distortion model, "
           f"{d['flagged']} flagged")
-    print(f"wrote {args.output} ({'ascii' if args.ascii else 'binary'} PLY, base frame, mm)")
+    if skipped:
+        print(f"skipped {len(skipped)} frame{'s' if len(skipped) > 1 else ''} with a bad image (--on-bad-image skip):")
+        shown = 20
+        for b in skipped[:shown]:
+            print(f"  frame {b['frame']} (scan.csv line {b['line']}): image {b['path']}: {b['reason']}")
+        if len(skipped) > shown:
+            print(f"  ... and {len(skipped) - shown} more (every one is listed in the PLY header)")
+    print(f"wrote {args.output} ({'ascii' if args.ascii else 'binary'} PLY, base frame, mm"
+          f"{'; the header lists the skipped frames' if skipped else ''})")
     return 0
 
 
 def _add_reconstruct(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
-    p = sub.add_parser("reconstruct", help="scan images + calibration -> point cloud (PLY)", description=cmd_reconstruct.__doc__)
+    p = sub.add_parser("reconstruct", help="scan images + calibration -> point cloud (PLY)", description=inspect.cleandoc(cmd_reconstruct.__doc__ or ""),
+                       formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("calibration", metavar="CALIBRATION.json", help="calibration result (spec: calibration.json)")
     p.add_argument("scan_dir", metavar="SCAN_DIR", help="scan folder: scan.csv and the images it names")
     p.add_argument("-o", "--output", required=True, metavar="CLOUD.ply", help="output point cloud")
@@ -507,6 +571,10 @@ def _add_reconstruct(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -
                    help="drop rays meeting the laser plane at less than this angle (default 2)")
     p.add_argument("--drop-biased", action="store_true",
                    help="drop stripe points flagged as biased (uneven background, oblique crossing)")
+    p.add_argument("--on-bad-image", choices=["stop", "skip"], default="stop",
+                   help="a frame whose image is missing, unreadable, truncated, corrupted, of the wrong size "
+                        "or bit depth: stop with an error naming it and write nothing (default), or skip "
+                        "it and list it in the output and the PLY header")
     p.set_defaults(func=cmd_reconstruct)
 
 
@@ -582,19 +650,83 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
-def main(argv: Optional[Sequence[str]] = None) -> int:
-    """Entry point of the ``stripecal`` console script; returns the exit status."""
-    parser = build_parser()
-    args = parser.parse_args(argv)
-    func: Optional[Callable[[argparse.Namespace], int]] = getattr(args, "func", None)
-    if func is None:
-        parser.print_help(sys.stderr)
-        return 2
+# The SIGINT handler a command replaced with SIG_IGN at its point of no return
+# (``_uninterruptible``); ``main`` puts it back.
+_SAVED_SIGINT: List[Any] = []
+
+
+def _uninterruptible() -> None:
+    """The command's point of no return, just before it writes its output: from here to
+    its end Ctrl-C is ignored, so the (atomic) write and the report of it complete. A
+    Ctrl-C that arrived before is raised here (``signal.signal`` runs pending handlers
+    first): nothing has been written then."""
+    if threading.current_thread() is threading.main_thread() and not _SAVED_SIGINT:
+        _SAVED_SIGINT.append(signal.signal(signal.SIGINT, signal.SIG_IGN))
+
+
+def _restore_sigint() -> None:
+    while _SAVED_SIGINT:
+        signal.signal(signal.SIGINT, _SAVED_SIGINT.pop())
+
+
+def _file_state(path: Optional[str]) -> Optional[Tuple[int, int, int]]:
+    """(inode, mtime ns, size) of a file, None when there is none."""
+    if not path:
+        return None
     try:
-        return func(args)
-    except (stripecal.StripecalError, OSError) as e:
-        print(f"stripecal {args.command}: error: {e}", file=sys.stderr)
-        return 1
+        st = os.stat(path)
+    except OSError:
+        return None
+    return (st.st_ino, st.st_mtime_ns, st.st_size)
+
+
+def main(argv: Optional[Sequence[str]] = None) -> int:
+    """Entry point of the ``stripecal`` console script; returns the exit status: 0 done,
+    1 an error (the message on stderr), 2 a usage error, 130 interrupted.
+
+    Interrupts: Ctrl-C (SIGINT) makes a command stop, print ``interrupted; nothing
+    written`` and return 130. Outputs are written atomically (a temporary file renamed
+    over the target), so there is never a partial file or a temporary file left behind,
+    and an earlier file at the output path is unchanged. ``reconstruct`` stops between
+    chunks of frames and ignores Ctrl-C once it writes its file; ``calibrate`` stops when
+    its current computation returns (the core cannot be interrupted mid-way) and, should
+    the interrupt come after it wrote its file, says so. ``simulate`` and ``demo`` write
+    their folders file by file: they say the folder may be incomplete."""
+    command = "?"
+    output: Optional[str] = None  # a file the command writes at its end, atomically
+    folder: Optional[str] = None  # a folder it writes file by file (simulate, demo)
+    before: Optional[Tuple[int, int, int]] = None
+    try:
+        parser = build_parser()
+        args = parser.parse_args(argv)
+        command = str(args.command)
+        func: Optional[Callable[[argparse.Namespace], int]] = getattr(args, "func", None)
+        if func is None:
+            parser.print_help(sys.stderr)
+            return 2
+        out, fold = getattr(args, "output", None), getattr(args, "out", None)
+        output = out if isinstance(out, str) else None
+        folder = fold if isinstance(fold, str) else None
+        before = _file_state(output)
+        try:
+            return func(args)
+        except (stripecal.StripecalError, OSError) as e:
+            print(f"stripecal {args.command}: error: {e}", file=sys.stderr)
+            return 1
+    except KeyboardInterrupt:
+        if getattr(sys.stderr, "isatty", lambda: False)():
+            sys.stderr.write("\n")  # end a progress bar's line
+        now = _file_state(output)
+        if now is not None and now != before:
+            what = f"{output} was already written"
+        elif folder is not None:
+            what = f"{folder} may be incomplete"
+        else:
+            what = "nothing written"
+        print(f"stripecal {command}: interrupted; {what}", file=sys.stderr)
+        return 130
+    finally:
+        _restore_sigint()
 
 
 if __name__ == "__main__":

@@ -282,6 +282,7 @@ img{{max-width:100%}} figure{{margin:1em 0}}</style></head><body>
 <p>method <b>{html.escape(str(e.get('method', '?')))}</b>, camera model {html.escape(cal.camera.distortion_model)},
 {q['views_used']} views used. Residual RMS: circles <b>{q['circle_rms_px']:.4f} px</b>,
 stripe <b>{q['stripe_rms_px']:.4f} px</b> ({float(e.get('stripe_rms_mm') or float('nan')):.4f} mm){'' if cal.laser_plane is not None else ' (laser plane not estimated: no laser images)'}.</p>
+{_checks_html(cal)}
 {('<h2>Warnings</h2><ul>' + warn + '</ul>') if warn else ''}
 <h2>Parameters</h2>
 <table><tr><th>parameter</th><th>value</th><th>1 sigma</th><th>true</th><th>error</th></tr>{''.join(tr)}</table>
@@ -297,6 +298,25 @@ stripe <b>{q['stripe_rms_px']:.4f} px</b> ({float(e.get('stripe_rms_mm') or floa
     tmp.write_text(doc, encoding="utf-8")
     os.replace(tmp, path)
     return path
+
+
+def _checks_html(cal: stripecal.Calibration) -> str:
+    """The quality gates' verdicts, and a banner when a failed calibration was kept."""
+    q = cal.quality
+    checks = q.get("checks", [])
+    if not checks:
+        return ""
+    rows = []
+    for c in checks:
+        bad = ' style="color:#b00"' if not c["passed"] else ""
+        views = ", ".join(str(v) for v in c["views"])
+        rows.append(f"<tr{bad}><td>{html.escape(c['name'])}</td><td>{'passed' if c['passed'] else 'FAILED'}</td>"
+                    f"<td>{html.escape(views)}</td><td style=\"text-align:left\">{html.escape(c['message'])}</td></tr>")
+    banner = ('<p style="color:#fff;background:#b00;padding:0.5em"><b>ACCEPTED POOR</b>: this calibration failed '
+              "a quality check and was kept with --accept-poor. Do not use it to accept or reject parts.</p>"
+              if q.get("accepted_poor") else "")
+    return (f"<h2>Quality checks</h2>{banner}<table><tr><th>check</th><th>verdict</th><th>views</th>"
+            f"<th>figures</th></tr>{''.join(rows)}</table>")
 
 
 def _leave_one_out_html(cal: stripecal.Calibration) -> str:

@@ -65,6 +65,7 @@ __all__ = [
     "LeaveOneOutView",
     "PlaneSigma",
     "PlyCloud",
+    "QualityCheck",
     "PoseSigma",
     "ResidualSigma",
     "RobotPoseAtFloor",
@@ -73,6 +74,7 @@ __all__ = [
     "RobotPoseNoiseView",
     "SimConfig",
     "SimPose",
+    "SkippedFrame",
     "SphereFitExtra",
     "SphereFitExtraInput",
     "SphereInput",
@@ -112,7 +114,40 @@ class PlyCloud(TypedDict):
     ``v``, ``intensity``, ``flags`` for clouds written by stripecal)."""
 
 
+class SkippedFrame(TypedDict):
+    """A scan frame left out because its image could not be used
+    (``Cloud.skipped_frames`` after ``reconstruct_scan(..., on_bad_image="skip")``)."""
+
+    frame: int
+    """Index of the frame: its row of scan.csv after the header, from 0 (the ``view``
+    property of the other frames' points)."""
+    line: int
+    """Its line in scan.csv (the header is line 1)."""
+    path: str
+    """The image file, joined with the scan folder."""
+    reason: str
+    """What is wrong: does not exist, cannot be read, cannot be decoded (truncated or
+    corrupted), the wrong size, or another bit depth than the scan's other frames."""
+
+
 # --- calib: calibration results -------------------------------------------------------
+
+
+class QualityCheck(TypedDict):
+    """One quality gate's verdict (``Calibration.quality["checks"]``,
+    ``CalibrationQualityError.checks``)."""
+
+    name: str
+    """``pairing`` (robot poses against images), ``views`` (a view's residuals against
+    the others'), ``determined`` (every estimated number has a meaningful one-sigma) or
+    ``converged`` (the adjustment reached its tolerance)."""
+    passed: bool
+    """Whether the gate passed."""
+    message: str
+    """What was measured, against what limit, and what to do."""
+    views: List[int]
+    """The views (views.csv rows, 0-based) the check names as suspect (left out when the
+    gate passed, the reason it failed otherwise)."""
 
 
 class CalibrationQuality(TypedDict):
@@ -124,11 +159,23 @@ class CalibrationQuality(TypedDict):
     """RMS stripe-point distance from the predicted stripe line, px."""
     views_used: int
     """Number of views the calibration used."""
+    accepted_poor: bool
+    """True when a quality gate failed and the calibration was kept anyway
+    (``accept_poor=True``, ``--accept-poor``)."""
+    checks: List[QualityCheck]
+    """Every quality gate's verdict (empty for files written before the gates)."""
 
 
-CalibrationQualityInput = Union[CalibrationQuality, Dict[str, float]]
-"""What ``Calibration(quality=...)`` accepts: any of the three keys (missing ones are 0;
-unknown keys are an error)."""
+class CalibrationQualityInput(TypedDict, total=False):
+    """What ``Calibration(quality=...)`` accepts: any of the keys of
+    ``CalibrationQuality`` (missing ones are 0, False or empty; unknown keys are an
+    error)."""
+
+    circle_rms_px: float
+    stripe_rms_px: float
+    views_used: int
+    accepted_poor: bool
+    checks: List[QualityCheck]
 
 
 class CameraSigma(TypedDict, total=False):

@@ -26,7 +26,7 @@ use stripecal::pipeline::{
 use crate::board::PyBoard;
 use crate::camera::PyCamera;
 use crate::convert::{f64_array, fmt_shape, iso_to_py, nd, positive_u32, RIGID_TOL};
-use crate::errors::{invalid_input, map_err_at, ResultExt};
+use crate::errors::{invalid_input, map_err, map_err_at, quality_error, ResultExt};
 use crate::results::PyCalibration;
 use crate::rig::PyDataset;
 
@@ -202,15 +202,22 @@ fn parse_distortion(py: Python<'_>, s: Option<&str>) -> PyResult<Option<Distorti
 /// disagrees by more than 3 sigma and `board_scale_tolerance`). `leave_one_out=True`
 /// (default) computes the leave-one-view-out figure (`extra["leave_one_out"]`).
 ///
+/// Quality gates: a calibration that fails one (views that disagree and cannot be left
+/// out, undetermined parameters, no convergence) raises `CalibrationQualityError`
+/// carrying the failed `checks` and the `calibration` for inspection;
+/// `accept_poor=True` returns it instead, with `quality["accepted_poor"]` True. Every
+/// gate's verdict is in `quality["checks"]`.
+///
 /// Returns a `Calibration` with quality, one-sigma `uncertainty`, per-view figures
 /// (`views`) and the run's residuals. Views whose board is not found, and views whose
 /// robot pose disagrees with their board pose, are left out with a warning naming them
 /// (in `extra["warnings"]`). Raises `InvalidInputError` for fewer than 3 usable views
 /// or no usable laser image, `DegenerateError` for pose sets or stripes that do not
 /// determine the result, `FormatError`/`OSError` for unreadable files. The GIL is
-/// released while it runs.
+/// released while it runs; a Ctrl-C (SIGINT) during the run raises `KeyboardInterrupt`
+/// when the core returns (the result is dropped), not at once.
 #[pyfunction]
-#[pyo3(signature = (dataset, *, distortion = None, method = "one-stage", robust = false, centre_model = "conic-exact", from_calibration = None, fix = Vec::new(), laser_only = false, estimate_board_scale = false, board_scale_tolerance = 0.01, leave_one_out = true))]
+#[pyo3(signature = (dataset, *, distortion = None, method = "one-stage", robust = false, centre_model = "conic-exact", from_calibration = None, fix = Vec::new(), laser_only = false, estimate_board_scale = false, board_scale_tolerance = 0.01, leave_one_out = true, accept_poor = false))]
 #[allow(clippy::too_many_arguments)]
 pub fn calibrate(
     py: Python<'_>,
@@ -225,6 +232,7 @@ pub fn calibrate(
     estimate_board_scale: bool,
     board_scale_tolerance: f64,
     leave_one_out: bool,
+    accept_poor: bool,
 ) -> PyResult<PyCalibration> {
     let from = match from_calibration {
         None => None,
@@ -259,12 +267,12 @@ pub fn calibrate(
         free,
         leave_one_out,
         board_scale_tolerance,
+        accept_poor,
         ..Default::default()
     };
-    let rep = if let Ok(ds) = dataset.cast::<PyDataset>() {
+    let result = if let Ok(ds) = dataset.cast::<PyDataset>() {
         let ds = &ds.get().inner;
         py.detach(|| calibrate_dataset_loaded(ds, &opts))
-            .py_err(py)?
     } else {
         let path: PathBuf = dataset.extract().map_err(|_| {
             pyo3::exceptions::PyTypeError::new_err(format!(
@@ -272,9 +280,22 @@ pub fn calibrate(
                 crate::convert::type_name(dataset)
             ))
         })?;
-        py.detach(|| calibrate_dataset(&path, &opts)).py_err(py)?
+        py.detach(|| calibrate_dataset(&path, &opts))
     };
-    Ok(report_to_py(rep))
+    // A Ctrl-C while the core ran (the GIL released, Python could not act on it): the
+    // result is dropped and KeyboardInterrupt raised, so no caller goes on to write it.
+    py.check_signals()?;
+    match result {
+        Ok(rep) => Ok(report_to_py(rep)),
+        Err(stripecal::Error::Quality(f)) => {
+            let cal = match &f.report {
+                Some(rep) => Some(Py::new(py, report_to_py((**rep).clone()))?.into_any()),
+                None => None,
+            };
+            Err(quality_error(py, &f, cal))
+        }
+        Err(e) => Err(map_err(py, e)),
+    }
 }
 
 fn parse_centre_model(py: Python<'_>, s: &str) -> PyResult<CentreModel> {

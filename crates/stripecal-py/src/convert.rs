@@ -75,6 +75,12 @@ pub fn f64_array(obj: &Bound<'_, PyAny>, name: &str) -> PyResult<ArrayD<f64>> {
         u.call_method1("astype", ("float64",))?
             .cast_into::<PyArrayDyn<f64>>()?
     };
+    // An array without elements is built here: numpy's view of an empty slice of
+    // another array can carry strides ndarray refuses (`as_array` panicked on
+    // `np.zeros(9)[:0].reshape(0, 3)`).
+    if arr.len() == 0 {
+        return Ok(ArrayD::zeros(IxDyn(arr.shape())));
+    }
     let ro = arr
         .try_readonly()
         .map_err(|e| PyValueError::new_err(format!("{name}: cannot read the array: {e}")))?;

@@ -8,12 +8,15 @@
 //! | `NotConverged`                | `ConvergenceError(StripecalError, RuntimeError)`   |
 //! | `Degenerate`                  | `DegenerateError(StripecalError, ValueError)`      |
 //! | `Detection`                   | `DetectionError(StripecalError, ValueError)`       |
+//! | `Quality`                     | `CalibrationQualityError(StripecalError, ValueError)` |
+//! | `BadImage`                    | `BadImageError(FormatError)`, with `frame`, `line`, `path`, `reason` |
+//! | `Cancelled`                   | `KeyboardInterrupt` (callers return the interrupt they saw instead) |
 
 use std::io::ErrorKind;
 
 use pyo3::exceptions::{
-    PyException, PyFileExistsError, PyFileNotFoundError, PyIsADirectoryError, PyNotADirectoryError,
-    PyOSError, PyPermissionError, PyRuntimeError, PyValueError,
+    PyException, PyFileExistsError, PyFileNotFoundError, PyIsADirectoryError, PyKeyboardInterrupt,
+    PyNotADirectoryError, PyOSError, PyPermissionError, PyRuntimeError, PyValueError,
 };
 use pyo3::prelude::*;
 use pyo3::sync::PyOnceLock;
@@ -26,6 +29,8 @@ static INVALID_INPUT_ERROR: PyOnceLock<Py<PyType>> = PyOnceLock::new();
 static CONVERGENCE_ERROR: PyOnceLock<Py<PyType>> = PyOnceLock::new();
 static DEGENERATE_ERROR: PyOnceLock<Py<PyType>> = PyOnceLock::new();
 static DETECTION_ERROR: PyOnceLock<Py<PyType>> = PyOnceLock::new();
+static QUALITY_ERROR: PyOnceLock<Py<PyType>> = PyOnceLock::new();
+static BAD_IMAGE_ERROR: PyOnceLock<Py<PyType>> = PyOnceLock::new();
 
 /// Creates `class name(*bases)` with a docstring, shown as `stripecal.<name>`.
 fn new_exception<'py>(
@@ -101,7 +106,63 @@ pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
          without guessing; the message says what was found.",
         py.get_type::<PyValueError>(),
     )?;
+    with(
+        &QUALITY_ERROR,
+        "CalibrationQualityError",
+        "A calibration that failed its quality gates (views that disagree and cannot be \
+         left out, undetermined parameters, no convergence): not trustworthy, so not \
+         returned. `checks` lists the failed checks (dicts: name, passed, message, views); \
+         `calibration` is the calibration for inspection (None when none could be \
+         computed). `calibrate(..., accept_poor=True)` returns it instead, marked.",
+        py.get_type::<PyValueError>(),
+    )?;
+    // A FormatError (a bad file) with the frame, its scan.csv line, the image file and
+    // what is wrong, as attributes (class defaults: no frame).
+    let format = FORMAT_ERROR
+        .get(py)
+        .map(|t| t.bind(py).clone())
+        .unwrap_or_else(|| py.get_type::<PyValueError>());
+    let bad = BAD_IMAGE_ERROR.get_or_try_init(py, || {
+        let ty = new_exception(
+            py,
+            "BadImageError",
+            "A scan frame whose image cannot be used: missing or unreadable, truncated or \
+             corrupted, not the calibrated camera's size, or another bit depth than the \
+             scan's other frames. Attributes: `frame` (index, from 0), `line` (its scan.csv \
+             line), `path` (the image file) and `reason` (what is wrong).",
+            vec![format],
+        )?;
+        let b = ty.bind(py);
+        b.setattr("frame", -1)?;
+        b.setattr("line", 0)?;
+        b.setattr("path", "")?;
+        b.setattr("reason", "")?;
+        Ok::<_, PyErr>(ty)
+    })?;
+    m.add("BadImageError", bad.bind(py))?;
     Ok(())
+}
+
+/// A `CalibrationQualityError` with its `checks` and `calibration` attributes.
+pub fn quality_error(
+    py: Python<'_>,
+    failure: &stripecal::model::QualityFailure,
+    calibration: Option<Py<PyAny>>,
+) -> PyErr {
+    let err = PyErr::from_type(
+        exc_type(py, &QUALITY_ERROR, py.get_type::<PyValueError>()),
+        failure.to_string(),
+    );
+    let value = err.value(py);
+    let set = || -> PyResult<()> {
+        value.setattr("checks", crate::results::checks_to_py(py, &failure.failed)?)?;
+        value.setattr("calibration", calibration.unwrap_or_else(|| py.None()))?;
+        Ok(())
+    };
+    match set() {
+        Ok(()) => err,
+        Err(e) => e,
+    }
 }
 
 fn exc_type<'py>(
@@ -165,6 +226,22 @@ pub fn map_err_at(py: Python<'_>, e: Error, context: &str) -> PyErr {
             exc_type(py, &DETECTION_ERROR, py.get_type::<PyValueError>()),
             prefix(e.to_string()),
         ),
+        Error::Quality(f) => quality_error(py, &f, None),
+        Error::BadImage(ref b) => {
+            let err = PyErr::from_type(
+                exc_type(py, &BAD_IMAGE_ERROR, py.get_type::<PyValueError>()),
+                prefix(e.to_string()),
+            );
+            let v = err.value(py);
+            let path = b.path.display().to_string();
+            // Setting attributes on a fresh exception instance cannot fail.
+            let _ = v.setattr("frame", b.frame);
+            let _ = v.setattr("line", b.line);
+            let _ = v.setattr("path", path);
+            let _ = v.setattr("reason", b.reason.as_str());
+            err
+        }
+        Error::Cancelled => PyKeyboardInterrupt::new_err(prefix(e.to_string())),
     }
 }
 

@@ -3,16 +3,19 @@
 //! `stripecal.PlaneFit`: stripe images + joints -> points in the robot base frame, and
 //! measurements in them. Conversions only; the GIL is released while Rust works.
 
+use std::ops::ControlFlow;
 use std::path::PathBuf;
 
 use nalgebra::Vector3;
 use pyo3::prelude::*;
-use pyo3::types::{PyDict, PySequence};
+use pyo3::types::{PyDict, PyList, PySequence};
 
-use stripecal::io::{write_ply, PlyFormat};
+use stripecal::io::{write_ply_with_comments, PlyFormat};
 use stripecal::model::image::AnyGray;
 use stripecal::model::RobotReading;
-use stripecal::reconstruct::{self as core, FitOptions, PlaneFit, ReconstructOptions, ScanPoints};
+use stripecal::reconstruct::{
+    self as core, BadImage, FitOptions, PlaneFit, ReconstructOptions, ScanPoints,
+};
 use stripecal::vision::stripe::StripeDirection;
 
 use crate::convert::{f64_array, fmt_shape, nd, py_to_iso};
@@ -82,9 +85,28 @@ impl PyCloud {
         Ok(d)
     }
 
+    /// Frames left out because their image could not be used (`reconstruct_scan` with
+    /// `on_bad_image="skip"`), in frame order: a list of dicts with `frame` (index, from
+    /// 0), `line` (its scan.csv line), `path` (the image file) and `reason`.
+    #[getter]
+    fn skipped_frames<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyList>> {
+        let out = PyList::empty(py);
+        for b in &self.inner.skipped {
+            let d = PyDict::new(py);
+            d.set_item("frame", b.frame)?;
+            d.set_item("line", b.line)?;
+            d.set_item("path", b.path.display().to_string())?;
+            d.set_item("reason", b.reason.as_str())?;
+            out.append(d)?;
+        }
+        Ok(out)
+    }
+
     /// Writes a PLY file (binary little-endian, or ASCII with `ascii=True`): double
     /// `x y z` (mm) and the properties `view` (frame index), `u`, `v`, `intensity`,
-    /// `flags`. Written atomically.
+    /// `flags`. The header records the skipped frames: `comment skipped_frames N`, then
+    /// one `comment skipped frame ...` line each. Written atomically (a temporary file in
+    /// the same folder renamed over `path`): `path` is complete or untouched.
     #[pyo3(signature = (path, ascii = false))]
     fn save(&self, py: Python<'_>, path: PathBuf, ascii: bool) -> PyResult<()> {
         let f = if ascii {
@@ -93,7 +115,7 @@ impl PyCloud {
             PlyFormat::BinaryLittleEndian
         };
         let inner = &self.inner;
-        py.detach(|| write_ply(&path, &inner.to_cloud(), f))
+        py.detach(|| write_ply_with_comments(&path, &inner.to_cloud(), f, &inner.ply_comments()))
             .py_err(py)
     }
 
@@ -110,9 +132,10 @@ impl PyCloud {
             .map(|&m| m as usize + 1)
             .unwrap_or(0);
         format!(
-            "Cloud(points={}, frames={frames}, dropped={})",
+            "Cloud(points={}, frames={frames}, dropped={}, skipped_frames={})",
             self.inner.len(),
-            self.inner.dropped.total()
+            self.inner.dropped.total(),
+            self.inner.skipped.len()
         )
     }
 }
@@ -213,9 +236,23 @@ pub fn reconstruct(
 
 /// Reconstructs a scan folder (scan.csv + images, spec/DATASET.md) with a calibration.
 /// `direction` "auto" takes the scan's rig.json hint, else the laser plane's.
-/// `progress(frames_done, frames_total, points)` is called between chunks of frames.
+///
+/// `on_bad_image`: what to do with a frame whose image cannot be used (missing or
+/// unreadable, truncated or corrupted, not the calibrated camera's size, or another bit
+/// depth than most of the scan's frames). `"stop"` (default): raise `BadImageError`
+/// (a `FormatError`) naming the frame, its scan.csv line, the file and what is wrong;
+/// nothing is returned. `"skip"`: leave the frame out and list it in the cloud's
+/// `skipped_frames`. A frame that shows no stripe is not a bad image (it gives no
+/// points).
+///
+/// `progress(frames_done, frames_total, points)` is called before the first chunk of
+/// frames and after each one. Between chunks the run also checks for signals: Ctrl-C
+/// (or an exception raised by `progress`) stops it there and propagates
+/// (`KeyboardInterrupt`); nothing is returned. The GIL is released while frames are
+/// processed.
 #[pyfunction]
-#[pyo3(signature = (calibration, scan_dir, direction = "auto", min_ray_plane_angle_deg = 2.0, drop_flags = 0, progress = None))]
+#[pyo3(signature = (calibration, scan_dir, direction = "auto", min_ray_plane_angle_deg = 2.0, drop_flags = 0, progress = None, on_bad_image = "stop"))]
+#[allow(clippy::too_many_arguments)]
 pub fn reconstruct_scan(
     py: Python<'_>,
     calibration: &Bound<'_, PyCalibration>,
@@ -224,29 +261,40 @@ pub fn reconstruct_scan(
     min_ray_plane_angle_deg: f64,
     drop_flags: u8,
     progress: Option<Py<PyAny>>,
+    on_bad_image: &str,
 ) -> PyResult<PyCloud> {
-    let opts = options(py, direction, min_ray_plane_angle_deg, drop_flags)?;
+    let mut opts = options(py, direction, min_ray_plane_angle_deg, drop_flags)?;
+    opts.on_bad_image = BadImage::from_name(on_bad_image).py_err(py)?;
     let cal = &calibration.get().inner;
+    // The first error of the callback (an exception of `progress`, or the pending
+    // KeyboardInterrupt of a signal); it stops the run and is what is raised.
     let mut cb_err: Option<PyErr> = None;
     let result = py.detach(|| {
         let scan = core::load_scan(&scan_dir, cal)?;
         let mut cb = |done: usize, total: usize, points: usize| {
-            if let (Some(f), None) = (&progress, &cb_err) {
-                Python::attach(|py| {
-                    if let Err(e) = f.call1(py, (done, total, points)) {
-                        cb_err = Some(e);
-                    }
+            Python::attach(|py| {
+                let r = py.check_signals().and_then(|()| match &progress {
+                    Some(f) => f.call1(py, (done, total, points)).map(drop),
+                    None => Ok(()),
                 });
-            }
+                match r {
+                    Ok(()) => ControlFlow::Continue(()),
+                    Err(e) => {
+                        cb_err = Some(e);
+                        ControlFlow::Break(())
+                    }
+                }
+            })
         };
         core::reconstruct_scan(cal, &scan, &opts, &mut cb)
     });
     if let Some(e) = cb_err {
         return Err(e);
     }
-    Ok(PyCloud {
-        inner: result.py_err(py)?,
-    })
+    let inner = result.py_err(py)?;
+    // A signal that arrived after the last check is not lost: nothing is returned.
+    py.check_signals()?;
+    Ok(PyCloud { inner })
 }
 
 fn points_from_py(py: Python<'_>, points: &Bound<'_, PyAny>) -> PyResult<Vec<[f64; 3]>> {

@@ -5,13 +5,13 @@ use std::path::{Path, PathBuf};
 use nalgebra::Vector3;
 use pyo3::exceptions::PyTypeError;
 use pyo3::prelude::*;
-use pyo3::types::{PyDict, PyTuple};
+use pyo3::types::{PyDict, PyList, PyTuple};
 use stripecal::io::{
     calibration_from_json, calibration_to_json, truth_from_json, truth_to_json, write_calibration,
     write_sphere_fit, write_truth,
 };
 use stripecal::model::geometry::Plane;
-use stripecal::model::{Calibration, Quality, Sphere, SphereFit, Truth};
+use stripecal::model::{Calibration, Quality, QualityCheck, Sphere, SphereFit, Truth};
 
 use crate::camera::PyCamera;
 use crate::convert::{fixed, iso_to_py, json_to_py, map_to_py, nd, opt_dict_to_map, py_to_iso};
@@ -48,11 +48,18 @@ fn quality_from_py(py: Python<'_>, d: Option<&Bound<'_, PyDict>>) -> PyResult<Qu
             "circle_rms_px" => q.circle_rms_px = v.extract()?,
             "stripe_rms_px" => q.stripe_rms_px = v.extract()?,
             "views_used" => q.views_used = v.extract()?,
+            "accepted_poor" => q.accepted_poor = v.extract()?,
+            "checks" => {
+                q.checks = v
+                    .try_iter()?
+                    .map(|c| check_from_py(py, &c?))
+                    .collect::<PyResult<_>>()?
+            }
             other => {
                 return Err(invalid_input(
                     py,
                     format!(
-                        "quality: unknown key {other:?} (expected circle_rms_px, stripe_rms_px, views_used)"
+                        "quality: unknown key {other:?} (expected circle_rms_px, stripe_rms_px, views_used, accepted_poor, checks)"
                     ),
                 ))
             }
@@ -66,7 +73,43 @@ fn quality_to_py<'py>(py: Python<'py>, q: &Quality) -> PyResult<Bound<'py, PyDic
     d.set_item("circle_rms_px", q.circle_rms_px)?;
     d.set_item("stripe_rms_px", q.stripe_rms_px)?;
     d.set_item("views_used", q.views_used)?;
+    d.set_item("accepted_poor", q.accepted_poor)?;
+    d.set_item("checks", checks_to_py(py, &q.checks)?)?;
     Ok(d)
+}
+
+/// One quality check from a dict `{name, passed, message, views}`.
+fn check_from_py(py: Python<'_>, c: &Bound<'_, PyAny>) -> PyResult<QualityCheck> {
+    let d = c
+        .cast::<PyDict>()
+        .map_err(|_| invalid_input(py, "quality.checks: each check must be a dict"))?;
+    let get = |k: &str| -> PyResult<Bound<'_, PyAny>> {
+        d.get_item(k)?
+            .ok_or_else(|| invalid_input(py, format!("quality.checks: a check lacks {k:?}")))
+    };
+    Ok(QualityCheck {
+        name: get("name")?.extract()?,
+        passed: get("passed")?.extract()?,
+        message: get("message")?.extract()?,
+        views: match d.get_item("views")? {
+            Some(v) => v.extract()?,
+            None => Vec::new(),
+        },
+    })
+}
+
+/// Quality checks as a list of dicts `{name, passed, message, views}`.
+pub fn checks_to_py<'py>(py: Python<'py>, checks: &[QualityCheck]) -> PyResult<Bound<'py, PyList>> {
+    let out = PyList::empty(py);
+    for c in checks {
+        let d = PyDict::new(py);
+        d.set_item("name", &c.name)?;
+        d.set_item("passed", c.passed)?;
+        d.set_item("message", &c.message)?;
+        d.set_item("views", c.views.clone())?;
+        out.append(d)?;
+    }
+    Ok(out)
 }
 
 /// A calibration result (calibration.json): camera, laser plane `n . p = d_mm` in the

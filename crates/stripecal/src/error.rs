@@ -44,6 +44,48 @@ pub enum Error {
     /// indexed without guessing; the message says what was found.
     #[error("detection failed: {0}")]
     Detection(String),
+    /// A calibration that is not trustworthy: its quality gates failed (views that
+    /// disagree and cannot be left out, undetermined parameters, no convergence). It
+    /// carries the failed checks and, when one could be computed, the calibration for
+    /// inspection ([`crate::model::QualityFailure`]).
+    #[error("{0}")]
+    Quality(Box<crate::model::QualityFailure>),
+    /// A scan frame whose image cannot be used (missing, unreadable, truncated or
+    /// corrupted, the wrong size or bit depth): which frame, where and why.
+    #[error("{0}")]
+    BadImage(BadFrame),
+    /// The caller stopped the run (a progress callback asked to stop); nothing is
+    /// returned.
+    #[error("cancelled")]
+    Cancelled,
+}
+
+/// A scan frame whose image cannot be used: the error of a reconstruction that stops at
+/// bad images, and one entry of the skipped frames of one that skips them.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct BadFrame {
+    /// Index of the frame (the row of scan.csv after the header, from 0; a point's
+    /// `view` property).
+    pub frame: usize,
+    /// Its line in scan.csv (the header is line 1).
+    pub line: usize,
+    /// The image file (the scan folder joined with the name in scan.csv).
+    pub path: PathBuf,
+    /// What is wrong with it.
+    pub reason: String,
+}
+
+impl std::fmt::Display for BadFrame {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(
+            f,
+            "frame {} (scan.csv line {}): image {}: {}",
+            self.frame,
+            self.line,
+            self.path.display(),
+            self.reason
+        )
+    }
 }
 
 /// `Result` with the crate's [`Error`].

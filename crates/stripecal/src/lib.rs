@@ -31,7 +31,7 @@ pub mod pipeline;
 pub mod reconstruct;
 pub mod vision;
 
-pub use error::{Error, Result};
+pub use error::{BadFrame, Error, Result};
 pub use model::board::{Board, BoardKind};
 pub use model::camera::{Camera, DistortionModel};
 pub use model::geometry::{Iso3, Plane};

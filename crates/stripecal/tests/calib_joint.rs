@@ -209,8 +209,10 @@ fn a_view_with_swapped_joints_is_left_out_as_an_outlier() {
     assert!(rep
         .warnings
         .iter()
-        .any(|w| w.starts_with("view 2: left out as an outlier")));
+        .any(|w| w.starts_with("view 2: its robot pose does not fit its image")));
     assert_eq!(rep.calibration.quality.views_used, 5);
+    let pairing = &rep.calibration.quality.checks[0];
+    assert!(pairing.passed && pairing.views == [2], "{pairing:?}");
     let (xr, xt) = iso_err(&rep.calibration.hand_cam, &t.hand_cam);
     assert!(xr < 0.01 && xt < 0.05, "X {xr} deg {xt} mm");
 }

@@ -713,6 +713,11 @@ fn calibration() -> Calibration {
             circle_rms_px: 0.0712345678901,
             stripe_rms_px: 0.1,
             views_used: 12,
+            checks: vec![
+                stripecal::model::QualityCheck::pass("pairing", "all agree"),
+                stripecal::model::QualityCheck::fail("views", "view 3 \"far\" off", vec![3, 7]),
+            ],
+            accepted_poor: true,
         },
         uncertainty,
         covariance: Some(NamedCovariance {

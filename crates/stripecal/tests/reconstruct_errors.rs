@@ -2,6 +2,7 @@
 //! line / image), and nothing appended or written on failure. Tiny synthetic images
 //! (64 x 48, one bright vertical stripe), no rendering.
 
+use std::ops::ControlFlow;
 use std::path::Path;
 
 use nalgebra::Vector3;
@@ -12,7 +13,8 @@ use stripecal::model::image::{AnyGray, GrayImage};
 use stripecal::model::image::{AnyView, ImageView};
 use stripecal::model::{Calibration, RobotReading, Scan, ScanFrame};
 use stripecal::reconstruct::{
-    load_scan, reconstruct_frames, reconstruct_scan, ReconstructOptions, Reconstructor, ScanPoints,
+    load_scan, reconstruct_frames, reconstruct_scan, BadImage, ReconstructOptions, Reconstructor,
+    ScanPoints,
 };
 use stripecal::{Error, Robot};
 
@@ -206,11 +208,15 @@ fn write_scan(dir: &Path, frames: &[(&str, Vec<f64>)]) {
     write_scan_csv(dir.join("scan.csv"), &rows).unwrap();
 }
 
+fn noop(_: usize, _: usize, _: usize) -> ControlFlow<()> {
+    ControlFlow::Continue(())
+}
+
 #[test]
 fn scan_folder_errors() {
     let cal = calibration();
     let tmp = tempfile::tempdir().unwrap();
-    let noop = &mut |_: usize, _: usize, _: usize| {};
+    let opts = ReconstructOptions::default();
 
     // Empty folder: no scan.csv.
     let empty = tmp.path().join("empty");
@@ -219,14 +225,35 @@ fn scan_folder_errors() {
     assert!(matches!(e, Error::Io { .. }), "{e}");
     assert!(e.to_string().contains("scan.csv"), "{e}");
 
-    // A row naming a missing image.
+    // A row naming a missing image: the reconstruction stops before any work.
     let d = tmp.path().join("missing");
     write_scan(
         &d,
         &[("images/a.png", Q.to_vec()), ("images/b.png", Q.to_vec())],
     );
     write_frame(&d.join("images/a.png"), H);
-    let e = load_scan(&d, &cal).unwrap_err();
+    let scan = load_scan(&d, &cal).unwrap();
+    let mut calls = 0;
+    let e = reconstruct_scan(&cal, &scan, &opts, &mut |_, _, _| {
+        calls += 1;
+        ControlFlow::Continue(())
+    })
+    .unwrap_err();
+    let Error::BadImage(b) = &e else {
+        panic!("expected BadImage, got {e:?}")
+    };
+    assert_eq!(
+        (b.frame, b.line, b.reason.as_str()),
+        (1, 3, "does not exist")
+    );
+    assert!(b.path.ends_with("images/b.png"), "{e}");
+    assert!(
+        e.to_string().contains("frame 1 (scan.csv line 3)") && e.to_string().contains("b.png"),
+        "{e}"
+    );
+    assert_eq!(calls, 0, "work started before the missing image was found");
+    // Scan::load (the Python load_scan) still checks every image.
+    let e = Scan::load(&d, cal.robot.as_ref()).unwrap_err();
     assert!(matches!(e, Error::Format { .. }), "{e}");
     assert!(
         e.to_string().contains("line 3") && e.to_string().contains("b.png"),
@@ -249,22 +276,25 @@ fn scan_folder_errors() {
     write_frame(&d.join("images/a.png"), H);
     write_frame(&d.join("images/b.png"), 40);
     let scan = load_scan(&d, &cal).unwrap();
-    let e = reconstruct_scan(&cal, &scan, &ReconstructOptions::default(), noop).unwrap_err();
+    let e = reconstruct_scan(&cal, &scan, &opts, &mut noop).unwrap_err();
     let m = e.to_string();
-    assert!(matches!(e, Error::InvalidInput(_)), "{e}");
+    assert!(matches!(e, Error::BadImage(_)), "{e}");
     assert!(
-        m.contains("frame 1") && m.contains("line 3") && m.contains("b.png"),
+        m.contains("frame 1")
+            && m.contains("line 3")
+            && m.contains("b.png")
+            && m.contains("64 x 40"),
         "{m}"
     );
 
     // An image that is not an image.
     std::fs::write(d.join("images/b.png"), b"not a png").unwrap();
-    let e = reconstruct_scan(&cal, &scan, &ReconstructOptions::default(), noop).unwrap_err();
+    let e = reconstruct_scan(&cal, &scan, &opts, &mut noop).unwrap_err();
+    assert!(matches!(e, Error::BadImage(_)), "{e}");
     assert!(
-        matches!(e, Error::Image { .. } | Error::Format { .. }),
+        e.to_string().contains("b.png") && e.to_string().contains("cannot be decoded"),
         "{e}"
     );
-    assert!(e.to_string().contains("b.png"), "{e}");
 
     // The good scan works and reports progress.
     save_gray_png(
@@ -274,14 +304,269 @@ fn scan_folder_errors() {
     .unwrap();
     let scan: Scan = load_scan(&d, &cal).unwrap();
     let mut calls = Vec::new();
-    let sp = reconstruct_scan(
-        &cal,
-        &scan,
-        &ReconstructOptions::default(),
-        &mut |a, b, c| calls.push((a, b, c)),
-    )
+    let sp = reconstruct_scan(&cal, &scan, &opts, &mut |a, b, c| {
+        calls.push((a, b, c));
+        ControlFlow::Continue(())
+    })
     .unwrap();
     assert_eq!(calls.first(), Some(&(0, 2, 0)));
     assert_eq!(calls.last().map(|c| (c.0, c.2)), Some((2, sp.len())));
     assert!(sp.frame.contains(&0) && sp.frame.contains(&1));
+    assert!(sp.skipped.is_empty());
+}
+
+/// `N_FRAMES` frames, each with its stripe at another column, in `dir`; frame `k`'s
+/// points are then told apart by their `u`.
+const N_FRAMES: usize = 7;
+
+fn write_good_scan(dir: &Path) {
+    let names: Vec<String> = (0..N_FRAMES).map(|k| format!("images/f{k}.png")).collect();
+    let rows: Vec<(&str, Vec<f64>)> = names.iter().map(|n| (n.as_str(), Q.to_vec())).collect();
+    write_scan(dir, &rows);
+    for (k, name) in names.iter().enumerate() {
+        let img = stripe_image(W, H, 20.0 + 3.0 * k as f64);
+        save_gray_png(dir.join(name), &AnyGray::U8(img)).unwrap();
+    }
+}
+
+fn opts_with(on_bad_image: BadImage) -> ReconstructOptions {
+    ReconstructOptions {
+        on_bad_image,
+        ..ReconstructOptions::default()
+    }
+}
+
+/// The clean scan's points without frame `k`'s.
+fn without_frame(sp: &ScanPoints, k: u32) -> Vec<[f64; 3]> {
+    sp.points_mm
+        .iter()
+        .zip(&sp.frame)
+        .filter(|(_, &f)| f != k)
+        .map(|(p, _)| *p)
+        .collect()
+}
+
+/// Each kind of bad image in the middle of a scan: `Stop` names it (frame, line, file,
+/// what is wrong) and returns nothing; `Skip` gives the other frames' points exactly and
+/// lists the frame.
+#[test]
+fn bad_image_in_the_middle_stops_or_is_skipped() {
+    let cal = calibration();
+    let tmp = tempfile::tempdir().unwrap();
+    let clean_dir = tmp.path().join("clean");
+    write_good_scan(&clean_dir);
+    let clean = reconstruct_scan(
+        &cal,
+        &load_scan(&clean_dir, &cal).unwrap(),
+        &ReconstructOptions::default(),
+        &mut noop,
+    )
+    .unwrap();
+    for k in 0..N_FRAMES as u32 {
+        assert!(clean.frame.contains(&k), "frame {k} has no points");
+    }
+
+    let k = 3usize; // the bad frame; scan.csv line k + 2
+    let png = std::fs::read(clean_dir.join("images/f3.png")).unwrap();
+    type Spoil = Box<dyn Fn(&Path)>;
+    let cases: Vec<(&str, Spoil, &str)> = vec![
+        (
+            "truncated",
+            Box::new(move |p: &Path| std::fs::write(p, &png[..png.len() / 2]).unwrap()),
+            "cannot be decoded",
+        ),
+        (
+            "random bytes",
+            Box::new(|p: &Path| {
+                let mut x = 0x2545_f491_4f6c_dd1du64;
+                let bytes: Vec<u8> = (0..3000)
+                    .map(|_| {
+                        x ^= x << 13;
+                        x ^= x >> 7;
+                        x ^= x << 17;
+                        x as u8
+                    })
+                    .collect();
+                std::fs::write(p, bytes).unwrap()
+            }),
+            "cannot be decoded",
+        ),
+        (
+            "empty file",
+            Box::new(|p: &Path| std::fs::write(p, b"").unwrap()),
+            "cannot be decoded",
+        ),
+        (
+            "missing",
+            Box::new(|p: &Path| std::fs::remove_file(p).unwrap()),
+            "does not exist",
+        ),
+        (
+            "a folder",
+            Box::new(|p: &Path| {
+                std::fs::remove_file(p).unwrap();
+                std::fs::create_dir(p).unwrap()
+            }),
+            "is not a file",
+        ),
+        (
+            "wrong size",
+            Box::new(|p: &Path| write_frame(p, H - 8)),
+            "is 64 x 40 pixels, the calibrated camera is 64 x 48",
+        ),
+        (
+            "16-bit among 8-bit",
+            Box::new(|p: &Path| {
+                let i = stripe_image(W, H, 29.0);
+                let wide = GrayImage {
+                    width: i.width,
+                    height: i.height,
+                    data: i.data.iter().map(|&v| v as u16 * 257).collect(),
+                };
+                save_gray_png(p, &AnyGray::U16(wide)).unwrap()
+            }),
+            "is 16-bit, but 6 of the scan's 7 readable frames are 8-bit",
+        ),
+    ];
+    for (name, spoil, reason) in &cases {
+        let d = tmp.path().join(name.replace(' ', "_"));
+        write_good_scan(&d);
+        spoil(&d.join("images/f3.png"));
+        let scan = load_scan(&d, &cal).unwrap();
+
+        let e =
+            reconstruct_scan(&cal, &scan, &opts_with(BadImage::Stop), &mut noop).expect_err(name);
+        let Error::BadImage(b) = &e else {
+            panic!("{name}: expected BadImage, got {e:?}")
+        };
+        assert_eq!((b.frame, b.line), (k, k + 2), "{name}: {e}");
+        assert_eq!(b.path, d.join("images/f3.png"), "{name}");
+        assert!(b.reason.contains(reason), "{name}: {e}");
+        let m = e.to_string();
+        assert!(
+            m.starts_with("frame 3 (scan.csv line 5): image ") && m.contains("f3.png"),
+            "{name}: {m}"
+        );
+
+        let sp = reconstruct_scan(&cal, &scan, &opts_with(BadImage::Skip), &mut noop)
+            .unwrap_or_else(|e| panic!("{name}: {e}"));
+        assert_eq!(sp.skipped.len(), 1, "{name}");
+        assert_eq!(&sp.skipped[0], b, "{name}: skip and stop disagree");
+        assert!(!sp.frame.contains(&(k as u32)), "{name}");
+        assert_eq!(sp.points_mm, without_frame(&clean, k as u32), "{name}");
+        let comments = sp.ply_comments();
+        assert_eq!(comments[0], "skipped_frames 1", "{name}");
+        assert!(
+            comments[1].starts_with("skipped frame 3 (scan.csv line 5): image "),
+            "{name}: {comments:?}"
+        );
+    }
+}
+
+/// Several bad frames are all skipped, in frame order; a scan whose frames are all bad
+/// gives no points and lists them all.
+#[test]
+fn skip_lists_every_bad_frame() {
+    let cal = calibration();
+    let tmp = tempfile::tempdir().unwrap();
+    let d = tmp.path().join("scan");
+    write_good_scan(&d);
+    std::fs::write(d.join("images/f6.png"), b"GIF89a").unwrap();
+    std::fs::remove_file(d.join("images/f0.png")).unwrap();
+    write_frame(&d.join("images/f4.png"), 10);
+    let scan = load_scan(&d, &cal).unwrap();
+    let sp = reconstruct_scan(&cal, &scan, &opts_with(BadImage::Skip), &mut noop).unwrap();
+    let frames: Vec<usize> = sp.skipped.iter().map(|b| b.frame).collect();
+    assert_eq!(frames, [0, 4, 6]);
+    let mut got: Vec<u32> = sp.frame.clone();
+    got.dedup();
+    assert_eq!(got, [1, 2, 3, 5]);
+    // Stop reports the missing file first (looked for before any work).
+    let e = reconstruct_scan(&cal, &scan, &opts_with(BadImage::Stop), &mut noop).unwrap_err();
+    assert!(
+        e.to_string().starts_with("frame 0 (scan.csv line 2)"),
+        "{e}"
+    );
+
+    for k in 0..N_FRAMES {
+        std::fs::write(d.join(format!("images/f{k}.png")), b"").unwrap();
+    }
+    let sp = reconstruct_scan(&cal, &scan, &opts_with(BadImage::Skip), &mut noop).unwrap();
+    assert!(sp.is_empty());
+    assert_eq!(sp.skipped.len(), N_FRAMES);
+}
+
+/// A progress callback that breaks stops the run at once with `Cancelled`.
+#[test]
+fn progress_can_cancel() {
+    let cal = calibration();
+    let tmp = tempfile::tempdir().unwrap();
+    let d = tmp.path().join("scan");
+    write_good_scan(&d);
+    let scan = load_scan(&d, &cal).unwrap();
+    for stop_after in [0, 1] {
+        let mut calls = 0;
+        let e = reconstruct_scan(
+            &cal,
+            &scan,
+            &ReconstructOptions::default(),
+            &mut |_, _, _| {
+                calls += 1;
+                if calls > stop_after {
+                    ControlFlow::Break(())
+                } else {
+                    ControlFlow::Continue(())
+                }
+            },
+        )
+        .unwrap_err();
+        assert!(matches!(e, Error::Cancelled), "{e}");
+        assert_eq!(calls, stop_after + 1);
+    }
+}
+
+#[test]
+fn on_bad_image_names() {
+    assert_eq!(BadImage::default(), BadImage::Stop);
+    for b in [BadImage::Stop, BadImage::Skip] {
+        assert_eq!(BadImage::from_name(b.name()).unwrap(), b);
+    }
+    let e = BadImage::from_name("ignore").unwrap_err();
+    assert!(
+        matches!(e, Error::InvalidInput(_)) && e.to_string().contains("\"skip\""),
+        "{e}"
+    );
+}
+
+/// The skipped frames go into the PLY header as comments that readers skip; a comment
+/// with a line break is refused.
+#[test]
+fn skipped_frames_in_the_ply_header() {
+    use stripecal::io::{read_ply, write_ply_with_comments, PlyFormat};
+    let cal = calibration();
+    let tmp = tempfile::tempdir().unwrap();
+    let d = tmp.path().join("scan");
+    write_good_scan(&d);
+    std::fs::write(d.join("images/f2.png"), b"\x89PNG\r\n\x1a\n").unwrap();
+    let scan = load_scan(&d, &cal).unwrap();
+    let sp = reconstruct_scan(&cal, &scan, &opts_with(BadImage::Skip), &mut noop).unwrap();
+    let ply = tmp.path().join("cloud.ply");
+    for f in [PlyFormat::BinaryLittleEndian, PlyFormat::Ascii] {
+        write_ply_with_comments(&ply, &sp.to_cloud(), f, &sp.ply_comments()).unwrap();
+        let bytes = std::fs::read(&ply).unwrap();
+        let end = bytes
+            .windows(11)
+            .position(|w| w == b"end_header\n")
+            .unwrap();
+        let header = String::from_utf8(bytes[..end].to_vec()).unwrap();
+        assert!(header.contains("\ncomment skipped_frames 1\n"), "{header}");
+        assert!(
+            header.contains("\ncomment skipped frame 2 (scan.csv line 4): image "),
+            "{header}"
+        );
+        assert_eq!(read_ply(&ply).unwrap().points, sp.points_mm);
+    }
+    let e = write_ply_with_comments(&ply, &sp.to_cloud(), PlyFormat::Ascii, &["a\nb".into()])
+        .unwrap_err();
+    assert!(matches!(e, Error::InvalidInput(_)), "{e}");
 }

@@ -317,7 +317,13 @@ pub fn centre_generic_n<T: CentreScalar>(
             }
         }
     };
-    Ok(to_pixel_generic(cam, [xd, yd]))
+    let uv = to_pixel_generic(cam, [xd, yd]);
+    if !(uv[0].value().is_finite() && uv[1].value().is_finite()) {
+        return Err(Error::Degenerate(format!(
+            "circle at board ({cx:.3}, {cy:.3}) images at a non-finite pixel"
+        )));
+    }
+    Ok(uv)
 }
 
 // ---------------------------------------------------------------------------------

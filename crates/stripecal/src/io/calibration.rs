@@ -15,7 +15,8 @@ use crate::model::camera::Camera;
 use crate::model::geometry::{Iso3, Plane};
 use crate::model::kinematics::Robot;
 use crate::model::{
-    Calibration, NamedCovariance, Quality, RobotPoseNoise, RobotPoseView, Sphere, SphereFit, Truth,
+    Calibration, NamedCovariance, Quality, QualityCheck, RobotPoseNoise, RobotPoseView, Sphere,
+    SphereFit, Truth,
 };
 
 /// The `format` value of calibration.json.
@@ -200,7 +201,9 @@ fn check_common(
 // ---------------------------------------------------------------- calibration.json
 
 /// `covariance`: `parameters` (names) and a symmetric `matrix` of that size with a
-/// non-negative, finite diagonal.
+/// non-negative diagonal. `null` entries (the rows and columns of a number the data did
+/// not determine, which the adjustment reports as NaN, as `uncertainty` does) are read
+/// as NaN.
 fn covariance_from(c: &Obj<'_>) -> Result<NamedCovariance> {
     let names: Vec<String> = c
         .req("parameters")?
@@ -224,26 +227,52 @@ fn covariance_from(c: &Obj<'_>) -> Result<NamedCovariance> {
             return Err(row.err(format!("expected {n} values, got {}", vals.len())));
         }
         for (j, v) in vals.iter().enumerate() {
-            matrix[(i, j)] = v.f64()?;
+            matrix[(i, j)] = if v.is_null() { f64::NAN } else { v.f64()? };
         }
     }
+    let cov = NamedCovariance {
+        parameters: names,
+        matrix,
+    };
+    check_covariance(&cov).map_err(|m| mv.err(m))?;
+    Ok(cov)
+}
+
+/// What the reader requires of a covariance (and so the writer checks): one row and
+/// column per parameter, finite values or NaN (`null` in the file: not determined), a
+/// non-negative diagonal, symmetry (to 1e-9 of the standard deviations' product; NaN
+/// where its mirror is NaN).
+fn check_covariance(c: &NamedCovariance) -> std::result::Result<(), String> {
+    let (n, m) = (c.parameters.len(), &c.matrix);
+    if m.nrows() != n || m.ncols() != n {
+        return Err(format!(
+            "expected a {n} x {n} matrix (one row and column per parameter), got {} x {}",
+            m.nrows(),
+            m.ncols()
+        ));
+    }
+    if let Some(x) = m.iter().find(|x| x.is_infinite()) {
+        return Err(format!("the matrix has an infinite value {x}"));
+    }
     for i in 0..n {
-        if matrix[(i, i)] < 0.0 {
-            return Err(mv.err(format!("the variance of {} is negative", names[i])));
+        if m[(i, i)] < 0.0 {
+            return Err(format!("the variance of {} is negative", c.parameters[i]));
         }
         for j in 0..i {
-            let (a, b) = (matrix[(i, j)], matrix[(j, i)]);
-            if (a - b).abs() > 1e-9 * (matrix[(i, i)] * matrix[(j, j)]).sqrt().max(1e-300) {
-                return Err(mv.err(format!(
+            let (a, b) = (m[(i, j)], m[(j, i)]);
+            if a.is_nan() && b.is_nan() {
+                continue;
+            }
+            // at most one is NaN here: then a - b is NaN, which is asymmetric too
+            let d = (a - b).abs();
+            if d.is_nan() || d > 1e-9 * (m[(i, i)] * m[(j, j)]).sqrt().max(1e-300) {
+                return Err(format!(
                     "the matrix is not symmetric: ({i}, {j}) = {a}, ({j}, {i}) = {b}"
-                )));
+                ));
             }
         }
     }
-    Ok(NamedCovariance {
-        parameters: names,
-        matrix,
-    })
+    Ok(())
 }
 
 fn covariance_value(c: &NamedCovariance) -> Value {
@@ -328,6 +357,8 @@ pub fn calibration_from_json(path: &Path, text: &str) -> Result<Calibration> {
         circle_rms_px: q.nonneg_f64("circle_rms_px")?,
         stripe_rms_px: q.nonneg_f64("stripe_rms_px")?,
         views_used: q.count("views_used")?,
+        checks: quality_checks_from(&q)?,
+        accepted_poor: q.opt_bool("accepted_poor")?.unwrap_or(false),
     };
     let uncertainty = root
         .opt_obj("uncertainty")?
@@ -370,6 +401,10 @@ pub fn calibration_to_json(c: &Calibration) -> String {
     q.insert("circle_rms_px".into(), num(c.quality.circle_rms_px));
     q.insert("stripe_rms_px".into(), num(c.quality.stripe_rms_px));
     q.insert("views_used".into(), Value::from(c.quality.views_used));
+    q.insert("accepted_poor".into(), Value::from(c.quality.accepted_poor));
+    if !c.quality.checks.is_empty() {
+        q.insert("checks".into(), quality_checks_value(&c.quality.checks));
+    }
     m.insert("quality".into(), Value::Object(q));
     m.insert("uncertainty".into(), Value::Object(c.uncertainty.clone()));
     if let Some(cov) = &c.covariance {
@@ -377,6 +412,47 @@ pub fn calibration_to_json(c: &Calibration) -> String {
     }
     append_extra(&mut m, &c.extra);
     to_pretty(&Value::Object(m))
+}
+
+/// `quality.checks`: `[{"name", "passed", "message", "views": [...]}, ...]` (optional).
+fn quality_checks_from(q: &Obj<'_>) -> Result<Vec<QualityCheck>> {
+    let Some(list) = q.opt("checks") else {
+        return Ok(Vec::new());
+    };
+    list.arr()?
+        .iter()
+        .map(|v| {
+            let o = v.obj()?;
+            Ok(QualityCheck {
+                name: o.req("name")?.str()?.to_string(),
+                passed: o.req("passed")?.bool()?,
+                message: o.req("message")?.str()?.to_string(),
+                views: match o.opt("views") {
+                    Some(vs) => vs.arr()?.iter().map(|x| x.count()).collect::<Result<_>>()?,
+                    None => Vec::new(),
+                },
+            })
+        })
+        .collect()
+}
+
+fn quality_checks_value(checks: &[QualityCheck]) -> Value {
+    Value::Array(
+        checks
+            .iter()
+            .map(|c| {
+                let mut o = Map::new();
+                o.insert("name".into(), Value::from(c.name.clone()));
+                o.insert("passed".into(), Value::from(c.passed));
+                o.insert("message".into(), Value::from(c.message.clone()));
+                o.insert(
+                    "views".into(),
+                    Value::Array(c.views.iter().map(|&v| Value::from(v)).collect()),
+                );
+                Value::Object(o)
+            })
+            .collect(),
+    )
 }
 
 /// Reads `calibration.json`.
@@ -405,6 +481,10 @@ pub fn write_calibration(p: impl AsRef<Path>, c: &Calibration) -> Result<()> {
             "calibration: quality RMS values {} / {} must be finite and non-negative",
             q.circle_rms_px, q.stripe_rms_px
         )));
+    }
+    if let Some(cov) = &c.covariance {
+        check_covariance(cov)
+            .map_err(|m| Error::InvalidInput(format!("calibration: covariance: {m}")))?;
     }
     write_atomic(p, calibration_to_json(c).as_bytes())
 }

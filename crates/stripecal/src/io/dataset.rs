@@ -49,6 +49,17 @@ impl Scan {
     /// Loads `root/scan.csv` (and `root/rig.json` when present), checking images exist.
     /// `robot` is used to check the joint count when the scan has no rig.json.
     pub fn load(root: impl AsRef<Path>, robot: Option<&Robot>) -> Result<Scan> {
+        let scan = Scan::read(root, robot)?;
+        let csv_path = scan.root.join("scan.csv");
+        for f in &scan.frames {
+            check_image_exists(&scan.root, &csv_path, f.line, &f.image)?;
+        }
+        Ok(scan)
+    }
+
+    /// [`Scan::load`] without checking that the images exist: for a reader that checks
+    /// each frame's image itself (the reconstruction, which may skip bad frames).
+    pub fn read(root: impl AsRef<Path>, robot: Option<&Robot>) -> Result<Scan> {
         let root = root.as_ref().to_path_buf();
         let rig_path = root.join("rig.json");
         let rig = if rig_path.exists() {
@@ -61,9 +72,6 @@ impl Scan {
         let frames = read_scan_csv(&csv_path, robot)?;
         if frames.is_empty() {
             return Err(Error::format(&csv_path, "line 2", "scan has no frames"));
-        }
-        for f in &frames {
-            check_image_exists(&root, &csv_path, f.line, &f.image)?;
         }
         Ok(Scan { root, rig, frames })
     }

@@ -8,7 +8,7 @@ use nalgebra::Vector3;
 use serde_json::{Map, Value};
 
 use crate::error::{Error, Result};
-use crate::model::geometry::{iso_from_rotvec, iso_to_rotvec, Iso3};
+use crate::model::geometry::{iso_from_rotvec, iso_to_rotvec, Iso3, MAX_ROTVEC_ANGLE_RAD};
 
 /// The location used for errors about the top-level object.
 const TOP: &str = "top level";
@@ -102,6 +102,11 @@ impl<'a> Val<'a> {
 
     fn expected(&self, what: &str) -> Error {
         self.err(format!("expected {what}, got {}", describe(self.v)))
+    }
+
+    /// Whether the value is `null`.
+    pub fn is_null(&self) -> bool {
+        self.v.is_null()
     }
 
     /// A finite number.
@@ -342,6 +347,13 @@ impl<'a> Obj<'a> {
     /// A rigid transform `{"rotation_vector": [..] (radians), "translation_mm": [..]}`.
     pub fn pose(&self) -> Result<Iso3> {
         let r = self.vec3("rotation_vector")?;
+        let angle = r.norm();
+        if !angle.is_finite() || angle > MAX_ROTVEC_ANGLE_RAD {
+            return Err(self.req("rotation_vector")?.err(format!(
+                "expected a rotation vector (radians) of angle at most {MAX_ROTVEC_ANGLE_RAD:e}, \
+                 got one of angle {angle:e}"
+            )));
+        }
         let t = self.vec3("translation_mm")?;
         Ok(iso_from_rotvec(&r, &t))
     }

@@ -36,7 +36,7 @@ pub use csv::{
 pub use imageio::{
     load_gray, load_gray_info, save_gray_png, ImageInfo, MAX_IMAGE_BYTES, MAX_IMAGE_SIDE,
 };
-pub use ply::{read_ply, write_ply, PlyFormat};
+pub use ply::{read_ply, write_ply, write_ply_with_comments, PlyFormat};
 pub use poses::{
     convention_columns, convention_names, matrix_to_pose, pose_to_matrix, PoseColumns, MATRIX_TOL,
     QUATERNION_TOL,

@@ -352,7 +352,9 @@ fn read_binary(
 ) -> Result<()> {
     let big = h.encoding == Encoding::BigEndian;
     let mut pos = 0usize;
-    for e in &h.elements {
+    // An element without properties has no data, whatever its count says (which may be
+    // 2^64 - 1: not a loop to run).
+    for e in h.elements.iter().filter(|e| !e.props.is_empty()) {
         let is_vertex = e.name == "vertex";
         for i in 0..e.count {
             for (k, p) in e.props.iter().enumerate() {
@@ -446,7 +448,7 @@ fn read_ascii(
         Error::format(path, format!("line {line}"), "ASCII PLY data is not text")
     })?;
     let mut tokens = Tokens::new(text, h.lines + 1);
-    for e in &h.elements {
+    for e in h.elements.iter().filter(|e| !e.props.is_empty()) {
         let is_vertex = e.name == "vertex";
         for i in 0..e.count {
             for (k, p) in e.props.iter().enumerate() {
@@ -561,13 +563,16 @@ fn check_cloud(c: &Cloud) -> Result<()> {
     Ok(())
 }
 
-fn header_text(c: &Cloud, f: PlyFormat) -> String {
+fn header_text(c: &Cloud, f: PlyFormat, comments: &[String]) -> String {
     let mut h = String::from("ply\n");
     h.push_str(match f {
         PlyFormat::BinaryLittleEndian => "format binary_little_endian 1.0\n",
         PlyFormat::Ascii => "format ascii 1.0\n",
     });
     h.push_str("comment stripecal point cloud: x y z in mm, robot base frame\n");
+    for text in comments {
+        let _ = writeln!(h, "comment {text}");
+    }
     let _ = writeln!(h, "element vertex {}", c.points.len());
     for name in ["x", "y", "z"] {
         let _ = writeln!(h, "property double {name}");
@@ -583,8 +588,25 @@ fn header_text(c: &Cloud, f: PlyFormat) -> String {
 /// Errors when a property's length differs from the number of points or its name is
 /// not a valid PLY name (or is `x`, `y`, `z` or repeated).
 pub fn write_ply(p: impl AsRef<Path>, c: &Cloud, f: PlyFormat) -> Result<()> {
+    write_ply_with_comments(p, c, f, &[])
+}
+
+/// [`write_ply`] with extra header lines `comment TEXT`, one per entry (after the
+/// stripecal comment; readers skip them). A comment with a control character (a line
+/// break) is [`Error::InvalidInput`].
+pub fn write_ply_with_comments(
+    p: impl AsRef<Path>,
+    c: &Cloud,
+    f: PlyFormat,
+    comments: &[String],
+) -> Result<()> {
     check_cloud(c)?;
-    let header = header_text(c, f);
+    if let Some(bad) = comments.iter().find(|t| t.chars().any(char::is_control)) {
+        return Err(Error::InvalidInput(format!(
+            "PLY comment {bad:?} has a control character (comments are one line each)"
+        )));
+    }
+    let header = header_text(c, f, comments);
     let per_point = 3 + c.properties.len();
     let out = match f {
         PlyFormat::BinaryLittleEndian => {

@@ -271,7 +271,8 @@ impl Camera {
         )
     }
 
-    /// Normalised coordinates of a point in the camera frame; error if `zc <= 0`.
+    /// Normalised coordinates of a point in the camera frame; error if `zc <= 0` or
+    /// they are not finite (a point at infinity, or nearly in the focal plane).
     #[inline]
     pub fn normalize(p: &Vector3<f64>) -> Result<(f64, f64)> {
         if p.z.is_nan() || p.z <= 0.0 {
@@ -280,7 +281,15 @@ impl Camera {
                 p.x, p.y, p.z
             )));
         }
-        Ok((p.x / p.z, p.y / p.z))
+        let (x, y) = (p.x / p.z, p.y / p.z);
+        if !(x.is_finite() && y.is_finite()) {
+            return Err(Error::Degenerate(format!(
+                "point ({:.4e}, {:.4e}, {:.4e}) has no finite image (at infinity or in the \
+                 focal plane)",
+                p.x, p.y, p.z
+            )));
+        }
+        Ok((x, y))
     }
 
     /// Pixel of distorted normalised coordinates.
@@ -295,12 +304,20 @@ impl Camera {
         ((uv.x - self.u0) / self.fu, (uv.y - self.v0) / self.fv)
     }
 
-    /// Projects a point in the camera frame to pixels; error if it is not in front.
+    /// Projects a point in the camera frame to pixels; error if it is not in front or
+    /// its pixel is not finite (a point at infinity, a distortion that overflows).
     #[inline]
     pub fn project(&self, p: &Vector3<f64>) -> Result<Vector2<f64>> {
         let (xn, yn) = Self::normalize(p)?;
         let (xd, yd) = self.distort(xn, yn);
-        Ok(self.to_pixel(xd, yd))
+        let uv = self.to_pixel(xd, yd);
+        if !(uv.x.is_finite() && uv.y.is_finite()) {
+            return Err(Error::Degenerate(format!(
+                "point ({:.4e}, {:.4e}, {:.4e}) projects to a non-finite pixel",
+                p.x, p.y, p.z
+            )));
+        }
+        Ok(uv)
     }
 
     /// Inverts the distortion by Newton's method.
@@ -366,7 +383,8 @@ impl Camera {
     }
 
     /// Projection with its Jacobians: the pixel, d(u,v)/d(point) (2x3) and
-    /// d(u,v)/d(params) (2x9, columns in [`PARAM_NAMES`] order).
+    /// d(u,v)/d(params) (2x9, columns in [`PARAM_NAMES`] order); errors as
+    /// [`Self::project`] (also when a Jacobian is not finite).
     pub fn project_with_jacobians(
         &self,
         p: &Vector3<f64>,
@@ -405,6 +423,12 @@ impl Camera {
             jc[(0, 4 + i)] = self.fu * dxd[i];
             jc[(1, 4 + i)] = self.fv * dyd[i];
         }
+        if !(uv.iter().chain(jp.iter()).chain(jc.iter())).all(|x| x.is_finite()) {
+            return Err(Error::Degenerate(format!(
+                "point ({:.4e}, {:.4e}, {:.4e}) projects to a non-finite pixel or Jacobian",
+                p.x, p.y, p.z
+            )));
+        }
         Ok((uv, jp, jc))
     }
 
@@ -428,7 +452,8 @@ impl Camera {
     /// ([`Camera::undistort_radial_scale`]) with the 2D one as fallback, otherwise the 2D
     /// one ([`Camera::undistort_from`], from the previous solution when it is near).
     /// Both stop at ~1e-15 relative. `None` where the model folds (as
-    /// [`Camera::undistort`] refuses). Allocates nothing (except in the failing 2D case).
+    /// [`Camera::undistort`] refuses) and for a non-finite point. Allocates nothing
+    /// (except in the failing 2D case).
     #[inline]
     pub fn undistort_tracked(
         &self,
@@ -436,6 +461,9 @@ impl Camera {
         yd: f64,
         track: &mut UndistortTrack,
     ) -> Option<(f64, f64)> {
+        if !(xd.is_finite() && yd.is_finite()) {
+            return None;
+        }
         if track.no_distortion {
             Some((xd, yd))
         } else if track.radial_only {

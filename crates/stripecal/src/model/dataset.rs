@@ -72,10 +72,21 @@ pub enum RobotReading {
 
 impl RobotReading {
     /// `T_base_hand` for this reading: forward kinematics of `robot` for joints, the
-    /// pose itself for flange poses. Errors when joints are given without a robot.
+    /// pose itself for flange poses. Errors when joints are given without a robot and
+    /// when a flange pose is not finite.
     pub fn base_hand(&self, robot: Option<&Robot>) -> Result<Iso3> {
         match self {
-            RobotReading::FlangePose(t) => Ok(*t),
+            RobotReading::FlangePose(t) => {
+                let finite = t.translation.vector.iter().all(|x| x.is_finite())
+                    && t.rotation.coords.iter().all(|x| x.is_finite());
+                if finite {
+                    Ok(*t)
+                } else {
+                    Err(Error::InvalidInput(
+                        "the flange pose T_base_hand is not finite".into(),
+                    ))
+                }
+            }
             RobotReading::Joints(q) => match robot {
                 Some(r) => r.forward(q),
                 None => Err(Error::InvalidInput(

@@ -16,6 +16,12 @@ use crate::error::{Error, Result};
 /// A rigid transform (rotation then translation), `p_a = T_a_b * p_b`.
 pub type Iso3 = nalgebra::Isometry3<f64>;
 
+/// The largest rotation-vector angle the file readers accept (radians): far beyond any
+/// real rotation vector (a controller's, a calibration's), and small enough for the
+/// angle and the axis to be computed without overflow (`norm` squares the components,
+/// which overflows beyond ~1e154 and turns the axis into NaN).
+pub(crate) const MAX_ROTVEC_ANGLE_RAD: f64 = 1e6;
+
 /// The rotation matrix of a rotation vector (axis times angle, radians).
 pub fn rotvec_to_matrix(r: &Vector3<f64>) -> Matrix3<f64> {
     let theta2 = r.norm_squared();
@@ -134,8 +140,14 @@ pub fn iso_to_matrix(t: &Iso3) -> Matrix4<f64> {
 }
 
 /// A rigid transform from a homogeneous 4x4 matrix; errors when the matrix is not rigid
-/// (rotation part not orthonormal to `tol`, determinant not +1, last row not `0 0 0 1`).
+/// (rotation part not orthonormal to `tol`, determinant not +1, last row not `0 0 0 1`)
+/// or `tol` is not a finite non-negative number.
 pub fn iso_from_matrix(m: &Matrix4<f64>, tol: f64) -> Result<Iso3> {
+    if !(tol.is_finite() && tol >= 0.0) {
+        return Err(Error::InvalidInput(format!(
+            "tolerance {tol} must be finite and non-negative"
+        )));
+    }
     if m.iter().any(|x| !x.is_finite()) {
         return Err(Error::InvalidInput(
             "transform has non-finite entries".into(),
@@ -149,7 +161,8 @@ pub fn iso_from_matrix(m: &Matrix4<f64>, tol: f64) -> Result<Iso3> {
     }
     let r: Matrix3<f64> = m.fixed_view::<3, 3>(0, 0).into_owned();
     let err = (r.transpose() * r - Matrix3::identity()).abs().max();
-    if err > tol || r.determinant() < 0.0 {
+    // det > 0 also refuses the zero matrix, whose rotation would be NaN
+    if err > tol || r.determinant() <= 0.0 {
         return Err(Error::InvalidInput(format!(
             "transform's rotation part is not a rotation (|R^T R - I| = {err:.2e}, det = {:.6})",
             r.determinant()
@@ -192,13 +205,15 @@ impl Plane {
     }
 
     /// The ray parameter `s` with `n . (o + s dir) = d`, or `None` when the ray is
-    /// parallel to the plane (|cos| below `1e-12`).
+    /// parallel to the plane (|cos| below `1e-12`) or `s` is not finite (a non-finite
+    /// origin or direction).
     pub fn intersect_ray(&self, o: &Vector3<f64>, dir: &Vector3<f64>) -> Option<f64> {
         let den = self.normal.dot(dir);
-        if den.abs() < 1e-12 {
+        if den.is_nan() || den.abs() < 1e-12 {
             return None;
         }
-        Some((self.d - self.normal.dot(o)) / den)
+        let s = (self.d - self.normal.dot(o)) / den;
+        s.is_finite().then_some(s)
     }
 
     /// This plane expressed in another frame: given `T_b_a` and the plane in frame a,

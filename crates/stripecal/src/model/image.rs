@@ -17,11 +17,19 @@ pub struct GrayImage<T> {
 
 impl<T: Copy + Default> GrayImage<T> {
     /// A black image.
+    ///
+    /// # Panics
+    ///
+    /// When `width * height` overflows a `usize` (in every build profile: never an
+    /// image whose buffer is smaller than its size says).
     pub fn new(width: usize, height: usize) -> Self {
+        let n = width
+            .checked_mul(height)
+            .unwrap_or_else(|| panic!("image size {width} x {height} overflows usize"));
         GrayImage {
             width,
             height,
-            data: vec![T::default(); width * height],
+            data: vec![T::default(); n],
         }
     }
 
@@ -50,11 +58,13 @@ impl AnyGray {
 }
 
 /// ITU-R BT.601 luma of an RGB sample, rounded to the nearest integer:
-/// `(299 R + 587 G + 114 B + 500) / 1000` (spec/DATASET.md's gray conversion). Exact
-/// in `u32` for 16-bit channels, and never above the largest channel value.
+/// `(299 R + 587 G + 114 B + 500) / 1000` (spec/DATASET.md's gray conversion), exact
+/// (computed in `u64`) and never above the largest channel value.
 #[inline]
 pub fn luma_bt601(r: u32, g: u32, b: u32) -> u32 {
-    (299 * r + 587 * g + 114 * b + 500) / 1000
+    let y = (299 * r as u64 + 587 * g as u64 + 114 * b as u64 + 500) / 1000;
+    // y <= max(r, g, b) <= u32::MAX
+    y as u32
 }
 
 /// BT.601 gray of interleaved colour samples with `channels` per pixel (3: RGB, 4:

@@ -10,10 +10,12 @@ mod dataset;
 pub mod geometry;
 pub mod image;
 pub mod kinematics;
+mod quality;
 mod results;
 
 pub use checks::{BoardScaleCheck, LeaveOneOut, LooView, LOO_DISAGREE_FACTOR};
 pub use dataset::{Dataset, Rig, RobotReading, Scan, ScanFrame, StripeDirection, View};
+pub use quality::{QualityCheck, QualityFailure};
 pub use results::{
     AdjustmentSummary, Calibration, CameraSigma, Cloud, NamedCovariance, PlaneSigma, PoseSigma,
     Quality, RobotPoseNoise, RobotPoseView, Sphere, SphereFit, Truth, Uncertainty, ViewRecord,

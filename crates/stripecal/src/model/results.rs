@@ -23,16 +23,19 @@ impl NamedCovariance {
         self.parameters.iter().position(|p| p == name)
     }
 
-    /// One-sigma of a number (`None` when it is not in the covariance).
+    /// One-sigma of a number (`None` when it is not in the covariance, or the matrix
+    /// has no row for it).
     pub fn sigma(&self, name: &str) -> Option<f64> {
         self.index(name)
-            .map(|i| self.matrix[(i, i)].max(0.0).sqrt())
+            .and_then(|i| self.matrix.get((i, i)))
+            .map(|v| v.max(0.0).sqrt())
     }
 
     /// The covariance of the numbers whose names start with `prefix` (a block, e.g.
-    /// `camera.`), with their names.
+    /// `camera.`), with their names (names the matrix has no row for are left out).
     pub fn block(&self, prefix: &str) -> NamedCovariance {
-        let idx: Vec<usize> = (0..self.parameters.len())
+        let n = self.matrix.nrows().min(self.matrix.ncols());
+        let idx: Vec<usize> = (0..self.parameters.len().min(n))
             .filter(|&i| self.parameters[i].starts_with(prefix))
             .collect();
         NamedCovariance {
@@ -48,6 +51,11 @@ pub struct Quality {
     pub circle_rms_px: f64,
     pub stripe_rms_px: f64,
     pub views_used: usize,
+    /// The quality gates' verdicts (`quality.checks`; empty in files written before
+    /// the gates existed).
+    pub checks: Vec<super::QualityCheck>,
+    /// A calibration that failed a gate and was kept anyway (`--accept-poor`).
+    pub accepted_poor: bool,
 }
 
 /// A calibration result (`calibration.json`).

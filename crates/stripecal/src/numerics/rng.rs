@@ -17,10 +17,10 @@ impl SplitMix64 {
         z ^ (z >> 31)
     }
 
-    /// An index in `0..n` (`n > 0`; the modulo bias is below `n / 2^64`).
+    /// An index in `0..n` (the modulo bias is below `n / 2^64`); 0 for `n = 0`.
     #[inline]
     pub fn below(&mut self, n: usize) -> usize {
-        (self.next_u64() % n as u64) as usize
+        (self.next_u64().checked_rem(n as u64).unwrap_or(0)) as usize
     }
 
     /// A uniform number in `(0, 1)` with 53 random bits (never 0 or 1).

@@ -1,12 +1,14 @@
 //! From observations to a calibration, as a sequence of stages: camera, labellings,
-//! stripe points on the board, `AX = ZB` with outliers, laser plane, adjustment, report.
+//! stripe points on the board, robot poses against images (`AX = ZB` from the views that
+//! agree), laser plane, adjustment, report, quality gates.
 
 use super::board_scale::{check_board_scale, warning as board_scale_warning};
+use super::gates::{converged, determined, judge, view_residuals, views_check};
 use super::held::held;
 use super::labels::resolve_labellings;
 use super::laser_only::calibrate_held_chain;
 use super::loo::leave_one_out;
-use super::outliers::solve_with_outliers;
+use super::pairing::check_pairing;
 use super::report::{build_report, SelfChecks, Stage};
 use super::stripe_select::select_stripes;
 use super::{CalibrateOptions, CalibrationReport, Method, ViewStatus};
@@ -19,19 +21,39 @@ use crate::error::{Error, Result};
 use crate::model::board::Board;
 use crate::model::camera::Camera;
 use crate::model::geometry::Iso3;
-use crate::model::Rig;
+use crate::model::{QualityCheck, Rig};
+use crate::numerics::robust::median;
 
-/// Runs the pipeline on observations (see the module docs). `views` are the views whose
-/// board was found; `rig` gives the board, image size, distortion model and robot.
+/// Runs the pipeline on observations (see the module docs) and its quality gates
+/// ([`super::gates`]). `views` are the views whose board was found; `rig` gives the
+/// board, image size, distortion model and robot.
+///
+/// Errors: [`Error::Quality`] when a gate fails (unless `opts.accept_poor`), carrying
+/// the calibration when one could be computed; the stages' errors.
 pub fn calibrate_observations(
     views: &[ViewObs],
     rig: &Rig,
     opts: &CalibrateOptions,
 ) -> Result<CalibrationReport> {
+    let (rep, checks) = calibrate_unjudged(views, rig, opts)?;
+    judge(rep, checks, opts)
+}
+
+/// The pipeline without the final verdict: the calibration and the gates' checks.
+pub(super) fn calibrate_unjudged(
+    views: &[ViewObs],
+    rig: &Rig,
+    opts: &CalibrateOptions,
+) -> Result<(CalibrationReport, Vec<QualityCheck>)> {
     check_poses_finite(views)?;
     let held = held(opts)?;
     if let Some(h) = held.as_ref().filter(|h| h.chain_held()) {
-        return calibrate_held_chain(views, rig, opts, h);
+        let rep = calibrate_held_chain(views, rig, opts, h)?;
+        let checks = vec![
+            determined(&rep.adjustment, &rep.calibration.camera, None),
+            converged(&rep.adjustment, opts.method),
+        ];
+        return Ok((rep, checks));
     }
     let board = &rig.board;
     let mut warnings = Vec::new();
@@ -41,39 +63,80 @@ pub fn calibrate_observations(
     warnings.extend(camcal.warnings.iter().cloned());
     // Labellings the images leave open, from the robot poses.
     let (labelled, frame_note) = resolve_labellings(views, &camcal.poses, board, &mut warnings);
+    let mut earlier = Vec::new();
     for (view, note) in labelled.iter().filter_map(|l| l.as_ref().err()) {
         if let Some(s) = status.iter_mut().find(|s| s.view == *view) {
             s.note = Some(note.clone());
         }
+        if views
+            .iter()
+            .any(|v| v.view == *view && v.base_hand.is_some())
+        {
+            earlier.push(*view);
+        }
     }
     // 3. Stripe points on the board plane.
     let (obs, poses) = select_stripes(&labelled, &camcal.camera, &mut status)?;
-    // 4. Robot poses, AX = ZB with leave-one-out outlier rejection.
-    let (axzb, keep) = solve_with_outliers(&obs, &poses, opts, &mut warnings, &mut status)?;
-    warnings.extend(axzb.warnings.iter().cloned());
-    let (used_obs, used_poses) = kept(&obs, &poses, &keep);
+    // 4. Robot poses against images; AX = ZB from the views that agree.
+    let paired = check_pairing(&obs, &poses, &earlier, opts, &mut warnings, &mut status)?;
+    warnings.extend(paired.axzb.warnings.iter().cloned());
+    let total = obs.iter().filter(|v| v.base_hand.is_some()).count() + earlier.len();
+    let (mut used_obs, mut used_poses) = kept(&obs, &poses, &paired.keep);
     check_usable(&used_obs, &warnings)?;
-    // Laser plane, when there are laser images.
-    let plane = laser_plane_stage(&used_obs, &used_poses, &camcal.camera, &mut warnings)?;
-    // 5. The adjustment (evaluated only, for the paper's method).
-    let mut start = JointStart {
-        camera: camcal.camera.clone(),
-        plane: plane.as_ref().map(|p| p.plane),
-        hand_cam: axzb.x,
-        base_board: axzb.z,
-    };
-    if let Some(h) = &held {
-        h.apply(&mut start);
-    }
     let jopts = joint_options(opts, rig);
-    let adj = joint_adjustment(&used_obs, board, &start, &jopts)?;
+    let standoff = {
+        let mut d: Vec<f64> = used_poses
+            .iter()
+            .map(|p| p.translation.vector.norm())
+            .collect();
+        median(&mut d)
+    };
+    // 5. Laser plane and the adjustment (evaluated only, for the paper's method); views
+    // whose residuals are far above the others' are left out once when enough remain.
+    let mut first_pass = true;
+    let (plane, start, adj, views_check) = loop {
+        let plane = laser_plane_stage(&used_obs, &used_poses, &camcal.camera, &mut warnings)?;
+        let mut start = JointStart {
+            camera: camcal.camera.clone(),
+            plane: plane.as_ref().map(|p| p.plane),
+            hand_cam: paired.axzb.x,
+            base_board: paired.axzb.z,
+        };
+        if let Some(h) = &held {
+            h.apply(&mut start);
+        }
+        let adj = joint_adjustment(&used_obs, board, &start, &jopts)?;
+        let (bad, msg) = view_residuals(&adj, camcal.rms_px);
+        let kept_n = used_obs.len() - bad.len();
+        let check = views_check(&bad, &msg, kept_n, total);
+        if bad.is_empty() || !check.passed || !first_pass {
+            break (plane, start, adj, check);
+        }
+        first_pass = false;
+        for &v in &bad {
+            let note = format!("view {v}: left out: {msg}");
+            warnings.push(note.clone());
+            if let Some(s) = status.iter_mut().find(|s| s.view == v) {
+                s.note = Some(note);
+            }
+        }
+        let keep: Vec<bool> = used_obs.iter().map(|v| !bad.contains(&v.view)).collect();
+        (used_obs, used_poses) = kept(&used_obs, &used_poses, &keep);
+        check_usable(&used_obs, &warnings)?;
+    };
     warnings.extend(adj.warnings.iter().cloned());
     mark_used(&mut status, &used_obs);
     let checks = self_checks(&used_obs, board, &adj, &jopts, opts, &mut warnings)?;
+    let gate_checks = vec![
+        paired.check,
+        views_check,
+        determined(&adj, &adj.camera, standoff),
+        converged(&adj, opts.method),
+    ];
     let stage = Stage {
         camera: Some(camcal),
         plane,
-        axzb: Some(axzb),
+        axzb: Some(paired.axzb),
         start,
         adjustment: adj,
         frame_note,
@@ -81,7 +144,10 @@ pub fn calibrate_observations(
         checks,
         held: held.as_ref(),
     };
-    Ok(build_report(stage, rig, opts, status, warnings))
+    Ok((
+        build_report(stage, rig, opts, status, warnings),
+        gate_checks,
+    ))
 }
 
 /// The laser plane's first estimate from the views' stripe points (`None` when no view

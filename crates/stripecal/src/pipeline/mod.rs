@@ -16,21 +16,25 @@
 //!    views, wherever it lies on that plane (the printed pattern, the sheet or plate
 //!    around it); points off the plane (beyond a depth step where the sheet ends, on
 //!    something behind) are rejected and counted per view.
-//! 4. Laser plane ([`crate::calib::laser_plane`]) and `AX = ZB`
-//!    ([`crate::calib::axzb`]). Views whose robot pose disagrees with their board pose
-//!    (`A_i X` vs `Z B_i`, leave-one-out) far beyond the others are left out as outliers
-//!    with a warning and the figures (a swapped or mistyped joint reading).
+//! 4. Robot poses against images ([`pairing`], by the consensus of
+//!    [`crate::calib::consensus::pairing`]): views whose robot pose does not fit their
+//!    image (a swapped pair, a mistyped joint reading) are named and left out when the
+//!    rest is consistent and large enough; `AX = ZB` ([`crate::calib::axzb`]) from the
+//!    views that agree; the laser plane ([`crate::calib::laser_plane`]).
 //! 5. `Method::Paper` stops here; `Method::OneStage` (default) runs
 //!    [`crate::calib::joint`] from these values.
+//! 6. The quality gates ([`gates`]): a calibration that fails one is an
+//!    [`Error::Quality`] (unless [`CalibrateOptions::accept_poor`]).
 
 mod board_scale;
 mod calibrate;
+pub mod gates;
 mod held;
 mod labels;
 mod laser_only;
 mod loo;
 mod observe;
-mod outliers;
+mod pairing;
 mod report;
 pub mod stripe_select;
 #[cfg(test)]
@@ -117,6 +121,9 @@ pub struct CalibrateOptions {
     pub leave_one_out: bool,
     /// The board-scale check's tolerance on `|s - 1|` (default 0.01).
     pub board_scale_tolerance: f64,
+    /// Return a calibration that failed a quality gate ([`gates`]) instead of an
+    /// [`Error::Quality`], marked `quality.accepted_poor` (default false).
+    pub accept_poor: bool,
 }
 
 impl Default for CalibrateOptions {
@@ -136,6 +143,7 @@ impl Default for CalibrateOptions {
             free: FreeBlocks::default(),
             leave_one_out: true,
             board_scale_tolerance: 0.01,
+            accept_poor: false,
         }
     }
 }
@@ -253,7 +261,7 @@ pub fn calibrate_dataset_loaded(
                 .join("; ")
         )));
     }
-    let mut rep = calibrate_observations(&obs, &ds.rig, opts)?;
+    let (mut rep, checks) = calibrate::calibrate_unjudged(&obs, &ds.rig, opts)?;
     for (v, why) in left_out {
         if !rep.views.iter().any(|s| s.view == v) {
             rep.views.push(ViewStatus::left_out(v, Some(why)));
@@ -267,5 +275,5 @@ pub fn calibrate_dataset_loaded(
             .extra
             .insert("warnings".into(), warnings_to_json(&rep.warnings));
     }
-    Ok(rep)
+    gates::judge(rep, checks, opts)
 }

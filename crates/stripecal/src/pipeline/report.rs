@@ -174,6 +174,7 @@ pub(super) fn build_report(
                 0.0
             },
             views_used: st.views_used,
+            ..Default::default()
         },
         uncertainty: unc,
         covariance,

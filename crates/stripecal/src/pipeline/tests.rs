@@ -1,12 +1,11 @@
-//! Unit tests of the pipeline's stages on exact synthetic inputs: the AX = ZB outlier
-//! stage, the stripe-extent and usability checks, the labelling pass-through and the
+//! Unit tests of the pipeline's stages on exact synthetic inputs: the pairing stage, the stripe-extent and usability checks, the labelling pass-through and the
 //! records the report writes.
 
 use nalgebra::Vector3;
 
 use super::calibrate::{check_usable, grid_extent, kept};
 use super::labels::resolve_labellings;
-use super::outliers::solve_with_outliers;
+use super::pairing::check_pairing;
 use super::report::view_records_from;
 use super::{CalibrateOptions, ViewStatus};
 use crate::calib::{CircleObs, ViewObs};
@@ -77,10 +76,12 @@ fn outlier_stage_leaves_out_the_view_with_a_wrong_robot_pose() {
     let mut warnings = Vec::new();
     let mut status = status_of(&obs);
     let opts = CalibrateOptions::default();
-    let (sol, keep) = solve_with_outliers(&obs, &poses, &opts, &mut warnings, &mut status).unwrap();
+    let p = check_pairing(&obs, &poses, &[], &opts, &mut warnings, &mut status).unwrap();
+    let (sol, keep) = (p.axzb, p.keep);
     assert_eq!(keep, [true, true, true, false, true, true, false, true]);
     assert!(warnings[0].starts_with("view 6: left out, no robot pose"));
-    assert!(warnings[1].contains("view 3: left out as an outlier"));
+    assert!(warnings[1].contains("view 3: its robot pose does not fit its image"));
+    assert!(p.check.passed && p.check.views == [3], "{:?}", p.check);
     assert!(status[3]
         .note
         .as_deref()
@@ -99,15 +100,17 @@ fn outlier_stage_keeps_every_consistent_view() {
     let (obs, poses) = exact_rig(6, &x, &z, 7);
     let mut warnings = Vec::new();
     let mut status = status_of(&obs);
-    let (_, keep) = solve_with_outliers(
+    let p = check_pairing(
         &obs,
         &poses,
+        &[],
         &CalibrateOptions::default(),
         &mut warnings,
         &mut status,
     )
     .unwrap();
-    assert!(keep.iter().all(|&k| k));
+    assert!(p.keep.iter().all(|&k| k));
+    assert!(p.check.passed && p.check.views.is_empty());
     assert!(status.iter().all(|s| s.note.is_none()));
 }
 

@@ -37,7 +37,16 @@
 //!   not allocate (when the caller clears and reuses its `ScanPoints`).
 //! - [`reconstruct_frames`]: many in-memory frames in parallel (rayon), points in frame
 //!   order; [`reconstruct_scan`]: a scan folder (scan.csv + images), decoding images in
-//!   parallel, with progress reports.
+//!   parallel, with progress reports that can stop the run.
+//!
+//! ## Bad images in a scan
+//!
+//! A scan frame whose image is missing, unreadable, truncated or corrupted, of another
+//! size than the calibrated camera's or of another bit depth than most of the scan's
+//! frames stops [`reconstruct_scan`] with [`crate::Error::BadImage`] naming the frame,
+//! its scan.csv line, the file and what is wrong ([`BadImage::Stop`], the default), or
+//! is left out and listed in [`ScanPoints::skipped`] ([`BadImage::Skip`]). A frame whose
+//! image is fine but shows no stripe is not a bad image: it simply gives no points.
 //!
 //! Fits of the points (sphere, plane) are in [`fit`].
 
@@ -51,7 +60,7 @@ mod triangulate;
 pub use fit::{fit_plane, fit_sphere, FitOptions, PlaneFit, SphereFitResult};
 pub use frame::Reconstructor;
 pub use options::{
-    stripe_direction_from_plane, ReconstructOptions, DEFAULT_MIN_RAY_PLANE_ANGLE_DEG,
+    stripe_direction_from_plane, BadImage, ReconstructOptions, DEFAULT_MIN_RAY_PLANE_ANGLE_DEG,
 };
 pub use points::{at_frame, ScanPoints};
 pub use scan::{load_scan, reconstruct_frames, reconstruct_scan};

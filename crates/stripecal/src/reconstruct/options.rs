@@ -9,6 +9,42 @@ use crate::vision::stripe::StripeOptions;
 /// Default smallest angle between a viewing ray and the laser plane, degrees.
 pub const DEFAULT_MIN_RAY_PLANE_ANGLE_DEG: f64 = 2.0;
 
+/// What [`super::reconstruct_scan`] does with a frame whose image cannot be used: the
+/// file is missing or unreadable, cannot be decoded (truncated, corrupted, not an image
+/// of a supported format), is not the calibrated camera's size, or has another bit
+/// depth (8 or 16) than the scan's other frames.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum BadImage {
+    /// The run stops with [`Error::BadImage`] naming the frame, its scan.csv line, the
+    /// file and what is wrong; nothing is returned (the default).
+    #[default]
+    Stop,
+    /// The frame is left out and listed, with the reason, in
+    /// [`super::ScanPoints::skipped`]; the other frames are reconstructed.
+    Skip,
+}
+
+impl BadImage {
+    /// `"stop"` or `"skip"`.
+    pub fn from_name(s: &str) -> Result<BadImage> {
+        match s {
+            "stop" => Ok(BadImage::Stop),
+            "skip" => Ok(BadImage::Skip),
+            other => Err(Error::InvalidInput(format!(
+                "on_bad_image {other:?}: expected \"stop\" or \"skip\""
+            ))),
+        }
+    }
+
+    /// The name [`BadImage::from_name`] reads.
+    pub fn name(self) -> &'static str {
+        match self {
+            BadImage::Stop => "stop",
+            BadImage::Skip => "skip",
+        }
+    }
+}
+
 /// Options of the reconstruction.
 #[derive(Debug, Clone, PartialEq)]
 pub struct ReconstructOptions {
@@ -21,6 +57,9 @@ pub struct ReconstructOptions {
     /// Stripe points with any of these `FLAG_*` bits are dropped (0 = keep all; the
     /// flags are reported per point).
     pub drop_flags: u8,
+    /// Scan folders only: stop at a frame whose image cannot be used, or skip it
+    /// ([`BadImage`]; default [`BadImage::Stop`]).
+    pub on_bad_image: BadImage,
 }
 
 impl Default for ReconstructOptions {
@@ -29,6 +68,7 @@ impl Default for ReconstructOptions {
             stripe: StripeOptions::default(),
             min_ray_plane_angle_deg: DEFAULT_MIN_RAY_PLANE_ANGLE_DEG,
             drop_flags: 0,
+            on_bad_image: BadImage::Stop,
         }
     }
 }

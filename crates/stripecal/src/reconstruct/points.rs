@@ -1,7 +1,7 @@
 //! The reconstructed points of a scan (struct of arrays), their PLY cloud, and the
 //! frame tag errors carry.
 
-use crate::error::Error;
+use crate::error::{BadFrame, Error};
 use crate::model::Cloud;
 
 use super::DropCounts;
@@ -22,6 +22,9 @@ pub struct ScanPoints {
     pub flags: Vec<u8>,
     /// Points dropped (all frames so far).
     pub dropped: DropCounts,
+    /// Frames left out because their image could not be used (a scan reconstructed
+    /// with [`super::BadImage::Skip`]), in frame order, each with the reason.
+    pub skipped: Vec<BadFrame>,
 }
 
 impl ScanPoints {
@@ -44,6 +47,7 @@ impl ScanPoints {
         self.intensity.clear();
         self.flags.clear();
         self.dropped = DropCounts::default();
+        self.skipped.clear();
     }
 
     /// Appends another set (its frame indices kept as they are).
@@ -55,6 +59,43 @@ impl ScanPoints {
         self.intensity.extend_from_slice(&o.intensity);
         self.flags.extend_from_slice(&o.flags);
         self.dropped.add(&o.dropped);
+        self.skipped.extend_from_slice(&o.skipped);
+    }
+
+    /// Keeps the points whose frame `keep` accepts (the drop counts and the skipped
+    /// frames are left as they are).
+    pub(super) fn retain_frames(&mut self, keep: impl Fn(u32) -> bool) {
+        let mask: Vec<bool> = self.frame.iter().map(|&f| keep(f)).collect();
+        fn retain<T>(v: &mut Vec<T>, mask: &[bool]) {
+            let mut i = 0;
+            v.retain(|_| {
+                i += 1;
+                mask[i - 1]
+            });
+        }
+        retain(&mut self.points_mm, &mask);
+        retain(&mut self.u_px, &mask);
+        retain(&mut self.v_px, &mask);
+        retain(&mut self.intensity, &mask);
+        retain(&mut self.flags, &mask);
+        retain(&mut self.frame, &mask);
+    }
+
+    /// The PLY header comments of the cloud: `skipped_frames N`, then one
+    /// `skipped frame ...` line per skipped frame (which, where and why; control
+    /// characters replaced by spaces).
+    pub fn ply_comments(&self) -> Vec<String> {
+        let mut c = Vec::with_capacity(1 + self.skipped.len());
+        c.push(format!("skipped_frames {}", self.skipped.len()));
+        for b in &self.skipped {
+            let text = format!("skipped {b}");
+            c.push(
+                text.chars()
+                    .map(|ch| if ch.is_control() { ' ' } else { ch })
+                    .collect(),
+            );
+        }
+        c
     }
 
     /// The PLY cloud: `x y z` and the properties `view` (frame index), `u`, `v`,

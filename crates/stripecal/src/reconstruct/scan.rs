@@ -1,15 +1,16 @@
 //! Many frames: in-memory frames in parallel (rayon) and scan folders (scan.csv +
 //! images) decoded in parallel chunks with progress reports.
 
+use std::ops::ControlFlow;
 use std::path::Path;
 
 use rayon::prelude::*;
 
-use crate::error::{Error, Result};
-use crate::model::image::AnyView;
-use crate::model::{Calibration, RobotReading, Scan, StripeDirection};
+use crate::error::{BadFrame, Error, Result};
+use crate::model::image::{AnyGray, AnyView};
+use crate::model::{Calibration, RobotReading, Scan, ScanFrame, StripeDirection};
 
-use super::{at_frame, ReconstructOptions, Reconstructor, ScanPoints};
+use super::{BadImage, DropCounts, ReconstructOptions, Reconstructor, ScanPoints};
 
 /// Reconstructs many in-memory frames in parallel (rayon). `readings[i]` belongs to
 /// `images[i]`; points come out in frame order, tagged with the frame index. The first
@@ -51,14 +52,32 @@ pub fn reconstruct_frames(
 /// Reconstructs a scan folder (scan.csv + images). The robot and camera come from the
 /// calibration; `opts.stripe.direction: Auto` takes the scan's rig.json hint when it has
 /// one, else the calibration's ([`stripe_direction_from_plane`]). Images are decoded and
-/// processed in parallel in chunks; `progress(frames_done, frames_total, points_so_far)`
-/// is called on the calling thread after each chunk. Errors name the frame, its scan.csv
-/// line and the image file.
+/// processed in parallel in chunks.
+///
+/// `progress(frames_done, frames_total, points_so_far)` is called on the calling thread
+/// before the first chunk and after each one; when it returns
+/// [`ControlFlow::Break`] the run stops there with [`Error::Cancelled`] (a caller's
+/// interrupt: nothing is returned).
+///
+/// Bad images (see [`BadImage`]): a frame whose image is missing or unreadable, cannot
+/// be decoded (truncated, corrupted, not a supported image), is not the calibrated
+/// camera's size, or has another bit depth than most of the scan's frames. With
+/// [`BadImage::Stop`] (the default) the run stops with [`Error::BadImage`] naming the
+/// frame, its scan.csv line, the file and what is wrong: missing files are looked for
+/// before any work, undecodable images and wrong sizes stop the run at the first one in
+/// frame order, bit depths are compared once every frame is read. With
+/// [`BadImage::Skip`] the frame's points are left out and the frame is listed in
+/// [`ScanPoints::skipped`] (in frame order, with the reason).
+///
+/// Other errors (a robot reading that gives no pose...) always stop the run; they name
+/// the frame, its scan.csv line and the image file.
+///
+/// [`stripe_direction_from_plane`]: super::stripe_direction_from_plane
 pub fn reconstruct_scan(
     calibration: &Calibration,
     scan: &Scan,
     opts: &ReconstructOptions,
-    progress: &mut dyn FnMut(usize, usize, usize),
+    progress: &mut dyn FnMut(usize, usize, usize) -> ControlFlow<()>,
 ) -> Result<ScanPoints> {
     let mut opts = opts.clone();
     if opts.stripe.direction == StripeDirection::Auto {
@@ -67,13 +86,36 @@ pub fn reconstruct_scan(
         }
     }
     let proto = Reconstructor::new(calibration, &opts)?;
+    let (width, height) = (calibration.camera.width, calibration.camera.height);
+    let skip = opts.on_bad_image == BadImage::Skip;
+    let bad = |i: usize, f: &ScanFrame, reason: String| BadFrame {
+        frame: i,
+        line: f.line,
+        path: scan.image_path(&f.image),
+        reason,
+    };
+    if !skip {
+        // A missing file stops the run before any work.
+        for (i, f) in scan.frames.iter().enumerate() {
+            if let Err(reason) = check_file(&scan.image_path(&f.image)) {
+                return Err(Error::BadImage(bad(i, f, reason)));
+            }
+        }
+    }
     let n = scan.frames.len();
     let chunk = (2 * rayon::current_num_threads()).max(2);
     let mut out = ScanPoints::default();
-    progress(0, n, 0);
+    // The frames reconstructed: index, bit depth, drop counts.
+    let mut kept: Vec<(usize, u8, DropCounts)> = Vec::with_capacity(n);
+    let mut skipped: Vec<BadFrame> = Vec::new();
+    if progress(0, n, 0).is_break() {
+        return Err(Error::Cancelled);
+    }
     let mut done = 0;
     for (c, frames) in scan.frames.chunks(chunk).enumerate() {
-        let parts: Vec<Result<ScanPoints>> = frames
+        // Per frame: its points and bit depth, or why its image cannot be used.
+        type Part = std::result::Result<(ScanPoints, u8), String>;
+        let parts: Vec<Result<Part>> = frames
             .par_iter()
             .enumerate()
             .map_init(
@@ -81,9 +123,14 @@ pub fn reconstruct_scan(
                 |rec, (k, f)| {
                     let i = c * chunk + k;
                     let path = scan.image_path(&f.image);
-                    let img =
-                        crate::io::load_gray(&path).map_err(|e| at_frame(e, i, Some(f.line)))?;
-                    let view = img.view().map_err(|e| at_frame(e, i, Some(f.line)))?;
+                    let img = match frame_image(&path, width, height) {
+                        Ok(img) => img,
+                        Err(reason) => return Ok(Err(reason)),
+                    };
+                    let view = match img.view() {
+                        Ok(v) => v,
+                        Err(e) => return Ok(Err(e.to_string())),
+                    };
                     let mut sp = ScanPoints::default();
                     rec.frame_reading(view, &f.reading, i as u32, &mut sp)
                         .map_err(|e| match e {
@@ -94,20 +141,105 @@ pub fn reconstruct_scan(
                             )),
                             other => other,
                         })?;
-                    Ok(sp)
+                    Ok(Ok((sp, bit_depth(&img))))
                 },
             )
             .collect();
-        for p in parts {
-            out.append(&p?);
+        for (k, part) in parts.into_iter().enumerate() {
+            let i = c * chunk + k;
+            match part? {
+                Ok((sp, depth)) => {
+                    kept.push((i, depth, sp.dropped));
+                    out.append(&sp);
+                }
+                Err(reason) if skip => skipped.push(bad(i, &frames[k], reason)),
+                Err(reason) => return Err(Error::BadImage(bad(i, &frames[k], reason))),
+            }
         }
         done += frames.len();
-        progress(done, n, out.len());
+        if progress(done, n, out.len()).is_break() {
+            return Err(Error::Cancelled);
+        }
     }
+
+    // Bit depth: the one most frames have (a tie: the first frame's).
+    let deep = kept.iter().filter(|k| k.1 == 16).count();
+    let scan_depth = match (2 * deep).cmp(&kept.len()) {
+        std::cmp::Ordering::Greater => 16,
+        std::cmp::Ordering::Less => 8,
+        std::cmp::Ordering::Equal => kept.first().map_or(8, |k| k.1),
+    };
+    let same = kept.iter().filter(|k| k.1 == scan_depth).count();
+    let odd: Vec<(usize, u8)> = kept
+        .iter()
+        .filter(|k| k.1 != scan_depth)
+        .map(|k| (k.0, k.1))
+        .collect();
+    if !odd.is_empty() {
+        let reason = |d: u8| {
+            format!(
+                "is {d}-bit, but {same} of the scan's {} readable frames are {scan_depth}-bit",
+                kept.len()
+            )
+        };
+        if !skip {
+            let (i, d) = odd[0];
+            return Err(Error::BadImage(bad(i, &scan.frames[i], reason(d))));
+        }
+        for &(i, d) in &odd {
+            skipped.push(bad(i, &scan.frames[i], reason(d)));
+        }
+        out.retain_frames(|f| odd.binary_search_by_key(&(f as usize), |o| o.0).is_err());
+        out.dropped = DropCounts::default();
+        for k in kept.iter().filter(|k| k.1 == scan_depth) {
+            out.dropped.add(&k.2);
+        }
+    }
+    skipped.sort_by_key(|b| b.frame);
+    out.skipped = skipped;
     Ok(out)
 }
 
-/// Loads a scan folder for a calibration (checks joint counts against its robot).
+/// Why a frame's image file cannot be opened, if it cannot: it is missing or not a file.
+fn check_file(path: &Path) -> std::result::Result<(), String> {
+    if path.is_file() {
+        Ok(())
+    } else if path.exists() {
+        Err("is not a file".into())
+    } else {
+        Err("does not exist".into())
+    }
+}
+
+/// A frame's image, decoded and checked against the calibrated camera's size, or what is
+/// wrong with it.
+fn frame_image(path: &Path, width: u32, height: u32) -> std::result::Result<AnyGray, String> {
+    check_file(path)?;
+    let img = match crate::io::load_gray(path) {
+        Ok(img) => img,
+        Err(Error::Io { source, .. }) => return Err(format!("cannot be read: {source}")),
+        Err(Error::Image { message, .. }) => return Err(format!("cannot be decoded: {message}")),
+        Err(other) => return Err(other.to_string()),
+    };
+    let (w, h) = img.size();
+    if (w, h) != (width as usize, height as usize) {
+        return Err(format!(
+            "is {w} x {h} pixels, the calibrated camera is {width} x {height}"
+        ));
+    }
+    Ok(img)
+}
+
+/// 8 or 16.
+fn bit_depth(img: &AnyGray) -> u8 {
+    match img {
+        AnyGray::U8(_) => 8,
+        AnyGray::U16(_) => 16,
+    }
+}
+
+/// Loads a scan folder for a calibration (checks joint counts against its robot). The
+/// images are not looked at: [`reconstruct_scan`] checks each one.
 pub fn load_scan(root: impl AsRef<Path>, calibration: &Calibration) -> Result<Scan> {
-    Scan::load(root, calibration.robot.as_ref())
+    Scan::read(root, calibration.robot.as_ref())
 }

@@ -156,7 +156,9 @@ impl Triangulator {
     /// Triangulates pixels `uv_px` of one frame taken at `T_base_hand`: the kept points
     /// (base frame, mm) are appended to `out_mm` and their indices into `uv_px` to
     /// `index`. Returns why the others were dropped. Allocates nothing when the vectors
-    /// have room.
+    /// have room. A point that is not finite (a non-finite or huge `T_base_hand`, which
+    /// the callers check) is not kept: it is counted as grazing (its ray meets the
+    /// plane at no finite place).
     pub fn triangulate_into(
         &self,
         base_hand: &Iso3,
@@ -164,15 +166,19 @@ impl Triangulator {
         out_mm: &mut Vec<[f64; 3]>,
         index: &mut Vec<u32>,
     ) -> DropCounts {
-        let (r, t) = self.base_cam(base_hand);
         let mut drops = DropCounts::default();
+        let (r, t) = self.base_cam(base_hand);
         let mut track = UndistortTrack::new(&self.camera);
         for (i, &[u, v]) in uv_px.iter().enumerate() {
             match self.point_cam(u, v, &mut track) {
                 Ok(p) => {
                     let b = r * p + t;
-                    out_mm.push([b.x, b.y, b.z]);
-                    index.push(i as u32);
+                    if b.iter().all(|x| x.is_finite()) {
+                        out_mm.push([b.x, b.y, b.z]);
+                        index.push(i as u32);
+                    } else {
+                        drops.grazing += 1;
+                    }
                 }
                 Err(DropReason::Grazing) => drops.grazing += 1,
                 Err(DropReason::Undistort) => drops.undistort += 1,

@@ -33,7 +33,8 @@ impl RotationConvention for RotationMatrix {
         let m = Matrix3::from_row_slice(v);
         let err = (m.transpose() * m - Matrix3::identity()).abs().max();
         let det = m.determinant();
-        if err > MATRIX_TOL || (det - 1.0).abs() > MATRIX_TOL {
+        // a NaN (inf - inf in R^T R of huge entries) is refused too
+        if err.is_nan() || det.is_nan() || err > MATRIX_TOL || (det - 1.0).abs() > MATRIX_TOL {
             return Err(format!(
                 "matrix (r11..r33) = [[{}, {}, {}], [{}, {}, {}], [{}, {}, {}]] is not a rotation: \
                  max |R^T R - I| = {err:.3e} and det = {det} (a rotation has R^T R = I and det = +1, within {MATRIX_TOL})",

@@ -368,13 +368,26 @@ impl PoseColumns {
         }
         let mut t = Vector3::zeros();
         let mut r = vec![0.0; self.rotation.columns().len()];
-        for (&x, slot) in values.iter().zip(&self.slots) {
+        for ((&x, slot), name) in values.iter().zip(&self.slots).zip(&self.names) {
             match *slot {
-                Slot::Translation(k) => t[k] = x * self.translation.mm_per_unit,
+                Slot::Translation(k) => {
+                    t[k] = x * self.translation.mm_per_unit;
+                    // 1e306 m overflows in mm
+                    if !t[k].is_finite() {
+                        return Err(format!("{name} = {x} is too large ({} mm)", t[k]));
+                    }
+                }
                 Slot::Rotation(k) => r[k] = x,
             }
         }
         let rotation = self.rotation.to_rotation(&r)?;
+        if !rotation.coords.iter().all(|c| c.is_finite()) {
+            return Err(format!(
+                "{} ({}) = {r:?} is not a finite rotation",
+                self.rotation.describe(),
+                list(self.rotation.columns())
+            ));
+        }
         Ok(Iso3::from_parts(Translation3::from(t), rotation))
     }
 
@@ -406,10 +419,21 @@ pub fn pose_to_matrix(values: &[f64], columns: &[&str]) -> Result<Iso3> {
     cols.to_iso(values).map_err(Error::InvalidInput)
 }
 
-/// The values of `T_base_hand` (mm) in the columns `columns` (as [`pose_to_matrix`]).
+/// The values of `T_base_hand` (mm) in the columns `columns` (as [`pose_to_matrix`]);
+/// [`Error::InvalidInput`] when a value would not be finite (a transform with NaN).
 pub fn matrix_to_pose(t: &Iso3, columns: &[&str]) -> Result<Vec<f64>> {
     let cols = PoseColumns::from_spec(columns).map_err(Error::InvalidInput)?;
-    Ok(cols.to_values(t))
+    let values = cols.to_values(t);
+    if let Some((x, name)) = values
+        .iter()
+        .zip(cols.names())
+        .find(|(x, _)| !x.is_finite())
+    {
+        return Err(Error::InvalidInput(format!(
+            "the transform is not a finite rigid transform: {name} would be {x}"
+        )));
+    }
+    Ok(values)
 }
 
 /// A table's value columns: joint readings or a flange pose.

@@ -6,14 +6,15 @@
 //! R = I + sin(theta) [k]x + (1 - cos(theta)) [k]x²,   theta = |r|, k = r / theta
 //! ```
 //!
-//! where `[k]x` is the cross-product matrix of `k`. Every finite vector is a rotation
-//! (`r = 0` is the identity). Written back, the angle is in `[0, pi]` (`[0, 180]` deg):
+//! where `[k]x` is the cross-product matrix of `k`. Every finite vector of angle up to
+//! 1e6 rad is a rotation (`r = 0` is the identity); a longer one is an error (its axis
+//! and angle are rounding noise, and beyond ~1e154 they overflow). Written back, the angle is in `[0, pi]` (`[0, 180]` deg):
 //! near a half turn `r` and `-r` are the same rotation, and the writer picks either.
 
 use nalgebra::{UnitQuaternion, Vector3};
 
 use super::RotationConvention;
-use crate::model::geometry::quaternion_to_rotvec;
+use crate::model::geometry::{quaternion_to_rotvec, MAX_ROTVEC_ANGLE_RAD};
 
 /// A rotation vector whose components are in radians times `per_radian`.
 pub(super) struct RotationVector {
@@ -48,6 +49,14 @@ impl RotationConvention for RotationVector {
 
     fn to_rotation(&self, v: &[f64]) -> Result<UnitQuaternion<f64>, String> {
         let r = Vector3::new(v[0], v[1], v[2]) / self.per_radian;
+        let angle = r.norm();
+        if !angle.is_finite() || angle > MAX_ROTVEC_ANGLE_RAD {
+            return Err(format!(
+                "rotation vector ({}, {}, {}) has an angle of {angle:e} rad: expected at most \
+                 {MAX_ROTVEC_ANGLE_RAD:e} rad (a controller reports at most a turn)",
+                v[0], v[1], v[2]
+            ));
+        }
         Ok(UnitQuaternion::from_scaled_axis(r))
     }
 

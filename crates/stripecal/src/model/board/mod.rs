@@ -305,9 +305,12 @@ impl Board {
     /// Integer lattice coordinates `(i, j)` of point `(row, col)` (module docs).
     #[inline]
     pub fn lattice(&self, row: usize, col: usize) -> (i64, i64) {
+        // saturating: an index beyond the board (never one of its points) must not
+        // overflow
+        let (r, c) = (sat_i64(row), sat_i64(col));
         match self.kind {
-            BoardKind::AsymmetricCircles => ((2 * col + row % 2) as i64, row as i64),
-            _ => (col as i64, row as i64),
+            BoardKind::AsymmetricCircles => (c.saturating_mul(2).saturating_add(r % 2), r),
+            _ => (c, r),
         }
     }
 
@@ -370,7 +373,7 @@ impl Board {
                 let (i0, j0) = (fi.floor() as i64, fj.floor() as i64);
                 let mut best: Option<(f64, (usize, usize))> = None;
                 for (di, dj) in [(0, 0), (1, 0), (0, 1), (1, 1)] {
-                    let (i, j) = (i0 + di, j0 + dj);
+                    let (i, j) = (i0.saturating_add(di), j0.saturating_add(dj));
                     if let Some(rc) = self.from_lattice(i, j) {
                         let d = (i as f64 - fi).powi(2) + (j as f64 - fj).powi(2);
                         if best.is_none_or(|(bd, _)| d < bd) {
@@ -454,8 +457,8 @@ impl Board {
                 let u = self.lattice_unit_mm();
                 let (i0, j0) = ((x / u).round() as i64, (y / u).round() as i64);
                 let mut d = f64::INFINITY;
-                for j in j0 - 1..=j0 + 1 {
-                    for i in i0 - 1..=i0 + 1 {
+                for j in j0.saturating_sub(1)..=j0.saturating_add(1) {
+                    for i in i0.saturating_sub(1)..=i0.saturating_add(1) {
                         if let Some((r, c)) = self.from_lattice(i, j) {
                             let p = self.center(r, c);
                             let dist = ((x - p.x).powi(2) + (y - p.y).powi(2)).sqrt();
@@ -471,7 +474,7 @@ impl Board {
     /// Bounding box of the printed pattern in board coordinates, `[x0, x1, y0, y1]` mm:
     /// the circles' discs, or a chessboard's outer squares.
     pub fn pattern_extent(&self) -> [f64; 4] {
-        let last = self.center(self.rows - 1, self.cols - 1);
+        let last = self.center(self.rows.saturating_sub(1), self.cols.saturating_sub(1));
         match self.kind {
             BoardKind::Chessboard => {
                 let s = self.pitch_mm;
@@ -492,6 +495,11 @@ impl Board {
             }
         }
     }
+}
+
+/// `v` as an `i64`, `i64::MAX` when it does not fit.
+fn sat_i64(v: usize) -> i64 {
+    i64::try_from(v).unwrap_or(i64::MAX)
 }
 
 #[cfg(test)]

@@ -23,11 +23,12 @@ pub struct Symmetry {
 
 #[inline]
 fn rotate(k: u8, (i, j): (i64, i64)) -> (i64, i64) {
+    // saturating: lattice points of a board are small; others must not overflow
     match k % 4 {
         0 => (i, j),
-        1 => (-j, i),
-        2 => (-i, -j),
-        _ => (j, -i),
+        1 => (j.saturating_neg(), i),
+        2 => (i.saturating_neg(), j.saturating_neg()),
+        _ => (j, i.saturating_neg()),
     }
 }
 
@@ -42,7 +43,10 @@ impl Symmetry {
     #[inline]
     pub fn apply_lattice(&self, p: (i64, i64)) -> (i64, i64) {
         let (i, j) = rotate(self.quarter_turns, p);
-        (i + self.shift.0, j + self.shift.1)
+        (
+            i.saturating_add(self.shift.0),
+            j.saturating_add(self.shift.1),
+        )
     }
 
     /// The point that `(row, col)` maps to on `board` (`None` if the map leaves the

@@ -86,17 +86,24 @@ pub struct JacobianRows {
 
 impl JacobianRows {
     /// `m` zero rows of `width` pairs; dense when `width == n`.
+    ///
+    /// # Panics
+    ///
+    /// When `m * width` overflows a `usize` (in every build profile).
     pub fn new(m: usize, width: usize, n: usize) -> Self {
         let dense = width == n;
+        let len = m
+            .checked_mul(width)
+            .unwrap_or_else(|| panic!("{m} Jacobian rows of width {width} overflow usize"));
         JacobianRows {
             width,
             dense,
             cols: if dense {
                 (0..width).collect()
             } else {
-                vec![0; m * width]
+                vec![0; len]
             },
-            vals: vec![0.0; m * width],
+            vals: vec![0.0; len],
         }
     }
     /// Pairs per row.

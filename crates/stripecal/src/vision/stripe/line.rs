@@ -50,6 +50,9 @@ impl LineFit {
     }
 }
 
+/// The largest pixel coordinate [`fit_line_with`] takes.
+const MAX_COORD_PX: f64 = 1e100;
+
 /// [`fit_line_with`] with default options (inliers within 1 px).
 pub fn fit_line(points: &[[f64; 2]]) -> Result<LineFit> {
     fit_line_with(points, &LineFitOptions::default())
@@ -97,7 +100,7 @@ fn canonical(d: [f64; 2]) -> [f64; 2] {
 }
 
 /// Robust line fit (see the module docs). Errors: fewer than 2 points or a non-finite
-/// coordinate ([`Error::InvalidInput`]); all points at one place, or fewer than 2
+/// coordinate (or one beyond 1e100 px) ([`Error::InvalidInput`]); all points at one place, or fewer than 2
 /// inliers ([`Error::Degenerate`]).
 pub fn fit_line_with(points: &[[f64; 2]], opts: &LineFitOptions) -> Result<LineFit> {
     let n = points.len();
@@ -106,12 +109,13 @@ pub fn fit_line_with(points: &[[f64; 2]], opts: &LineFitOptions) -> Result<LineF
             "a line fit needs at least 2 points, got {n}"
         )));
     }
+    // Beyond 1e100 px the sums of squares overflow (and no image is that large).
     if let Some(i) = points
         .iter()
-        .position(|p| !(p[0].is_finite() && p[1].is_finite()))
+        .position(|p| p.iter().any(|x| !x.is_finite() || x.abs() > MAX_COORD_PX))
     {
         return Err(Error::InvalidInput(format!(
-            "point {i} is not finite: {:?}",
+            "point {i} is not finite or beyond {MAX_COORD_PX:e} px: {:?}",
             points[i]
         )));
     }

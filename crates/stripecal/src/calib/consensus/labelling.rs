@@ -1,4 +1,4 @@
-//! Consensus over views: which of each view's candidate board poses agrees with the
+//! The labelling search: which of each view's candidate board poses agrees with the
 //! robot poses of the others.
 //!
 //! A view's labelling may be undecided by its image (a symmetric board:
@@ -178,6 +178,13 @@ fn choose_from(views: &[Candidates], reference: Option<usize>) -> Vec<Decision> 
                 return Decision::Chosen {
                     index: 0,
                     margin: f64::INFINITY,
+                };
+            }
+            if views[i].b.is_empty() {
+                // no candidate at all: nothing to choose
+                return Decision::Undecided {
+                    best: f64::INFINITY,
+                    second: f64::INFINITY,
                 };
             }
             let others = chosen

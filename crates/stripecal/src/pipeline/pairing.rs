@@ -1,0 +1,291 @@
+//! Step 4: the views' robot poses against their images ([`consensus::pairing`]), and
+//! `AX = ZB` from the views that agree.
+//!
+//! Views that disagree (a swapped pair, a mistyped joint reading) are named; they are
+//! left out when the rest is consistent and large enough ([`enough_left`]); otherwise the
+//! `pairing` gate fails (DECISIONS 1), and the calibration of the views that agree is
+//! kept only for inspection. When no consensus exists at all, shifted pairings are tried
+//! ([`consensus::find_shift`]): a pose column one row off is reported in those words.
+
+use super::{CalibrateOptions, ViewStatus};
+use crate::calib::axzb::{solve_axzb, AxzbSolution};
+use crate::calib::consensus::{self, Consensus, PairingOptions};
+use crate::calib::ViewObs;
+use crate::error::{Error, Result};
+use crate::model::geometry::Iso3;
+use crate::model::{QualityCheck, QualityFailure};
+
+/// The outcome of the pairing stage.
+pub(super) struct Paired {
+    /// `AX = ZB` from the views kept.
+    pub axzb: AxzbSolution,
+    /// Which of the views are kept.
+    pub keep: Vec<bool>,
+    /// The `pairing` gate's verdict.
+    pub check: QualityCheck,
+}
+
+/// Whether `kept` views may stand for `total` (views with a robot pose whose board was
+/// found): at least 4, so that every kept view can still be checked against the others
+/// (leaving one out leaves 3, which determine `X` and `Z` with redundancy), and at least
+/// two thirds of them, so that the views left out are a clear minority.
+pub(super) fn enough_left(kept: usize, total: usize) -> bool {
+    kept >= 4 && 3 * kept >= 2 * total
+}
+
+/// "view 3" / "views 1 and 3" / "views 1, 3 and 7".
+pub(super) fn name_views(v: &[usize]) -> String {
+    match v {
+        [] => "no view".into(),
+        [a] => format!("view {a}"),
+        _ => {
+            let (last, first) = v.split_last().unwrap_or((&0, &[]));
+            let head: Vec<String> = first.iter().map(|x| x.to_string()).collect();
+            format!("views {} and {last}", head.join(", "))
+        }
+    }
+}
+
+/// Checks every view's robot pose against its image (`obs` with their `T_cam_board`
+/// `poses`) and solves `AX = ZB` from the views that agree. `earlier` counts views
+/// already left out because their robot pose fit none of their image's labellings; they
+/// count against [`enough_left`]. Errors: [`Error::Quality`] (with no calibration) when
+/// no consensus exists at all; `AX = ZB`'s errors.
+pub(super) fn check_pairing(
+    obs: &[ViewObs],
+    poses: &[Iso3],
+    earlier: &[usize],
+    opts: &CalibrateOptions,
+    warnings: &mut Vec<String>,
+    status: &mut [ViewStatus],
+) -> Result<Paired> {
+    let mut keep: Vec<bool> = obs.iter().map(|v| v.base_hand.is_some()).collect();
+    for (v, k) in obs.iter().zip(&keep) {
+        if !k {
+            warnings.push(format!("view {}: left out, no robot pose", v.view));
+        }
+    }
+    let idx: Vec<usize> = (0..obs.len()).filter(|&i| keep[i]).collect();
+    let a: Vec<Iso3> = idx.iter().filter_map(|&i| obs[i].base_hand).collect();
+    let b: Vec<Iso3> = idx.iter().map(|&i| poses[i].inverse()).collect();
+    let rows: Vec<usize> = idx.iter().map(|&i| obs[i].view).collect();
+    let popts = PairingOptions {
+        factor: opts.outlier_factor,
+        min_deg: opts.outlier_min_deg,
+        min_rel: opts.outlier_min_rel,
+        ..Default::default()
+    };
+    let c = consensus::find_consensus(&a, &b, &popts)?;
+    if !c.coherent && a.len() >= 4 {
+        let check = incoherent(&c, &rows, &a, &b, &popts);
+        return Err(Error::Quality(Box::new(QualityFailure {
+            failed: vec![check],
+            report: None,
+        })));
+    }
+    let out: Vec<usize> = c.outliers();
+    let total = a.len() + earlier.len();
+    let members = a.len() - out.len();
+    let mut named: Vec<usize> = out.iter().map(|&k| rows[k]).collect();
+    for k in &out {
+        let msg = view_message(&c, *k, &rows);
+        warnings.push(msg.clone());
+        if let Some(s) = status.iter_mut().find(|s| s.view == rows[*k]) {
+            s.note = Some(msg);
+        }
+    }
+    let check = if out.is_empty() {
+        QualityCheck::pass(
+            "pairing",
+            format!(
+                "the robot poses of all {} views agree with their images (median {:.4} deg / \
+                 {:.4} mm; limits {:.3} deg / {:.3} mm)",
+                a.len(),
+                c.median.0,
+                c.median.1,
+                c.limit.0,
+                c.limit.1
+            ),
+        )
+    } else {
+        let swapped = swapped_note(&c, &rows);
+        if enough_left(members, total) {
+            warnings.push(format!(
+                "{} left out: their robot poses do not fit their images{swapped}; {members} \
+                 of {total} views agree",
+                name_views(&named)
+            ));
+            QualityCheck {
+                name: "pairing".into(),
+                passed: true,
+                message: format!(
+                    "{} left out (robot pose does not fit the image{swapped}); the other \
+                     {members} views agree (median {:.4} deg / {:.4} mm)",
+                    name_views(&named),
+                    c.median.0,
+                    c.median.1
+                ),
+                views: named.clone(),
+            }
+        } else {
+            named.extend_from_slice(earlier);
+            named.sort_unstable();
+            QualityCheck::fail(
+                "pairing",
+                format!(
+                    "the robot poses of {} do not fit their images{swapped} ({} against the \
+                     other views' X and Z; limits {:.3} deg / {:.3} mm); only {members} of \
+                     {total} views agree, too few to calibrate without them (at least 4 and \
+                     two thirds are needed): check how the images and the poses were paired",
+                    name_views(&named),
+                    figures(&c, &out, &rows),
+                    c.limit.0,
+                    c.limit.1
+                ),
+                named.clone(),
+            )
+        }
+    };
+    // the calibration goes on with the views that agree (for inspection if the gate
+    // failed), or with all of them when fewer than 3 agree
+    if members >= 3 {
+        for &k in &out {
+            keep[idx[k]] = false;
+        }
+    }
+    let axzb = match (&c.solution, members >= 3 && !out.is_empty()) {
+        (Some(s), true) => s.clone(),
+        _ => solve(obs, poses, &keep)?,
+    };
+    Ok(Paired { axzb, keep, check })
+}
+
+/// `AX = ZB` from the views marked in `keep` (`A` = `T_base_hand`, `B` = `T_board_cam`).
+fn solve(obs: &[ViewObs], poses: &[Iso3], keep: &[bool]) -> Result<AxzbSolution> {
+    let (mut a, mut b) = (Vec::new(), Vec::new());
+    for ((v, cb), k) in obs.iter().zip(poses).zip(keep) {
+        if let (true, Some(bh)) = (*k, v.base_hand) {
+            a.push(bh);
+            b.push(cb.inverse());
+        }
+    }
+    solve_axzb(&a, &b)
+}
+
+/// "view 1 by 43.100 deg / 88.200 mm, view 3 by 40.200 deg / 85.000 mm".
+fn figures(c: &Consensus, out: &[usize], rows: &[usize]) -> String {
+    out.iter()
+        .map(|&k| {
+            format!(
+                "view {} by {:.3} deg / {:.3} mm",
+                rows[k], c.rotation_deg[k], c.translation_mm[k]
+            )
+        })
+        .collect::<Vec<_>>()
+        .join(", ")
+}
+
+/// The warning for one view that disagrees.
+fn view_message(c: &Consensus, k: usize, rows: &[usize]) -> String {
+    let fits = match c.fits_pose_of[k] {
+        Some(j) => format!("; its image fits the robot pose of view {}", rows[j]),
+        None => String::new(),
+    };
+    format!(
+        "view {}: its robot pose does not fit its image: off by {:.3} deg / {:.3} mm \
+         against the other views' X and Z (their median {:.4} deg / {:.4} mm, limits {:.3} \
+         deg / {:.3} mm){fits}; check its joint readings and its images",
+        rows[k],
+        c.rotation_deg[k],
+        c.translation_mm[k],
+        c.median.0,
+        c.median.1,
+        c.limit.0,
+        c.limit.1
+    )
+}
+
+/// " (views 1 and 3 look swapped: each image fits the other's robot pose)" or "".
+fn swapped_note(c: &Consensus, rows: &[usize]) -> String {
+    let pairs = c.swapped_pairs();
+    if pairs.is_empty() {
+        return String::new();
+    }
+    let names: Vec<String> = pairs
+        .iter()
+        .map(|&(i, j)| format!("views {} and {}", rows[i], rows[j]))
+        .collect();
+    format!(
+        " ({} look swapped: each image fits the other's robot pose)",
+        names.join(", ")
+    )
+}
+
+/// The failed `pairing` check when no set of views agrees: a shifted pose column when a
+/// shift explains it, otherwise the figures.
+fn incoherent(
+    c: &Consensus,
+    rows: &[usize],
+    a: &[Iso3],
+    b: &[Iso3],
+    popts: &PairingOptions,
+) -> QualityCheck {
+    let all = rows.to_vec();
+    if let Some(s) = consensus::find_shift(rows, a, b, c.agreeing(), popts) {
+        let n = s.rows.unsigned_abs();
+        let (dir, sign) = if s.rows > 0 {
+            ("next", "+")
+        } else {
+            ("previous", "-")
+        };
+        let dir = if n == 1 {
+            dir.to_string()
+        } else {
+            format!("{dir} but one")
+        };
+        let rows_word = if n == 1 { "one row" } else { "two rows" };
+        let example = rows
+            .iter()
+            .find_map(|&r| {
+                let t = r as isize + s.rows;
+                rows.contains(&(t as usize))
+                    .then(|| format!("the image of view {r} fits the robot pose of view {t}"))
+            })
+            .unwrap_or_default();
+        return QualityCheck::fail(
+            "pairing",
+            format!(
+                "the robot poses are off by {rows_word} against the images: every image fits \
+                 the robot pose {rows_word} {}, not its own ({example}; {} of {} views agree \
+                 paired as k {sign} {n}, none as given). The pose column was exported or \
+                 pasted {rows_word} off ({dir} row): re-pair the poses with their images",
+                if s.rows > 0 {
+                    "further down"
+                } else {
+                    "further up"
+                },
+                s.agreeing,
+                s.pairs,
+            ),
+            all,
+        );
+    }
+    QualityCheck::fail(
+        "pairing",
+        format!(
+            "the robot poses do not agree with the images at all: the best-agreeing views \
+             disagree by {:.3} deg / {:.3} mm (median), {:.0} % / {:.0} % of the motion between \
+             the views ({:.2} deg / {:.2} mm; at most {:.0} %): check that the pose columns \
+             are the flange poses of these images, in the units and convention their names \
+             say",
+            c.median.0,
+            c.median.1,
+            100.0 * c.median.0 / c.motion.0.max(1e-12),
+            100.0 * c.median.1 / c.motion.1.max(1e-12),
+            c.motion.0,
+            c.motion.1,
+            100.0 * popts.coherence
+        ),
+        all,
+    )
+}

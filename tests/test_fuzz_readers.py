@@ -1,0 +1,394 @@
+"""Property tests of the file readers and pose conversions through the public Python API
+(issue 13, acceptance 4; docs/robustness.md).
+
+Arbitrary bytes, arbitrary text and nearly valid documents go through ``load_rig``,
+``load_dataset``, ``load_scan``, ``load_calibration``, ``load_truth``,
+``load_sphere_fit``, ``read_ply``, ``load_image``, ``pose_to_matrix`` and
+``matrix_to_pose``: only ``stripecal.StripecalError`` subclasses or ``OSError`` may come
+out (``TypeError`` for arguments of the wrong type), never another exception and in
+particular never ``pyo3_runtime.PanicException`` (a Rust panic crossing into Python).
+Whatever a reader accepts is valid (finite poses, images whose shape matches their
+size) and goes back through its writer. Pose conventions round-trip as rotation
+MATRICES.
+
+Budget: the ``stripecal-fuzz`` profile runs ``200 * STRIPECAL_FUZZ_CASES`` examples per
+property (default 1) with ``deadline=None``, derandomised (the same examples every run,
+no example database), so a failure reproduces; hypothesis prints the failing example.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import tempfile
+from pathlib import Path
+from typing import Any, Callable
+
+import numpy as np
+import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+import stripecal
+
+SCALE = int(os.environ.get("STRIPECAL_FUZZ_CASES", "1") or "1")
+settings.register_profile(
+    "stripecal-fuzz",
+    max_examples=200 * max(SCALE, 1),
+    deadline=None,
+    derandomize=True,
+    database=None,
+    print_blob=True,
+    suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large],
+)
+FUZZ = settings.get_profile("stripecal-fuzz")
+
+#: What a reader may raise on bad input.
+ALLOWED = (stripecal.StripecalError, OSError)
+
+
+def call(fn: Callable[..., Any], *args: Any, allow_type_error: bool = False) -> Any:
+    """``fn(*args)``, or ``None`` when it raised an allowed error; anything else (a
+    ``PanicException``, a ``RuntimeError``, ``KeyError``...) fails the test."""
+    allowed: tuple[type[BaseException], ...] = ALLOWED + ((TypeError,) if allow_type_error else ())
+    try:
+        return fn(*args)
+    except allowed as e:
+        assert str(e).strip(), f"{fn.__name__}: empty error message"
+        return None
+    except BaseException as e:  # a PanicException derives from BaseException
+        pytest.fail(f"{fn.__name__}{args!r:.300}: {type(e).__module__}.{type(e).__name__}: {e}")
+
+
+def write(dirname: str, name: str, data: bytes) -> Path:
+    p = Path(dirname) / name
+    p.parent.mkdir(parents=True, exist_ok=True)
+    p.write_bytes(data)
+    return p
+
+
+def finite(a: Any) -> bool:
+    return bool(np.all(np.isfinite(np.asarray(a, dtype=float))))
+
+
+def is_rigid(m: np.ndarray) -> bool:
+    r = m[:3, :3]
+    return (
+        m.shape == (4, 4)
+        and finite(m)
+        and np.allclose(r.T @ r, np.eye(3), atol=1e-9)
+        and np.allclose(m[3], [0, 0, 0, 1])
+        and np.linalg.det(r) > 0
+    )
+
+
+RIG = {
+    "format": "stripecal/rig@1",
+    "camera": {"width": 768, "height": 576, "distortion_model": "radial1"},
+    "board": {
+        "rows": 8,
+        "cols": 11,
+        "pitch_mm": 5.0,
+        "circle_diameter_mm": 2.5,
+        "marker_diameter_mm": 3.5,
+        "markers": [[0, 0], [0, 1], [1, 0]],
+        "dark_circles": True,
+    },
+    "robot": {
+        "name": "MOTOMAN HP3",
+        "joints": [
+            {"theta0_deg": 0, "alpha_deg": -90, "a_mm": 100, "d_mm": 0},
+            {"theta0_deg": 90, "alpha_deg": 180, "a_mm": 370, "d_mm": 0},
+            {"theta0_deg": 0, "alpha_deg": -90, "a_mm": 85, "d_mm": 0},
+            {"theta0_deg": 0, "alpha_deg": 90, "a_mm": 0, "d_mm": -380},
+            {"theta0_deg": -180, "alpha_deg": 90, "a_mm": 0, "d_mm": 0},
+            {"theta0_deg": -180, "alpha_deg": 180, "a_mm": 0, "d_mm": -90},
+        ],
+    },
+    "stripe": {"direction": "auto"},
+}
+
+CALIBRATION = {
+    "format": "stripecal/calibration@1",
+    "camera": {"width": 768, "height": 576, "fu": 1271.65, "fv": 1322.52, "u0": 346.14,
+               "v0": 262.60, "distortion_model": "radial1", "distortion": [0.0002, 0, 0, 0, 0]},
+    "laser_plane": {"normal": [0.629, -0.0492, 0.7759], "d_mm": 79.87},
+    "hand_cam": {"rotation_vector": [-0.3087, 0.2362, 3.0369], "translation_mm": [29.19, 5.37, 62.64]},
+    "base_board": {"rotation_vector": [0, 0, 0], "translation_mm": [0, 0, 0]},
+    "robot": RIG["robot"],
+    "quality": {"circle_rms_px": 0.0, "stripe_rms_px": 0.0, "views_used": 5},
+    "uncertainty": {"camera": {"fu": 0.1}},
+    "covariance": {"parameters": ["camera.fu", "camera.fv"], "matrix": [[0.01, 0.0], [0.0, 0.02]]},
+}
+
+#: The columns of the named pose conventions (spec/DATASET.md).
+HEADERS = {
+    "quaternion": "x_mm,y_mm,z_mm,qw,qx,qy,qz",
+    "ros": "x_m,y_m,z_m,qx,qy,qz,qw",
+    "rotvec": "x_mm,y_mm,z_mm,rx_rad,ry_rad,rz_rad",
+    "rotvec_deg": "x_mm,y_mm,z_mm,rx_deg,ry_deg,rz_deg",
+    "ur": "x_m,y_m,z_m,rx_rad,ry_rad,rz_rad",
+    "kuka": "x_mm,y_mm,z_mm,a_deg,b_deg,c_deg",
+    "fanuc": "x_mm,y_mm,z_mm,w_deg,p_deg,r_deg",
+    "matrix": "x_mm,y_mm,z_mm,r11,r12,r13,r21,r22,r23,r31,r32,r33",
+}
+
+CONVENTIONS = ["quaternion", "ros", "rotvec", "rotvec_deg", "ur", "kuka", "fanuc", "matrix"]
+
+json_leaf = st.one_of(
+    st.none(),
+    st.booleans(),
+    st.integers(min_value=-(2**70), max_value=2**70),
+    st.floats(allow_nan=False, allow_infinity=False),
+    st.sampled_from([0, -1, 1e308, -0.0, 2.5, 8, 1000, 1001]),
+    st.text(max_size=8),
+    st.sampled_from(["circles", "chessboard", "radial1", "opencv5", "rows", "stripecal/rig@1"]),
+)
+json_value = st.recursive(
+    json_leaf,
+    lambda inner: st.one_of(
+        st.lists(inner, max_size=5),
+        st.dictionaries(st.sampled_from(["rows", "cols", "width", "pitch_mm", "joints", "markers", "x"]), inner, max_size=4),
+    ),
+    max_leaves=20,
+)
+
+
+def edit(doc: Any, path: list[int], new: Any) -> Any:
+    """``doc`` with the subtree chosen by ``path`` replaced by ``new`` (or removed)."""
+    if not path:
+        return new
+    k, rest = path[0], path[1:]
+    if isinstance(doc, dict) and doc:
+        key = sorted(doc)[k % len(doc)]
+        out = dict(doc)
+        if k % 7 == 1:
+            del out[key]
+        else:
+            out[key] = edit(doc[key], rest, new)
+        return out
+    if isinstance(doc, list) and doc:
+        out_l = list(doc)
+        out_l[k % len(doc)] = edit(doc[k % len(doc)], rest, new)
+        return out_l
+    return new
+
+
+# ------------------------------------------------------------------ readers, bytes
+
+
+@FUZZ
+@given(data=st.binary(max_size=600), which=st.integers(0, 5))
+def test_readers_take_arbitrary_bytes(data: bytes, which: int) -> None:
+    readers = [
+        ("rig.json", stripecal.load_rig),
+        ("calibration.json", stripecal.load_calibration),
+        ("truth.json", stripecal.load_truth),
+        ("sphere.json", stripecal.load_sphere_fit),
+        ("cloud.ply", stripecal.read_ply),
+        ("image.png", stripecal.load_image),
+    ]
+    name, fn = readers[which]
+    with tempfile.TemporaryDirectory() as d:
+        out = call(fn, write(d, name, data))
+    if fn is stripecal.load_image and out is not None:
+        assert out.ndim == 2 and out.size > 0
+
+
+@FUZZ
+@given(
+    magic=st.sampled_from([b"", b"\x89PNG\r\n\x1a\n", b"II*\x00", b"MM\x00*", b"BM", b"\xff\xd8\xff"]),
+    data=st.binary(max_size=300),
+)
+def test_load_image_takes_arbitrary_bytes_after_a_magic_number(magic: bytes, data: bytes) -> None:
+    with tempfile.TemporaryDirectory() as d:
+        out = call(stripecal.load_image, write(d, "img.bin", magic + data))
+    if out is not None:
+        assert out.ndim == 2 and out.size > 0 and out.dtype in (np.uint8, np.uint16)
+
+
+@FUZZ
+@given(path=st.lists(st.integers(0, 1000), min_size=1, max_size=4), new=json_value)
+def test_load_rig_with_one_random_edit(path: list[int], new: Any) -> None:
+    text = json.dumps(edit(RIG, path, new))
+    with tempfile.TemporaryDirectory() as d:
+        rig = call(stripecal.load_rig, write(d, "rig.json", text.encode()))
+        if rig is not None:
+            # what was read is written back and read again
+            stripecal.save_rig(Path(d) / "again.json", rig)
+            assert stripecal.load_rig(Path(d) / "again.json") is not None
+
+
+@FUZZ
+@given(path=st.lists(st.integers(0, 1000), min_size=1, max_size=4), new=json_value)
+def test_load_calibration_with_one_random_edit(path: list[int], new: Any, calibration_text: str) -> None:
+    text = json.dumps(edit(json.loads(calibration_text), path, new))
+    with tempfile.TemporaryDirectory() as d:
+        cal = call(stripecal.load_calibration, write(d, "calibration.json", text.encode()))
+        if cal is not None:
+            assert finite(cal.hand_cam) and finite(cal.base_board)
+            stripecal.save_calibration(Path(d) / "again.json", cal)
+            stripecal.load_calibration(Path(d) / "again.json")
+
+
+@pytest.fixture(scope="module")
+def calibration_text() -> str:
+    # the contract's example, read and written once (so it has every key the writer writes)
+    with tempfile.TemporaryDirectory() as d:
+        p = write(d, "in.json", json.dumps(CALIBRATION).encode())
+        out = Path(d) / "calibration.json"
+        stripecal.save_calibration(out, stripecal.load_calibration(p))
+        return out.read_text()
+
+
+# ------------------------------------------------------------------ datasets
+
+csv_field = st.one_of(
+    st.sampled_from(["0", "-90", "1.5", "nan", "inf", "1e308", "", "-0", "x", "18446744073709551616"]),
+    st.floats().map(repr),
+    st.text(max_size=5),
+)
+
+
+@FUZZ
+@given(
+    header=st.one_of(
+        st.just("board_image,laser_image,q1,q2,q3,q4,q5,q6"),
+        st.sampled_from(CONVENTIONS).map(lambda c: "board_image,laser_image," + HEADERS[c]),
+        st.lists(st.sampled_from(["board_image", "laser_image", "q1", "x_mm", "qw", "r11", "a_deg", ""]), max_size=9).map(",".join),
+    ),
+    rows=st.lists(st.lists(csv_field, max_size=14), max_size=4),
+    crlf=st.booleans(),
+    rig_edit=st.one_of(st.none(), st.tuples(st.lists(st.integers(0, 1000), min_size=1, max_size=3), json_value)),
+)
+def test_load_dataset_and_scan_take_arbitrary_tables(
+    header: str, rows: list[list[str]], crlf: bool, rig_edit: Any
+) -> None:
+    nl = "\r\n" if crlf else "\n"
+    body = nl.join([header] + [",".join(["images/a.png", "images/a.png"] + r) for r in rows])
+    rig = RIG if rig_edit is None else edit(RIG, rig_edit[0], rig_edit[1])
+    with tempfile.TemporaryDirectory() as d:
+        write(d, "rig.json", json.dumps(rig).encode())
+        write(d, "views.csv", body.encode())
+        write(d, "images/a.png", b"not decoded by load_dataset")
+        ds = call(stripecal.load_dataset, d)
+        if ds is not None:
+            assert len(ds.views) >= 1
+        scan_body = nl.join(["image" + header[len("board_image,laser_image"):]] + [",".join(["images/a.png"] + r) for r in rows])
+        write(d, "scan.csv", scan_body.encode())
+        call(stripecal.load_scan, d)
+
+
+# ------------------------------------------------------------------ PLY
+
+
+@FUZZ
+@given(
+    n=st.integers(0, 30),
+    values=st.lists(st.floats(allow_nan=True, allow_infinity=True, width=64), min_size=90, max_size=90),
+    binary=st.booleans(),
+)
+def test_ply_round_trips_any_double(n: int, values: list[float], binary: bool) -> None:
+    pts = np.array(values[: 3 * n], dtype=float).reshape(n, 3)
+    with tempfile.TemporaryDirectory() as d:
+        p = Path(d) / "c.ply"
+        stripecal.write_ply(p, pts, {"view": np.arange(n, dtype=float)}, binary=binary)
+        back = stripecal.read_ply(p)
+        got = np.asarray(back["points"])
+        assert got.shape == (n, 3)
+        assert np.array_equal(got, pts, equal_nan=True)
+        assert not [f for f in os.listdir(d) if ".tmp-" in f]
+
+
+@FUZZ
+@given(points=st.one_of(st.just(None), st.text(max_size=3), st.lists(st.lists(st.floats(), max_size=4), max_size=3)))
+def test_write_ply_refuses_bad_arrays_cleanly(points: Any) -> None:
+    with tempfile.TemporaryDirectory() as d:
+        p = Path(d) / "c.ply"
+        p.write_bytes(b"old")
+        try:
+            stripecal.write_ply(p, points)
+        except (stripecal.StripecalError, OSError, TypeError):
+            assert p.read_bytes() == b"old", "a refused write changed the file"
+        else:
+            # written: complete and readable
+            assert np.asarray(stripecal.read_ply(p)["points"]).shape == (len(points), 3)
+        assert not [f for f in os.listdir(d) if ".tmp-" in f]
+
+
+# ------------------------------------------------------------------ poses
+
+
+def rotation(axis: list[float], angle: float) -> np.ndarray:
+    a = np.asarray(axis, dtype=float)
+    if np.linalg.norm(a) < 1e-6:
+        return np.eye(3)
+    return stripecal.rotvec_to_matrix(a / np.linalg.norm(a) * angle)
+
+
+@FUZZ
+@given(
+    axis=st.lists(st.floats(-1, 1), min_size=3, max_size=3),
+    angle=st.one_of(st.floats(-np.pi, np.pi), st.sampled_from([0.0, np.pi, np.pi / 2, -np.pi / 2])),
+    t=st.lists(st.floats(-5000, 5000), min_size=3, max_size=3),
+    convention=st.sampled_from(CONVENTIONS),
+)
+def test_pose_conventions_round_trip_as_matrices(
+    axis: list[float], angle: float, t: list[float], convention: str
+) -> None:
+    m = np.eye(4)
+    m[:3, :3] = rotation(axis, angle)
+    m[:3, 3] = t
+    values = stripecal.matrix_to_pose(m, convention)
+    back = stripecal.pose_to_matrix(values, convention)
+    assert np.allclose(back[:3, :3], m[:3, :3], atol=1e-9), (convention, values)
+    assert np.allclose(back[:3, 3], m[:3, 3], atol=1e-9 * (1 + np.abs(m[:3, 3]).max()))
+
+
+@FUZZ
+@given(
+    convention=st.one_of(st.sampled_from(CONVENTIONS), st.text(max_size=12), st.lists(st.sampled_from(["x_mm", "qw", "r11", "q1", ""]), max_size=8)),
+    values=st.lists(
+        st.one_of(st.floats(), st.sampled_from([1e308, -1e308, 7.2e166, 1e306, 0.0, 1.0])),
+        max_size=13,
+    ),
+)
+def test_pose_to_matrix_of_arbitrary_values(convention: Any, values: list[float]) -> None:
+    out = call(stripecal.pose_to_matrix, values, convention)
+    if out is not None:
+        assert is_rigid(out), (convention, values, out)
+        again = stripecal.matrix_to_pose(out, convention)
+        assert finite(again)
+
+
+@FUZZ
+@given(m=st.lists(st.floats(), min_size=16, max_size=16), convention=st.sampled_from(CONVENTIONS))
+def test_matrix_to_pose_of_arbitrary_matrices(m: list[float], convention: str) -> None:
+    out = call(stripecal.matrix_to_pose, np.array(m).reshape(4, 4), convention)
+    if out is not None:
+        assert finite(out)
+
+
+@pytest.mark.parametrize(
+    "fn, args",
+    [
+        (stripecal.pose_to_matrix, ("abc", 3)),
+        (stripecal.pose_to_matrix, ([1.0] * 7, None)),
+        (stripecal.matrix_to_pose, (None, "kuka")),
+        (stripecal.load_rig, (123,)),
+        (stripecal.read_ply, (None,)),
+        (stripecal.load_image, (b"\x00",)),
+        (stripecal.load_dataset, (3.5,)),
+    ],
+)
+def test_wrong_argument_types_raise_type_errors_or_typed_errors(fn: Callable[..., Any], args: tuple[Any, ...]) -> None:
+    call(fn, *args, allow_type_error=True)
+
+
+def test_found_by_the_campaign_huge_rotation_vectors_are_refused() -> None:
+    # a rotation vector whose norm overflows gave a NaN transform (issue 13)
+    with pytest.raises(stripecal.InvalidInputError):
+        stripecal.pose_to_matrix([0, 0, 0, 0, 7.2e166, 0], "rotvec")
+    with pytest.raises(stripecal.InvalidInputError):
+        stripecal.pose_to_matrix([1e306, 0, 0, 0, 0, 0], "ur")
+
