@@ -7,8 +7,10 @@ use stripecal::Error;
 use crate::convert::{f64_array, fmt_shape, iso_to_py, isos_to_py, nd, py_to_iso};
 use crate::errors::{invalid_input, map_err_at, ResultExt};
 
-/// A serial robot from its standard DH table: `A_i = Rz(theta_i) Tz(d_i) Tx(a_i)
-/// Rx(alpha_i)` with `theta_i = q_i - theta0_i` (degrees), `T_base_hand = A_1 ... A_N`;
+/// A serial robot from its DH table: `A_i = Rz(theta_i) Tz(d_i) Tx(a_i) Rx(alpha_i)
+/// Ry(beta_i)` with `theta_i = q_i - theta0_i` (degrees), `T_base_hand = A_1 ... A_N`;
+/// rows `(theta0_deg, alpha_deg, a_mm, d_mm)` or with Hayati's `beta_deg` fifth (0 when
+/// absent: standard DH);
 /// optionally the maker's figures `repeatability_mm` and `encoder_sigma_deg` (rig.json),
 /// lower bounds of the robot-pose noise the calibration estimates.
 #[pyclass(name = "Robot", module = "stripecal", frozen, eq)]
@@ -58,11 +60,11 @@ impl PyRobot {
         encoder_sigma_deg: Option<f64>,
     ) -> PyResult<Self> {
         let a = f64_array(joints, "joints")?;
-        if a.ndim() != 2 || a.shape()[1] != 4 {
+        if a.ndim() != 2 || !(a.shape()[1] == 4 || a.shape()[1] == 5) {
             return Err(invalid_input(
                 py,
                 format!(
-                    "joints must have shape (N, 4): rows (theta0_deg, alpha_deg, a_mm, d_mm), got {}",
+                    "joints must have shape (N, 4) or (N, 5): rows (theta0_deg, alpha_deg, a_mm, d_mm[, beta_deg]), got {}",
                     fmt_shape(a.shape())
                 ),
             ));
@@ -74,6 +76,7 @@ impl PyRobot {
                 alpha_deg: r[1],
                 a_mm: r[2],
                 d_mm: r[3],
+                beta_deg: r.get(4).copied().unwrap_or(0.0),
             })
             .collect();
         Robot::new(name, rows)
@@ -122,6 +125,14 @@ impl PyRobot {
             .flat_map(|j| [j.theta0_deg, j.alpha_deg, j.a_mm, j.d_mm])
             .collect();
         nd(py, &[self.inner.dof(), 4], data)
+    }
+
+    /// Hayati's tilt of each row about its new y axis, shape (N,), degrees (0 for a
+    /// standard DH row).
+    #[getter]
+    fn beta_deg<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
+        let data = self.inner.joints.iter().map(|j| j.beta_deg).collect();
+        nd(py, &[self.inner.dof()], data)
     }
 
     /// `T_base_hand` for encoder readings in degrees: q `(dof,)` -> `(4, 4)`,

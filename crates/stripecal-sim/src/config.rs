@@ -57,6 +57,13 @@ pub struct DhCfg {
     pub alpha_deg: f64,
     pub a_mm: f64,
     pub d_mm: f64,
+    /// Hayati's tilt about the new y axis (spec/DATASET.md, "Robot (DH)"); default 0.
+    #[serde(default, skip_serializing_if = "is_zero")]
+    pub beta_deg: f64,
+}
+
+fn is_zero(x: &f64) -> bool {
+    *x == 0.0
 }
 
 /// The robot's nominal DH table (written to rig.json).
@@ -320,6 +327,7 @@ impl SimConfig {
                         alpha_deg: j.alpha_deg,
                         a_mm: j.a_mm,
                         d_mm: j.d_mm,
+                        beta_deg: j.beta_deg,
                     })
                     .collect(),
             },
@@ -713,6 +721,7 @@ impl SimConfig {
                 alpha_deg: j.alpha_deg,
                 a_mm: j.a_mm,
                 d_mm: j.d_mm,
+                beta_deg: j.beta_deg,
             })
             .collect();
         Robot::new(self.robot.name.clone(), joints)

@@ -623,6 +623,7 @@ fn kinematics_take_hostile_values() {
         alpha_deg: 0.0,
         a_mm: x,
         d_mm: 1.0,
+        beta_deg: 0.0,
     };
     for &x in &BAD {
         finite_or_err(

@@ -741,6 +741,7 @@ fn arb_robot() -> impl Strategy<Value = Robot> {
                     alpha_deg: a,
                     a_mm: am,
                     d_mm: d,
+                    beta_deg: 0.0,
                 })
                 .collect(),
             repeatability_mm: None,

@@ -154,7 +154,7 @@ fn board_from(b: &Obj<'_>) -> Result<Board> {
     Ok(board)
 }
 
-/// A robot `{"name": ..., "joints": [{theta0_deg, alpha_deg, a_mm, d_mm}, ...],
+/// A robot `{"name": ..., "joints": [{theta0_deg, alpha_deg, a_mm, d_mm, beta_deg?}, ...],
 /// "repeatability_mm": ..., "encoder_sigma_deg": ...}`. `name` is optional (default
 /// empty), so are the two figures (finite, >= 0).
 pub(super) fn robot_from(r: &Obj<'_>) -> Result<Robot> {
@@ -172,6 +172,11 @@ pub(super) fn robot_from(r: &Obj<'_>) -> Result<Robot> {
             alpha_deg: j.f64("alpha_deg")?,
             a_mm: j.f64("a_mm")?,
             d_mm: j.f64("d_mm")?,
+            beta_deg: j
+                .opt("beta_deg")
+                .map(|v| v.f64())
+                .transpose()?
+                .unwrap_or(0.0),
         });
     }
     let figure = |key: &str| r.opt(key).map(|v| v.nonneg_f64()).transpose();
@@ -196,6 +201,9 @@ pub(super) fn robot_value(r: &Robot) -> Value {
             m.insert("alpha_deg".into(), num(j.alpha_deg));
             m.insert("a_mm".into(), num(j.a_mm));
             m.insert("d_mm".into(), num(j.d_mm));
+            if j.beta_deg != 0.0 {
+                m.insert("beta_deg".into(), num(j.beta_deg));
+            }
             Value::Object(m)
         })
         .collect();

@@ -3,9 +3,13 @@
 //! ## Conventions
 //!
 //! One [`DhJoint`] per revolute joint i = 1..N:
-//! `A_i = Rz(theta_i) * Tz(d_i) * Tx(a_i) * Rx(alpha_i)`, `T_base_hand = A_1 ... A_N`,
-//! with `theta_i = q_i - theta0_i` where `q_i` is the encoder reading in degrees
-//! (the paper's eq. 8). Angles in degrees, lengths in mm.
+//! `A_i = Rz(theta_i) * Tz(d_i) * Tx(a_i) * Rx(alpha_i) * Ry(beta_i)`,
+//! `T_base_hand = A_1 ... A_N`, with `theta_i = q_i - theta0_i` where `q_i` is the
+//! encoder reading in degrees (the paper's eq. 8). Angles in degrees, lengths in mm.
+//! `beta_i` is Hayati's tilt about the new y axis (0 unless a row carries it): for a
+//! joint whose axis is nearly parallel to the previous one, where a small tilt would
+//! need a huge change of the standard rows' `d` (the common normal of two nearly
+//! parallel axes is far away), the tilt is `beta` instead.
 
 use nalgebra::{
     DMatrix, DVector, Isometry3, Matrix3, Translation3, UnitQuaternion, Vector3, Vector6,
@@ -25,6 +29,8 @@ pub struct DhJoint {
     pub a_mm: f64,
     /// Link offset (mm).
     pub d_mm: f64,
+    /// Hayati's tilt about the new y axis (degrees; 0 for a standard DH row).
+    pub beta_deg: f64,
 }
 
 impl DhJoint {
@@ -35,7 +41,11 @@ impl DhJoint {
         let alpha = self.alpha_deg.to_radians();
         let (st, ct) = theta.sin_cos();
         let (sa, ca) = alpha.sin_cos();
-        let r = Matrix3::new(ct, -st * ca, st * sa, st, ct * ca, -ct * sa, 0.0, sa, ca);
+        let mut r = Matrix3::new(ct, -st * ca, st * sa, st, ct * ca, -ct * sa, 0.0, sa, ca);
+        if self.beta_deg != 0.0 {
+            let (sb, cb) = self.beta_deg.to_radians().sin_cos();
+            r *= Matrix3::new(cb, 0.0, sb, 0.0, 1.0, 0.0, -sb, 0.0, cb);
+        }
         let t = Vector3::new(self.a_mm * ct, self.a_mm * st, self.d_mm);
         (r, t)
     }
@@ -157,7 +167,7 @@ impl Robot {
             }
         }
         for (i, j) in self.joints.iter().enumerate() {
-            if ![j.theta0_deg, j.alpha_deg, j.a_mm, j.d_mm]
+            if ![j.theta0_deg, j.alpha_deg, j.a_mm, j.d_mm, j.beta_deg]
                 .iter()
                 .all(|x| x.is_finite())
             {
@@ -177,6 +187,7 @@ impl Robot {
             alpha_deg,
             a_mm,
             d_mm,
+            beta_deg: 0.0,
         };
         Robot {
             repeatability_mm: None,
@@ -316,6 +327,42 @@ impl Robot {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn beta_is_a_tilt_about_the_new_y_axis() {
+        let mut row = DhJoint {
+            theta0_deg: 10.0,
+            alpha_deg: 180.0,
+            a_mm: 370.0,
+            d_mm: 2.0,
+            beta_deg: 0.0,
+        };
+        let (r0, t0) = row.rotation_translation(35.0);
+        row.beta_deg = 0.3;
+        let (r1, t1) = row.rotation_translation(35.0);
+        let b = 0.3f64.to_radians();
+        let ry = nalgebra::Rotation3::from_axis_angle(&Vector3::y_axis(), b).into_inner();
+        assert!((r1 - r0 * ry).abs().max() < 1e-15);
+        assert_eq!(t0, t1, "the tilt does not move the row's origin");
+        // The joint Jacobian follows the tilted axes: finite differences of forward.
+        let mut robot = Robot::hp3();
+        robot.joints[1].beta_deg = 0.5;
+        let q = [5.0, -20.0, 30.0, 10.0, -80.0, 15.0];
+        let jac = robot.jacobian(&q).unwrap();
+        let h = 1e-6;
+        let mut qp = q;
+        qp[2] += h;
+        let p0 = robot.forward(&q).unwrap().translation.vector;
+        let p1 = robot.forward(&qp).unwrap().translation.vector;
+        let fd = (p1 - p0) / h.to_radians();
+        for k in 0..3 {
+            assert!(
+                (fd[k] - jac[(k, 2)]).abs() < 1e-4,
+                "{fd:?} vs {}",
+                jac.column(2)
+            );
+        }
+    }
 
     #[test]
     fn hp3_home_pose_matches_the_errata() {
