@@ -26,7 +26,7 @@ def dataset(tmp_path_factory: pytest.TempPathFactory) -> Tuple[Path, stripecal.T
 
 @pytest.fixture(scope="module")
 def calibration(dataset: Tuple[Path, stripecal.Truth]) -> stripecal.Calibration:
-    return stripecal.calibrate(dataset[0])
+    return stripecal.calibrate(dataset[0], robot_pose_noise=True)
 
 
 def _within(value: float, truth: float, sigma: float, k: float = 4.0) -> bool:

@@ -631,6 +631,7 @@ def calibrate(
     board_scale_tolerance: float = 0.01,
     leave_one_out: bool = True,
     accept_poor: bool = False,
+    robot_pose_noise: bool = False,
 ) -> Calibration: ...
 def calibrate_camera(
     views: Sequence[Tuple[npt.ArrayLike, npt.ArrayLike]],

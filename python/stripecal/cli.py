@@ -389,6 +389,7 @@ def cmd_calibrate(args: argparse.Namespace) -> int:
             from_calibration=args.from_calibration, fix=fix, laser_only=args.laser_only,
             estimate_board_scale=args.estimate_board_scale, board_scale_tolerance=args.board_scale_tolerance,
             leave_one_out=not args.no_leave_one_out, accept_poor=args.accept_poor,
+            robot_pose_noise=args.robot_pose_noise,
         )
     except stripecal.CalibrationQualityError as e:
         if e.calibration is not None:
@@ -433,6 +434,9 @@ def _add_calibrate(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> 
     p.add_argument("--board-scale-tolerance", type=float, default=0.01, metavar="REL",
                    help="the board-scale check warns when |scale - 1| exceeds 3 sigma and this (default 0.01)")
     p.add_argument("--no-leave-one-out", action="store_true", help="skip the leave-one-view-out figure (one refit per view)")
+    p.add_argument("--robot-pose-noise", action="store_true",
+                   help="correct every view's robot pose by its own small transform and report "
+                        "the robot-pose noise (mm, deg); default: the robot poses are exact")
     p.add_argument("--accept-poor", action="store_true",
                    help="write a calibration that failed a quality check anyway, marked quality.accepted_poor (default: exit 1, nothing written)")
     p.add_argument("--report", metavar="DIR", help="also write an HTML report with figures into DIR (needs matplotlib)")

@@ -206,7 +206,9 @@ fn parse_distortion(py: Python<'_>, s: Option<&str>) -> PyResult<Option<Distorti
 /// out, undetermined parameters, no convergence) raises `CalibrationQualityError`
 /// carrying the failed `checks` and the `calibration` for inspection;
 /// `accept_poor=True` returns it instead, with `quality["accepted_poor"]` True. Every
-/// gate's verdict is in `quality["checks"]`.
+/// gate's verdict is in `quality["checks"]`. `robot_pose_noise=True` corrects every
+/// view's robot pose by its own small transform and reports the robot-pose noise
+/// (`robot_pose_noise`; default off: the poses are exact).
 ///
 /// Returns a `Calibration` with quality, one-sigma `uncertainty`, per-view figures
 /// (`views`) and the run's residuals. Views whose board is not found, and views whose
@@ -217,7 +219,7 @@ fn parse_distortion(py: Python<'_>, s: Option<&str>) -> PyResult<Option<Distorti
 /// released while it runs; a Ctrl-C (SIGINT) during the run raises `KeyboardInterrupt`
 /// when the core returns (the result is dropped), not at once.
 #[pyfunction]
-#[pyo3(signature = (dataset, *, distortion = None, method = "one-stage", robust = false, centre_model = "conic-exact", from_calibration = None, fix = Vec::new(), laser_only = false, estimate_board_scale = false, board_scale_tolerance = 0.01, leave_one_out = true, accept_poor = false))]
+#[pyo3(signature = (dataset, *, distortion = None, method = "one-stage", robust = false, centre_model = "conic-exact", from_calibration = None, fix = Vec::new(), laser_only = false, estimate_board_scale = false, board_scale_tolerance = 0.01, leave_one_out = true, accept_poor = false, robot_pose_noise = false))]
 #[allow(clippy::too_many_arguments)]
 pub fn calibrate(
     py: Python<'_>,
@@ -233,6 +235,7 @@ pub fn calibrate(
     board_scale_tolerance: f64,
     leave_one_out: bool,
     accept_poor: bool,
+    robot_pose_noise: bool,
 ) -> PyResult<PyCalibration> {
     let from = match from_calibration {
         None => None,
@@ -268,6 +271,7 @@ pub fn calibrate(
         leave_one_out,
         board_scale_tolerance,
         accept_poor,
+        robot_pose_noise,
         ..Default::default()
     };
     let result = if let Ok(ds) = dataset.cast::<PyDataset>() {

@@ -128,7 +128,7 @@ fn the_board_scale_check_finds_a_board_declared_2_percent_too_large() {
         &mut Rng::new(3, 11),
     );
     let good: Rig = t.rig().unwrap();
-    let rep = calibrate_observations(&views, &good, &CalibrateOptions::default()).unwrap();
+    let rep = calibrate_observations(&views, &good, &noisy()).unwrap();
     let c = rep.board_scale.clone().expect("a board-scale check");
     println!("correct board: scale {:.6} +- {:.6}", c.scale, c.sigma);
     assert!(!c.disagrees && (c.scale - 1.0).abs() < 3.0 * c.sigma + 1e-9);
@@ -140,7 +140,7 @@ fn the_board_scale_check_finds_a_board_declared_2_percent_too_large() {
     wrong.board.pitch_mm *= k;
     wrong.board.circle_diameter_mm *= k;
     wrong.board.marker_diameter_mm *= k;
-    let rep = calibrate_observations(&views, &wrong, &CalibrateOptions::default()).unwrap();
+    let rep = calibrate_observations(&views, &wrong, &noisy()).unwrap();
     let c = rep.board_scale.clone().unwrap();
     let truth = 1.0 / k;
     println!(
@@ -163,6 +163,7 @@ fn the_board_scale_check_finds_a_board_declared_2_percent_too_large() {
             board_scale: true,
             ..FreeBlocks::default()
         },
+        robot_pose_noise: true,
         ..CalibrateOptions::default()
     };
     let rep2 = calibrate_observations(&views, &wrong, &free).unwrap();
@@ -261,4 +262,11 @@ fn leave_one_out_agrees_with_the_true_prediction_error() {
     let med = 0.5 * (ratios[ratios.len() / 2 - 1] + ratios[ratios.len() / 2]);
     println!("median ratio leave-one-out / true error: {med:.3}");
     assert!((1.0 / 1.5..=1.5).contains(&med), "{med}");
+}
+
+fn noisy() -> CalibrateOptions {
+    CalibrateOptions {
+        robot_pose_noise: true,
+        ..CalibrateOptions::default()
+    }
 }

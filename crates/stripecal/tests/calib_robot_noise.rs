@@ -37,9 +37,17 @@ fn noisy_views(t: &Twin, seed: u64) -> Vec<ViewObs> {
     )
 }
 
+fn noisy_robot() -> JointOptions {
+    JointOptions {
+        robot_noise: true,
+        ..JointOptions::default()
+    }
+}
+
 fn no_loo() -> CalibrateOptions {
     CalibrateOptions {
         leave_one_out: false,
+        robot_pose_noise: true,
         ..CalibrateOptions::default()
     }
 }
@@ -179,7 +187,7 @@ fn noisy_readings_are_estimated_and_the_sigmas_are_honest() {
         let views = noisy_views(&t, 100 + seed);
         let rep = calibrate_observations(&views, &t.rig().unwrap(), &no_loo()).unwrap();
         let start = start_of(&rep);
-        let new = joint_adjustment(&views, &t.board, &start, &JointOptions::default()).unwrap();
+        let new = joint_adjustment(&views, &t.board, &start, &noisy_robot()).unwrap();
         let rigid = JointOptions {
             robot_noise: false,
             ..JointOptions::default()
@@ -284,7 +292,7 @@ fn a_view_whose_reading_is_off_by_a_degree_stands_out() {
     q[2] += 1.0;
     views[bad].base_hand = Some(t.robot_true.forward(&q).unwrap());
     let rep = calibrate_observations(&views, &t.rig().unwrap(), &no_loo()).unwrap();
-    let r = joint_adjustment(&views, &t.board, &start_of(&rep), &JointOptions::default()).unwrap();
+    let r = joint_adjustment(&views, &t.board, &start_of(&rep), &noisy_robot()).unwrap();
     let n = r.robot_noise.unwrap();
     for v in &n.views {
         println!(

@@ -313,6 +313,7 @@ pub(super) fn joint_options(opts: &CalibrateOptions, rig: &Rig) -> JointOptions 
         centre_model: opts.centre_model,
         robust: opts.robust,
         free: opts.free,
+        robot_noise: opts.robot_pose_noise,
         robot_floor: rig
             .robot
             .as_ref()

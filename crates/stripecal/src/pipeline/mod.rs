@@ -124,6 +124,10 @@ pub struct CalibrateOptions {
     /// Return a calibration that failed a quality gate ([`gates`]) instead of an
     /// [`Error::Quality`], marked `quality.accepted_poor` (default false).
     pub accept_poor: bool,
+    /// Correct every view's robot pose by its own small transform and estimate the
+    /// robot-pose noise (`--robot-pose-noise`; default false: the robot poses are exact,
+    /// [`crate::calib::joint::JointOptions::robot_noise`]).
+    pub robot_pose_noise: bool,
 }
 
 impl Default for CalibrateOptions {
@@ -144,6 +148,7 @@ impl Default for CalibrateOptions {
             leave_one_out: true,
             board_scale_tolerance: 0.01,
             accept_poor: false,
+            robot_pose_noise: false,
         }
     }
 }
