@@ -28,6 +28,7 @@ from stripecal.types import (
     LeaveOneOut,
     PlyCloud,
     QualityCheck,
+    RobotCalibration,
     RobotPoseNoise,
     SimPose,
     SkippedFrame,
@@ -355,6 +356,8 @@ class Calibration:
     @property
     def robot_pose_noise(self) -> Optional[RobotPoseNoise]: ...
     @property
+    def robot_calibration(self) -> Optional[RobotCalibration]: ...
+    @property
     def circle_residuals(self) -> _F64: ...
     @property
     def stripe_residuals(self) -> _F64: ...
@@ -632,6 +635,7 @@ def calibrate(
     leave_one_out: bool = True,
     accept_poor: bool = False,
     robot_pose_noise: bool = False,
+    robot: str = "fixed",
 ) -> Calibration: ...
 def calibrate_camera(
     views: Sequence[Tuple[npt.ArrayLike, npt.ArrayLike]],

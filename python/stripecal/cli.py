@@ -334,6 +334,16 @@ def print_calibration(cal: stripecal.Calibration) -> None:
         floor = [k for k, v in rn["at_floor"].items() if v]
         print(f"\n  robot-pose noise: {rn['translation_mm']:.3g} mm, {rn['rotation_deg']:.3g} deg"
               f" ({'at floor: ' + ', '.join(floor) if floor else 'estimated'})")
+    rc = cal.robot_calibration
+    if rc is not None:
+        print(f"\n  robot calibration ({rc['mode']}): {len(rc['estimated'])} DH corrections estimated,"
+              f" {len(rc['fixed'])} held")
+        for e in rc["estimated"]:
+            c, s = e["correction"], e["sigma"]
+            if c is not None and s is not None:
+                print(f"    {e['name']:30s} {c:+.4f} +- {s:.4f}")
+        for f in rc["fixed"]:
+            print(f"    held {f['name']}: {f['reason']}")
     print_leave_one_out(cal)
     print_checks(q.get("checks", []), q.get("accepted_poor", False))
     for w in extra.get("warnings", []):
@@ -381,7 +391,7 @@ def cmd_calibrate(args: argparse.Namespace) -> int:
     written; the exit status is 1 (--accept-poor writes it, marked)."""
     t0 = time.monotonic()
     fix = [b.strip() for b in args.fix.split(",") if b.strip()] if args.fix else []
-    if (fix or args.laser_only) and not args.from_calibration:
+    if ([b for b in fix if b != "robot"] or args.laser_only) and not args.from_calibration:
         raise stripecal.InvalidInputError("--fix and --laser-only hold blocks of an earlier calibration: give it with --from FILE")
     try:
         cal = stripecal.calibrate(
@@ -390,6 +400,7 @@ def cmd_calibrate(args: argparse.Namespace) -> int:
             estimate_board_scale=args.estimate_board_scale, board_scale_tolerance=args.board_scale_tolerance,
             leave_one_out=not args.no_leave_one_out, accept_poor=args.accept_poor,
             robot_pose_noise=args.robot_pose_noise,
+            robot=args.robot,
         )
     except stripecal.CalibrationQualityError as e:
         if e.calibration is not None:
@@ -434,6 +445,11 @@ def _add_calibrate(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> 
     p.add_argument("--board-scale-tolerance", type=float, default=0.01, metavar="REL",
                    help="the board-scale check warns when |scale - 1| exceeds 3 sigma and this (default 0.01)")
     p.add_argument("--no-leave-one-out", action="store_true", help="skip the leave-one-view-out figure (one refit per view)")
+    p.add_argument("--robot", choices=["fixed", "offsets", "full", "auto"], default="fixed",
+                   help="calibrate the robot's DH rows from the same images: offsets (encoder "
+                        "offsets), full (every identifiable correction), auto (the corrections "
+                        "the data show); default fixed (rig.json's DH table is exact; the same "
+                        "as --fix robot). Needs joint readings")
     p.add_argument("--robot-pose-noise", action="store_true",
                    help="correct every view's robot pose by its own small transform and report "
                         "the robot-pose noise (mm, deg); default: the robot poses are exact")

@@ -376,6 +376,36 @@ class RobotPoseNoise(TypedDict):
     """Per view used."""
 
 
+class DhCorrection(TypedDict):
+    """One DH correction the robot calibration estimated."""
+
+    name: str
+    """``robot.joints[i].theta0_deg`` style (0-based row; the covariance's name)."""
+    correction: Optional[float]
+    """The refined value minus rig.json's nominal one, degrees or mm."""
+    sigma: Optional[float]
+    """Its one-sigma."""
+
+
+class DhFixed(TypedDict):
+    """A candidate DH correction held at rig.json's value, and why."""
+
+    name: str
+    reason: str
+    """Absorbed by the hand-eye X or the robot-world Z, a combination of estimated
+    corrections (named), or not shown by the data (``auto``)."""
+
+
+class RobotCalibration(TypedDict):
+    """What ``--robot`` / ``calibrate(robot=...)`` did (``Calibration.robot_calibration``);
+    the refined DH rows are ``Calibration.robot``."""
+
+    mode: str
+    """``offsets``, ``full`` or ``auto``."""
+    estimated: List[DhCorrection]
+    fixed: List[DhFixed]
+
+
 class CalibrationExtra(TypedDict, total=False):
     """The other top-level keys of calibration.json (``Calibration.extra``). The
     library writes all but ``base_board_orientation`` and ``warnings`` (only when there
@@ -405,6 +435,8 @@ class CalibrationExtra(TypedDict, total=False):
     """The leave-one-view-out figures."""
     robot_pose_noise: RobotPoseNoise
     """The robot-pose noise estimated by the one-stage adjustment."""
+    robot_calibration: RobotCalibration
+    """The robot's DH corrections (``--robot``)."""
     held_blocks: List[str]
     """The blocks held at the values of the calibration it started from (their
     uncertainty is that file's; the others' is conditional on them)."""

@@ -16,7 +16,7 @@ use std::path::PathBuf;
 
 use stripecal::calib::camera::{calibrate_camera as core_calibrate_camera, CameraOptions};
 use stripecal::calib::conic::CentreModel;
-use stripecal::calib::joint::FreeBlocks;
+use stripecal::calib::joint::{FreeBlocks, RobotMode};
 use stripecal::calib::{CircleObs, ViewObs};
 use stripecal::model::camera::{DistortionModel, PARAM_NAMES};
 use stripecal::pipeline::{
@@ -208,7 +208,12 @@ fn parse_distortion(py: Python<'_>, s: Option<&str>) -> PyResult<Option<Distorti
 /// `accept_poor=True` returns it instead, with `quality["accepted_poor"]` True. Every
 /// gate's verdict is in `quality["checks"]`. `robot_pose_noise=True` corrects every
 /// view's robot pose by its own small transform and reports the robot-pose noise
-/// (`robot_pose_noise`; default off: the poses are exact).
+/// (`robot_pose_noise`; default off: the poses are exact). `robot` calibrates the
+/// robot's DH rows from the same images: `"fixed"` (default; the same as
+/// `fix=["robot"]`), `"offsets"` (encoder offsets), `"full"` (every identifiable
+/// correction) or `"auto"` (the corrections the data show); the refined rows are the
+/// result's `robot`, what was estimated or fixed and why `robot_calibration`. Needs
+/// rig.json's robot and joint readings.
 ///
 /// Returns a `Calibration` with quality, one-sigma `uncertainty`, per-view figures
 /// (`views`) and the run's residuals. Views whose board is not found, and views whose
@@ -219,7 +224,7 @@ fn parse_distortion(py: Python<'_>, s: Option<&str>) -> PyResult<Option<Distorti
 /// released while it runs; a Ctrl-C (SIGINT) during the run raises `KeyboardInterrupt`
 /// when the core returns (the result is dropped), not at once.
 #[pyfunction]
-#[pyo3(signature = (dataset, *, distortion = None, method = "one-stage", robust = false, centre_model = "conic-exact", from_calibration = None, fix = Vec::new(), laser_only = false, estimate_board_scale = false, board_scale_tolerance = 0.01, leave_one_out = true, accept_poor = false, robot_pose_noise = false))]
+#[pyo3(signature = (dataset, *, distortion = None, method = "one-stage", robust = false, centre_model = "conic-exact", from_calibration = None, fix = Vec::new(), laser_only = false, estimate_board_scale = false, board_scale_tolerance = 0.01, leave_one_out = true, accept_poor = false, robot_pose_noise = false, robot = "fixed"))]
 #[allow(clippy::too_many_arguments)]
 pub fn calibrate(
     py: Python<'_>,
@@ -236,6 +241,7 @@ pub fn calibrate(
     leave_one_out: bool,
     accept_poor: bool,
     robot_pose_noise: bool,
+    robot: &str,
 ) -> PyResult<PyCalibration> {
     let from = match from_calibration {
         None => None,
@@ -260,6 +266,16 @@ pub fn calibrate(
     for name in &fix {
         free.hold(name).py_err(py)?;
     }
+    let robot = RobotMode::from_name(robot).py_err(py)?;
+    if robot != RobotMode::Fixed && fix.iter().any(|n| n == "robot") {
+        return Err(crate::errors::invalid_input(
+            py,
+            format!(
+                "fix=['robot'] holds the robot but robot={:?} calibrates it",
+                robot.name()
+            ),
+        ));
+    }
     free.board_scale = estimate_board_scale;
     let opts = CalibrateOptions {
         distortion: parse_distortion(py, distortion)?,
@@ -272,6 +288,7 @@ pub fn calibrate(
         board_scale_tolerance,
         accept_poor,
         robot_pose_noise,
+        robot,
         ..Default::default()
     };
     let result = if let Ok(ds) = dataset.cast::<PyDataset>() {

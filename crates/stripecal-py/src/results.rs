@@ -290,6 +290,18 @@ impl PyCalibration {
             .transpose()
     }
 
+    /// The robot calibration (`extra["robot_calibration"]`, `--robot`): `mode`,
+    /// `estimated` (`name`, `correction`, `sigma`) and `fixed` (`name`, `reason`); None
+    /// when the robot was held. The refined DH rows are `robot`.
+    #[getter]
+    fn robot_calibration<'py>(&self, py: Python<'py>) -> PyResult<Option<Bound<'py, PyAny>>> {
+        self.inner
+            .extra
+            .get("robot_calibration")
+            .map(|v| json_to_py(py, v))
+            .transpose()
+    }
+
     /// Circle residuals of the run that produced this calibration, `(N, 7)`:
     /// `view, row, col, u, v, du_px, dv_px`: the detected centre `(u, v)` and the
     /// residual, predicted minus detected. Empty `(0, 7)` for a calibration read from a

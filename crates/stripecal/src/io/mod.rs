@@ -42,7 +42,7 @@ pub use poses::{
     QUATERNION_TOL,
 };
 pub use records::{
-    calibration_extra, robot_pose_noise_extra, self_checks_extra, uncertainty_to_json,
-    view_record_to_json, warnings_to_json,
+    calibration_extra, robot_calibration_extra, robot_pose_noise_extra, robot_uncertainty,
+    self_checks_extra, uncertainty_to_json, view_record_to_json, warnings_to_json,
 };
 pub use rig::{read_rig, rig_from_json, rig_to_json, write_rig};

@@ -10,7 +10,7 @@ use serde_json::{Map, Value};
 
 use crate::model::{
     AdjustmentSummary, BoardScaleCheck, CameraSigma, LeaveOneOut, PlaneSigma, PoseSigma,
-    RobotPoseNoise, Uncertainty, ViewRecord,
+    RobotCalibration, RobotPoseNoise, Uncertainty, ViewRecord,
 };
 
 /// A number, or `null` when it is not finite.
@@ -218,6 +218,61 @@ pub fn robot_pose_noise_extra(n: &RobotPoseNoise) -> Map<String, Value> {
 
 pub fn warnings_to_json(warnings: &[String]) -> Value {
     Value::Array(warnings.iter().map(|w| Value::from(w.as_str())).collect())
+}
+
+/// calibration.json's extra key `robot_calibration` (`--robot`): `{"mode", "estimated":
+/// [{"name", "correction", "sigma"}], "fixed": [{"name", "reason"}]}`; names are the
+/// covariance's (`robot.joints[i].theta0_deg`, 0-based rows), corrections the refined
+/// value minus rig.json's (deg or mm).
+pub fn robot_calibration_extra(rc: &RobotCalibration) -> Map<String, Value> {
+    let mut o = Map::new();
+    o.insert("mode".into(), Value::from(rc.mode.clone()));
+    let est = rc
+        .estimated
+        .iter()
+        .map(|e| {
+            let mut m = Map::new();
+            m.insert("name".into(), Value::from(e.name.clone()));
+            m.insert("correction".into(), finite_or_null(e.correction));
+            m.insert("sigma".into(), finite_or_null(e.sigma));
+            Value::Object(m)
+        })
+        .collect();
+    o.insert("estimated".into(), Value::Array(est));
+    let fixed = rc
+        .fixed
+        .iter()
+        .map(|(n, why)| {
+            let mut m = Map::new();
+            m.insert("name".into(), Value::from(n.clone()));
+            m.insert("reason".into(), Value::from(why.clone()));
+            Value::Object(m)
+        })
+        .collect();
+    o.insert("fixed".into(), Value::Array(fixed));
+    let mut out = Map::new();
+    out.insert("robot_calibration".into(), Value::Object(o));
+    out
+}
+
+/// `uncertainty.robot`: `{"joints": [{"theta0_deg": sigma, ...}, ...]}`, one object per
+/// DH row with the one-sigma of its estimated quantities (empty for a row held).
+pub fn robot_uncertainty(rc: &RobotCalibration) -> Value {
+    let rows = (0..rc.robot.joints.len())
+        .map(|i| {
+            let prefix = format!("robot.joints[{i}].");
+            let mut m = Map::new();
+            for e in &rc.estimated {
+                if let Some(key) = e.name.strip_prefix(&prefix) {
+                    m.insert(key.into(), finite_or_null(e.sigma));
+                }
+            }
+            Value::Object(m)
+        })
+        .collect();
+    let mut o = Map::new();
+    o.insert("joints".into(), Value::Array(rows));
+    Value::Object(o)
 }
 
 #[cfg(test)]

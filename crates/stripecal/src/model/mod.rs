@@ -17,6 +17,7 @@ pub use checks::{BoardScaleCheck, LeaveOneOut, LooView, LOO_DISAGREE_FACTOR};
 pub use dataset::{Dataset, Rig, RobotReading, Scan, ScanFrame, StripeDirection, View};
 pub use quality::{QualityCheck, QualityFailure};
 pub use results::{
-    AdjustmentSummary, Calibration, CameraSigma, Cloud, NamedCovariance, PlaneSigma, PoseSigma,
-    Quality, RobotPoseNoise, RobotPoseView, Sphere, SphereFit, Truth, Uncertainty, ViewRecord,
+    AdjustmentSummary, Calibration, CameraSigma, Cloud, DhCorrection, NamedCovariance, PlaneSigma,
+    PoseSigma, Quality, RobotCalibration, RobotPoseNoise, RobotPoseView, Sphere, SphereFit, Truth,
+    Uncertainty, ViewRecord,
 };

@@ -258,3 +258,27 @@ pub struct AdjustmentSummary {
     /// Stripe points rejected as off the board plane, all views.
     pub stripe_off_plane: usize,
 }
+
+/// One DH correction a calibration estimated (calibration.json `robot_calibration`).
+#[derive(Debug, Clone, PartialEq)]
+pub struct DhCorrection {
+    /// `robot.joints[i].theta0_deg` style name (0-based row).
+    pub name: String,
+    /// The refined value minus rig.json's nominal one (deg or mm).
+    pub correction: f64,
+    /// Its one-sigma.
+    pub sigma: f64,
+}
+
+/// What the robot calibration did (`--robot`): the mode, the corrections estimated and
+/// the candidates left fixed with why (the identifiability rule).
+#[derive(Debug, Clone, PartialEq)]
+pub struct RobotCalibration {
+    /// `fixed`, `offsets`, `full` or `auto`.
+    pub mode: String,
+    /// The refined robot (rig.json's nominal one plus the corrections).
+    pub robot: crate::model::kinematics::Robot,
+    pub estimated: Vec<DhCorrection>,
+    /// `(name, why)` of every candidate held at its nominal value.
+    pub fixed: Vec<(String, String)>,
+}

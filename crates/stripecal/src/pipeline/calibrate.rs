@@ -14,7 +14,9 @@ use super::stripe_select::select_stripes;
 use super::{CalibrateOptions, CalibrationReport, Method, ViewStatus};
 use crate::calib::camera::{calibrate_camera, CameraCalibration, CameraOptions};
 use crate::calib::conic::CentreModel;
-use crate::calib::joint::{joint_adjustment, JointOptions, JointResult, JointStart};
+use crate::calib::joint::{
+    joint_adjustment, JointOptions, JointResult, JointStart, RobotMode, RobotOptions,
+};
 use crate::calib::laser_plane::{fit_laser_plane, LaserPlaneFit};
 use crate::calib::ViewObs;
 use crate::error::{Error, Result};
@@ -54,6 +56,13 @@ pub(super) fn calibrate_unjudged(
             converged(&rep.adjustment, opts.method),
         ];
         return Ok((rep, checks));
+    }
+    if opts.robot != RobotMode::Fixed && opts.method == Method::OneStage && rig.robot.is_none() {
+        return Err(Error::InvalidInput(format!(
+            "--robot {} calibrates the robot's DH rows: rig.json has no robot (and views.csv \
+             must give joint readings q1..qN, not flange poses)",
+            opts.robot.name()
+        )));
     }
     let board = &rig.board;
     let mut warnings = Vec::new();
@@ -125,6 +134,9 @@ pub(super) fn calibrate_unjudged(
         check_usable(&used_obs, &warnings)?;
     };
     warnings.extend(adj.warnings.iter().cloned());
+    if let Some(w) = super::kinematics::diagnose(&adj, camcal.rms_px, rig, &used_obs, opts) {
+        warnings.push(w);
+    }
     mark_used(&mut status, &used_obs);
     let checks = self_checks(&used_obs, board, &adj, &jopts, opts, &mut warnings)?;
     let gate_checks = vec![
@@ -320,7 +332,14 @@ pub(super) fn joint_options(opts: &CalibrateOptions, rig: &Rig) -> JointOptions 
             .map_or((None, None), |r| r.pose_noise_floor()),
         ..Default::default()
     };
+    if let (Some(r), true) = (&rig.robot, opts.robot != RobotMode::Fixed) {
+        jopts.robot = Some(RobotOptions {
+            nominal: r.clone(),
+            mode: opts.robot,
+        });
+    }
     if opts.method == Method::Paper {
+        jopts.robot = None;
         jopts.lm.max_iterations = 0;
         jopts.robust = false;
         jopts.robot_noise = false;

@@ -30,6 +30,7 @@ mod board_scale;
 mod calibrate;
 pub mod gates;
 mod held;
+mod kinematics;
 mod labels;
 mod laser_only;
 mod loo;
@@ -128,6 +129,9 @@ pub struct CalibrateOptions {
     /// robot-pose noise (`--robot-pose-noise`; default false: the robot poses are exact,
     /// [`crate::calib::joint::JointOptions::robot_noise`]).
     pub robot_pose_noise: bool,
+    /// The robot's DH corrections to estimate (`--robot`; default fixed: rig.json's DH
+    /// table is exact). Needs rig.json's robot and joint readings in views.csv.
+    pub robot: crate::calib::joint::RobotMode,
 }
 
 impl Default for CalibrateOptions {
@@ -149,6 +153,7 @@ impl Default for CalibrateOptions {
             board_scale_tolerance: 0.01,
             accept_poor: false,
             robot_pose_noise: false,
+            robot: crate::calib::joint::RobotMode::Fixed,
         }
     }
 }

@@ -8,7 +8,8 @@ use crate::calib::camera::CameraCalibration;
 use crate::calib::joint::{JointResult, JointStart};
 use crate::calib::laser_plane::LaserPlaneFit;
 use crate::io::{
-    calibration_extra, robot_pose_noise_extra, self_checks_extra, uncertainty_to_json,
+    calibration_extra, robot_calibration_extra, robot_pose_noise_extra, robot_uncertainty,
+    self_checks_extra, uncertainty_to_json,
 };
 use crate::model::{
     AdjustmentSummary, BoardScaleCheck, Calibration, CameraSigma, LeaveOneOut, PlaneSigma,
@@ -147,6 +148,16 @@ pub(super) fn build_report(
     if let (Method::OneStage, Some(n)) = (opts.method, &adj.robot_noise) {
         extra.extend(robot_pose_noise_extra(n));
     }
+    let refined = match (opts.method, &adj.robot) {
+        (Method::OneStage, Some(rc)) => {
+            extra.extend(robot_calibration_extra(rc));
+            if !rc.estimated.is_empty() {
+                unc.insert("robot".into(), robot_uncertainty(rc));
+            }
+            Some(rc.robot.clone())
+        }
+        _ => None,
+    };
     let covariance = match (opts.method, st.held) {
         (Method::Paper, _) => None,
         (Method::OneStage, None) => Some(adj.named_covariance.clone()),
@@ -156,10 +167,11 @@ pub(super) fn build_report(
             h.covariance(&adj.named_covariance)
         }
     };
-    let robot = rig
-        .robot
-        .clone()
-        .or_else(|| st.held.and_then(|h| h.from.robot.clone()));
+    let robot = refined.or_else(|| {
+        rig.robot
+            .clone()
+            .or_else(|| st.held.and_then(|h| h.from.robot.clone()))
+    });
     let calibration = Calibration {
         camera,
         laser_plane,

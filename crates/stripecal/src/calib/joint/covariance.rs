@@ -82,6 +82,11 @@ pub(super) fn named_covariance(
         names.push("board.scale".into());
         rows.push(vec![(c, 1.0)]);
     }
+    let all = layout.names();
+    for c in layout.robot_columns() {
+        names.push(all[c].clone());
+        rows.push(vec![(c, 1.0)]);
+    }
     let mut j = DMatrix::<f64>::zeros(rows.len(), n);
     for (r, entries) in rows.iter().enumerate() {
         for &(c, v) in entries {

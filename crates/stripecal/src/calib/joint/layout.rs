@@ -11,6 +11,11 @@
 //! | laser plane  | 3     | `a, b, d`                            | `p + dp`          |
 //! | `X`, `Z`     | 6 each| rotation vector `w`, translation `t` | `R Exp(w)`, `t+v` |
 //! | board scale  | 1     | `s` (every board coordinate times s) | `p + dp`          |
+//! | robot        | none  | the DH corrections chosen ([`super::robot`]) | `p + dp`  |
+//!
+//! The robot block is global but has no slots: its columns follow the other global
+//! columns, and a view's residuals reach them through its flange pose (the chain of
+//! `X`'s slots, [`super::robot::RobotBlock::flange_jacobians`]).
 //!
 //! Per-view blocks (one instance per view used):
 //!
@@ -36,6 +41,7 @@ use std::ops::Range;
 
 use nalgebra::{Matrix3, Vector3};
 
+use crate::calib::joint::robot::RobotBlock;
 use crate::calib::joint::{FreeBlocks, JointStart};
 use crate::model::camera::PARAM_NAMES;
 use crate::model::geometry::{
@@ -61,6 +67,8 @@ pub(super) enum Block {
     BoardScale,
     /// Per view: the correction `D_i` of the robot's flange pose, `A_i' = A_i D_i`.
     RobotPose,
+    /// Corrections to the robot's DH rows (global, no slots).
+    Robot,
 }
 
 /// How a block's numbers behave.
@@ -85,6 +93,8 @@ struct BlockDef {
     free: Vec<bool>,
     /// One instance per view (no slots) instead of one global block.
     per_view: bool,
+    /// A global block without slots (its columns follow the slotted ones).
+    slotless: bool,
 }
 
 impl BlockDef {
@@ -95,6 +105,7 @@ impl BlockDef {
             names: names.iter().map(|s| s.to_string()).collect(),
             free,
             per_view: false,
+            slotless: false,
         }
     }
 
@@ -109,6 +120,7 @@ impl BlockDef {
             names,
             free: vec![free; 6],
             per_view: false,
+            slotless: false,
         }
     }
 
@@ -175,6 +187,9 @@ pub(super) struct JointParams {
     /// Per view used: the robot-pose correction `D_i = (R, t)` (empty when not
     /// estimated: the robot poses are taken as exact).
     pub corrections: Vec<(Matrix3<f64>, Vector3<f64>)>,
+    /// The DH corrections ([`super::robot::RobotBlock::params`]; empty without a robot
+    /// block).
+    pub robot: Vec<f64>,
 }
 
 /// The layout of the adjustment's parameter vector (module docs).
@@ -198,6 +213,8 @@ pub(super) struct ParamLayout {
     per_view_cols: usize,
     /// The laser plane's chart.
     pub chart: PlaneChart,
+    /// The robot block (its corrections estimated), when the robot is calibrated.
+    pub robot: Option<RobotBlock>,
 }
 
 impl ParamLayout {
@@ -213,6 +230,7 @@ impl ParamLayout {
         scale: f64,
         view_ids: &[usize],
         robot_noise: bool,
+        robot: Option<RobotBlock>,
     ) -> ParamLayout {
         let mut cam_free = vec![free.camera; 4];
         cam_free.extend(
@@ -231,6 +249,7 @@ impl ParamLayout {
                 names: PARAM_NAMES.iter().map(|s| s.to_string()).collect(),
                 free: cam_free,
                 per_view: false,
+                slotless: false,
             },
             BlockDef::euclidean(
                 Block::Plane,
@@ -241,6 +260,19 @@ impl ParamLayout {
             BlockDef::transform(Block::BaseBoard, "base_board", free.base_board),
             BlockDef::euclidean(Block::BoardScale, &["board_scale"], vec![free.board_scale]),
             BlockDef::transform(Block::RobotPose, "robot", robot_noise).per_view(),
+            BlockDef {
+                block: Block::Robot,
+                kind: BlockKind::Euclidean,
+                names: robot
+                    .iter()
+                    .flat_map(|r| r.params.iter().map(|p| p.name()))
+                    .collect(),
+                free: robot
+                    .as_ref()
+                    .map_or(vec![], |r| vec![true; r.params.len()]),
+                per_view: false,
+                slotless: true,
+            },
         ];
         let (mut slot0, mut col0, mut col_of_slot) = (Vec::new(), Vec::new(), Vec::new());
         let (mut col, mut view_col) = (0, 0);
@@ -249,6 +281,11 @@ impl ParamLayout {
             if b.per_view {
                 col0.push(view_col);
                 view_col += b.estimated();
+                continue;
+            }
+            if b.slotless {
+                col0.push(col);
+                col += b.estimated();
                 continue;
             }
             col0.push(col);
@@ -269,6 +306,7 @@ impl ParamLayout {
             view_ids: view_ids.to_vec(),
             per_view_cols: view_col,
             chart: PlaneChart::around(n0),
+            robot,
         };
         layout.base = layout.slot_values(start, scale);
         layout
@@ -286,6 +324,12 @@ impl ParamLayout {
         let i = self.index(block);
         debug_assert!(!self.blocks[i].per_view, "{block:?} has no slots");
         self.slot0[i]..self.slot0[i] + self.blocks[i].free.len()
+    }
+
+    /// The columns of the robot block (empty without one).
+    pub fn robot_columns(&self) -> Range<usize> {
+        let i = self.index(Block::Robot);
+        self.col0[i]..self.col0[i] + self.blocks[i].estimated()
     }
 
     /// The columns of view `v`'s instance of a per-view block (`None`: not estimated).
@@ -425,6 +469,7 @@ impl ParamLayout {
                     )
                 })
                 .collect(),
+            robot: p[self.robot_columns()].to_vec(),
         }
     }
 
@@ -557,7 +602,7 @@ mod tests {
     #[test]
     fn names_and_columns_follow_the_blocks() {
         let s = start(DistortionModel::Radial2);
-        let layout = ParamLayout::new(&s, &FreeBlocks::default(), 1.0, &[], false);
+        let layout = ParamLayout::new(&s, &FreeBlocks::default(), 1.0, &[], false, None);
         let names = layout.names();
         let expected = [
             "fu",
@@ -602,7 +647,7 @@ mod tests {
     fn per_view_blocks_follow_the_global_columns() {
         let s = start(DistortionModel::Radial1);
         let free = FreeBlocks::default();
-        let layout = ParamLayout::new(&s, &free, 1.0, &[3, 7], true);
+        let layout = ParamLayout::new(&s, &free, 1.0, &[3, 7], true, None);
         let ng = layout.num_global();
         assert_eq!(ng, 5 + 3 + 12);
         assert_eq!(layout.num_params(), ng + 12);
@@ -652,7 +697,7 @@ mod tests {
                 .max()
                 < 1e-12
         );
-        let rigid = ParamLayout::new(&s, &free, 1.0, &[3, 7], false);
+        let rigid = ParamLayout::new(&s, &free, 1.0, &[3, 7], false, None);
         assert_eq!(rigid.num_params(), ng);
         assert!(rigid.decode(&rigid.encode()).corrections.is_empty());
         assert!(!rigid.per_view_free(Block::RobotPose));
@@ -661,7 +706,7 @@ mod tests {
     #[test]
     fn encode_decode_and_retract_round_trip() {
         let s = start(DistortionModel::OpenCv5);
-        let layout = ParamLayout::new(&s, &FreeBlocks::default(), 1.0, &[], false);
+        let layout = ParamLayout::new(&s, &FreeBlocks::default(), 1.0, &[], false, None);
         let p = layout.encode();
         assert_eq!(p.len(), layout.num_params());
         let d = layout.decode(&p);

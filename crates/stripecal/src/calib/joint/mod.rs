@@ -71,7 +71,13 @@ mod covariance;
 mod layout;
 mod report;
 mod residuals;
+mod robot;
 mod robot_noise;
+mod robot_select;
+mod robot_solve;
+
+pub use self::robot::{DhKind, DhParam, RobotMode};
+pub use self::robot_solve::RobotOptions;
 
 use nalgebra::{DMatrix, Vector3};
 
@@ -83,7 +89,7 @@ use crate::error::{Error, Result};
 use crate::model::board::Board;
 use crate::model::camera::Camera;
 use crate::model::geometry::{Iso3, Plane};
-use crate::model::{NamedCovariance, RobotPoseNoise};
+use crate::model::{NamedCovariance, RobotCalibration, RobotPoseNoise};
 use crate::numerics::lm::{levenberg_marquardt, LmOptions, LmResult, StopReason};
 
 /// Variance-component re-estimations per solve: they settle in 2-3 on noisy data; a
@@ -188,6 +194,9 @@ pub struct JointOptions {
     /// deg): the weights of the first evaluation, and throughout without variance
     /// components.
     pub initial_robot_sigma: (f64, f64),
+    /// The robot's DH corrections to estimate (`None` or [`RobotMode::Fixed`]: the DH
+    /// table is exact; module docs of `robot.rs`).
+    pub robot: Option<RobotOptions>,
 }
 
 impl Default for JointOptions {
@@ -214,6 +223,7 @@ impl Default for JointOptions {
             robot_noise: false,
             robot_floor: (None, None),
             initial_robot_sigma: (0.05, 0.01),
+            robot: None,
         }
     }
 }
@@ -298,6 +308,9 @@ pub struct JointResult {
     /// The robot-pose noise estimated with the corrections (`None` without them:
     /// [`JointOptions::robot_noise`] off).
     pub robot_noise: Option<RobotPoseNoise>,
+    /// The robot calibration (`--robot` other than fixed): the refined robot, the
+    /// corrections with their sigmas, the candidates fixed and why.
+    pub robot: Option<RobotCalibration>,
     pub views: Vec<ViewReport>,
     /// Names of the state vector's global parameters (the calibration's; the per-view
     /// robot-pose corrections are in [`Self::robot_noise`]), and their covariance
@@ -342,6 +355,7 @@ pub fn joint_adjustment(
         opts.board_scale,
         &terms.used,
         opts.robot_noise,
+        None,
     );
     if layout.num_global() == 0 {
         return Err(Error::InvalidInput(
@@ -357,18 +371,81 @@ pub fn joint_adjustment(
         // observations from a poor start). Again from the rigid model's solution (the
         // robot poses exact, the first solve of the schedule), where the corrections
         // hold only what the views disagree on.
-        let rigid = ParamLayout::new(start, &free, opts.board_scale, &terms.used, false);
+        let rigid = ParamLayout::new(start, &free, opts.board_scale, &terms.used, false, None);
         let mut pre = JointProblem::new(&start.camera, &rigid, terms.clone(), opts);
         let (r, pre_iterations) = solve(&mut pre, rigid.encode(), opts, true)?;
         let mut p0 = layout.encode();
         p0[..rigid.num_params()].copy_from_slice(&r.params);
-        problem = JointProblem::new(&start.camera, &layout, terms, opts);
+        problem = JointProblem::new(&start.camera, &layout, terms.clone(), opts);
         problem.continue_from(&pre);
         let (r, it) = solve(&mut problem, p0, opts, false)?;
         res = r;
         iterations += pre_iterations + it;
     }
 
+    let outcome = robot_solve::robot_rounds(
+        start,
+        &free,
+        opts,
+        &terms,
+        &layout,
+        &res.params,
+        problem.image_weights(),
+    )?;
+    if let Some(out) = &outcome {
+        if let Some(b) = &out.block {
+            let lr = ParamLayout::new(
+                start,
+                &free,
+                opts.board_scale,
+                &terms.used,
+                opts.robot_noise,
+                Some(b.clone()),
+            );
+            let p0 = robot_solve::transfer(&out.layout, &out.p, &lr);
+            let mut pr = JointProblem::new(&start.camera, &lr, terms.clone(), opts);
+            pr.set_image_weights(out.weights);
+            let (r, it) = solve(&mut pr, p0, opts, false)?;
+            return finish(
+                start,
+                free,
+                opts,
+                &lr,
+                &pr,
+                r,
+                iterations + it,
+                warnings,
+                outcome.as_ref(),
+            );
+        }
+    }
+    finish(
+        start,
+        free,
+        opts,
+        &layout,
+        &problem,
+        res,
+        iterations,
+        warnings,
+        outcome.as_ref(),
+    )
+}
+
+/// The result of the final solve `res` of `problem` (`layout`), with the robot rounds'
+/// outcome when the robot was calibrated.
+#[allow(clippy::too_many_arguments)]
+fn finish(
+    start: &JointStart,
+    free: FreeBlocks,
+    opts: &JointOptions,
+    layout: &ParamLayout,
+    problem: &JointProblem<'_>,
+    res: LmResult,
+    iterations: usize,
+    mut warnings: Vec<String>,
+    robot: Option<&robot_solve::RobotOutcome>,
+) -> Result<JointResult> {
     let s = layout.decode(&res.params);
     let camera = start.camera.with_params(&s.cam);
     camera.validate()?;
@@ -384,7 +461,7 @@ pub fn joint_adjustment(
         )));
     }
     let plane_sign = plane.map_or(1.0, |pl| pl.normal.dot(&s.plane_n).signum());
-    let named = covariance::named_covariance(&layout, &res.params, &s, &res.covariance, plane_sign);
+    let named = covariance::named_covariance(layout, &res.params, &s, &res.covariance, plane_sign);
     let sigma = covariance::joint_sigma(&named);
     let n_image = res.residuals.len()
         - if problem.robot_noise() {
@@ -393,15 +470,16 @@ pub fn joint_adjustment(
             0
         };
     let reports = report::build(
-        &problem,
+        problem,
         &s,
         &res.residuals[..n_image],
         opts.outlier_sigmas,
         &mut warnings,
     );
+    let robot = robot.map(|out| robot_solve::report(out, layout, &res.params, &res.covariance));
     let robot_noise = problem.robot_noise().then(|| {
         robot_noise::report(
-            &layout,
+            layout,
             &s,
             &res.covariance,
             res.sigma2,
@@ -445,6 +523,7 @@ pub fn joint_adjustment(
         stripe_rms_mm: reports.stripe_rms_mm,
         sigma_px: reports.sigma_px,
         robot_noise,
+        robot,
         views: reports.views,
         param_names,
         covariance: res.covariance.view((0, 0), (ng, ng)).into_owned(),
@@ -750,16 +829,48 @@ mod tests {
             used: (0..s.views.len()).collect(),
             circles,
             stripes,
+            q: vec![None; s.views.len()],
         };
         // Without and with the robot-pose corrections, these away from the identity
         // (the prior rows' inverse right Jacobian then matters); X held too, its slots'
         // derivatives still reach the corrections.
-        for (robot, x_free) in [(false, true), (true, true), (true, false)] {
+        // The robot's DH corrections too (every candidate of `full`, Hayati's beta on the
+        // HP3's row 2 among them), alone and with the robot-pose corrections.
+        let dh = {
+            let mut reference = crate::model::kinematics::Robot::hp3();
+            reference.joints[1].beta_deg = 0.1;
+            let params = robot::candidates(&reference, RobotMode::Full);
+            robot::RobotBlock {
+                reference,
+                params,
+                readings: (0..terms.a.len())
+                    .map(|k| {
+                        let k = k as f64;
+                        vec![2.0 * k, -k, 1.5 * k, 3.0 * k, -90.0 + k, -2.0 * k]
+                    })
+                    .collect(),
+            }
+        };
+        // Z moved so that the robot's home pose sees the board as the first view does.
+        let home = dh.reference.forward_unchecked(&dh.readings[0]);
+        let start_dh = JointStart {
+            base_board: home * terms.a[0].inverse() * start.base_board,
+            ..start.clone()
+        };
+        for (robot, x_free, with_dh) in [
+            (false, true, false),
+            (true, true, false),
+            (true, false, false),
+            (false, true, true),
+            (true, true, true),
+        ] {
             let free = FreeBlocks {
                 hand_cam: x_free,
                 ..free
             };
-            let layout = ParamLayout::new(&start, &free, 1.03, &terms.used, robot);
+            let block = with_dh.then(|| dh.clone());
+            let start = if with_dh { &start_dh } else { &start };
+            let layout = ParamLayout::new(start, &free, 1.03, &terms.used, robot, block);
             let opts = JointOptions {
                 centre_model: CentreModel::ConicExact,
                 variance_components: false,
@@ -776,6 +887,11 @@ mod tests {
                 p.extend_from_slice(&[rv.x, rv.y, rv.z, tr.x, tr.y, tr.z]);
             }
             p.push(1.03);
+            if with_dh {
+                for k in 0..dh.params.len() {
+                    p.push(0.01 * ((k % 5) as f64 - 2.0));
+                }
+            }
             if robot {
                 for k in 0..terms.a.len() {
                     let k = k as f64;
@@ -792,7 +908,10 @@ mod tests {
             };
             let worst =
                 crate::numerics::lm::assert_jacobian_matches_fd(&pr, &p, step, 1e-9, 1e-5, "joint");
-            println!("robot-pose corrections {robot}, X free {x_free}: largest relative FD difference {worst:.2e}");
+            println!(
+                "robot-pose corrections {robot}, X free {x_free}, DH {with_dh}: largest relative \
+                 FD difference {worst:.2e}"
+            );
         }
     }
 
@@ -955,7 +1074,11 @@ mod tests {
         };
         let held = joint_adjustment(&views, &board, &start, &rigid).unwrap();
         assert!(held.circle_rms_px > 0.05, "{}", held.circle_rms_px);
-        let held = joint_adjustment(&views, &board, &start, &JointOptions::default()).unwrap();
+        let noisy = JointOptions {
+            robot_noise: true,
+            ..JointOptions::default()
+        };
+        let held = joint_adjustment(&views, &board, &start, &noisy).unwrap();
         let noise = held.robot_noise.unwrap();
         assert!(
             noise.sigma_translation_mm > 0.05 && !noise.translation_at_floor,

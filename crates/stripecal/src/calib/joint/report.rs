@@ -99,7 +99,7 @@ pub(super) fn build(
 /// mm per px on the board for each view's stripe: the image length of 1 mm of the
 /// stripe line's normal offset, estimated from the view's pose.
 fn mm_per_px(problem: &JointProblem<'_>, s: &JointParams) -> Vec<f64> {
-    s.view_poses(&problem.terms.a)
+    s.view_poses(&problem.flanges(s))
         .into_iter()
         .map(|(rot, t)| {
             let depth = Vector3::from(t).norm();

@@ -67,6 +67,9 @@ pub(super) struct Terms {
     pub a: Vec<Iso3>,
     /// Dataset row (`ViewObs::view`) of each used view.
     pub used: Vec<usize>,
+    /// The joint readings of each used view (`None`: the controller reported the
+    /// flange pose).
+    pub q: Vec<Option<Vec<f64>>>,
     pub circles: Vec<CircleTerm>,
     pub stripes: Vec<StripeTerm>,
 }
@@ -88,6 +91,10 @@ impl Terms {
             let vi = t.a.len();
             t.a.push(bh);
             t.used.push(v.view);
+            t.q.push(match &v.reading {
+                Some(crate::model::RobotReading::Joints(q)) => Some(q.clone()),
+                _ => None,
+            });
             for c in &v.circles {
                 if !(c.u.is_finite() && c.v.is_finite())
                     || c.row >= board.rows
@@ -244,6 +251,17 @@ impl<'a> JointProblem<'a> {
         for (a, b) in self.foot_cache.iter().zip(&earlier.foot_cache) {
             a.store(b.load(Ordering::Relaxed), Ordering::Relaxed);
         }
+    }
+
+    /// The image groups' weights `(circle, stripe)`, `1 / sigma`.
+    pub fn image_weights(&self) -> (f64, f64) {
+        (self.weight(Group::Circle), self.weight(Group::Stripe))
+    }
+
+    /// Sets the image groups' weights (a later solve of the same observations).
+    pub fn set_image_weights(&mut self, (wc, ws): (f64, f64)) {
+        self.weights[Group::Circle as usize] = AtomicU64::new(wc.to_bits());
+        self.weights[Group::Stripe as usize] = AtomicU64::new(ws.to_bits());
     }
 
     /// Weight (`1 / sigma`) of a group.
@@ -492,10 +510,20 @@ impl<'a> JointProblem<'a> {
     }
 
     /// f64 residuals (unweighted): circles (2 each) then stripe points.
+    /// The robot's flange pose of every used view: from the corrected robot when it is
+    /// calibrated, else as given.
+    pub fn flanges(&self, s: &JointParams) -> std::borrow::Cow<'_, [Iso3]> {
+        match &self.layout.robot {
+            Some(rb) => std::borrow::Cow::Owned(rb.flanges(&s.robot)),
+            None => std::borrow::Cow::Borrowed(&self.terms.a),
+        }
+    }
+
     fn raw_residuals(&self, p: &[f64], r: &mut [f64]) -> Result<()> {
         let s = self.decode(p);
-        let poses = s.view_poses(&self.terms.a);
-        let board_poses = s.circle_poses(&self.terms.a);
+        let a = self.flanges(&s);
+        let poses = s.view_poses(&a);
+        let board_poses = s.circle_poses(&a);
         let n1 = [s.plane_n.x, s.plane_n.y, s.plane_n.z];
         let lines: Vec<Option<_>> = poses
             .iter()
@@ -553,6 +581,30 @@ struct ViewLinearisation {
     /// With the robot-pose noise: each view's map from its correction to `X`'s
     /// increment ([`robot_noise::correction_map`]).
     maps: Vec<Matrix6<f64>>,
+    /// With the robot block: the map from the flange's own perturbation to `X`'s
+    /// increment, and each view's flange perturbation per DH correction.
+    robot: Option<RobotLinearisation>,
+}
+
+/// The map from the flange's own perturbation to `X`'s increment, and each view's
+/// flange perturbation per DH correction.
+type RobotLinearisation = (Matrix6<f64>, Vec<Vec<[f64; 6]>>);
+
+/// The robot block's columns of a row from its derivatives `gx` over `X`'s six slots.
+#[inline]
+fn robot_columns(
+    robot: &Option<RobotLinearisation>,
+    view: usize,
+    gx: &[f64; 6],
+    weight: f64,
+    out: &mut [f64],
+) {
+    if let Some((m, jac)) = robot {
+        let gf = robot_noise::correction_columns(gx, m);
+        for (o, col) in out.iter_mut().zip(&jac[view]) {
+            *o = weight * (0..6).map(|k| gf[k] * col[k]).sum::<f64>();
+        }
+    }
 }
 
 impl JointProblem<'_> {
@@ -583,7 +635,7 @@ impl JointProblem<'_> {
         let xt: [DSlots; 3] = std::array::from_fn(|i| DSlots::var(s.x_t[i], sx + 3 + i));
         let zt: [DSlots; 3] = std::array::from_fn(|i| DSlots::var(s.z_t[i], sz + 3 + i));
         let poses: Vec<_> = s
-            .flange_poses(&self.terms.a)
+            .flange_poses(&self.flanges(s))
             .iter()
             .map(|a| cam_board(a, &xr, &xt, &zr, &zt))
             .collect();
@@ -631,11 +683,18 @@ impl JointProblem<'_> {
             .iter()
             .map(|(rot, t)| stripe_line(&n1, d1, rot, t).ok())
             .collect();
+        let robot = self.layout.robot.as_ref().map(|rb| {
+            (
+                robot_noise::correction_map(&s.x_rot, &s.x_t, &Matrix3::identity()),
+                rb.flange_jacobians(&s.robot, &s.corrections),
+            )
+        });
         ViewLinearisation {
             board_poses,
             chains,
             lines,
             maps,
+            robot,
         }
     }
 
@@ -664,6 +723,7 @@ impl JointProblem<'_> {
             }
         });
         let w15: [D15; 3] = std::array::from_fn(|i| D15::var(0.0, 9 + i));
+        let rcols = self.layout.robot_columns();
         let wc = self.wc();
         let nodes = quadrature_nodes(self.base.model);
         rc.par_chunks_mut(2)
@@ -714,6 +774,7 @@ impl JointProblem<'_> {
                             *o = wc * v;
                         }
                     }
+                    robot_columns(&views.robot, c.view, &gx, wc, &mut row[rcols.clone()]);
                 }
                 Ok(())
             })
@@ -738,6 +799,7 @@ impl JointProblem<'_> {
         let col_of = self.layout.columns();
         let sp = self.layout.slots(Block::Plane).start;
         let sx = self.layout.slots(Block::HandCam).start;
+        let rcols = self.layout.robot_columns();
         let ws = self.ws();
         rs.par_iter_mut()
             .zip(vs.par_chunks_mut(w))
@@ -786,8 +848,9 @@ impl JointProblem<'_> {
                         row[col] = ws * v;
                     }
                 }
+                let gx: [f64; 6] = std::array::from_fn(|k| full[sx + k]);
+                robot_columns(&views.robot, st.view, &gx, ws, &mut row[rcols.clone()]);
                 if let Some(m) = views.maps.get(st.view) {
-                    let gx: [f64; 6] = std::array::from_fn(|k| full[sx + k]);
                     let d = robot_noise::correction_columns(&gx, m);
                     for (o, v) in row[ng..ng + 6].iter_mut().zip(d) {
                         *o = ws * v;
