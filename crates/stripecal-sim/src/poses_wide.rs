@@ -1,13 +1,15 @@
 //! Wide-excursion calibration pose sets (`poses.spread = "wide"`), for robot kinematic
 //! calibration: every joint should move as far as the views' constraints allow.
 //!
-//! Many feasible candidates are sampled over the whole allowed range (look point
-//! within half a pitch of the pattern's centre (anywhere over the plate for a stripe beside
-//! the pattern), any tilt up to `max_tilt_deg` in any direction, roll up to
+//! The candidates are the local sampler's ([`PoseProblem::sample`]: the wide set spans at
+//! least their range) and many more, sampled over the whole allowed range (look point
+//! within half a pitch of the pattern's centre, anywhere over the plate for a stripe
+//! beside the pattern; any tilt up to `max_tilt_deg` in any direction, roll up to
 //! `max_roll_deg`, any stand-off), each solved by inverse kinematics from the home pose
-//! or (one attempt in four) from a random start within the joint excursions (other branches of the arm), and
-//! kept when [`PoseProblem::check`] accepts it (board in view with margin, stand-off,
-//! tilt, laser incidence, stripe across the pattern, joint excursions). Then `count` of
+//! or, one attempt in four, from a random start within the joint excursions (other
+//! branches of the arm), and kept when [`PoseProblem::check`] accepts it (board in view
+//! with margin, stand-off, tilt, laser incidence, stripe across the pattern, joint
+//! excursions). Then `count` of
 //! them are picked: each joint's lowest and highest candidate first (the set spans each
 //! joint's whole feasible excursion), then greedy farthest-point selection in joint
 //! space with each joint's excursion from home divided by `max_joint_delta_deg`.
@@ -49,8 +51,9 @@ impl PoseProblem<'_> {
             Vector3::new(1.0, 1.0, 0.0) * board.pitch_mm * 0.5
         };
         let mut rng = Rng::new(seed, WIDE_STREAM);
-        let mut pool: Vec<(PoseInfo, UnitQuaternion<f64>)> = Vec::new();
-        let mut last_reason = String::new();
+        // The local sampler's candidates first: the wide set spans at least their range.
+        let (mut pool, mut last_reason, local_attempts) = self.local_candidates(count, seed);
+        let want = want + pool.len();
         let dmax = self.max_joint_delta_deg;
         for attempt in 0..max_attempts {
             if pool.len() >= want {
@@ -100,10 +103,11 @@ impl PoseProblem<'_> {
         }
         if pool.len() < count {
             return Err(SimError::Poses(format!(
-                "wide poses: found {} valid poses of the {count} requested after {max_attempts} \
+                "wide poses: found {} valid poses of the {count} requested after {} \
                  attempts (last rejection: {last_reason}); widen poses.standoff_mm / \
                  max_tilt_deg or reduce margin_px",
-                pool.len()
+                pool.len(),
+                max_attempts + local_attempts
             )));
         }
         let coords: Vec<Vec<f64>> = pool
