@@ -121,3 +121,86 @@ def test_bad_joint_vector() -> None:
     twin = sim.Twin(small())
     with pytest.raises(stripecal.InvalidInputError, match=r"shape \(6,\)"):
         twin.render_view([0.0, 1.0])
+
+
+# --- robot kinematic calibration (issue 14) ----------------------------------------
+
+ROBOT_ERROR = {"theta0_deg": 0.05, "alpha_deg": 0.02, "a_mm": 0.3, "d_mm": 0.3, "beta_deg": 0.02}
+# a quarter-size camera (the paper's, scaled): few pixels to render
+TINY_CAMERA = {"width": 192, "height": 144, "fu": 318.0, "fv": 330.6, "u0": 86.5, "v0": 65.6}
+
+
+def test_robot_error_nominal_rig_true_truth(tmp_path: Path) -> None:
+    """`robot_error`: a reproducible random true robot; rig.json keeps the nominal one,
+    truth.json holds the true rows (beta only on row 2, alpha 180; row 6 is the last)."""
+    assert sim.preset("hp3-paper")["robot_error"]["a_mm"] == 0.0
+    cfg = sim.preset(
+        "hp3-paper",
+        seed=4,
+        robot_error=ROBOT_ERROR,
+        camera=TINY_CAMERA,
+        poses={"count": 1, "margin_px": 3.0},
+        scan={"enabled": False},
+    )
+    twin = sim.Twin(cfg)
+    assert twin.robot_true == sim.Twin(cfg).robot_true
+    assert twin.robot_true != sim.Twin(sim.preset("hp3-paper", seed=5, robot_error=ROBOT_ERROR)).robot_true
+    nominal, true = twin.robot_nominal.dh, twin.robot_true.dh
+    np.testing.assert_array_equal(nominal, stripecal.Robot.hp3().dh)
+    d = true - nominal
+    assert np.all(d != 0) and np.all(np.abs(d) <= 5 * np.array([0.05, 0.02, 0.3, 0.3]))
+    beta = twin.robot_true.beta_deg
+    assert beta[1] != 0 and abs(beta[1]) < 0.1
+    assert np.all(np.delete(beta, 1) == 0)
+    twin.write(tmp_path)
+    rig = stripecal.load_rig(tmp_path / "calib" / "rig.json")
+    assert rig.robot == twin.robot_nominal
+    truth = stripecal.load_truth(tmp_path / "calib" / "truth.json")
+    assert truth.robot is not None
+    np.testing.assert_allclose(truth.robot.dh, true, atol=1e-9)
+    np.testing.assert_allclose(truth.robot.beta_deg, beta, atol=1e-12)
+    with pytest.raises(stripecal.InvalidInputError, match="robot_error.d_mm"):
+        sim.preset("hp3-paper", robot_error={"d_mm": -0.3})
+    with pytest.raises(stripecal.InvalidInputError, match="robot_error.tilt"):
+        sim.preset("hp3-paper", robot_error={"tilt": 0.3})
+
+
+def test_calibration_pose_set_wide_spans_more_of_every_joint() -> None:
+    wide = sim.calibration_pose_set("hp3-paper", 12, seed=2)
+    local = sim.calibration_pose_set("hp3-paper", 12, spread="local", seed=2)
+    assert wide.shape == (12, 6) and wide.dtype == np.float64
+    np.testing.assert_array_equal(wide, sim.calibration_pose_set(sim.preset("hp3-paper"), 12, seed=2))
+    span = lambda q: q.max(axis=0) - q.min(axis=0)  # noqa: E731
+    assert np.all(span(wide) >= span(local)), (span(wide), span(local))
+    # every constraint holds: the plan passes the twin's check of explicit poses
+    checked = sim.Twin(sim.preset("hp3-paper", poses={"explicit_q_deg": wide.tolist()})).calibration_poses()
+    assert len(checked) == 12
+    with pytest.raises(stripecal.InvalidInputError, match="poses.spread"):
+        sim.calibration_pose_set("hp3-paper", 3, spread="far")
+
+
+def test_table_scan_lies_on_the_true_table(tmp_path: Path) -> None:
+    """`scan.table`: a sweep over the bare table; the exact stripe points (the truth of
+    one rendered frame) lie on truth.json's table plane."""
+    twin = sim.Twin(small(seed=1, scan={"max_frames": 3, "table": True}, robot_error=ROBOT_ERROR))
+    qs = twin.table_scan_poses()
+    assert qs.shape == (3, 6)
+    assert sim.Twin(small()).table_scan_poses().shape == (0, 6)
+    truth = twin.truth()
+    table = truth.extra["table"]
+    assert len(table["normal"]) == 3 and np.isfinite(table["d_mm"])
+    frame = twin.render_scan_frame(qs[1])
+    assert set(frame["stripe_surface"]) == {"table"}
+    pc = frame["stripe_points_cam"]
+    t = frame["base_cam"]
+    pts = pc @ t[:3, :3].T + t[:3, 3]
+    e = sim.surface_errors(pts, truth)
+    assert e.shape == (len(pts),) and len(pts) > 100
+    assert np.abs(e).max() < 1e-6
+    np.testing.assert_allclose(sim.surface_errors(pts + 2.0 * np.asarray(table["normal"]), twin), 2.0, atol=1e-6)
+    # the ball scan's points lie on the ball, the plate or the table
+    scan = twin.scan_poses()
+    f = twin.render_scan_frame(scan[len(scan) // 2])
+    assert "sphere" in f["stripe_surface"]
+    p = f["stripe_points_cam"] @ f["base_cam"][:3, :3].T + f["base_cam"][:3, 3]
+    assert np.abs(sim.surface_errors(p, twin)).max() < 1e-6

@@ -19,12 +19,20 @@ rig with a chessboard or an asymmetric circle grid), ``hp3-sheet`` (a chessboard
 large white sheet above the table, the laser beside the pattern, one image per view). ``board.kind`` selects the target:
 ``"circles"``, ``"asymmetric_circles"`` or ``"chessboard"`` (with ``board.square_mm``).
 
+For robot kinematic calibration: ``robot_error`` (one-sigma random DH errors drawn
+from the seed: the true robot differs from rig.json's nominal one),
+``poses.spread="wide"`` (views spread over the joints' feasible excursions; see
+:func:`calibration_pose_set`), ``scan.table`` (a sweep over the bare table, written to
+``scan_table/``) and :func:`surface_errors` (reconstructed points against the true
+sphere, plate and table).
+
 Unknown keys are an error, so a misspelt knob never goes unnoticed. All rendering runs
 in Rust (``stripecal._core``); this module only converts configurations.
 """
 
 from __future__ import annotations
 
+import copy
 import json
 import os
 from typing import Any, Callable, List, Optional, Tuple, Union
@@ -34,10 +42,10 @@ import numpy.typing as npt
 
 from stripecal._core import Board, Camera, Robot, Truth
 from stripecal._core import Twin as _CoreTwin
-from stripecal._core import sim_config, sim_presets
+from stripecal._core import load_truth, sim_config, sim_presets, sim_surface_errors
 from stripecal.types import SimConfig, SimPose, TwinSummary, ViewRender
 
-__all__ = ["Twin", "preset", "presets"]
+__all__ = ["Twin", "calibration_pose_set", "preset", "presets", "surface_errors"]
 
 
 def presets() -> List[str]:
@@ -137,6 +145,12 @@ class Twin:
         """Encoder readings (N, J) of the scan sweep over the ball."""
         return self._core.scan_poses()
 
+    def table_scan_poses(self) -> npt.NDArray[np.float64]:
+        """Encoder readings (N, J) of the sweep over the bare table (``scan.table``;
+        (0, J) when off): away from the board and the ball, at the home pose's
+        orientation, ``scan.table_offset_mm`` from the board centre."""
+        return self._core.table_scan_poses()
+
     def render_view(self, q: npt.ArrayLike, index: int = 0) -> ViewRender:
         """Renders a calibration view at encoder readings ``q`` (degrees). Keys:
         ``board_image``, ``laser_image`` (None in single-image mode), ``target_indices``
@@ -158,8 +172,59 @@ class Twin:
         return self._core.render_scan_frame(q, index)
 
     def write(self, out: Union[str, "os.PathLike[str]"], progress: Optional[Callable[[str, int, int], Any]] = None) -> TwinSummary:
-        """Renders and writes ``out/calib`` and ``out/scan`` (each written under a
+        """Renders and writes ``out/calib``, ``out/scan`` and with ``scan.table``
+        ``out/scan_table`` (each written under a
         temporary name, then renamed); returns a summary dict (``board_kind``, per view
         ``circles_visible``: the imaged target points, whatever the kind; every key in
         :class:`stripecal.types.TwinSummary`)."""
         return self._core.write(out, progress)
+
+
+def calibration_pose_set(
+    config: Union[SimConfig, str],
+    count: int,
+    spread: str = "wide",
+    seed: Optional[int] = None,
+) -> npt.NDArray[np.float64]:
+    """A plan of ``count`` calibration poses for the robot, board and camera of
+    ``config`` (a configuration dict or a preset name): joint readings in degrees,
+    shape ``(count, dof)``, every one checked against the views' constraints (board in
+    view with ``poses.margin_px``, stand-off, tilt, laser incidence, stripe across the
+    pattern, joint excursions within ``poses.max_joint_delta_deg`` of
+    ``poses.home_q_deg``). ``spread="wide"`` spreads the poses over every joint's
+    feasible excursion (each joint's extremes, then farthest apart in joint space);
+    ``"local"`` is the twin's default sampler. ``seed`` replaces the configuration's.
+    The poses are solved on the configuration's true robot: its DH table when
+    ``dh_errors`` and ``robot_error`` are zero (a plan for a real robot: give its table).
+    Deterministic; no image is rendered."""
+    cfg = copy.deepcopy(preset(config) if isinstance(config, str) else config)
+    cfg["poses"]["count"] = int(count)
+    cfg["poses"]["spread"] = spread
+    cfg["poses"]["explicit_q_deg"] = None
+    if seed is not None:
+        cfg["seed"] = int(seed)
+    twin = Twin(cfg)
+    dof = len(cfg["robot"]["joints"])
+    q = [np.asarray(p["q_deg"], dtype=np.float64) for p in twin.calibration_poses()]
+    return np.array(q, dtype=np.float64).reshape(len(q), dof)
+
+
+def surface_errors(
+    points: npt.ArrayLike, truth: Union[Truth, Twin, str, "os.PathLike[str]"]
+) -> npt.NDArray[np.float64]:
+    """Signed distances (mm) of base-frame points ``(N, 3)`` to the nearest true surface
+    of the twin's world: the sphere (if the truth has one), the plate the target is
+    printed on, the table plane (truth.json's ``table``: ``n . p = d`` in the base frame,
+    ``n`` up); positive outside the ball and above the plate or table. ``truth`` is a
+    :class:`stripecal.Truth` (``load_truth``), a truth.json path or a :class:`Twin`
+    (its truth with the sphere). Points far from every surface are returned too (the
+    caller decides); returns ``(N,)``."""
+    if isinstance(truth, Twin):
+        t = truth.truth(True)
+    elif isinstance(truth, (str, os.PathLike)):
+        t = load_truth(truth)
+    else:
+        t = truth
+    pts = np.asarray(points, dtype=np.float64).reshape(-1, 3)
+    out: npt.NDArray[np.float64] = np.asarray(sim_surface_errors(pts, t), dtype=np.float64)
+    return out

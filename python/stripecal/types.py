@@ -640,6 +640,10 @@ class TwinSummary(TypedDict):
     """Scan frames written (0 without a scan)."""
     scan_sphere_points: int
     """Stripe points on the ball over all scan frames."""
+    table_dir: Optional[str]
+    """The bare-table scan folder (``scan.table``), or None."""
+    table_frames: int
+    """Frames of the bare-table scan (0 without)."""
     stripe_direction: str
     """``"rows"`` or ``"cols"``: how the stripe runs in the images."""
     sphere: Optional[TwinSphere]

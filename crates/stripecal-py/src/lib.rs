@@ -75,6 +75,7 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<sim::PyTwin>()?;
     m.add_function(wrap_pyfunction!(sim::sim_presets, m)?)?;
     m.add_function(wrap_pyfunction!(sim::sim_config, m)?)?;
+    m.add_function(wrap_pyfunction!(sim::sim_surface_errors, m)?)?;
 
     m.add_function(wrap_pyfunction!(vision_circles::detect_circles, m)?)?;
     m.add_function(wrap_pyfunction!(vision_circles::detect_circles_full, m)?)?;

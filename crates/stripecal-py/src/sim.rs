@@ -11,7 +11,7 @@ use serde_json::Value;
 use stripecal::model::image::AnyGray;
 use stripecal_sim::{SimConfig, SimError, Twin, ViewRender};
 
-use crate::convert::{f64_array, iso_to_py, json_to_py, nd};
+use crate::convert::{f64_array, iso_to_py, json_to_py, nd, rows_of};
 use crate::errors::{invalid_input, map_err};
 use crate::{PyBoard, PyCamera, PyRobot, PyTruth};
 
@@ -48,6 +48,26 @@ pub fn sim_config(py: Python<'_>, preset: &str, overrides_json: Option<&str>) ->
         cfg = cfg.with_overrides(&v).map_err(|e| sim_err(py, e))?;
     }
     serde_json::to_string_pretty(&cfg).map_err(|e| PyValueError::new_err(e.to_string()))
+}
+
+/// Signed distances (mm) of base-frame points `(N, 3)` (or one `(3,)`) to the nearest
+/// true surface of `truth` (the sphere if any, the plate, the table plane):
+/// `stripecal_sim::surface_errors`; `(N,)` (a float for one point).
+#[pyfunction]
+pub fn sim_surface_errors<'py>(
+    py: Python<'py>,
+    points: &Bound<'py, PyAny>,
+    truth: PyRef<'py, PyTruth>,
+) -> PyResult<Bound<'py, PyAny>> {
+    let (rows, single) = rows_of::<3>(points, "points")?;
+    let pts: Vec<nalgebra::Vector3<f64>> =
+        rows.iter().map(|r| nalgebra::Vector3::from(*r)).collect();
+    let e = stripecal_sim::surface_errors(&truth.inner, &pts).map_err(|e| sim_err(py, e))?;
+    if single {
+        Ok(e[0].into_pyobject(py)?.into_any())
+    } else {
+        nd(py, &[e.len()], e)
+    }
 }
 
 fn gray_to_py<'py>(py: Python<'py>, img: &AnyGray) -> PyResult<Bound<'py, PyAny>> {
@@ -255,6 +275,15 @@ impl PyTwin {
         nd(py, &[qs.len(), dof], qs.into_iter().flatten().collect())
     }
 
+    /// Encoder readings of the bare-table sweep (`scan.table`), (N, J); (0, J) without.
+    fn table_scan_poses<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
+        let qs = py
+            .detach(|| self.inner.table_scan_poses())
+            .map_err(|e| sim_err(py, e))?;
+        let dof = self.inner.robot_true.dof();
+        nd(py, &[qs.len(), dof], qs.into_iter().flatten().collect())
+    }
+
     /// Renders a calibration view at encoder readings `q` (degrees): a dict with
     /// `board_image`, `laser_image` (None in single-image mode), circle and stripe truth.
     #[pyo3(signature = (q, index=0))]
@@ -331,6 +360,8 @@ impl PyTwin {
         d.set_item("board_kind", self.inner.board.kind.name())?;
         d.set_item("scan_frames", s.scan_frames)?;
         d.set_item("scan_sphere_points", s.scan_sphere_points)?;
+        d.set_item("table_dir", s.table_dir)?;
+        d.set_item("table_frames", s.table_frames)?;
         d.set_item("stripe_direction", s.direction.name())?;
         d.set_item(
             "sphere",

@@ -14,6 +14,7 @@ use serde::{Deserialize, Serialize};
 use stripecal::model::geometry::{iso_from_rotvec, iso_to_rotvec, Iso3, Plane};
 use stripecal::{Board, BoardKind, Camera, DhJoint, DistortionModel, Robot};
 
+use crate::robot_error::RobotErrorCfg;
 use crate::SimError;
 
 /// The camera (true values).
@@ -167,6 +168,16 @@ pub struct PosesCfg {
     /// reported readings too (`q_reading_deg`). The scan's readings stay exact. Default 0.
     #[serde(default)]
     pub reading_noise_deg: f64,
+    /// How sampled poses spread: `local` (the default: around the home pose, diverse in
+    /// orientation) or `wide` (many feasible candidates over the allowed joint
+    /// excursions, then the `count` farthest apart in joint space, each joint's
+    /// excursion normalised by `max_joint_delta_deg`: [`crate::poses_wide`]).
+    #[serde(default = "default_spread")]
+    pub spread: String,
+}
+
+fn default_spread() -> String {
+    "local".into()
 }
 
 /// Image formation.
@@ -229,6 +240,19 @@ pub struct ScanCfg {
     pub top_depth_mm: f64,
     /// Cap on the number of frames (0 = no cap): the sweep is shortened symmetrically.
     pub max_frames: usize,
+    /// Also render a sweep over the bare table (`scan_table/`, the format of `scan/`),
+    /// away from the board and the ball, at poses not used in calibration (default
+    /// `false`; [`crate::table_scan`]).
+    #[serde(default)]
+    pub table: bool,
+    /// Where the table sweep's middle lies on the table relative to the board centre,
+    /// along the board's x and y axes, mm.
+    #[serde(default = "default_table_offset")]
+    pub table_offset_mm: [f64; 2],
+}
+
+fn default_table_offset() -> [f64; 2] {
+    crate::table_scan::DEFAULT_TABLE_OFFSET_MM
 }
 
 /// Everything the twin needs.
@@ -248,6 +272,10 @@ pub struct SimConfig {
     /// True-minus-nominal DH errors per joint `[d_theta0_deg, d_alpha_deg, d_a_mm, d_d_mm]`;
     /// empty = none.
     pub dh_errors: Vec<[f64; 4]>,
+    /// One-sigma of random DH errors drawn per joint from the seed and added to the
+    /// true robot (on top of `dh_errors`); default none ([`crate::robot_error`]).
+    #[serde(default)]
+    pub robot_error: RobotErrorCfg,
     pub board: BoardCfg,
     pub poses: PosesCfg,
     pub imaging: ImagingCfg,
@@ -332,6 +360,7 @@ impl SimConfig {
                     .collect(),
             },
             dh_errors: vec![],
+            robot_error: RobotErrorCfg::default(),
             board: BoardCfg {
                 kind: BoardKind::Circles.name().into(),
                 rows: 8,
@@ -357,6 +386,7 @@ impl SimConfig {
                 explicit_q_deg: None,
                 stripe_beside_pattern: false,
                 reading_noise_deg: 0.0,
+                spread: default_spread(),
             },
             imaging: ImagingCfg {
                 bit_depth: 8,
@@ -387,6 +417,8 @@ impl SimConfig {
                 margin_mm: 3.0,
                 top_depth_mm: 88.0,
                 max_frames: 0,
+                table: false,
+                table_offset_mm: default_table_offset(),
             },
             working_range_mm: [80.0, 130.0],
             stripe_direction: "auto".into(),
@@ -567,6 +599,13 @@ impl SimConfig {
                 format!("{rn} must be finite and >= 0"),
             );
         }
+        if !matches!(self.poses.spread.as_str(), "local" | "wide") {
+            return bad(
+                "poses.spread",
+                format!("{:?} (expected \"local\" or \"wide\")", self.poses.spread),
+            );
+        }
+        self.robot_error.validate()?;
         let [a, b] = self.poses.standoff_mm;
         if !(a > 0.0 && b >= a) {
             return bad(
@@ -624,7 +663,9 @@ impl SimConfig {
                 format!("{t} must be finite and >= 0"),
             );
         }
-        if self.scan.enabled && !(self.scan.step_mm > 0.0 && self.scan.sphere_diameter_mm > 0.0) {
+        if (self.scan.enabled || self.scan.table)
+            && !(self.scan.step_mm > 0.0 && self.scan.sphere_diameter_mm > 0.0)
+        {
             return bad("scan", "step_mm and sphere_diameter_mm must be > 0".into());
         }
         stripecal::model::StripeDirection::from_name(&self.stripe_direction)
@@ -728,7 +769,8 @@ impl SimConfig {
             .map_err(|e| SimError::Config(format!("robot: {e}")))
     }
 
-    /// The true robot: nominal plus `dh_errors`.
+    /// The true robot: nominal plus `dh_errors` plus the random errors of
+    /// `robot_error` drawn from the seed ([`crate::robot_error::draw`]).
     pub fn robot_true(&self) -> Result<Robot, SimError> {
         let mut r = self.robot_nominal()?;
         for (j, e) in r.joints.iter_mut().zip(&self.dh_errors) {
@@ -736,6 +778,19 @@ impl SimConfig {
             j.alpha_deg += e[1];
             j.a_mm += e[2];
             j.d_mm += e[3];
+        }
+        if !self.robot_error.is_zero() {
+            let nominal = self.robot_nominal()?;
+            let draws = crate::robot_error::draw(&self.robot_error, &nominal, self.seed);
+            for (j, e) in r.joints.iter_mut().zip(&draws) {
+                j.theta0_deg += e.theta0_deg;
+                j.alpha_deg += e.alpha_deg;
+                j.a_mm += e.a_mm;
+                j.d_mm += e.d_mm;
+                j.beta_deg += e.beta_deg;
+            }
+            Robot::new(r.name.clone(), r.joints.clone())
+                .map_err(|e| SimError::Config(format!("robot_error: {e}")))?;
         }
         Ok(r)
     }

@@ -267,6 +267,9 @@ impl Twin {
                         .map_err(|e| SimError::Poses(format!("poses.explicit_q_deg[{i}]: {e}")))
                 })
                 .collect(),
+            None if self.cfg.poses.spread == "wide" => {
+                problem.sample_wide(self.cfg.poses.count, self.cfg.seed)
+            }
             None => problem.sample(self.cfg.poses.count, self.cfg.seed),
         }
     }
@@ -460,6 +463,8 @@ impl Twin {
             json!([self.emitter.x, self.emitter.y, self.emitter.z]),
         );
         extra.insert("stripe_direction".into(), json!(self.direction.name()));
+        extra.insert("table".into(), self.table_plane().to_json());
+        extra.insert("plate".into(), self.plate_json());
         extra.insert(
             "sim_config".into(),
             serde_json::to_value(&self.cfg).unwrap_or(Value::Null),

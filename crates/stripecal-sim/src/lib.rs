@@ -31,15 +31,20 @@ pub mod config;
 pub mod dataset;
 pub mod imaging;
 pub mod poses;
+pub mod poses_wide;
 pub mod render;
 pub mod rng;
+pub mod robot_error;
 pub mod scene;
+pub mod surface;
+pub mod table_scan;
 pub mod target;
 pub mod truth;
 pub mod views;
 
 pub use config::{SimConfig, PRESETS};
 pub use dataset::{noisy_observations, DatasetSummary, Twin, ViewRender};
+pub use surface::{surface_errors, TablePlane};
 
 /// Errors of the twin.
 #[derive(Debug, thiserror::Error)]

@@ -126,6 +126,25 @@ impl PoseProblem<'_> {
 
     /// Samples `count` poses, deterministic by `seed`, spread in orientation.
     pub fn sample(&self, count: usize, seed: u64) -> Result<Vec<PoseInfo>, SimError> {
+        let (pool, last_reason, max_attempts) = self.local_candidates(count, seed);
+        if pool.len() < count {
+            return Err(SimError::Poses(format!(
+                "found {} valid poses of the {count} requested after {max_attempts} attempts (last rejection: \
+                 {last_reason}); widen poses.standoff_mm / max_tilt_deg or reduce margin_px",
+                pool.len()
+            )));
+        }
+        self.select_local(&pool, count)
+    }
+
+    /// The local sampler's candidates for `count` poses and `seed` (feasible poses with
+    /// their flange rotations), the last rejection and the attempts made.
+    #[allow(clippy::type_complexity)]
+    pub(crate) fn local_candidates(
+        &self,
+        count: usize,
+        seed: u64,
+    ) -> (Vec<(PoseInfo, UnitQuaternion<f64>)>, String, usize) {
         let scene0 = (self.scene)(&Iso3::identity());
         let board = scene0.board().clone();
         let center = target::points_center(&board);
@@ -180,13 +199,15 @@ impl PoseProblem<'_> {
                 Err(e) => last_reason = e,
             }
         }
-        if pool.len() < count {
-            return Err(SimError::Poses(format!(
-                "found {} valid poses of the {count} requested after {max_attempts} attempts (last rejection: \
-                 {last_reason}); widen poses.standoff_mm / max_tilt_deg or reduce margin_px",
-                pool.len()
-            )));
-        }
+        (pool, last_reason, max_attempts)
+    }
+
+    /// The local sampler's choice of `count` of `pool`.
+    fn select_local(
+        &self,
+        pool: &[(PoseInfo, UnitQuaternion<f64>)],
+        count: usize,
+    ) -> Result<Vec<PoseInfo>, SimError> {
         // Farthest-point selection in orientation: diverse rotation axes for hand-eye.
         let mut chosen: Vec<usize> = vec![0];
         while chosen.len() < count {

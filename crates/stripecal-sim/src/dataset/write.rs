@@ -19,11 +19,15 @@ pub struct DatasetSummary {
     pub view_stripe_points: Vec<usize>,
     pub scan_frames: usize,
     pub scan_sphere_points: usize,
+    /// The bare-table scan folder (`scan.table`), and its frames.
+    pub table_dir: Option<PathBuf>,
+    pub table_frames: usize,
     pub direction: StripeDirection,
 }
 
 impl Twin {
-    /// Renders and writes `out/calib` (and `out/scan` when scans are enabled).
+    /// Renders and writes `out/calib` (and `out/scan` when scans are enabled,
+    /// `out/scan_table` with `scan.table`).
     /// Each folder is written under a temporary name and renamed when complete.
     /// `progress(stage, done, total)` is called on the calling thread.
     pub fn write(
@@ -93,36 +97,30 @@ impl Twin {
         let mut sphere_pts = 0;
         if self.sphere.is_some() {
             let qs = self.scan_poses()?;
-            let dir = out.join("scan");
-            let tmp = staging_dir(out, "scan")?;
-            let mut frames = Vec::new();
-            let mut per_image = Vec::new();
-            for (k, q) in qs.iter().enumerate() {
-                progress("scan frames", k, qs.len());
-                let r = self.render_scan_frame(q, k)?;
-                let name = format!("images/scan_{k:04}.png");
-                if let Some(img) = &r.laser_image {
-                    io::save_gray_png(tmp.join(&name), img)?;
-                }
-                sphere_pts += r.stripe.iter().filter(|p| p.surface == "sphere").count();
-                frames.push(ScanFrame {
-                    line: k + 2,
-                    image: name.clone().into(),
-                    reading: self.reading(q)?,
-                });
-                per_image.push(
-                    json!({"image": name, "stripe": stripe_json(&r.stripe, self.direction, true)}),
-                );
-            }
-            progress("scan frames", qs.len(), qs.len());
+            let (dir, pts) =
+                self.write_sweep(out, "scan", &qs, &rig, &pose_columns, progress, |q, k| {
+                    self.render_scan_frame(q, k)
+                })?;
             frames_n = qs.len();
-            io::write_rig(tmp.join("rig.json"), &rig)?;
-            io::write_scan_csv_with(tmp.join("scan.csv"), &frames, &pose_columns)?;
-            let mut truth = self.truth(true);
-            truth.extra.insert("images".into(), Value::Array(per_image));
-            io::write_truth(tmp.join("truth.json"), &truth)?;
-            replace_dir(&tmp, &dir)?;
+            sphere_pts = pts;
             scan_dir = Some(dir);
+        }
+        // --- the bare table
+        let mut table_dir = None;
+        let mut table_frames = 0;
+        if self.cfg.scan.table {
+            let qs = self.table_scan_poses()?;
+            let (dir, _) = self.write_sweep(
+                out,
+                "scan_table",
+                &qs,
+                &rig,
+                &pose_columns,
+                progress,
+                |q, k| self.render_table_frame(q, k),
+            )?;
+            table_frames = qs.len();
+            table_dir = Some(dir);
         }
         Ok(DatasetSummary {
             calib_dir,
@@ -132,8 +130,61 @@ impl Twin {
             view_stripe_points: view_stripe,
             scan_frames: frames_n,
             scan_sphere_points: sphere_pts,
+            table_dir,
+            table_frames,
             direction: self.direction,
         })
+    }
+
+    /// Writes the sweep `qs` as the scan folder `out/name` (rig.json, scan.csv,
+    /// images/, truth.json with the sphere if any); returns the folder and the stripe
+    /// points on the sphere.
+    #[allow(clippy::too_many_arguments)]
+    fn write_sweep(
+        &self,
+        out: &Path,
+        name: &str,
+        qs: &[Vec<f64>],
+        rig: &Rig,
+        pose_columns: &io::PoseColumns,
+        progress: &mut dyn FnMut(&str, usize, usize),
+        render: impl Fn(&[f64], usize) -> Result<ViewRender, SimError>,
+    ) -> Result<(PathBuf, usize), SimError> {
+        let stage = if name == "scan" {
+            "scan frames"
+        } else {
+            "table scan frames"
+        };
+        let dir = out.join(name);
+        let tmp = staging_dir(out, name)?;
+        let mut frames = Vec::new();
+        let mut per_image = Vec::new();
+        let mut sphere_pts = 0;
+        for (k, q) in qs.iter().enumerate() {
+            progress(stage, k, qs.len());
+            let r = render(q, k)?;
+            let img_name = format!("images/scan_{k:04}.png");
+            if let Some(img) = &r.laser_image {
+                io::save_gray_png(tmp.join(&img_name), img)?;
+            }
+            sphere_pts += r.stripe.iter().filter(|p| p.surface == "sphere").count();
+            frames.push(ScanFrame {
+                line: k + 2,
+                image: img_name.clone().into(),
+                reading: self.reading(q)?,
+            });
+            per_image.push(
+                json!({"image": img_name, "stripe": stripe_json(&r.stripe, self.direction, true)}),
+            );
+        }
+        progress(stage, qs.len(), qs.len());
+        io::write_rig(tmp.join("rig.json"), rig)?;
+        io::write_scan_csv_with(tmp.join("scan.csv"), &frames, pose_columns)?;
+        let mut truth = self.truth(true);
+        truth.extra.insert("images".into(), Value::Array(per_image));
+        io::write_truth(tmp.join("truth.json"), &truth)?;
+        replace_dir(&tmp, &dir)?;
+        Ok((dir, sphere_pts))
     }
 }
 
