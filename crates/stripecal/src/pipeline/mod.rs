@@ -35,6 +35,7 @@ mod laser_only;
 mod loo;
 mod observe;
 mod pairing;
+mod plan;
 mod report;
 pub mod stripe_select;
 #[cfg(test)]
@@ -60,6 +61,10 @@ use crate::vision::target::TargetOptions;
 pub use calibrate::calibrate_observations;
 pub use observe::observe_dataset;
 use observe::{observe, Observed};
+pub use plan::{
+    plan_poses, read_nominal, read_plan_rig, PlanOptions, PlannedPose, PointSigma, PosePlan,
+    SigmaEntry,
+};
 pub use stripe_select::{select_on_board_plane, StripeSelection};
 
 /// Which pipeline.

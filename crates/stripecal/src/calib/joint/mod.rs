@@ -69,11 +69,14 @@
 mod chain;
 mod covariance;
 mod layout;
+mod predict;
 mod report;
 mod residuals;
 mod robot_noise;
 
 use nalgebra::{DMatrix, Vector3};
+
+pub use self::predict::{predicted_covariance, Prediction};
 
 use self::layout::{Block, ParamLayout};
 use self::residuals::{JointProblem, Terms};
