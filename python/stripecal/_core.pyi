@@ -27,6 +27,7 @@ from stripecal.types import (
     LaserPlaneFit,
     LeaveOneOut,
     PlyCloud,
+    PosePlan,
     QualityCheck,
     RobotPoseNoise,
     SimPose,
@@ -87,6 +88,7 @@ __all__ = [
     "matrix_to_pose",
     "matrix_to_rotvec",
     "nearest_rotation",
+    "plan_poses",
     "pose_to_matrix",
     "read_ply",
     "reconstruct",
@@ -633,6 +635,16 @@ def calibrate(
     accept_poor: bool = False,
     robot_pose_noise: bool = False,
 ) -> Calibration: ...
+def plan_poses(
+    rig: Union[_Path, Rig, Dataset],
+    nominal: Union[_Path, Calibration, Truth],
+    joints: npt.ArrayLike,
+    *,
+    sigma_px: Tuple[float, float] = (0.05, 0.1),
+    standoff_mm: Optional[float] = None,
+    margin_px: float = 10.0,
+    fix: Sequence[str] = ...,
+) -> PosePlan: ...
 def calibrate_camera(
     views: Sequence[Tuple[npt.ArrayLike, npt.ArrayLike]],
     board: Board,

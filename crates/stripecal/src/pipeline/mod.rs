@@ -62,7 +62,7 @@ pub use calibrate::calibrate_observations;
 pub use observe::observe_dataset;
 use observe::{observe, Observed};
 pub use plan::{
-    plan_poses, read_nominal, read_plan_rig, PlanOptions, PlannedPose, PointSigma, PosePlan,
+    nominal_from_truth, plan_poses, read_nominal, read_plan_rig, PlanOptions, PlannedPose, PointSigma, PosePlan,
     SigmaEntry,
 };
 pub use stripe_select::{select_on_board_plane, StripeSelection};

@@ -31,7 +31,7 @@ use crate::error::{Error, Result};
 use crate::model::board::{Board, BoardKind};
 use crate::model::camera::{Camera, PARAM_NAMES};
 use crate::model::geometry::{iso_from_rotvec, iso_to_rotvec, Iso3, Plane};
-use crate::model::{Calibration, NamedCovariance, Rig};
+use crate::model::{Calibration, NamedCovariance, Rig, Truth};
 
 /// Options of [`plan_poses`].
 #[derive(Debug, Clone, PartialEq)]
@@ -169,20 +169,24 @@ pub fn read_nominal(path: &Path) -> Result<Calibration> {
         .and_then(|v| v.get("format").and_then(|f| f.as_str()).map(str::to_owned))
         .is_some_and(|f| f.starts_with("stripecal/truth"));
     if is_truth {
-        let t = crate::io::truth_from_json(path, &text)?;
-        Ok(Calibration {
-            camera: t.camera,
-            laser_plane: Some(t.laser_plane),
-            hand_cam: t.hand_cam,
-            base_board: t.base_board,
-            robot: t.robot,
-            quality: Default::default(),
-            uncertainty: Default::default(),
-            covariance: None,
-            extra: Default::default(),
-        })
+        Ok(nominal_from_truth(crate::io::truth_from_json(path, &text)?))
     } else {
         crate::io::calibration_from_json(path, &text)
+    }
+}
+
+/// A truth as the nominal calibration (its camera, laser plane, `X`, `Z` and robot).
+pub fn nominal_from_truth(t: Truth) -> Calibration {
+    Calibration {
+        camera: t.camera,
+        laser_plane: Some(t.laser_plane),
+        hand_cam: t.hand_cam,
+        base_board: t.base_board,
+        robot: t.robot,
+        quality: Default::default(),
+        uncertainty: Default::default(),
+        covariance: None,
+        extra: Default::default(),
     }
 }
 
