@@ -640,7 +640,7 @@ def plan_poses(
     nominal: Union[_Path, Calibration, Truth],
     joints: npt.ArrayLike,
     *,
-    sigma_px: Tuple[float, float] = (0.05, 0.1),
+    sigma_px: Tuple[float, float] = ...,
     standoff_mm: Optional[float] = None,
     margin_px: float = 10.0,
     fix: Sequence[str] = ...,

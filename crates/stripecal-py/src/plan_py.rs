@@ -95,7 +95,9 @@ pub fn plan_poses<'py>(
         free,
         ..PlanOptions::default()
     };
-    let plan = py.detach(|| core_plan_poses(&rig, &nominal, &q, &opts)).py_err(py)?;
+    let plan = py
+        .detach(|| core_plan_poses(&rig, &nominal, &q, &opts))
+        .py_err(py)?;
     let v = serde_json::to_value(&plan)
         .map_err(|e| invalid_input(py, format!("the plan cannot be converted: {e}")))?;
     json_to_py(py, &v)

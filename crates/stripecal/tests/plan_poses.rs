@@ -231,6 +231,14 @@ fn unusable_poses_are_reported_and_too_few_is_an_error() {
     };
     assert!(matches!(e, Error::InvalidInput(_)), "{e}");
     assert!(e.to_string().contains("pose 2"), "{e}");
+    // The same pose three times: X and Z cannot be told apart, and are named.
+    let same = vec![joints[0].clone(); 3];
+    let Err(e) = plan_poses(&rig, &nominal, &same, &PlanOptions::default()) else {
+        panic!("one pose repeated determines nothing of the chain")
+    };
+    assert!(matches!(e, Error::Degenerate(_)), "{e}");
+    assert!(e.to_string().contains("hand_cam"), "{e}");
+    println!("{e}");
     let Err(e) = plan_poses(&rig, &nominal, &[vec![0.0; 3]], &PlanOptions::default()) else {
         panic!("3 joints for a 6-axis robot")
     };

@@ -62,8 +62,8 @@ pub use calibrate::calibrate_observations;
 pub use observe::observe_dataset;
 use observe::{observe, Observed};
 pub use plan::{
-    nominal_from_truth, plan_poses, read_nominal, read_plan_rig, PlanOptions, PlannedPose, PointSigma, PosePlan,
-    SigmaEntry,
+    nominal_from_truth, plan_poses, read_nominal, read_plan_rig, PlanOptions, PlannedPose,
+    PointSigma, PosePlan, SigmaEntry,
 };
 pub use stripe_select::{select_on_board_plane, StripeSelection};
 
