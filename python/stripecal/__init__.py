@@ -88,6 +88,7 @@ from stripecal.calib import (
     calibrate,
     calibrate_camera,
     fit_laser_plane,
+    plan_poses,
     solve_axzb,
     solve_axzb_full,
 )
@@ -150,6 +151,7 @@ __all__ = [
     "matrix_to_pose",
     "matrix_to_rotvec",
     "nearest_rotation",
+    "plan_poses",
     "pose_to_matrix",
     "read_ply",
     "reconstruct",

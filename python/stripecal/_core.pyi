@@ -27,6 +27,7 @@ from stripecal.types import (
     LaserPlaneFit,
     LeaveOneOut,
     PlyCloud,
+    PosePlan,
     QualityCheck,
     RobotCalibration,
     RobotPoseNoise,
@@ -88,6 +89,7 @@ __all__ = [
     "matrix_to_pose",
     "matrix_to_rotvec",
     "nearest_rotation",
+    "plan_poses",
     "pose_to_matrix",
     "read_ply",
     "reconstruct",
@@ -640,6 +642,16 @@ def calibrate(
     robot_pose_noise: bool = False,
     robot: str = "fixed",
 ) -> Calibration: ...
+def plan_poses(
+    rig: Union[_Path, Rig, Dataset],
+    nominal: Union[_Path, Calibration, Truth],
+    joints: npt.ArrayLike,
+    *,
+    sigma_px: Tuple[float, float] = ...,
+    standoff_mm: Optional[float] = None,
+    margin_px: float = 10.0,
+    fix: Sequence[str] = ...,
+) -> PosePlan: ...
 def calibrate_camera(
     views: Sequence[Tuple[npt.ArrayLike, npt.ArrayLike]],
     board: Board,

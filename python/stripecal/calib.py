@@ -5,6 +5,9 @@ robot-world ``Z = T_base_board``.
   paper's stages), with one-sigma uncertainties and per-view figures (typed in
   :mod:`stripecal.types`: ``CalibrationQuality``, ``CalibrationUncertainty``,
   ``CalibrationView``, ``CalibrationExtra``).
+- ``plan_poses`` (robot joint vectors + a nominal calibration -> the one-sigma each
+  parameter and a measured point would have, before any image is taken; a
+  :class:`~stripecal.types.PosePlan`).
 - The stages on their own: ``calibrate_camera``, ``fit_laser_plane``, ``solve_axzb`` /
   ``solve_axzb_full`` (``A_i X = Z B_i``).
 
@@ -16,6 +19,7 @@ from stripecal._core import calibrate as calibrate
 from stripecal._core import calibrate_camera as calibrate_camera
 from stripecal._core import Calibration as Calibration
 from stripecal._core import fit_laser_plane as fit_laser_plane
+from stripecal._core import plan_poses as plan_poses
 from stripecal._core import solve_axzb as solve_axzb
 from stripecal._core import solve_axzb_full as solve_axzb_full
 
@@ -24,6 +28,7 @@ __all__ = [
     "calibrate_camera",
     "Calibration",
     "fit_laser_plane",
+    "plan_poses",
     "solve_axzb",
     "solve_axzb_full",
 ]

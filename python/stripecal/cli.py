@@ -645,6 +645,118 @@ def _add_fit_sphere(sub: argparse._SubParsersAction[argparse.ArgumentParser]) ->
     p.set_defaults(func=cmd_fit_sphere)
 
 
+def _read_poses_csv(path: str) -> np.ndarray:
+    """The joint vectors of a poses CSV: a header naming the columns, ``q1..qN`` among
+    them (degrees; other columns ignored, so a views.csv works as it is), one pose a
+    row. A row with another number of fields than the header, or a joint value that is
+    not a number, is a FormatError naming the file and line."""
+    import csv
+
+    with open(path, newline="", encoding="utf-8") as f:
+        rows = list(csv.reader(f))
+    if not rows:
+        raise stripecal.FormatError(f"{path}: line 1: empty file, expected a header with q1..qN")
+    header = [h.strip() for h in rows[0]]
+    cols: List[int] = []
+    while f"q{len(cols) + 1}" in header:
+        cols.append(header.index(f"q{len(cols) + 1}"))
+    if not cols:
+        raise stripecal.FormatError(f"{path}: line 1: no joint columns q1..qN in the header")
+    joints: List[List[float]] = []
+    for n, row in enumerate(rows[1:], start=2):
+        if not row or all(not x.strip() for x in row):
+            continue
+        if len(row) != len(header):
+            raise stripecal.FormatError(
+                f"{path}: line {n}: {len(row)} fields, the header has {len(header)}")
+        try:
+            joints.append([float(row[c]) for c in cols])
+        except ValueError:
+            raise stripecal.FormatError(f"{path}: line {n}: a joint value is not a number") from None
+    if not joints:
+        raise stripecal.FormatError(f"{path}: no pose rows after the header")
+    return np.asarray(joints, dtype=np.float64)
+
+
+_PLAN_GROUPS = [("camera", "camera"), ("laser_plane", "laser plane"), ("hand_cam", "hand_cam (X)"),
+                ("base_board", "base_board (Z)"), ("board", "board")]
+
+
+def cmd_plan(args: argparse.Namespace) -> int:
+    """Checks a pose plan before driving the robot: from the robot joint vectors of
+    POSES.csv (q1..qN, degrees; a views.csv works as it is), the rig (its robot and
+    board) and a nominal calibration (calibration.json, or a twin's truth.json),
+    predicts what each pose would see and the one-sigma every calibration parameter and
+    a point measured at the stand-off would have with detections of the given noise.
+    Prints a table per pose and the sigmas; --json writes the whole plan (atomically).
+    Exit status 1 when fewer than 3 poses are usable or the poses leave a parameter
+    undetermined (named)."""
+    joints = _read_poses_csv(args.poses)
+    plan = stripecal.plan_poses(args.rig, args.nominal, joints, sigma_px=(args.noise_px, args.stripe_noise_px),
+                                standoff_mm=args.standoff)
+    print(f"{len(plan['poses'])} poses, {plan['usable']} usable; detection noise {plan['sigma_px'][0]:g} px "
+          f"(targets), {plan['sigma_px'][1]:g} px (stripe)\n")
+    print("  pose  usable  points  stripe  stand-off mm  tilt deg  reason")
+    for p in plan["poses"]:
+        so, tilt = p["standoff_mm"], p["tilt_deg"]
+        print(f"  {p['pose']:>4}  {'yes' if p['usable'] else 'NO':>6}  {p['points']:>6}  {p['stripe_points']:>6}  "
+              f"{'-' if so is None else f'{so:.1f}':>12}  {'-' if tilt is None else f'{tilt:.1f}':>8}  {p['reason'] or ''}")
+    print("\npredicted one-sigma of the parameters:")
+    entries = plan["parameters"]
+    for prefix, title in _PLAN_GROUPS:
+        group = [e for e in entries if e["name"].split(".")[0] == prefix]
+        if group:
+            print(f"  {title}")
+            for e in group:
+                name = e["name"]
+                unit = ("rad" if "rotation_vector" in name else "mm" if "_mm" in name
+                        else "px" if prefix == "camera" and "distortion" not in name else "")
+                print(f"    {e['name']:32} {e['sigma']:12.4g} {unit}")
+    rest = [e for e in entries if e["name"].split(".")[0] not in {g for g, _ in _PLAN_GROUPS}]
+    if rest:
+        print("  other")
+        for e in rest:
+            print(f"    {e['name']:32} {e['sigma']:12.4g}")
+    pt = plan["point"]
+    if pt is not None:
+        sc = pt["sigma_camera_mm"]
+        print(f"\npoint on the laser plane at {pt['standoff_mm']:.1f} mm (pixel {pt['pixel'][0]:.1f}, {pt['pixel'][1]:.1f}):")
+        print(f"  camera frame: sigma x {sc[0]:.4f}  y {sc[1]:.4f}  z {sc[2]:.4f}  |p| {pt['sigma_camera_norm_mm']:.4f} mm")
+        sb, nb = pt["sigma_base_mm"], pt["sigma_base_norm_mm"]
+        if sb is not None and nb is not None:
+            print(f"  base frame (pose {pt['base_pose']}): sigma x {sb[0]:.4f}  y {sb[1]:.4f}  z {sb[2]:.4f}  |p| {nb:.4f} mm")
+    for w in plan["warnings"]:
+        print(f"warning: {w}")
+    if args.output:
+        _uninterruptible()
+        tmp = f"{args.output}.tmp{os.getpid()}"
+        try:
+            with open(tmp, "w", encoding="utf-8") as f:
+                json.dump(plan, f, indent=2)
+                f.write("\n")
+            os.replace(tmp, args.output)
+        finally:
+            if os.path.exists(tmp):
+                os.unlink(tmp)
+        print(f"\nwrote {os.path.abspath(args.output)}")
+    return 0
+
+
+def _add_plan(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
+    p = sub.add_parser("plan", help="predict a pose plan's calibration uncertainty before driving the robot",
+                       description=cmd_plan.__doc__)
+    p.add_argument("--rig", required=True, metavar="RIG.json|DATASET", help="rig.json, or a dataset folder (its rig.json)")
+    p.add_argument("--nominal", required=True, metavar="CALIBRATION.json",
+                   help="the nominal calibration: calibration.json or a twin's truth.json")
+    p.add_argument("--poses", required=True, metavar="POSES.csv",
+                   help="joint vectors: a header with q1..qN (degrees), one pose a row; other columns ignored")
+    p.add_argument("--noise-px", type=float, default=0.05, help="one-sigma of a target point's coordinates, px (default 0.05)")
+    p.add_argument("--stripe-noise-px", type=float, default=0.1, help="one-sigma of a stripe point, px (default 0.1)")
+    p.add_argument("--standoff", type=float, metavar="MM", help="stand-off of the predicted point, mm (default: the median pose's)")
+    p.add_argument("--json", dest="output", metavar="OUT.json", help="write the plan as JSON (atomically)")
+    p.set_defaults(func=cmd_plan)
+
+
 _SUBCOMMANDS: List[Callable[[argparse._SubParsersAction[argparse.ArgumentParser]], None]] = [
     _add_info,
     _add_simulate,
@@ -653,6 +765,7 @@ _SUBCOMMANDS: List[Callable[[argparse._SubParsersAction[argparse.ArgumentParser]
     _add_calibrate,
     _add_reconstruct,
     _add_fit_sphere,
+    _add_plan,
 ]
 
 

@@ -532,6 +532,91 @@ class AxzbSolution(TypedDict):
     """Warnings (weak geometry)."""
 
 
+# --- pose planning -------------------------------------------------------------------
+
+
+class PlannedPose(TypedDict):
+    """One robot pose of a plan (``plan_poses``)."""
+
+    pose: int
+    """Index in the joints given (0-based)."""
+    joints_deg: List[float]
+    """The joint values, degrees."""
+    usable: bool
+    """Whether the pose enters the prediction."""
+    reason: Optional[str]
+    """Why it does not (None when usable)."""
+    points: int
+    """Target points imaged inside the margin."""
+    stripe_points: int
+    """Predicted stripe points on the board's plate."""
+    standoff_mm: Optional[float]
+    """Where the optical axis meets the board plane, mm from the camera (None: not in
+    front of the camera)."""
+    tilt_deg: Optional[float]
+    """Angle between the optical axis and the board's normal, degrees."""
+
+
+class SigmaEntry(TypedDict):
+    """A predicted one-sigma by name."""
+
+    name: str
+    """calibration.json's name (``camera.fu``, ``laser_plane.normal[0]``,
+    ``hand_cam.rotation_vector[2]``...) or the adjustment's state name."""
+    sigma: float
+    """One-sigma in the number's unit (px, mm, rad)."""
+
+
+class PointSigma(TypedDict):
+    """The predicted uncertainty of a point triangulated on the laser plane."""
+
+    standoff_mm: float
+    """The point's depth (camera z), mm."""
+    pixel: List[float]
+    """Its pixel ``[u, v]``: nearest the optical axis on the stripe at that depth."""
+    camera_mm: List[float]
+    """The point in the camera frame ``[x, y, z]``, mm."""
+    sigma_camera_mm: List[float]
+    """One-sigma of x, y, z in the camera frame, mm."""
+    sigma_camera_norm_mm: float
+    """One-sigma of the position (root of the covariance's trace), mm."""
+    base_pose: Optional[int]
+    """The pose (usable, median stand-off) at which the point is put in the base frame
+    (None: X and Z both held)."""
+    base_mm: Optional[List[float]]
+    """The point in the base frame at that pose, mm."""
+    sigma_base_mm: Optional[List[float]]
+    """One-sigma of its x, y, z in the base frame, mm."""
+    sigma_base_norm_mm: Optional[float]
+    """One-sigma of the base-frame position, mm."""
+
+
+class PosePlan(TypedDict):
+    """The predicted uncertainty of a calibration from a list of robot poses, before any
+    image is taken (``plan_poses``)."""
+
+    poses: List[PlannedPose]
+    """Every pose given, usable or not."""
+    usable: int
+    """Usable poses."""
+    sigma_px: List[float]
+    """The detection noise assumed ``[circle, stripe]``, px."""
+    points: int
+    """Target points of the usable poses."""
+    stripe_points: int
+    """Stripe points of the usable poses."""
+    parameters: List[SigmaEntry]
+    """One-sigma of every estimated number, calibration.json's names."""
+    covariance: List[List[float]]
+    """Their covariance, rows and columns in ``parameters`` order."""
+    state: List[SigmaEntry]
+    """One-sigma of every entry of the adjustment's state vector (its own names)."""
+    point: Optional[PointSigma]
+    """The point at the stand-off (None without a laser plane)."""
+    warnings: List[str]
+    """Warnings."""
+
+
 # --- vision: target detection ---------------------------------------------------------
 
 

@@ -13,6 +13,7 @@ mod errors;
 mod files;
 mod geometry;
 mod imageview;
+mod plan_py;
 mod poses;
 mod reconstruct_py;
 mod results;
@@ -92,6 +93,7 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(calib_py::fit_laser_plane, m)?)?;
     m.add_function(wrap_pyfunction!(calib_py::calibrate, m)?)?;
     m.add_function(wrap_pyfunction!(calib_py::calibrate_camera, m)?)?;
+    m.add_function(wrap_pyfunction!(plan_py::plan_poses, m)?)?;
 
     m.add_class::<reconstruct_py::PyCloud>()?;
     m.add_class::<reconstruct_py::PyPlaneFit>()?;

@@ -36,6 +36,7 @@ mod laser_only;
 mod loo;
 mod observe;
 mod pairing;
+mod plan;
 mod report;
 pub mod stripe_select;
 #[cfg(test)]
@@ -61,6 +62,10 @@ use crate::vision::target::TargetOptions;
 pub use calibrate::calibrate_observations;
 pub use observe::observe_dataset;
 use observe::{observe, Observed};
+pub use plan::{
+    nominal_from_truth, plan_poses, read_nominal, read_plan_rig, PlanOptions, PlannedPose,
+    PointSigma, PosePlan, SigmaEntry,
+};
 pub use stripe_select::{select_on_board_plane, StripeSelection};
 
 /// Which pipeline.

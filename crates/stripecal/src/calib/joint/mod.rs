@@ -69,6 +69,7 @@
 mod chain;
 mod covariance;
 mod layout;
+mod predict;
 mod report;
 mod residuals;
 mod robot;
@@ -80,6 +81,8 @@ pub use self::robot::{DhKind, DhParam, RobotMode};
 pub use self::robot_solve::RobotOptions;
 
 use nalgebra::{DMatrix, Vector3};
+
+pub use self::predict::{predicted_covariance, Prediction};
 
 use self::layout::{Block, ParamLayout};
 use self::residuals::{JointProblem, Terms};
