@@ -651,6 +651,7 @@ def plan_poses(
     standoff_mm: Optional[float] = None,
     margin_px: float = 10.0,
     fix: Sequence[str] = ...,
+    robot: str = "fixed",
 ) -> PosePlan: ...
 def calibrate_camera(
     views: Sequence[Tuple[npt.ArrayLike, npt.ArrayLike]],

@@ -693,7 +693,7 @@ def cmd_plan(args: argparse.Namespace) -> int:
     undetermined (named)."""
     joints = _read_poses_csv(args.poses)
     plan = stripecal.plan_poses(args.rig, args.nominal, joints, sigma_px=(args.noise_px, args.stripe_noise_px),
-                                standoff_mm=args.standoff)
+                                standoff_mm=args.standoff, robot=args.robot)
     print(f"{len(plan['poses'])} poses, {plan['usable']} usable; detection noise {plan['sigma_px'][0]:g} px "
           f"(targets), {plan['sigma_px'][1]:g} px (stripe)\n")
     print("  pose  usable  points  stripe  stand-off mm  tilt deg  reason")
@@ -725,6 +725,8 @@ def cmd_plan(args: argparse.Namespace) -> int:
         sb, nb = pt["sigma_base_mm"], pt["sigma_base_norm_mm"]
         if sb is not None and nb is not None:
             print(f"  base frame (pose {pt['base_pose']}): sigma x {sb[0]:.4f}  y {sb[1]:.4f}  z {sb[2]:.4f}  |p| {nb:.4f} mm")
+    for h in plan["robot_held"]:
+        print(f"  robot: held {h['name']}: {h['reason']}")
     for w in plan["warnings"]:
         print(f"warning: {w}")
     if args.output:
@@ -752,6 +754,8 @@ def _add_plan(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
                    help="joint vectors: a header with q1..qN (degrees), one pose a row; other columns ignored")
     p.add_argument("--noise-px", type=float, default=0.05, help="one-sigma of a target point's coordinates, px (default 0.05)")
     p.add_argument("--stripe-noise-px", type=float, default=0.1, help="one-sigma of a stripe point, px (default 0.1)")
+    p.add_argument("--robot", choices=["fixed", "offsets", "full", "auto"], default="fixed",
+                   help="plan a robot calibration too: the DH corrections' sigmas (auto is planned as full)")
     p.add_argument("--standoff", type=float, metavar="MM", help="stand-off of the predicted point, mm (default: the median pose's)")
     p.add_argument("--json", dest="output", metavar="OUT.json", help="write the plan as JSON (atomically)")
     p.set_defaults(func=cmd_plan)

@@ -615,6 +615,8 @@ class PosePlan(TypedDict):
     """The point at the stand-off (None without a laser plane)."""
     warnings: List[str]
     """Warnings."""
+    robot_held: List[DhFixed]
+    """With ``robot=``: the DH corrections the identifiability rule holds, and why."""
 
 
 # --- vision: target detection ---------------------------------------------------------

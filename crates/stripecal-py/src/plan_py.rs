@@ -57,7 +57,7 @@ fn nominal_of(py: Python<'_>, obj: &Bound<'_, PyAny>) -> PyResult<Calibration> {
 /// usable poses (naming why each other one is not) or a wrong joint count,
 /// `DegenerateError` naming the parameters the poses do not determine.
 #[pyfunction]
-#[pyo3(signature = (rig, nominal, joints, *, sigma_px = (0.05, 0.1), standoff_mm = None, margin_px = 10.0, fix = Vec::new()))]
+#[pyo3(signature = (rig, nominal, joints, *, sigma_px = (0.05, 0.1), standoff_mm = None, margin_px = 10.0, fix = Vec::new(), robot = "fixed"))]
 #[allow(clippy::too_many_arguments)]
 pub fn plan_poses<'py>(
     py: Python<'py>,
@@ -68,7 +68,9 @@ pub fn plan_poses<'py>(
     standoff_mm: Option<f64>,
     margin_px: f64,
     fix: Vec<String>,
+    robot: &str,
 ) -> PyResult<Bound<'py, PyAny>> {
+    let robot = stripecal::calib::joint::RobotMode::from_name(robot).py_err(py)?;
     let rig = rig_of(py, rig)?;
     let nominal = nominal_of(py, nominal)?;
     let a = f64_array(joints, "joints")?;
@@ -93,6 +95,7 @@ pub fn plan_poses<'py>(
         standoff_mm,
         margin_px,
         free,
+        robot,
         ..PlanOptions::default()
     };
     let plan = py

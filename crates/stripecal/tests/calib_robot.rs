@@ -164,10 +164,17 @@ fn auto_predicts_new_poses_far_better_than_a_fixed_robot() {
             print(RobotMode::Full, &t, &full, eu);
             assert!(fixed.robot.is_none());
             assert!(ef > 5.0 * ea && ef > 5.0 * eu, "{count} views, seed {seed}");
-            assert!(ea < 0.05 && eu < 0.05, "{count} views, seed {seed}: {ea} {eu} mm");
+            assert!(
+                ea < 0.05 && eu < 0.05,
+                "{count} views, seed {seed}: {ea} {eu} mm"
+            );
             // The residuals fall to the image noise once the robot is calibrated.
             assert!(fixed.circle_rms_px > 10.0 * CIRCLE_PX);
-            assert!(auto.circle_rms_px < 2.0 * CIRCLE_PX, "{}", auto.circle_rms_px);
+            assert!(
+                auto.circle_rms_px < 2.0 * CIRCLE_PX,
+                "{}",
+                auto.circle_rms_px
+            );
         }
     }
 }

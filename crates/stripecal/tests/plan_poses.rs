@@ -13,7 +13,7 @@
 //! `cargo test -p stripecal --test plan_poses -- --nocapture` prints the table.
 
 use stripecal::calib::joint::{
-    joint_adjustment, FreeBlocks, JointOptions, JointResult, JointStart,
+    joint_adjustment, FreeBlocks, JointOptions, JointResult, JointStart, RobotMode, RobotOptions,
 };
 use stripecal::model::geometry::iso_to_rotvec;
 use stripecal::model::Calibration;
@@ -52,6 +52,14 @@ fn value(t: &Twin, r: &JointResult, name: &str) -> f64 {
         n if n.starts_with("laser_plane.normal[") => r.plane.unwrap().normal[idx(n)],
         "laser_plane.d_mm" => r.plane.unwrap().d,
         "board.scale" => r.board_scale,
+        n if n.starts_with("robot.joints[") => {
+            let rc = r.robot.as_ref().expect("a robot calibration");
+            rc.estimated
+                .iter()
+                .find(|e| e.name == n)
+                .unwrap_or_else(|| panic!("{n} was not estimated"))
+                .correction
+        }
         n => {
             let (key, rest) = n.split_once('.').unwrap();
             let (est, truth) = match key {
@@ -82,14 +90,24 @@ struct Case {
     name: &'static str,
     adjustment: JointOptions,
     free: FreeBlocks,
+    robot: RobotMode,
 }
 
 fn cases() -> Vec<Case> {
-    vec![Case {
-        name: "defaults (camera, plane, X, Z; rigid robot)",
-        adjustment: JointOptions::default(),
-        free: FreeBlocks::default(),
-    }]
+    vec![
+        Case {
+            name: "defaults (camera, plane, X, Z; rigid robot)",
+            adjustment: JointOptions::default(),
+            free: FreeBlocks::default(),
+            robot: RobotMode::Fixed,
+        },
+        Case {
+            name: "with the robot's DH corrections (--robot full)",
+            adjustment: JointOptions::default(),
+            free: FreeBlocks::default(),
+            robot: RobotMode::Full,
+        },
+    ]
 }
 
 #[test]
@@ -118,6 +136,7 @@ fn predicted_sigmas_agree_with_a_monte_carlo_of_the_adjustment() {
             adjustment: case.adjustment.clone(),
             plate_margin_mm: Some(t.cfg.board.plate_margin_mm),
             margin_px: 0.0,
+            robot: case.robot,
             ..PlanOptions::default()
         };
         let plan = plan_poses(&rig, &nominal, &joints, &opts).unwrap();
@@ -144,8 +163,15 @@ fn predicted_sigmas_agree_with_a_monte_carlo_of_the_adjustment() {
         }
         let jopts = JointOptions {
             free: case.free,
+            robot: (case.robot != RobotMode::Fixed).then(|| RobotOptions {
+                nominal: rig.robot.clone().unwrap(),
+                mode: case.robot,
+            }),
             ..case.adjustment.clone()
         };
+        for h in &plan.robot_held {
+            println!("held {}: {}", h.name, h.reason);
+        }
         let mut samples: Vec<Vec<f64>> = vec![Vec::new(); plan.parameters.len()];
         for k in 0..draws {
             let noisy = noisy_observations(

@@ -24,14 +24,16 @@ use nalgebra::{Matrix3, Vector2, Vector3};
 use serde::Serialize;
 
 use crate::calib::conic::predict_centre;
-use crate::calib::joint::{predicted_covariance, FreeBlocks, JointOptions, JointStart};
+use crate::calib::joint::{
+    predicted_covariance, FreeBlocks, JointOptions, JointStart, RobotMode, RobotOptions,
+};
 use crate::calib::laser_plane::stripe_line_in_view;
 use crate::calib::{CircleObs, ViewObs};
 use crate::error::{Error, Result};
 use crate::model::board::{Board, BoardKind};
 use crate::model::camera::{Camera, PARAM_NAMES};
 use crate::model::geometry::{iso_from_rotvec, iso_to_rotvec, Iso3, Plane};
-use crate::model::{Calibration, NamedCovariance, Rig, Truth};
+use crate::model::{Calibration, NamedCovariance, Rig, RobotReading, Truth};
 
 /// Options of [`plan_poses`].
 #[derive(Debug, Clone, PartialEq)]
@@ -57,6 +59,11 @@ pub struct PlanOptions {
     /// The adjustment's other options (centre model, robot-pose noise, board scale...);
     /// its `free` is replaced by [`Self::free`] and its weights by [`Self::sigma_px`].
     pub adjustment: JointOptions,
+    /// The robot's DH corrections the calibration will estimate (`--robot`; default
+    /// fixed). `auto` is planned as `full` (which corrections the data show is not known
+    /// before the images); the identifiability rule's held ones are in
+    /// [`PosePlan::robot_held`].
+    pub robot: RobotMode,
 }
 
 impl Default for PlanOptions {
@@ -70,6 +77,7 @@ impl Default for PlanOptions {
             plate_margin_mm: None,
             min_points: 4,
             adjustment: JointOptions::default(),
+            robot: RobotMode::Fixed,
         }
     }
 }
@@ -145,6 +153,15 @@ pub struct PosePlan {
     /// not reach that depth near the image centre).
     pub point: Option<PointSigma>,
     pub warnings: Vec<String>,
+    /// With `--robot`: the DH corrections the identifiability rule holds, with why.
+    pub robot_held: Vec<HeldEntry>,
+}
+
+/// A DH correction held, and why.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct HeldEntry {
+    pub name: String,
+    pub reason: String,
 }
 
 /// The rig of a rig.json file or of a dataset folder (its rig.json; the images need
@@ -515,7 +532,7 @@ pub fn plan_poses(
                 view: i,
                 circles: pr.circles,
                 stripe: pr.stripe,
-                reading: None,
+                reading: Some(RobotReading::Joints(joints[i].clone())),
                 base_hand: Some(a),
                 alternatives: Vec::new(),
             });
@@ -540,10 +557,19 @@ pub fn plan_poses(
         hand_cam: x,
         base_board: z,
     };
-    let jopts = JointOptions {
+    let mut jopts = JointOptions {
         free: opts.free,
         ..opts.adjustment.clone()
     };
+    if opts.robot != RobotMode::Fixed {
+        let nominal = rig.robot.clone().ok_or_else(|| {
+            Error::InvalidInput("planning a robot calibration needs rig.json's robot".into())
+        })?;
+        jopts.robot = Some(RobotOptions {
+            nominal,
+            mode: opts.robot,
+        });
+    }
     let pred = predicted_covariance(&views, &rig.board, &start, &jopts, opts.sigma_px)?;
     warnings.extend(pred.warnings.iter().cloned());
     let named = &pred.named_covariance;
@@ -603,6 +629,14 @@ pub fn plan_poses(
         state,
         point,
         warnings,
+        robot_held: pred
+            .robot_fixed
+            .iter()
+            .map(|(name, reason)| HeldEntry {
+                name: name.clone(),
+                reason: reason.clone(),
+            })
+            .collect(),
     })
 }
 

@@ -40,6 +40,9 @@ pub struct Prediction {
     /// Views used (dataset rows).
     pub views: Vec<usize>,
     pub warnings: Vec<String>,
+    /// With the robot calibrated ([`JointOptions::robot`]): the DH corrections the
+    /// identifiability rule holds, with why.
+    pub robot_fixed: Vec<(String, String)>,
 }
 
 /// The covariance [`super::joint_adjustment`] would report for observations with
@@ -69,12 +72,21 @@ pub fn predicted_covariance(
     let mut warnings = Vec::new();
     let terms = Terms::collect(views, board, &mut warnings)?;
     let free = free_blocks(&terms, start, opts)?;
+    let fixed_weights = JointOptions {
+        variance_components: false,
+        robust: false,
+        initial_sigma_px: sigma_px,
+        ..opts.clone()
+    };
+    let (robot, robot_fixed) =
+        super::robot_solve::structural_block(start, &free, &fixed_weights, &terms)?;
     let layout = ParamLayout::new(
         start,
         &free,
         opts.board_scale,
         &terms.used,
         opts.robot_noise,
+        robot,
     );
     if layout.num_global() == 0 {
         return Err(Error::InvalidInput(
@@ -127,5 +139,6 @@ pub fn predicted_covariance(
         stripe_points,
         views: used,
         warnings,
+        robot_fixed,
     })
 }

@@ -13,7 +13,11 @@
 //!   C_KK^-1 C_Kk` (1: independent, 0: a combination of the others); a candidate with
 //!   `r_k <` [`IDENTIFIABLE`] is not identifiable (its sigma would be more than
 //!   `1/sqrt(IDENTIFIABLE)` = 1000 times what it is alone) and is fixed;
-//! - `full` and `offsets` take, at each step, the candidate with the largest `r_k`;
+//! - `full` and `offsets` take the candidates in their order (base to flange; `theta0`,
+//!   `d`, `a`, `alpha`, `beta` within a row), each one that is identifiable given those
+//!   taken before it: the same choice for the same poses whatever the noise, so that a
+//!   plan ([`super::predict`]) and the calibration of its images agree (of the HP3's
+//!   parallel rows 2 and 3, row 2's `d` is kept and row 3's held);
 //! - `auto` takes the one that lowers the weighted sum of squares most, `e_k^2 / r_k`
 //!   with `e_k = c_k - C_kK C_KK^-1 c_K` (Gauss-Newton, in units of the residuals'
 //!   variance), and stops when no candidate lowers it by [`SIGNIFICANT`] (a 5-sigma
@@ -130,31 +134,44 @@ pub(super) fn select(
         }
     };
     let mut chosen: Vec<usize> = keep.to_vec();
-    loop {
-        let inv = sub_inverse(&c, &chosen);
-        let mut best: Option<(usize, f64)> = None;
+    if mode != RobotMode::Auto {
+        // In the candidates' order (base to flange; theta0, d, a, alpha, beta): the
+        // same choice for the same poses whatever the noise (a plan and its data agree).
         for i in 0..k {
             if chosen.contains(&i) || own(i) < IDENTIFIABLE {
                 continue;
             }
-            let (r, e) = residual(&c, &cg, &chosen, &inv, i);
-            if r < IDENTIFIABLE {
-                continue;
-            }
-            let score = match mode {
-                RobotMode::Auto => e * e / r / info.variance,
-                _ => r,
-            };
-            if mode == RobotMode::Auto && score < SIGNIFICANT {
-                continue;
-            }
-            if best.is_none_or(|(_, s0)| score > s0) {
-                best = Some((i, score));
+            let inv = sub_inverse(&c, &chosen);
+            if residual(&c, &cg, &chosen, &inv, i).0 >= IDENTIFIABLE {
+                chosen.push(i);
             }
         }
-        match best {
-            Some((i, _)) => chosen.push(i),
-            None => break,
+    }
+    if mode == RobotMode::Auto {
+        // Forward selection by the fall of the weighted sum of squares.
+        loop {
+            let inv = sub_inverse(&c, &chosen);
+            let mut best: Option<(usize, f64)> = None;
+            for i in 0..k {
+                if chosen.contains(&i) || own(i) < IDENTIFIABLE {
+                    continue;
+                }
+                let (r, e) = residual(&c, &cg, &chosen, &inv, i);
+                if r < IDENTIFIABLE {
+                    continue;
+                }
+                let score = e * e / r / info.variance;
+                if score < SIGNIFICANT {
+                    continue;
+                }
+                if best.is_none_or(|(_, s0)| score > s0) {
+                    best = Some((i, score));
+                }
+            }
+            match best {
+                Some((i, _)) => chosen.push(i),
+                None => break,
+            }
         }
     }
     let inv = sub_inverse(&c, &chosen);

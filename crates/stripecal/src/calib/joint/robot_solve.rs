@@ -74,28 +74,7 @@ pub(super) fn robot_rounds(
     if ro.mode == RobotMode::Fixed {
         return Ok(None);
     }
-    let readings = terms
-        .q
-        .iter()
-        .zip(&terms.used)
-        .map(|(q, view)| {
-            let q = q.clone().ok_or_else(|| {
-                Error::InvalidInput(format!(
-                    "view {view}: robot calibration (--robot {}) needs joint readings; the \
-                     view gives a flange pose",
-                    ro.mode.name()
-                ))
-            })?;
-            if q.len() != ro.nominal.dof() {
-                return Err(Error::InvalidInput(format!(
-                    "view {view}: {} joint readings for a robot with {} DH rows",
-                    q.len(),
-                    ro.nominal.dof()
-                )));
-            }
-            Ok(q)
-        })
-        .collect::<Result<Vec<_>>>()?;
+    let readings = readings(terms, ro)?;
     let cands = candidates(&ro.nominal, ro.mode);
     let mut reference = ro.nominal.clone();
     let mut chosen: Vec<usize> = Vec::new();
@@ -163,6 +142,82 @@ pub(super) fn robot_rounds(
         p,
         weights,
     }))
+}
+
+/// `(name, why)` of the DH corrections held.
+pub(super) type Held = Vec<(String, String)>;
+
+/// For pose planning (no observations yet): the corrections the identifiability rule
+/// keeps at `start` (`full`'s structural rule for `full` and `auto`, whose significance
+/// needs data; `offsets`' for `offsets`) and the candidates it fixes, with why.
+pub(super) fn structural_block(
+    start: &JointStart,
+    free: &FreeBlocks,
+    opts: &JointOptions,
+    terms: &Terms,
+) -> Result<(Option<RobotBlock>, Held)> {
+    let Some(ro) = opts.robot.as_ref().filter(|r| r.mode != RobotMode::Fixed) else {
+        return Ok((None, Vec::new()));
+    };
+    let mode = if ro.mode == RobotMode::Auto {
+        RobotMode::Full
+    } else {
+        ro.mode
+    };
+    let cands = candidates(&ro.nominal, mode);
+    let all = RobotBlock {
+        reference: ro.nominal.clone(),
+        params: cands.clone(),
+        readings: readings(terms, ro)?,
+    };
+    let lc = ParamLayout::new(
+        start,
+        free,
+        opts.board_scale,
+        &terms.used,
+        opts.robot_noise,
+        Some(all.clone()),
+    );
+    let mut prob = JointProblem::new(&start.camera, &lc, terms.clone(), opts);
+    prob.prepare_solve(opts.centre_model, opts.centre_model);
+    let info = information(&prob, &lc.encode())?;
+    let sel = select(&info, &lc, &cands, mode, &[])?;
+    let fixed = sel
+        .fixed
+        .iter()
+        .map(|(i, why)| (cands[*i].name(), why.clone()))
+        .collect();
+    let block = (!sel.chosen.is_empty()).then(|| RobotBlock {
+        params: sel.chosen.iter().map(|&i| cands[i]).collect(),
+        ..all
+    });
+    Ok((block, fixed))
+}
+
+/// Every used view's joint readings (errors name a view without them).
+fn readings(terms: &Terms, ro: &RobotOptions) -> Result<Vec<Vec<f64>>> {
+    terms
+        .q
+        .iter()
+        .zip(&terms.used)
+        .map(|(q, view)| {
+            let q = q.clone().ok_or_else(|| {
+                Error::InvalidInput(format!(
+                    "view {view}: robot calibration (--robot {}) needs joint readings; the \
+                     view gives a flange pose",
+                    ro.mode.name()
+                ))
+            })?;
+            if q.len() != ro.nominal.dof() {
+                return Err(Error::InvalidInput(format!(
+                    "view {view}: {} joint readings for a robot with {} DH rows",
+                    q.len(),
+                    ro.nominal.dof()
+                )));
+            }
+            Ok(q)
+        })
+        .collect::<Result<Vec<_>>>()
 }
 
 /// The report of the rounds' outcome at the final solution `p` of `layout` (whose robot
