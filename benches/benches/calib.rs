@@ -97,5 +97,70 @@ fn calib(c: &mut Criterion) {
     g.finish();
 }
 
-criterion_group!(benches, calib);
+/// Issue 14, item 7: the one-stage adjustment of 30 views with the robot's DH
+/// corrections (`full`, `auto`) and without (`fixed`), on one thread, from the stages'
+/// values: a twin whose TRUE robot is off (theta0 0.05 deg, alpha 0.02 deg, a and d 0.3
+/// mm per row, drawn from the seed), the robot poses the NOMINAL robot's forward
+/// kinematics of the readings.
+fn robot(c: &mut Criterion) {
+    use stripecal::calib::joint::{RobotMode, RobotOptions};
+    use stripecal::model::RobotReading;
+    let cfg = SimConfig::hp3_paper()
+        .with_overrides(&serde_json::json!({
+            "poses": {"count": 30},
+            "robot_error": {"theta0_deg": 0.05, "alpha_deg": 0.02, "a_mm": 0.3, "d_mm": 0.3}
+        }))
+        .unwrap();
+    let t = Twin::new(cfg).unwrap();
+    let mut v = views(&t);
+    for o in &mut v {
+        if let Some(RobotReading::Joints(q)) = &o.reading {
+            o.base_hand = Some(t.robot_nominal.forward(q).unwrap());
+        }
+    }
+    let rig = t.rig().unwrap();
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(1)
+        .build()
+        .unwrap();
+    let rep = pool
+        .install(|| {
+            calibrate_observations(
+                &v,
+                &rig,
+                &CalibrateOptions {
+                    leave_one_out: false,
+                    ..Default::default()
+                },
+            )
+        })
+        .unwrap();
+    let axzb = rep.stages.axzb.as_ref().unwrap();
+    let start = JointStart {
+        camera: rep.stages.camera.as_ref().unwrap().camera.clone(),
+        plane: rep.stages.plane.as_ref().map(|p| p.plane),
+        hand_cam: axzb.x,
+        base_board: axzb.z,
+    };
+    let mut g = c.benchmark_group("calib_robot");
+    g.sample_size(10);
+    for mode in [RobotMode::Fixed, RobotMode::Full, RobotMode::Auto] {
+        let opts = JointOptions {
+            robot: Some(RobotOptions {
+                nominal: t.robot_nominal.clone(),
+                mode,
+            }),
+            ..Default::default()
+        };
+        let name = format!("joint_adjustment_30_views_robot_{}", mode.name());
+        g.bench_function(&name, |b| {
+            b.iter(|| {
+                pool.install(|| joint_adjustment(black_box(&v), &rig.board, &start, &opts).unwrap())
+            })
+        });
+    }
+    g.finish();
+}
+
+criterion_group!(benches, calib, robot);
 criterion_main!(benches);

@@ -1,0 +1,113 @@
+"""Robot DH calibration (issue 14) from the CLI and Python on a rendered twin whose TRUE
+robot differs from rig.json's nominal one (``robot_error``): the fixed-robot diagnosis,
+``--robot auto`` and its file, the refined robot used by reconstruction, the typed
+errors, and pose plans with the robot."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import Tuple
+
+import numpy as np
+import pytest
+
+import stripecal
+import stripecal.sim
+from stripecal.cli import main
+
+ERRORS = {"theta0_deg": 0.05, "alpha_deg": 0.02, "a_mm": 0.3, "d_mm": 0.3, "beta_deg": 0.02}
+
+
+@pytest.fixture(scope="module")
+def dataset(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    out = tmp_path_factory.mktemp("robot_twin")
+    cfg = stripecal.sim.preset(
+        "hp3-paper", seed=2, robot_error=ERRORS, scan={"enabled": False}, poses={"count": 12}
+    )
+    stripecal.sim.Twin(cfg).write(out)
+    return out / "calib"
+
+
+@pytest.fixture(scope="module")
+def calibrations(dataset: Path) -> Tuple[stripecal.Calibration, stripecal.Calibration]:
+    fixed = stripecal.calibrate(dataset, leave_one_out=False)
+    auto = stripecal.calibrate(dataset, robot="auto", leave_one_out=False)
+    return fixed, auto
+
+
+def test_auto_calibrates_the_robot_and_the_residuals_fall_to_the_noise(
+    calibrations: Tuple[stripecal.Calibration, stripecal.Calibration], dataset: Path
+) -> None:
+    fixed, auto = calibrations
+    assert fixed.robot_calibration is None
+    warnings = fixed.extra.get("warnings", [])
+    assert any("--robot auto" in w for w in warnings), warnings
+    rc = auto.robot_calibration
+    assert rc is not None and rc["mode"] == "auto"
+    assert len(rc["estimated"]) >= 8
+    held = {f["name"]: f["reason"] for f in rc["fixed"]}
+    # The combinations no pose set can tell apart are held, with why.
+    assert "absorbed by the robot-world Z" in held["robot.joints[0].theta0_deg"]
+    assert "absorbed by the hand-eye X" in held["robot.joints[5].theta0_deg"]
+    assert not any("--robot auto" in w for w in auto.extra.get("warnings", []))
+    # 0.0058 px is what the detector reaches with free board poses on these images.
+    assert auto.quality["circle_rms_px"] < 0.02 < 0.5 < fixed.quality["circle_rms_px"]
+    # The refined rows are the calibration's robot; the nominal ones stay in rig.json.
+    rig = stripecal.load_rig(dataset / "rig.json")
+    assert rig.robot is not None and auto.robot is not None
+    diff = auto.robot.dh - rig.robot.dh
+    for e in rc["estimated"]:
+        row = int(e["name"].split("[")[1].split("]")[0])
+        key = e["name"].split(".")[-1]
+        col = ["theta0_deg", "alpha_deg", "a_mm", "d_mm"].index(key) if key != "beta_deg" else None
+        got = auto.robot.beta_deg[row] - rig.robot.beta_deg[row] if col is None else diff[row, col]
+        assert e["correction"] == pytest.approx(got, abs=1e-9)
+        assert e["sigma"] is not None and 0 < e["sigma"] < 0.1
+
+
+def test_the_file_holds_the_refined_robot_with_its_uncertainty(
+    dataset: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    out = tmp_path / "cal.json"
+    assert main(["calibrate", str(dataset), "-o", str(out), "--robot", "auto", "--no-leave-one-out"]) == 0
+    printed = capsys.readouterr().out
+    assert "robot calibration (auto)" in printed and "held robot.joints[5].theta0_deg" in printed
+    doc = json.loads(out.read_text())
+    est = doc["robot_calibration"]["estimated"]
+    rows = doc["uncertainty"]["robot"]["joints"]
+    assert len(rows) == 6
+    for e in est:
+        row = int(e["name"].split("[")[1].split("]")[0])
+        assert rows[row][e["name"].split(".")[-1]] == pytest.approx(e["sigma"])
+    names = doc["covariance"]["parameters"]
+    assert all(e["name"] in names for e in est)
+    back = stripecal.load_calibration(out)
+    assert back.robot is not None and back.robot_calibration is not None
+    # A calibration read back reconstructs with its refined robot.
+    rig = stripecal.load_rig(dataset / "rig.json")
+    assert rig.robot is not None
+    assert not np.allclose(back.robot.dh, rig.robot.dh)
+
+
+def test_robot_modes_are_checked(dataset: Path) -> None:
+    with pytest.raises(stripecal.InvalidInputError, match="unknown robot mode"):
+        stripecal.calibrate(dataset, robot="all")
+    with pytest.raises(stripecal.InvalidInputError, match="holds the robot"):
+        stripecal.calibrate(dataset, robot="auto", fix=["robot"])
+
+
+def test_a_plan_with_the_robot_names_the_corrections_and_the_held_ones(
+    dataset: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    ds = stripecal.load_dataset(dataset)
+    joints = np.asarray([v["joints"] for v in ds.views], dtype=np.float64)
+    plan = stripecal.plan_poses(dataset, dataset / "truth.json", joints, robot="full")
+    names = [e["name"] for e in plan["parameters"]]
+    assert "robot.joints[2].theta0_deg" in names
+    held = {h["name"] for h in plan["robot_held"]}
+    assert {"robot.joints[0].theta0_deg", "robot.joints[5].theta0_deg"} <= held
+    assert not held & set(names)
+    csv = dataset / "views.csv"
+    assert main(["plan", "--rig", str(dataset), "--nominal", str(dataset / "truth.json"), "--poses", str(csv), "--robot", "full"]) == 0
+    assert "robot: held robot.joints[0].theta0_deg" in capsys.readouterr().out
