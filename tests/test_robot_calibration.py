@@ -111,3 +111,13 @@ def test_a_plan_with_the_robot_names_the_corrections_and_the_held_ones(
     csv = dataset / "views.csv"
     assert main(["plan", "--rig", str(dataset), "--nominal", str(dataset / "truth.json"), "--poses", str(csv), "--robot", "full"]) == 0
     assert "robot: held robot.joints[0].theta0_deg" in capsys.readouterr().out
+
+
+def test_leave_one_out_predicts_with_the_refined_robot(dataset: Path) -> None:
+    """The held-out view's pose comes from the refit's refined DH rows: its target points
+    are predicted to the noise with auto, not to the nominal robot's error."""
+    auto = stripecal.calibrate(dataset, robot="auto")
+    loo = auto.leave_one_out
+    assert loo is not None
+    print(f"\nleave-one-out with --robot auto: {loo['median_board_rms_px']:.4f} px, {loo['median_board_rms_mm']:.4f} mm")
+    assert loo["median_board_rms_px"] < 0.05 and loo["median_board_rms_mm"] < 0.02

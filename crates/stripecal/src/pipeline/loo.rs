@@ -85,7 +85,8 @@ pub(super) fn leave_one_out(
 }
 
 /// View `v`'s observations predicted by `fit` (which did not see it) from its robot
-/// pose.
+/// pose (the fit's refined robot's forward kinematics of its readings when the robot
+/// was calibrated).
 fn predict_view(
     v: &ViewObs,
     board: &Board,
@@ -95,6 +96,13 @@ fn predict_view(
     let a = v.base_hand.ok_or_else(|| {
         Error::InvalidInput(format!("leave-one-out: view {} has no robot pose", v.view))
     })?;
+    // With the robot calibrated, its pose from the refined DH rows of the fit.
+    let a = match (&fit.robot, &v.reading) {
+        (Some(rc), Some(crate::model::RobotReading::Joints(q))) if !rc.estimated.is_empty() => {
+            rc.robot.forward(q)?
+        }
+        _ => a,
+    };
     let cb = (a * fit.hand_cam).inverse() * fit.base_board;
     let s = fit.board_scale;
     // The board's points are imaged as rig.json's board at t / s (see the layout).

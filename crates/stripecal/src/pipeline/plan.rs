@@ -25,7 +25,8 @@ use serde::Serialize;
 
 use crate::calib::conic::predict_centre;
 use crate::calib::joint::{
-    predicted_covariance, FreeBlocks, JointOptions, JointStart, RobotMode, RobotOptions,
+    dh_point_gradients, predicted_covariance, FreeBlocks, JointOptions, JointStart, RobotMode,
+    RobotOptions,
 };
 use crate::calib::laser_plane::stripe_line_in_view;
 use crate::calib::{CircleObs, ViewObs};
@@ -608,7 +609,16 @@ pub fn plan_poses(
             let base = (pred.free.hand_cam || pred.free.base_board)
                 .then(|| median.map(|m| m.1))
                 .flatten();
-            match point_sigma(cam, pl, &x, base.map(|i| (i, flange[i])), s, named) {
+            // With the robot calibrated, its corrections move the base point too.
+            let dh = |p_f: &Vector3<f64>| -> Vec<(String, Vector3<f64>)> {
+                match (base, &rig.robot) {
+                    (Some(i), Some(r)) if opts.robot != RobotMode::Fixed => {
+                        dh_point_gradients(r, &joints[i], &named.parameters, p_f)
+                    }
+                    _ => Vec::new(),
+                }
+            };
+            match point_sigma(cam, pl, &x, base.map(|i| (i, flange[i])), s, named, &dh) {
                 Ok(p) => Some(p),
                 Err(e) => {
                     warnings.push(format!("no point sigma at {s:.1} mm: {e}"));
@@ -641,6 +651,9 @@ pub fn plan_poses(
 }
 
 /// The point on the laser plane at depth `s` nearest the optical axis, and its sigma.
+/// The base-frame point's derivatives per DH correction, from its flange-frame position.
+type DhGradients<'a> = dyn Fn(&Vector3<f64>) -> Vec<(String, Vector3<f64>)> + 'a;
+
 fn point_sigma(
     cam: &Camera,
     pl: &Plane,
@@ -648,6 +661,7 @@ fn point_sigma(
     base: Option<(usize, Iso3)>,
     s: f64,
     cov: &NamedCovariance,
+    dh: &DhGradients<'_>,
 ) -> Result<PointSigma> {
     let n = pl.normal;
     let h2 = n.x * n.x + n.y * n.y;
@@ -669,8 +683,9 @@ fn point_sigma(
     let gc: Vec<(String, Vector3<f64>)> = grads.iter().map(|(n, c, _)| (n.clone(), *c)).collect();
     let (sc, nc) = sigmas(&propagate(cov, &gc));
     let (base_mm, sigma_base_mm, sigma_base_norm_mm) = if base.is_some() {
-        let gb: Vec<(String, Vector3<f64>)> =
+        let mut gb: Vec<(String, Vector3<f64>)> =
             grads.iter().map(|(n, _, b)| (n.clone(), *b)).collect();
+        gb.extend(dh(&(x * nalgebra::Point3::from(p)).coords));
         let (sb, nb) = sigmas(&propagate(cov, &gb));
         (Some([pb.x, pb.y, pb.z]), Some(sb), Some(nb))
     } else {

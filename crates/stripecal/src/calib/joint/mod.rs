@@ -77,7 +77,7 @@ mod robot_noise;
 mod robot_select;
 mod robot_solve;
 
-pub use self::robot::{DhKind, DhParam, RobotMode};
+pub use self::robot::{point_gradients as dh_point_gradients, DhKind, DhParam, RobotMode};
 pub use self::robot_solve::RobotOptions;
 
 use nalgebra::{DMatrix, Vector3};

@@ -275,6 +275,50 @@ pub fn flange_twists(robot: &Robot, q: &[f64], params: &[DhParam]) -> Vec<[f64; 
         .collect()
 }
 
+/// The derivative of a base-frame point `A(q) p_f` (`p_f` in the flange frame) per
+/// DH correction named `robot.joints[i].<key>` in `names` (others skipped): `R_A (w x
+/// p_f + v)` of the flange's perturbation `(w, v)`.
+pub fn point_gradients(
+    robot: &Robot,
+    q: &[f64],
+    names: &[String],
+    p_f: &Vector3<f64>,
+) -> Vec<(String, Vector3<f64>)> {
+    let parse = |n: &str| -> Option<DhParam> {
+        let rest = n.strip_prefix("robot.joints[")?;
+        let (i, key) = rest.split_once("].")?;
+        let joint: usize = i.parse().ok()?;
+        let kind = [
+            DhKind::Theta0,
+            DhKind::D,
+            DhKind::A,
+            DhKind::Alpha,
+            DhKind::Beta,
+        ]
+        .into_iter()
+        .find(|k| k.key() == key)?;
+        (joint < robot.dof()).then_some(DhParam { joint, kind })
+    };
+    let found: Vec<(String, DhParam)> = names
+        .iter()
+        .filter_map(|n| parse(n).map(|p| (n.clone(), p)))
+        .collect();
+    if found.is_empty() || q.len() != robot.dof() {
+        return Vec::new();
+    }
+    let params: Vec<DhParam> = found.iter().map(|f| f.1).collect();
+    let ra = robot.forward_unchecked(q).rotation;
+    found
+        .into_iter()
+        .zip(flange_twists(robot, q, &params))
+        .map(|((n, _), t)| {
+            let w = Vector3::new(t[0], t[1], t[2]);
+            let v = Vector3::new(t[3], t[4], t[5]);
+            (n, ra * (w.cross(p_f) + v))
+        })
+        .collect()
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -320,6 +364,31 @@ mod tests {
                     fd[k]
                 );
             }
+        }
+    }
+
+    #[test]
+    fn point_gradients_match_finite_differences() {
+        let robot = Robot::hp3();
+        let q = [5.0, -15.0, 25.0, 10.0, -80.0, 30.0];
+        let params = candidates(&robot, RobotMode::Full);
+        let names: Vec<String> = params.iter().map(|p| p.name()).collect();
+        let p_f = Vector3::new(30.0, -10.0, 160.0);
+        let g = point_gradients(&robot, &q, &names, &p_f);
+        assert_eq!(g.len(), params.len());
+        let h = 1e-5;
+        for ((name, grad), p) in g.iter().zip(&params) {
+            let block = RobotBlock {
+                reference: robot.clone(),
+                params: vec![*p],
+                readings: vec![q.to_vec()],
+            };
+            let at = |e: f64| block.flanges(&[e])[0] * nalgebra::Point3::from(p_f);
+            let fd = (at(h) - at(-h)) / (2.0 * h);
+            assert!(
+                (fd - grad).norm() < 1e-5 * (1.0 + grad.norm()),
+                "{name}: {grad:?} vs {fd:?}"
+            );
         }
     }
 
