@@ -121,3 +121,18 @@ def test_leave_one_out_predicts_with_the_refined_robot(dataset: Path) -> None:
     assert loo is not None
     print(f"\nleave-one-out with --robot auto: {loo['median_board_rms_px']:.4f} px, {loo['median_board_rms_mm']:.4f} mm")
     assert loo["median_board_rms_px"] < 0.05 and loo["median_board_rms_mm"] < 0.02
+
+
+def test_the_report_has_the_robot_section(
+    calibrations: Tuple[stripecal.Calibration, stripecal.Calibration], tmp_path: Path
+) -> None:
+    from stripecal.report import write_report
+
+    fixed, auto = calibrations
+    text = write_report(tmp_path / "auto", auto).read_text()
+    assert "Robot calibration (auto)" in text
+    rc = auto.robot_calibration
+    assert rc is not None
+    assert text.count("<tr><td>robot.joints[") == len(rc["estimated"])
+    assert "absorbed by the hand-eye X" in text
+    assert "Robot calibration" not in write_report(tmp_path / "fixed", fixed).read_text()

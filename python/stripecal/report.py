@@ -288,6 +288,7 @@ stripe <b>{q['stripe_rms_px']:.4f} px</b> ({float(e.get('stripe_rms_mm') or floa
 <table><tr><th>parameter</th><th>value</th><th>1 sigma</th><th>true</th><th>error</th></tr>{''.join(tr)}</table>
 <h2>Views</h2>
 <table><tr><th>view</th><th>used</th><th>circles</th><th>stripe points</th><th>circle RMS px</th><th>stripe RMS px</th><th>note</th></tr>{''.join(vr)}</table>
+{_robot_html(cal)}
 {loo_html}
 {extra_sections}
 <h2>Figures</h2>{imgs}
@@ -317,6 +318,29 @@ def _checks_html(cal: stripecal.Calibration) -> str:
               if q.get("accepted_poor") else "")
     return (f"<h2>Quality checks</h2>{banner}<table><tr><th>check</th><th>verdict</th><th>views</th>"
             f"<th>figures</th></tr>{''.join(rows)}</table>")
+
+
+def _robot_html(cal: stripecal.Calibration) -> str:
+    """The robot calibration section (``--robot``): the DH corrections with their sigmas
+    and the candidates held, with why."""
+    rc = cal.robot_calibration
+    if rc is None:
+        return ""
+
+    def num(x: Optional[float], fmt: str) -> str:
+        return "" if x is None else format(x, fmt)
+
+    est = "".join(
+        f"<tr><td>{html.escape(e['name'])}</td><td>{num(e['correction'], '+.5f')}</td>"
+        f"<td>{num(e['sigma'], '.5f')}</td></tr>"
+        for e in rc["estimated"])
+    held = "".join(f"<li>{html.escape(f['name'])}: {html.escape(f['reason'])}</li>" for f in rc["fixed"])
+    return (
+        f"<h2>Robot calibration ({html.escape(rc['mode'])})</h2><p>Corrections to rig.json's DH rows "
+        "(degrees or mm), estimated with the rest; the refined rows are the calibration's robot.</p>"
+        f"<table><tr><th>correction</th><th>value</th><th>1 sigma</th></tr>{est}</table>"
+        + (f"<p>Held at rig.json's values:</p><ul>{held}</ul>" if held else "")
+    )
 
 
 def _leave_one_out_html(cal: stripecal.Calibration) -> str:
