@@ -136,3 +136,16 @@ def test_the_report_has_the_robot_section(
     assert text.count("<tr><td>robot.joints[") == len(rc["estimated"])
     assert "absorbed by the hand-eye X" in text
     assert "Robot calibration" not in write_report(tmp_path / "fixed", fixed).read_text()
+
+
+def test_robot_calibration_needs_a_robot_and_joint_readings(tmp_path: Path) -> None:
+    """A dataset whose controller reports flange poses (no DH table in rig.json) cannot
+    calibrate the robot: a typed error saying why, and no file."""
+    root = Path(__file__).resolve().parents[1].parent / "shared" / "realdata" / "rosi_10x10"
+    if not (root / "rig.json").exists():
+        pytest.skip(f"real data set {root} not present")
+    with pytest.raises(stripecal.InvalidInputError, match="joint readings"):
+        stripecal.calibrate(root, robot="auto")
+    out = tmp_path / "cal.json"
+    assert main(["calibrate", str(root), "-o", str(out), "--robot", "auto"]) == 1
+    assert not out.exists()
