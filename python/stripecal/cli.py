@@ -725,6 +725,9 @@ def cmd_plan(args: argparse.Namespace) -> int:
         sb, nb = pt["sigma_base_mm"], pt["sigma_base_norm_mm"]
         if sb is not None and nb is not None:
             print(f"  base frame (pose {pt['base_pose']}): sigma x {sb[0]:.4f}  y {sb[1]:.4f}  z {sb[2]:.4f}  |p| {nb:.4f} mm")
+        sz, nz = pt["sigma_board_mm"], pt["sigma_board_norm_mm"]
+        if sz is not None and nz is not None:
+            print(f"  board frame (the world):  sigma x {sz[0]:.4f}  y {sz[1]:.4f}  z {sz[2]:.4f}  |p| {nz:.4f} mm")
     for h in plan["robot_held"]:
         print(f"  robot: held {h['name']}: {h['reason']}")
     for w in plan["warnings"]:

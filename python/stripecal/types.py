@@ -589,6 +589,13 @@ class PointSigma(TypedDict):
     """One-sigma of its x, y, z in the base frame, mm."""
     sigma_base_norm_mm: Optional[float]
     """One-sigma of the base-frame position, mm."""
+    board_mm: Optional[List[float]]
+    """The same point in the board's frame (``Z^-1`` of the base point), mm."""
+    sigma_board_mm: Optional[List[float]]
+    """One-sigma of its x, y, z in the board's frame: relative to the world the board is
+    fixed in (what a measurement of a part on the table carries), mm."""
+    sigma_board_norm_mm: Optional[float]
+    """One-sigma of the board-frame position, mm."""
 
 
 class PosePlan(TypedDict):

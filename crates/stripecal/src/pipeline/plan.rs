@@ -129,6 +129,13 @@ pub struct PointSigma {
     pub base_mm: Option<[f64; 3]>,
     pub sigma_base_mm: Option<[f64; 3]>,
     pub sigma_base_norm_mm: Option<f64>,
+    /// The same point in the board's frame (`Z^-1` of the base point) and its
+    /// one-sigma: relative to the world the board is fixed in, the figure a measurement
+    /// of a part on the table has (the base frame is itself defined only through the
+    /// robot's first axis, which the board observes through `Z` and the DH rows).
+    pub board_mm: Option<[f64; 3]>,
+    pub sigma_board_mm: Option<[f64; 3]>,
+    pub sigma_board_norm_mm: Option<f64>,
 }
 
 /// The result of [`plan_poses`].
@@ -618,7 +625,7 @@ pub fn plan_poses(
                     _ => Vec::new(),
                 }
             };
-            match point_sigma(cam, pl, &x, base.map(|i| (i, flange[i])), s, named, &dh) {
+            match point_sigma(cam, pl, &x, &z, base.map(|i| (i, flange[i])), s, named, &dh) {
                 Ok(p) => Some(p),
                 Err(e) => {
                     warnings.push(format!("no point sigma at {s:.1} mm: {e}"));
@@ -654,10 +661,12 @@ pub fn plan_poses(
 /// The base-frame point's derivatives per DH correction, from its flange-frame position.
 type DhGradients<'a> = dyn Fn(&Vector3<f64>) -> Vec<(String, Vector3<f64>)> + 'a;
 
+#[allow(clippy::too_many_arguments)]
 fn point_sigma(
     cam: &Camera,
     pl: &Plane,
     x: &Iso3,
+    z: &Iso3,
     base: Option<(usize, Iso3)>,
     s: f64,
     cov: &NamedCovariance,
@@ -682,14 +691,26 @@ fn point_sigma(
     let (p, pb, grads) = point_jacobian(cam, pl, x, &a, &uv)?;
     let gc: Vec<(String, Vector3<f64>)> = grads.iter().map(|(n, c, _)| (n.clone(), *c)).collect();
     let (sc, nc) = sigmas(&propagate(cov, &gc));
-    let (base_mm, sigma_base_mm, sigma_base_norm_mm) = if base.is_some() {
+    let (base_mm, sigma_base_mm, sigma_base_norm_mm, gz) = if base.is_some() {
         let mut gb: Vec<(String, Vector3<f64>)> =
             grads.iter().map(|(n, _, b)| (n.clone(), *b)).collect();
         gb.extend(dh(&(x * nalgebra::Point3::from(p)).coords));
         let (sb, nb) = sigmas(&propagate(cov, &gb));
-        (Some([pb.x, pb.y, pb.z]), Some(sb), Some(nb))
+        (
+            Some([pb.x, pb.y, pb.z]),
+            Some(sb),
+            Some(nb),
+            Some(board_frame(z, &pb, &gb)),
+        )
     } else {
-        (None, None, None)
+        (None, None, None, None)
+    };
+    let (board_mm, sigma_board_mm, sigma_board_norm_mm) = match gz {
+        Some((pz, g)) => {
+            let (s, n) = sigmas(&propagate(cov, &g));
+            (Some([pz.x, pz.y, pz.z]), Some(s), Some(n))
+        }
+        None => (None, None, None),
     };
     Ok(PointSigma {
         standoff_mm: s,
@@ -701,7 +722,39 @@ fn point_sigma(
         base_mm,
         sigma_base_mm,
         sigma_base_norm_mm,
+        board_mm,
+        sigma_board_mm,
+        sigma_board_norm_mm,
     })
+}
+
+/// The board-frame point `Z^-1 p_b` and its derivatives: the base point's rotated by
+/// `R_Z^T`, and `Z`'s own (its rotation vector by central differences, its translation
+/// `-R_Z^T e_k`).
+fn board_frame(
+    z: &Iso3,
+    pb: &Vector3<f64>,
+    gb: &[(String, Vector3<f64>)],
+) -> (Vector3<f64>, Vec<(String, Vector3<f64>)>) {
+    let rzt = z.rotation.to_rotation_matrix().into_inner().transpose();
+    let at = |zz: &Iso3| (zz.inverse() * nalgebra::Point3::from(*pb)).coords;
+    let mut g: Vec<(String, Vector3<f64>)> = gb.iter().map(|(n, v)| (n.clone(), rzt * v)).collect();
+    let (rv, tv) = iso_to_rotvec(z);
+    let h = 1e-6;
+    for k in 0..3 {
+        let mut e = Vector3::zeros();
+        e[k] = h;
+        let d = (at(&iso_from_rotvec(&(rv + e), &tv)) - at(&iso_from_rotvec(&(rv - e), &tv)))
+            / (2.0 * h);
+        g.push((format!("base_board.rotation_vector[{k}]"), d));
+    }
+    for k in 0..3 {
+        g.push((
+            format!("base_board.translation_mm[{k}]"),
+            -rzt.column(k).into_owned(),
+        ));
+    }
+    (at(z), g)
 }
 
 #[cfg(test)]
