@@ -11,7 +11,7 @@ use std::hint::black_box;
 
 use stripecal::calib::joint::{joint_adjustment, JointOptions, JointStart};
 use stripecal::calib::ViewObs;
-use stripecal::pipeline::{calibrate_observations, CalibrateOptions, Method};
+use stripecal::pipeline::{calibrate_observations, CalibrateOptions, CalibrationReport, Method};
 use stripecal_sim::rng::Rng;
 use stripecal_sim::{noisy_observations, SimConfig, Twin};
 
@@ -22,6 +22,17 @@ fn views(t: &Twin) -> Vec<ViewObs> {
         0.03,
         &mut Rng::new(5, 1),
     )
+}
+
+/// The one-stage adjustment's start as the pipeline's stages gave it.
+fn start_of(rep: &CalibrationReport) -> JointStart {
+    let axzb = rep.stages.axzb.as_ref().unwrap();
+    JointStart {
+        camera: rep.stages.camera.as_ref().unwrap().camera.clone(),
+        plane: rep.stages.plane.as_ref().map(|p| p.plane),
+        hand_cam: axzb.x,
+        base_board: axzb.z,
+    }
 }
 
 fn calib(c: &mut Criterion) {
@@ -73,13 +84,7 @@ fn calib(c: &mut Criterion) {
             )
         })
         .unwrap();
-    let axzb = rep.stages.axzb.as_ref().unwrap();
-    let start = JointStart {
-        camera: rep.stages.camera.as_ref().unwrap().camera.clone(),
-        plane: rep.stages.plane.as_ref().map(|p| p.plane),
-        hand_cam: axzb.x,
-        base_board: axzb.z,
-    };
+    let start = start_of(&rep);
     for (name, robot_noise) in [
         ("joint_adjustment_15_views_robot_noise", true),
         ("joint_adjustment_15_views_rigid", false),
@@ -135,13 +140,7 @@ fn robot(c: &mut Criterion) {
             )
         })
         .unwrap();
-    let axzb = rep.stages.axzb.as_ref().unwrap();
-    let start = JointStart {
-        camera: rep.stages.camera.as_ref().unwrap().camera.clone(),
-        plane: rep.stages.plane.as_ref().map(|p| p.plane),
-        hand_cam: axzb.x,
-        base_board: axzb.z,
-    };
+    let start = start_of(&rep);
     let mut g = c.benchmark_group("calib_robot");
     g.sample_size(10);
     for mode in [RobotMode::Fixed, RobotMode::Full, RobotMode::Auto] {

@@ -306,26 +306,42 @@ impl Twin {
         .ok_or_else(|| {
             SimError::Poses("cannot place the scan sweep (degenerate geometry)".into())
         })?;
-        let rate = n_base.dot(&sweep).abs();
-        let half = (r + sc.margin_mm) / rate;
+        self.sweep_poses(&origin, &sweep, &rot, n_base.dot(&sweep).abs(), "scan")
+    }
+
+    /// Encoder readings of a straight sweep of the camera at orientation `rot` from
+    /// `origin` along `sweep` (base frame), centred: long enough for the laser plane,
+    /// moving at `rate` mm per mm of travel, to cross the ball's diameter plus
+    /// `scan.margin_mm` each side, in `scan.step_mm` steps (at most `scan.max_frames`
+    /// frames); each frame's inverse kinematics on the TRUE robot starts from the last.
+    /// `what` names the scan in errors.
+    pub(crate) fn sweep_poses(
+        &self,
+        origin: &Vector3<f64>,
+        sweep: &Vector3<f64>,
+        rot: &nalgebra::UnitQuaternion<f64>,
+        rate: f64,
+        what: &str,
+    ) -> Result<Vec<Vec<f64>>, SimError> {
+        let sc = &self.cfg.scan;
+        let half = (0.5 * sc.sphere_diameter_mm + sc.margin_mm) / rate;
         let mut n = (2.0 * half / sc.step_mm).floor() as usize + 1;
         if sc.max_frames > 0 && n > sc.max_frames {
             n = sc.max_frames;
         }
         let start = -0.5 * (n - 1) as f64 * sc.step_mm;
         let x_inv = self.hand_cam.inverse();
-        let mut q = home.clone();
+        let mut q = self.cfg.poses.home_q_deg.clone();
         let mut out = Vec::with_capacity(n);
         for k in 0..n {
             let t = start + k as f64 * sc.step_mm;
-            let cam = Iso3::from_parts((origin + sweep * t).into(), rot);
-            let hand = cam * x_inv;
+            let cam = Iso3::from_parts((origin + sweep * t).into(), *rot);
             q = self
                 .robot_true
-                .inverse(&hand, &q, &IkOptions::default())
+                .inverse(&(cam * x_inv), &q, &IkOptions::default())
                 .map_err(|e| {
                     SimError::Poses(format!(
-                        "scan frame {k}: the robot cannot reach the sweep: {e}"
+                        "{what} frame {k}: the robot cannot reach the sweep: {e}"
                     ))
                 })?;
             out.push(q.clone());

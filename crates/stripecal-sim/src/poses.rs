@@ -171,35 +171,43 @@ impl PoseProblem<'_> {
             let look = center
                 + Vector3::new(rng.range(-1.0, 1.0), rng.range(-1.0, 1.0), 0.0)
                     .component_mul(&spread);
-            let axis = Unit::new_normalize(Vector3::new(az.cos(), az.sin(), 0.0));
-            let z = Rotation3::from_axis_angle(&axis, tilt) * Vector3::z();
-            let x0 = Vector3::x() - z * z.x;
-            let x0 = Rotation3::from_axis_angle(&Unit::new_normalize(z), roll) * x0.normalize();
-            let y0 = z.cross(&x0);
-            let r = Matrix3::from_columns(&[x0, y0, z]);
-            // distance along the axis to the board plane (z_board = 0) is s: position
-            let o = look - z * s;
-            let board_cam = stripecal::model::geometry::iso_from_parts(&r, &o);
-            let base_hand = self.base_board * board_cam * self.hand_cam.inverse();
-            let q = match self
-                .robot
-                .inverse(&base_hand, self.home_q, &IkOptions::default())
-            {
-                Ok(q) => q,
-                Err(e) => {
-                    last_reason = e.to_string();
-                    continue;
-                }
-            };
-            match self.check(&q) {
-                Ok(info) => {
-                    let rot = self.robot.forward_unchecked(&q).rotation;
-                    pool.push((info, rot));
-                }
+            match self.try_pose(&look, tilt, az, roll, s, self.home_q) {
+                Ok(found) => pool.push(found),
                 Err(e) => last_reason = e,
             }
         }
         (pool, last_reason, max_attempts)
+    }
+
+    /// The pose whose camera looks at `look` (board frame) from stand-off `s` along an
+    /// axis tilted by `tilt` (rad) from the board normal towards azimuth `az`, rolled by
+    /// `roll` about it: its readings by inverse kinematics from `start` and its facts, or
+    /// why it is refused.
+    pub(crate) fn try_pose(
+        &self,
+        look: &Vector3<f64>,
+        tilt: f64,
+        az: f64,
+        roll: f64,
+        s: f64,
+        start: &[f64],
+    ) -> Result<(PoseInfo, UnitQuaternion<f64>), String> {
+        let axis = Unit::new_normalize(Vector3::new(az.cos(), az.sin(), 0.0));
+        let z = Rotation3::from_axis_angle(&axis, tilt) * Vector3::z();
+        let x0 = Vector3::x() - z * z.x;
+        let x0 = Rotation3::from_axis_angle(&Unit::new_normalize(z), roll) * x0.normalize();
+        let y0 = z.cross(&x0);
+        let r = Matrix3::from_columns(&[x0, y0, z]);
+        // distance along the axis to the board plane (z_board = 0) is s: position
+        let board_cam = stripecal::model::geometry::iso_from_parts(&r, &(look - z * s));
+        let base_hand = self.base_board * board_cam * self.hand_cam.inverse();
+        let q = self
+            .robot
+            .inverse(&base_hand, start, &IkOptions::default())
+            .map_err(|e| e.to_string())?;
+        let info = self.check(&q)?;
+        let rot = self.robot.forward_unchecked(&q).rotation;
+        Ok((info, rot))
     }
 
     /// The local sampler's choice of `count` of `pool`.

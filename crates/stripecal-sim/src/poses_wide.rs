@@ -14,10 +14,9 @@
 //! joint's whole feasible excursion), then greedy farthest-point selection in joint
 //! space with each joint's excursion from home divided by `max_joint_delta_deg`.
 
-use nalgebra::{Matrix3, Rotation3, Unit, UnitQuaternion, Vector3};
+use nalgebra::{UnitQuaternion, Vector3};
 
 use stripecal::model::geometry::Iso3;
-use stripecal::model::kinematics::IkOptions;
 
 use crate::poses::{axis_spread, PoseInfo, PoseProblem};
 use crate::rng::Rng;
@@ -75,29 +74,8 @@ impl PoseProblem<'_> {
                     .map(|h| h + rng.range(-dmax, dmax))
                     .collect()
             };
-            let axis = Unit::new_normalize(Vector3::new(az.cos(), az.sin(), 0.0));
-            let z = Rotation3::from_axis_angle(&axis, tilt) * Vector3::z();
-            let x0 = (Vector3::x() - z * z.x).normalize();
-            let x0 = Rotation3::from_axis_angle(&Unit::new_normalize(z), roll) * x0;
-            let y0 = z.cross(&x0);
-            let r = Matrix3::from_columns(&[x0, y0, z]);
-            let board_cam = stripecal::model::geometry::iso_from_parts(&r, &(look - z * s));
-            let base_hand = self.base_board * board_cam * self.hand_cam.inverse();
-            let q = match self
-                .robot
-                .inverse(&base_hand, &start, &IkOptions::default())
-            {
-                Ok(q) => q,
-                Err(e) => {
-                    last_reason = e.to_string();
-                    continue;
-                }
-            };
-            match self.check(&q) {
-                Ok(info) => {
-                    let rot = self.robot.forward_unchecked(&q).rotation;
-                    pool.push((info, rot));
-                }
+            match self.try_pose(&look, tilt, az, roll, s, &start) {
+                Ok(found) => pool.push(found),
                 Err(e) => last_reason = e,
             }
         }

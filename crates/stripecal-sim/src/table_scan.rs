@@ -7,9 +7,6 @@
 
 use nalgebra::{Point3, Vector3};
 
-use stripecal::model::geometry::Iso3;
-use stripecal::model::kinematics::IkOptions;
-
 use crate::dataset::{Twin, ViewRender};
 use crate::imaging::{form_image, Exposure};
 use crate::truth::stripe_truth;
@@ -61,30 +58,13 @@ impl Twin {
             &sweep,
         )
         .ok_or_else(|| SimError::Poses("cannot place the table sweep".into()))?;
-        let rate = n_base.dot(&sweep).abs();
-        let half = (0.5 * sc.sphere_diameter_mm + sc.margin_mm) / rate;
-        let mut n = (2.0 * half / sc.step_mm).floor() as usize + 1;
-        if sc.max_frames > 0 && n > sc.max_frames {
-            n = sc.max_frames;
-        }
-        let start = -0.5 * (n - 1) as f64 * sc.step_mm;
-        let x_inv = self.hand_cam.inverse();
-        let mut q = home.clone();
-        let mut out = Vec::with_capacity(n);
-        for k in 0..n {
-            let t = start + k as f64 * sc.step_mm;
-            let cam = Iso3::from_parts((origin + sweep * t).into(), rot);
-            q = self
-                .robot_true
-                .inverse(&(cam * x_inv), &q, &IkOptions::default())
-                .map_err(|e| {
-                    SimError::Poses(format!(
-                        "table scan frame {k}: the robot cannot reach the sweep: {e}"
-                    ))
-                })?;
-            out.push(q.clone());
-        }
-        Ok(out)
+        self.sweep_poses(
+            &origin,
+            &sweep,
+            &rot,
+            n_base.dot(&sweep).abs(),
+            "table scan",
+        )
     }
 
     /// Renders table scan frame `index` at `q_deg` (stripe image only) with its truth;

@@ -25,14 +25,14 @@ use serde::Serialize;
 
 use crate::calib::conic::predict_centre;
 use crate::calib::joint::{
-    dh_point_gradients, predicted_covariance, FreeBlocks, JointOptions, JointStart, RobotMode,
-    RobotOptions,
+    camera_name, dh_point_gradients, predicted_covariance, FreeBlocks, JointOptions, JointStart,
+    RobotMode, RobotOptions,
 };
 use crate::calib::laser_plane::stripe_line_in_view;
 use crate::calib::{CircleObs, ViewObs};
 use crate::error::{Error, Result};
 use crate::model::board::{Board, BoardKind};
-use crate::model::camera::{Camera, PARAM_NAMES};
+use crate::model::camera::Camera;
 use crate::model::geometry::{iso_from_rotvec, iso_to_rotvec, Iso3, Plane};
 use crate::model::{Calibration, NamedCovariance, Rig, RobotReading, Truth};
 
@@ -368,18 +368,6 @@ pub(crate) fn triangulate_raw(
         ));
     }
     Ok(ray * (d / den))
-}
-
-/// The contract's names of the camera's numbers, [`PARAM_NAMES`] order.
-fn camera_name(i: usize) -> String {
-    match PARAM_NAMES[i] {
-        "k1" => "camera.distortion[0]".into(),
-        "k2" => "camera.distortion[1]".into(),
-        "p1" => "camera.distortion[2]".into(),
-        "p2" => "camera.distortion[3]".into(),
-        "k3" => "camera.distortion[4]".into(),
-        other => format!("camera.{other}"),
-    }
 }
 
 /// The point triangulated from `uv` on `plane` (camera frame) and in the base frame

@@ -18,7 +18,7 @@ use crate::model::camera::PARAM_NAMES;
 use crate::model::NamedCovariance;
 
 /// The contract's names of the camera's numbers, [`PARAM_NAMES`] order.
-fn camera_name(i: usize) -> String {
+pub(crate) fn camera_name(i: usize) -> String {
     match PARAM_NAMES[i] {
         "k1" => "camera.distortion[0]".into(),
         "k2" => "camera.distortion[1]".into(),

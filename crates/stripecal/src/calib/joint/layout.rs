@@ -42,7 +42,7 @@ use std::ops::Range;
 use nalgebra::{Matrix3, Vector3};
 
 use crate::calib::joint::robot::RobotBlock;
-use crate::calib::joint::{FreeBlocks, JointStart};
+use crate::calib::joint::{FreeBlocks, JointOptions, JointStart};
 use crate::model::camera::PARAM_NAMES;
 use crate::model::geometry::{
     iso_from_parts, iso_from_rotvec, iso_to_rotvec, matrix_to_rotvec, rotvec_to_matrix, Iso3,
@@ -310,6 +310,18 @@ impl ParamLayout {
         };
         layout.base = layout.slot_values(start, scale);
         layout
+    }
+
+    /// The layout of an adjustment with options `opts` over the views `used` (dataset
+    /// rows): [`Self::new`] with their board scale and robot-pose noise.
+    pub fn of(
+        start: &JointStart,
+        free: &FreeBlocks,
+        opts: &JointOptions,
+        used: &[usize],
+        robot: Option<RobotBlock>,
+    ) -> ParamLayout {
+        ParamLayout::new(start, free, opts.board_scale, used, opts.robot_noise, robot)
     }
 
     fn index(&self, block: Block) -> usize {

@@ -77,6 +77,7 @@ mod robot_noise;
 mod robot_select;
 mod robot_solve;
 
+pub(crate) use self::covariance::camera_name;
 pub use self::robot::{point_gradients as dh_point_gradients, DhKind, DhParam, RobotMode};
 pub use self::robot_solve::RobotOptions;
 
@@ -352,14 +353,7 @@ pub fn joint_adjustment(
     let mut warnings = Vec::new();
     let terms = Terms::collect(views, board, &mut warnings)?;
     let free = free_blocks(&terms, start, opts)?;
-    let layout = ParamLayout::new(
-        start,
-        &free,
-        opts.board_scale,
-        &terms.used,
-        opts.robot_noise,
-        None,
-    );
+    let layout = ParamLayout::of(start, &free, opts, &terms.used, None);
     if layout.num_global() == 0 {
         return Err(Error::InvalidInput(
             "the one-stage adjustment has nothing to estimate: every block is held".into(),
@@ -397,14 +391,7 @@ pub fn joint_adjustment(
     )?;
     if let Some(out) = &outcome {
         if let Some(b) = &out.block {
-            let lr = ParamLayout::new(
-                start,
-                &free,
-                opts.board_scale,
-                &terms.used,
-                opts.robot_noise,
-                Some(b.clone()),
-            );
+            let lr = ParamLayout::of(start, &free, opts, &terms.used, Some(b.clone()));
             let p0 = robot_solve::transfer(&out.layout, &out.p, &lr);
             let mut pr = JointProblem::new(&start.camera, &lr, terms.clone(), opts);
             pr.set_image_weights(out.weights);

@@ -80,14 +80,7 @@ pub fn predicted_covariance(
     };
     let (robot, robot_fixed) =
         super::robot_solve::structural_block(start, &free, &fixed_weights, &terms)?;
-    let layout = ParamLayout::new(
-        start,
-        &free,
-        opts.board_scale,
-        &terms.used,
-        opts.robot_noise,
-        robot,
-    );
+    let layout = ParamLayout::of(start, &free, opts, &terms.used, robot);
     if layout.num_global() == 0 {
         return Err(Error::InvalidInput(
             "nothing to predict: every block is held".into(),

@@ -1,7 +1,7 @@
 //! The robot block's rounds: select the DH corrections the data determine
-//! ([`super::robot_select`]), adjust with them, and (for `auto`) select again from
-//! there until nothing is added. The caller then solves once more with the final
-//! block (a warm start) and reports.
+//! ([`super::robot_select`]) and, for `auto`, adjust with them and select again from
+//! there until nothing is added. The caller solves with the final block (for `full` and
+//! `offsets` its only solve with the corrections) and reports.
 
 use super::layout::ParamLayout;
 use super::residuals::{JointProblem, Terms};
@@ -93,12 +93,11 @@ pub(super) fn robot_rounds(
         readings: readings.clone(),
     };
     for _ in 0..rounds {
-        let lc = ParamLayout::new(
+        let lc = ParamLayout::of(
             start,
             free,
-            opts.board_scale,
+            opts,
             &terms.used,
-            opts.robot_noise,
             Some(block_of(&reference, cands.clone())),
         );
         let pc = transfer(&layout, &p, &lc);
@@ -110,18 +109,13 @@ pub(super) fn robot_rounds(
         let added = sel.chosen.len() > chosen.len();
         chosen = sel.chosen;
         fixed = sel.fixed;
-        if !added {
+        // Without another round to follow (`full`, `offsets`, or nothing added), the
+        // caller's final solve is the one with these corrections.
+        if !added || rounds == 1 {
             break;
         }
         let block = block_of(&reference, chosen.iter().map(|&i| cands[i]).collect());
-        let lk = ParamLayout::new(
-            start,
-            free,
-            opts.board_scale,
-            &terms.used,
-            opts.robot_noise,
-            Some(block.clone()),
-        );
+        let lk = ParamLayout::of(start, free, opts, &terms.used, Some(block.clone()));
         let pk = transfer(&layout, &p, &lk);
         let mut prob = JointProblem::new(&start.camera, &lk, terms.clone(), opts);
         prob.set_image_weights(weights);
@@ -170,14 +164,7 @@ pub(super) fn structural_block(
         params: cands.clone(),
         readings: readings(terms, ro)?,
     };
-    let lc = ParamLayout::new(
-        start,
-        free,
-        opts.board_scale,
-        &terms.used,
-        opts.robot_noise,
-        Some(all.clone()),
-    );
+    let lc = ParamLayout::of(start, free, opts, &terms.used, Some(all.clone()));
     let mut prob = JointProblem::new(&start.camera, &lc, terms.clone(), opts);
     prob.prepare_solve(opts.centre_model, opts.centre_model);
     let info = information(&prob, &lc.encode())?;
