@@ -66,6 +66,13 @@ impl PyCloud {
         nd(py, &[i.len()], i.iter().map(|&x| x as f64).collect())
     }
 
+    /// `(M,)` float64: the stripe's full width at half maximum across the line, px.
+    #[getter]
+    fn width<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
+        let w = &self.inner.width_px;
+        nd(py, &[w.len()], w.iter().map(|&x| x as f64).collect())
+    }
+
     /// `(M,)` uint8: the stripe point's flag bits (`Stripe.SATURATED`, ...).
     #[getter]
     fn flags<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {

@@ -150,6 +150,7 @@ impl Reconstructor {
             out.u_px.push(p.u);
             out.v_px.push(p.v);
             out.intensity.push(p.peak);
+            out.width_px.push(p.width_px);
             out.flags.push(p.flags);
         }
         out.dropped.add(&drops);

@@ -18,6 +18,9 @@ pub struct ScanPoints {
     pub v_px: Vec<f64>,
     /// Stripe peak above the local background, gray levels of the image.
     pub intensity: Vec<f32>,
+    /// The stripe's full width at half maximum across the line, px (what the
+    /// curved-surface bias model reads: the sheet's thickness as the camera sees it).
+    pub width_px: Vec<f32>,
     /// The stripe point's `FLAG_*` bits.
     pub flags: Vec<u8>,
     /// Points dropped (all frames so far).
@@ -45,6 +48,7 @@ impl ScanPoints {
         self.u_px.clear();
         self.v_px.clear();
         self.intensity.clear();
+        self.width_px.clear();
         self.flags.clear();
         self.dropped = DropCounts::default();
         self.skipped.clear();
@@ -57,6 +61,7 @@ impl ScanPoints {
         self.u_px.extend_from_slice(&o.u_px);
         self.v_px.extend_from_slice(&o.v_px);
         self.intensity.extend_from_slice(&o.intensity);
+        self.width_px.extend_from_slice(&o.width_px);
         self.flags.extend_from_slice(&o.flags);
         self.dropped.add(&o.dropped);
         self.skipped.extend_from_slice(&o.skipped);
@@ -77,6 +82,7 @@ impl ScanPoints {
         retain(&mut self.u_px, &mask);
         retain(&mut self.v_px, &mask);
         retain(&mut self.intensity, &mask);
+        retain(&mut self.width_px, &mask);
         retain(&mut self.flags, &mask);
         retain(&mut self.frame, &mask);
     }
