@@ -132,6 +132,26 @@ fn distort_full<T: Scalar>(k: &[T; 5], x: T, y: T) -> ([T; 2], [[T; 2]; 2]) {
     ([xd, yd], [[j00, cross], [cross, j11]])
 }
 
+/// `d(xd, yd) / d(k1, k2, p1, p2, k3)` at normalised `(xn, yn)` (the distortion is
+/// linear in its coefficients, so this does not depend on them).
+#[inline]
+pub fn distortion_coefficient_jacobian(xn: f64, yn: f64) -> SMatrix<f64, 2, 5> {
+    let r2 = xn * xn + yn * yn;
+    let r4 = r2 * r2;
+    SMatrix::<f64, 2, 5>::new(
+        xn * r2,
+        xn * r4,
+        2.0 * xn * yn,
+        r2 + 2.0 * xn * xn,
+        xn * r4 * r2,
+        yn * r2,
+        yn * r4,
+        r2 + 2.0 * yn * yn,
+        2.0 * xn * yn,
+        yn * r4 * r2,
+    )
+}
+
 /// The distortion coefficients of a parameter vector in [`PARAM_NAMES`] order.
 #[inline]
 pub fn distortion_of<T: Scalar>(cam: &[T; 9]) -> [T; 5] {
@@ -397,31 +417,15 @@ impl Camera {
         let jn = Matrix2x3::new(iz, 0.0, -xn * iz, 0.0, iz, -yn * iz);
         let f = Matrix2::new(self.fu, 0.0, 0.0, self.fv);
         let jp = f * jd * jn;
-        let r2 = xn * xn + yn * yn;
-        let r4 = r2 * r2;
         let mut jc = SMatrix::<f64, 2, 9>::zeros();
         jc[(0, 0)] = xd;
         jc[(1, 1)] = yd;
         jc[(0, 2)] = 1.0;
         jc[(1, 3)] = 1.0;
-        // k1, k2, p1, p2, k3
-        let dxd = [
-            xn * r2,
-            xn * r4,
-            2.0 * xn * yn,
-            r2 + 2.0 * xn * xn,
-            xn * r4 * r2,
-        ];
-        let dyd = [
-            yn * r2,
-            yn * r4,
-            r2 + 2.0 * yn * yn,
-            2.0 * xn * yn,
-            yn * r4 * r2,
-        ];
+        let dk = distortion_coefficient_jacobian(xn, yn);
         for i in 0..5 {
-            jc[(0, 4 + i)] = self.fu * dxd[i];
-            jc[(1, 4 + i)] = self.fv * dyd[i];
+            jc[(0, 4 + i)] = self.fu * dk[(0, i)];
+            jc[(1, 4 + i)] = self.fv * dk[(1, i)];
         }
         if !(uv.iter().chain(jp.iter()).chain(jc.iter())).all(|x| x.is_finite()) {
             return Err(Error::Degenerate(format!(

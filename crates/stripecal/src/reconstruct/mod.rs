@@ -56,6 +56,7 @@ mod options;
 mod points;
 mod scan;
 mod triangulate;
+pub mod uncertainty;
 
 pub use fit::{fit_plane, fit_sphere, FitOptions, PlaneFit, SphereFitResult};
 pub use frame::Reconstructor;
@@ -65,3 +66,4 @@ pub use options::{
 pub use points::{at_frame, ScanPoints};
 pub use scan::{load_scan, reconstruct_frames, reconstruct_scan};
 pub use triangulate::{triangulate, DropCounts, Triangulator};
+pub use uncertainty::{point_covariances, UncertaintyModel, UncertaintyOptions};

@@ -78,7 +78,9 @@ mod robot_select;
 mod robot_solve;
 
 pub(crate) use self::covariance::camera_name;
-pub use self::robot::{point_gradients as dh_point_gradients, DhKind, DhParam, RobotMode};
+pub use self::robot::{
+    flange_twists, point_gradients as dh_point_gradients, DhKind, DhParam, RobotMode,
+};
 pub use self::robot_solve::RobotOptions;
 
 use nalgebra::{DMatrix, Vector3};

@@ -106,7 +106,7 @@ impl DhKind {
         }
     }
 
-    fn get_mut(self, j: &mut DhJoint) -> &mut f64 {
+    pub(crate) fn get_mut(self, j: &mut DhJoint) -> &mut f64 {
         match self {
             DhKind::Theta0 => &mut j.theta0_deg,
             DhKind::D => &mut j.d_mm,
@@ -128,6 +128,24 @@ impl DhParam {
     /// calibration.json's name: `robot.joints[i].theta0_deg`.
     pub fn name(&self) -> String {
         format!("robot.joints[{}].{}", self.joint, self.kind.key())
+    }
+
+    /// The correction [`DhParam::name`] names, for a robot of `dof` rows (`None` for
+    /// another name or a row beyond the table).
+    pub fn from_name(name: &str, dof: usize) -> Option<DhParam> {
+        let rest = name.strip_prefix("robot.joints[")?;
+        let (i, key) = rest.split_once("].")?;
+        let joint: usize = i.parse().ok()?;
+        let kind = [
+            DhKind::Theta0,
+            DhKind::D,
+            DhKind::A,
+            DhKind::Alpha,
+            DhKind::Beta,
+        ]
+        .into_iter()
+        .find(|k| k.key() == key)?;
+        (joint < dof).then_some(DhParam { joint, kind })
     }
 }
 
@@ -284,24 +302,9 @@ pub fn point_gradients(
     names: &[String],
     p_f: &Vector3<f64>,
 ) -> Vec<(String, Vector3<f64>)> {
-    let parse = |n: &str| -> Option<DhParam> {
-        let rest = n.strip_prefix("robot.joints[")?;
-        let (i, key) = rest.split_once("].")?;
-        let joint: usize = i.parse().ok()?;
-        let kind = [
-            DhKind::Theta0,
-            DhKind::D,
-            DhKind::A,
-            DhKind::Alpha,
-            DhKind::Beta,
-        ]
-        .into_iter()
-        .find(|k| k.key() == key)?;
-        (joint < robot.dof()).then_some(DhParam { joint, kind })
-    };
     let found: Vec<(String, DhParam)> = names
         .iter()
-        .filter_map(|n| parse(n).map(|p| (n.clone(), p)))
+        .filter_map(|n| DhParam::from_name(n, robot.dof()).map(|p| (n.clone(), p)))
         .collect();
     if found.is_empty() || q.len() != robot.dof() {
         return Vec::new();

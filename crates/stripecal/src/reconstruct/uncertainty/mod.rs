@@ -1,0 +1,106 @@
+//! The uncertainty of reconstructed points: a 3x3 covariance per point in the base
+//! frame, from the calibration's covariance, the stripe's sub-pixel noise and the
+//! robot's repeatability, and the sensitivities the fits' budgets are built from
+//! ([`super::fit::budget`]).
+//!
+//! ## Conventions
+//!
+//! The calibration's numbers are those of calibration.json's `covariance` (contract
+//! names: `camera.fu`, `camera.distortion[0]`, `laser_plane.normal[1]`,
+//! `laser_plane.d_mm`, `hand_cam.rotation_vector[2]`, `hand_cam.translation_mm[0]`,
+//! `robot.joints[i].theta0_deg`, ...; the robot's in degrees and mm). Numbers that do
+//! not move a base-frame point (`base_board.*`, `board.scale`) are left out; numbers
+//! not in the covariance (held) have no uncertainty.
+//!
+//! ## The chain, linearised (one frame at `T_base_cam = T_base_hand(q) T_hand_cam`)
+//!
+//! A stripe point at pixel `(u, v)`: `xd = (u - u0) / fu`, `yd = (v - v0) / fv`; the
+//! undistorted `(xn, yn)` solves `D(xn, yn; k) = (xd, yd)`, so
+//! `d(xn, yn) = Jd^-1 (d(xd, yd) - Dk dk)` with `Jd = dD/d(xn, yn)` and
+//! `Dk = dD/dk`. The ray `r = (xn, yn, 1)` meets the plane `n . p = d` at
+//! `p_c = s r`, `s = d / (n . r)`:
+//! `dp_c = s (I - r n^T / (n . r)) dr - s r r^T / (n . r) dn + r / (n . r) dd`.
+//! The frame's pose enters as a right perturbation of `T_base_cam` in the camera frame,
+//! `T_base_cam Exp((w, v))`: `dp_b = R_base_cam (w x p_c + v)`. So with the local
+//! vector `eta = (dcamera[9], dn[3], dd, w[3], v[3])` (19 numbers, camera in
+//! [`crate::model::camera::PARAM_NAMES`] order) every point of the frame has
+//! `dp_b = R_base_cam J_c eta`, `J_c = [dp_c/dcamera, dp_c/dn, dp_c/dd, -[p_c]x, I]`.
+//!
+//! The calibration's numbers map to `eta` linearly, `eta = M_f theta`:
+//! - camera numbers and the plane's offset one to one; the normal through its
+//!   normalisation (`n` is read as `n / |n|`): `dn = (I - n n^T) dn_file`;
+//! - `hand_cam.rotation_vector` `r`: `R(r + dr) = R(r) Exp(J_r(r) dr)` (the right
+//!   Jacobian of SO(3)), so `w = J_r(r) dr`; `hand_cam.translation_mm`: `v = R_X^T dt`;
+//! - a DH number: its flange twist `(w_h, v_h)` ([`crate::calib::joint::flange_twists`],
+//!   flange frame) carried to the camera: `w = R_X^T w_h`, `v = R_X^T (w_h x t_X + v_h)`.
+//!
+//! Only the DH columns change from frame to frame. The frame's covariance of `eta` is
+//! `Sigma_f = M_f C M_f^T + Sigma_robot,f`, where the robot's figures add, on the twist
+//! block: encoder readings of one-sigma `sigma_q` turn joint i about its axis like
+//! `-dtheta0_i` (`theta_i = q_i - theta0_i`), `sigma_q^2 sum_i g_i g_i^T`; a pose
+//! repeatability `sigma_t` (mm, read as a one-sigma per axis: the conservative reading
+//! of a maker's figure, as [`crate::Robot::pose_noise_floor`]) adds `sigma_t^2 I` to
+//! `v` (isotropic, so the same in every frame). The stripe's noise is along the scan
+//! line the extractor searches (`u` for [`crate::StripeDirection::Cols`], `v` for
+//! `Rows`), one-sigma `sigma_s`: `dp_c = s (I - r n^T/(n . r)) Jd^-1 (1/fu, 0, 0)^T du`.
+//!
+//! A point's covariance is
+//! `R_base_cam (J_c Sigma_f J_c^T + sigma_s^2 a a^T) R_base_cam^T`: one 3x19 by 19x19
+//! product per point after one 19xP map per frame ([`FrameUncertainty`]). It is exact
+//! to first order; the Monte Carlo over calibration draws agrees within a few percent
+//! (tests).
+//!
+//! ## Which parts are correlated
+//!
+//! The calibration part is shared by every point of every scan made with the
+//! calibration: it does not average out in a fit. The robot part is shared by the
+//! points of one frame, independent between frames. The stripe part is independent
+//! per point. [`super::fit::budget`] keeps them apart.
+
+mod frame;
+mod model;
+mod perturb;
+
+pub use frame::{FrameUncertainty, LocalJacobian, ETA};
+pub use model::{UncertaintyModel, UncertaintyOptions};
+pub use perturb::perturbed_calibration;
+
+use crate::error::Result;
+use crate::model::Calibration;
+use crate::model::RobotReading;
+
+use super::ScanPoints;
+
+/// Per-point covariances (base frame, mm^2, upper triangle `xx, xy, xz, yy, yz, zz`) of
+/// reconstructed points, the frames' readings indexed by [`ScanPoints::frame`].
+pub fn point_covariances(
+    calibration: &Calibration,
+    readings: &[RobotReading],
+    points: &ScanPoints,
+    opts: &UncertaintyOptions,
+) -> Result<Vec<[f64; 6]>> {
+    let model = UncertaintyModel::new(calibration, opts)?;
+    let mut out = vec![[0.0; 6]; points.len()];
+    let mut start = 0;
+    while start < points.len() {
+        let f = points.frame[start];
+        let mut end = start;
+        while end < points.len() && points.frame[end] == f {
+            end += 1;
+        }
+        let reading = readings.get(f as usize).ok_or_else(|| {
+            crate::Error::InvalidInput(format!(
+                "point {start} is of frame {f}, but only {} frame readings were given",
+                readings.len()
+            ))
+        })?;
+        let fu = model.frame(reading)?;
+        let uv = (start..end).map(|i| (points.u_px[i], points.v_px[i]));
+        fu.point_covariances(uv, &mut out[start..end]);
+        start = end;
+    }
+    Ok(out)
+}
+
+#[cfg(test)]
+mod tests;
