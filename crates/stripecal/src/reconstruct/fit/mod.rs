@@ -31,12 +31,19 @@
 //! `normal_sigma = sqrt(diag(var a e1 e1^T + var b e2 e2^T))`, and `d = n . c + delta`
 //! gives `var d = var delta + var a (e1 . c)^2 + var b (e2 . c)^2`.
 
+pub mod budget;
+mod measure;
 mod plane;
 mod sphere;
 mod trim;
 
 use crate::error::{Error, Result};
 
+pub use budget::{Budget, LinearForm, ScanFrames};
+pub use measure::{
+    measure_plane, measure_sphere, sphere_distance, PlaneMeasurement, SphereMeasurement,
+    SphereSystematic,
+};
 pub use plane::{fit_plane, PlaneFit};
 pub use sphere::{fit_sphere, SphereFitResult};
 
@@ -134,3 +141,6 @@ mod tests {
         assert!(matches!(e, Error::Degenerate(_)), "{e}");
     }
 }
+
+#[cfg(test)]
+mod measure_tests;

@@ -1,7 +1,7 @@
 //! One frame's uncertainty: its pose, `M_f`, `Sigma_f`, and per point the local
 //! Jacobian `J_c` and the 3x3 covariance ([`super`] docs).
 
-use nalgebra::{DMatrix, Matrix3, SMatrix, Vector2, Vector3};
+use nalgebra::{DMatrix, Matrix3, Matrix6, SMatrix, Vector2, Vector3};
 
 use crate::error::{Error, Result};
 use crate::model::camera::{distortion_coefficient_jacobian, Camera, UndistortTrack};
@@ -40,6 +40,8 @@ pub struct FrameUncertainty {
     /// `eta` from the calibration's numbers (19 x P).
     map: DMatrix<f64>,
     sigma: Sigma,
+    /// The robot's part of the twist block (6 x 6).
+    robot_sigma: Matrix6<f64>,
     stripe_var: f64,
     along_u: bool,
 }
@@ -50,6 +52,7 @@ impl FrameUncertainty {
         base_hand: &Iso3,
         map: DMatrix<f64>,
         sigma: DMatrix<f64>,
+        robot_sigma: Matrix6<f64>,
     ) -> Result<Self> {
         let cal = &model.calibration;
         let plane = crate::reconstruct::triangulate::laser_plane_of(cal)?;
@@ -62,7 +65,15 @@ impl FrameUncertainty {
             r_bc: base_cam.rotation.to_rotation_matrix().into_inner(),
             base_cam,
             map,
-            sigma: Sigma::from_fn(|r, c| sigma[(r, c)]),
+            sigma: Sigma::from_fn(|r, c| {
+                let rob = if r >= 13 && c >= 13 {
+                    robot_sigma[(r - 13, c - 13)]
+                } else {
+                    0.0
+                };
+                sigma[(r, c)] + rob
+            }),
+            robot_sigma,
             stripe_var: s * s,
             along_u: model.direction != StripeDirection::Rows,
         })
@@ -79,9 +90,15 @@ impl FrameUncertainty {
         &self.map
     }
 
-    /// `Sigma_f`: the covariance of `eta` (calibration and robot parts).
+    /// `Sigma_f`: the covariance of `eta` (calibration and robot parts; 19 x 19).
     pub fn sigma(&self) -> &SMatrix<f64, ETA, ETA> {
         &self.sigma
+    }
+
+    /// The robot figures' covariance of the frame's twist `(w, v)` (6 x 6; in
+    /// [`Self::sigma`] too).
+    pub fn robot_sigma(&self) -> &Matrix6<f64> {
+        &self.robot_sigma
     }
 
     /// One-sigma of the stripe centre along the scan line, px.

@@ -103,4 +103,4 @@ pub fn point_covariances(
 }
 
 #[cfg(test)]
-mod tests;
+pub(crate) mod tests;

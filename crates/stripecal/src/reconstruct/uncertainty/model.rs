@@ -1,7 +1,7 @@
 //! The calibration side of the point uncertainty: which numbers of the covariance move
 //! a point, their fixed map to the local vector `eta`, and the options ([`super`] docs).
 
-use nalgebra::{DMatrix, Matrix3, Vector3};
+use nalgebra::{DMatrix, Matrix3, Matrix6, Vector3, Vector6};
 
 use crate::calib::joint::{flange_twists, DhKind, DhParam};
 use crate::error::{Error, Result};
@@ -246,7 +246,8 @@ impl UncertaintyModel {
                 }
             }
         }
-        let mut sigma = &map * &self.cov * map.transpose();
+        let sigma = &map * &self.cov * map.transpose();
+        let mut robot_sigma = Matrix6::zeros();
         if self.encoder_sigma_deg > 0.0 {
             let (Some(robot), Some(q)) = (robot, q) else {
                 return Err(Error::InvalidInput(
@@ -264,19 +265,15 @@ impl UncertaintyModel {
             let s2 = self.encoder_sigma_deg * self.encoder_sigma_deg;
             for tw in flange_twists(robot, q, &joints) {
                 let (w, v) = self.to_camera(&tw);
-                let g = [w.x, w.y, w.z, v.x, v.y, v.z];
-                for a in 0..6 {
-                    for b in 0..6 {
-                        sigma[(13 + a, 13 + b)] += s2 * g[a] * g[b];
-                    }
-                }
+                let g = Vector6::new(w.x, w.y, w.z, v.x, v.y, v.z);
+                robot_sigma += g * g.transpose() * s2;
             }
         }
         let t2 = self.repeatability_mm * self.repeatability_mm;
-        for k in 16..19 {
-            sigma[(k, k)] += t2;
+        for k in 3..6 {
+            robot_sigma[(k, k)] += t2;
         }
-        FrameUncertainty::new(self, &base_hand, map, sigma)
+        FrameUncertainty::new(self, &base_hand, map, sigma, robot_sigma)
     }
 
     /// A flange twist (flange frame) as a right perturbation of `T_base_cam`.

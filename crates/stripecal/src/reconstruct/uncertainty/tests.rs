@@ -11,11 +11,11 @@ use crate::model::{NamedCovariance, Quality};
 use crate::numerics::rng::SplitMix64;
 use crate::reconstruct::Triangulator;
 
-const Q: [f64; 6] = [5.0, -15.0, 25.0, 10.0, -80.0, 30.0];
+pub(crate) const Q: [f64; 6] = [5.0, -15.0, 25.0, 10.0, -80.0, 30.0];
 
 /// The paper-like rig with strong distortion, a robot and a covariance over every
 /// number that moves a point (plus two that do not).
-fn calibration() -> Calibration {
+pub(crate) fn calibration() -> Calibration {
     let camera = Camera::new(
         768,
         576,

@@ -1,0 +1,284 @@
+//! Measurements with full budgets: a sphere (diameter, centre, probing form), a plane
+//! (flatness, tilt, offset) and the distance of two spheres, each quantity a
+//! [`LinearForm`] over the sources of [`super::budget`], reported as a GUM [`Budget`].
+//!
+//! A measurement is made from a fit of a scan's points (their pixels and frames tell
+//! the calibration and robot parts) and the coordinates the fit used (the
+//! reconstructed points, or the points after a bias correction). `systematic` adds a
+//! fit's documented systematic standard uncertainties (e.g. the curved-surface stripe
+//! bias that a correction leaves), independent per fit.
+
+use nalgebra::{DMatrix, Matrix3, Matrix4, Vector3};
+
+use crate::error::{Error, Result};
+use crate::reconstruct::ScanPoints;
+
+use super::budget::{
+    new_source_id, range_random_sigma, Budget, FitRow, LinearForm, ScanFrames, Sensitivity,
+};
+use super::{PlaneFit, SphereFitResult};
+
+/// A sphere measured with its budgets.
+#[derive(Debug, Clone)]
+pub struct SphereMeasurement {
+    pub diameter: Budget,
+    pub center: [Budget; 3],
+    /// Probing form: the range of the radial residuals (largest minus smallest).
+    pub form: Budget,
+    /// The forms of the centre coordinates (combine them for distances).
+    pub center_forms: [LinearForm; 3],
+    /// The form of the diameter.
+    pub diameter_form: LinearForm,
+}
+
+/// Systematic standard uncertainties of a sphere fit a model leaves, mm.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct SphereSystematic {
+    pub center_mm: [f64; 3],
+    pub diameter_mm: f64,
+}
+
+/// The budgets of a sphere fit of `points` (the fit's inlier mask selects them; `coords`
+/// are the coordinates it used, one per point).
+pub fn measure_sphere(
+    frames: &mut ScanFrames<'_>,
+    points: &ScanPoints,
+    coords: &[[f64; 3]],
+    fit: &SphereFitResult,
+    systematic: &SphereSystematic,
+) -> Result<SphereMeasurement> {
+    check_lengths(points, coords, &fit.inlier)?;
+    let c = fit.center_mm;
+    let r = 0.5 * fit.diameter_mm;
+    let idx: Vec<usize> = (0..points.len()).filter(|&i| fit.inlier[i]).collect();
+    if idx.len() < 5 {
+        return Err(Error::Degenerate(format!(
+            "sphere budget: {} inliers (at least 5)",
+            idx.len()
+        )));
+    }
+    let mut normals = Vec::with_capacity(idx.len());
+    let mut res = Vec::with_capacity(idx.len());
+    let mut n = Matrix4::zeros();
+    for &i in &idx {
+        let d = Vector3::from(coords[i]) - c;
+        let dist = d.norm();
+        let u = if dist > 0.0 { d / dist } else { Vector3::z() };
+        let j = nalgebra::Vector4::new(-u.x, -u.y, -u.z, -1.0);
+        n += j * j.transpose();
+        normals.push((u, [-u.x, -u.y, -u.z, -1.0]));
+        res.push(dist - r);
+    }
+    let n_d = DMatrix::from_fn(4, 4, |a, b| n[(a, b)]);
+    let rows = idx.iter().zip(&normals).map(|(&i, (u, j))| FitRow {
+        u: points.u_px[i],
+        v: points.v_px[i],
+        frame: points.frame[i],
+        a: *u,
+        j,
+    });
+    let mut sens = Sensitivity::new(frames, &n_d, rows)?;
+    let id = new_source_id();
+    let s2 = res.iter().map(|x| x * x).sum::<f64>() / (idx.len() - 4) as f64;
+    add_random(
+        &mut sens.params,
+        &(n_d.clone().try_inverse().unwrap() * s2),
+        id,
+    );
+    let sys = [
+        systematic.center_mm[0],
+        systematic.center_mm[1],
+        systematic.center_mm[2],
+        0.5 * systematic.diameter_mm,
+    ];
+    for (k, (p, s)) in sens.params.iter_mut().zip(sys).enumerate() {
+        if s > 0.0 {
+            p.systematic.insert((id, 1, k as u32), s);
+        }
+    }
+    // Probing form: the range's extremes.
+    let (imax, imin) = extremes(&res);
+    let mut form = LinearForm::default();
+    for (k, sign) in [(imax, 1.0), (imin, -1.0)] {
+        let i = idx[k];
+        let row = FitRow {
+            u: points.u_px[i],
+            v: points.v_px[i],
+            frame: points.frame[i],
+            a: normals[k].0,
+            j: &normals[k].1,
+        };
+        form.add_scaled(&sens.residual_form(frames, &row)?, sign);
+    }
+    form.random.clear();
+    form.random
+        .insert((id, 2, 0), range_random_sigma(s2.sqrt(), idx.len()));
+    let cov = frames.model().covariance().clone();
+    let mut diameter_form = LinearForm::default();
+    diameter_form.add_scaled(&sens.params[3], 2.0);
+    let center_forms = [
+        sens.params[0].clone(),
+        sens.params[1].clone(),
+        sens.params[2].clone(),
+    ];
+    Ok(SphereMeasurement {
+        diameter: diameter_form.budget(fit.diameter_mm, &cov),
+        center: std::array::from_fn(|k| center_forms[k].budget(c[k], &cov)),
+        form: form.budget(res[imax] - res[imin], &cov),
+        center_forms,
+        diameter_form,
+    })
+}
+
+/// The distance of two measured spheres' centres with its budget (their calibration and
+/// robot parts correlated as their forms say).
+pub fn sphere_distance(
+    a: &SphereMeasurement,
+    b: &SphereMeasurement,
+    cov: &DMatrix<f64>,
+) -> (Budget, LinearForm) {
+    let ca = Vector3::from_fn(|k, _| a.center[k].value);
+    let cb = Vector3::from_fn(|k, _| b.center[k].value);
+    let d = ca - cb;
+    let l = d.norm();
+    let g = if l > 0.0 { d / l } else { Vector3::zeros() };
+    let mut f = LinearForm::default();
+    for k in 0..3 {
+        f.add_scaled(&a.center_forms[k], g[k]);
+        f.add_scaled(&b.center_forms[k], -g[k]);
+    }
+    (f.budget(l, cov), f)
+}
+
+/// A plane measured with its budgets.
+#[derive(Debug, Clone)]
+pub struct PlaneMeasurement {
+    /// Flatness: the range of the residuals.
+    pub flatness: Budget,
+    /// The offset along the normal at the centroid (value: the plane's `d`), mm.
+    pub offset: Budget,
+    /// The normal's tilts about the two in-plane axes, degrees (value 0).
+    pub tilt_deg: [Budget; 2],
+}
+
+/// The budgets of a plane fit of `points` (inlier mask of `fit`; `coords` as fitted).
+pub fn measure_plane(
+    frames: &mut ScanFrames<'_>,
+    points: &ScanPoints,
+    coords: &[[f64; 3]],
+    fit: &PlaneFit,
+) -> Result<PlaneMeasurement> {
+    check_lengths(points, coords, &fit.inlier)?;
+    let nrm = fit.plane.normal;
+    let c = fit.centroid_mm;
+    let helper = if nrm.x.abs() < 0.9 {
+        Vector3::x()
+    } else {
+        Vector3::y()
+    };
+    let e1 = nrm.cross(&helper).normalize();
+    let e2 = nrm.cross(&e1);
+    let idx: Vec<usize> = (0..points.len()).filter(|&i| fit.inlier[i]).collect();
+    if idx.len() < 4 {
+        return Err(Error::Degenerate(format!(
+            "plane budget: {} inliers (at least 4)",
+            idx.len()
+        )));
+    }
+    let mut jrows = Vec::with_capacity(idx.len());
+    let mut res = Vec::with_capacity(idx.len());
+    let mut n = Matrix3::zeros();
+    for &i in &idx {
+        let q = Vector3::from(coords[i]) - c;
+        let j = Vector3::new(e1.dot(&q), e2.dot(&q), -1.0);
+        n += j * j.transpose();
+        jrows.push([j.x, j.y, j.z]);
+        res.push(nrm.dot(&q));
+    }
+    let n_d = DMatrix::from_fn(3, 3, |a, b| n[(a, b)]);
+    let rows = idx.iter().zip(&jrows).map(|(&i, j)| FitRow {
+        u: points.u_px[i],
+        v: points.v_px[i],
+        frame: points.frame[i],
+        a: nrm,
+        j,
+    });
+    let mut sens = Sensitivity::new(frames, &n_d, rows)?;
+    let id = new_source_id();
+    let s2 = res.iter().map(|x| x * x).sum::<f64>() / (idx.len() - 3) as f64;
+    let ninv = n_d
+        .clone()
+        .try_inverse()
+        .ok_or_else(|| Error::Degenerate("plane budget: singular normal matrix".into()))?;
+    add_random(&mut sens.params, &(ninv * s2), id);
+    let (imax, imin) = extremes(&res);
+    let mut form = LinearForm::default();
+    for (k, sign) in [(imax, 1.0), (imin, -1.0)] {
+        let i = idx[k];
+        let row = FitRow {
+            u: points.u_px[i],
+            v: points.v_px[i],
+            frame: points.frame[i],
+            a: nrm,
+            j: &jrows[k],
+        };
+        form.add_scaled(&sens.residual_form(frames, &row)?, sign);
+    }
+    form.random.clear();
+    form.random
+        .insert((id, 2, 0), range_random_sigma(s2.sqrt(), idx.len()));
+    let cov = frames.model().covariance().clone();
+    let deg = |f: &LinearForm| {
+        let mut out = LinearForm::default();
+        out.add_scaled(f, 1f64.to_degrees());
+        out
+    };
+    Ok(PlaneMeasurement {
+        flatness: form.budget(res[imax] - res[imin], &cov),
+        offset: sens.params[2].budget(fit.plane.d, &cov),
+        tilt_deg: [
+            deg(&sens.params[0]).budget(0.0, &cov),
+            deg(&sens.params[1]).budget(0.0, &cov),
+        ],
+    })
+}
+
+/// Random sources of a fit's parameters: `L` with `L L^T = cov` (eigen, may be singular).
+fn add_random(params: &mut [LinearForm], cov: &DMatrix<f64>, id: u64) {
+    let e = cov.clone().symmetric_eigen();
+    for (r, p) in params.iter_mut().enumerate() {
+        for k in 0..cov.ncols() {
+            let v = e.eigenvectors[(r, k)] * e.eigenvalues[k].max(0.0).sqrt();
+            if v != 0.0 {
+                p.random.insert((id, 0, k as u32), v);
+            }
+        }
+    }
+}
+
+/// Indices of the largest and smallest value.
+fn extremes(x: &[f64]) -> (usize, usize) {
+    let mut hi = 0;
+    let mut lo = 0;
+    for (i, v) in x.iter().enumerate() {
+        if *v > x[hi] {
+            hi = i;
+        }
+        if *v < x[lo] {
+            lo = i;
+        }
+    }
+    (hi, lo)
+}
+
+fn check_lengths(points: &ScanPoints, coords: &[[f64; 3]], inlier: &[bool]) -> Result<()> {
+    if coords.len() != points.len() || inlier.len() != points.len() {
+        return Err(Error::InvalidInput(format!(
+            "measurement: {} points, {} coordinates, {} inlier flags (one each)",
+            points.len(),
+            coords.len(),
+            inlier.len()
+        )));
+    }
+    Ok(())
+}
