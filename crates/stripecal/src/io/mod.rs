@@ -12,6 +12,7 @@
 //! - Image paths in views.csv / scan.csv are kept as written (relative to the dataset
 //!   folder); [`Dataset::image_path`] resolves them.
 
+mod artefacts;
 mod atomic;
 mod calibration;
 mod csv;
@@ -23,6 +24,7 @@ mod poses;
 mod records;
 mod rig;
 
+pub use artefacts::read_artefacts;
 pub use atomic::write_atomic;
 pub use calibration::{
     calibration_from_json, calibration_robot_pose_noise, calibration_to_json, read_calibration,

@@ -3,6 +3,7 @@
 //! made of. Everything else (vision, calib, reconstruct, pipeline, io) builds on these;
 //! nothing here imports from those layers.
 
+pub mod artefacts;
 pub mod board;
 pub mod camera;
 mod checks;

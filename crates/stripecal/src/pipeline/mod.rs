@@ -34,6 +34,7 @@ mod kinematics;
 mod labels;
 mod laser_only;
 mod loo;
+pub mod measure;
 mod observe;
 mod pairing;
 mod plan;
@@ -41,6 +42,7 @@ mod report;
 pub mod stripe_select;
 #[cfg(test)]
 mod tests;
+pub mod verify;
 
 use std::path::Path;
 

@@ -21,6 +21,9 @@ pub struct ScanPoints {
     /// The stripe's full width at half maximum across the line, px (what the
     /// curved-surface bias model reads: the sheet's thickness as the camera sees it).
     pub width_px: Vec<f32>,
+    /// Per-point covariance in the base frame, mm^2, upper triangle `xx, xy, xz, yy,
+    /// yz, zz` ([`crate::reconstruct::point_covariances`]); empty unless asked for.
+    pub covariance_mm2: Vec<[f64; 6]>,
     /// The stripe point's `FLAG_*` bits.
     pub flags: Vec<u8>,
     /// Points dropped (all frames so far).
@@ -49,6 +52,7 @@ impl ScanPoints {
         self.v_px.clear();
         self.intensity.clear();
         self.width_px.clear();
+        self.covariance_mm2.clear();
         self.flags.clear();
         self.dropped = DropCounts::default();
         self.skipped.clear();
@@ -62,6 +66,7 @@ impl ScanPoints {
         self.v_px.extend_from_slice(&o.v_px);
         self.intensity.extend_from_slice(&o.intensity);
         self.width_px.extend_from_slice(&o.width_px);
+        self.covariance_mm2.extend_from_slice(&o.covariance_mm2);
         self.flags.extend_from_slice(&o.flags);
         self.dropped.add(&o.dropped);
         self.skipped.extend_from_slice(&o.skipped);
@@ -83,6 +88,9 @@ impl ScanPoints {
         retain(&mut self.v_px, &mask);
         retain(&mut self.intensity, &mask);
         retain(&mut self.width_px, &mask);
+        if !self.covariance_mm2.is_empty() {
+            retain(&mut self.covariance_mm2, &mask);
+        }
         retain(&mut self.flags, &mask);
         retain(&mut self.frame, &mask);
     }
@@ -105,9 +113,10 @@ impl ScanPoints {
     }
 
     /// The PLY cloud: `x y z` and the properties `view` (frame index), `u`, `v`,
-    /// `intensity`, `flags` (spec/DATASET.md "The point cloud").
+    /// `intensity`, `flags` (spec/DATASET.md "The point cloud"), and with per-point
+    /// covariances `cov_xx cov_xy cov_xz cov_yy cov_yz cov_zz` (mm^2).
     pub fn to_cloud(&self) -> Cloud {
-        Cloud {
+        let mut c = Cloud {
             points: self.points_mm.clone(),
             properties: vec![
                 (
@@ -125,7 +134,19 @@ impl ScanPoints {
                     self.flags.iter().map(|&f| f as f64).collect(),
                 ),
             ],
+        };
+        if self.covariance_mm2.len() == self.points_mm.len() && !self.points_mm.is_empty() {
+            for (k, name) in ["cov_xx", "cov_xy", "cov_xz", "cov_yy", "cov_yz", "cov_zz"]
+                .iter()
+                .enumerate()
+            {
+                c.properties.push((
+                    name.to_string(),
+                    self.covariance_mm2.iter().map(|v| v[k]).collect(),
+                ));
+            }
         }
+        c
     }
 }
 

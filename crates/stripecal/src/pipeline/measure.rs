@@ -1,0 +1,298 @@
+//! Measuring a reconstructed scan with full budgets: a sphere (the reference ball), two
+//! spheres (a ball bar) or a plane, from the scan's points, the frames' robot readings
+//! and the calibration ([`crate::reconstruct::fit::budget`] for the budgets).
+//!
+//! Spheres are fitted with the robust start, then (by default) corrected for the
+//! curved-surface stripe bias ([`crate::reconstruct::fit::stripe_bias`]); what the
+//! correction leaves goes into the budget's systematic part. A ball bar's two spheres
+//! are found one after the other: the first robust fit takes the sphere with more
+//! points, its points (within a margin of its surface) are set aside, the second fit
+//! takes the other.
+
+use nalgebra::Vector3;
+use serde_json::{json, Value};
+
+use crate::error::{Error, Result};
+use crate::model::{Calibration, RobotReading, Scan, StripeDirection};
+use crate::reconstruct::fit::{
+    fit_plane, fit_sphere, measure_plane, measure_sphere, sphere_distance, Budget, FitOptions,
+    PlaneFit, PlaneMeasurement, ScanFrames, SphereFitResult, SphereMeasurement, SphereSystematic,
+};
+use crate::reconstruct::{ScanPoints, UncertaintyModel, UncertaintyOptions};
+
+/// Options of a measurement.
+#[derive(Debug, Clone, PartialEq)]
+pub struct MeasureOptions {
+    /// What goes into the points' uncertainty (calibration, stripe, robot figures).
+    pub uncertainty: UncertaintyOptions,
+    /// The fits (trimming, robust start, the accepted diameters of a sphere).
+    pub fit: FitOptions,
+    /// Correct spheres for the curved-surface stripe bias (default true).
+    pub correct_bias: bool,
+}
+
+impl Default for MeasureOptions {
+    fn default() -> Self {
+        MeasureOptions {
+            uncertainty: UncertaintyOptions::default(),
+            fit: FitOptions::default(),
+            correct_bias: true,
+        }
+    }
+}
+
+/// What the stripe-bias correction did to a sphere.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct BiasInfo {
+    /// The laser sheet's Gaussian sigma (thickness) estimated from the stripe's width, mm.
+    pub sheet_sigma_mm: f64,
+    /// Diameter after minus before the correction, mm.
+    pub diameter_change_mm: f64,
+}
+
+/// A measured sphere: the final fit and its budgets.
+#[derive(Debug, Clone)]
+pub struct SphereReport {
+    pub fit: SphereFitResult,
+    pub measurement: SphereMeasurement,
+    /// `None` when the correction was not asked for.
+    pub bias: Option<BiasInfo>,
+}
+
+/// A measured plane: the fit and its budgets.
+#[derive(Debug, Clone)]
+pub struct PlaneReport {
+    pub fit: PlaneFit,
+    pub measurement: PlaneMeasurement,
+}
+
+/// A measured ball bar: both spheres and their centres' distance.
+#[derive(Debug, Clone)]
+pub struct BallBarReport {
+    pub spheres: [SphereReport; 2],
+    pub distance: Budget,
+}
+
+/// The readings of a scan's frames, by frame index.
+pub fn scan_readings(scan: &Scan) -> Vec<RobotReading> {
+    scan.frames.iter().map(|f| f.reading.clone()).collect()
+}
+
+/// The model of the points' uncertainty for a scan: the stripe direction from the
+/// scan's rig.json when the options leave it `Auto`, the robot's figures from the
+/// calibration's robot where the options leave them unset.
+pub fn scan_uncertainty_model(
+    calibration: &Calibration,
+    scan: &Scan,
+    opts: &UncertaintyOptions,
+) -> Result<UncertaintyModel> {
+    let mut o = opts.clone().with_robot_figures(calibration.robot.as_ref());
+    if o.direction == StripeDirection::Auto {
+        if let Some(rig) = &scan.rig {
+            o.direction = rig.stripe_direction;
+        }
+    }
+    UncertaintyModel::new(calibration, &o)
+}
+
+/// Measures the sphere in `points` (all of a scan's points, or a subset).
+pub fn measure_scan_sphere(
+    model: &UncertaintyModel,
+    readings: &[RobotReading],
+    points: &ScanPoints,
+    opts: &MeasureOptions,
+) -> Result<SphereReport> {
+    let mut frames = ScanFrames::new(model, readings);
+    let fit = fit_sphere(&points.points_mm, &opts.fit)?;
+    sphere_report(&mut frames, model, readings, points, fit, opts)
+}
+
+fn sphere_report(
+    frames: &mut ScanFrames<'_>,
+    model: &UncertaintyModel,
+    readings: &[RobotReading],
+    points: &ScanPoints,
+    fit: SphereFitResult,
+    opts: &MeasureOptions,
+) -> Result<SphereReport> {
+    let (fit, coords, systematic, bias) = if opts.correct_bias {
+        let (f, coords, sys, info) = correct_bias(model, readings, points, fit, &opts.fit)?;
+        (f, coords, sys, Some(info))
+    } else {
+        (
+            fit,
+            points.points_mm.clone(),
+            SphereSystematic::default(),
+            None,
+        )
+    };
+    let measurement = measure_sphere(frames, points, &coords, &fit, &systematic)?;
+    Ok(SphereReport {
+        fit,
+        measurement,
+        bias,
+    })
+}
+
+/// Measures the two spheres of a ball bar in `points` and their centres' distance.
+/// `diameter_range_mm` (in `opts.fit`) should bracket both spheres' diameters.
+pub fn measure_scan_ball_bar(
+    model: &UncertaintyModel,
+    readings: &[RobotReading],
+    points: &ScanPoints,
+    opts: &MeasureOptions,
+) -> Result<BallBarReport> {
+    let mut frames = ScanFrames::new(model, readings);
+    let first = fit_sphere(&points.points_mm, &opts.fit)?;
+    // Set aside everything near the first sphere (its inliers and the points within a
+    // tenth of its radius of its surface), then find the second in the rest.
+    let margin = 0.1 * 0.5 * first.diameter_mm;
+    let near = |p: &[f64; 3]| {
+        ((Vector3::from(*p) - first.center_mm).norm() - 0.5 * first.diameter_mm).abs() <= margin
+    };
+    let keep: Vec<usize> = (0..points.len())
+        .filter(|&i| !first.inlier[i] && !near(&points.points_mm[i]))
+        .collect();
+    let rest = subset(points, &keep);
+    if rest.len() < 20 {
+        return Err(Error::Degenerate(format!(
+            "ball bar: after the first sphere ({} points) only {} points are left for the \
+             second",
+            first.points,
+            rest.len()
+        )));
+    }
+    let second = fit_sphere(&rest.points_mm, &opts.fit)
+        .map_err(|e| Error::Degenerate(format!("ball bar: the second sphere: {e}")))?;
+    if (second.center_mm - first.center_mm).norm() < 0.5 * (first.diameter_mm + second.diameter_mm)
+    {
+        return Err(Error::Degenerate(format!(
+            "ball bar: the two spheres found overlap (centres {:.3} mm apart, diameters \
+             {:.3} and {:.3} mm): the scan does not show two separate spheres",
+            (second.center_mm - first.center_mm).norm(),
+            first.diameter_mm,
+            second.diameter_mm
+        )));
+    }
+    // The first sphere's own points only (so the second's do not pull it).
+    let own: Vec<usize> = (0..points.len())
+        .filter(|&i| near(&points.points_mm[i]))
+        .collect();
+    let mine = subset(points, &own);
+    let first = fit_sphere(&mine.points_mm, &opts.fit)?;
+    let a = sphere_report(&mut frames, model, readings, &mine, first, opts)?;
+    let b = sphere_report(&mut frames, model, readings, &rest, second, opts)?;
+    let (distance, _) = sphere_distance(&a.measurement, &b.measurement, model.covariance());
+    Ok(BallBarReport {
+        spheres: [a, b],
+        distance,
+    })
+}
+
+/// Measures the plane in `points`.
+pub fn measure_scan_plane(
+    model: &UncertaintyModel,
+    readings: &[RobotReading],
+    points: &ScanPoints,
+    opts: &MeasureOptions,
+) -> Result<PlaneReport> {
+    let mut frames = ScanFrames::new(model, readings);
+    let fit = fit_plane(&points.points_mm, &opts.fit)?;
+    let measurement = measure_plane(&mut frames, points, &points.points_mm, &fit)?;
+    Ok(PlaneReport { fit, measurement })
+}
+
+/// The points `idx` of a set (same frames, pixels and properties).
+fn subset(p: &ScanPoints, idx: &[usize]) -> ScanPoints {
+    ScanPoints {
+        points_mm: idx.iter().map(|&i| p.points_mm[i]).collect(),
+        frame: idx.iter().map(|&i| p.frame[i]).collect(),
+        u_px: idx.iter().map(|&i| p.u_px[i]).collect(),
+        v_px: idx.iter().map(|&i| p.v_px[i]).collect(),
+        intensity: idx.iter().map(|&i| p.intensity[i]).collect(),
+        width_px: idx.iter().map(|&i| p.width_px[i]).collect(),
+        flags: idx.iter().map(|&i| p.flags[i]).collect(),
+        covariance_mm2: if p.covariance_mm2.len() == p.len() {
+            idx.iter().map(|&i| p.covariance_mm2[i]).collect()
+        } else {
+            vec![]
+        },
+        dropped: p.dropped,
+        skipped: p.skipped.clone(),
+    }
+}
+
+/// The curved-surface stripe bias correction of a sphere fit: the corrected fit, the
+/// corrected coordinates, the systematic part it leaves and what it did.
+fn correct_bias(
+    _model: &UncertaintyModel,
+    _readings: &[RobotReading],
+    points: &ScanPoints,
+    fit: SphereFitResult,
+    _opts: &FitOptions,
+) -> Result<(SphereFitResult, Vec<[f64; 3]>, SphereSystematic, BiasInfo)> {
+    // INTEGRATION POINT (issue 15): replaced by the stripe-bias model when it lands.
+    let info = BiasInfo {
+        sheet_sigma_mm: f64::NAN,
+        diameter_change_mm: 0.0,
+    };
+    Ok((
+        fit,
+        points.points_mm.clone(),
+        SphereSystematic::default(),
+        info,
+    ))
+}
+
+/// A budget as JSON: `value_mm`, `expanded_mm` (the headline, `k` = 2), `k`,
+/// `combined_mm` and the parts `random_mm`, `calibration_mm`, `robot_mm`,
+/// `systematic_mm` (standard uncertainties).
+pub fn budget_to_json(b: &Budget) -> Value {
+    json!({"value_mm": b.value, "expanded_mm": b.expanded, "k": b.k, "combined_mm": b.combined,
+           "random_mm": b.random, "calibration_mm": b.calibration, "robot_mm": b.robot,
+           "systematic_mm": b.systematic})
+}
+
+impl SphereReport {
+    /// The spec's sphere-fit record of the final fit plus `uncertainty` (the budgets of
+    /// `diameter`, `center` [x, y, z] and `form`) and `stripe_bias`
+    /// (`sheet_sigma_mm`, `diameter_change_mm`; null without the correction).
+    pub fn to_json(&self) -> Value {
+        let m = &self.measurement;
+        let bias = match &self.bias {
+            Some(b) => json!({"sheet_sigma_mm": b.sheet_sigma_mm,
+                              "diameter_change_mm": b.diameter_change_mm}),
+            None => Value::Null,
+        };
+        let c = self.fit.center_mm;
+        json!({"diameter_mm": self.fit.diameter_mm, "center_mm": [c.x, c.y, c.z],
+               "rms_mm": self.fit.rms_mm, "points": self.fit.points, "outliers": self.fit.outliers,
+               "uncertainty": {"diameter": budget_to_json(&m.diameter),
+                               "center": m.center.iter().map(budget_to_json).collect::<Vec<_>>(),
+                               "form": budget_to_json(&m.form)},
+               "stripe_bias": bias})
+    }
+}
+
+impl PlaneReport {
+    /// The plane (`normal`, `d_mm`), `rms_mm`, `flatness_mm`, `points`, `outliers` and
+    /// `uncertainty` (budgets of `flatness`, `offset` and the two `tilt_deg`).
+    pub fn to_json(&self) -> Value {
+        let n = self.fit.plane.normal;
+        let m = &self.measurement;
+        json!({"normal": [n.x, n.y, n.z], "d_mm": self.fit.plane.d, "rms_mm": self.fit.rms_mm,
+               "flatness_mm": self.fit.flatness_mm, "points": self.fit.points,
+               "outliers": self.fit.outliers,
+               "uncertainty": {"flatness": budget_to_json(&m.flatness),
+                               "offset": budget_to_json(&m.offset),
+                               "tilt_deg": m.tilt_deg.iter().map(budget_to_json).collect::<Vec<_>>()}})
+    }
+}
+
+impl BallBarReport {
+    /// Both spheres ([`SphereReport::to_json`]) and the `distance` budget.
+    pub fn to_json(&self) -> Value {
+        json!({"spheres": [self.spheres[0].to_json(), self.spheres[1].to_json()],
+               "distance": budget_to_json(&self.distance)})
+    }
+}
