@@ -9,15 +9,24 @@
 //!   rendered 768 x 576 ball-scan frame of the `hp3-paper` twin (the middle of the
 //!   sweep) with the reusable [`Reconstructor`]. Throughput in frames.
 //!
+//! - `covariance_*`: the per-point 3x3 covariance ([`UncertaintyModel`]) of the same
+//!   stripe-like pixels, one frame map per 576 points included: the calibration's
+//!   covariance over the camera, plane and hand-eye numbers (`_rigid`, 19 numbers) and
+//!   with every DH number of a fully calibrated robot too (`_robot`, 49 numbers),
+//!   stripe noise and encoder figures. Throughput in points.
+//!
 //! Run: `cargo bench -p stripecal-benches --bench reconstruct`; figures go to
 //! BENCHMARKS.md ("Reconstruction").
 
 use criterion::{criterion_group, criterion_main, Criterion, Throughput};
 use std::hint::black_box;
 
-use stripecal::model::Calibration;
+use nalgebra::DMatrix;
+use stripecal::calib::joint::{DhKind, DhParam};
+use stripecal::model::{Calibration, NamedCovariance, RobotReading};
 use stripecal::reconstruct::{
-    ReconstructOptions, Reconstructor, ScanPoints, Triangulator, DEFAULT_MIN_RAY_PLANE_ANGLE_DEG,
+    ReconstructOptions, Reconstructor, ScanPoints, Triangulator, UncertaintyModel,
+    UncertaintyOptions, DEFAULT_MIN_RAY_PLANE_ANGLE_DEG,
 };
 use stripecal_sim::{SimConfig, Twin};
 
@@ -106,5 +115,77 @@ fn frames(c: &mut Criterion) {
     g.finish();
 }
 
-criterion_group!(benches, triangulation, frames);
+criterion_group!(benches, triangulation, frames, covariance);
 criterion_main!(benches);
+
+/// A calibration with a dense covariance over `names` (a correlated matrix of
+/// plausible one-sigmas: the speed does not depend on the values).
+fn with_covariance(mut cal: Calibration, robot: bool) -> Calibration {
+    let mut names: Vec<String> = ["fu", "fv", "u0", "v0"]
+        .iter()
+        .map(|n| format!("camera.{n}"))
+        .collect();
+    names.extend((0..5).map(|k| format!("camera.distortion[{k}]")));
+    names.extend((0..3).map(|k| format!("laser_plane.normal[{k}]")));
+    names.push("laser_plane.d_mm".into());
+    names.extend((0..3).map(|k| format!("hand_cam.rotation_vector[{k}]")));
+    names.extend((0..3).map(|k| format!("hand_cam.translation_mm[{k}]")));
+    if robot {
+        for joint in 0..6 {
+            for kind in [
+                DhKind::Theta0,
+                DhKind::D,
+                DhKind::A,
+                DhKind::Alpha,
+                DhKind::Beta,
+            ] {
+                names.push(DhParam { joint, kind }.name());
+            }
+        }
+    }
+    let n = names.len();
+    let matrix = DMatrix::from_fn(n, n, |r, c| {
+        let s = 1e-3 * (1.0 + (r % 7) as f64);
+        if r == c {
+            s * s
+        } else {
+            0.1 * s * 1e-3 * (1.0 + (c % 7) as f64) / (1.0 + (r as f64 - c as f64).abs())
+        }
+    });
+    cal.covariance = Some(NamedCovariance {
+        parameters: names,
+        matrix,
+    });
+    cal
+}
+
+fn covariance(c: &mut Criterion) {
+    let paper = Twin::new(SimConfig::hp3_paper()).unwrap();
+    let q = paper.cfg.poses.home_q_deg.clone();
+    let reading = RobotReading::Joints(q);
+    let mut g = c.benchmark_group("reconstruct");
+    for (name, robot) in [("covariance_rigid", false), ("covariance_robot", true)] {
+        let cal = with_covariance(paper.true_calibration(), robot);
+        let opts = UncertaintyOptions {
+            stripe_sigma_px: Some(0.05),
+            encoder_sigma_deg: Some(0.001),
+            ..Default::default()
+        };
+        let model = UncertaintyModel::new(&cal, &opts).unwrap();
+        let uv = stripe_pixels(&cal, 200);
+        let per_frame = cal.camera.height as usize;
+        let mut out = vec![[0.0; 6]; uv.len()];
+        g.throughput(Throughput::Elements(uv.len() as u64));
+        g.bench_function(name, |b| {
+            b.iter(|| {
+                for (chunk, dst) in uv.chunks(per_frame).zip(out.chunks_mut(per_frame)) {
+                    let frame = model.frame(black_box(&reading)).unwrap();
+                    frame.point_covariances(chunk.iter().map(|p| (p[0], p[1])), dst);
+                }
+                black_box(out[0][0])
+            })
+        });
+        assert!(out.iter().all(|c| c[0].is_finite() && c[0] > 0.0));
+    }
+    g.finish();
+}

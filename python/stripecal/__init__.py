@@ -100,9 +100,13 @@ from stripecal.reconstruction import (
     SphereFit,
     fit_plane,
     fit_sphere,
+    measure_ball_bar,
+    measure_plane,
+    measure_sphere,
     reconstruct,
     reconstruct_scan,
     triangulate,
+    verify,
 )
 from stripecal import calib, errors, io, model, reconstruction, sim, types, vision
 
@@ -150,6 +154,9 @@ __all__ = [
     "load_truth",
     "matrix_to_pose",
     "matrix_to_rotvec",
+    "measure_ball_bar",
+    "measure_plane",
+    "measure_sphere",
     "nearest_rotation",
     "plan_poses",
     "pose_to_matrix",
@@ -166,5 +173,6 @@ __all__ = [
     "solve_axzb",
     "solve_axzb_full",
     "triangulate",
+    "verify",
     "write_ply",
 ]

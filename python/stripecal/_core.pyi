@@ -13,6 +13,7 @@ import numpy.typing as npt
 # The records of the dicts the extension returns (real TypedDicts, at run time too).
 from stripecal.types import (
     AxzbSolution,
+    BallBarMeasurement,
     BoardScaleCheck,
     CalibrationExtra,
     CalibrationExtraInput,
@@ -26,6 +27,7 @@ from stripecal.types import (
     DatasetView,
     LaserPlaneFit,
     LeaveOneOut,
+    PlaneMeasurement,
     PlyCloud,
     PosePlan,
     QualityCheck,
@@ -36,8 +38,10 @@ from stripecal.types import (
     SphereFitExtra,
     SphereFitExtraInput,
     SphereInput,
+    SphereMeasurement,
     SphereTruth,
     TwinSummary,
+    VerifyReport,
     ViewRender,
 )
 
@@ -88,6 +92,9 @@ __all__ = [
     "load_truth",
     "matrix_to_pose",
     "matrix_to_rotvec",
+    "measure_ball_bar",
+    "measure_plane",
+    "measure_sphere",
     "nearest_rotation",
     "plan_poses",
     "pose_to_matrix",
@@ -106,6 +113,7 @@ __all__ = [
     "solve_axzb",
     "solve_axzb_full",
     "triangulate",
+    "verify",
     "write_ply",
 ]
 
@@ -522,6 +530,8 @@ class Stripe:
     @property
     def width(self) -> _F64: ...
     @property
+    def covariance(self) -> Optional[_F64]: ...
+    @property
     def flags(self) -> npt.NDArray[np.uint8]: ...
     @property
     def edge(self) -> npt.NDArray[np.bool_]: ...
@@ -728,7 +738,59 @@ def reconstruct_scan(
     drop_flags: int = 0,
     progress: Optional[Callable[[int, int, int], Any]] = None,
     on_bad_image: str = "stop",
+    covariance: bool = False,
+    stripe_sigma_px: Optional[float] = None,
+    repeatability_mm: Optional[float] = None,
+    encoder_sigma_deg: Optional[float] = None,
 ) -> Cloud: ...
+def measure_sphere(
+    calibration: Calibration,
+    scan_dir: _Path,
+    *,
+    cloud: Optional[Cloud] = None,
+    diameter_range_mm: Optional[Tuple[float, float]] = None,
+    correct_bias: bool = True,
+    calibration_part: bool = True,
+    stripe_sigma_px: Optional[float] = None,
+    repeatability_mm: Optional[float] = None,
+    encoder_sigma_deg: Optional[float] = None,
+    trim_sigma: float = 3.0,
+) -> SphereMeasurement: ...
+def measure_ball_bar(
+    calibration: Calibration,
+    scan_dir: _Path,
+    *,
+    cloud: Optional[Cloud] = None,
+    diameter_range_mm: Optional[Tuple[float, float]] = None,
+    correct_bias: bool = True,
+    calibration_part: bool = True,
+    stripe_sigma_px: Optional[float] = None,
+    repeatability_mm: Optional[float] = None,
+    encoder_sigma_deg: Optional[float] = None,
+    trim_sigma: float = 3.0,
+) -> BallBarMeasurement: ...
+def measure_plane(
+    calibration: Calibration,
+    scan_dir: _Path,
+    *,
+    cloud: Optional[Cloud] = None,
+    calibration_part: bool = True,
+    stripe_sigma_px: Optional[float] = None,
+    repeatability_mm: Optional[float] = None,
+    encoder_sigma_deg: Optional[float] = None,
+    trim_sigma: float = 3.0,
+) -> PlaneMeasurement: ...
+def verify(
+    calibration: Calibration,
+    folder: _Path,
+    *,
+    artefacts: Optional[_Path] = None,
+    correct_bias: bool = True,
+    stripe_sigma_px: Optional[float] = None,
+    repeatability_mm: Optional[float] = None,
+    encoder_sigma_deg: Optional[float] = None,
+    progress: Optional[Callable[[str, int, int], Any]] = None,
+) -> VerifyReport: ...
 def triangulate(
     calibration: Calibration, uv: npt.ArrayLike, base_hand: npt.ArrayLike
 ) -> Tuple[_F64, npt.NDArray[np.int64]]: ...

@@ -822,3 +822,159 @@ class SphereFitExtra(TypedDict, total=False):
 SphereFitExtraInput = Union[SphereFitExtra, Dict[str, object]]
 """What ``SphereFit(extra=...)`` accepts: the record or any dict of JSON-like values."""
 
+
+
+class Budget(TypedDict):
+    """A GUM uncertainty budget of one measured quantity (mm, or degrees for tilts):
+    standard uncertainties per part, combined in quadrature, expanded with ``k`` = 2."""
+
+    value_mm: float
+    """The measured value (or error, for the characteristics of ``verify``)."""
+    expanded_mm: float
+    """Expanded uncertainty ``U = k * combined``: the headline."""
+    k: float
+    """Coverage factor (2)."""
+    combined_mm: float
+    """Combined standard uncertainty."""
+    random_mm: float
+    """The fit's own scatter (stripe noise and whatever scatters point to point)."""
+    calibration_mm: float
+    """The calibration's covariance carried through every point (shared by all points:
+    it does not average out)."""
+    robot_mm: float
+    """The robot's repeatability / encoder figures (shared within a frame)."""
+    systematic_mm: float
+    """Documented systematic components (the stripe-bias model's remainder, a
+    certificate's uncertainty)."""
+
+
+class SphereBudgets(TypedDict):
+    """The budgets of a measured sphere."""
+
+    diameter: Budget
+    """Diameter, mm."""
+    center: List[Budget]
+    """Centre x, y, z (base frame), mm."""
+    form: Budget
+    """Probing form: range of the radial residuals, mm."""
+
+
+class StripeBiasInfo(TypedDict):
+    """What the curved-surface stripe-bias correction did."""
+
+    sheet_sigma_mm: float
+    """The laser sheet's Gaussian sigma estimated from the stripe's width, mm."""
+    diameter_change_mm: float
+    """Diameter after minus before the correction, mm."""
+
+
+class SphereMeasurement(TypedDict):
+    """A sphere measured with budgets (``measure_sphere``): the sphere-fit record of
+    spec/DATASET.md plus ``uncertainty`` and ``stripe_bias``."""
+
+    diameter_mm: float
+    """Diameter, mm (after the bias correction)."""
+    center_mm: List[float]
+    """Centre (3,), base frame, mm."""
+    rms_mm: float
+    """RMS of the radial residuals of the inliers, mm."""
+    points: int
+    """Inliers used."""
+    outliers: int
+    """Points trimmed."""
+    uncertainty: SphereBudgets
+    """The budgets."""
+    stripe_bias: Optional[StripeBiasInfo]
+    """``None`` when the correction was not asked for."""
+
+
+class BallBarMeasurement(TypedDict):
+    """A ball bar measured with budgets (``measure_ball_bar``)."""
+
+    spheres: List[SphereMeasurement]
+    """Both spheres."""
+    distance: Budget
+    """Their centres' distance, mm."""
+
+
+class PlaneBudgets(TypedDict):
+    """The budgets of a measured plane."""
+
+    flatness: Budget
+    """Range of the residuals, mm."""
+    offset: Budget
+    """Offset along the normal (value: ``d_mm``), mm."""
+    tilt_deg: List[Budget]
+    """The normal's tilts about the two in-plane axes, degrees (value 0)."""
+
+
+class PlaneMeasurement(TypedDict):
+    """A plane measured with budgets (``measure_plane``)."""
+
+    normal: List[float]
+    """Unit normal (3,), base frame."""
+    d_mm: float
+    """``normal . p = d_mm``."""
+    rms_mm: float
+    """RMS of the residuals, mm."""
+    flatness_mm: float
+    """Range of the inliers' residuals, mm."""
+    points: int
+    """Inliers used."""
+    outliers: int
+    """Points trimmed."""
+    uncertainty: PlaneBudgets
+    """The budgets."""
+
+
+class VerifyRow(TypedDict):
+    """One measured value of an acceptance-test characteristic."""
+
+    characteristic: str
+    """``probing_form``, ``probing_size``, ``sphere_spacing`` or ``flatness``."""
+    symbol: str
+    """``PF``, ``PS``, ``SD`` or ``F``."""
+    scan: str
+    """The scan folder (as in verify.csv)."""
+    artefact: str
+    """What was measured (``bar/A``, ``bar``, ``plate``)."""
+    mpe_mm: float
+    """The maximum permissible error (artefacts.json)."""
+    passed: bool
+    """``|value| <= MPE``."""
+    conforms: bool
+    """``|value| + U <= MPE`` (ISO 14253-1: conformity proven)."""
+    budget: Budget
+    """The value (an error, or a form) with its budget."""
+
+
+class VerifySummary(TypedDict):
+    """A characteristic over all its measurements."""
+
+    symbol: str
+    """``PF``, ``PS``, ``SD`` or ``F``."""
+    worst_mm: float
+    """The value of largest magnitude, mm."""
+    expanded_mm: float
+    """Its expanded uncertainty (k = 2), mm."""
+    mpe_mm: float
+    """The maximum permissible error, mm."""
+    measurements: int
+    """How many values."""
+    passed: bool
+    """Every value within the MPE."""
+    conforms: bool
+    """Every value within the MPE by more than its U."""
+
+
+class VerifyReport(TypedDict):
+    """The VDI/VDE 2634-2 style acceptance test (``verify``): ``stripecal/verify@1``."""
+
+    format: str
+    """``stripecal/verify@1``."""
+    passed: bool
+    """Every measured value within its MPE."""
+    summary: Dict[str, VerifySummary]
+    """Per characteristic key (``probing_form``, ...), those measured."""
+    rows: List[VerifyRow]
+    """Every measured value, in manifest order."""

@@ -13,6 +13,7 @@ mod errors;
 mod files;
 mod geometry;
 mod imageview;
+mod measure_py;
 mod plan_py;
 mod poses;
 mod reconstruct_py;
@@ -102,5 +103,9 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(reconstruct_py::triangulate, m)?)?;
     m.add_function(wrap_pyfunction!(reconstruct_py::fit_sphere, m)?)?;
     m.add_function(wrap_pyfunction!(reconstruct_py::fit_plane, m)?)?;
+    m.add_function(wrap_pyfunction!(measure_py::measure_sphere, m)?)?;
+    m.add_function(wrap_pyfunction!(measure_py::measure_ball_bar, m)?)?;
+    m.add_function(wrap_pyfunction!(measure_py::measure_plane, m)?)?;
+    m.add_function(wrap_pyfunction!(measure_py::verify, m)?)?;
     Ok(())
 }

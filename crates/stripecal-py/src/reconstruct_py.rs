@@ -13,8 +13,10 @@ use pyo3::types::{PyDict, PyList, PySequence};
 use stripecal::io::{write_ply_with_comments, PlyFormat};
 use stripecal::model::image::AnyGray;
 use stripecal::model::RobotReading;
+use stripecal::pipeline::measure::{scan_readings, scan_uncertainty_model};
 use stripecal::reconstruct::{
     self as core, BadImage, FitOptions, PlaneFit, ReconstructOptions, ScanPoints,
+    UncertaintyOptions,
 };
 use stripecal::vision::stripe::StripeDirection;
 
@@ -71,6 +73,21 @@ impl PyCloud {
     fn width<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
         let w = &self.inner.width_px;
         nd(py, &[w.len()], w.iter().map(|&x| x as f64).collect())
+    }
+
+    /// `(M, 3, 3)` float64: each point's covariance in the base frame, mm^2 (`None` unless
+    /// the scan was reconstructed with `covariance=True`).
+    #[getter]
+    fn covariance<'py>(&self, py: Python<'py>) -> PyResult<Option<Bound<'py, PyAny>>> {
+        let c = &self.inner.covariance_mm2;
+        if c.is_empty() || c.len() != self.inner.len() {
+            return Ok(None);
+        }
+        let data = c
+            .iter()
+            .flat_map(|v| [v[0], v[1], v[2], v[1], v[3], v[4], v[2], v[4], v[5]])
+            .collect();
+        nd(py, &[c.len(), 3, 3], data).map(Some)
     }
 
     /// `(M,)` uint8: the stripe point's flag bits (`Stripe.SATURATED`, ...).
@@ -257,8 +274,14 @@ pub fn reconstruct(
 /// (or an exception raised by `progress`) stops it there and propagates
 /// (`KeyboardInterrupt`); nothing is returned. The GIL is released while frames are
 /// processed.
+///
+/// `covariance=True` also computes each point's 3x3 covariance in the base frame
+/// (`Cloud.covariance`, (M, 3, 3) mm^2) from the calibration's covariance, the stripe's
+/// noise (`stripe_sigma_px`; default the calibration's `quality.stripe_rms_px`) and the
+/// robot's figures (`repeatability_mm`, `encoder_sigma_deg`; default those of the
+/// calibration's robot, if any).
 #[pyfunction]
-#[pyo3(signature = (calibration, scan_dir, direction = "auto", min_ray_plane_angle_deg = 2.0, drop_flags = 0, progress = None, on_bad_image = "stop"))]
+#[pyo3(signature = (calibration, scan_dir, direction = "auto", min_ray_plane_angle_deg = 2.0, drop_flags = 0, progress = None, on_bad_image = "stop", covariance = false, stripe_sigma_px = None, repeatability_mm = None, encoder_sigma_deg = None))]
 #[allow(clippy::too_many_arguments)]
 pub fn reconstruct_scan(
     py: Python<'_>,
@@ -269,7 +292,17 @@ pub fn reconstruct_scan(
     drop_flags: u8,
     progress: Option<Py<PyAny>>,
     on_bad_image: &str,
+    covariance: bool,
+    stripe_sigma_px: Option<f64>,
+    repeatability_mm: Option<f64>,
+    encoder_sigma_deg: Option<f64>,
 ) -> PyResult<PyCloud> {
+    let unc = UncertaintyOptions {
+        stripe_sigma_px,
+        repeatability_mm,
+        encoder_sigma_deg,
+        ..Default::default()
+    };
     let mut opts = options(py, direction, min_ray_plane_angle_deg, drop_flags)?;
     opts.on_bad_image = BadImage::from_name(on_bad_image).py_err(py)?;
     let cal = &calibration.get().inner;
@@ -293,7 +326,12 @@ pub fn reconstruct_scan(
                 }
             })
         };
-        core::reconstruct_scan(cal, &scan, &opts, &mut cb)
+        let mut points = core::reconstruct_scan(cal, &scan, &opts, &mut cb)?;
+        if covariance {
+            let model = scan_uncertainty_model(cal, &scan, &unc)?;
+            points.covariance_mm2 = model.scan_covariances(&scan_readings(&scan), &points)?;
+        }
+        Ok(points)
     });
     if let Some(e) = cb_err {
         return Err(e);

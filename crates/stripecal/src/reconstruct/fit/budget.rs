@@ -104,7 +104,7 @@ impl LinearForm {
     /// The budget of a quantity of value `value` with this form, the calibration's
     /// covariance `cov` (over the same numbers).
     pub fn budget(&self, value: f64, cov: &DMatrix<f64>) -> Budget {
-        let ss = |m: &BTreeMap<Source, f64>| m.values().map(|v| v * v).sum::<f64>().sqrt();
+        let ss = |m: &BTreeMap<Source, f64>| m.values().fold(0.0, |a, v| a + v * v).sqrt();
         let calibration = if self.calibration.is_empty() || cov.is_empty() {
             0.0
         } else {

@@ -79,27 +79,54 @@ pub fn point_covariances(
     points: &ScanPoints,
     opts: &UncertaintyOptions,
 ) -> Result<Vec<[f64; 6]>> {
-    let model = UncertaintyModel::new(calibration, opts)?;
-    let mut out = vec![[0.0; 6]; points.len()];
-    let mut start = 0;
-    while start < points.len() {
-        let f = points.frame[start];
-        let mut end = start;
-        while end < points.len() && points.frame[end] == f {
-            end += 1;
+    UncertaintyModel::new(calibration, opts)?.scan_covariances(readings, points)
+}
+
+impl UncertaintyModel {
+    /// [`point_covariances`] with this model: one frame map per run of points of the
+    /// same frame, the runs in parallel.
+    pub fn scan_covariances(
+        &self,
+        readings: &[RobotReading],
+        points: &ScanPoints,
+    ) -> Result<Vec<[f64; 6]>> {
+        use rayon::prelude::*;
+        let n = points.len();
+        let mut runs = Vec::new();
+        let mut start = 0;
+        while start < n {
+            let f = points.frame[start];
+            let mut end = start;
+            while end < n && points.frame[end] == f {
+                end += 1;
+            }
+            runs.push((start, end, f));
+            start = end;
         }
-        let reading = readings.get(f as usize).ok_or_else(|| {
-            crate::Error::InvalidInput(format!(
-                "point {start} is of frame {f}, but only {} frame readings were given",
-                readings.len()
-            ))
-        })?;
-        let fu = model.frame(reading)?;
-        let uv = (start..end).map(|i| (points.u_px[i], points.v_px[i]));
-        fu.point_covariances(uv, &mut out[start..end]);
-        start = end;
+        let mut out = vec![[0.0; 6]; n];
+        let mut slices = Vec::with_capacity(runs.len());
+        let mut rest: &mut [[f64; 6]] = &mut out;
+        for &(s, e, _) in &runs {
+            let (a, b) = rest.split_at_mut(e - s);
+            slices.push(a);
+            rest = b;
+        }
+        runs.par_iter().zip(slices.into_par_iter()).try_for_each(
+            |(&(s, e, f), dst)| -> Result<()> {
+                let reading = readings.get(f as usize).ok_or_else(|| {
+                    crate::Error::InvalidInput(format!(
+                        "point {s} is of frame {f}, but only {} frame readings were given",
+                        readings.len()
+                    ))
+                })?;
+                let fu = self.frame(reading)?;
+                let uv = (s..e).map(|i| (points.u_px[i], points.v_px[i]));
+                fu.point_covariances(uv, dst);
+                Ok(())
+            },
+        )?;
+        Ok(out)
     }
-    Ok(out)
 }
 
 #[cfg(test)]

@@ -1,0 +1,270 @@
+//! `stripecal.measure_sphere`, `stripecal.measure_ball_bar`, `stripecal.measure_plane`,
+//! `stripecal.verify`: measurements of a scan with their GUM budgets and the VDI/VDE
+//! 2634-2 acceptance test. Conversions only (the core's JSON records as dicts); the GIL
+//! is released while Rust works.
+
+use std::ops::ControlFlow;
+use std::path::PathBuf;
+
+use pyo3::prelude::*;
+
+use serde_json::Value;
+use stripecal::pipeline::measure::{
+    measure_scan_ball_bar, measure_scan_plane, measure_scan_sphere, scan_readings,
+    scan_uncertainty_model, MeasureOptions,
+};
+use stripecal::pipeline::verify::{verify as core_verify, VerifyOptions};
+use stripecal::reconstruct::{load_scan, reconstruct_scan, ReconstructOptions, UncertaintyOptions};
+use stripecal::{Error, Result};
+
+use crate::convert::json_to_py;
+use crate::errors::{invalid_input, ResultExt};
+use crate::reconstruct_py::PyCloud;
+use crate::results::PyCalibration;
+
+/// Which shape to measure.
+#[derive(Clone, Copy)]
+enum Shape {
+    Sphere,
+    BallBar,
+    Plane,
+}
+
+#[allow(clippy::too_many_arguments)]
+fn options(
+    py: Python<'_>,
+    diameter_range_mm: Option<(f64, f64)>,
+    correct_bias: bool,
+    calibration_part: bool,
+    stripe_sigma_px: Option<f64>,
+    repeatability_mm: Option<f64>,
+    encoder_sigma_deg: Option<f64>,
+    trim_sigma: f64,
+) -> PyResult<MeasureOptions> {
+    if !trim_sigma.is_finite() {
+        return Err(invalid_input(py, "trim_sigma must be finite"));
+    }
+    let mut o = MeasureOptions {
+        uncertainty: UncertaintyOptions {
+            calibration: calibration_part,
+            stripe_sigma_px,
+            repeatability_mm,
+            encoder_sigma_deg,
+            ..Default::default()
+        },
+        correct_bias,
+        ..Default::default()
+    };
+    o.fit.trim_sigma = trim_sigma;
+    o.fit.diameter_range_mm = diameter_range_mm.map(|(a, b)| [a, b]);
+    Ok(o)
+}
+
+#[allow(clippy::too_many_arguments)]
+fn measure(
+    py: Python<'_>,
+    shape: Shape,
+    calibration: &Bound<'_, PyCalibration>,
+    scan_dir: PathBuf,
+    cloud: Option<&Bound<'_, PyCloud>>,
+    opts: MeasureOptions,
+) -> PyResult<Py<PyAny>> {
+    let cal = &calibration.get().inner;
+    let given = cloud.map(|c| c.get().inner.clone());
+    let v: Value = py
+        .detach(|| -> Result<Value> {
+            let scan = load_scan(&scan_dir, cal)?;
+            let points = match given {
+                Some(p) => p,
+                None => reconstruct_scan(
+                    cal,
+                    &scan,
+                    &ReconstructOptions::default(),
+                    &mut |_, _, _| ControlFlow::Continue(()),
+                )?,
+            };
+            if let Some(&f) = points
+                .frame
+                .iter()
+                .find(|&&f| f as usize >= scan.frames.len())
+            {
+                return Err(Error::InvalidInput(format!(
+                    "the cloud has points of frame {f}, but the scan has {} frames: it is not this \
+                     scan's cloud",
+                    scan.frames.len()
+                )));
+            }
+            let model = scan_uncertainty_model(cal, &scan, &opts.uncertainty)?;
+            let readings = scan_readings(&scan);
+            Ok(match shape {
+                Shape::Sphere => measure_scan_sphere(&model, &readings, &points, &opts)?.to_json(),
+                Shape::BallBar => {
+                    measure_scan_ball_bar(&model, &readings, &points, &opts)?.to_json()
+                }
+                Shape::Plane => measure_scan_plane(&model, &readings, &points, &opts)?.to_json(),
+            })
+        })
+        .py_err(py)?;
+    Ok(json_to_py(py, &v)?.unbind())
+}
+
+/// Measures the sphere in a scan (reconstructed here, or `cloud`, the scan's
+/// reconstruction) with GUM budgets: the fit (robust start, `trim_sigma` trimming,
+/// `diameter_range_mm`), corrected for the curved-surface stripe bias
+/// (`correct_bias`), and for the diameter, each centre coordinate and the probing form
+/// the standard uncertainties `random_mm`, `calibration_mm` (the calibration's
+/// covariance through every point; `calibration_part=False` leaves it out),
+/// `robot_mm` (`repeatability_mm`, `encoder_sigma_deg`, default the calibration's
+/// robot figures), `systematic_mm`, combined, and `expanded_mm` (k = 2): the
+/// headline.
+#[pyfunction]
+#[pyo3(signature = (calibration, scan_dir, *, cloud = None, diameter_range_mm = None, correct_bias = true, calibration_part = true, stripe_sigma_px = None, repeatability_mm = None, encoder_sigma_deg = None, trim_sigma = 3.0))]
+#[allow(clippy::too_many_arguments)]
+pub fn measure_sphere(
+    py: Python<'_>,
+    calibration: &Bound<'_, PyCalibration>,
+    scan_dir: PathBuf,
+    cloud: Option<&Bound<'_, PyCloud>>,
+    diameter_range_mm: Option<(f64, f64)>,
+    correct_bias: bool,
+    calibration_part: bool,
+    stripe_sigma_px: Option<f64>,
+    repeatability_mm: Option<f64>,
+    encoder_sigma_deg: Option<f64>,
+    trim_sigma: f64,
+) -> PyResult<Py<PyAny>> {
+    let o = options(
+        py,
+        diameter_range_mm,
+        correct_bias,
+        calibration_part,
+        stripe_sigma_px,
+        repeatability_mm,
+        encoder_sigma_deg,
+        trim_sigma,
+    )?;
+    measure(py, Shape::Sphere, calibration, scan_dir, cloud, o)
+}
+
+/// Measures a ball bar's two spheres in a scan and their centres' distance, each with
+/// its budget (as `measure_sphere`; the distance's calibration and robot parts are
+/// correlated between the spheres as the chain says).
+#[pyfunction]
+#[pyo3(signature = (calibration, scan_dir, *, cloud = None, diameter_range_mm = None, correct_bias = true, calibration_part = true, stripe_sigma_px = None, repeatability_mm = None, encoder_sigma_deg = None, trim_sigma = 3.0))]
+#[allow(clippy::too_many_arguments)]
+pub fn measure_ball_bar(
+    py: Python<'_>,
+    calibration: &Bound<'_, PyCalibration>,
+    scan_dir: PathBuf,
+    cloud: Option<&Bound<'_, PyCloud>>,
+    diameter_range_mm: Option<(f64, f64)>,
+    correct_bias: bool,
+    calibration_part: bool,
+    stripe_sigma_px: Option<f64>,
+    repeatability_mm: Option<f64>,
+    encoder_sigma_deg: Option<f64>,
+    trim_sigma: f64,
+) -> PyResult<Py<PyAny>> {
+    let o = options(
+        py,
+        diameter_range_mm,
+        correct_bias,
+        calibration_part,
+        stripe_sigma_px,
+        repeatability_mm,
+        encoder_sigma_deg,
+        trim_sigma,
+    )?;
+    measure(py, Shape::BallBar, calibration, scan_dir, cloud, o)
+}
+
+/// Measures the plane in a scan: flatness, offset and tilts with their budgets.
+#[pyfunction]
+#[pyo3(signature = (calibration, scan_dir, *, cloud = None, calibration_part = true, stripe_sigma_px = None, repeatability_mm = None, encoder_sigma_deg = None, trim_sigma = 3.0))]
+#[allow(clippy::too_many_arguments)]
+pub fn measure_plane(
+    py: Python<'_>,
+    calibration: &Bound<'_, PyCalibration>,
+    scan_dir: PathBuf,
+    cloud: Option<&Bound<'_, PyCloud>>,
+    calibration_part: bool,
+    stripe_sigma_px: Option<f64>,
+    repeatability_mm: Option<f64>,
+    encoder_sigma_deg: Option<f64>,
+    trim_sigma: f64,
+) -> PyResult<Py<PyAny>> {
+    let o = options(
+        py,
+        None,
+        false,
+        calibration_part,
+        stripe_sigma_px,
+        repeatability_mm,
+        encoder_sigma_deg,
+        trim_sigma,
+    )?;
+    measure(py, Shape::Plane, calibration, scan_dir, cloud, o)
+}
+
+/// The VDI/VDE 2634-2 style acceptance test on a folder holding `artefacts.json` (or
+/// `artefacts`), the manifest `verify.csv` (`scan,artefact`) and the scans: probing
+/// error form and size, sphere-spacing error and flatness measurement error per
+/// measurement with expanded uncertainties, against the MPEs; returns the report
+/// (`format` "stripecal/verify@1", `passed`, `summary`, `rows`).
+/// `progress(stage, done, total)` is called per chunk of frames; an exception raised
+/// by it (or Ctrl-C) stops the run.
+#[pyfunction]
+#[pyo3(signature = (calibration, folder, *, artefacts = None, correct_bias = true, stripe_sigma_px = None, repeatability_mm = None, encoder_sigma_deg = None, progress = None))]
+#[allow(clippy::too_many_arguments)]
+pub fn verify(
+    py: Python<'_>,
+    calibration: &Bound<'_, PyCalibration>,
+    folder: PathBuf,
+    artefacts: Option<PathBuf>,
+    correct_bias: bool,
+    stripe_sigma_px: Option<f64>,
+    repeatability_mm: Option<f64>,
+    encoder_sigma_deg: Option<f64>,
+    progress: Option<Py<PyAny>>,
+) -> PyResult<Py<PyAny>> {
+    let cal = &calibration.get().inner;
+    let opts = VerifyOptions {
+        measure: options(
+            py,
+            None,
+            correct_bias,
+            true,
+            stripe_sigma_px,
+            repeatability_mm,
+            encoder_sigma_deg,
+            3.0,
+        )?,
+        reconstruct: ReconstructOptions::default(),
+        artefacts,
+    };
+    let mut cb_err: Option<PyErr> = None;
+    let result = py.detach(|| {
+        let mut cb = |stage: &str, done: usize, total: usize| {
+            Python::attach(|py| {
+                let r = py.check_signals().and_then(|()| match &progress {
+                    Some(f) => f.call1(py, (stage, done, total)).map(drop),
+                    None => Ok(()),
+                });
+                match r {
+                    Ok(()) => ControlFlow::Continue(()),
+                    Err(e) => {
+                        cb_err = Some(e);
+                        ControlFlow::Break(())
+                    }
+                }
+            })
+        };
+        core_verify(cal, &folder, &opts, &mut cb).map(|r| r.to_json())
+    });
+    if let Some(e) = cb_err {
+        return Err(e);
+    }
+    let v = result.py_err(py)?;
+    py.check_signals()?;
+    Ok(json_to_py(py, &v)?.unbind())
+}
