@@ -24,7 +24,8 @@ import numpy as np
 import stripecal
 import stripecal.sim
 from stripecal._progress import Progress
-from stripecal.types import QualityCheck, SimConfig, TwinSummary
+from stripecal.cli_measure import add_measure, add_verify, sphere_lines, write_json_atomic
+from stripecal.types import QualityCheck, SimConfig, SphereMeasurement, TwinSummary
 
 
 def cmd_info(args: argparse.Namespace) -> int:
@@ -197,7 +198,7 @@ def _param_rows(cal: stripecal.Calibration, truth: stripecal.Truth) -> List[Tupl
             for n, v, s, t in parameter_rows(cal, truth)]
 
 
-def _demo_tables(cal: stripecal.Calibration, truth: stripecal.Truth, fit: stripecal.SphereFit, cloud_points: int) -> str:
+def _demo_tables(cal: stripecal.Calibration, truth: stripecal.Truth, m: SphereMeasurement, cloud_points: int) -> str:
     lines = [f"{'parameter':<20} {'true':>13} {'estimate':>13} {'1 sigma':>9} {'error':>10} {'paper Table 2':>14}"]
     for name, v, s, t in _param_rows(cal, truth):
         p = PAPER_TABLE2.get(name)
@@ -208,23 +209,23 @@ def _demo_tables(cal: stripecal.Calibration, truth: stripecal.Truth, fit: stripe
     lines.append("")
     lines.append(f"residual RMS: circles {q['circle_rms_px']:.4f} px, stripe {q['stripe_rms_px']:.4f} px "
                  f"(paper: stripe re-projection 0.1364 +- 0.0849 px)")
-    sphere = truth.sphere
     lines.append("")
-    lines.append(f"reference ball ({cloud_points} points, {fit.points} used, {fit.outliers} outliers):")
-    ds = fit.diameter_sigma_mm if fit.diameter_sigma_mm is not None else float("nan")
-    cs = fit.center_sigma_mm if fit.center_sigma_mm is not None else np.full(3, np.nan)
+    lines += sphere_lines(m, f"reference ball ({cloud_points} points), GUM budget (mm; U expanded, k = 2; "
+                             f"the parts are standard uncertainties):")
+    sphere = truth.sphere
+    u = m["uncertainty"]
     if sphere is not None:
         td = float(sphere["diameter_mm"])
         tc = np.asarray(sphere["center_mm"], np.float64)
-        ce = fit.center_mm - tc
-        lines.append(f"  diameter  true {td:.4f} mm   measured {fit.diameter_mm:.4f} +- {ds:.2g} mm   "
-                     f"error {fit.diameter_mm - td:+.4f} mm")
-        lines.append(f"  centre    true ({tc[0]:.3f}, {tc[1]:.3f}, {tc[2]:.3f}) mm   measured ({fit.center_mm[0]:.3f}, "
-                     f"{fit.center_mm[1]:.3f}, {fit.center_mm[2]:.3f}) +- ({cs[0]:.2g}, {cs[1]:.2g}, {cs[2]:.2g}) mm   "
-                     f"error {np.linalg.norm(ce):.4f} mm")
-    lines.append(f"  against the CMM value {CMM_BALL_MM} mm: ours {fit.diameter_mm - CMM_BALL_MM:+.4f} mm; the paper's "
-                 f"seven measurements {', '.join(f'{x - CMM_BALL_MM:+.3f}' for x in PAPER_BALL_MM)} mm")
-    lines.append(f"  (sphere RMS residual {fit.rms_mm:.4f} mm; the one-sigmas are the fit's random part)")
+        lines.append("  against the truth:")
+        for name, err, b in [("diameter", m["diameter_mm"] - td, u["diameter"])] + [
+                (f"centre {a}", m["center_mm"][k] - tc[k], u["center"][k]) for k, a in enumerate("xyz")]:
+            inside = "inside U" if abs(err) <= b["expanded_mm"] else "OUTSIDE U"
+            lines.append(f"    {name:<10} error {err:+.5f} mm   U {b['expanded_mm']:.5f} mm   {inside}")
+    d = m["diameter_mm"]
+    lines.append(f"  against the CMM value {CMM_BALL_MM} mm: ours {d - CMM_BALL_MM:+.4f} +- "
+                 f"{u['diameter']['expanded_mm']:.4f} mm (k = 2); the paper's seven measurements "
+                 f"{', '.join(f'{x - CMM_BALL_MM:+.3f}' for x in PAPER_BALL_MM)} mm")
     return "\n".join(lines)
 
 
@@ -253,17 +254,17 @@ def cmd_demo(args: argparse.Namespace) -> int:
     cloud.save(os.path.join(out, "cloud.ply"))
     sphere_truth = stripecal.load_truth(os.path.join(summary["scan_dir"], "truth.json")).sphere
     d0 = float(sphere_truth["diameter_mm"]) if sphere_truth else CMM_BALL_MM
-    fit = stripecal.fit_sphere(cloud.points, diameter_range_mm=(0.8 * d0, 1.2 * d0))
-    fit.save(os.path.join(out, "sphere.json"))
+    m = stripecal.measure_sphere(cal, summary["scan_dir"], cloud=cloud, diameter_range_mm=(0.8 * d0, 1.2 * d0))
+    write_json_atomic(os.path.join(out, "sphere.json"), m)
     scan_truth = stripecal.load_truth(os.path.join(summary["scan_dir"], "truth.json"))
-    tables = _demo_tables(cal, scan_truth, fit, len(cloud))
+    tables = _demo_tables(cal, scan_truth, m, len(cloud))
     print()
     print(tables)
     report = None
     try:
         from stripecal.report import write_report
 
-        dist = np.linalg.norm(cloud.points - fit.center_mm, axis=1) - 0.5 * fit.diameter_mm
+        dist = np.linalg.norm(cloud.points - np.asarray(m["center_mm"]), axis=1) - 0.5 * m["diameter_mm"]
         report = write_report(os.path.join(out, "report"), cal, truth=truth, points=cloud.points,
                               point_colour=np.clip(dist, -0.2, 0.2), sections=[("Demo results", tables)],
                               title="stripecal demo: the hp3-paper twin")
@@ -551,6 +552,7 @@ def cmd_reconstruct(args: argparse.Namespace) -> int:
         drop_flags=drop,
         progress=progress,
         on_bad_image=args.on_bad_image,
+        covariance=args.covariance,
     )
     dt = time.monotonic() - t0
     frames = seen["frames"]
@@ -574,6 +576,7 @@ def cmd_reconstruct(args: argparse.Namespace) -> int:
         if len(skipped) > shown:
             print(f"  ... and {len(skipped) - shown} more (every one is listed in the PLY header)")
     print(f"wrote {args.output} ({'ascii' if args.ascii else 'binary'} PLY, base frame, mm"
+          f"{', per-point covariance' if args.covariance else ''}"
           f"{'; the header lists the skipped frames' if skipped else ''})")
     return 0
 
@@ -595,6 +598,10 @@ def _add_reconstruct(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -
                    help="a frame whose image is missing, unreadable, truncated, corrupted, of the wrong size "
                         "or bit depth: stop with an error naming it and write nothing (default), or skip "
                         "it and list it in the output and the PLY header")
+    p.add_argument("--covariance", action="store_true",
+                   help="add each point's 3x3 covariance in the base frame (mm^2) as the PLY properties "
+                        "cov_xx cov_xy cov_xz cov_yy cov_yz cov_zz: the calibration's covariance, the stripe's "
+                        "noise (the calibration's stripe RMS) and the calibration robot's figures")
     p.set_defaults(func=cmd_reconstruct)
 
 
@@ -772,6 +779,8 @@ _SUBCOMMANDS: List[Callable[[argparse._SubParsersAction[argparse.ArgumentParser]
     _add_calibrate,
     _add_reconstruct,
     _add_fit_sphere,
+    add_measure,
+    add_verify,
     _add_plan,
 ]
 
