@@ -9,13 +9,22 @@ import inspect
 import json
 import os
 import tempfile
-from typing import Any, List, Optional, Tuple
+from typing import Any, List, Optional, Tuple, Union
 
 import stripecal
 from stripecal._progress import Progress
-from stripecal.types import Budget, SphereMeasurement, VerifyReport
+from stripecal.types import Budget, SphereMeasurement, VerifyReport, VerifyRow, VerifySummary
 
 _PARTS = "random", "calibration", "robot", "systematic"
+
+TITLES = {"probing_form": "probing error form PF", "probing_size": "probing error size PS",
+          "sphere_spacing": "sphere-spacing error SD", "flatness": "flatness measurement error F"}
+"""The characteristics' names, in table order."""
+
+
+def verdict(r: Union[VerifyRow, VerifySummary]) -> str:
+    """``conforms`` (|value| + U <= MPE), ``pass`` (|value| <= MPE) or ``FAIL``."""
+    return "conforms" if r["conforms"] else ("pass" if r["passed"] else "FAIL")
 
 
 def budget_header() -> str:
@@ -143,21 +152,17 @@ def verify_lines(r: VerifyReport) -> List[str]:
     lines = [f"  {'':<2} {'scan':<12} {'artefact':<12} {'value mm':>10} {'U (k=2)':>9} {'MPE':>8}  verdict"]
     for row in r["rows"]:
         b = row["budget"]
-        verdict = "conforms" if row["conforms"] else ("pass" if row["passed"] else "FAIL")
         lines.append(f"  {row['symbol']:<2} {row['scan']:<12} {row['artefact']:<12} {b['value_mm']:+10.5f} "
-                     f"{b['expanded_mm']:9.5f} {row['mpe_mm']:8.4f}  {verdict}")
+                     f"{b['expanded_mm']:9.5f} {row['mpe_mm']:8.4f}  {verdict(row)}")
     lines.append("")
     lines.append(f"  {'characteristic':<34} {'worst mm':>10} {'U (k=2)':>9} {'MPE':>8}  n  verdict")
-    names = {"probing_form": "probing error form PF", "probing_size": "probing error size PS",
-             "sphere_spacing": "sphere-spacing error SD", "flatness": "flatness measurement error F"}
-    for key, title in names.items():
+    for key, title in TITLES.items():
         s = r["summary"].get(key)
         if s is None:
             lines.append(f"  {title:<34} {'not measured':>10}")
             continue
-        verdict = "conforms" if s["conforms"] else ("pass" if s["passed"] else "FAIL")
         lines.append(f"  {title:<34} {s['worst_mm']:+10.5f} {s['expanded_mm']:9.5f} {s['mpe_mm']:8.4f} "
-                     f"{s['measurements']:2d}  {verdict}")
+                     f"{s['measurements']:2d}  {verdict(s)}")
     lines.append("")
     lines.append("  pass: |value| <= MPE; conforms: |value| + U <= MPE (ISO 14253-1)")
     lines.append(f"  acceptance test {'PASSED' if r['passed'] else 'FAILED'}")

@@ -294,6 +294,11 @@ stripe <b>{q['stripe_rms_px']:.4f} px</b> ({float(e.get('stripe_rms_mm') or floa
 <h2>Figures</h2>{imgs}
 </body></html>
 """
+    return write_html(out, doc)
+
+
+def write_html(out: Path, doc: str) -> Path:
+    """Writes ``out/index.html`` atomically (a temporary file renamed); returns its path."""
     path = out / "index.html"
     tmp = out / "index.html.tmp"
     tmp.write_text(doc, encoding="utf-8")

@@ -10,13 +10,13 @@ import os
 from pathlib import Path
 from typing import Any, Dict, List, Union
 
-from stripecal.report import _pyplot, _save
+from stripecal.report import _pyplot, _save, write_html
+from stripecal.cli_measure import TITLES, verdict
 from stripecal.types import VerifyReport
 
 _Path = Union[str, "os.PathLike[str]"]
 
-_TITLES = {"probing_form": "probing error form PF", "probing_size": "probing error size PS",
-           "sphere_spacing": "sphere-spacing error SD", "flatness": "flatness measurement error F"}
+_TITLES = TITLES
 
 
 def _figure(plt: Any, r: VerifyReport, out: Path) -> str:
@@ -51,12 +51,11 @@ def write_verify_report(out_dir: _Path, report: VerifyReport, *, title: str = "s
     tr: List[str] = []
     for row in report["rows"]:
         b = row["budget"]
-        verdict = "conforms" if row["conforms"] else ("pass" if row["passed"] else "FAIL")
         style = "" if row["passed"] else ' style="color:#b00"'
         tr.append(f"<tr{style}><td>{html.escape(row['symbol'])}</td><td>{html.escape(row['scan'])}</td>"
                   f"<td>{html.escape(row['artefact'])}</td><td>{b['value_mm']:+.5f}</td><td>{b['expanded_mm']:.5f}</td>"
                   f"<td>{b['random_mm']:.2e}</td><td>{b['calibration_mm']:.2e}</td><td>{b['robot_mm']:.2e}</td>"
-                  f"<td>{b['systematic_mm']:.2e}</td><td>{row['mpe_mm']:.4f}</td><td>{verdict}</td></tr>")
+                  f"<td>{b['systematic_mm']:.2e}</td><td>{row['mpe_mm']:.4f}</td><td>{verdict(row)}</td></tr>")
     sr: List[str] = []
     summary: Dict[str, Any] = dict(report["summary"])
     for key, name in _TITLES.items():
@@ -64,9 +63,8 @@ def write_verify_report(out_dir: _Path, report: VerifyReport, *, title: str = "s
         if s is None:
             sr.append(f"<tr><td>{name}</td><td colspan=5>not measured</td></tr>")
             continue
-        verdict = "conforms" if s["conforms"] else ("pass" if s["passed"] else "FAIL")
         sr.append(f"<tr><td>{name}</td><td>{s['worst_mm']:+.5f}</td><td>{s['expanded_mm']:.5f}</td>"
-                  f"<td>{s['mpe_mm']:.4f}</td><td>{s['measurements']}</td><td>{verdict}</td></tr>")
+                  f"<td>{s['mpe_mm']:.4f}</td><td>{s['measurements']}</td><td>{verdict(s)}</td></tr>")
     doc = f"""<!DOCTYPE html>
 <html><head><meta charset="utf-8"><title>{html.escape(title)}</title>
 <style>body{{font-family:sans-serif;margin:2em;max-width:1100px}} table{{border-collapse:collapse}}
@@ -84,8 +82,4 @@ uncertainties in mm.</p>
 <h2>Figure</h2><img src="{fig}" alt="{fig}">
 </body></html>
 """
-    path = out / "index.html"
-    tmp = out / "index.html.tmp"
-    tmp.write_text(doc, encoding="utf-8")
-    os.replace(tmp, path)
-    return path
+    return write_html(out, doc)

@@ -357,3 +357,29 @@ pub fn opt_dict_to_map(d: Option<&Bound<'_, PyDict>>, path: &str) -> PyResult<Ma
         .transpose()
         .map(Option::unwrap_or_default)
 }
+
+/// One progress report from inside `py.detach`: checks for signals, then calls
+/// `progress` with `args` (when there is one). An exception (or a pending
+/// KeyboardInterrupt) is kept in `err` and stops the run.
+pub fn progress_step<A>(
+    progress: &Option<Py<PyAny>>,
+    err: &mut Option<PyErr>,
+    args: A,
+) -> std::ops::ControlFlow<()>
+where
+    A: for<'py> pyo3::call::PyCallArgs<'py>,
+{
+    Python::attach(|py| {
+        let r = py.check_signals().and_then(|()| match progress {
+            Some(f) => f.call1(py, args).map(drop),
+            None => Ok(()),
+        });
+        match r {
+            Ok(()) => std::ops::ControlFlow::Continue(()),
+            Err(e) => {
+                *err = Some(e);
+                std::ops::ControlFlow::Break(())
+            }
+        }
+    })
+}

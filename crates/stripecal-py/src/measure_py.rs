@@ -17,7 +17,7 @@ use stripecal::pipeline::verify::{verify as core_verify, VerifyOptions};
 use stripecal::reconstruct::{load_scan, reconstruct_scan, ReconstructOptions, UncertaintyOptions};
 use stripecal::{Error, Result};
 
-use crate::convert::json_to_py;
+use crate::convert::{json_to_py, progress_step};
 use crate::errors::{invalid_input, ResultExt};
 use crate::reconstruct_py::PyCloud;
 use crate::results::PyCalibration;
@@ -245,19 +245,7 @@ pub fn verify(
     let mut cb_err: Option<PyErr> = None;
     let result = py.detach(|| {
         let mut cb = |stage: &str, done: usize, total: usize| {
-            Python::attach(|py| {
-                let r = py.check_signals().and_then(|()| match &progress {
-                    Some(f) => f.call1(py, (stage, done, total)).map(drop),
-                    None => Ok(()),
-                });
-                match r {
-                    Ok(()) => ControlFlow::Continue(()),
-                    Err(e) => {
-                        cb_err = Some(e);
-                        ControlFlow::Break(())
-                    }
-                }
-            })
+            progress_step(&progress, &mut cb_err, (stage, done, total))
         };
         core_verify(cal, &folder, &opts, &mut cb).map(|r| r.to_json())
     });

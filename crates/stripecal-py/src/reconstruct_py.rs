@@ -3,7 +3,6 @@
 //! `stripecal.PlaneFit`: stripe images + joints -> points in the robot base frame, and
 //! measurements in them. Conversions only; the GIL is released while Rust works.
 
-use std::ops::ControlFlow;
 use std::path::PathBuf;
 
 use nalgebra::Vector3;
@@ -20,7 +19,7 @@ use stripecal::reconstruct::{
 };
 use stripecal::vision::stripe::StripeDirection;
 
-use crate::convert::{f64_array, fmt_shape, nd, py_to_iso};
+use crate::convert::{f64_array, fmt_shape, nd, progress_step, py_to_iso};
 use crate::errors::{invalid_input, ResultExt};
 use crate::imageview::gray_from_py;
 use crate::results::{PyCalibration, PySphereFit};
@@ -312,19 +311,7 @@ pub fn reconstruct_scan(
     let result = py.detach(|| {
         let scan = core::load_scan(&scan_dir, cal)?;
         let mut cb = |done: usize, total: usize, points: usize| {
-            Python::attach(|py| {
-                let r = py.check_signals().and_then(|()| match &progress {
-                    Some(f) => f.call1(py, (done, total, points)).map(drop),
-                    None => Ok(()),
-                });
-                match r {
-                    Ok(()) => ControlFlow::Continue(()),
-                    Err(e) => {
-                        cb_err = Some(e);
-                        ControlFlow::Break(())
-                    }
-                }
-            })
+            progress_step(&progress, &mut cb_err, (done, total, points))
         };
         let mut points = core::reconstruct_scan(cal, &scan, &opts, &mut cb)?;
         if covariance {

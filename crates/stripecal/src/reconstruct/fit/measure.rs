@@ -96,23 +96,10 @@ pub fn measure_sphere(
             p.systematic.insert((id, 1, k as u32), s);
         }
     }
-    // Probing form: the range's extremes.
-    let (imax, imin) = extremes(&res);
-    let mut form = LinearForm::default();
-    for (k, sign) in [(imax, 1.0), (imin, -1.0)] {
-        let i = idx[k];
-        let row = FitRow {
-            u: points.u_px[i],
-            v: points.v_px[i],
-            frame: points.frame[i],
-            a: normals[k].0,
-            j: &normals[k].1,
-        };
-        form.add_scaled(&sens.residual_form(frames, &row)?, sign);
-    }
-    form.random.clear();
-    form.random
-        .insert((id, 2, 0), range_random_sigma(s2.sqrt(), idx.len()));
+    // Probing form: the range of the radial residuals.
+    let form = range_form(frames, &sens, points, &idx, &res, id, s2, |k| {
+        (normals[k].0, &normals[k].1[..])
+    })?;
     let cov = frames.model().covariance().clone();
     let mut diameter_form = LinearForm::default();
     diameter_form.add_scaled(&sens.params[3], 2.0);
@@ -124,7 +111,7 @@ pub fn measure_sphere(
     Ok(SphereMeasurement {
         diameter: diameter_form.budget(fit.diameter_mm, &cov),
         center: std::array::from_fn(|k| center_forms[k].budget(c[k], &cov)),
-        form: form.budget(res[imax] - res[imin], &cov),
+        form: form.0.budget(form.1, &cov),
         center_forms,
         diameter_form,
     })
@@ -211,22 +198,9 @@ pub fn measure_plane(
         .try_inverse()
         .ok_or_else(|| Error::Degenerate("plane budget: singular normal matrix".into()))?;
     add_random(&mut sens.params, &(ninv * s2), id);
-    let (imax, imin) = extremes(&res);
-    let mut form = LinearForm::default();
-    for (k, sign) in [(imax, 1.0), (imin, -1.0)] {
-        let i = idx[k];
-        let row = FitRow {
-            u: points.u_px[i],
-            v: points.v_px[i],
-            frame: points.frame[i],
-            a: nrm,
-            j: &jrows[k],
-        };
-        form.add_scaled(&sens.residual_form(frames, &row)?, sign);
-    }
-    form.random.clear();
-    form.random
-        .insert((id, 2, 0), range_random_sigma(s2.sqrt(), idx.len()));
+    let form = range_form(frames, &sens, points, &idx, &res, id, s2, |k| {
+        (nrm, &jrows[k][..])
+    })?;
     let cov = frames.model().covariance().clone();
     let deg = |f: &LinearForm| {
         let mut out = LinearForm::default();
@@ -234,13 +208,47 @@ pub fn measure_plane(
         out
     };
     Ok(PlaneMeasurement {
-        flatness: form.budget(res[imax] - res[imin], &cov),
+        flatness: form.0.budget(form.1, &cov),
         offset: sens.params[2].budget(fit.plane.d, &cov),
         tilt_deg: [
             deg(&sens.params[0]).budget(0.0, &cov),
             deg(&sens.params[1]).budget(0.0, &cov),
         ],
     })
+}
+
+/// The form and value of a range of residuals (largest minus smallest): first order in
+/// its two extreme points, its random part the extremes' scatter ([`range_random_sigma`]).
+/// `row(k)`: inlier `k`'s `(a, J)`.
+#[allow(clippy::too_many_arguments)]
+fn range_form<'r>(
+    frames: &mut ScanFrames<'_>,
+    sens: &Sensitivity,
+    points: &ScanPoints,
+    idx: &[usize],
+    res: &[f64],
+    id: u64,
+    s2: f64,
+    row: impl Fn(usize) -> (Vector3<f64>, &'r [f64]),
+) -> Result<(LinearForm, f64)> {
+    let (imax, imin) = extremes(res);
+    let mut form = LinearForm::default();
+    for (k, sign) in [(imax, 1.0), (imin, -1.0)] {
+        let i = idx[k];
+        let (a, j) = row(k);
+        let r = FitRow {
+            u: points.u_px[i],
+            v: points.v_px[i],
+            frame: points.frame[i],
+            a,
+            j,
+        };
+        form.add_scaled(&sens.residual_form(frames, &r)?, sign);
+    }
+    form.random.clear();
+    form.random
+        .insert((id, 2, 0), range_random_sigma(s2.sqrt(), idx.len()));
+    Ok((form, res[imax] - res[imin]))
 }
 
 /// Random sources of a fit's parameters: `L` with `L L^T = cov` (eigen, may be singular).

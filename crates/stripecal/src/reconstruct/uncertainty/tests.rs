@@ -4,7 +4,6 @@
 use nalgebra::{DMatrix, Matrix3, Vector3};
 
 use super::*;
-use crate::model::camera::{Camera, DistortionModel};
 use crate::model::geometry::{iso_from_rotvec, Plane};
 use crate::model::kinematics::Robot;
 use crate::model::{NamedCovariance, Quality};
@@ -16,17 +15,7 @@ pub(crate) const Q: [f64; 6] = [5.0, -15.0, 25.0, 10.0, -80.0, 30.0];
 /// The paper-like rig with strong distortion, a robot and a covariance over every
 /// number that moves a point (plus two that do not).
 pub(crate) fn calibration() -> Calibration {
-    let camera = Camera::new(
-        768,
-        576,
-        1271.65,
-        1322.52,
-        346.14,
-        262.6,
-        DistortionModel::OpenCv5,
-        [-0.2, 0.1, 0.001, -0.002, 0.01],
-    )
-    .unwrap();
+    let camera = crate::reconstruct::triangulate::tests::camera([-0.2, 0.1, 0.001, -0.002, 0.01]);
     let names: Vec<String> = [
         "camera.fu",
         "camera.fv",
