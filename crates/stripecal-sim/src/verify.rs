@@ -18,9 +18,11 @@
 //!   row holds one stripe, on the artefact.
 //! - Each scan is a straight sweep at a fixed camera orientation along the laser
 //!   plane's normal projected perpendicular to the optical axis (the stand-off stays
-//!   constant while sweeping), long enough for the laser plane to cross both spheres (or
-//!   the plate) plus `margin_mm`, in `step_mm` steps; inverse kinematics on the TRUE
-//!   robot, from the home pose at the sweep's middle.
+//!   constant while sweeping), long enough for the laser plane to cross both spheres
+//!   plus `margin_mm`, in `step_mm` steps; inverse kinematics on the TRUE robot, from
+//!   the home pose at the sweep's middle. The plate is larger than what the sensor sees
+//!   of it (its stripe fills every image row) and its sweep stays `plate_inset_mm`
+//!   inside its edges across the sweep: no stripe ends on or straddles an edge.
 //! - Positions ([`BAR_PLACEMENTS`], [`PLATE_PLACEMENTS`]) are given in the scan frame of
 //!   the camera (`s` the sweep, `w = a x s` along the stripe, `a` the optical axis) at
 //!   the home orientation turned by `yaw_deg` about the table's normal, with the
@@ -105,8 +107,13 @@ pub struct VerifyCfg {
     pub bar_positions: usize,
     /// Plate positions, the first N of [`PLATE_PLACEMENTS`] (0..=3).
     pub plate_positions: usize,
-    /// The plate's sides: along the sweep, along the stripe, mm.
+    /// The plate's sides: along the sweep, along the stripe, mm. Along the stripe it is
+    /// longer than the stripe seen in the image (~45 mm at 105 mm): the stripe fills the
+    /// image's rows, it never ends on the plate.
     pub plate_size_mm: [f64; 2],
+    /// The plate sweep stays this far inside the plate's edges across the sweep (the
+    /// laser plane never reaches an edge: every stripe lies inside the plate), mm.
+    pub plate_inset_mm: f64,
     pub plate_reflectance: f64,
     /// Sensor translation between frames, mm.
     pub step_mm: f64,
@@ -126,7 +133,8 @@ impl Default for VerifyCfg {
             sphere_diameter_mm: 25.4,
             bar_positions: BAR_PLACEMENTS.len(),
             plate_positions: PLATE_PLACEMENTS.len(),
-            plate_size_mm: [60.0, 30.0],
+            plate_size_mm: [80.0, 70.0],
+            plate_inset_mm: 5.0,
             plate_reflectance: 0.6,
             step_mm: 0.5,
             margin_mm: 2.0,
@@ -156,6 +164,17 @@ impl VerifyCfg {
         }
         if !(self.margin_mm.is_finite() && self.margin_mm >= 0.0) {
             return bad("margin_mm", format!("{} must be >= 0", self.margin_mm));
+        }
+        let i = self.plate_inset_mm;
+        if !(i.is_finite() && i >= 0.0 && 2.0 * i < self.plate_size_mm[0] - self.step_mm) {
+            return bad(
+                "plate_inset_mm",
+                format!(
+                    "{i} must be >= 0 and leave more than one step of the plate to sweep \
+                     (plate_size_mm[0] {})",
+                    self.plate_size_mm[0]
+                ),
+            );
         }
         if self.sphere_diameter_mm >= 0.9 * self.bar_length_mm {
             return bad(
@@ -446,11 +465,13 @@ impl Twin {
                     diameter_mm: art.diameters_mm[1],
                 },
             ];
-            // the laser plane's travel: both spheres and the margins
             let pts: Vec<(Vector3<f64>, f64)> = spheres
                 .iter()
                 .map(|s| (s.center_mm, 0.5 * s.diameter_mm))
                 .collect();
+            // the laser plane's travel: both spheres and the margins
+            let travel: Vec<(Vector3<f64>, f64)> =
+                pts.iter().map(|&(c, r)| (c, r + v.margin_mm)).collect();
             let world = World {
                 table: false,
                 spheres: pts.clone(),
@@ -458,7 +479,7 @@ impl Twin {
                 ..self.calib_world.clone()
             };
             let name = format!("bar_{}", i + 1);
-            let (poses, base_cam_mid) = self.verify_sweep(&ax, &mid, p.depth_mm, &pts, &name)?;
+            let (poses, base_cam_mid) = self.verify_sweep(&ax, &mid, p.depth_mm, &travel, &name)?;
             let scan = VerifyScan {
                 name,
                 artefact: "bar".into(),
@@ -489,17 +510,19 @@ impl Twin {
             let plane = Plane::new(normal, normal.dot(&mid))
                 .map_err(|e| SimError::Poses(format!("plate plane: {e}")))?;
             let half = [0.5 * v.plate_size_mm[0], 0.5 * v.plate_size_mm[1]];
-            // the laser plane's travel: the plate's corners
-            let corners: Vec<(Vector3<f64>, f64)> =
-                [(-1.0, -1.0), (-1.0, 1.0), (1.0, -1.0), (1.0, 1.0)]
-                    .iter()
-                    .map(|&(x, y)| {
-                        (
-                            (base_plate * Point3::new(x * half[0], y * half[1], 0.0)).coords,
-                            0.0,
-                        )
-                    })
-                    .collect();
+            // the laser plane's travel: `plate_inset_mm` inside both edges across the sweep
+            // wherever the stripe can be seen along the plate (up to 0.6 x the image
+            // height at the far end of the working range from the middle)
+            let (ex, ey) = (r.column(0).into_owned(), r.column(1).into_owned());
+            let seen =
+                0.6 * self.camera.height as f64 / self.camera.fv * self.cfg.working_range_mm[1];
+            let hy = half[1].min(seen);
+            let edges: Vec<(Vector3<f64>, f64)> = [-hy, hy]
+                .iter()
+                .flat_map(|&y| {
+                    [-1.0, 1.0].map(|x| (mid + ex * (x * half[0]) + ey * y, -v.plate_inset_mm))
+                })
+                .collect();
             let world = World {
                 table: false,
                 spheres: vec![],
@@ -511,8 +534,7 @@ impl Twin {
                 ..self.calib_world.clone()
             };
             let name = format!("plate_{}", i + 1);
-            let (poses, base_cam_mid) =
-                self.verify_sweep(&ax, &mid, p.depth_mm, &corners, &name)?;
+            let (poses, base_cam_mid) = self.verify_sweep(&ax, &mid, p.depth_mm, &edges, &name)?;
             let scan = VerifyScan {
                 name,
                 artefact: "plate".into(),
@@ -531,8 +553,10 @@ impl Twin {
 
     /// The sweep of one position: the camera at `ax.rot` with the laser plane through
     /// `mid` at `depth` along the optical axis in the sweep's middle, travelling along
-    /// `ax.s` until the plane has crossed every ball `(centre, radius)` of `extent` plus
-    /// `verify.margin_mm`; `(readings, T_base_cam at the middle)`.
+    /// `ax.s` from the first to the last moment the plane is within `reach` of a point
+    /// `(point, reach)` of `extent`; or with every reach negative, while the plane
+    /// stays `-reach` inside each consecutive pair of points (the plate's two edges
+    /// across the sweep); `(readings, T_base_cam at the middle)`.
     fn verify_sweep(
         &self,
         ax: &ScanAxes,
@@ -541,7 +565,7 @@ impl Twin {
         extent: &[(Vector3<f64>, f64)],
         what: &str,
     ) -> Result<(Vec<Vec<f64>>, Iso3), SimError> {
-        let v = &self.cfg.verify;
+        let step = self.cfg.verify.step_mm;
         let origin = crate::poses::scan_origin(
             &ax.rot,
             &self.laser_plane.normal,
@@ -554,15 +578,33 @@ impl Twin {
         .ok_or_else(|| SimError::Poses(format!("{what}: cannot place the sweep")))?;
         let rate = ax.n.dot(&ax.s);
         // the plane passes through x at travel t = (n . (x - o) - d) / rate
+        let tc = |c: &Vector3<f64>| (ax.n.dot(&(c - origin)) - self.laser_plane.d) / rate;
         let (mut lo, mut hi) = (f64::INFINITY, f64::NEG_INFINITY);
-        for (c, r) in extent {
-            let tc = (ax.n.dot(&(c - origin)) - self.laser_plane.d) / rate;
-            let dt = (r + v.margin_mm) / rate.abs();
-            lo = lo.min(tc - dt);
-            hi = hi.max(tc + dt);
-        }
-        let n = ((hi - lo) / v.step_mm).ceil() as usize + 1;
-        let start = 0.5 * (lo + hi) - 0.5 * (n - 1) as f64 * v.step_mm;
+        let n = if extent.iter().all(|e| e.1 < 0.0) {
+            // inside: each pair of points bounds the travel, the plane `-reach` within
+            (lo, hi) = (f64::NEG_INFINITY, f64::INFINITY);
+            for pair in extent.chunks(2) {
+                let (a, b) = (tc(&pair[0].0), tc(&pair[pair.len() - 1].0));
+                let dt = -pair[0].1 / rate.abs();
+                lo = lo.max(a.min(b) + dt);
+                hi = hi.min(a.max(b) - dt);
+            }
+            if hi < lo {
+                return Err(SimError::Poses(format!(
+                    "{what}: no travel inside the plate's edges"
+                )));
+            }
+            ((hi - lo) / step).floor() as usize + 1
+        } else {
+            // across: the plane crosses every point's reach
+            for (c, reach) in extent {
+                let dt = reach / rate.abs();
+                lo = lo.min(tc(c) - dt);
+                hi = hi.max(tc(c) + dt);
+            }
+            ((hi - lo) / step).ceil() as usize + 1
+        };
+        let start = 0.5 * (lo + hi) - 0.5 * (n - 1) as f64 * step;
         let x_inv = self.hand_cam.inverse();
         let cam_at = |t: f64| Iso3::from_parts((origin + ax.s * t).into(), ax.rot);
         let ik = |cam: &Iso3, q0: &[f64], k: usize| {
@@ -579,7 +621,7 @@ impl Twin {
         let mut q = ik(&cam_at(start), &q_mid, 0)?;
         let mut out = Vec::with_capacity(n);
         for k in 0..n {
-            let t = start + k as f64 * v.step_mm;
+            let t = start + k as f64 * step;
             q = ik(&cam_at(t), &q, k)?;
             out.push(q.clone());
         }
@@ -587,8 +629,8 @@ impl Twin {
     }
 
     /// Checks that the stripe sees each sphere of a bar (at the frame where the laser
-    /// plane is nearest its centre) or the plate (in the middle frame) over at least
-    /// half the rows it could cover.
+    /// plane is nearest its centre) over at least half the rows its diameter could
+    /// cover, or the plate (in the middle frame) over 90% of the rows.
     fn check_verify_scan(&self, scan: &VerifyScan) -> Result<(), SimError> {
         let laser = self.laser();
         let count = |q: &[f64], surface: &str| -> Result<usize, SimError> {
@@ -604,7 +646,7 @@ impl Twin {
             let got = count(q, "flat_plate")?;
             let want = (self.cfg.verify.plate_size_mm[1] * fv / scan.depth_mm)
                 .min(self.camera.height as f64)
-                * 0.5;
+                * 0.9;
             if (got as f64) < want {
                 return Err(SimError::Poses(format!(
                     "verify {}: the stripe covers {got} rows of the plate in the middle frame \
