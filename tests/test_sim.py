@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 from pathlib import Path
 
 import numpy as np
@@ -204,3 +205,33 @@ def test_table_scan_lies_on_the_true_table(tmp_path: Path) -> None:
     assert "sphere" in f["stripe_surface"]
     p = f["stripe_points_cam"] @ f["base_cam"][:3, :3].T + f["base_cam"][:3, 3]
     assert np.abs(sim.surface_errors(p, twin)).max() < 1e-6
+
+
+def test_simulate_writes_the_verification_artefacts(tmp_path: Path) -> None:
+    """`stripecal simulate --set verify.enabled=true`: verify/ with the manifest, the
+    certificate and one scan folder per position, each readable as a scan."""
+    from stripecal.cli import main
+
+    out = tmp_path / "twin"
+    rc = main(["simulate", str(out), "--poses", "3", "--no-scan",
+               "--set", "verify.enabled=true", "--set", "verify.bar_positions=1",
+               "--set", "verify.plate_positions=1", "--set", "verify.step_mm=6"])
+    assert rc == 0
+    v = out / "verify"
+    assert (v / "verify.csv").read_text() == "scan,artefact\nbar_1,bar\nplate_1,plate\n"
+    art = json.loads((v / "artefacts.json").read_text())
+    assert art["format"] == "stripecal/artefacts@1"
+    assert [s["name"] for s in art["spheres"]] == ["A", "B"]
+    assert art["ball_bars"][0]["spheres"] == ["A", "B"]
+    assert set(art["mpe_mm"]) == {"probing_form", "probing_size", "sphere_spacing", "flatness"}
+    for name in ("bar_1", "plate_1"):
+        assert (v / name / "scan.csv").is_file() and (v / name / "rig.json").is_file()
+    truth = json.loads((v / "bar_1" / "truth.json").read_text())
+    assert [s["name"] for s in truth["spheres"]] == ["A", "B"]
+    assert truth["sphere"]["center_mm"] == truth["spheres"][0]["center_mm"]
+    assert "plane" in json.loads((v / "plate_1" / "truth.json").read_text())
+    twin = sim.Twin(small(verify={"bar_positions": 1, "plate_positions": 1, "step_mm": 6.0}))
+    scans = twin.verify_scans()
+    assert [s["name"] for s in scans] == ["bar_1", "plate_1"]
+    assert scans[0]["poses"].shape[1] == 6 and scans[1]["plane"] is not None
+    assert twin.write(tmp_path / "off")["verify_dir"] is None

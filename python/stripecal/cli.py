@@ -157,6 +157,11 @@ def _print_summary(twin: stripecal.sim.Twin, summary: TwinSummary, elapsed: floa
     print(f"\nwrote {summary['calib_dir']}  (rig.json, views.csv, images/, truth.json)")
     if summary["scan_dir"] is not None:
         print(f"wrote {summary['scan_dir']}  (rig.json, scan.csv, images/, truth.json)")
+    if summary["table_dir"] is not None:
+        print(f"wrote {summary['table_dir']}  (rig.json, scan.csv, images/, truth.json)")
+    if summary["verify_dir"] is not None:
+        print(f"wrote {summary['verify_dir']}  (artefacts.json, verify.csv, one scan folder per "
+              f"artefact position; {summary['verify_frames']} stripe images)")
 
 
 def cmd_simulate(args: argparse.Namespace) -> int:

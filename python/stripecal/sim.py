@@ -43,7 +43,7 @@ import numpy.typing as npt
 from stripecal._core import Board, Camera, Robot, Truth
 from stripecal._core import Twin as _CoreTwin
 from stripecal._core import load_truth, sim_config, sim_presets, sim_surface_errors
-from stripecal.types import SimConfig, SimPose, TwinSummary, ViewRender
+from stripecal.types import SimConfig, SimPose, TwinSummary, VerifyScan, ViewRender
 
 __all__ = ["Twin", "calibration_pose_set", "preset", "presets", "surface_errors"]
 
@@ -151,6 +151,14 @@ class Twin:
         orientation, ``scan.table_offset_mm`` from the board centre."""
         return self._core.table_scan_poses()
 
+    def verify_scans(self) -> List[VerifyScan]:
+        """The verification scans of ``verify.*`` (written to ``out/verify`` by
+        :meth:`write` when ``verify.enabled``): the ball bar's positions, then the
+        plate's; per scan ``name`` (its folder), ``artefact`` (``"bar"`` or
+        ``"plate"``), ``poses`` (N, J), the true ``spheres`` (bars) or ``plane``
+        (plates), base frame. Computed whether or not ``verify.enabled``."""
+        return self._core.verify_scans()
+
     def render_view(self, q: npt.ArrayLike, index: int = 0) -> ViewRender:
         """Renders a calibration view at encoder readings ``q`` (degrees). Keys:
         ``board_image``, ``laser_image`` (None in single-image mode), ``target_indices``
@@ -172,8 +180,8 @@ class Twin:
         return self._core.render_scan_frame(q, index)
 
     def write(self, out: Union[str, "os.PathLike[str]"], progress: Optional[Callable[[str, int, int], Any]] = None) -> TwinSummary:
-        """Renders and writes ``out/calib``, ``out/scan`` and with ``scan.table``
-        ``out/scan_table`` (each written under a
+        """Renders and writes ``out/calib``, ``out/scan``, with ``scan.table``
+        ``out/scan_table`` and with ``verify.enabled`` ``out/verify`` (each written under a
         temporary name, then renamed); returns a summary dict (``board_kind``, per view
         ``circles_visible``: the imaged target points, whatever the kind; every key in
         :class:`stripecal.types.TwinSummary`)."""

@@ -79,9 +79,11 @@ __all__ = [
     "SphereFitExtraInput",
     "SphereInput",
     "SphereTruth",
+    "TwinPlane",
     "TwinSphere",
     "TwinSummary",
     "TwinViewSummary",
+    "VerifyScan",
     "ViewRender",
 ]
 
@@ -717,6 +719,30 @@ class TwinSphere(TypedDict):
     """Diameter, mm."""
 
 
+class TwinPlane(TypedDict):
+    """A plane ``normal . p = d_mm``, base frame."""
+
+    normal: List[float]
+    """Unit normal ``[x, y, z]`` (towards the sensor)."""
+    d_mm: float
+    """Offset, mm."""
+
+
+class VerifyScan(TypedDict):
+    """A verification scan of the twin (``Twin.verify_scans``)."""
+
+    name: str
+    """The folder under ``verify/``: ``bar_1``.., ``plate_1``..."""
+    artefact: str
+    """The artefacts.json name it measures: ``"bar"`` or ``"plate"``."""
+    poses: F64
+    """Encoder readings (N, J), degrees."""
+    spheres: List[TwinSphere]
+    """The ball bar's spheres A and B (true, base frame); empty for the plate."""
+    plane: Optional[TwinPlane]
+    """The plate's true plane; None for the bar."""
+
+
 class TwinSummary(TypedDict):
     """What ``Twin.write`` wrote."""
 
@@ -738,6 +764,11 @@ class TwinSummary(TypedDict):
     """The bare-table scan folder (``scan.table``), or None."""
     table_frames: int
     """Frames of the bare-table scan (0 without)."""
+    verify_dir: Optional[str]
+    """The verification folder (``verify.enabled``: one scan folder per artefact
+    position, ``artefacts.json``, ``verify.csv``), or None."""
+    verify_frames: int
+    """Frames of all verification scans (0 without)."""
     stripe_direction: str
     """``"rows"`` or ``"cols"``: how the stripe runs in the images."""
     sphere: Optional[TwinSphere]

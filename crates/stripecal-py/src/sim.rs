@@ -284,6 +284,38 @@ impl PyTwin {
         nd(py, &[qs.len(), dof], qs.into_iter().flatten().collect())
     }
 
+    /// The verification scans (`verify.*`, written to `verify/` when enabled): one dict
+    /// per scan with `name`, `artefact`, `poses` (N, J), `spheres` (bars: A and B,
+    /// `center_mm` and `diameter_mm`, base frame) and `plane` (plates: `normal`, `d_mm`,
+    /// base frame; None for bars).
+    fn verify_scans<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyList>> {
+        let scans = py
+            .detach(|| self.inner.verify_scans())
+            .map_err(|e| sim_err(py, e))?;
+        let dof = self.inner.robot_true.dof();
+        let out = PyList::empty(py);
+        for s in scans {
+            let d = PyDict::new(py);
+            d.set_item("name", &s.name)?;
+            d.set_item("artefact", &s.artefact)?;
+            d.set_item("poses", nd(py, &[s.poses.len(), dof], s.poses.concat())?)?;
+            let sph: Vec<Value> = s
+                .spheres
+                .iter()
+                .map(|p| serde_json::json!({"center_mm": [p.center_mm.x, p.center_mm.y, p.center_mm.z], "diameter_mm": p.diameter_mm}))
+                .collect();
+            d.set_item("spheres", json_to_py(py, &Value::Array(sph))?)?;
+            d.set_item(
+                "plane",
+                s.plane
+                    .map(|p| json_to_py(py, &serde_json::json!({"normal": [p.normal.x, p.normal.y, p.normal.z], "d_mm": p.d})))
+                    .transpose()?,
+            )?;
+            out.append(d)?;
+        }
+        Ok(out)
+    }
+
     /// Renders a calibration view at encoder readings `q` (degrees): a dict with
     /// `board_image`, `laser_image` (None in single-image mode), circle and stripe truth.
     #[pyo3(signature = (q, index=0))]
@@ -362,6 +394,8 @@ impl PyTwin {
         d.set_item("scan_sphere_points", s.scan_sphere_points)?;
         d.set_item("table_dir", s.table_dir)?;
         d.set_item("table_frames", s.table_frames)?;
+        d.set_item("verify_dir", s.verify_dir)?;
+        d.set_item("verify_frames", s.verify_frames)?;
         d.set_item("stripe_direction", s.direction.name())?;
         d.set_item(
             "sphere",

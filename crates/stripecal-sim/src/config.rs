@@ -15,6 +15,7 @@ use stripecal::model::geometry::{iso_from_rotvec, iso_to_rotvec, Iso3, Plane};
 use stripecal::{Board, BoardKind, Camera, DhJoint, DistortionModel, Robot};
 
 use crate::robot_error::RobotErrorCfg;
+use crate::verify::VerifyCfg;
 use crate::SimError;
 
 /// The camera (true values).
@@ -292,6 +293,10 @@ pub struct SimConfig {
     /// (`stripecal::io::PoseColumns::from_spec`). rig.json keeps the robot either way.
     #[serde(default)]
     pub pose_columns: Option<String>,
+    /// Verification artefacts: ball bar and plate scans with their certificate
+    /// (`verify/`, default off; [`crate::verify`]).
+    #[serde(default)]
+    pub verify: VerifyCfg,
 }
 
 /// Names of the built-in presets.
@@ -423,6 +428,7 @@ impl SimConfig {
             working_range_mm: [80.0, 130.0],
             stripe_direction: "auto".into(),
             pose_columns: None,
+            verify: VerifyCfg::default(),
         }
     }
 
@@ -671,6 +677,7 @@ impl SimConfig {
         stripecal::model::StripeDirection::from_name(&self.stripe_direction)
             .map_err(|e| SimError::Config(format!("stripe_direction: {e}")))?;
         self.pose_columns_model()?;
+        self.verify.validate()?;
         Ok(())
     }
 

@@ -52,7 +52,7 @@ pub struct Twin {
     pub sphere: Option<Sphere>,
     /// The direction the stripe runs in the images.
     pub direction: StripeDirection,
-    calib_world: World,
+    pub(crate) calib_world: World,
     scan_world: World,
     /// The calibration world with the board frame as the base frame (board-only views
     /// at arbitrary `T_board_cam`).
@@ -118,7 +118,9 @@ impl Twin {
             plate_margin_mm: cfg.board.plate_margin_mm,
             base_board,
             plate_thickness_mm: cfg.board.plate_thickness_mm,
-            sphere: None,
+            table: true,
+            spheres: vec![],
+            free_plate: None,
             plate_reflectance: plate,
             circle_reflectance: circle,
             table_reflectance: cfg.imaging.table_reflectance,
@@ -138,7 +140,10 @@ impl Twin {
             }
         });
         let scan_world = World {
-            sphere: sphere.map(|s| (s.center_mm, 0.5 * s.diameter_mm)),
+            spheres: sphere
+                .iter()
+                .map(|s| (s.center_mm, 0.5 * s.diameter_mm))
+                .collect(),
             ..calib_world.clone()
         };
         let board_world = World {
@@ -180,7 +185,7 @@ impl Twin {
         }
     }
 
-    fn renderer(&self) -> Result<&Renderer, SimError> {
+    pub(crate) fn renderer(&self) -> Result<&Renderer, SimError> {
         self.renderer
             .get_or_init(|| {
                 Renderer::new(&self.camera, self.cfg.imaging.supersample).map_err(|e| e.to_string())
@@ -481,10 +486,14 @@ impl Twin {
         extra.insert("stripe_direction".into(), json!(self.direction.name()));
         extra.insert("table".into(), self.table_plane().to_json());
         extra.insert("plate".into(), self.plate_json());
-        extra.insert(
-            "sim_config".into(),
-            serde_json::to_value(&self.cfg).unwrap_or(Value::Null),
-        );
+        let mut cfg = serde_json::to_value(&self.cfg).unwrap_or(Value::Null);
+        if !self.cfg.verify.enabled {
+            // off: truth.json as before the knobs existed
+            if let Some(m) = cfg.as_object_mut() {
+                m.remove("verify");
+            }
+        }
+        extra.insert("sim_config".into(), cfg);
         Truth {
             camera: self.camera.clone(),
             laser_plane: self.laser_plane,

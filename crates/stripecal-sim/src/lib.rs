@@ -21,6 +21,8 @@
 //!   centroids, chessboard corners as projected points) and stripe centre lines, plus
 //!   the true parameters.
 //! - Board-only views at random camera poses for detection tests ([`views`]).
+//! - Verification artefacts: a ball bar in 7 positions and a flat plate in 3, with their
+//!   certificate `artefacts.json` ([`verify`]).
 //!
 //! ## Conventions
 //!
@@ -40,11 +42,13 @@ pub mod surface;
 pub mod table_scan;
 pub mod target;
 pub mod truth;
+pub mod verify;
 pub mod views;
 
 pub use config::{SimConfig, PRESETS};
 pub use dataset::{noisy_observations, DatasetSummary, Twin, ViewRender};
 pub use surface::{surface_errors, TablePlane};
+pub use verify::{Artefacts, VerifyCfg, VerifyScan};
 
 /// Errors of the twin.
 #[derive(Debug, thiserror::Error)]

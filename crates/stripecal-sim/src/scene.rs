@@ -1,5 +1,9 @@
-//! The scene: the board plate lying on a table, an optional sphere on the table, and
-//! the laser sheet; ray casting and shading in the camera frame of one image.
+//! The scene: the board plate lying on a table, spheres (the scan's ball on the table,
+//! or the two balls of a ball bar), an optional free plate (a flat artefact: a rectangle
+//! at any pose, [`FreePlate`]), and the laser sheet; ray casting and shading in the
+//! camera frame of one image. The verification scenes ([`crate::verify`]) have no board
+//! and no table (`World::table` false): their artefacts float, the rays that miss them
+//! see black.
 //!
 //! Geometry is exact: a ray hits the plate plane, the point's board coordinates decide
 //! exactly whether it lies on a printed feature ([`Board::ink_at`]: a circle of a circle
@@ -27,6 +31,8 @@ pub const SURF_NONE: u32 = 0;
 pub const SURF_PLATE: u32 = 1;
 pub const SURF_TABLE: u32 = 2;
 pub const SURF_SPHERE: u32 = 3;
+/// The free plate ([`FreePlate`]).
+pub const SURF_FREE_PLATE: u32 = 4;
 /// Printed features ("ink") are `SURF_CIRCLE0 + id` with the id of [`Board::ink_at`]:
 /// `row * cols + col` for a circle, `(j + 1) * (cols + 1) + i + 1` for chessboard square
 /// `(i, j)`. Every such material is >= 16, so it never equals another surface's id, and
@@ -49,13 +55,53 @@ pub struct World {
     pub base_board: Iso3,
     /// Plate thickness: the table surface lies this far behind the plate surface.
     pub plate_thickness_mm: f64,
-    /// Sphere centre (base frame) and radius, if any.
-    pub sphere: Option<(Vector3<f64>, f64)>,
+    /// Whether the board plate and its table are in the scene (false: only the spheres
+    /// and the free plate).
+    pub table: bool,
+    /// Sphere centres (base frame) and radii: none, the scan's ball, or a ball bar's two
+    /// balls (which must not overlap).
+    pub spheres: Vec<(Vector3<f64>, f64)>,
+    /// A free plate, if any.
+    pub free_plate: Option<FreePlate>,
     pub plate_reflectance: f64,
     /// Reflectance of the printed features: circles or dark squares ("ink").
     pub circle_reflectance: f64,
     pub table_reflectance: f64,
     pub sphere_reflectance: f64,
+}
+
+/// A flat rectangle at any pose (a flatness artefact): its surface is the plane z = 0 of
+/// `T_base_plate`, `|x| <= half_size_mm[0]`, `|y| <= half_size_mm[1]`; seen from either
+/// side, casting no shadows.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct FreePlate {
+    /// `T_base_plate`.
+    pub base_plate: Iso3,
+    pub half_size_mm: [f64; 2],
+    pub reflectance: f64,
+}
+
+/// The free plate in the camera frame.
+#[derive(Debug, Clone, Copy)]
+struct FreeRect {
+    /// Plane `n . p = d`, `d >= 0` (n away from the camera).
+    n: Vector3<f64>,
+    d: f64,
+    center: Vector3<f64>,
+    ex: Vector3<f64>,
+    ey: Vector3<f64>,
+    half: [f64; 2],
+    refl: f64,
+}
+
+impl FreeRect {
+    /// Signed distance (mm, in the plate) of a point of its plane from the outline:
+    /// positive inside.
+    #[inline]
+    fn inside_distance(&self, p: &Vector3<f64>) -> f64 {
+        let l = p - self.center;
+        (self.half[0] - self.ex.dot(&l).abs()).min(self.half[1] - self.ey.dot(&l).abs())
+    }
 }
 
 /// Laser sheet parameters in the camera frame.
@@ -80,7 +126,9 @@ pub struct ImageScene {
     plate_d: f64,
     table_d: f64,
     extent: [f64; 4],
-    sphere: Option<(Vector3<f64>, f64)>,
+    table: bool,
+    spheres: Vec<(Vector3<f64>, f64)>,
+    free: Option<FreeRect>,
     pub laser: Laser,
     refl: [f64; 4],
     /// `T_cam_board`, kept for truth computations.
@@ -129,9 +177,31 @@ impl World {
             plate_d,
             table_d: plate_d + self.plate_thickness_mm,
             extent,
-            sphere: self
-                .sphere
-                .map(|(c, r)| ((cam_base * nalgebra::Point3::from(c)).coords, r)),
+            table: self.table,
+            spheres: self
+                .spheres
+                .iter()
+                .map(|&(c, r)| ((cam_base * nalgebra::Point3::from(c)).coords, r))
+                .collect(),
+            free: self.free_plate.map(|f| {
+                let t = cam_base * f.base_plate;
+                let mut n = t.rotation * Vector3::z();
+                let center = t.translation.vector;
+                let mut d = n.dot(&center);
+                if d < 0.0 {
+                    n = -n;
+                    d = -d;
+                }
+                FreeRect {
+                    n,
+                    d,
+                    center,
+                    ex: t.rotation * Vector3::x(),
+                    ey: t.rotation * Vector3::y(),
+                    half: f.half_size_mm,
+                    refl: f.reflectance,
+                }
+            }),
             laser,
             refl: [
                 self.plate_reflectance,
@@ -177,9 +247,46 @@ impl ImageScene {
         (self.plate_n, self.table_d)
     }
 
-    /// Sphere in the camera frame.
+    /// The first sphere in the camera frame.
     pub fn sphere(&self) -> Option<(Vector3<f64>, f64)> {
-        self.sphere
+        self.spheres.first().copied()
+    }
+
+    /// Every sphere in the camera frame.
+    pub fn spheres(&self) -> &[(Vector3<f64>, f64)] {
+        &self.spheres
+    }
+
+    /// Whether the board plate and the table are in the scene.
+    pub fn has_table(&self) -> bool {
+        self.table
+    }
+
+    /// The free plate's plane in the camera frame `(n, d)` (n away from the camera).
+    pub fn free_plate_plane(&self) -> Option<(Vector3<f64>, f64)> {
+        self.free.map(|f| (f.n, f.d))
+    }
+
+    /// Distance (mm) of a point of the free plate's plane from its outline, positive
+    /// inside; `None` without a free plate.
+    pub fn free_plate_inside(&self, p: &Vector3<f64>) -> Option<f64> {
+        self.free.map(|f| f.inside_distance(p))
+    }
+
+    /// The index of the sphere whose surface is nearest to p.
+    #[inline]
+    fn sphere_index(&self, p: &Vector3<f64>) -> usize {
+        if self.spheres.len() < 2 {
+            return 0;
+        }
+        let mut best = (0, f64::INFINITY);
+        for (i, (c, r)) in self.spheres.iter().enumerate() {
+            let e = ((p - c).norm() - r).abs();
+            if e < best.1 {
+                best = (i, e);
+            }
+        }
+        best.0
     }
 
     /// The first surface a ray `s * dir` (s > 0) hits: `(surface, s)` with surface
@@ -188,7 +295,7 @@ impl ImageScene {
     pub fn first_hit(&self, dir: &Vector3<f64>) -> Option<(u32, f64)> {
         let mut best: Option<(u32, f64)> = None;
         let den = self.plate_n.dot(dir);
-        if den > 1e-12 {
+        if self.table && den > 1e-12 {
             let s = self.plate_d / den;
             if s > 0.0 {
                 let p = dir * s;
@@ -204,7 +311,7 @@ impl ImageScene {
                 }
             }
         }
-        if let Some((c, r)) = self.sphere {
+        for &(c, r) in &self.spheres {
             // |s dir - c|^2 = r^2
             let a = dir.norm_squared();
             let b = dir.dot(&c);
@@ -217,20 +324,39 @@ impl ImageScene {
                 }
             }
         }
+        if let Some(f) = &self.free {
+            let den = f.n.dot(dir);
+            if den > 1e-12 {
+                let s = f.d / den;
+                if s > 0.0
+                    && best.is_none_or(|(_, sb)| s < sb)
+                    && f.inside_distance(&(dir * s)) >= 0.0
+                {
+                    best = Some((SURF_FREE_PLATE, s));
+                }
+            }
+        }
         best
     }
 
     /// Outward (towards the camera side) unit normal of a surface at point p.
     #[inline]
     pub fn normal_at(&self, surface: u32, p: &Vector3<f64>) -> Vector3<f64> {
-        match (surface, self.sphere) {
-            (SURF_SPHERE, Some((c, r))) => (p - c) / r,
+        match surface {
+            SURF_SPHERE => {
+                let (c, r) = self.spheres[self.sphere_index(p)];
+                (p - c) / r
+            }
+            SURF_FREE_PLATE => match &self.free {
+                Some(f) => -f.n,
+                None => -self.plate_n,
+            },
             _ => -self.plate_n,
         }
     }
 
-    /// Whether the emitter sees point p (on `surface`): faces the emitter, no sphere
-    /// in between.
+    /// Whether the emitter sees point p (on `surface`): faces the emitter, no (other)
+    /// sphere in between.
     #[inline]
     pub fn lit(&self, surface: u32, p: &Vector3<f64>) -> bool {
         let e = self.laser.emitter;
@@ -238,8 +364,9 @@ impl ImageScene {
         if self.normal_at(surface, p).dot(&to_e) <= 0.0 {
             return false;
         }
-        if surface != SURF_SPHERE {
-            if let Some((c, r)) = self.sphere {
+        let own = (surface == SURF_SPHERE).then(|| self.sphere_index(p));
+        for (i, &(c, r)) in self.spheres.iter().enumerate() {
+            if own != Some(i) {
                 // segment p -> e against the sphere
                 let dir = to_e;
                 let oc = p - c;
@@ -318,7 +445,10 @@ impl ImageScene {
     #[inline]
     pub fn classify(&self, dir: &Vector3<f64>, alpha: f64) -> Footprint {
         let Some((surface, s)) = self.first_hit(dir) else {
-            return Footprint::Edge;
+            if self.table || self.near_silhouette(dir, alpha) {
+                return Footprint::Edge;
+            }
+            return Footprint::Uniform(self.shade(dir));
         };
         let p = dir * s;
         let range = p.norm();
@@ -328,7 +458,7 @@ impl ImageScene {
         }
         // Footprint radius on the surface.
         let rho = range * alpha / cos_view;
-        if let Some((c, r)) = self.sphere {
+        for &(c, r) in &self.spheres {
             let cn = c.norm();
             if cn <= r {
                 return Footprint::Edge;
@@ -338,6 +468,9 @@ impl ImageScene {
             if (beta - gamma).abs() < 1.5 * alpha {
                 return Footprint::Edge;
             }
+        }
+        if self.free.is_some() && self.near_free_outline(dir, alpha) {
+            return Footprint::Edge;
         }
         match surface {
             SURF_PLATE => {
@@ -384,6 +517,35 @@ impl ImageScene {
         }
     }
 
+    /// Whether a footprint of a ray that hits nothing may hold a silhouette: a sphere's
+    /// outline or the free plate's (scenes without a table).
+    fn near_silhouette(&self, dir: &Vector3<f64>, alpha: f64) -> bool {
+        for &(c, r) in &self.spheres {
+            let cn = c.norm();
+            if cn <= r || (dir.angle(&c) - (r / cn).asin()).abs() < 1.5 * alpha {
+                return true;
+            }
+        }
+        self.free.is_some() && self.near_free_outline(dir, alpha)
+    }
+
+    /// Whether the free plate's outline may cross the footprint of a ray (a grazing view
+    /// of its plane counts as near).
+    fn near_free_outline(&self, dir: &Vector3<f64>, alpha: f64) -> bool {
+        let Some(f) = &self.free else {
+            return false;
+        };
+        let den = f.n.dot(dir);
+        let cos_view = den / dir.norm();
+        if cos_view < 0.1 {
+            // grazing: near; away from the plane: never meets it
+            return cos_view > -0.1;
+        }
+        let q = dir * (f.d / den);
+        let rho = q.norm() * alpha / cos_view;
+        f.inside_distance(&q).abs() <= 1.5 * rho
+    }
+
     /// Shades one ray.
     #[inline]
     pub fn shade(&self, dir: &Vector3<f64>) -> Hit {
@@ -405,6 +567,7 @@ impl ImageScene {
                 }
             }
             SURF_TABLE => (SURF_TABLE, self.refl[2]),
+            SURF_FREE_PLATE => (SURF_FREE_PLATE, self.free.map_or(self.refl[0], |f| f.refl)),
             _ => (SURF_SPHERE, self.refl[3]),
         };
         Hit {

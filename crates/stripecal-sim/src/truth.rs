@@ -23,7 +23,7 @@ use serde::Serialize;
 use stripecal::model::StripeDirection;
 use stripecal::Camera;
 
-use crate::scene::{ImageScene, SURF_PLATE, SURF_SPHERE, SURF_TABLE};
+use crate::scene::{ImageScene, SURF_FREE_PLATE, SURF_PLATE, SURF_SPHERE, SURF_TABLE};
 
 /// Vertices of the polygon approximating a projected circle outline.
 const OUTLINE_VERTICES: usize = 4096;
@@ -51,7 +51,7 @@ pub type CircleTruth = PointTruth;
 pub struct StripePointTruth {
     pub u: f64,
     pub v: f64,
-    /// `board`, `table` or `sphere`.
+    /// `board`, `table`, `sphere` or `flat_plate` (the free plate).
     pub surface: &'static str,
     /// The 3D point in the camera frame, mm.
     pub p_cam: [f64; 3],
@@ -178,11 +178,16 @@ pub fn stripe_truth(
     let mut out = Vec::new();
     let laser = scene.laser.plane;
     let per_row = direction != StripeDirection::Rows;
-    // Plate and table: lines.
-    for (surface, (pn, pd)) in [
-        (SURF_PLATE, scene.plate_plane()),
-        (SURF_TABLE, scene.table_plane()),
-    ] {
+    // Plate, table and the free plate: lines.
+    let mut planes = Vec::with_capacity(3);
+    if scene.has_table() {
+        planes.push((SURF_PLATE, scene.plate_plane()));
+        planes.push((SURF_TABLE, scene.table_plane()));
+    }
+    if let Some(pl) = scene.free_plate_plane() {
+        planes.push((SURF_FREE_PLATE, pl));
+    }
+    for (surface, (pn, pd)) in planes {
         let dir = laser.normal.cross(&pn);
         if dir.norm() < 1e-9 {
             continue;
@@ -201,7 +206,7 @@ pub fn stripe_truth(
             scene, cam, surface, &curve, -1000.0, 1000.0, 200_000, per_row, &mut out,
         );
     }
-    if let Some((c, r)) = scene.sphere() {
+    for &(c, r) in scene.spheres() {
         let dist = laser.signed_distance(&c);
         if dist.abs() < r {
             let center = c - laser.normal * dist;
@@ -334,6 +339,7 @@ fn refine(
             let dy = (e[2] - y).max(y - e[3]).max(0.0);
             (dx * dx + dy * dy).sqrt().min(99.0)
         }
+        SURF_FREE_PLATE => scene.free_plate_inside(&p).unwrap_or(0.0).min(99.0),
         _ => 99.0,
     };
     // slope of the curve in the image
@@ -355,6 +361,7 @@ fn refine(
         surface: match surface {
             SURF_PLATE => "board",
             SURF_TABLE => "table",
+            SURF_FREE_PLATE => "flat_plate",
             _ => "sphere",
         },
         p_cam: [p.x, p.y, p.z],

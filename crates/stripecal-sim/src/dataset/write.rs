@@ -22,12 +22,15 @@ pub struct DatasetSummary {
     /// The bare-table scan folder (`scan.table`), and its frames.
     pub table_dir: Option<PathBuf>,
     pub table_frames: usize,
+    /// The verification folder (`verify.enabled`), and its frames over every scan.
+    pub verify_dir: Option<PathBuf>,
+    pub verify_frames: usize,
     pub direction: StripeDirection,
 }
 
 impl Twin {
     /// Renders and writes `out/calib` (and `out/scan` when scans are enabled,
-    /// `out/scan_table` with `scan.table`).
+    /// `out/scan_table` with `scan.table`, `out/verify` with `verify.enabled`).
     /// Each folder is written under a temporary name and renamed when complete.
     /// `progress(stage, done, total)` is called on the calling thread.
     pub fn write(
@@ -97,10 +100,16 @@ impl Twin {
         let mut sphere_pts = 0;
         if self.sphere.is_some() {
             let qs = self.scan_poses()?;
-            let (dir, pts) =
-                self.write_sweep(out, "scan", &qs, &rig, &pose_columns, progress, |q, k| {
-                    self.render_scan_frame(q, k)
-                })?;
+            let (dir, pts) = self.write_sweep(
+                out,
+                "scan",
+                &qs,
+                &rig,
+                &pose_columns,
+                progress,
+                self.truth(true),
+                |q, k| self.render_scan_frame(q, k),
+            )?;
             frames_n = qs.len();
             sphere_pts = pts;
             scan_dir = Some(dir);
@@ -117,10 +126,19 @@ impl Twin {
                 &rig,
                 &pose_columns,
                 progress,
+                self.truth(true),
                 |q, k| self.render_table_frame(q, k),
             )?;
             table_frames = qs.len();
             table_dir = Some(dir);
+        }
+        // --- verification artefacts
+        let mut verify_dir = None;
+        let mut verify_frames = 0;
+        if self.cfg.verify.enabled {
+            let (dir, n) = self.write_verify(out, &rig, &pose_columns, progress)?;
+            verify_dir = Some(dir);
+            verify_frames = n;
         }
         Ok(DatasetSummary {
             calib_dir,
@@ -132,13 +150,60 @@ impl Twin {
             scan_sphere_points: sphere_pts,
             table_dir,
             table_frames,
+            verify_dir,
+            verify_frames,
             direction: self.direction,
         })
     }
 
+    /// Writes `out/verify`: one scan folder per position of [`Twin::verify_scans`]
+    /// (`bar_1`.., `plate_1`..), `artefacts.json` (the certificate) and `verify.csv`
+    /// (header `scan,artefact`: each folder and the artefacts.json name it measures);
+    /// returns the folder and the frames written.
+    fn write_verify(
+        &self,
+        out: &Path,
+        rig: &Rig,
+        pose_columns: &io::PoseColumns,
+        progress: &mut dyn FnMut(&str, usize, usize),
+    ) -> Result<(PathBuf, usize), SimError> {
+        let scans = self.verify_scans()?;
+        let dir = out.join("verify");
+        let tmp = out.join(format!(".verify.partial-{}", std::process::id()));
+        if tmp.exists() {
+            std::fs::remove_dir_all(&tmp).map_err(|e| stripecal::Error::io(&tmp, e))?;
+        }
+        std::fs::create_dir_all(&tmp).map_err(|e| stripecal::Error::io(&tmp, e))?;
+        let mut frames = 0;
+        let mut manifest = String::from("scan,artefact\n");
+        for (i, scan) in scans.iter().enumerate() {
+            self.write_sweep(
+                &tmp,
+                &scan.name,
+                &scan.poses,
+                rig,
+                pose_columns,
+                progress,
+                self.verify_truth(scan),
+                |q, k| self.render_verify_frame(scan, i, q, k),
+            )?;
+            frames += scan.poses.len();
+            manifest.push_str(&format!("{},{}\n", scan.name, scan.artefact));
+        }
+        let art = self.verify_artefacts();
+        let path = tmp.join("artefacts.json");
+        let text = serde_json::to_string_pretty(&art.certificate)
+            .map_err(|e| SimError::Render(e.to_string()))?;
+        std::fs::write(&path, text + "\n").map_err(|e| stripecal::Error::io(&path, e))?;
+        let path = tmp.join("verify.csv");
+        std::fs::write(&path, manifest).map_err(|e| stripecal::Error::io(&path, e))?;
+        replace_dir(&tmp, &dir)?;
+        Ok((dir, frames))
+    }
+
     /// Writes the sweep `qs` as the scan folder `out/name` (rig.json, scan.csv,
-    /// images/, truth.json with the sphere if any); returns the folder and the stripe
-    /// points on the sphere.
+    /// images/, `truth` with the per-image stripe truth added); returns the folder and
+    /// the stripe points on spheres.
     #[allow(clippy::too_many_arguments)]
     fn write_sweep(
         &self,
@@ -148,12 +213,17 @@ impl Twin {
         rig: &Rig,
         pose_columns: &io::PoseColumns,
         progress: &mut dyn FnMut(&str, usize, usize),
+        mut truth: Truth,
         render: impl Fn(&[f64], usize) -> Result<ViewRender, SimError>,
     ) -> Result<(PathBuf, usize), SimError> {
-        let stage = if name == "scan" {
-            "scan frames"
-        } else {
-            "table scan frames"
+        let verify_stage;
+        let stage = match name {
+            "scan" => "scan frames",
+            "scan_table" => "table scan frames",
+            _ => {
+                verify_stage = format!("verify {name} frames");
+                verify_stage.as_str()
+            }
         };
         let dir = out.join(name);
         let tmp = staging_dir(out, name)?;
@@ -180,7 +250,6 @@ impl Twin {
         progress(stage, qs.len(), qs.len());
         io::write_rig(tmp.join("rig.json"), rig)?;
         io::write_scan_csv_with(tmp.join("scan.csv"), &frames, pose_columns)?;
-        let mut truth = self.truth(true);
         truth.extra.insert("images".into(), Value::Array(per_image));
         io::write_truth(tmp.join("truth.json"), &truth)?;
         replace_dir(&tmp, &dir)?;
