@@ -57,7 +57,10 @@ mod points;
 mod scan;
 mod triangulate;
 
-pub use fit::{fit_plane, fit_sphere, FitOptions, PlaneFit, SphereFitResult};
+pub use fit::{
+    correct_sphere_bias, fit_plane, fit_sphere, predicted_bias_px, FitOptions, PlaneFit,
+    SheetSigmaEstimate, SphereBiasCorrection, SphereFitResult, StripeBiasOptions,
+};
 pub use frame::Reconstructor;
 pub use options::{
     stripe_direction_from_plane, BadImage, ReconstructOptions, DEFAULT_MIN_RAY_PLANE_ANGLE_DEG,
