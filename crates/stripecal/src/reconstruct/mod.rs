@@ -48,7 +48,9 @@
 //! is left out and listed in [`ScanPoints::skipped`] ([`BadImage::Skip`]). A frame whose
 //! image is fine but shows no stripe is not a bad image: it simply gives no points.
 //!
-//! Fits of the points (sphere, plane) are in [`fit`].
+//! Fits of the points (sphere, plane) are in [`fit`], with the correction of a sphere
+//! scan for the curved-surface stripe bias ([`correct_sphere_bias`]: it takes the
+//! points' pixels and widths, `T_base_cam` per frame, the camera and the laser plane).
 
 pub mod fit;
 mod frame;

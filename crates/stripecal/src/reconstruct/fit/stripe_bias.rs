@@ -92,8 +92,11 @@
 //!   twin (3 seeds, sheet sigma 0.12 and 0.2 mm, balls of 44.86 and 25.4 mm, two rigs)
 //!   leaves 17-52 % of the correction, always an under-correction (+0.0006 to +0.0017
 //!   mm on the diameter) although the per-point biases agree with the twin's true stripe
-//!   to ~0.0005 px in every incidence bin up to 70 deg. Its cause is not identified; the
-//!   terms below are candidates. This part is an empirical bound, not derived.
+//!   to ~0.0005 px in every incidence bin up to 70 deg. It comes with the image noise: a
+//!   noise-free twin goes from +0.0031 to +0.0003 mm (the noise adds +0.0017 mm to the
+//!   uncorrected diameter), but a read-noise Monte Carlo through the extractor on the
+//!   modelled profiles does not reproduce it (the noise-free images also lose ~5 % of the
+//!   scan lines, so the point sets differ). This part is an empirical bound, not derived.
 //!
 //! The sensitivity terms are computed on a subsample of at most [`SENSITIVITY_POINTS`]
 //! points, as differences from the nominal model on the same subsample and points.
