@@ -811,25 +811,37 @@ pub fn correct_sphere_bias(
     let geo3: Vec<(Vector3<f64>, f64, usize)> =
         geo.iter().map(|(g, f)| (g.p_cam, g.line, *f)).collect();
     let sphere0 = (&uncorrected.center_mm, 0.5 * uncorrected.diameter_mm);
-    let sheet = estimate_sheet_sigma(
-        &rig,
-        points,
-        &geo3,
-        &cam_base,
-        sphere0,
-        opts.sheet_sigma_mm,
-        opts.psf_sigma_px,
-    )?;
-    let (sigma, psf) = (sheet.sheet_sigma_mm, sheet.psf_sigma_px);
-    // The emitter.
-    let emitter_estimate = if opts.emitter_cam_mm.is_none() && opts.estimate_emitter {
-        estimate_emitter(&rig, points, &geo3, &cam_base, sphere0, sigma, psf)
-    } else {
-        None
-    };
-    if let Some(e) = &emitter_estimate {
-        rig.emitter = e.emitter_cam_mm;
+    // The sheet and PSF sigmas (widths) and the emitter (brightness) depend on each
+    // other a little: two passes, the second with the first's emitter.
+    let estimate_e = opts.emitter_cam_mm.is_none() && opts.estimate_emitter;
+    let mut emitter_estimate = None;
+    let mut sheet;
+    let mut pass = 0;
+    loop {
+        sheet = estimate_sheet_sigma(
+            &rig,
+            points,
+            &geo3,
+            &cam_base,
+            sphere0,
+            opts.sheet_sigma_mm,
+            opts.psf_sigma_px,
+        )?;
+        pass += 1;
+        if !estimate_e || pass > 2 {
+            break;
+        }
+        let (sigma, psf) = (sheet.sheet_sigma_mm, sheet.psf_sigma_px);
+        emitter_estimate = estimate_emitter(&rig, points, &geo3, &cam_base, sphere0, sigma, psf);
+        match &emitter_estimate {
+            Some(e) => rig.emitter = e.emitter_cam_mm,
+            None => break,
+        }
+        if pass == 2 {
+            break;
+        }
     }
+    let (sigma, psf) = (sheet.sheet_sigma_mm, sheet.psf_sigma_px);
     let emitter = rig.emitter;
     // Correct, refit, repeat.
     let mut sphere = (uncorrected.center_mm, 0.5 * uncorrected.diameter_mm);
