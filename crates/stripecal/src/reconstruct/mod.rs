@@ -48,7 +48,9 @@
 //! is left out and listed in [`ScanPoints::skipped`] ([`BadImage::Skip`]). A frame whose
 //! image is fine but shows no stripe is not a bad image: it simply gives no points.
 //!
-//! Fits of the points (sphere, plane) are in [`fit`].
+//! Fits of the points (sphere, plane) are in [`fit`], with the correction of a sphere
+//! scan for the curved-surface stripe bias ([`correct_sphere_bias`]: it takes the
+//! points' pixels and widths, `T_base_cam` per frame, the camera and the laser plane).
 
 pub mod fit;
 mod frame;
@@ -58,7 +60,10 @@ mod scan;
 mod triangulate;
 pub mod uncertainty;
 
-pub use fit::{fit_plane, fit_sphere, FitOptions, PlaneFit, SphereFitResult};
+pub use fit::{
+    correct_sphere_bias, fit_plane, fit_sphere, predicted_bias_px, FitOptions, PlaneFit,
+    SheetSigmaEstimate, SphereBiasCorrection, SphereFitResult, StripeBiasOptions,
+};
 pub use frame::Reconstructor;
 pub use options::{
     stripe_direction_from_plane, BadImage, ReconstructOptions, DEFAULT_MIN_RAY_PLANE_ANGLE_DEG,

@@ -30,22 +30,40 @@
 //! `var a = sigma^2 / sum (e1 . (p - c))^2`, `var b` likewise, `var delta = sigma^2 / n`;
 //! `normal_sigma = sqrt(diag(var a e1 e1^T + var b e2 e2^T))`, and `d = n . c + delta`
 //! gives `var d = var delta + var a (e1 . c)^2 + var b (e2 . c)^2`.
+//!
+//! ## The curved-surface stripe bias of a sphere
+//!
+//! A laser sheet of finite thickness on a sphere gives a skewed stripe profile whose
+//! (windowed) centroid is not the image of the sheet's centre plane: the points lie off
+//! the sphere and the diameter is biased (+0.005 mm on the paper's rig with the true
+//! calibration). [`correct_sphere_bias`] models the profile each point's scan line sees
+//! (the sphere's points at each sheet offset, their shading and the extractor's own
+//! centroid code), subtracts the predicted bias and refits ([`stripe_bias`]); the sheet's
+//! thickness is estimated from the stripe widths ([`sheet_sigma`]).
 
 pub mod budget;
+pub mod emitter;
 mod measure;
 mod plane;
+pub mod sheet_sigma;
 mod sphere;
+pub mod stripe_bias;
 mod trim;
 
 use crate::error::{Error, Result};
 
 pub use budget::{Budget, LinearForm, ScanFrames};
+pub use emitter::EmitterEstimate;
 pub use measure::{
     measure_plane, measure_sphere, sphere_distance, PlaneMeasurement, SphereMeasurement,
     SphereSystematic,
 };
 pub use plane::{fit_plane, PlaneFit};
+pub use sheet_sigma::SheetSigmaEstimate;
 pub use sphere::{fit_sphere, SphereFitResult};
+pub use stripe_bias::{
+    correct_sphere_bias, predicted_bias_px, SphereBiasCorrection, StripeBiasOptions,
+};
 
 /// Options of the fits.
 #[derive(Debug, Clone, Copy, PartialEq)]

@@ -214,6 +214,34 @@ impl StripeOptions {
     }
 }
 
+/// The extractor's sub-pixel estimate on one synthetic scan-line profile: `values[k]` is
+/// the (background-free, any positive scale) signal of pixel `k`. The profile is
+/// quantised to 16 bits with its maximum at 60000 and handed to the same code as a real
+/// scan line (background flanks, width at half maximum, iterated window centroid or
+/// Gaussian fit): returns `(centre, width_px, peak)` (centre in pixel indices, peak
+/// height in the units of `values`), or `None` where the extractor would reject the scan
+/// line. For models of the extractor's response (the
+/// curved-surface bias model of [`crate::reconstruct::fit`]).
+pub(crate) fn profile_centre(values: &[f64], opts: &StripeOptions) -> Option<(f64, f32, f64)> {
+    let (pk, &vmax) = values
+        .iter()
+        .enumerate()
+        .max_by(|a, b| a.1.total_cmp(b.1))?;
+    if !(vmax > 0.0 && vmax.is_finite()) {
+        return None;
+    }
+    let scale = 60000.0 / vmax;
+    let seg: Vec<u16> = values
+        .iter()
+        .map(|&v| (v * scale).round().clamp(0.0, 65535.0) as u16)
+        .collect();
+    let p = peak::Params::new::<u16>(opts);
+    let mut res = Vec::new();
+    peak::subpixel(&seg, pk, &p, &mut res)
+        .ok()
+        .map(|s| (s.c, s.width, s.peak as f64 / scale))
+}
+
 /// One stripe point.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct StripePoint {

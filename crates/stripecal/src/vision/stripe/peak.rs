@@ -408,7 +408,7 @@ fn window_centroid(
 
 /// The sub-pixel centre of the peak at `pk` (index into the scan line `seg`); `res` is
 /// scratch space for the background-free residuals.
-fn subpixel<T: Pixel>(
+pub(super) fn subpixel<T: Pixel>(
     seg: &[T],
     pk: usize,
     p: &Params,

@@ -1,0 +1,154 @@
+//! The laser emitter's position within the laser plane, estimated from the stripe's
+//! brightness along a sphere scan, for the bias model of [`super::stripe_bias`].
+//!
+//! No calibration file holds the emitter, but the stripe's peak height on a Lambertian
+//! sphere follows `cos(incidence) / r` from it (and the geometry's foreshortening, which
+//! the bias model computes): the incidence changes by tens of degrees over the sphere, so
+//! the brightness pattern locates the emitter. With `E = E0 + x e1 + y e2` (`E0 = n d`,
+//! `e1, e2` a basis of the plane), Gauss-Newton on `(x, y)` minimises
+//! `sum (ln I_i - ln P_i(E) - k)^2` over a subsample of at most [`EMITTER_POINTS`] points
+//! (`I_i` the extractor's peak height, `P_i` the modelled profile's peak read by the same
+//! code, `k` the unknown power x reflectance x gain, eliminated as the mean), with
+//! numerical derivatives (1 mm steps). Saturated points are left out. Standard
+//! uncertainties from `s^2 (J^T J)^-1` (`s^2` the residual variance).
+//!
+//! Neglected: vignetting and a non-uniform reflectance or sheet power along the line (they
+//! change the brightness but not the incidence pattern; their slow variation over the
+//! sphere's image shifts the estimate), speckle (noise). The estimate is refused (the
+//! default `n d` is kept) when fewer than 50 points are modelled or it moves more than
+//! 200 mm from `n d`.
+
+use nalgebra::{Matrix2, Vector2, Vector3};
+use rayon::prelude::*;
+
+use crate::model::geometry::Iso3;
+use crate::reconstruct::ScanPoints;
+use crate::vision::stripe::FLAG_SATURATED;
+
+use super::stripe_bias::{extractor_response, point_profile, PointProfile, Rig};
+
+/// Points used for the emitter fit, at most.
+pub const EMITTER_POINTS: usize = 1500;
+
+/// The emitter estimate: the position (camera frame, mm) and the standard uncertainties
+/// of its two in-plane coordinates.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct EmitterEstimate {
+    pub emitter_cam_mm: Vector3<f64>,
+    pub sd_mm: [f64; 2],
+    /// RMS of the log-brightness residuals.
+    pub rms_log: f64,
+    pub points: usize,
+}
+
+/// Log peak heights of the model for `emitter`.
+fn log_peaks(
+    rig: &Rig<'_>,
+    pts: &[(Vector3<f64>, Vector3<f64>, f64)],
+    r: f64,
+    sigma: f64,
+    psf: f64,
+) -> Vec<Option<f64>> {
+    pts.par_iter()
+        .map_init(
+            || (PointProfile::default(), Vec::new()),
+            |(prof, buf), (c, p, line)| {
+                if !point_profile(rig, c, r, *line, p, sigma, psf, prof) {
+                    return None;
+                }
+                let pk = extractor_response(prof, psf, rig.stripe, buf)?.2;
+                (pk > 0.0).then(|| pk.ln())
+            },
+        )
+        .collect()
+}
+
+/// Estimates the emitter (module docs); `None` when refused.
+pub(super) fn estimate_emitter(
+    rig: &Rig<'_>,
+    points: &ScanPoints,
+    geo: &[(Vector3<f64>, f64, usize)],
+    cam_base: &[Iso3],
+    sphere: (&Vector3<f64>, f64),
+    sigma: f64,
+    psf: f64,
+) -> Option<EmitterEstimate> {
+    let n = points.len();
+    if points.intensity.len() != n {
+        return None;
+    }
+    let step = n.div_ceil(EMITTER_POINTS).max(1);
+    let mut pts = Vec::new();
+    let mut obs = Vec::new();
+    for i in (0..n).step_by(step) {
+        let li = (points.intensity[i] as f64).ln();
+        if points.flags[i] & FLAG_SATURATED != 0 || !li.is_finite() {
+            continue;
+        }
+        let (p, line, f) = geo[i];
+        let c = (cam_base[f] * nalgebra::Point3::from(*sphere.0)).coords;
+        pts.push((c, p, line));
+        obs.push(li);
+    }
+    let e0 = rig.emitter;
+    let (e1, e2) = super::stripe_bias::plane_basis(&rig.n);
+    let at = |x: &Vector2<f64>| {
+        let mut r2 = rig.clone();
+        r2.emitter = e0 + e1 * x[0] + e2 * x[1];
+        log_peaks(&r2, &pts, sphere.1, sigma, psf)
+    };
+    let mut x = Vector2::zeros();
+    let h = 1.0;
+    let mut cov = Matrix2::zeros();
+    let mut rms = 0.0;
+    let mut used = 0;
+    for _ in 0..10 {
+        let f0 = at(&x);
+        let fa = at(&(x + Vector2::new(h, 0.0)));
+        let fb = at(&(x + Vector2::new(0.0, h)));
+        // Residuals with the mean removed, over the points all three model.
+        let mut rows = Vec::new();
+        for k in 0..pts.len() {
+            if let (Some(a), Some(b), Some(c)) = (f0[k], fa[k], fb[k]) {
+                rows.push((obs[k] - a, (b - a) / h, (c - a) / h));
+            }
+        }
+        if rows.len() < 50 {
+            return None;
+        }
+        let m = rows.len() as f64;
+        let mr = rows.iter().map(|r| r.0).sum::<f64>() / m;
+        let ma = rows.iter().map(|r| r.1).sum::<f64>() / m;
+        let mb = rows.iter().map(|r| r.2).sum::<f64>() / m;
+        let mut jtj = Matrix2::zeros();
+        let mut jtr = Vector2::zeros();
+        let mut ss = 0.0;
+        for r in &rows {
+            let j = Vector2::new(r.1 - ma, r.2 - mb);
+            let res = r.0 - mr;
+            jtj += j * j.transpose();
+            jtr += j * res;
+            ss += res * res;
+        }
+        let inv = jtj.try_inverse()?;
+        let dx = inv * jtr;
+        let var = ss / (m - 3.0).max(1.0);
+        cov = inv * var;
+        rms = (ss / m).sqrt();
+        used = rows.len();
+        let dx = dx.map(|v| v.clamp(-20.0, 20.0));
+        x += dx;
+        if x.norm() > 200.0 {
+            return None;
+        }
+        if dx.norm() < 0.05 {
+            break;
+        }
+    }
+    Some(EmitterEstimate {
+        emitter_cam_mm: e0 + e1 * x[0] + e2 * x[1],
+        sd_mm: [cov[(0, 0)].max(0.0).sqrt(), cov[(1, 1)].max(0.0).sqrt()],
+        rms_log: rms,
+        points: used,
+    })
+}
