@@ -14,6 +14,7 @@ use serde_json::{json, Value};
 
 use crate::error::{Error, Result};
 use crate::model::{Calibration, RobotReading, Scan, StripeDirection};
+use crate::reconstruct::fit::stripe_bias::{correct_sphere_bias, StripeBiasOptions};
 use crate::reconstruct::fit::{
     fit_plane, fit_sphere, measure_plane, measure_sphere, sphere_distance, Budget, FitOptions,
     PlaneFit, PlaneMeasurement, ScanFrames, SphereFitResult, SphereMeasurement, SphereSystematic,
@@ -115,22 +116,27 @@ fn sphere_report(
     fit: SphereFitResult,
     opts: &MeasureOptions,
 ) -> Result<SphereReport> {
-    let (fit, coords, systematic, bias) = if opts.correct_bias {
-        let (f, coords, sys, info) = correct_bias(model, readings, points, fit, &opts.fit)?;
-        (f, coords, sys, Some(info))
-    } else {
-        (
+    if opts.correct_bias {
+        let (fit, used, coords, systematic, info) =
+            correct_bias(model, readings, points, fit, &opts.fit)?;
+        let measurement = measure_sphere(frames, &used, &coords, &fit, &systematic)?;
+        return Ok(SphereReport {
             fit,
-            points.points_mm.clone(),
-            SphereSystematic::default(),
-            None,
-        )
-    };
-    let measurement = measure_sphere(frames, points, &coords, &fit, &systematic)?;
+            measurement,
+            bias: Some(info),
+        });
+    }
+    let measurement = measure_sphere(
+        frames,
+        points,
+        &points.points_mm,
+        &fit,
+        &SphereSystematic::default(),
+    )?;
     Ok(SphereReport {
         fit,
         measurement,
-        bias,
+        bias: None,
     })
 }
 
@@ -153,7 +159,7 @@ pub fn measure_scan_ball_bar(
     let keep: Vec<usize> = (0..points.len())
         .filter(|&i| !first.inlier[i] && !near(&points.points_mm[i]))
         .collect();
-    let rest = subset(points, &keep);
+    let rest = points.subset(&keep);
     if rest.len() < 20 {
         return Err(Error::Degenerate(format!(
             "ball bar: after the first sphere ({} points) only {} points are left for the \
@@ -178,7 +184,7 @@ pub fn measure_scan_ball_bar(
     let own: Vec<usize> = (0..points.len())
         .filter(|&i| near(&points.points_mm[i]))
         .collect();
-    let mine = subset(points, &own);
+    let mine = points.subset(&own);
     let first = fit_sphere(&mine.points_mm, &opts.fit)?;
     let a = sphere_report(&mut frames, model, readings, &mine, first, opts)?;
     let b = sphere_report(&mut frames, model, readings, &rest, second, opts)?;
@@ -202,47 +208,76 @@ pub fn measure_scan_plane(
     Ok(PlaneReport { fit, measurement })
 }
 
-/// The points `idx` of a set (same frames, pixels and properties).
-fn subset(p: &ScanPoints, idx: &[usize]) -> ScanPoints {
-    ScanPoints {
-        points_mm: idx.iter().map(|&i| p.points_mm[i]).collect(),
-        frame: idx.iter().map(|&i| p.frame[i]).collect(),
-        u_px: idx.iter().map(|&i| p.u_px[i]).collect(),
-        v_px: idx.iter().map(|&i| p.v_px[i]).collect(),
-        intensity: idx.iter().map(|&i| p.intensity[i]).collect(),
-        width_px: idx.iter().map(|&i| p.width_px[i]).collect(),
-        flags: idx.iter().map(|&i| p.flags[i]).collect(),
-        covariance_mm2: if p.covariance_mm2.len() == p.len() {
-            idx.iter().map(|&i| p.covariance_mm2[i]).collect()
-        } else {
-            vec![]
-        },
-        dropped: p.dropped,
-        skipped: p.skipped.clone(),
-    }
-}
-
-/// The curved-surface stripe bias correction of a sphere fit: the corrected fit, the
-/// corrected coordinates, the systematic part it leaves and what it did.
+/// The curved-surface stripe bias correction of a sphere fit
+/// ([`crate::reconstruct::fit::stripe_bias`]) of the fit's inliers: the corrected fit,
+/// the points it used (the modelled inliers) with their corrected coordinates, the
+/// systematic part it leaves and what it did.
 fn correct_bias(
-    _model: &UncertaintyModel,
-    _readings: &[RobotReading],
+    model: &UncertaintyModel,
+    readings: &[RobotReading],
     points: &ScanPoints,
     fit: SphereFitResult,
-    _opts: &FitOptions,
-) -> Result<(SphereFitResult, Vec<[f64; 3]>, SphereSystematic, BiasInfo)> {
-    // INTEGRATION POINT (issue 15): replaced by the stripe-bias model when it lands.
-    let info = BiasInfo {
-        sheet_sigma_mm: f64::NAN,
-        diameter_change_mm: 0.0,
+    opts: &FitOptions,
+) -> Result<BiasCorrected> {
+    let cal = model.calibration();
+    let plane = crate::reconstruct::laser_plane_of(cal)?;
+    let base_cam = readings
+        .iter()
+        .map(|r| Ok(r.base_hand(cal.robot.as_ref())? * cal.hand_cam))
+        .collect::<Result<Vec<_>>>()?;
+    let inliers: Vec<usize> = (0..points.len()).filter(|&i| fit.inlier[i]).collect();
+    let sphere_pts = points.subset(&inliers);
+    let mut o = StripeBiasOptions {
+        fit: *opts,
+        ..Default::default()
     };
-    Ok((
-        fit,
-        points.points_mm.clone(),
-        SphereSystematic::default(),
-        info,
-    ))
+    o.stripe.direction = model.direction();
+    let c = correct_sphere_bias(&sphere_pts, &base_cam, &cal.camera, plane, &o).map_err(|e| {
+        let hint = "measure without it: correct_bias=False / --no-bias-correction";
+        match e {
+            Error::Degenerate(m) => {
+                Error::Degenerate(format!("stripe-bias correction: {m} ({hint})"))
+            }
+            Error::InvalidInput(m) => {
+                Error::InvalidInput(format!("stripe-bias correction: {m} ({hint})"))
+            }
+            other => other,
+        }
+    })?;
+    let used: Vec<usize> = (0..sphere_pts.len()).filter(|&i| c.modelled[i]).collect();
+    let kept = sphere_pts.subset(&used);
+    let coords: Vec<[f64; 3]> = used
+        .iter()
+        .map(|&i| {
+            let (p, d) = (sphere_pts.points_mm[i], c.corrections_mm[i]);
+            [p[0] - d[0], p[1] - d[1], p[2] - d[2]]
+        })
+        .collect();
+    // Signed as the correction moved each quantity (the model's error is a fraction of
+    // its correction, the same fraction for every sphere).
+    let signed = |u: f64, change: f64| if change < 0.0 { -u } else { u };
+    let systematic = SphereSystematic {
+        center_mm: std::array::from_fn(|k| {
+            signed(c.center_systematic_mm[k], c.center_change_mm[k])
+        }),
+        diameter_mm: signed(c.diameter_systematic_mm, c.diameter_change_mm),
+    };
+    let info = BiasInfo {
+        sheet_sigma_mm: c.sheet.sheet_sigma_mm,
+        diameter_change_mm: c.diameter_change_mm,
+    };
+    Ok((c.fit, kept, coords, systematic, info))
 }
+
+/// A corrected fit, the points it used, their corrected coordinates, the systematic
+/// part and what the correction did.
+type BiasCorrected = (
+    SphereFitResult,
+    ScanPoints,
+    Vec<[f64; 3]>,
+    SphereSystematic,
+    BiasInfo,
+);
 
 /// A budget as JSON: `value_mm`, `expanded_mm` (the headline, `k` = 2), `k`,
 /// `combined_mm` and the parts `random_mm`, `calibration_mm`, `robot_mm`,

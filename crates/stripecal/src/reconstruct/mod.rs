@@ -70,5 +70,5 @@ pub use options::{
 };
 pub use points::{at_frame, ScanPoints};
 pub use scan::{load_scan, reconstruct_frames, reconstruct_scan};
-pub use triangulate::{triangulate, DropCounts, Triangulator};
+pub use triangulate::{laser_plane_of, triangulate, DropCounts, Triangulator};
 pub use uncertainty::{point_covariances, UncertaintyModel, UncertaintyOptions};

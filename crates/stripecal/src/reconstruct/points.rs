@@ -95,6 +95,28 @@ impl ScanPoints {
         retain(&mut self.frame, &mask);
     }
 
+    /// The points `idx` (in that order) with their frames, pixels and properties; the
+    /// drop counts and skipped frames as they are.
+    pub fn subset(&self, idx: &[usize]) -> ScanPoints {
+        let p = self;
+        ScanPoints {
+            points_mm: idx.iter().map(|&i| p.points_mm[i]).collect(),
+            frame: idx.iter().map(|&i| p.frame[i]).collect(),
+            u_px: idx.iter().map(|&i| p.u_px[i]).collect(),
+            v_px: idx.iter().map(|&i| p.v_px[i]).collect(),
+            intensity: idx.iter().map(|&i| p.intensity[i]).collect(),
+            width_px: idx.iter().map(|&i| p.width_px[i]).collect(),
+            flags: idx.iter().map(|&i| p.flags[i]).collect(),
+            covariance_mm2: if p.covariance_mm2.len() == p.len() {
+                idx.iter().map(|&i| p.covariance_mm2[i]).collect()
+            } else {
+                vec![]
+            },
+            dropped: p.dropped,
+            skipped: p.skipped.clone(),
+        }
+    }
+
     /// The PLY header comments of the cloud: `skipped_frames N`, then one
     /// `skipped frame ...` line per skipped frame (which, where and why; control
     /// characters replaced by spaces).

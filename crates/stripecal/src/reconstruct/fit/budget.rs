@@ -13,7 +13,8 @@
 //! - **robot**: the robot's repeatability / encoder figures, shared by the points of a
 //!   frame, independent between frames;
 //! - **systematic**: components a model leaves, e.g. what the curved-surface stripe bias
-//!   correction cannot settle; independent per fit.
+//!   correction cannot settle (one source shared by every sphere it corrects), and a
+//!   reference value's certificate.
 //!
 //! ## A fit's sensitivity
 //!

@@ -4,9 +4,12 @@
 //!
 //! A measurement is made from a fit of a scan's points (their pixels and frames tell
 //! the calibration and robot parts) and the coordinates the fit used (the
-//! reconstructed points, or the points after a bias correction). `systematic` adds a
-//! fit's documented systematic standard uncertainties (e.g. the curved-surface stripe
-//! bias that a correction leaves), independent per fit.
+//! reconstructed points, or the points after a bias correction). `systematic` adds the
+//! documented systematic standard uncertainty a model leaves (the curved-surface
+//! stripe-bias correction's remainder) as the coefficients of ONE unit source shared by
+//! every sphere measured with the model ([`SphereSystematic`]): the model's relative
+//! error is the same for all of them, so its effect on a ball bar's length (two
+//! spheres corrected alike) largely cancels, as it does in reality.
 
 use nalgebra::{DMatrix, Matrix3, Matrix4, Vector3};
 
@@ -31,12 +34,19 @@ pub struct SphereMeasurement {
     pub diameter_form: LinearForm,
 }
 
-/// Systematic standard uncertainties of a sphere fit a model leaves, mm.
+/// Systematic standard uncertainties a model leaves on a sphere fit, mm, SIGNED: the
+/// coefficients of the model's one shared unit source ([`MODEL_SOURCE`]); a sign says in
+/// which direction the quantity moves when the model errs one way (for a correction
+/// whose error is a fraction of it: the sign of the correction).
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
 pub struct SphereSystematic {
     pub center_mm: [f64; 3],
     pub diameter_mm: f64,
 }
+
+/// The unit source of the stripe-bias model's error, shared by every sphere (owner 0:
+/// [`super::budget::new_source_id`] never gives it).
+pub const MODEL_SOURCE: super::budget::Source = (0, 1, 0);
 
 /// The budgets of a sphere fit of `points` (the fit's inlier mask selects them; `coords`
 /// are the coordinates it used, one per point).
@@ -91,9 +101,9 @@ pub fn measure_sphere(
         systematic.center_mm[2],
         0.5 * systematic.diameter_mm,
     ];
-    for (k, (p, s)) in sens.params.iter_mut().zip(sys).enumerate() {
-        if s > 0.0 {
-            p.systematic.insert((id, 1, k as u32), s);
+    for (p, s) in sens.params.iter_mut().zip(sys) {
+        if s != 0.0 {
+            p.systematic.insert(MODEL_SOURCE, s);
         }
     }
     // Probing form: the range of the radial residuals.

@@ -88,10 +88,12 @@
 //! - the sheet sigma's and the PSF sigma's standard uncertainties (from their fit,
 //!   [`super::sheet_sigma`]) propagated by recomputing the correction at
 //!   `sigma +- u(sigma)` (half the difference);
-//! - the model's residual error, [`NEGLECTED_FRACTION`] (50 %) of the correction: the
-//!   twin (3 seeds, sheet sigma 0.12 and 0.2 mm, balls of 44.86 and 25.4 mm, two rigs)
-//!   leaves 17-52 % of the correction, always an under-correction (+0.0006 to +0.0017
-//!   mm on the diameter) although the per-point biases agree with the twin's true stripe
+//! - the model's residual error: what remains after the correction is taken to lie within
+//!   `+-`[`NEGLECTED_FRACTION`] (50 %) of the correction, uniformly (a GUM type B
+//!   evaluation: standard uncertainty `0.5 |correction| / sqrt 3`, 29 %): the twin (3
+//!   seeds, sheet sigma 0.12 and 0.2 mm, balls of 44.86 and 25.4 mm, two rigs) leaves
+//!   17-52 % of the correction, always an under-correction (+0.0006 to +0.0017 mm on the
+//!   diameter) although the per-point biases agree with the twin's true stripe
 //!   to ~0.0005 px in every incidence bin up to 70 deg. It comes with the image noise: a
 //!   noise-free twin goes from +0.0031 to +0.0003 mm (the noise adds +0.0017 mm to the
 //!   uncorrected diameter), but a read-noise Monte Carlo through the extractor on the
@@ -137,8 +139,15 @@ use super::{fit_sphere, FitOptions, SphereFitResult};
 pub const HALF_SAMPLES: usize = 10;
 /// Points used for the sensitivity (systematic) terms, at most.
 pub const SENSITIVITY_POINTS: usize = 4000;
-/// The neglected terms (module docs), as a fraction of the correction.
+/// The neglected terms (module docs): the half width of their uniform distribution, as
+/// a fraction of the correction.
 pub const NEGLECTED_FRACTION: f64 = 0.5;
+
+/// The standard uncertainty of the neglected terms per unit correction (uniform over
+/// `+-NEGLECTED_FRACTION`).
+pub fn neglected_share() -> f64 {
+    NEGLECTED_FRACTION / 3f64.sqrt()
+}
 /// Largest number of correct-and-refit rounds.
 const MAX_ROUNDS: usize = 8;
 
@@ -959,8 +968,8 @@ pub fn correct_sphere_bias(
     let diameter_change_mm = fit.diameter_mm - uncorrected.diameter_mm;
     let center_change_mm = fit.center_mm - uncorrected.center_mm;
     let neg = (
-        NEGLECTED_FRACTION * diameter_change_mm.abs(),
-        center_change_mm.abs() * NEGLECTED_FRACTION,
+        neglected_share() * diameter_change_mm.abs(),
+        center_change_mm.abs() * neglected_share(),
     );
     let rss3 = |a: f64, b: f64, c: f64| (a * a + b * b + c * c).sqrt();
     let diameter_systematic_mm = rss3(em.0, sg.0, neg.0);
@@ -1233,7 +1242,7 @@ mod tests {
         assert!(de < 2.0, "emitter off by {de} mm");
         // The systematic part: mostly the model-error share of the correction.
         let sys = res.diameter_systematic_mm;
-        let share = NEGLECTED_FRACTION * res.diameter_change_mm.abs();
+        let share = neglected_share() * res.diameter_change_mm.abs();
         assert!(sys >= share && sys < share + 2e-4, "{sys} vs {share}");
     }
 }

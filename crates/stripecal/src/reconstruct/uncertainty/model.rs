@@ -206,6 +206,16 @@ impl UncertaintyModel {
         &self.names
     }
 
+    /// The calibration.
+    pub fn calibration(&self) -> &Calibration {
+        &self.calibration
+    }
+
+    /// The stripe direction (resolved: `Rows` or `Cols`).
+    pub fn direction(&self) -> StripeDirection {
+        self.direction
+    }
+
     /// Their covariance (P x P).
     pub fn covariance(&self) -> &DMatrix<f64> {
         &self.cov
