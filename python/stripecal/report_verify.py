@@ -8,7 +8,7 @@ from __future__ import annotations
 import html
 import os
 from pathlib import Path
-from typing import Any, Dict, List, Union
+from typing import Any, List, Union
 
 from stripecal.report import _pyplot, _save, write_html
 from stripecal.cli_measure import TITLES, verdict
@@ -57,9 +57,8 @@ def write_verify_report(out_dir: _Path, report: VerifyReport, *, title: str = "s
                   f"<td>{b['random_mm']:.2e}</td><td>{b['calibration_mm']:.2e}</td><td>{b['robot_mm']:.2e}</td>"
                   f"<td>{b['systematic_mm']:.2e}</td><td>{row['mpe_mm']:.4f}</td><td>{verdict(row)}</td></tr>")
     sr: List[str] = []
-    summary: Dict[str, Any] = dict(report["summary"])
     for key, name in _TITLES.items():
-        s = summary.get(key)
+        s = report["summary"].get(key)
         if s is None:
             sr.append(f"<tr><td>{name}</td><td colspan=5>not measured</td></tr>")
             continue
