@@ -1,0 +1,468 @@
+//! The curved-surface stripe bias of a sphere scan: a model of what the stripe extractor
+//! measures on a sphere lit by a laser sheet of Gaussian thickness, and the sphere fit
+//! corrected by it ([`correct_sphere_bias`]).
+//!
+//! ## Why the stripe centre is biased on a curved surface
+//!
+//! The sheet's irradiance falls off as `exp(-t^2 / (2 sigma^2))` with the distance `t` of
+//! a point from the calibrated (centre) plane `n . p = d` (camera frame). On a flat surface
+//! the surface point lit at offset `t` moves linearly along the scan line with `t` and its
+//! brightness is the same on both sides: the profile is symmetric about the image of the
+//! centre plane's intersection and any symmetric estimator finds it. On a sphere the point
+//! at offset `t` moves non-linearly (the section circle shrinks as `t` grows towards the
+//! far side), the incidence of the sheet and the distance to the emitter change, so the
+//! profile is skewed: its windowed centroid is not the image of the `t = 0` point, and
+//! triangulating it with the `t = 0` plane puts the point off the sphere (outwards on the
+//! paper's rig: the diameter comes out ~+0.005 mm with the true calibration).
+//!
+//! ## The model of one stripe point
+//!
+//! For a stripe point on scan line `l` (the row `v = l` for [`StripeDirection::Cols`], the
+//! column `u = l` for `Rows`) of a frame with camera pose `T_base_cam`, the sphere
+//! `(c, R)` is taken to the camera frame. For sheet offsets `t_k = k 4 sigma / M`,
+//! `k = -M..=M` (`M` = [`HALF_SAMPLES`]):
+//!
+//! - the section circle of the sphere with the plane `n . p = d + t`: centre `c - h n`,
+//!   `h = n . c - d - t`, radius `rho = sqrt(R^2 - h^2)`, points
+//!   `P(phi) = c - h n + rho (cos phi e1 + sin phi e2)` (`e1, e2` a fixed basis of the
+//!   plane);
+//! - the point of the circle imaged on scan line `l`: Newton's method on `phi` for
+//!   `proj(P(phi))_line = l` through the calibrated camera (distortion included), started
+//!   at the measured point for `t = 0` and continued outwards in `t`; its coordinate
+//!   along the scan line `a_k`;
+//! - its weight `w_k = exp(-t_k^2 / (2 sigma^2)) * cos(incidence) / r * |da/dt|`: the
+//!   Lambertian radiance of the twin's (and a real) emitter at distance `r`, and the
+//!   Jacobian of the change of variable from `t` to the image coordinate (`da/dt` from the
+//!   implicit function theorem, analytic); zero where the point faces away from the camera
+//!   or the emitter (the continuation stops there);
+//! - pixel `x` of the scan line then receives
+//!   `V(x) = sum_j omega_j sum_k w_k(l + x_j) K(x - a_k(l + x_j))` (trapezoid rule in
+//!   `t`, spectrally accurate for this smooth Gaussian-weighted integrand), with `K` the
+//!   unit pixel box convolved with the PSF's Gaussian (sigma `s_psf`), and the
+//!   neighbouring scan lines `l + x_j` the same kernel mixes across the line (weights
+//!   `omega_j`: 5-point Gauss-Hermite of variance `s_psf^2 + 1/12`, or a finer grid of
+//!   the exact kernel where the stripe is steep). This across-line term is not small: a
+//!   curved stripe (the ellipse of a sphere's section) is shifted by about
+//!   `a'' (s_psf^2 + 1/12) / 2` whatever the sheet's thickness (on the paper's rig it is
+//!   half of the whole effect);
+//! - the extractor's own sub-pixel code runs on `V` (background flanks, half-maximum
+//!   width, iterated window centroid of `+-window_fwhm` widths, or the Gaussian fit:
+//!   [`StripeOptions`]), at the point's actual pixel phase. Its centre minus `a_0` is the
+//!   predicted bias `delta` (px) along the scan line; the PSF is symmetric, so it would not
+//!   move a full centroid of one line, but it does move the windowed one, which the
+//!   extractor uses.
+//!
+//! Checked against a brute-force integration (rays cast through a fine grid of the image,
+//! shaded, integrated over the pixel box and the PSF in both directions): agreement to
+//! 1e-4 px on spheres and a flat surface (unit tests).
+//!
+//! The measured point is moved back to the pixel `a_meas - delta` on its scan line and
+//! triangulated with the same plane: the 3D correction (base frame) is the difference.
+//! The sphere is refitted to the corrected points (no trimming: the same points every
+//! round) and the model re-evaluated with the new sphere until the sphere moves by less
+//! than 1e-5 mm (two to four rounds).
+//!
+//! The sheet thickness `sigma` and the PSF's sigma are not in a calibration: they are
+//! estimated from the stripe's widths ([`super::sheet_sigma`]) unless given.
+//!
+//! ## The emitter
+//!
+//! No calibration file holds the laser emitter's position. It enters through `cos`
+//! (incidence) and `1 / r`, and it matters: on the paper's rig, moving it by +-30 mm
+//! within the plane changes the diameter correction by up to ~0.004 mm (the
+//! incidence near the emitter's terminator changes by ~15 deg, where the shading's
+//! gradient across the sheet is steep). So it is estimated from the stripe's brightness
+//! along the sphere ([`super::emitter`]; on the twin within 0.3-0.9 mm of the truth);
+//! when that is refused or switched off the plane's point nearest the camera centre,
+//! `n d` (the twin's default), is assumed. Points lit at more than `max_incidence_deg`
+//! (default 75 deg) are not modelled: near the terminator the bias depends steeply on
+//! the emitter and on the neglected terms.
+//!
+//! ## The systematic uncertainty reported
+//!
+//! Root sum of squares of, for the diameter and each centre coordinate:
+//! - the emitter: estimated, half the change between `+-1` standard uncertainty of its
+//!   two in-plane coordinates, in quadrature; assumed, the largest change for
+//!   `+-emitter_range_mm` (default 30 mm) along the two in-plane axes as the half width
+//!   of a uniform distribution (`/ sqrt 3`);
+//! - the sheet sigma's and the PSF sigma's standard uncertainties (from their fit,
+//!   [`super::sheet_sigma`]) propagated by recomputing the correction at
+//!   `sigma +- u(sigma)` (half the difference);
+//! - the model's residual error: what remains after the correction is taken to lie within
+//!   `+-`[`NEGLECTED_FRACTION`] (50 %) of the correction, uniformly (a GUM type B
+//!   evaluation: standard uncertainty `0.5 |correction| / sqrt 3`, 29 %): the twin (3
+//!   seeds, sheet sigma 0.12 and 0.2 mm, balls of 44.86 and 25.4 mm, two rigs) leaves
+//!   17-52 % of the correction, always an under-correction (+0.0006 to +0.0017 mm on the
+//!   diameter) although the per-point biases agree with the twin's true stripe
+//!   to ~0.0005 px in every incidence bin up to 70 deg. It comes with the image noise: a
+//!   noise-free twin goes from +0.0031 to +0.0003 mm (the noise adds +0.0017 mm to the
+//!   uncorrected diameter), but a read-noise Monte Carlo through the extractor on the
+//!   modelled profiles does not reproduce it (the noise-free images also lose ~5 % of the
+//!   scan lines, so the point sets differ). This part is an empirical bound, not derived.
+//!
+//! The sensitivity terms are computed on a subsample of at most [`SENSITIVITY_POINTS`]
+//! points, as differences from the nominal model on the same subsample and points.
+//!
+//! ## Assumptions and what is neglected
+//!
+//! - The surface is the fitted sphere, Lambertian with uniform reflectance; the stripe
+//!   image has a locally flat background (the extractor removes a linear one).
+//! - The sheet's profile is Gaussian in the distance from the plane, its thickness the
+//!   same everywhere (a real sheet's waist varies along and across; the estimate is a
+//!   mean over the scan's points); the emitter is a point source.
+//! - The PSF is an isotropic Gaussian, the pixel a uniform box; vignetting, speckle
+//!   and noise (zero-mean on the centroid to first order; the windowed centroid's
+//!   non-linearity makes noise bias it a little), sensor non-linearity. The pixel-locking
+//!   of the centroid is modelled (the point's actual pixel phase), so it is corrected too.
+//! - Points where the model fails (the scan line misses the section circle, the
+//!   synthetic profile is rejected by the extractor's own tests, incidence beyond the
+//!   limit) are left out of the corrected fit ([`SphereBiasCorrection::modelled`]).
+
+mod points;
+mod profile;
+
+use nalgebra::Vector3;
+
+use crate::error::{Error, Result};
+use crate::model::camera::Camera;
+use crate::model::geometry::{Iso3, Plane};
+use crate::model::StripeDirection;
+use crate::reconstruct::triangulate::Triangulator;
+use crate::reconstruct::{stripe_direction_from_plane, ScanPoints};
+use crate::vision::stripe::StripeOptions;
+
+use super::emitter::{estimate_emitter, EmitterEstimate};
+use super::sheet_sigma::{estimate_sheet_sigma, SheetSigmaEstimate};
+use super::{fit_sphere, FitOptions, SphereFitResult};
+
+pub use points::predicted_bias_px;
+use points::{corrected_points, corrections, point_geo};
+pub(crate) use profile::{extractor_response, plane_basis, point_profile, PointProfile, Rig};
+
+/// Sheet offsets sampled on each side of the plane, at least (`2 M + 1` samples over
+/// `+-4 sigma`; more where they would lie more than half the pixel kernel's sigma apart
+/// in the image).
+pub const HALF_SAMPLES: usize = 10;
+/// Points used for the sensitivity (systematic) terms, at most.
+pub const SENSITIVITY_POINTS: usize = 4000;
+/// The neglected terms (module docs): the half width of their uniform distribution, as
+/// a fraction of the correction.
+pub const NEGLECTED_FRACTION: f64 = 0.5;
+
+/// The standard uncertainty of the neglected terms per unit correction (uniform over
+/// `+-NEGLECTED_FRACTION`).
+pub fn neglected_share() -> f64 {
+    NEGLECTED_FRACTION / 3f64.sqrt()
+}
+/// Largest number of correct-and-refit rounds.
+const MAX_ROUNDS: usize = 8;
+
+/// Options of [`correct_sphere_bias`].
+#[derive(Debug, Clone, PartialEq)]
+pub struct StripeBiasOptions {
+    /// The stripe extractor's options the points were extracted with (window, method,
+    /// direction; `Auto` is resolved from the plane as the reconstruction does).
+    pub stripe: StripeOptions,
+    /// The sheet's Gaussian sigma, mm; `None`: estimated from the stripe widths.
+    pub sheet_sigma_mm: Option<f64>,
+    /// The PSF's Gaussian sigma, px; `None`: estimated with the sheet sigma.
+    pub psf_sigma_px: Option<f64>,
+    /// Emitter position in the camera frame, mm; `None`: `n d` (module docs).
+    pub emitter_cam_mm: Option<[f64; 3]>,
+    /// With no `emitter_cam_mm`: estimate the emitter from the stripe's brightness
+    /// ([`super::emitter`]; `false`: assume `n d`).
+    pub estimate_emitter: bool,
+    /// The emitter's assumed position range within the plane, +- mm (systematic term when
+    /// the emitter is assumed, not estimated).
+    pub emitter_range_mm: f64,
+    /// Points lit at a larger incidence (from the assumed emitter, degrees) are not
+    /// modelled and left out of the corrected fit: near the emitter's terminator the
+    /// shading, and so the bias, depends steeply on where the emitter is.
+    pub max_incidence_deg: f64,
+    /// The sphere fits (the first one of the given points, and the refits).
+    pub fit: FitOptions,
+}
+
+impl Default for StripeBiasOptions {
+    fn default() -> Self {
+        StripeBiasOptions {
+            stripe: StripeOptions::default(),
+            sheet_sigma_mm: None,
+            psf_sigma_px: None,
+            emitter_cam_mm: None,
+            estimate_emitter: true,
+            emitter_range_mm: 30.0,
+            max_incidence_deg: 75.0,
+            fit: FitOptions::default(),
+        }
+    }
+}
+
+/// The corrected sphere fit and what the correction did.
+#[derive(Debug, Clone, PartialEq)]
+pub struct SphereBiasCorrection {
+    /// The sphere fitted to the corrected points (the modelled ones).
+    pub fit: SphereFitResult,
+    /// The sphere fitted to the points as given.
+    pub uncorrected: SphereFitResult,
+    /// Per input point: the bias subtracted (measured - corrected), base frame, mm
+    /// (zero where not modelled).
+    pub corrections_mm: Vec<[f64; 3]>,
+    /// Per input point: the model gave a correction (the others are left out of `fit`).
+    pub modelled: Vec<bool>,
+    /// The sheet and PSF sigmas used (estimated or given).
+    pub sheet: SheetSigmaEstimate,
+    /// The emitter position used (camera frame, mm).
+    pub emitter_cam_mm: Vector3<f64>,
+    /// The emitter's estimate from the brightness, when made and accepted.
+    pub emitter_estimate: Option<EmitterEstimate>,
+    /// `fit.diameter_mm - uncorrected.diameter_mm`.
+    pub diameter_change_mm: f64,
+    /// `fit.center_mm - uncorrected.center_mm`.
+    pub center_change_mm: Vector3<f64>,
+    /// Systematic standard uncertainty of the corrected diameter, mm (module docs).
+    pub diameter_systematic_mm: f64,
+    /// Systematic standard uncertainty of the corrected centre coordinates, mm.
+    pub center_systematic_mm: Vector3<f64>,
+    /// Its parts `[emitter, sheet and PSF sigmas, neglected terms]` for the diameter.
+    pub diameter_systematic_parts_mm: [f64; 3],
+    /// Correct-and-refit rounds made.
+    pub rounds: usize,
+}
+
+/// The curved-surface bias correction of a sphere scan (module docs).
+///
+/// `points`: the stripe points of the sphere (e.g. a first fit's inliers), with their
+/// pixels and frames; `base_cam[f]`: `T_base_cam` of frame `f` (`T_base_hand(reading) *
+/// T_hand_cam`); `camera` and `plane`: the calibration the points were triangulated
+/// with. Errors: too few points, frames without a pose, a sheet thickness that cannot
+/// be estimated ([`super::sheet_sigma`]), a model that fails on most points.
+pub fn correct_sphere_bias(
+    points: &ScanPoints,
+    base_cam: &[Iso3],
+    camera: &Camera,
+    plane: &Plane,
+    opts: &StripeBiasOptions,
+) -> Result<SphereBiasCorrection> {
+    let n = points.len();
+    if points.u_px.len() != n || points.v_px.len() != n || points.frame.len() != n {
+        return Err(Error::InvalidInput(
+            "ScanPoints vectors of different lengths".into(),
+        ));
+    }
+    let mut stripe = opts.stripe.clone();
+    stripe.validate()?;
+    if stripe.direction == StripeDirection::Auto {
+        stripe.direction = stripe_direction_from_plane(camera, plane);
+    }
+    let emitter = match opts.emitter_cam_mm {
+        Some(e) => Vector3::from(e),
+        None => plane.normal * plane.d,
+    };
+    if !(opts.emitter_range_mm.is_finite() && opts.emitter_range_mm >= 0.0) {
+        return Err(Error::InvalidInput(format!(
+            "emitter_range_mm = {} must be finite and >= 0",
+            opts.emitter_range_mm
+        )));
+    }
+    let mut rig = Rig::new(
+        camera,
+        plane,
+        emitter,
+        stripe.direction,
+        &stripe,
+        opts.max_incidence_deg,
+    );
+    let tri = Triangulator::new(camera, plane, &Iso3::identity(), 0.0)?;
+    let cam_base: Vec<Iso3> = base_cam.iter().map(|t| t.inverse()).collect();
+    let geo = (0..n)
+        .map(|i| point_geo(points, &cam_base, rig.along, i))
+        .collect::<Result<Vec<_>>>()?;
+    let uncorrected = fit_sphere(&points.points_mm, &opts.fit)?;
+    // Refits of the corrected points: the same point set every round (the caller's
+    // points, less the unmodelled), no trimming, started from the algebraic fit.
+    let refit_opts = FitOptions {
+        robust_start: false,
+        trim_sigma: 0.0,
+        ..opts.fit
+    };
+    let all: Vec<usize> = (0..n).collect();
+    // The sheet and PSF sigmas.
+    let geo3: Vec<(Vector3<f64>, f64, usize)> =
+        geo.iter().map(|(g, f)| (g.p_cam, g.line, *f)).collect();
+    let sphere0 = (&uncorrected.center_mm, 0.5 * uncorrected.diameter_mm);
+    // The sheet and PSF sigmas (widths) and the emitter (brightness) depend on each
+    // other a little: two passes, the second with the first's emitter.
+    let estimate_e = opts.emitter_cam_mm.is_none() && opts.estimate_emitter;
+    let mut emitter_estimate = None;
+    let mut sheet;
+    let mut pass = 0;
+    loop {
+        sheet = estimate_sheet_sigma(
+            &rig,
+            points,
+            &geo3,
+            &cam_base,
+            sphere0,
+            opts.sheet_sigma_mm,
+            opts.psf_sigma_px,
+        )?;
+        pass += 1;
+        if !estimate_e || pass > 2 {
+            break;
+        }
+        let (sigma, psf) = (sheet.sheet_sigma_mm, sheet.psf_sigma_px);
+        emitter_estimate = estimate_emitter(&rig, points, &geo3, &cam_base, sphere0, sigma, psf);
+        match &emitter_estimate {
+            Some(e) => rig.emitter = e.emitter_cam_mm,
+            None => break,
+        }
+        if pass == 2 {
+            break;
+        }
+    }
+    let (sigma, psf) = (sheet.sheet_sigma_mm, sheet.psf_sigma_px);
+    let emitter = rig.emitter;
+    // Correct, refit, repeat.
+    let mut sphere = (uncorrected.center_mm, 0.5 * uncorrected.diameter_mm);
+    let mut fit = uncorrected.clone();
+    let mut corr = Vec::new();
+    let mut rounds = 0;
+    while rounds < MAX_ROUNDS {
+        rounds += 1;
+        corr = corrections(
+            &rig,
+            &tri,
+            &geo,
+            &cam_base,
+            &all,
+            (&sphere.0, sphere.1),
+            sigma,
+            psf,
+        );
+        let good = corr.iter().filter(|c| c.is_some()).count();
+        if good < n / 2 || good < 10 {
+            return Err(Error::Degenerate(format!(
+                "stripe bias: the model holds for {good} of {n} points only"
+            )));
+        }
+        fit = fit_sphere(&corrected_points(points, &all, &corr), &refit_opts)?;
+        let moved = (fit.diameter_mm - 2.0 * sphere.1)
+            .abs()
+            .max((fit.center_mm - sphere.0).norm());
+        sphere = (fit.center_mm, 0.5 * fit.diameter_mm);
+        if moved < 1e-5 {
+            break;
+        }
+    }
+    // Systematic parts on a subsample, as differences from the nominal model on the
+    // points both model.
+    let step = n.div_ceil(SENSITIVITY_POINTS).max(1);
+    let sub: Vec<usize> = (0..n).step_by(step).collect();
+    let corr_sub = |rig: &Rig<'_>, sigma: f64, psf: f64| {
+        corrections(
+            rig,
+            &tri,
+            &geo,
+            &cam_base,
+            &sub,
+            (&sphere.0, sphere.1),
+            sigma,
+            psf,
+        )
+    };
+    let nominal = corr_sub(&rig, sigma, psf);
+    // (diameter, centre) of the alternative minus the nominal.
+    let compare = |alt: &[Option<[f64; 3]>]| -> Option<(f64, Vector3<f64>)> {
+        let (mut pa, mut pb) = (Vec::new(), Vec::new());
+        for ((&i, a), b) in sub.iter().zip(&nominal).zip(alt) {
+            if let (Some(a), Some(b)) = (a, b) {
+                let p = points.points_mm[i];
+                pa.push([p[0] - a[0], p[1] - a[1], p[2] - a[2]]);
+                pb.push([p[0] - b[0], p[1] - b[1], p[2] - b[2]]);
+            }
+        }
+        let fa = fit_sphere(&pa, &refit_opts).ok()?;
+        let fb = fit_sphere(&pb, &refit_opts).ok()?;
+        Some((fb.diameter_mm - fa.diameter_mm, fb.center_mm - fa.center_mm))
+    };
+    // Emitter. Assumed: +-range along e1 and e2, the largest change as a uniform half
+    // width. Estimated: half the change between +-1 standard uncertainty along each axis,
+    // in quadrature.
+    let mut em = (0.0f64, Vector3::<f64>::zeros());
+    match &emitter_estimate {
+        None => {
+            for dir in [rig.e1, rig.e2] {
+                for s in [-1.0, 1.0] {
+                    let mut r2 = rig.clone();
+                    r2.emitter = emitter + dir * (s * opts.emitter_range_mm);
+                    if let Some((dd, dc)) = compare(&corr_sub(&r2, sigma, psf)) {
+                        em.0 = em.0.max(dd.abs());
+                        em.1 = em.1.sup(&dc.abs());
+                    }
+                }
+            }
+            em = (em.0 / 3f64.sqrt(), em.1 / 3f64.sqrt());
+        }
+        Some(e) => {
+            for (dir, sd) in [(rig.e1, e.sd_mm[0]), (rig.e2, e.sd_mm[1])] {
+                let mut ra = rig.clone();
+                ra.emitter = emitter + dir * sd;
+                let mut rb = rig.clone();
+                rb.emitter = emitter - dir * sd;
+                let a = compare(&corr_sub(&ra, sigma, psf));
+                let b = compare(&corr_sub(&rb, sigma, psf));
+                if let (Some(a), Some(b)) = (a, b) {
+                    let dd = 0.5 * (a.0 - b.0).abs();
+                    let dc = 0.5 * (a.1 - b.1).abs();
+                    em.0 = (em.0 * em.0 + dd * dd).sqrt();
+                    em.1 = (em.1.component_mul(&em.1) + dc.component_mul(&dc)).map(f64::sqrt);
+                }
+            }
+        }
+    }
+    // Sheet and PSF sigmas: half the change between +-u, in quadrature.
+    let mut sg = (0.0f64, Vector3::<f64>::zeros());
+    for (ds, dp) in [(sheet.sheet_sigma_sd_mm, 0.0), (0.0, sheet.psf_sigma_sd_px)] {
+        if ds == 0.0 && dp == 0.0 {
+            continue;
+        }
+        let a = compare(&corr_sub(&rig, sigma + ds, psf + dp));
+        let b = compare(&corr_sub(&rig, (sigma - ds).max(1e-6), (psf - dp).max(0.0)));
+        if let (Some(a), Some(b)) = (a, b) {
+            let dd = 0.5 * (a.0 - b.0).abs();
+            let dc = 0.5 * (a.1 - b.1).abs();
+            sg.0 = (sg.0 * sg.0 + dd * dd).sqrt();
+            sg.1 = (sg.1.component_mul(&sg.1) + dc.component_mul(&dc)).map(f64::sqrt);
+        }
+    }
+    let diameter_change_mm = fit.diameter_mm - uncorrected.diameter_mm;
+    let center_change_mm = fit.center_mm - uncorrected.center_mm;
+    let neg = (
+        neglected_share() * diameter_change_mm.abs(),
+        center_change_mm.abs() * neglected_share(),
+    );
+    let rss3 = |a: f64, b: f64, c: f64| (a * a + b * b + c * c).sqrt();
+    let diameter_systematic_mm = rss3(em.0, sg.0, neg.0);
+    let center_systematic_mm = Vector3::from_fn(|k, _| rss3(em.1[k], sg.1[k], neg.1[k]));
+    let modelled: Vec<bool> = corr.iter().map(|c| c.is_some()).collect();
+    let corrections_mm = corr.iter().map(|c| c.unwrap_or([0.0; 3])).collect();
+    Ok(SphereBiasCorrection {
+        fit,
+        uncorrected,
+        corrections_mm,
+        modelled,
+        sheet,
+        emitter_cam_mm: emitter,
+        emitter_estimate,
+        diameter_change_mm,
+        center_change_mm,
+        diameter_systematic_mm,
+        center_systematic_mm,
+        diameter_systematic_parts_mm: [em.0, sg.0, neg.0],
+        rounds,
+    })
+}
+
+#[cfg(test)]
+mod tests;

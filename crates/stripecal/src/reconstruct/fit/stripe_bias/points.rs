@@ -1,0 +1,166 @@
+//! Per point: its geometry in the camera frame, its correction (re-triangulated at the
+//! modelled centre) and the corrected points ([`super`] docs).
+
+use nalgebra::Vector3;
+use rayon::prelude::*;
+
+use crate::error::{Error, Result};
+use crate::model::camera::Camera;
+use crate::model::geometry::{Iso3, Plane};
+use crate::model::StripeDirection;
+use crate::reconstruct::triangulate::Triangulator;
+use crate::reconstruct::{stripe_direction_from_plane, ScanPoints};
+
+use super::profile::{extractor_response, point_profile, PointProfile, Rig};
+use super::StripeBiasOptions;
+
+/// the camera frame, the scan line and the measured along-line coordinate.
+/// Everything per point the correction needs: the camera-frame point, the sphere in
+pub(crate) struct PointGeo {
+    pub p_cam: Vector3<f64>,
+    pub line: f64,
+    pub a_meas: f64,
+}
+
+pub(crate) fn point_geo(
+    points: &ScanPoints,
+    cam_base: &[Iso3],
+    along: usize,
+    i: usize,
+) -> Result<(PointGeo, usize)> {
+    let f = points.frame[i] as usize;
+    let t = cam_base.get(f).ok_or_else(|| {
+        Error::InvalidInput(format!(
+            "point {i} is of frame {f}, but only {} frame poses were given",
+            cam_base.len()
+        ))
+    })?;
+    let p_cam = (t * nalgebra::Point3::from(Vector3::from(points.points_mm[i]))).coords;
+    let uv = [points.u_px[i], points.v_px[i]];
+    Ok((
+        PointGeo {
+            p_cam,
+            line: uv[1 - along],
+            a_meas: uv[along],
+        },
+        f,
+    ))
+}
+
+/// The 3D corrections (base frame) of the points `idx` for a sphere (base frame) and
+/// model parameters; `None` per point where the model fails.
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn corrections(
+    rig: &Rig<'_>,
+    tri: &Triangulator,
+    geo: &[(PointGeo, usize)],
+    cam_base: &[Iso3],
+    idx: &[usize],
+    sphere: (&Vector3<f64>, f64),
+    sigma: f64,
+    psf: f64,
+) -> Vec<Option<[f64; 3]>> {
+    idx.par_iter()
+        .map_init(
+            || (PointProfile::default(), Vec::new()),
+            |(prof, buf), &i| {
+                let (g, f) = &geo[i];
+                let t = &cam_base[*f];
+                let c = (t * nalgebra::Point3::from(*sphere.0)).coords;
+                if !point_profile(rig, &c, sphere.1, g.line, &g.p_cam, sigma, psf, prof) {
+                    return None;
+                }
+                let (delta, _, _) = extractor_response(prof, psf, rig.stripe, buf)?;
+                let uv = |a: f64| {
+                    if rig.along == 0 {
+                        (a, g.line)
+                    } else {
+                        (g.line, a)
+                    }
+                };
+                let (u1, v1) = uv(g.a_meas);
+                let (u2, v2) = uv(g.a_meas - delta);
+                let p1 = tri.point_cam_mm(u1, v1)?;
+                let p2 = tri.point_cam_mm(u2, v2)?;
+                let b = t.inverse_transform_vector(&(p1 - p2));
+                Some([b.x, b.y, b.z])
+            },
+        )
+        .collect()
+}
+
+/// The points `idx` minus their corrections (skipping the unmodelled).
+pub(crate) fn corrected_points(
+    points: &ScanPoints,
+    idx: &[usize],
+    corr: &[Option<[f64; 3]>],
+) -> Vec<[f64; 3]> {
+    idx.iter()
+        .zip(corr)
+        .filter_map(|(&i, c)| {
+            c.map(|c| {
+                let p = points.points_mm[i];
+                [p[0] - c[0], p[1] - c[1], p[2] - c[2]]
+            })
+        })
+        .collect()
+}
+
+/// The model's predicted stripe bias per point (px along the scan line: the extractor's
+/// centre minus the image of the sheet's centre plane), for the sphere `(centre,
+/// radius)` in the base frame and given sheet (mm) and PSF (px) sigmas; `None` where
+/// the model fails. For diagnostics against a twin's true stripe; arguments as
+/// [`correct_sphere_bias`].
+#[allow(clippy::too_many_arguments)]
+pub fn predicted_bias_px(
+    points: &ScanPoints,
+    base_cam: &[Iso3],
+    camera: &Camera,
+    plane: &Plane,
+    sphere: (&Vector3<f64>, f64),
+    sheet_sigma_mm: f64,
+    psf_sigma_px: f64,
+    opts: &StripeBiasOptions,
+) -> Result<Vec<Option<f64>>> {
+    let mut stripe = opts.stripe.clone();
+    if stripe.direction == StripeDirection::Auto {
+        stripe.direction = stripe_direction_from_plane(camera, plane);
+    }
+    let emitter = opts
+        .emitter_cam_mm
+        .map_or(plane.normal * plane.d, Vector3::from);
+    let rig = Rig::new(
+        camera,
+        plane,
+        emitter,
+        stripe.direction,
+        &stripe,
+        opts.max_incidence_deg,
+    );
+    let cam_base: Vec<Iso3> = base_cam.iter().map(|t| t.inverse()).collect();
+    let geo = (0..points.len())
+        .map(|i| point_geo(points, &cam_base, rig.along, i))
+        .collect::<Result<Vec<_>>>()?;
+    Ok(geo
+        .par_iter()
+        .map_init(
+            || (PointProfile::default(), Vec::new()),
+            |(prof, buf), (g, f)| {
+                let c = (cam_base[*f] * nalgebra::Point3::from(*sphere.0)).coords;
+                if !point_profile(
+                    &rig,
+                    &c,
+                    sphere.1,
+                    g.line,
+                    &g.p_cam,
+                    sheet_sigma_mm,
+                    psf_sigma_px,
+                    prof,
+                ) {
+                    return None;
+                }
+                extractor_response(prof, psf_sigma_px, rig.stripe, buf).map(|x| x.0)
+            },
+        )
+        .collect())
+}

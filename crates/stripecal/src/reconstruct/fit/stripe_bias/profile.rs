@@ -1,0 +1,396 @@
+//! The model of one stripe point ([`super`] docs): the rig as the model sees it, the
+//! sphere's section at a sheet offset on the point's scan line, its shading, and the
+//! profile the camera sees, on which the extractor's own centroid runs.
+
+use nalgebra::{Matrix2x3, Vector3};
+
+use crate::model::camera::Camera;
+use crate::model::geometry::Plane;
+use crate::model::StripeDirection;
+use crate::vision::stripe::{profile_centre, StripeOptions};
+
+use super::HALF_SAMPLES;
+
+/// The rig as the model sees it (camera frame).
+#[derive(Debug, Clone)]
+pub(crate) struct Rig<'a> {
+    pub camera: &'a Camera,
+    pub n: Vector3<f64>,
+    pub d: f64,
+    pub emitter: Vector3<f64>,
+    /// Index of the coordinate along the scan line (0: u, for `Cols`; 1: v, for `Rows`).
+    pub along: usize,
+    pub stripe: &'a StripeOptions,
+    /// Points whose `t = 0` incidence from the emitter has a smaller cosine are not
+    /// modelled.
+    pub min_cos: f64,
+    /// In-plane basis.
+    pub e1: Vector3<f64>,
+    pub e2: Vector3<f64>,
+}
+
+impl<'a> Rig<'a> {
+    pub(super) fn new(
+        camera: &'a Camera,
+        plane: &Plane,
+        emitter: Vector3<f64>,
+        direction: StripeDirection,
+        stripe: &'a StripeOptions,
+        max_incidence_deg: f64,
+    ) -> Rig<'a> {
+        let n = plane.normal;
+        let (e1, e2) = plane_basis(&n);
+        Rig {
+            camera,
+            n,
+            d: plane.d,
+            emitter,
+            along: if direction == StripeDirection::Rows {
+                1
+            } else {
+                0
+            },
+            stripe,
+            min_cos: max_incidence_deg.to_radians().cos(),
+            e1,
+            e2,
+        }
+    }
+}
+
+/// Two unit vectors orthogonal to `n` and to each other.
+pub(crate) fn plane_basis(n: &Vector3<f64>) -> (Vector3<f64>, Vector3<f64>) {
+    let a = if n.x.abs() < 0.9 {
+        Vector3::x()
+    } else {
+        Vector3::y()
+    };
+    let e1 = (a - n * n.dot(&a)).normalize();
+    (e1, n.cross(&e1))
+}
+
+/// The pixel of a camera-frame point and its 2x3 Jacobian.
+pub(crate) fn project_jac(cam: &Camera, p: &Vector3<f64>) -> Option<([f64; 2], Matrix2x3<f64>)> {
+    if p.z.is_nan() || p.z <= 1e-9 {
+        return None;
+    }
+    let iz = 1.0 / p.z;
+    let (xn, yn) = (p.x * iz, p.y * iz);
+    let ((xd, yd), jd) = cam.distort_with_jacobian(xn, yn);
+    let jn = Matrix2x3::new(iz, 0.0, -xn * iz, 0.0, iz, -yn * iz);
+    let mut j = jd * jn;
+    for c in 0..3 {
+        j[(0, c)] *= cam.fu;
+        j[(1, c)] *= cam.fv;
+    }
+    let uv = [cam.fu * xd + cam.u0, cam.fv * yd + cam.v0];
+    (uv[0].is_finite() && uv[1].is_finite()).then_some((uv, j))
+}
+
+/// The sphere point on the plane `n . p = d + t` imaged on scan line `line`, by Newton's
+/// method on the section circle's angle from `phi0`: `(phi, point, along coordinate,
+/// d along / dt, stripe slope d along / d line)`.
+pub(crate) struct Section {
+    pub phi: f64,
+    pub p: Vector3<f64>,
+    pub a: f64,
+    pub da_dt: f64,
+    pub slope: f64,
+}
+
+pub(crate) fn section_point(
+    rig: &Rig<'_>,
+    c: &Vector3<f64>,
+    r: f64,
+    t: f64,
+    line: f64,
+    phi0: f64,
+) -> Option<Section> {
+    let (al, li) = (rig.along, 1 - rig.along);
+    let h = rig.n.dot(c) - rig.d - t;
+    let rho2 = r * r - h * h;
+    if rho2 <= 0.0 {
+        return None;
+    }
+    let rho = rho2.sqrt();
+    let c0 = c - rig.n * h;
+    let mut phi = phi0;
+    for it in 0..30 {
+        let (s, co) = phi.sin_cos();
+        let radial = rig.e1 * co + rig.e2 * s;
+        let p = c0 + radial * rho;
+        let (uv, j) = project_jac(rig.camera, &p)?;
+        let dp_dphi = (rig.e2 * co - rig.e1 * s) * rho;
+        let jl = j.row(li);
+        let ja = j.row(al);
+        let f = uv[li] - line;
+        let df = jl.dot(&dp_dphi.transpose());
+        if df.is_nan() || df.abs() <= 1e-12 {
+            return None;
+        }
+        if f.abs() < 1e-10 || it == 29 {
+            if f.abs() > 1e-6 {
+                return None;
+            }
+            // dP/dt at fixed phi: n + (h / rho) radial; then d phi / dt from the line
+            // constraint.
+            let dp_dt = rig.n + radial * (h / rho);
+            let dphi_dt = -jl.dot(&dp_dt.transpose()) / df;
+            let da_dt = ja.dot(&(dp_dt + dp_dphi * dphi_dt).transpose());
+            let slope = ja.dot(&dp_dphi.transpose()) / df;
+            return Some(Section {
+                phi,
+                p,
+                a: uv[al],
+                da_dt,
+                slope,
+            });
+        }
+        let step = (f / df).clamp(-0.2, 0.2);
+        phi -= step;
+    }
+    None
+}
+
+/// The modelled profile of one stripe point: samples `(a_k, w_k)`, and the `t = 0`
+/// quantities.
+#[derive(Debug, Clone, Default)]
+pub(crate) struct PointProfile {
+    /// Along-line coordinate and weight per sheet offset sample (weight 0: not lit or
+    /// not seen).
+    pub samples: Vec<(f64, f64)>,
+    /// `a(t = 0)`, px.
+    pub a0: f64,
+    /// `|da/dt|` at `t = 0`, px / mm.
+    pub g: f64,
+    /// The stripe's slope `d a / d line` at `t = 0`.
+    pub slope: f64,
+    /// Scratch: the neighbouring scan lines `(offset px, weight)`.
+    lines: Vec<(f64, f64)>,
+}
+
+/// Is point `p` of the sphere `(c, r)` seen by the camera and lit by the emitter, and
+/// its shading `cos(incidence) / r_emitter`.
+#[inline]
+pub(crate) fn shading(rig: &Rig<'_>, c: &Vector3<f64>, r: f64, p: &Vector3<f64>) -> f64 {
+    let nrm = (p - c) / r;
+    if nrm.dot(&(-p)) <= 0.0 {
+        return 0.0;
+    }
+    let to_e = rig.emitter - p;
+    let re = to_e.norm();
+    let cos = nrm.dot(&to_e) / re;
+    if cos <= 0.0 {
+        return 0.0;
+    }
+    cos / re
+}
+
+/// Gauss-Hermite nodes and weights (5 points, standard normal): the neighbouring scan
+/// lines the PSF and the pixel's extent across the scan line mix into one.
+pub(crate) const GH5: [(f64, f64); 5] = [
+    (0.0, 0.533_333_333_333_333_3),
+    (-1.355_626_179_974_266, 0.222_075_922_005_612_6),
+    (1.355_626_179_974_266, 0.222_075_922_005_612_6),
+    (-2.856_970_013_872_806, 0.011_257_411_327_720_69),
+    (2.856_970_013_872_806, 0.011_257_411_327_720_69),
+];
+
+/// The samples of one stripe point on scan line `line`, near the camera-frame point
+/// `p_near` (the measured point), for sheet sigma `sigma` (mm) and PSF sigma `psf` (px):
+/// the scan line itself and its neighbours at `line + x sqrt(psf^2 + 1/12)` (`x` the
+/// 5-point Gauss-Hermite nodes; the across-line blur of the PSF and of the pixel box,
+/// with their second moment), weighted. `false` when the scan line itself cannot be
+/// modelled.
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn point_profile(
+    rig: &Rig<'_>,
+    c: &Vector3<f64>,
+    r: f64,
+    line: f64,
+    p_near: &Vector3<f64>,
+    sigma: f64,
+    psf: f64,
+    out: &mut PointProfile,
+) -> bool {
+    out.samples.clear();
+    let q = p_near - c;
+    let phi0 = q.dot(&rig.e2).atan2(q.dot(&rig.e1));
+    // The scan line itself: the t = 0 quantities.
+    let Some(s0) = section_point(rig, c, r, 0.0, line, phi0) else {
+        return false;
+    };
+    let to_e = rig.emitter - s0.p;
+    if shading(rig, c, r, &s0.p) <= 0.0 || (s0.p - c).dot(&to_e) < rig.min_cos * r * to_e.norm() {
+        return false;
+    }
+    out.a0 = s0.a;
+    out.g = s0.da_dt.abs();
+    out.slope = s0.slope;
+    sub_lines(psf, out.g * sigma, out.slope, &mut out.lines);
+    // Samples at most half the kernel's sigma apart in the image.
+    let sl = (psf * psf + 1.0 / 12.0).sqrt();
+    let m = ((4.0 * sigma * out.g / (0.5 * sl)).ceil() as usize).clamp(HALF_SAMPLES, 400);
+    let dt = 4.0 * sigma / m as f64;
+    for &(x, om) in &out.lines {
+        let Some(s0) = section_point(rig, c, r, 0.0, line + x, phi0) else {
+            continue;
+        };
+        let w0 = shading(rig, c, r, &s0.p);
+        if w0 <= 0.0 {
+            continue;
+        }
+        // (dt: the trapezoid rule's step, so that the peak height is comparable between
+        // points sampled differently)
+        out.samples.push((s0.a, dt * om * w0 * s0.da_dt.abs()));
+        for dir in [-1.0f64, 1.0] {
+            let mut phi = s0.phi;
+            for k in 1..=m {
+                let t = dir * k as f64 * dt;
+                let Some(s) = section_point(rig, c, r, t, line + x, phi) else {
+                    break;
+                };
+                let w = shading(rig, c, r, &s.p);
+                if w <= 0.0 {
+                    break;
+                }
+                phi = s.phi;
+                let z = t / sigma;
+                out.samples
+                    .push((s.a, dt * om * w * s.da_dt.abs() * (-0.5 * z * z).exp()));
+            }
+        }
+    }
+    true
+}
+
+/// The neighbouring scan lines (offsets px, weights summing to 1) the across-line blur
+/// mixes in: the pixel box convolved with the PSF's Gaussian (`psf` px). Where the stripe
+/// shifts little between them (`|slope| sqrt(psf^2 + 1/12)` below half the profile's
+/// width) 5-point Gauss-Hermite with the kernel's variance; otherwise a uniform grid of
+/// the exact kernel, fine enough that the stripe moves by at most a quarter of its
+/// width (`width0` the sheet's part, px) from one line to the next.
+pub(crate) fn sub_lines(psf: f64, width0: f64, slope: f64, out: &mut Vec<(f64, f64)>) {
+    out.clear();
+    let sl = (psf * psf + 1.0 / 12.0).sqrt();
+    let w = (width0 * width0 + sl * sl).sqrt();
+    let shift = slope.abs();
+    if shift * sl <= 0.5 * w {
+        out.extend(GH5.iter().map(|&(x, om)| (x * sl, om)));
+        return;
+    }
+    let reach = 0.5 + 4.0 * psf;
+    let n_side = ((reach * shift / (0.25 * w)).ceil() as usize).clamp(2, 64);
+    let h = reach / n_side as f64;
+    let inv = if psf > 1e-6 {
+        1.0 / (std::f64::consts::SQRT_2 * psf)
+    } else {
+        0.0
+    };
+    let mut sum = 0.0;
+    for j in 0..=2 * n_side {
+        let x = -reach + j as f64 * h;
+        let k = if inv > 0.0 {
+            0.5 * (erf((x + 0.5) * inv) - erf((x - 0.5) * inv))
+        } else {
+            // The box alone: the cell's overlap with [-1/2, 1/2].
+            ((x + 0.5 * h).min(0.5) - (x - 0.5 * h).max(-0.5)).max(0.0) / h
+        };
+        if k > 0.0 {
+            out.push((x, k));
+            sum += k;
+        }
+    }
+    for o in out.iter_mut() {
+        o.1 /= sum;
+    }
+}
+
+/// `erf` (Abramowitz & Stegun 7.1.26, |error| < 1.5e-7).
+#[inline]
+pub(crate) fn erf(x: f64) -> f64 {
+    let a = x.abs();
+    if a > 6.0 {
+        return x.signum();
+    }
+    let t = 1.0 / (1.0 + 0.3275911 * a);
+    let poly = ((((1.061405429 * t - 1.453152027) * t + 1.421413741) * t - 0.284496736) * t
+        + 0.254829592)
+        * t;
+    let y = 1.0 - poly * (-a * a).exp();
+    if x < 0.0 {
+        -y
+    } else {
+        y
+    }
+}
+
+/// What the extractor measures on a modelled profile: `(centre - a0, width, peak)`
+/// (px, px, the model's radiance units).
+pub(crate) fn extractor_response(
+    prof: &PointProfile,
+    psf_sigma_px: f64,
+    stripe: &StripeOptions,
+    buf: &mut Vec<f64>,
+) -> Option<(f64, f64, f64)> {
+    let sb = psf_sigma_px;
+    let var = sb * sb;
+    let (mut lo, mut hi) = (f64::INFINITY, f64::NEG_INFINITY);
+    let wmax = prof.samples.iter().map(|s| s.1).fold(0.0, f64::max);
+    if wmax.is_nan() || wmax <= 0.0 {
+        return None;
+    }
+    let (mut s0, mut s1, mut s2) = (0.0, 0.0, 0.0);
+    for &(a, w) in &prof.samples {
+        if w > 1e-6 * wmax {
+            lo = lo.min(a);
+            hi = hi.max(a);
+            s0 += w;
+            s1 += w * a;
+            s2 += w * a * a;
+        }
+    }
+    let mean = s1 / s0;
+    let sd = (s2 / s0 - mean * mean).max(0.0).sqrt();
+    let fwhm = 2.3548 * (sd * sd + var + 1.0 / 12.0).sqrt();
+    let pad = (stripe.window_fwhm as f64 * fwhm).max(1.5)
+        + 2.0 * fwhm
+        + (stripe.flank_px + stripe.ridge_px) as f64
+        + 6.0
+        + 4.0 * sb;
+    let x0 = (lo - pad).floor();
+    let x1 = (hi + pad).ceil();
+    let len = (x1 - x0) as usize + 1;
+    if len > 4096 {
+        return None;
+    }
+    buf.clear();
+    buf.resize(len, 0.0);
+    let inv = if sb > 1e-6 {
+        1.0 / (std::f64::consts::SQRT_2 * sb)
+    } else {
+        0.0
+    };
+    for &(a, w) in &prof.samples {
+        if w <= 0.0 {
+            continue;
+        }
+        // Only pixels within reach of the kernel.
+        let reach = 0.5 + 6.0 * sb + 1.0;
+        let k0 = ((a - reach - x0).floor().max(0.0)) as usize;
+        let k1 = (((a + reach - x0).ceil()) as usize).min(len - 1);
+        for (k, v) in buf.iter_mut().enumerate().take(k1 + 1).skip(k0) {
+            let s = x0 + k as f64 - a;
+            let kv = if inv > 0.0 {
+                0.5 * (erf((s + 0.5) * inv) - erf((s - 0.5) * inv))
+            } else if s.abs() < 0.5 {
+                1.0
+            } else {
+                0.0
+            };
+            *v += w * kv;
+        }
+    }
+    let (c, width, peak) = profile_centre(buf, stripe)?;
+    Some((c + x0 - prof.a0, width as f64, peak))
+}
