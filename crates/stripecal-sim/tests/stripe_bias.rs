@@ -72,23 +72,6 @@ impl Run {
     }
 }
 
-/// The inlier points of `sp` under `mask`.
-fn subset(sp: &ScanPoints, mask: &[bool]) -> ScanPoints {
-    let mut out = ScanPoints::default();
-    for (i, &m) in mask.iter().enumerate() {
-        if m {
-            out.points_mm.push(sp.points_mm[i]);
-            out.frame.push(sp.frame[i]);
-            out.u_px.push(sp.u_px[i]);
-            out.v_px.push(sp.v_px[i]);
-            out.intensity.push(sp.intensity[i]);
-            out.width_px.push(sp.width_px[i]);
-            out.flags.push(sp.flags[i]);
-        }
-    }
-    out
-}
-
 /// Renders every `every`-th frame of the ball scan of `preset` with `overrides`,
 /// reconstructs it with the true calibration, fits the sphere and corrects it.
 fn run(preset: &str, overrides: serde_json::Value, every: usize) -> Run {
@@ -118,7 +101,8 @@ fn run(preset: &str, overrides: serde_json::Value, every: usize) -> Run {
     let opts = ReconstructOptions::default();
     let sp = reconstruct_frames(&calib, &views, &readings, &opts).unwrap();
     let first = fit_sphere(&sp.points_mm, &FitOptions::default()).unwrap();
-    let inl = subset(&sp, &first.inlier);
+    let keep: Vec<usize> = (0..sp.len()).filter(|&i| first.inlier[i]).collect();
+    let inl = sp.subset(&keep);
     let base_cam: Vec<Iso3> = qs.iter().map(|q| tw.base_cam(q).unwrap()).collect();
     let sphere = tw.sphere.unwrap();
     let t0 = std::time::Instant::now();
