@@ -24,7 +24,7 @@ import numpy as np
 import stripecal
 import stripecal.sim
 from stripecal._progress import Progress
-from stripecal.cli_measure import add_measure, add_verify, sphere_lines, write_json_atomic
+from stripecal.cli_measure import add_measure, add_verify, diameter_range, sphere_lines, write_json_atomic
 from stripecal.types import QualityCheck, SimConfig, SphereMeasurement, TwinSummary
 
 
@@ -617,13 +617,7 @@ def cmd_fit_sphere(args: argparse.Namespace) -> int:
     is the fit's random part (residual scatter); errors shared by all points, such as
     calibration errors, are not in it."""
     cloud = stripecal.read_ply(args.cloud)
-    rng = None
-    if args.diameter_range:
-        try:
-            lo, hi = (float(x) for x in args.diameter_range.split(","))
-        except ValueError:
-            raise stripecal.InvalidInputError(f"--diameter-range {args.diameter_range!r}: expected MIN,MAX in mm") from None
-        rng = (lo, hi)
+    rng = diameter_range(args.diameter_range)
     fit = stripecal.fit_sphere(cloud["points"], trim_sigma=args.trim_sigma, diameter_range_mm=rng)
     sd = fit.diameter_sigma_mm if fit.diameter_sigma_mm is not None else float("nan")
     sc = fit.center_sigma_mm if fit.center_sigma_mm is not None else np.full(3, np.nan)
@@ -746,15 +740,7 @@ def cmd_plan(args: argparse.Namespace) -> int:
         print(f"warning: {w}")
     if args.output:
         _uninterruptible()
-        tmp = f"{args.output}.tmp{os.getpid()}"
-        try:
-            with open(tmp, "w", encoding="utf-8") as f:
-                json.dump(plan, f, indent=2)
-                f.write("\n")
-            os.replace(tmp, args.output)
-        finally:
-            if os.path.exists(tmp):
-                os.unlink(tmp)
+        write_json_atomic(args.output, plan)
         print(f"\nwrote {os.path.abspath(args.output)}")
     return 0
 

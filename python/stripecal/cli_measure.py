@@ -68,7 +68,8 @@ def write_json_atomic(path: str, value: Any) -> None:
         raise
 
 
-def _range(text: Optional[str]) -> Optional[Tuple[float, float]]:
+def diameter_range(text: Optional[str]) -> Optional[Tuple[float, float]]:
+    """``--diameter-range MIN,MAX`` (mm) as a tuple; None when not given."""
     if not text:
         return None
     try:
@@ -103,7 +104,7 @@ def cmd_measure(args: argparse.Namespace) -> int:
                  f"  {p['points']} points used, {p['outliers']} trimmed, RMS {p['rms_mm']:.5f} mm"]
         result = p
     else:
-        kw: Any = dict(common, diameter_range_mm=_range(args.diameter_range), correct_bias=not args.no_bias_correction)
+        kw: Any = dict(common, diameter_range_mm=diameter_range(args.diameter_range), correct_bias=not args.no_bias_correction)
         if args.shape == "sphere":
             s = stripecal.measure_sphere(cal, args.scan_dir, **kw)
             lines = sphere_lines(s, f"sphere of {args.scan_dir} (base frame)")

@@ -291,14 +291,7 @@ impl Twin {
         let r = 0.5 * sphere.diameter_mm;
         let up = self.base_board.rotation * -Vector3::z();
         let top = sphere.center_mm + up * r;
-        let n_base = rot * self.laser_plane.normal;
-        let sweep = n_base - up * n_base.dot(&up);
-        if sweep.norm() < 1e-6 {
-            return Err(SimError::Poses(
-                "the laser plane is parallel to the table: no sweep direction".into(),
-            ));
-        }
-        let sweep = sweep.normalize();
+        let (sweep, rate) = self.table_sweep(&rot, &up)?;
         let origin = crate::poses::scan_origin(
             &rot,
             &self.laser_plane.normal,
@@ -311,7 +304,26 @@ impl Twin {
         .ok_or_else(|| {
             SimError::Poses("cannot place the scan sweep (degenerate geometry)".into())
         })?;
-        self.sweep_poses(&origin, &sweep, &rot, n_base.dot(&sweep).abs(), "scan")
+        self.sweep_poses(&origin, &sweep, &rot, rate, "scan")
+    }
+
+    /// The direction a sweep at camera orientation `rot` moves along the table (normal
+    /// `up`): the laser plane's normal (base frame) with its `up` part removed, unit;
+    /// and the rate the plane moves along its normal per mm of travel.
+    pub(crate) fn table_sweep(
+        &self,
+        rot: &nalgebra::UnitQuaternion<f64>,
+        up: &Vector3<f64>,
+    ) -> Result<(Vector3<f64>, f64), SimError> {
+        let n_base = rot * self.laser_plane.normal;
+        let sweep = n_base - up * n_base.dot(up);
+        if sweep.norm() < 1e-6 {
+            return Err(SimError::Poses(
+                "the laser plane is parallel to the table: no sweep direction".into(),
+            ));
+        }
+        let sweep = sweep.normalize();
+        Ok((sweep, n_base.dot(&sweep).abs()))
     }
 
     /// Encoder readings of a straight sweep of the camera at orientation `rot` from

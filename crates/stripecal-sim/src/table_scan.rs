@@ -39,14 +39,7 @@ impl Twin {
                 self.cfg.board.plate_thickness_mm,
             ))
         .coords;
-        let n_base = rot * self.laser_plane.normal;
-        let sweep = n_base - up * n_base.dot(&up);
-        if sweep.norm() < 1e-6 {
-            return Err(SimError::Poses(
-                "the laser plane is parallel to the table: no sweep direction".into(),
-            ));
-        }
-        let sweep = sweep.normalize();
+        let (sweep, rate) = self.table_sweep(&rot, &up)?;
         let depth = 0.5 * (self.cfg.working_range_mm[0] + self.cfg.working_range_mm[1]);
         let origin = crate::poses::scan_origin(
             &rot,
@@ -58,13 +51,7 @@ impl Twin {
             &sweep,
         )
         .ok_or_else(|| SimError::Poses("cannot place the table sweep".into()))?;
-        self.sweep_poses(
-            &origin,
-            &sweep,
-            &rot,
-            n_base.dot(&sweep).abs(),
-            "table scan",
-        )
+        self.sweep_poses(&origin, &sweep, &rot, rate, "table scan")
     }
 
     /// Renders table scan frame `index` at `q_deg` (stripe image only) with its truth;

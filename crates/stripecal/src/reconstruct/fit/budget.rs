@@ -227,6 +227,8 @@ pub struct Sensitivity {
     /// Per fit parameter, its form (calibration and robot parts; random and systematic
     /// empty: the caller adds them).
     pub params: Vec<LinearForm>,
+    /// `N^-1` (q x q): with the residuals' variance, the fit's random covariance.
+    pub ninv: DMatrix<f64>,
     /// Per frame: `M_f` (its calibration map) and the robot twist's Cholesky factor.
     frames: BTreeMap<u32, (DMatrix<f64>, SMatrix<f64, 6, 6>)>,
     scan: u64,
@@ -241,10 +243,11 @@ impl Sensitivity {
         rows: impl Iterator<Item = FitRow<'r>>,
     ) -> Result<Sensitivity> {
         let q = n.nrows();
-        let neg_ninv = -n
+        let ninv = n
             .clone()
             .try_inverse()
             .ok_or_else(|| Error::Degenerate("fit budget: singular normal matrix".into()))?;
+        let neg_ninv = -&ninv;
         let mut s_f: BTreeMap<u32, DMatrix<f64>> = BTreeMap::new();
         for row in rows {
             let e = row_e(frames, &row)?;
@@ -292,6 +295,7 @@ impl Sensitivity {
             .collect();
         Ok(Sensitivity {
             params,
+            ninv,
             frames: maps,
             scan,
         })

@@ -90,11 +90,8 @@ pub fn measure_sphere(
     let mut sens = Sensitivity::new(frames, &n_d, rows)?;
     let id = new_source_id();
     let s2 = res.iter().map(|x| x * x).sum::<f64>() / (idx.len() - 4) as f64;
-    add_random(
-        &mut sens.params,
-        &(n_d.clone().try_inverse().unwrap() * s2),
-        id,
-    );
+    let random = &sens.ninv * s2;
+    add_random(&mut sens.params, &random, id);
     let sys = [
         systematic.center_mm[0],
         systematic.center_mm[1],
@@ -203,11 +200,8 @@ pub fn measure_plane(
     let mut sens = Sensitivity::new(frames, &n_d, rows)?;
     let id = new_source_id();
     let s2 = res.iter().map(|x| x * x).sum::<f64>() / (idx.len() - 3) as f64;
-    let ninv = n_d
-        .clone()
-        .try_inverse()
-        .ok_or_else(|| Error::Degenerate("plane budget: singular normal matrix".into()))?;
-    add_random(&mut sens.params, &(ninv * s2), id);
+    let random = &sens.ninv * s2;
+    add_random(&mut sens.params, &random, id);
     let form = range_form(frames, &sens, points, &idx, &res, id, s2, |k| {
         (nrm, &jrows[k][..])
     })?;
