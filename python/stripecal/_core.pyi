@@ -651,6 +651,7 @@ def calibrate(
     accept_poor: bool = False,
     robot_pose_noise: bool = False,
     robot: str = "fixed",
+    board_stripe_bias: bool = True,
 ) -> Calibration: ...
 def plan_poses(
     rig: Union[_Path, Rig, Dataset],

@@ -406,7 +406,7 @@ def cmd_calibrate(args: argparse.Namespace) -> int:
             estimate_board_scale=args.estimate_board_scale, board_scale_tolerance=args.board_scale_tolerance,
             leave_one_out=not args.no_leave_one_out, accept_poor=args.accept_poor,
             robot_pose_noise=args.robot_pose_noise,
-            robot=args.robot,
+            robot=args.robot, board_stripe_bias=not args.no_board_stripe_correction,
         )
     except stripecal.CalibrationQualityError as e:
         if e.calibration is not None:
@@ -459,6 +459,10 @@ def _add_calibrate(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> 
     p.add_argument("--robot-pose-noise", action="store_true",
                    help="correct every view's robot pose by its own small transform and report "
                         "the robot-pose noise (mm, deg); default: the robot poses are exact")
+    p.add_argument("--no-board-stripe-correction", action="store_true",
+                   help="do not correct the laser stripe's sub-pixel bias on the board (default: "
+                        "corrected before the final adjustment, what remains added to the "
+                        "covariance; calibration.json's extra board_stripe_bias)")
     p.add_argument("--accept-poor", action="store_true",
                    help="write a calibration that failed a quality check anyway, marked quality.accepted_poor (default: exit 1, nothing written)")
     p.add_argument("--report", metavar="DIR", help="also write an HTML report with figures into DIR (needs matplotlib)")

@@ -213,7 +213,11 @@ fn parse_distortion(py: Python<'_>, s: Option<&str>) -> PyResult<Option<Distorti
 /// `fix=["robot"]`), `"offsets"` (encoder offsets), `"full"` (every identifiable
 /// correction) or `"auto"` (the corrections the data show); the refined rows are the
 /// result's `robot`, what was estimated or fixed and why `robot_calibration`. Needs
-/// rig.json's robot and joint readings.
+/// rig.json's robot and joint readings. `board_stripe_bias=True` (default, one-stage
+/// method) corrects the laser stripe's sub-pixel bias on the board before the final
+/// adjustment (the sheet's thickness from the stripe widths, the model of
+/// `measure_sphere`'s correction on a plane) and adds what the correction leaves to the
+/// covariance (`extra["board_stripe_bias"]`).
 ///
 /// Returns a `Calibration` with quality, one-sigma `uncertainty`, per-view figures
 /// (`views`) and the run's residuals. Views whose board is not found, and views whose
@@ -224,7 +228,7 @@ fn parse_distortion(py: Python<'_>, s: Option<&str>) -> PyResult<Option<Distorti
 /// released while it runs; a Ctrl-C (SIGINT) during the run raises `KeyboardInterrupt`
 /// when the core returns (the result is dropped), not at once.
 #[pyfunction]
-#[pyo3(signature = (dataset, *, distortion = None, method = "one-stage", robust = false, centre_model = "conic-exact", from_calibration = None, fix = Vec::new(), laser_only = false, estimate_board_scale = false, board_scale_tolerance = 0.01, leave_one_out = true, accept_poor = false, robot_pose_noise = false, robot = "fixed"))]
+#[pyo3(signature = (dataset, *, distortion = None, method = "one-stage", robust = false, centre_model = "conic-exact", from_calibration = None, fix = Vec::new(), laser_only = false, estimate_board_scale = false, board_scale_tolerance = 0.01, leave_one_out = true, accept_poor = false, robot_pose_noise = false, robot = "fixed", board_stripe_bias = true))]
 #[allow(clippy::too_many_arguments)]
 pub fn calibrate(
     py: Python<'_>,
@@ -242,6 +246,7 @@ pub fn calibrate(
     accept_poor: bool,
     robot_pose_noise: bool,
     robot: &str,
+    board_stripe_bias: bool,
 ) -> PyResult<PyCalibration> {
     let from = match from_calibration {
         None => None,
@@ -289,6 +294,7 @@ pub fn calibrate(
         accept_poor,
         robot_pose_noise,
         robot,
+        board_stripe_bias,
         ..Default::default()
     };
     let result = if let Ok(ds) = dataset.cast::<PyDataset>() {
@@ -422,6 +428,7 @@ pub fn calibrate_camera<'py>(
             reading: None,
             base_hand: None,
             alternatives: Vec::new(),
+            stripe_shape: None,
         });
     }
     let b = board.inner.clone();

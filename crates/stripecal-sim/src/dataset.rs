@@ -549,6 +549,7 @@ impl Twin {
                 reading: Some(RobotReading::Joints(self.reported_q(i, &p.q_deg))),
                 base_hand: Some(self.robot_true.forward(&self.reported_q(i, &p.q_deg))?),
                 alternatives: Vec::new(),
+                stripe_shape: None,
             });
         }
         Ok(out)

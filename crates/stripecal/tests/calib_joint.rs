@@ -284,6 +284,7 @@ fn degenerate_inputs_are_typed_errors() {
                 reading: None,
                 base_hand: Some(a),
                 alternatives: Vec::new(),
+                stripe_shape: None,
             }
         })
         .collect();

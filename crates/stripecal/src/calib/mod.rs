@@ -52,4 +52,17 @@ pub struct ViewObs {
     /// labelled by any of them ([`crate::vision::target::TargetDetection::alternatives`]);
     /// the calibration chooses from the robot poses ([`consensus`]).
     pub alternatives: Vec<crate::model::board::Symmetry>,
+    /// How the stripe was extracted, when known: the scan lines' direction and each
+    /// point's width (index-aligned with `stripe`), for the model of the stripe's bias on
+    /// the board ([`crate::pipeline`]'s stripe correction); `None`: not corrected.
+    pub stripe_shape: Option<StripeShape>,
+}
+
+/// The extraction behind a view's stripe points ([`ViewObs::stripe_shape`]).
+#[derive(Debug, Clone, PartialEq)]
+pub struct StripeShape {
+    /// The scan lines the extractor searched (`Rows` or `Cols`, never `Auto`).
+    pub direction: crate::model::StripeDirection,
+    /// The stripe's width (FWHM along the scan line) at each point, px.
+    pub width_px: Vec<f64>,
 }

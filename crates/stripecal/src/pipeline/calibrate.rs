@@ -3,6 +3,7 @@
 //! agree), laser plane, adjustment, report, quality gates.
 
 use super::board_scale::{check_board_scale, warning as board_scale_warning};
+use super::board_stripe::{correct_board_stripes, BoardStripeCorrection};
 use super::gates::{converged, determined, judge, view_residuals, views_check};
 use super::held::held;
 use super::labels::resolve_labellings;
@@ -133,6 +134,8 @@ pub(super) fn calibrate_unjudged(
         (used_obs, used_poses) = kept(&used_obs, &used_poses, &keep);
         check_usable(&used_obs, &warnings)?;
     };
+    let (adj, used_obs, board_stripe) =
+        correct_stripes(adj, used_obs, &used_poses, board, &jopts, opts)?;
     warnings.extend(adj.warnings.iter().cloned());
     if let Some(w) = super::kinematics::diagnose(&adj, camcal.rms_px, rig, &used_obs, opts) {
         warnings.push(w);
@@ -146,6 +149,7 @@ pub(super) fn calibrate_unjudged(
         converged(&adj, opts.method),
     ];
     let stage = Stage {
+        board_stripe,
         camera: Some(camcal),
         plane,
         axzb: Some(paired.axzb),
@@ -160,6 +164,40 @@ pub(super) fn calibrate_unjudged(
         build_report(stage, rig, opts, status, warnings),
         gate_checks,
     ))
+}
+
+/// The stripe's bias on the board corrected ([`super::board_stripe`]) and the adjustment
+/// run again from its own solution on the corrected points, its covariance widened by
+/// what the correction leaves; the input as it is when the correction is off or cannot
+/// be made (the paper's method, no widths, a sheet the widths do not determine).
+fn correct_stripes(
+    adj: JointResult,
+    used_obs: Vec<ViewObs>,
+    used_poses: &[Iso3],
+    board: &Board,
+    jopts: &JointOptions,
+    opts: &CalibrateOptions,
+) -> Result<(JointResult, Vec<ViewObs>, Option<BoardStripeCorrection>)> {
+    let Some(plane) = adj
+        .plane
+        .filter(|_| opts.board_stripe_bias && opts.method == Method::OneStage)
+    else {
+        return Ok((adj, used_obs, None));
+    };
+    let Some(corr) =
+        correct_board_stripes(&used_obs, used_poses, &adj.camera, &plane, &opts.stripe)
+    else {
+        return Ok((adj, used_obs, None));
+    };
+    let start = JointStart {
+        camera: adj.camera.clone(),
+        plane: adj.plane,
+        hand_cam: adj.hand_cam,
+        base_board: adj.base_board,
+    };
+    let mut again = joint_adjustment(&corr.views, board, &start, jopts)?;
+    again.add_correction_uncertainty(&adj, corr.share);
+    Ok((again, corr.views.clone(), Some(corr)))
 }
 
 /// The laser plane's first estimate from the views' stripe points (`None` when no view

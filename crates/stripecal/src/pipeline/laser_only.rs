@@ -73,6 +73,7 @@ pub(super) fn calibrate_held_chain(
     mark_used(&mut status, &obs);
     let checks = self_checks(&obs, board, &adj, &jopts, opts, &mut warnings)?;
     let stage = Stage {
+        board_stripe: None,
         camera: None,
         plane: Some(plane),
         axzb: None,

@@ -27,6 +27,7 @@
 //!    [`Error::Quality`] (unless [`CalibrateOptions::accept_poor`]).
 
 mod board_scale;
+pub mod board_stripe;
 mod calibrate;
 pub mod gates;
 mod held;
@@ -139,6 +140,9 @@ pub struct CalibrateOptions {
     /// The robot's DH corrections to estimate (`--robot`; default fixed: rig.json's DH
     /// table is exact). Needs rig.json's robot and joint readings in views.csv.
     pub robot: crate::calib::joint::RobotMode,
+    /// Correct the stripe's bias on the board before the final adjustment
+    /// ([`board_stripe`]; default true; one-stage method only).
+    pub board_stripe_bias: bool,
 }
 
 impl Default for CalibrateOptions {
@@ -161,6 +165,7 @@ impl Default for CalibrateOptions {
             accept_poor: false,
             robot_pose_noise: false,
             robot: crate::calib::joint::RobotMode::Fixed,
+            board_stripe_bias: true,
         }
     }
 }

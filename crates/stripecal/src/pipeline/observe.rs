@@ -7,7 +7,7 @@ use std::sync::atomic::{AtomicUsize, Ordering};
 use rayon::prelude::*;
 
 use super::CalibrateOptions;
-use crate::calib::{CircleObs, ViewObs};
+use crate::calib::{CircleObs, StripeShape, ViewObs};
 use crate::error::{Error, Result};
 use crate::io::load_gray_info;
 use crate::model::{Dataset, View};
@@ -116,6 +116,7 @@ fn observe_view(
         })
         .collect();
     let mut stripe = Vec::new();
+    let mut shape = None;
     if let Some(lp) = &v.laser_image {
         let single = lp == &v.board_image;
         let laser_img;
@@ -143,12 +144,12 @@ fn observe_view(
                     ..opts.edges.clone()
                 };
                 flag_reflectance_edges(&mut s, bview, &eo)?;
-                stripe = s
-                    .points
-                    .iter()
-                    .filter(|p| p.trusted())
-                    .map(|p| [p.u, p.v])
-                    .collect();
+                let kept: Vec<_> = s.points.iter().filter(|p| p.trusted()).collect();
+                stripe = kept.iter().map(|p| [p.u, p.v]).collect();
+                shape = Some(StripeShape {
+                    direction: s.direction,
+                    width_px: kept.iter().map(|p| f64::from(p.width_px)).collect(),
+                });
             }
             Err(Error::Detection(_)) => {}
             Err(e) => return Err(e),
@@ -161,5 +162,6 @@ fn observe_view(
         reading: Some(v.reading.clone()),
         base_hand: Some(base_hand),
         alternatives: det.alternatives,
+        stripe_shape: shape,
     }))
 }

@@ -531,6 +531,7 @@ pub fn plan_poses(
                 reading: Some(RobotReading::Joints(joints[i].clone())),
                 base_hand: Some(a),
                 alternatives: Vec::new(),
+                stripe_shape: None,
             });
         }
     }

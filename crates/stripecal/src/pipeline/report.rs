@@ -37,6 +37,8 @@ pub(super) struct Stage<'a> {
     pub checks: SelfChecks,
     /// The blocks held from `--from`.
     pub held: Option<&'a Held<'a>>,
+    /// The stripe's bias on the board, when corrected.
+    pub board_stripe: Option<super::board_stripe::BoardStripeCorrection>,
 }
 
 /// The one-sigmas of the estimated blocks: the adjustment's covariance for the
@@ -145,6 +147,9 @@ pub(super) fn build_report(
         st.checks.board_scale.as_ref(),
         st.checks.leave_one_out.as_ref(),
     ));
+    if let Some(c) = &st.board_stripe {
+        extra.insert("board_stripe_bias".into(), board_stripe_extra(c));
+    }
     if let (Method::OneStage, Some(n)) = (opts.method, &adj.robot_noise) {
         extra.extend(robot_pose_noise_extra(n));
     }
@@ -208,4 +213,18 @@ pub(super) fn build_report(
         views: status,
         warnings,
     }
+}
+
+/// calibration.json's `board_stripe_bias`: what the correction of the stripe's bias on
+/// the board did ([`super::board_stripe`]).
+fn board_stripe_extra(c: &super::board_stripe::BoardStripeCorrection) -> serde_json::Value {
+    serde_json::json!({
+        "sheet_sigma_mm": c.sheet_sigma_mm,
+        "psf_sigma_px": c.psf_sigma_px,
+        "points_corrected": c.corrected,
+        "points_left_out": c.dropped,
+        "mean_px": c.mean_px,
+        "rms_px": c.rms_px,
+        "systematic_share": c.share,
+    })
 }

@@ -56,7 +56,7 @@ use nalgebra::Vector3;
 use super::labels::Labelled;
 use super::ViewStatus;
 use crate::calib::laser_plane::{backproject_to_board, MIN_POINTS_PER_VIEW};
-use crate::calib::ViewObs;
+use crate::calib::{StripeShape, ViewObs};
 use crate::error::{Error, Result};
 use crate::model::camera::Camera;
 use crate::model::geometry::{Iso3, Plane};
@@ -152,8 +152,24 @@ pub(super) fn select_stripes(
         if let Some(s) = status.iter_mut().find(|s| s.view == v.view) {
             s.stripe_off_plane = *off;
         }
+        // The widths follow their points (a shape of another length is dropped).
+        let stripe_shape = v
+            .stripe_shape
+            .as_ref()
+            .filter(|sh| sh.width_px.len() == keep.len())
+            .map(|sh| StripeShape {
+                direction: sh.direction,
+                width_px: sh
+                    .width_px
+                    .iter()
+                    .zip(keep)
+                    .filter(|(_, k)| **k)
+                    .map(|(w, _)| *w)
+                    .collect(),
+            });
         obs.push(ViewObs {
             stripe,
+            stripe_shape,
             ..(*v).clone()
         });
         poses.push(*cb);

@@ -39,6 +39,7 @@ fn view(i: usize, base_hand: Option<Iso3>) -> ViewObs {
         reading: None,
         base_hand,
         alternatives: Vec::new(),
+        stripe_shape: None,
     }
 }
 

@@ -118,6 +118,63 @@ pub(super) fn joint_sigma(named: &NamedCovariance) -> JointSigma {
     }
 }
 
+/// The value of one of the calibration's numbers by its contract name (`None` for names
+/// it does not read: the DH corrections).
+fn named_value(r: &super::JointResult, name: &str) -> Option<f64> {
+    let index = |prefix: &str| -> Option<usize> {
+        name.strip_prefix(prefix)?
+            .strip_prefix('[')?
+            .strip_suffix(']')?
+            .parse()
+            .ok()
+    };
+    let params = r.camera.params();
+    if let Some(i) = (0..PARAM_NAMES.len()).find(|&i| camera_name(i) == name) {
+        return Some(params[i]);
+    }
+    if let Some(k) = index("laser_plane.normal") {
+        return r.plane.map(|p| p.normal[k]);
+    }
+    if name == "laser_plane.d_mm" {
+        return r.plane.map(|p| p.d);
+    }
+    for (key, t) in [("hand_cam", &r.hand_cam), ("base_board", &r.base_board)] {
+        if let Some(k) = index(&format!("{key}.rotation_vector")) {
+            return Some(crate::model::geometry::iso_to_rotvec(t).0[k]);
+        }
+        if let Some(k) = index(&format!("{key}.translation_mm")) {
+            return Some(t.translation.vector[k]);
+        }
+    }
+    (name == "board.scale").then_some(r.board_scale)
+}
+
+impl super::JointResult {
+    /// Adds a systematic error shared by all observations to the covariance of the
+    /// calibration's numbers: `u^2 D D^T`, `D` this result's numbers minus `before`'s
+    /// (the change a correction of the observations made; `u` its standard uncertainty
+    /// per unit correction). The DH corrections' rows are left as they are. The
+    /// one-sigmas follow.
+    pub fn add_correction_uncertainty(&mut self, before: &super::JointResult, u: f64) {
+        let names = &self.named_covariance.parameters;
+        let d: Vec<f64> = names
+            .iter()
+            .map(|n| match (named_value(self, n), named_value(before, n)) {
+                // (a rotation vector near a half turn may jump to its other form)
+                (Some(a), Some(b))
+                    if ((a - b).abs() < 0.01 || !n.contains("rotation")) && (a - b).is_finite() =>
+                {
+                    a - b
+                }
+                _ => 0.0,
+            })
+            .collect();
+        let d = nalgebra::DVector::from_vec(d);
+        self.named_covariance.matrix += &d * d.transpose() * (u * u);
+        self.sigma = joint_sigma(&self.named_covariance);
+    }
+}
+
 /// `d rotvec / d w` for `rotvec(R Exp(w))` at `w = 0`: the inverse right Jacobian of SO(3)
 /// at `r`.
 pub(super) fn inverse_right_jacobian(r: &Vector3<f64>) -> Matrix3<f64> {

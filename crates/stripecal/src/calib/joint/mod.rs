@@ -702,6 +702,7 @@ mod tests {
                 reading: None,
                 base_hand: Some(a),
                 alternatives: Vec::new(),
+                stripe_shape: None,
             });
         }
         Synth {

@@ -30,7 +30,7 @@ pub(crate) struct Rig<'a> {
 }
 
 impl<'a> Rig<'a> {
-    pub(super) fn new(
+    pub(crate) fn new(
         camera: &'a Camera,
         plane: &Plane,
         emitter: Vector3<f64>,

@@ -1,0 +1,306 @@
+//! The stripe's bias on the calibration board, corrected before the final adjustment.
+//!
+//! ## Why
+//!
+//! The sub-pixel centre of a laser stripe is not the image of the sheet's centre plane
+//! even on a flat board: across the sheet's thickness the shading (incidence and distance
+//! to the emitter) and the perspective change, so the profile along the scan line is
+//! skewed and its windowed centroid moves by a few thousandths of a pixel
+//! ([`crate::reconstruct::fit::stripe_bias`], its plane variant). The shift has the same
+//! sign in every view. On the paper's rig (twin, noise-free images, true geometry) the
+//! board's stripe points lie +0.02 to +0.65 um off the sheet's centre plane, view by view;
+//! the one-stage adjustment reads that as geometry and moves the hand-eye translation by
+//! ~-1.3 um (4 sigma of its own covariance) and the plane offset by ~-0.5 um, on every
+//! seed; without the laser images the same views give 0.1 um. The reconstruction then
+//! carries that error into every measured point, and no random uncertainty covers it.
+//!
+//! ## What is done
+//!
+//! After the adjustment, with its camera and laser plane and each view's board pose from
+//! its own circles (the camera stage's `T_cam_board`):
+//! 1. the sheet's Gaussian sigma `s` (mm) and the PSF's sigma `b` (px) from the stripe
+//!    widths: at a point whose image moves by `g = |da/dt|` px per mm of sheet offset, with
+//!    the stripe's slope `m` against the scan line, `(W / 2.3548)^2 - (1 + m^2) / 12 =
+//!    s^2 g^2 + b^2 (1 + m^2)` by linear least squares over the points (the board's tilt
+//!    differs between views, so `g` varies and the two separate; refused, and nothing
+//!    corrected, when it does not: `s^2 <= 0` or fewer than [`MIN_POINTS`] points);
+//! 2. per stripe point, the profile the camera sees ([`board_point_profile`]) and the
+//!    extractor's own centroid on it: the predicted bias `delta` px along the scan line;
+//!    the point is moved to `a - delta` (points the model cannot follow are left out and
+//!    counted);
+//! 3. the adjustment is run again from its own solution on the corrected points.
+//!
+//! The emitter is not in a calibration: it is assumed at the plane's point nearest the
+//! camera centre, `n d`.
+//!
+//! ## Its uncertainty
+//!
+//! The correction moves the calibration's numbers by `D` (corrected minus uncorrected).
+//! What the model leaves is a systematic error shared by all views, so it is added to the
+//! covariance as `u^2 D D^T` (rank one, the same direction as the correction), with `u`
+//! the root sum of squares of: the neglected terms, taken as uniform within +-50 % of the
+//! correction (`0.29`, as for the sphere); the emitter, the largest relative change of
+//! the predicted biases when it moves by +-[`EMITTER_RANGE_MM`] along the plane's two
+//! in-plane axes, as the half width of a uniform distribution (`/ sqrt 3`). The
+//! covariance of the DH corrections (robot calibration) is not augmented (their part of
+//! `D` is not read).
+
+use nalgebra::{Matrix2, Vector2, Vector3};
+use rayon::prelude::*;
+
+use crate::calib::laser_plane::backproject_to_board;
+use crate::calib::{StripeShape, ViewObs};
+use crate::model::camera::Camera;
+use crate::model::geometry::{Iso3, Plane};
+use crate::model::StripeDirection;
+use crate::reconstruct::fit::stripe_bias::{
+    board_point_profile, extractor_response, neglected_share, BoardSurface, PointProfile, Rig,
+};
+use crate::vision::stripe::StripeOptions;
+
+/// Fewest stripe points with a width for the sheet's sigma.
+pub const MIN_POINTS: usize = 50;
+/// Points used for the width fit and for the emitter's sensitivity, at most.
+const SUB_POINTS: usize = 3000;
+/// The emitter's assumed position range within the plane, +- mm.
+pub const EMITTER_RANGE_MM: f64 = 30.0;
+/// Points lit at a larger incidence are not modelled.
+const MAX_INCIDENCE_DEG: f64 = 80.0;
+
+/// The corrected views and what the correction did.
+#[derive(Debug, Clone)]
+pub struct BoardStripeCorrection {
+    /// The views with their stripe points moved by the predicted bias (points the model
+    /// cannot follow left out).
+    pub views: Vec<ViewObs>,
+    /// The sheet's Gaussian sigma, mm, and the PSF's, px, from the widths.
+    pub sheet_sigma_mm: f64,
+    pub psf_sigma_px: f64,
+    /// Points corrected, and left out.
+    pub corrected: usize,
+    pub dropped: usize,
+    /// Mean and RMS of the predicted bias, px along the scan line.
+    pub mean_px: f64,
+    pub rms_px: f64,
+    /// The standard uncertainty of what remains, per unit correction (module docs).
+    pub share: f64,
+}
+
+/// One stripe point's geometry.
+struct Pt {
+    view: usize,
+    idx: usize,
+    p: Vector3<f64>,
+    line: f64,
+    a: f64,
+    width: f64,
+}
+
+/// The correction (module docs); `None` when nothing can be corrected (no view with
+/// widths, too few points, a sheet sigma that the widths do not determine).
+pub fn correct_board_stripes(
+    views: &[ViewObs],
+    cam_board: &[Iso3],
+    camera: &Camera,
+    plane: &Plane,
+    stripe: &StripeOptions,
+) -> Option<BoardStripeCorrection> {
+    let direction = views
+        .iter()
+        .find_map(|v| v.stripe_shape.as_ref().map(|s| s.direction))?;
+    if direction == StripeDirection::Auto
+        || views.iter().any(|v| {
+            v.stripe_shape
+                .as_ref()
+                .is_some_and(|s| s.direction != direction)
+        })
+    {
+        return None;
+    }
+    let mut sopts = stripe.clone();
+    sopts.direction = direction;
+    let rig = Rig::new(
+        camera,
+        plane,
+        plane.normal * plane.d,
+        direction,
+        &sopts,
+        MAX_INCIDENCE_DEG,
+    );
+    let along = rig.along;
+    let boards: Vec<Option<Plane>> = cam_board
+        .iter()
+        .map(|cb| {
+            let n = cb.rotation * Vector3::z();
+            Some(Plane {
+                normal: n,
+                d: n.dot(&cb.translation.vector),
+            })
+        })
+        .collect();
+    let mut pts = Vec::new();
+    for (vi, (v, cb)) in views.iter().zip(cam_board).enumerate() {
+        let Some(shape) = v.stripe_shape.as_ref() else {
+            continue;
+        };
+        if shape.width_px.len() != v.stripe.len() {
+            continue;
+        }
+        for (k, (uv, w)) in v.stripe.iter().zip(&shape.width_px).enumerate() {
+            let Ok(p) = backproject_to_board(camera, cb, uv) else {
+                continue;
+            };
+            pts.push(Pt {
+                view: vi,
+                idx: k,
+                p,
+                line: uv[1 - along],
+                a: uv[along],
+                width: *w,
+            });
+        }
+    }
+    if pts.len() < MIN_POINTS {
+        return None;
+    }
+    let surfaces: Vec<Option<BoardSurface<'_>>> = boards
+        .iter()
+        .map(|b| b.as_ref().and_then(|b| BoardSurface::new(&rig, b)))
+        .collect();
+    // 1. Sheet and PSF sigmas from the widths (g and the slope do not depend on them).
+    let step = pts.len().div_ceil(SUB_POINTS).max(1);
+    let sub: Vec<&Pt> = pts.iter().step_by(step).collect();
+    let geo: Vec<Option<(f64, f64)>> = sub
+        .par_iter()
+        .map_init(PointProfile::default, |prof, q| {
+            let s = surfaces[q.view].as_ref()?;
+            board_point_profile(&rig, s, q.line, &q.p, 0.1, 0.5, prof)
+                .then_some((prof.g, prof.slope))
+        })
+        .collect();
+    let (mut a, mut r) = (Matrix2::<f64>::zeros(), Vector2::<f64>::zeros());
+    let mut used = 0;
+    for (q, g) in sub.iter().zip(&geo) {
+        let Some((g, m)) = *g else { continue };
+        let k = 1.0 + m * m;
+        let y = (q.width / 2.3548).powi(2) - k / 12.0;
+        let x = Vector2::new(g * g, k);
+        a += x * x.transpose();
+        r += x * y;
+        used += 1;
+    }
+    if used < MIN_POINTS {
+        return None;
+    }
+    let sol = a.lu().solve(&r)?;
+    let (s2, b2) = if sol[1] < 0.0 {
+        // No PSF term: the sheet alone.
+        (r[0] / a[(0, 0)], 0.0)
+    } else {
+        (sol[0], sol[1])
+    };
+    if !(s2.is_finite() && s2 > 0.0) {
+        return None;
+    }
+    let (sigma, psf) = (s2.sqrt(), b2.sqrt());
+    // 2. The predicted bias per point.
+    let deltas = |rig: &Rig<'_>, which: &[&Pt]| -> Vec<Option<f64>> {
+        let surf: Vec<Option<BoardSurface<'_>>> = boards
+            .iter()
+            .map(|b| b.as_ref().and_then(|b| BoardSurface::new(rig, b)))
+            .collect();
+        which
+            .par_iter()
+            .map_init(
+                || (PointProfile::default(), Vec::new()),
+                |(prof, buf), q| {
+                    let s = surf[q.view].as_ref()?;
+                    if !board_point_profile(rig, s, q.line, &q.p, sigma, psf, prof) {
+                        return None;
+                    }
+                    extractor_response(prof, psf, rig.stripe, buf).map(|x| x.0)
+                },
+            )
+            .collect()
+    };
+    let all: Vec<&Pt> = pts.iter().collect();
+    let delta = deltas(&rig, &all);
+    // The emitter's part of the remainder, relative to the correction.
+    let (e1, e2) = (rig.e1, rig.e2);
+    let nominal_sub = deltas(&rig, &sub);
+    let rms = |v: &[f64]| (v.iter().map(|x| x * x).sum::<f64>() / v.len().max(1) as f64).sqrt();
+    let mut rel_emitter = 0.0f64;
+    for dir in [e1, e2] {
+        for s in [-1.0, 1.0] {
+            let mut r2 = rig.clone();
+            r2.emitter = rig.emitter + dir * (s * EMITTER_RANGE_MM);
+            let alt = deltas(&r2, &sub);
+            let (diff, base): (Vec<f64>, Vec<f64>) = nominal_sub
+                .iter()
+                .zip(&alt)
+                .filter_map(|(a, b)| Some(((*b)? - (*a)?, (*a)?)))
+                .unzip();
+            let b = rms(&base);
+            if b > 0.0 {
+                rel_emitter = rel_emitter.max(rms(&diff) / b);
+            }
+        }
+    }
+    let share = (neglected_share().powi(2) + (rel_emitter / 3f64.sqrt()).powi(2)).sqrt();
+    // 3. The corrected views.
+    let mut out: Vec<ViewObs> = views.to_vec();
+    let mut keep: Vec<Vec<bool>> = views.iter().map(|v| vec![true; v.stripe.len()]).collect();
+    let (mut corrected, mut dropped, mut sum, mut sum2) = (0usize, 0usize, 0.0, 0.0);
+    for (q, d) in pts.iter().zip(&delta) {
+        match d {
+            Some(d) => {
+                out[q.view].stripe[q.idx][along] = q.a - d;
+                corrected += 1;
+                sum += d;
+                sum2 += d * d;
+            }
+            None => {
+                keep[q.view][q.idx] = false;
+                dropped += 1;
+            }
+        }
+    }
+    if corrected < MIN_POINTS {
+        return None;
+    }
+    for (v, k) in out.iter_mut().zip(&keep) {
+        if k.iter().all(|x| *x) {
+            continue;
+        }
+        v.stripe = v
+            .stripe
+            .iter()
+            .zip(k)
+            .filter(|(_, k)| **k)
+            .map(|(p, _)| *p)
+            .collect();
+        if let Some(sh) = v.stripe_shape.as_mut() {
+            *sh = StripeShape {
+                direction: sh.direction,
+                width_px: sh
+                    .width_px
+                    .iter()
+                    .zip(k)
+                    .filter(|(_, k)| **k)
+                    .map(|(w, _)| *w)
+                    .collect(),
+            };
+        }
+    }
+    let nc = corrected as f64;
+    Some(BoardStripeCorrection {
+        views: out,
+        sheet_sigma_mm: sigma,
+        psf_sigma_px: psf,
+        corrected,
+        dropped,
+        mean_px: sum / nc,
+        rms_px: (sum2 / nc).sqrt(),
+        share,
+    })
+}

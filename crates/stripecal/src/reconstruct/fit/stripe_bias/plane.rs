@@ -1,0 +1,179 @@
+//! The stripe model of [`super`] on a FLAT surface (a calibration board): the same
+//! profile (sheet offsets, shading, pixel box, PSF, neighbouring scan lines) with the
+//! sphere's section circle replaced by the straight line where the board plane meets the
+//! plane `n . p = d + t`.
+//!
+//! On a plane the profile is symmetric only to first order: across the sheet's thickness
+//! the incidence and the distance to the emitter change (the shading's gradient), and the
+//! perspective maps equal steps of `t` to unequal steps in the image. Both skew the
+//! profile by a few thousandths of a pixel on the paper's rig, and the skew has the same
+//! sign in every view: the board's stripe points lie ~0.3-0.6 um off the sheet's centre
+//! plane, which a one-stage adjustment turns into a ~1 um error of the hand-eye
+//! translation ([`crate::pipeline`]'s stripe correction removes it).
+//!
+//! For sheet offset `t` the board's line is `P(s) = p0(t) + s e`, `e = n x n_b`
+//! normalised, `p0(t) = alpha n + beta n_b` with `[1 c; c 1] [alpha beta]^T = [d + t,
+//! d_b]^T` (`c = n . n_b`); Newton's method on `s` puts its image on the scan line, and
+//! `d a / d t` follows from the implicit function theorem as for the sphere.
+
+use nalgebra::Vector3;
+
+use crate::model::geometry::Plane;
+
+use super::profile::{project_jac, sub_lines, PointProfile, Rig};
+use super::HALF_SAMPLES;
+
+/// The board point on the sheet offset `t` imaged on scan line `line`: `(s, point, along
+/// coordinate, d along / dt, slope d along / d line)`.
+struct LinePoint {
+    s: f64,
+    p: Vector3<f64>,
+    a: f64,
+    da_dt: f64,
+    slope: f64,
+}
+
+/// The board (camera frame) as the model sees it: its plane, the direction of its line
+/// with the sheet and `d p0 / d t`.
+pub(crate) struct Board<'b> {
+    plane: &'b Plane,
+    e: Vector3<f64>,
+    dp0_dt: Vector3<f64>,
+    c: f64,
+}
+
+impl<'b> Board<'b> {
+    /// `None` when the sheet is (nearly) parallel to the board.
+    pub(crate) fn new(rig: &Rig<'_>, plane: &'b Plane) -> Option<Board<'b>> {
+        let c = rig.n.dot(&plane.normal);
+        let e = rig.n.cross(&plane.normal);
+        if e.norm() < 1e-3 {
+            return None;
+        }
+        let det = 1.0 - c * c;
+        let dp0_dt = (rig.n - plane.normal * c) / det;
+        Some(Board {
+            plane,
+            e: e.normalize(),
+            dp0_dt,
+            c,
+        })
+    }
+
+    fn p0(&self, rig: &Rig<'_>, t: f64) -> Vector3<f64> {
+        let (a, b) = (rig.d + t, self.plane.d);
+        let det = 1.0 - self.c * self.c;
+        rig.n * ((a - self.c * b) / det) + self.plane.normal * ((b - self.c * a) / det)
+    }
+
+    fn point(&self, rig: &Rig<'_>, t: f64, line: f64, s0: f64) -> Option<LinePoint> {
+        let (al, li) = (rig.along, 1 - rig.along);
+        let p0 = self.p0(rig, t);
+        let mut s = s0;
+        for it in 0..30 {
+            let p = p0 + self.e * s;
+            let (uv, j) = project_jac(rig.camera, &p)?;
+            let jl = j.row(li);
+            let ja = j.row(al);
+            let f = uv[li] - line;
+            let df = jl.dot(&self.e.transpose());
+            if df.is_nan() || df.abs() <= 1e-12 {
+                return None;
+            }
+            if f.abs() < 1e-10 || it == 29 {
+                if f.abs() > 1e-6 {
+                    return None;
+                }
+                let ds_dt = -jl.dot(&self.dp0_dt.transpose()) / df;
+                let da_dt = ja.dot(&(self.dp0_dt + self.e * ds_dt).transpose());
+                let slope = ja.dot(&self.e.transpose()) / df;
+                return Some(LinePoint {
+                    s,
+                    p,
+                    a: uv[al],
+                    da_dt,
+                    slope,
+                });
+            }
+            s -= (f / df).clamp(-50.0, 50.0);
+        }
+        None
+    }
+
+    /// Seen by the camera, lit by the emitter: `cos(incidence) / r_emitter`; else 0.
+    fn shading(&self, rig: &Rig<'_>, p: &Vector3<f64>) -> f64 {
+        // The normal on the camera's side.
+        let nrm = if self.plane.normal.dot(p) > 0.0 {
+            -self.plane.normal
+        } else {
+            self.plane.normal
+        };
+        let to_e = rig.emitter - p;
+        let re = to_e.norm();
+        let cos = nrm.dot(&to_e) / re;
+        if cos <= 0.0 {
+            return 0.0;
+        }
+        cos / re
+    }
+}
+
+/// The samples of one stripe point of a board ([`super::profile::point_profile`]'s
+/// counterpart): scan line `line`, near the camera-frame point `p_near`, sheet sigma
+/// `sigma` (mm), PSF sigma `psf` (px). `false` when the scan line cannot be modelled.
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn board_point_profile(
+    rig: &Rig<'_>,
+    board: &Board<'_>,
+    line: f64,
+    p_near: &Vector3<f64>,
+    sigma: f64,
+    psf: f64,
+    out: &mut PointProfile,
+) -> bool {
+    out.samples.clear();
+    let s_near = (p_near - board.p0(rig, 0.0)).dot(&board.e);
+    let Some(l0) = board.point(rig, 0.0, line, s_near) else {
+        return false;
+    };
+    let w00 = board.shading(rig, &l0.p);
+    if w00 <= 0.0 || w00 * (rig.emitter - l0.p).norm() < rig.min_cos {
+        return false;
+    }
+    out.a0 = l0.a;
+    out.g = l0.da_dt.abs();
+    out.slope = l0.slope;
+    let mut lines = Vec::new();
+    sub_lines(psf, out.g * sigma, out.slope, &mut lines);
+    let sl = (psf * psf + 1.0 / 12.0).sqrt();
+    let m = ((4.0 * sigma * out.g / (0.5 * sl)).ceil() as usize).clamp(HALF_SAMPLES, 400);
+    let dt = 4.0 * sigma / m as f64;
+    for &(x, om) in &lines {
+        let Some(c0) = board.point(rig, 0.0, line + x, l0.s) else {
+            continue;
+        };
+        let w0 = board.shading(rig, &c0.p);
+        if w0 <= 0.0 {
+            continue;
+        }
+        out.samples.push((c0.a, dt * om * w0 * c0.da_dt.abs()));
+        for dir in [-1.0f64, 1.0] {
+            let mut s = c0.s;
+            for k in 1..=m {
+                let t = dir * k as f64 * dt;
+                let Some(q) = board.point(rig, t, line + x, s) else {
+                    break;
+                };
+                let w = board.shading(rig, &q.p);
+                if w <= 0.0 {
+                    break;
+                }
+                s = q.s;
+                let z = t / sigma;
+                out.samples
+                    .push((q.a, dt * om * w * q.da_dt.abs() * (-0.5 * z * z).exp()));
+            }
+        }
+    }
+    true
+}
