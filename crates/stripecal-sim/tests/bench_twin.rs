@@ -178,3 +178,45 @@ fn bench_knobs_are_checked() {
     let e = bad.and_then(|c| c.validate().map(|_| c));
     assert!(format!("{:?}", e.err()).contains("bench.bow.views"));
 }
+
+/// The report's figures: 15 views (noise 1, PSF 0.7), view 4 bent by 1 mm, seeds 1..=3
+/// (`cargo test -p stripecal-sim --test bench_twin -- --ignored --nocapture`).
+#[test]
+#[ignore]
+fn flatness_figures_three_seeds() {
+    for seed in 1..=3 {
+        let tw = twin(
+            seed,
+            serde_json::json!({"views": 15, "partial_views": 3, "bow": {"views": [4]}}),
+        );
+        for (i, v) in tw.bench_views().unwrap().iter().enumerate() {
+            let r = tw.render_bench_view(v, i).unwrap();
+            let Ok(d) = detect_target(
+                r.board_image.view().unwrap(),
+                &tw.board,
+                &TargetOptions::default(),
+            ) else {
+                eprintln!("seed {seed} view {i}: not detected");
+                continue;
+            };
+            let obs: Vec<CircleObs> = d
+                .points
+                .iter()
+                .map(|p| CircleObs {
+                    row: p.row,
+                    col: p.col,
+                    u: p.u,
+                    v: p.v,
+                })
+                .collect();
+            match view_flatness(&tw.camera, &tw.board, &obs, &v.cam_board, &FlatnessOptions::default()) {
+                Ok(f) => eprintln!(
+                    "seed {seed} view {i:2} {} pts {:2} depth {:5.1} tilt {:4.1}: sag {:+.4} +- {:.4} mm ({:5.1} sigma) axis {:+6.1} W {:.1}",
+                    if v.bow.is_some() { "BENT" } else if v.partial { "part" } else { "flat" },
+                    f.points, v.standoff_mm, v.tilt_deg, f.sag_mm, f.sigma_mm, f.significance(), f.axis_deg, f.width_mm
+                ),
+                Err(e) => eprintln!("seed {seed} view {i}: {e}"),
+            }
+        }
+    }
+}
