@@ -59,12 +59,12 @@ impl Default for BenchScanCfg {
 impl BenchScanCfg {
     /// Checks the knobs; errors name them.
     pub fn validate(&self) -> Result<(), SimError> {
-        if !(self.sphere_diameter_mm > 0.0 && self.step_mm > 0.0 && self.margin_mm >= 0.0)
-            || !self.sphere_diameter_mm.is_finite()
-            || self
-                .center_depth_mm
-                .is_some_and(|z| !(z.is_finite() && z > 0.0))
-        {
+        let ok = self.sphere_diameter_mm > 0.0
+            && self.sphere_diameter_mm.is_finite()
+            && self.step_mm > 0.0
+            && self.margin_mm >= 0.0
+            && self.center_depth_mm.is_none_or(|z| z.is_finite() && z > 0.0);
+        if !ok {
             return Err(SimError::Config(
                 "bench.scan: sphere_diameter_mm, step_mm > 0, margin_mm >= 0 and a positive \
                  center_depth_mm expected"
