@@ -94,7 +94,9 @@ def test_bowed_view_sag(bench: Tuple[sim.Twin, Path, Dict[str, Any]]) -> None:
             continue
         f = _flatness(twin, out, im, v)
         if im["sag_mm"] > 0:
-            assert abs(f["sag_mm"] - im["sag_mm"]) < 4 * f["sigma_mm"] + 0.01, f
+            # 4 sigma plus 0.2 %: the tangent-plane model of the circles against the twin's
+            # circles printed on the curved sheet
+            assert abs(f["sag_mm"] - im["sag_mm"]) < 4 * f["sigma_mm"] + 0.002 * im["sag_mm"], f
             assert abs(f["sag_mm"]) > 10 * f["sigma_mm"]
         else:
             assert abs(f["sag_mm"]) < 3 * f["sigma_mm"], f"view {i}: {f}"

@@ -63,7 +63,9 @@ impl BenchScanCfg {
             && self.sphere_diameter_mm.is_finite()
             && self.step_mm > 0.0
             && self.margin_mm >= 0.0
-            && self.center_depth_mm.is_none_or(|z| z.is_finite() && z > 0.0);
+            && self
+                .center_depth_mm
+                .is_none_or(|z| z.is_finite() && z > 0.0);
         if !ok {
             return Err(SimError::Config(
                 "bench.scan: sphere_diameter_mm, step_mm > 0, margin_mm >= 0 and a positive \

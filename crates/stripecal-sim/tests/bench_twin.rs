@@ -115,9 +115,10 @@ fn flatness_names_the_bent_view() {
         );
         match v.bow {
             Some(b) => {
-                // the truth within 4 sigma (plus the 1 % the sag's width definition
-                // allows: the fit's W is the detected points' extent, the truth's too)
-                assert!((f.sag_mm - b.sag_mm).abs() < 4.0 * f.sigma_mm + 0.01 * b.sag_mm);
+                // the truth within 4 sigma plus 0.2 %: the fit models each circle's
+                // centroid offset in its tangent plane, the twin renders the printed
+                // circle on the curved sheet itself (measured 0.05..0.14 % on 3 seeds)
+                assert!((f.sag_mm - b.sag_mm).abs() < 4.0 * f.sigma_mm + 0.002 * b.sag_mm);
                 assert!(f.significance() > 10.0);
                 let da = (f.axis_deg - 90.0).rem_euclid(180.0);
                 assert!(da.min(180.0 - da) < 5.0, "axis {}", f.axis_deg);

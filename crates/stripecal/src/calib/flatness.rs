@@ -38,8 +38,11 @@
 //! differences in the tests). Circle centres are detected as centroids of the imaged
 //! outline, which are not the projections of the centres: the offset (the conic
 //! model's centroid minus the projected centre, [`crate::calib::conic`]) is computed at
-//! the starting pose and removed from the observations first (it changes little with
-//! the pose, and it would otherwise mimic a small bend). The covariance is
+//! the starting pose and removed from the observations first (it would otherwise mimic
+//! a small bend); after a first fit it is computed again for each circle lying in the
+//! tangent plane of the fitted sheet (the bend tilts the circles by up to `4 s / W`
+//! rad, which changes their offsets by a part that grows linearly across the board and
+//! reads as 0.5 % of the sag), and the fit repeated. The covariance is
 //! `s0^2 (J^T J)^-1` with `s0^2` the residuals' variance (`SSR / (2n - 9)`), or the
 //! given pixel sigma; `sigma_mm` is the sag's one-sigma from it (`ds = W^2/8 u^T dH u`).
 
@@ -248,6 +251,40 @@ fn gauss_newton(
     Ok((s, n, ssr))
 }
 
+/// The detections with each circle's centroid offset removed: the conic model's imaged
+/// centroid minus the projected centre, for the circle lying in the tangent plane of the
+/// sheet of `s` at its centre (chessboard corners, radius 0, are left as they are).
+fn centre_corrected(camera: &Camera, pts: &[FlatPoint], s: &State) -> Result<Vec<Vector2<f64>>> {
+    let cam_board = Iso3::from_parts(s.t.into(), s.rot);
+    pts.iter()
+        .map(|p| {
+            let o = Vector2::new(p.uv[0], p.uv[1]);
+            if p.radius_mm <= 0.0 {
+                return Ok(o);
+            }
+            let (pb, _) = s.board_point(p.board_xy);
+            let dx = p.board_xy[0] - s.center[0];
+            let dy = p.board_xy[1] - s.center[1];
+            // the sheet's gradient and the tangent frame (z along the normal)
+            let gx = s.h[0] * dx + s.h[1] * dy;
+            let gy = s.h[1] * dx + s.h[2] * dy;
+            let nz = Vector3::new(-gx, -gy, 1.0).normalize();
+            let tilt = UnitQuaternion::rotation_between(&Vector3::z(), &nz)
+                .unwrap_or_else(UnitQuaternion::identity);
+            let local = cam_board * Iso3::from_parts(pb.into(), tilt);
+            let exact = predict_centre(
+                camera,
+                &local,
+                &Vector3::zeros(),
+                p.radius_mm,
+                CentreModel::ConicExact,
+            )?;
+            let naive = camera.project(&(cam_board * nalgebra::Point3::from(pb)).coords)?;
+            Ok(o - (exact - naive))
+        })
+        .collect()
+}
+
 /// The flatness figure from detected points (module docs). At least 12 points, not on
 /// one line, are needed; fewer is an error.
 pub fn fit_flatness(
@@ -274,27 +311,20 @@ pub fn fit_flatness(
         pts.iter().fold(0.0, |a, p| a + p.board_xy[0]) / n,
         pts.iter().fold(0.0, |a, p| a + p.board_xy[1]) / n,
     ];
-    // observations with the circle-centre offset of the starting pose removed
-    let mut obs = Vec::with_capacity(pts.len());
-    for p in pts {
-        let mut o = Vector2::new(p.uv[0], p.uv[1]);
-        if p.radius_mm > 0.0 {
-            let c = Vector3::new(p.board_xy[0], p.board_xy[1], 0.0);
-            let exact =
-                predict_centre(camera, cam_board, &c, p.radius_mm, CentreModel::ConicExact)?;
-            let naive = camera.project(&(cam_board * nalgebra::Point3::from(c)).coords)?;
-            o -= exact - naive;
-        }
-        obs.push(o);
-    }
     let s0 = State {
         rot: cam_board.rotation,
         t: cam_board.translation.vector,
         h: [0.0; 3],
         center,
     };
+    // observations with the circle-centre offset of the starting pose (a flat board)
+    // removed; then again with the offsets of each circle's tangent plane on the bent
+    // sheet of the first fit (a bend tilts the circles, and their offsets with them)
+    let obs = centre_corrected(camera, pts, &s0)?;
     let (_, _, ssr_flat) = gauss_newton(camera, pts, &obs, s0, false)?;
-    let (s, nmat, ssr) = gauss_newton(camera, pts, &obs, s0, true)?;
+    let (s1, _, _) = gauss_newton(camera, pts, &obs, s0, true)?;
+    let obs = centre_corrected(camera, pts, &s1)?;
+    let (s, nmat, ssr) = gauss_newton(camera, pts, &obs, s1, true)?;
     let dof = 2.0 * n - NPAR as f64;
     let var = match opts.sigma_px {
         Some(sp) => sp * sp,

@@ -33,7 +33,8 @@ fn pose() -> Iso3 {
 
 /// Detections of `board` bent by `sag` (mm, towards the camera) across direction `u`
 /// (the axis perpendicular), the bend centred at the grid centre and zero at the
-/// grid's extreme points along `u`; noise `sigma` px.
+/// grid's extreme points along `u`: each circle's imaged centroid (the conic model's) in
+/// the sheet's tangent plane at its centre; noise `sigma` px.
 fn bent_points(sag: f64, axis_deg: f64, sigma: f64, seed: u64) -> Vec<FlatPoint> {
     let cam = camera();
     let b = board();
@@ -54,12 +55,19 @@ fn bent_points(sag: f64, axis_deg: f64, sigma: f64, seed: u64) -> Vec<FlatPoint>
         .zip(&xs)
         .map(|(p, x)| {
             let z = -sag * (1.0 - (2.0 * x / w).powi(2));
-            let pc = t * nalgebra::Point3::new(p.x, p.y, z);
-            let exact = predict_centre(&cam, &t, p, 1.25, CentreModel::ConicExact).unwrap();
-            let naive = cam
-                .project(&(t * nalgebra::Point3::from(*p)).coords)
-                .unwrap();
-            let uv = cam.project(&pc.coords).unwrap() + (exact - naive);
+            // the circle lies in the sheet's tangent plane at its centre
+            let slope = 8.0 * sag * x / (w * w);
+            let nrm = Vector3::new(-slope * u.x, -slope * u.y, 1.0).normalize();
+            let tilt = UnitQuaternion::rotation_between(&Vector3::z(), &nrm).unwrap();
+            let local = t * Iso3::from_parts(Vector3::new(p.x, p.y, z).into(), tilt);
+            let uv = predict_centre(
+                &cam,
+                &local,
+                &Vector3::zeros(),
+                1.25,
+                CentreModel::ConicExact,
+            )
+            .unwrap();
             FlatPoint {
                 board_xy: [p.x, p.y],
                 radius_mm: 1.25,
