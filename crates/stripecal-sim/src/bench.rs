@@ -19,7 +19,8 @@
 //! `min_stripe_mm` of lit, imaged board, and either the whole printed pattern is inside
 //! the image (`margin_px`) or, for the `partial_views` views spread over the set (view
 //! indices `(2k + 1) N / (2 P)`), between `min_imaged` of the points and all but one are
-//! imaged (the board partly out of the view).
+//! imaged (the board partly out of the view), with `partial_keep_markers` (default) the
+//! marker circles among them (so the view can be indexed).
 //!
 //! ## Real bench habits
 //!
@@ -113,6 +114,9 @@ pub struct BenchCfg {
     pub partial_views: usize,
     /// Smallest fraction of the points imaged in a partial view.
     pub min_imaged: f64,
+    /// A partial view keeps the board's marker circles inside the image (so a detector
+    /// can index it); `false`: anything may leave the image.
+    pub partial_keep_markers: bool,
     /// Margin of the whole pattern in the other views, px.
     pub margin_px: f64,
     /// Shortest imaged, lit stripe across the grid, mm.
@@ -132,6 +136,7 @@ impl Default for BenchCfg {
             max_tilt_deg: 45.0,
             partial_views: 3,
             min_imaged: 0.5,
+            partial_keep_markers: true,
             margin_px: 4.0,
             min_stripe_mm: 20.0,
             bow: BowCfg::default(),
@@ -355,6 +360,17 @@ impl Twin {
             .count() as f64
     }
 
+    /// Whether every marker circle of the board is imaged whole (2 px margin).
+    fn markers_imaged(&self, scene: &ImageScene) -> bool {
+        let m = &self.board.markers;
+        if m.is_empty() {
+            return true;
+        }
+        let t = crate::truth::target_truth(scene, &self.camera, 2.0);
+        m.iter()
+            .all(|&[r, c]| t.iter().any(|p| p.row == r && p.col == c))
+    }
+
     /// The bench views (module docs), deterministic per seed.
     pub fn bench_views(&self) -> Result<Vec<BenchView>, SimError> {
         let bc = &self.cfg.bench;
@@ -409,7 +425,9 @@ impl Twin {
                 let scene = self.bench_scene(&view, true);
                 let ok = if is_partial {
                     let k = points_inside_quick(&scene, cam, 0.0, 16);
-                    k >= need && k < n_pts
+                    k >= need
+                        && k < n_pts
+                        && (!bc.partial_keep_markers || self.markers_imaged(&scene))
                 } else {
                     pattern_inside(&scene, cam, bc.margin_px, 32)
                 };

@@ -192,13 +192,16 @@ fn flatness_figures_three_seeds() {
         );
         for (i, v) in tw.bench_views().unwrap().iter().enumerate() {
             let r = tw.render_bench_view(v, i).unwrap();
-            let Ok(d) = detect_target(
+            let d = match detect_target(
                 r.board_image.view().unwrap(),
                 &tw.board,
                 &TargetOptions::default(),
-            ) else {
-                eprintln!("seed {seed} view {i}: not detected");
-                continue;
+            ) {
+                Ok(d) => d,
+                Err(e) => {
+                    eprintln!("seed {seed} view {i}: not detected: {e}");
+                    continue;
+                }
             };
             let obs: Vec<CircleObs> = d
                 .points
