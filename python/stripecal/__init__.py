@@ -85,6 +85,7 @@ from stripecal.vision import (
 )
 from stripecal.calib import (
     Calibration,
+    board_flatness,
     calibrate,
     calibrate_camera,
     fit_laser_plane,
@@ -135,6 +136,7 @@ __all__ = [
     "TargetDetection",
     "Truth",
     "__version__",
+    "board_flatness",
     "calibrate",
     "calibrate_camera",
     "detect_circles",

@@ -14,6 +14,7 @@ import numpy.typing as npt
 from stripecal.types import (
     AxzbSolution,
     BallBarMeasurement,
+    BenchView,
     BoardScaleCheck,
     CalibrationExtra,
     CalibrationExtraInput,
@@ -25,6 +26,7 @@ from stripecal.types import (
     CameraCalibration,
     CircleDetection,
     DatasetView,
+    Flatness,
     LaserPlaneFit,
     LeaveOneOut,
     PlaneMeasurement,
@@ -80,6 +82,7 @@ __all__ = [
     "detect_circles_full",
     "detect_target",
     "extract_stripe",
+    "board_flatness",
     "fit_laser_plane",
     "fit_line",
     "fit_plane",
@@ -507,6 +510,7 @@ class Twin:
     def scan_poses(self) -> _F64: ...
     def table_scan_poses(self) -> _F64: ...
     def verify_scans(self) -> List[VerifyScan]: ...
+    def bench_views(self) -> List[BenchView]: ...
     def render_view(self, q: npt.ArrayLike, index: int = 0) -> ViewRender: ...
     def render_scan_frame(self, q: npt.ArrayLike, index: int = 0) -> ViewRender: ...
     def write(
@@ -635,6 +639,14 @@ def solve_axzb_full(
 def fit_laser_plane(
     cam_board: npt.ArrayLike, stripes: Sequence[npt.ArrayLike], camera: Camera
 ) -> LaserPlaneFit: ...
+def board_flatness(
+    camera: Camera,
+    board: Board,
+    indices: npt.ArrayLike,
+    points: npt.ArrayLike,
+    cam_board: npt.ArrayLike,
+    sigma_px: Optional[float] = None,
+) -> Flatness: ...
 def calibrate(
     dataset: Union[_Path, Dataset],
     *,

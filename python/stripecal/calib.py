@@ -8,6 +8,8 @@ robot-world ``Z = T_base_board``.
 - ``plan_poses`` (robot joint vectors + a nominal calibration -> the one-sigma each
   parameter and a measured point would have, before any image is taken; a
   :class:`~stripecal.types.PosePlan`).
+- ``board_flatness`` (one view's detections and pose -> the sag of the best-fitting
+  cylinder with its sigma, a :class:`~stripecal.types.Flatness`; docs/flatness.md).
 - The stages on their own: ``calibrate_camera``, ``fit_laser_plane``, ``solve_axzb`` /
   ``solve_axzb_full`` (``A_i X = Z B_i``).
 
@@ -18,12 +20,14 @@ docs/conventions.md.
 from stripecal._core import calibrate as calibrate
 from stripecal._core import calibrate_camera as calibrate_camera
 from stripecal._core import Calibration as Calibration
+from stripecal._core import board_flatness as board_flatness
 from stripecal._core import fit_laser_plane as fit_laser_plane
 from stripecal._core import plan_poses as plan_poses
 from stripecal._core import solve_axzb as solve_axzb
 from stripecal._core import solve_axzb_full as solve_axzb_full
 
 __all__ = [
+    "board_flatness",
     "calibrate",
     "calibrate_camera",
     "Calibration",

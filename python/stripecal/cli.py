@@ -145,10 +145,19 @@ def _print_summary(twin: stripecal.sim.Twin, summary: TwinSummary, elapsed: floa
         q = " ".join(f"{x:8.2f}" for x in v["q_deg"])
         print(f"  {i:>4}  {q}   {v['standoff_mm']:6.1f} mm  {v['tilt_deg']:4.1f} deg"
               f"  {v['circles_visible']:>3}/{total:<3}  {v['stripe_points_on_board']:>4} {lines}")
-    print("  (joint readings in degrees; stand-off along the optical axis to the board plane;"
-          " tilt between optical axis and board normal)")
+    bench = cfg.get("bench", {})
+    if bench.get("enabled"):
+        print("  (bench mode: a fixed sensor, no robot; stand-off = depth of the grid's centre;"
+              " tilt between optical axis and board normal)")
+    else:
+        print("  (joint readings in degrees; stand-off along the optical axis to the board plane;"
+              " tilt between optical axis and board normal)")
     sp = summary["sphere"]
-    if summary["scan_dir"] is not None and sp is not None:
+    if bench.get("enabled") and summary["scan_dir"] is not None:
+        print(f"\nconveyor scan (fixed sensor): {summary['scan_frames']} stripe images, the ball "
+              f"({bench['scan']['sphere_diameter_mm']} mm) moved in {bench['scan']['step_mm']} mm steps; "
+              f"{summary['scan_sphere_points']} stripe points on the ball in all (camera frame)")
+    elif summary["scan_dir"] is not None and sp is not None:
         c = sp["center_mm"]
         print(f"\nball scan: {summary['scan_frames']} stripe images, sensor moving in a straight line in "
               f"{cfg['scan']['step_mm']} mm steps; ball diameter {sp['diameter_mm']} mm at "

@@ -26,6 +26,15 @@ from the seed: the true robot differs from rig.json's nominal one),
 ``scan_table/``) and :func:`surface_errors` (reconstructed points against the true
 sphere, plate and table).
 
+The bench mode (issue 17; ``bench={"enabled": True, ...}``, docs/twin.md): a fixed
+sensor, the board placed by hand (``bench.views`` poses, tilts up to ``max_tilt_deg``,
+``partial_views`` of them partly out of the image), no robot; :meth:`Twin.write` then
+writes a bench dataset to ``out/calib`` (views.csv header ``board_image,laser_image``)
+and, with ``bench.scan.enabled``, a fixed-sensor scan of a ball on a conveyor to
+``out/scan`` (scan.csv header ``image``). ``bench.bow`` bends some views' board
+(the true ``sag_mm`` in truth.json), ``bench.floor`` stands the board on a floor that
+carries the laser line on. :meth:`Twin.bench_views` gives the true board poses.
+
 Unknown keys are an error, so a misspelt knob never goes unnoticed. All rendering runs
 in Rust (``stripecal._core``); this module only converts configurations.
 """
@@ -43,7 +52,7 @@ import numpy.typing as npt
 from stripecal._core import Board, Camera, Robot, Truth
 from stripecal._core import Twin as _CoreTwin
 from stripecal._core import load_truth, sim_config, sim_presets, sim_surface_errors
-from stripecal.types import SimConfig, SimPose, TwinSummary, VerifyScan, ViewRender
+from stripecal.types import BenchView, SimConfig, SimPose, TwinSummary, VerifyScan, ViewRender
 
 __all__ = ["Twin", "calibration_pose_set", "preset", "presets", "surface_errors"]
 
@@ -158,6 +167,13 @@ class Twin:
         ``"plate"``), ``poses`` (N, J), the true ``spheres`` (bars) or ``plane``
         (plates), base frame. Computed whether or not ``verify.enabled``."""
         return self._core.verify_scans()
+
+    def bench_views(self) -> List[BenchView]:
+        """The bench mode's board poses (``bench.*``; deterministic per seed): per view the
+        true ``cam_board`` (4, 4), ``standoff_mm``, ``tilt_deg``, ``partial``, the true
+        ``sag_mm`` (0: flat) and ``bow_axis_deg``, the floor plane (``floor_normal``,
+        ``floor_d_mm``) with ``bench.floor``."""
+        return self._core.bench_views()
 
     def render_view(self, q: npt.ArrayLike, index: int = 0) -> ViewRender:
         """Renders a calibration view at encoder readings ``q`` (degrees). Keys:

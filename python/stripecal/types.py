@@ -43,6 +43,7 @@ Gray = Union[npt.NDArray[np.uint8], npt.NDArray[np.uint16]]
 
 __all__ = [
     "AxzbSolution",
+    "BenchView",
     "BoardScaleCheck",
     "CalibrationExtra",
     "CalibrationExtraInput",
@@ -58,6 +59,7 @@ __all__ = [
     "DatasetView",
     "DroppedCircle",
     "F64",
+    "Flatness",
     "Gray",
     "I64",
     "LaserPlaneFit",
@@ -507,6 +509,53 @@ class LaserPlaneFit(TypedDict):
     """Extent of the points across the stripe lines, mm."""
     warnings: List[str]
     """Warnings (weak geometry)."""
+
+
+class Flatness(TypedDict):
+    """The flatness figure of one board view (``board_flatness``, docs/flatness.md):
+    the sag of the best-fitting cylinder across the bend."""
+
+    sag_mm: float
+    """Sag at the middle across the width ``W``, mm (positive: towards the camera)."""
+    sigma_mm: float
+    """One-sigma of ``sag_mm``, mm."""
+    axis_deg: float
+    """The cylinder's axis in the board plane, degrees from board x, in (-90, 90]."""
+    width_mm: float
+    """``W``: the extent of the view's points across the bend, mm."""
+    sag2_mm: float
+    """The same figure along the axis, mm (near 0 for a cylinder)."""
+    sigma2_mm: float
+    """One-sigma of ``sag2_mm``, mm."""
+    rms_px: float
+    """RMS point residual of the bent fit, px."""
+    rms_flat_px: float
+    """RMS point residual of a flat board, px."""
+    points: int
+    """Points used."""
+    cam_board: F64
+    """The refined ``T_cam_board`` (4, 4)."""
+
+
+class BenchView(TypedDict):
+    """A board pose of the twin's bench mode (``Twin.bench_views``)."""
+
+    cam_board: F64
+    """True ``T_cam_board`` (4, 4) (a bent sheet's edges across the bend lie in z = 0)."""
+    standoff_mm: float
+    """Depth of the grid's centre, mm."""
+    tilt_deg: float
+    """Angle between the optical axis and the board normal, degrees."""
+    partial: bool
+    """The board is partly out of the image."""
+    sag_mm: float
+    """True sag of a bent board, mm (0: flat)."""
+    bow_axis_deg: Optional[float]
+    """The bend's axis, degrees from board x (None: flat)."""
+    floor_normal: Optional[F64]
+    """The floor's normal (3,) in the camera frame (``bench.floor``), or None."""
+    floor_d_mm: Optional[float]
+    """The floor plane's ``d`` (``n . p = d``), or None."""
 
 
 class AxzbSolution(TypedDict):

@@ -11,6 +11,7 @@ mod camera;
 mod convert;
 mod errors;
 mod files;
+mod flatness_py;
 mod geometry;
 mod imageview;
 mod measure_py;
@@ -92,6 +93,7 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(calib_py::solve_axzb, m)?)?;
     m.add_function(wrap_pyfunction!(calib_py::solve_axzb_full, m)?)?;
     m.add_function(wrap_pyfunction!(calib_py::fit_laser_plane, m)?)?;
+    m.add_function(wrap_pyfunction!(flatness_py::board_flatness, m)?)?;
     m.add_function(wrap_pyfunction!(calib_py::calibrate, m)?)?;
     m.add_function(wrap_pyfunction!(calib_py::calibrate_camera, m)?)?;
     m.add_function(wrap_pyfunction!(plan_py::plan_poses, m)?)?;

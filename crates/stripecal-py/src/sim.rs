@@ -266,6 +266,35 @@ impl PyTwin {
         Ok(out)
     }
 
+    /// The bench mode's board poses (`bench.*`): a list of dicts `{cam_board (4, 4),
+    /// standoff_mm, tilt_deg, partial, sag_mm, bow_axis_deg (None when flat),
+    /// floor_normal ((3,) or None), floor_d_mm (or None)}`.
+    fn bench_views<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyList>> {
+        let views = py
+            .detach(|| self.inner.bench_views())
+            .map_err(|e| sim_err(py, e))?;
+        let axis = self.inner.cfg.bench.bow.axis_deg;
+        let out = PyList::empty(py);
+        for v in views {
+            let d = PyDict::new(py);
+            d.set_item("cam_board", iso_to_py(py, &v.cam_board)?)?;
+            d.set_item("standoff_mm", v.standoff_mm)?;
+            d.set_item("tilt_deg", v.tilt_deg)?;
+            d.set_item("partial", v.partial)?;
+            d.set_item("sag_mm", v.bow.map_or(0.0, |b| b.sag_mm))?;
+            d.set_item("bow_axis_deg", v.bow.map(|_| axis))?;
+            d.set_item(
+                "floor_normal",
+                v.floor
+                    .map(|(n, _)| nd(py, &[3], vec![n.x, n.y, n.z]))
+                    .transpose()?,
+            )?;
+            d.set_item("floor_d_mm", v.floor.map(|(_, dd)| dd))?;
+            out.append(d)?;
+        }
+        Ok(out)
+    }
+
     /// Encoder readings of the scan sweep, (N, J).
     fn scan_poses<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
         let qs = py

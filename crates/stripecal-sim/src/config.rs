@@ -14,6 +14,7 @@ use serde::{Deserialize, Serialize};
 use stripecal::model::geometry::{iso_from_rotvec, iso_to_rotvec, Iso3, Plane};
 use stripecal::{Board, BoardKind, Camera, DhJoint, DistortionModel, Robot};
 
+use crate::bench::BenchCfg;
 use crate::robot_error::RobotErrorCfg;
 use crate::verify::VerifyCfg;
 use crate::SimError;
@@ -297,6 +298,10 @@ pub struct SimConfig {
     /// (`verify/`, default off; [`crate::verify`]).
     #[serde(default)]
     pub verify: VerifyCfg,
+    /// The bench mode: a fixed sensor, the board placed by hand, no robot (default off;
+    /// [`crate::bench`]).
+    #[serde(default)]
+    pub bench: BenchCfg,
 }
 
 /// Names of the built-in presets.
@@ -429,6 +434,7 @@ impl SimConfig {
             stripe_direction: "auto".into(),
             pose_columns: None,
             verify: VerifyCfg::default(),
+            bench: BenchCfg::default(),
         }
     }
 
@@ -678,6 +684,7 @@ impl SimConfig {
             .map_err(|e| SimError::Config(format!("stripe_direction: {e}")))?;
         self.pose_columns_model()?;
         self.verify.validate()?;
+        self.bench.validate()?;
         Ok(())
     }
 

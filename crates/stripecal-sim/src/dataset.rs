@@ -505,6 +505,12 @@ impl Twin {
                 m.remove("verify");
             }
         }
+        if !self.cfg.bench.enabled {
+            // off: truth.json as before the bench mode existed
+            if let Some(m) = cfg.as_object_mut() {
+                m.remove("bench");
+            }
+        }
         extra.insert("sim_config".into(), cfg);
         Truth {
             camera: self.camera.clone(),

@@ -29,6 +29,9 @@
 //! Those of the core crate (`stripecal`): mm, degrees in files, `T_a_b` maps b to a,
 //! pixel centres at integer coordinates.
 
+pub mod bench;
+pub mod bench_scan;
+pub mod bench_write;
 pub mod config;
 pub mod dataset;
 pub mod imaging;

@@ -26,6 +26,9 @@ use nalgebra::{Matrix3, Vector3};
 use stripecal::model::geometry::{Iso3, Plane};
 use stripecal::{Board, BoardKind};
 
+mod bow;
+pub use bow::Bow;
+
 /// Surface ids used in materials and truth.
 pub const SURF_NONE: u32 = 0;
 pub const SURF_PLATE: u32 = 1;
@@ -133,6 +136,8 @@ pub struct ImageScene {
     refl: [f64; 4],
     /// `T_cam_board`, kept for truth computations.
     pub cam_board: Iso3,
+    /// A cylindrical bend of the board sheet ([`Bow`]); `None`: flat.
+    bow: Option<Bow>,
 }
 
 /// How a pixel's footprint must be integrated (see [`ImageScene::classify`]).
@@ -210,6 +215,7 @@ impl World {
                 self.sphere_reflectance,
             ],
             cam_board,
+            bow: None,
         }
     }
 }
@@ -298,10 +304,14 @@ impl ImageScene {
         if self.table && den > 1e-12 {
             let s = self.plate_d / den;
             if s > 0.0 {
-                let p = dir * s;
-                let (x, y) = self.board_xy(&p);
-                if self.on_plate(x, y) {
-                    best = Some((SURF_PLATE, s));
+                if let Some(b) = &self.bow {
+                    best = self.bow_hit(b, dir).map(|sb| (SURF_PLATE, sb));
+                } else {
+                    let p = dir * s;
+                    let (x, y) = self.board_xy(&p);
+                    if self.on_plate(x, y) {
+                        best = Some((SURF_PLATE, s));
+                    }
                 }
                 if best.is_none() {
                     let st = self.table_d / den;
@@ -351,6 +361,10 @@ impl ImageScene {
                 Some(f) => -f.n,
                 None => -self.plate_n,
             },
+            SURF_PLATE => match &self.bow {
+                Some(b) => self.bow_normal(b, p),
+                None => -self.plate_n,
+            },
             _ => -self.plate_n,
         }
     }
@@ -362,6 +376,10 @@ impl ImageScene {
         let e = self.laser.emitter;
         let to_e = e - p;
         if self.normal_at(surface, p).dot(&to_e) <= 0.0 {
+            return false;
+        }
+        if surface == SURF_FREE_PLATE && self.table && self.plate_blocks(p, &e) {
+            // the board shadows the free plate (the bench's floor) behind it
             return false;
         }
         let own = (surface == SURF_SPHERE).then(|| self.sphere_index(p));
@@ -385,6 +403,22 @@ impl ImageScene {
             }
         }
         true
+    }
+
+    /// Whether the segment from p to e crosses the board plate (its plane, within the
+    /// plate's extent).
+    #[inline]
+    fn plate_blocks(&self, p: &Vector3<f64>, e: &Vector3<f64>) -> bool {
+        let (dp, de) = (
+            self.plate_n.dot(p) - self.plate_d,
+            self.plate_n.dot(e) - self.plate_d,
+        );
+        if dp * de >= 0.0 {
+            return false;
+        }
+        let q = p + (e - p) * (dp / (dp - de));
+        let (x, y) = self.board_xy(&q);
+        self.on_plate(x, y)
     }
 
     /// Laser radiance at point p of `surface` with reflectance `refl`.

@@ -17,7 +17,7 @@
 //!   incidence and viewing angles, the distance to the nearest reflectance edge and the
 //!   slope of the curve against the scan line.
 
-use nalgebra::{Point3, Vector2, Vector3};
+use nalgebra::{Vector2, Vector3};
 use serde::Serialize;
 
 use stripecal::model::StripeDirection;
@@ -78,7 +78,7 @@ pub fn target_truth(scene: &ImageScene, cam: &Camera, margin_px: f64) -> Vec<Poi
         let rad = 0.5 * board.diameter(r, c);
         if rad == 0.0 {
             // a chessboard corner: a point
-            if let Ok(uv) = cam.project(&(t * Point3::from(ctr)).coords) {
+            if let Ok(uv) = cam.project(&(t * scene.sheet_point(ctr.x, ctr.y)).coords) {
                 if cam.contains(&uv, margin_px) {
                     out.push(PointTruth {
                         row: r,
@@ -96,7 +96,7 @@ pub fn target_truth(scene: &ImageScene, cam: &Camera, margin_px: f64) -> Vec<Poi
         let mut ok = true;
         for k in 0..OUTLINE_VERTICES {
             let a = std::f64::consts::TAU * k as f64 / OUTLINE_VERTICES as f64;
-            let pb = Point3::new(ctr.x + rad * a.cos(), ctr.y + rad * a.sin(), 0.0);
+            let pb = scene.sheet_point(ctr.x + rad * a.cos(), ctr.y + rad * a.sin());
             match cam.project(&(t * pb).coords) {
                 Ok(uv) if cam.contains(&uv, margin_px) => pts.push(uv),
                 _ => {
@@ -109,7 +109,7 @@ pub fn target_truth(scene: &ImageScene, cam: &Camera, margin_px: f64) -> Vec<Poi
             continue;
         }
         let (cu, cv) = polygon_centroid(&pts);
-        let Ok(cp) = cam.project(&(t * Point3::from(ctr)).coords) else {
+        let Ok(cp) = cam.project(&(t * scene.sheet_point(ctr.x, ctr.y)).coords) else {
             continue;
         };
         out.push(PointTruth {

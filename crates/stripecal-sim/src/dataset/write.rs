@@ -38,6 +38,10 @@ impl Twin {
         out: &Path,
         progress: &mut dyn FnMut(&str, usize, usize),
     ) -> Result<DatasetSummary, SimError> {
+        if self.cfg.bench.enabled {
+            // the bench dataset instead ([`crate::bench`])
+            return self.write_bench(out, progress);
+        }
         std::fs::create_dir_all(out).map_err(|e| stripecal::Error::io(out, e))?;
         let poses = self.calibration_poses()?;
         let rig = self.rig()?;

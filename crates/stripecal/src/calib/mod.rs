@@ -15,6 +15,7 @@ pub mod axzb;
 pub mod camera;
 pub mod conic;
 pub mod consensus;
+pub mod flatness;
 pub mod homography;
 pub mod joint;
 pub mod laser_plane;
