@@ -168,6 +168,10 @@ impl Reconstructor {
         match reading {
             RobotReading::Joints(q) => self.frame_joints(img, q, frame, out),
             RobotReading::FlangePose(t) => self.frame_pose(img, t, frame, out),
+            RobotReading::Fixed => Err(Error::InvalidInput(format!(
+                "frame {frame} has no robot pose (a fixed sensor): its points are in the \
+                 camera frame, not the base frame"
+            ))),
         }
     }
 }
