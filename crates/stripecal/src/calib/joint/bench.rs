@@ -28,9 +28,12 @@ use crate::model::geometry::Iso3;
 /// identity); `opts.free` says whether the camera and the laser plane are estimated
 /// (the others are held anyway); `opts.robot_noise` and `opts.robot` do not apply.
 ///
+/// With the camera and the plane held only the board poses are estimated (any number of
+/// views: each pose from its own observations).
+///
 /// Errors: [`Error::InvalidInput`] when `board_poses` does not match `views`, for fewer
-/// than 3 views with an observation (2 with stripe points when only the plane is
-/// estimated), non-finite observations, stripe points without a starting plane;
+/// than 3 views with an observation while the camera is estimated (2 with stripe points
+/// when only the plane is), non-finite observations, stripe points without a starting plane;
 /// [`Error::Degenerate`] when a view's stripe line cannot be formed; solver errors.
 pub fn bench_adjustment(
     views: &[ViewObs],
@@ -66,11 +69,21 @@ pub fn bench_adjustment(
         board_scale: 1.0,
         ..opts.clone()
     };
-    let mut free = free_blocks(&terms, start, &opts)?;
-    (free.hand_cam, free.base_board, free.board_scale) = (false, false, false);
-    if !(free.camera || free.laser_plane) {
+    let held_chain = JointOptions {
+        free: super::FreeBlocks {
+            hand_cam: false,
+            base_board: false,
+            board_scale: false,
+            ..opts.free
+        },
+        ..opts.clone()
+    };
+    // With the camera and plane held only the board poses are estimated (one view
+    // suffices: its pose from its own circles, the leave-one-out's).
+    let free = free_blocks(&terms, start, &held_chain)?;
+    if terms.used.is_empty() {
         return Err(Error::InvalidInput(
-            "the bench adjustment has nothing to estimate: camera and laser plane are held".into(),
+            "the bench adjustment has no view with an observation".into(),
         ));
     }
     let poses: Vec<Iso3> = terms

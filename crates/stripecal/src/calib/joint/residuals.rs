@@ -979,8 +979,15 @@ impl LeastSquares for JointProblem<'_> {
             };
             let mut template: Vec<usize> = (0..w).collect();
             let po = self.prior_offset();
-            // Without the robot-pose noise there are no prior rows.
-            for &(view, i0, i1) in self.view_runs.iter().filter(|r| self.robot || r.1 < po) {
+            // Without the robot-pose noise there are no prior rows; rows as wide as the
+            // vector (the bench's single view with everything else held) are dense and
+            // store no columns.
+            let runs = if cols.is_empty() {
+                &[][..]
+            } else {
+                &self.view_runs[..]
+            };
+            for &(view, i0, i1) in runs.iter().filter(|r| self.robot || r.1 < po) {
                 if let Some(vc) = self.layout.view_columns(block, view) {
                     template[ng..].iter_mut().zip(vc).for_each(|(c, v)| *c = v);
                 }
