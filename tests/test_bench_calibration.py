@@ -168,3 +168,39 @@ def test_bad_bench_input_is_a_typed_error_naming_line_or_file(
     with pytest.raises(sc.StripecalError) as e2:
         sc.calibrate(other)
     assert os.path.basename(laser) in str(e2.value) and "differ in size" in str(e2.value)
+
+
+def _rotvec_matrix(w: np.ndarray) -> np.ndarray:
+    th = float(np.linalg.norm(w))
+    if th < 1e-15:
+        return np.eye(3)
+    k = w / th
+    kx = np.array([[0, -k[2], k[1]], [k[2], 0, -k[0]], [-k[1], k[0], 0]])
+    return np.eye(3) + math.sin(th) * kx + (1 - math.cos(th)) * kx @ kx
+
+
+def test_a_bench_calibration_held_makes_three_robot_views_enough(
+    bench_cal: sc.Calibration, twin: Tuple[Path, Path, Dict], tmp_path: Path
+) -> None:
+    """Issue 17 item 3 with `--fix camera,laser_plane`: the bench's camera and plane
+    held, 3 robot views of the same twin give the hand-eye within 0.005 deg and 0.02 mm."""
+    src = twin[0] / "twin" / "calib"
+    ds = tmp_path / "three"
+    ds.mkdir()
+    os.symlink(src / "images", ds / "images")
+    shutil.copy(src / "rig.json", ds / "rig.json")
+    lines = (src / "views.csv").read_text().splitlines()
+    (ds / "views.csv").write_text("\n".join([lines[0], lines[1], lines[6], lines[11]]) + "\n")
+    bench_json = tmp_path / "bench.json"
+    bench_cal.save(bench_json)
+    cal = sc.calibrate(
+        ds, from_calibration=bench_json, fix=["camera", "laser_plane"], leave_one_out=False
+    )
+    truth = twin[2]["hand_cam"]
+    x = _rotvec_matrix(np.array(truth["rotation_vector"]))
+    h = np.asarray(cal.hand_cam)
+    cos = (np.trace(h[:3, :3].T @ x) - 1) / 2
+    assert math.degrees(math.acos(min(1.0, cos))) <= 0.005
+    assert np.linalg.norm(h[:3, 3] - np.array(truth["translation_mm"])) <= 0.02
+    # The held blocks carry the bench's uncertainty.
+    assert cal.uncertainty["camera"]["fu"] == bench_cal.uncertainty["camera"]["fu"]
