@@ -204,3 +204,25 @@ def test_a_bench_calibration_held_makes_three_robot_views_enough(
     assert np.linalg.norm(h[:3, 3] - np.array(truth["translation_mm"])) <= 0.02
     # The held blocks carry the bench's uncertainty.
     assert cal.uncertainty["camera"]["fu"] == bench_cal.uncertainty["camera"]["fu"]
+
+
+def test_cli_and_report_on_the_bench(
+    bench_cal: sc.Calibration, twin: Tuple[Path, Path, Dict], tmp_path: Path
+) -> None:
+    from stripecal import cli, report
+
+    out = tmp_path / "cal.json"
+    assert cli.main(["calibrate", str(twin[1]), "-o", str(out)]) == 0
+    doc = json.loads(out.read_text())
+    assert "hand_cam" not in doc and doc["laser_plane"] is not None
+    scan = tmp_path / "fixed"
+    shutil.copytree(twin[0] / "twin" / "scan", scan)
+    _strip_poses(scan / "scan.csv", 1)
+    ply = tmp_path / "c.ply"
+    assert cli.main(["reconstruct", str(out), str(scan), "-o", str(ply)]) == 0
+    assert b"comment frame cam" in ply.read_bytes()[:2000]
+    cal = sc.load_calibration(out)
+    assert cal.is_bench
+    html = report.write_report(tmp_path / "rep", cal).read_text()
+    assert "X rotvec" not in html and "Z t" not in html
+    assert "no robot pose" in html
