@@ -226,3 +226,25 @@ def test_cli_and_report_on_the_bench(
     html = report.write_report(tmp_path / "rep", cal).read_text()
     assert "X rotvec" not in html and "Z t" not in html
     assert "no robot pose" in html
+
+
+def test_a_grid_without_markers_is_not_refused_on_the_bench(tmp_path: Path) -> None:
+    """On the bench every view's labelling of a symmetric board is free (its own board
+    pose): an unmarked grid calibrates with every view, to the truth."""
+    cfg = sim.preset(
+        "hp3-paper",
+        seed=5,
+        poses={"count": 8},
+        imaging={"noise_gray": 1.0, "psf_sigma_px": 0.7},
+    )
+    cfg["board"]["markers"] = []
+    sim.Twin(cfg).write(tmp_path / "twin")
+    ds = tmp_path / "twin" / "calib"
+    _strip_poses(ds / "views.csv", 2)
+    assert json.loads((ds / "rig.json").read_text())["board"]["markers"] == []
+    cal = sc.calibrate(ds)
+    truth = json.loads((ds / "truth.json").read_text())
+    assert cal.quality["views_used"] == 8
+    assert abs(cal.camera.fu - truth["camera"]["fu"]) <= 1e-4 * truth["camera"]["fu"]
+    plane = cal.laser_plane
+    assert plane is not None and abs(plane[1] - truth["laser_plane"]["d_mm"]) <= 0.01
