@@ -11,6 +11,9 @@ reported 3-sigma covers; then the totals.
     python scripts/bench_acceptance.py [--seeds 1-10] [--work DIR] [--robot]
 
 `--robot` also calibrates the same views with their robot poses (for comparison).
+`--prior` (issue 17, item 3): the bench calibration held (`--fix camera,laser_plane`)
+for 3 robot views of the same twin (views 0, 5, 10): the hand-eye error against the
+truth (targets 0.005 deg, 0.02 mm), its sigma, and the same 3 views without the bench.
 """
 
 from __future__ import annotations
@@ -87,11 +90,58 @@ def figures(cal: sc.Calibration, truth: Dict) -> Tuple[Dict[str, float], List[Tu
     return errs, nums
 
 
+def _rotvec_matrix(w: List[float]) -> List[List[float]]:
+    th = math.sqrt(sum(x * x for x in w))
+    if th < 1e-15:
+        return [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]]
+    k = [x / th for x in w]
+    kx = [[0.0, -k[2], k[1]], [k[2], 0.0, -k[0]], [-k[1], k[0], 0.0]]
+    kk = [[sum(kx[i][m] * kx[m][j] for m in range(3)) for j in range(3)] for i in range(3)]
+    return [[(1.0 if i == j else 0.0) + math.sin(th) * kx[i][j] + (1 - math.cos(th)) * kk[i][j]
+             for j in range(3)] for i in range(3)]
+
+
+def prior_figures(bench: sc.Calibration, src: str, truth: Dict, work: str) -> None:
+    """Item 3: 3 robot views with the bench held, and without it."""
+    three = os.path.join(work, "three")
+    os.makedirs(three, exist_ok=True)
+    for name in ("images", "rig.json"):
+        link = os.path.join(three, name)
+        if not os.path.exists(link):
+            os.symlink(os.path.join(os.path.abspath(src), name), link)
+    with open(os.path.join(src, "views.csv")) as f:
+        lines = f.read().splitlines()
+    with open(os.path.join(three, "views.csv"), "w") as f:
+        f.write("\n".join([lines[0], lines[1], lines[6], lines[11]]) + "\n")
+    bench_json = os.path.join(work, "bench.json")
+    bench.save(bench_json)
+    x = _rotvec_matrix(truth["hand_cam"]["rotation_vector"])
+    xt = truth["hand_cam"]["translation_mm"]
+    for label, kw in (("with bench", {"from_calibration": bench_json, "fix": ["camera", "laser_plane"]}),
+                      ("alone", {})):
+        try:
+            c = sc.calibrate(three, leave_one_out=False, accept_poor=True, **kw)  # type: ignore[arg-type]
+        except sc.StripecalError as e:
+            print(f"     3 views {label}: {e}")
+            continue
+        h = c.hand_cam
+        tr = sum(h[m][i] * x[m][i] for i in range(3) for m in range(3))
+        ang = math.degrees(math.acos(max(-1.0, min(1.0, (tr - 1) / 2))))
+        dt = math.sqrt(sum((h[i][3] - xt[i]) ** 2 for i in range(3)))
+        hs = c.uncertainty.get("hand_cam", {})
+        rs = max(hs.get("rotation_vector", [float("nan")]))
+        ts = max(hs.get("translation_mm", [float("nan")]))
+        cs = c.uncertainty["camera"]["fu"]
+        print(f"     3 views {label:>10}: hand-eye error {ang:.5f} deg {dt:.4f} mm; sigma (largest) "
+              f"{math.degrees(rs):.5f} deg {ts:.4f} mm; fu sigma {cs:.4f} (bench {bench.uncertainty['camera']['fu']:.4f})")
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--seeds", default="1-10")
     ap.add_argument("--work", default="/tmp/stripecal_bench_acceptance")
     ap.add_argument("--robot", action="store_true")
+    ap.add_argument("--prior", action="store_true")
     a = ap.parse_args()
     lo, _, hi = a.seeds.partition("-")
     seeds = list(range(int(lo), int(hi or lo) + 1))
@@ -134,6 +184,8 @@ def main() -> None:
                 f"{'rob':>4} {re['fu_pct']:>9.5f} {re['u0_px']:>8.4f} {re['v0_px']:>8.4f} "
                 f"{re['d_mm']:>9.5f} {re['normal_deg']:>8.5f} {rcov:>5}/{len(rn)}"
             )
+        if a.prior:
+            prior_figures(cal, src, truth, os.path.join(a.work, f"s{seed}"))
     print(
         f"targets on every seed: {'yes' if all_ok else 'NO'}; 3-sigma covers the truth on "
         f"{covered}/{total} = {100.0 * covered / max(total, 1):.1f} % of the estimated numbers "
