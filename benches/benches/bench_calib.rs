@@ -12,8 +12,8 @@ use std::path::{Path, PathBuf};
 use criterion::{criterion_group, criterion_main, Criterion};
 use std::hint::black_box;
 
-use stripecal::pipeline::{calibrate_observations, observe_dataset, CalibrateOptions};
 use stripecal::model::Dataset;
+use stripecal::pipeline::{calibrate_observations, observe_dataset, CalibrateOptions};
 use stripecal_sim::{SimConfig, Twin};
 
 /// The twin's calibration dataset (rendered once) and its bench copy.
