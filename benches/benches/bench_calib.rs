@@ -35,9 +35,7 @@ fn datasets() -> (PathBuf, PathBuf) {
     }
     let bench = root.join("bench");
     std::fs::create_dir_all(&bench).unwrap();
-    for f in ["rig.json"] {
-        std::fs::copy(robot.join(f), bench.join(f)).unwrap();
-    }
+    std::fs::copy(robot.join("rig.json"), bench.join("rig.json")).unwrap();
     let text = std::fs::read_to_string(robot.join("views.csv")).unwrap();
     let mut out = String::new();
     for line in text.lines().filter(|l| !l.is_empty()) {
