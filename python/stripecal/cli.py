@@ -593,7 +593,8 @@ def cmd_reconstruct(args: argparse.Namespace) -> int:
             print(f"  frame {b['frame']} (scan.csv line {b['line']}): image {b['path']}: {b['reason']}")
         if len(skipped) > shown:
             print(f"  ... and {len(skipped) - shown} more (every one is listed in the PLY header)")
-    print(f"wrote {args.output} ({'ascii' if args.ascii else 'binary'} PLY, base frame, mm"
+    where = "camera frame (a scan without poses)" if cloud.coordinate_frame == "cam" else "base frame"
+    print(f"wrote {args.output} ({'ascii' if args.ascii else 'binary'} PLY, {where}, mm"
           f"{', per-point covariance' if args.covariance else ''}"
           f"{'; the header lists the skipped frames' if skipped else ''})")
     return 0

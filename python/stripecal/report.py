@@ -198,7 +198,8 @@ def parameter_rows(cal: stripecal.Calibration, truth: Optional[stripecal.Truth])
         for i, a in enumerate("xyz"):
             out.append((f"laser normal {a}", float(n_[i]), _at(lu.get("normal"), i), float(tn[0][i]) if tn else None))
         out.append(("laser d (mm)", float(d_), lu.get("d_mm"), tn[1] if tn else None))
-    poses: List[Tuple[str, F64, PoseSigma, Optional[F64]]] = [
+    # A bench calibration has no hand-eye and no robot-world transform.
+    poses: List[Tuple[str, F64, PoseSigma, Optional[F64]]] = [] if cal.is_bench else [
         ("X", cal.hand_cam, u.get("hand_cam", {}), truth.hand_cam if truth else None),
         ("Z", cal.base_board, u.get("base_board", {}), truth.base_board if truth else None),
     ]
@@ -369,10 +370,17 @@ def _leave_one_out_html(cal: stripecal.Calibration) -> str:
     else:
         verdict = "No view disagrees with the others (none beyond 3 times the median)."
     ms = loo["median_stripe_rms_mm"]
-    return (
-        "<h2>Leave-one-view-out</h2><p>Each view's target points predicted from its robot pose alone by the "
+    how = (
+        "Each view's board pose fitted to its own circles with the camera of the calibration solved "
+        "without it (the fit's residuals), and its stripe points triangulated with that calibration's "
+        "laser plane against that board plane (the bench: no robot pose)."
+        if cal.is_bench else
+        "Each view's target points predicted from its robot pose alone by the "
         "calibration solved without it, against the detected points; stripe points triangulated with the "
-        f"laser plane against the predicted board plane. Median: <b>{med_px:.4f} px</b>, "
+        "laser plane against the predicted board plane."
+    )
+    return (
+        f"<h2>Leave-one-view-out</h2><p>{how} Median: <b>{med_px:.4f} px</b>, "
         f"<b>{loo['median_board_rms_mm']:.4f} mm</b> on the board"
         + ("" if ms is None else f", stripe <b>{ms:.4f} mm</b>") + f". {html.escape(verdict)}</p>"
         "<table><tr><th>view</th><th>points</th><th>board RMS px</th><th>board RMS mm</th>"

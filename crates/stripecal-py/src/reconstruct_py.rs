@@ -41,6 +41,17 @@ impl PyCloud {
         nd(py, &[p.len(), 3], p.iter().flatten().copied().collect())
     }
 
+    /// The frame of the points: `"cam"` for a fixed-sensor scan (no poses), else
+    /// `"base"` (the PLY header's `comment frame ...`).
+    #[getter]
+    fn coordinate_frame(&self) -> &'static str {
+        if self.inner.camera_frame {
+            "cam"
+        } else {
+            "base"
+        }
+    }
+
     /// `(M,)` int64: index of the frame (image) each point comes from.
     #[getter]
     fn frame<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {

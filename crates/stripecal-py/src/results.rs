@@ -205,10 +205,18 @@ impl PyCalibration {
         Ok(Some((c.parameters.clone(), nd(py, &[n, n], data)?)))
     }
 
-    /// `T_hand_cam` (the paper's X), shape (4, 4), mm.
+    /// `T_hand_cam` (the paper's X), shape (4, 4), mm (the identity in a bench
+    /// calibration, whose file has none).
     #[getter]
     fn hand_cam<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
         iso_to_py(py, &self.inner.hand_cam)
+    }
+
+    /// A bench calibration (from a dataset without poses): camera and laser plane only;
+    /// its file has no `hand_cam`, `base_board` or `robot`.
+    #[getter]
+    fn is_bench(&self) -> bool {
+        self.inner.is_bench()
     }
 
     /// `T_base_board` (the paper's Z), shape (4, 4), mm.

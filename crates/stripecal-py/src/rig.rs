@@ -143,7 +143,7 @@ fn joints_array<'py>(
                 }
                 data.extend_from_slice(q);
             }
-            RobotReading::FlangePose(_) => return Ok(None),
+            RobotReading::FlangePose(_) | RobotReading::Fixed => return Ok(None),
         }
     }
     match width {
@@ -161,7 +161,7 @@ fn poses_array<'py>(
         .iter()
         .map(|r| match r {
             RobotReading::FlangePose(t) => Some(*t),
-            RobotReading::Joints(_) => None,
+            RobotReading::Joints(_) | RobotReading::Fixed => None,
         })
         .collect();
     match poses {
@@ -198,6 +198,10 @@ fn reading_items<'py>(py: Python<'py>, d: &Bound<'py, PyDict>, r: &RobotReading)
         RobotReading::FlangePose(t) => {
             d.set_item("joints", py.None())?;
             d.set_item("flange_pose", crate::convert::iso_to_py(py, t)?)?;
+        }
+        RobotReading::Fixed => {
+            d.set_item("joints", py.None())?;
+            d.set_item("flange_pose", py.None())?;
         }
     }
     Ok(())
@@ -284,6 +288,13 @@ impl PyDataset {
     #[getter]
     fn lines(&self) -> Vec<usize> {
         self.inner.views.iter().map(|v| v.line).collect()
+    }
+
+    /// A bench dataset: views.csv has no pose columns (camera and laser plane only;
+    /// `joints`, `flange_poses` are None and `base_hand` raises).
+    #[getter]
+    fn is_bench(&self) -> bool {
+        self.inner.is_bench()
     }
 
     /// Joint readings in degrees, shape (N, J); None when the rig reports flange poses.

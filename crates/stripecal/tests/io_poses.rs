@@ -1039,3 +1039,41 @@ fn twin_reports_the_nominal_robots_flange_pose_in_the_asked_columns() {
         .unwrap_err();
     assert!(e.to_string().contains("but not qz"), "{e}");
 }
+
+/// A views.csv without pose columns is a bench dataset (every reading
+/// `RobotReading::Fixed`), a scan.csv with `image` alone a fixed-sensor scan; with pose
+/// columns in the header, a row whose pose cells are empty is an error naming its line
+/// (a dataset is a bench dataset as a whole or not at all); both round-trip through the
+/// writers.
+#[test]
+fn views_without_pose_columns_are_a_bench_dataset() {
+    let d = tmp();
+    let p = write(
+        d.path(),
+        "views.csv",
+        "board_image,laser_image\na.png,b.png\nc.png,\n",
+    );
+    let views = read_views_csv(&p, None).unwrap();
+    assert_eq!(views.len(), 2);
+    assert!(views.iter().all(|v| v.reading == RobotReading::Fixed));
+    assert_eq!(views[1].laser_image, None);
+    let out = d.path().join("back.csv");
+    write_views_csv(&out, &views).unwrap();
+    assert_eq!(read_views_csv(&out, None).unwrap(), views);
+    let s = write(d.path(), "scan.csv", "image\nf0.png\nf1.png\n");
+    let frames = read_scan_csv(&s, None).unwrap();
+    assert!(frames.iter().all(|f| f.reading == RobotReading::Fixed));
+    let mixed = write(
+        d.path(),
+        "mixed.csv",
+        "board_image,laser_image,x_mm,y_mm,z_mm,qw,qx,qy,qz\n\
+         a.png,b.png,1,2,3,1,0,0,0\n\
+         c.png,d.png,,,,,,,\n",
+    );
+    assert_format(
+        read_views_csv(&mixed, None).unwrap_err(),
+        "mixed.csv",
+        "line 3",
+        &["pose cells", "bench dataset"],
+    );
+}

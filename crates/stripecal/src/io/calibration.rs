@@ -1,6 +1,7 @@
 //! `calibration.json` (`stripecal/calibration@1`), `truth.json` (`stripecal/truth@1`)
 //! and sphere fit results.
 
+use crate::pipeline::BENCH_KEY;
 use std::path::Path;
 
 use serde_json::{Map, Value};
@@ -344,14 +345,28 @@ pub fn calibration_robot_pose_noise(c: &Calibration) -> Result<Option<RobotPoseN
 ///
 /// Required: `format`, `camera` (all of `width, height, fu, fv, u0, v0,
 /// distortion_model, distortion[5]`), `laser_plane` (`normal` of norm 1 within 1e-3,
-/// renormalised; `d_mm > 0`), `hand_cam`, `base_board`, `quality`. Optional: `robot`,
+/// renormalised; `d_mm > 0`), `hand_cam`, `base_board`, `quality`. A bench
+/// calibration has neither `hand_cam` nor `base_board` (nor `robot`): both absent, it
+/// is read with the identity for them and the extra key `"bench": true`
+/// ([`Calibration::is_bench`]); one without the other is an error. Optional: `robot`,
 /// `uncertainty` (any object), `robot_pose_noise` (checked; kept in `extra` with the
 /// other top-level keys).
 pub fn calibration_from_json(path: &Path, text: &str) -> Result<Calibration> {
     let doc = parse(path, text)?;
     let root = Obj::root(path, &doc)?;
     root.check_format(CALIBRATION_FORMAT)?;
-    let c = common_from(&root)?;
+    let bench = root.opt("hand_cam").is_none() && root.opt("base_board").is_none();
+    let c = if bench {
+        Common {
+            camera: camera_from(&root.obj("camera")?)?,
+            laser_plane: opt_plane_from(&root)?,
+            hand_cam: Iso3::identity(),
+            base_board: Iso3::identity(),
+            robot: None,
+        }
+    } else {
+        common_from(&root)?
+    };
     let q = root.obj("quality")?;
     let quality = Quality {
         circle_rms_px: q.nonneg_f64("circle_rms_px")?,
@@ -380,7 +395,13 @@ pub fn calibration_from_json(path: &Path, text: &str) -> Result<Calibration> {
         quality,
         uncertainty,
         covariance,
-        extra: root.extra(&CALIBRATION_KEYS),
+        extra: {
+            let mut e = root.extra(&CALIBRATION_KEYS);
+            if bench {
+                e.insert(BENCH_KEY.into(), Value::Bool(true));
+            }
+            e
+        },
     })
 }
 
@@ -411,6 +432,11 @@ pub fn calibration_to_json(c: &Calibration) -> String {
         m.insert("covariance".into(), covariance_value(cov));
     }
     append_extra(&mut m, &c.extra);
+    if c.is_bench() {
+        for k in ["hand_cam", "base_board", "robot"] {
+            m.remove(k);
+        }
+    }
     to_pretty(&Value::Object(m))
 }
 

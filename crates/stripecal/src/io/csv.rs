@@ -11,6 +11,11 @@
 //! unknown one is an error on line 1; a row whose quaternion or matrix is not a rotation
 //! (within 1e-3) is an error naming its line.
 //!
+//! No value column at all (`board_image,laser_image`, or `image` alone) is a fixed
+//! sensor: a bench dataset, a fixed-sensor scan ([`RobotReading::Fixed`]). A dataset
+//! is that as a whole or not at all: with pose columns in the header, a row whose pose
+//! cells are all empty is an error naming its line.
+//!
 //! The writers write joint readings as they are and flange poses as
 //! `x_mm,y_mm,z_mm,qw,qx,qy,qz` unless given other [`PoseColumns`]
 //! ([`write_views_csv_with`], [`write_scan_csv_with`]).
@@ -75,11 +80,6 @@ fn parse_header(
         }
     }
     let rest = &fields[names.len()..];
-    if rest.is_empty() {
-        return Err(at(format!(
-            "header has no joint or pose columns: expected {expected}"
-        )));
-    }
     let layout = Layout::of_header(rest, names.len() + 1).map_err(at)?;
     if let Some(msg) = layout.check_robot(robot) {
         return Err(at(msg));
@@ -142,6 +142,18 @@ fn parse_table(path: &Path, text: &str, names: &[&str], robot: Option<&Robot>) -
                 path,
                 format!("line {line_no}, column {}", names[0]),
                 format!("{} is empty", names[0]),
+            ));
+        }
+        let pose_cells = &fields[names.len()..];
+        if !pose_cells.is_empty() && pose_cells.iter().all(|c| c.is_empty()) {
+            return Err(Error::format(
+                path,
+                format!("line {line_no}"),
+                format!(
+                    "the pose cells ({}) are empty: a dataset is a bench dataset (no pose \
+                     columns in the header) as a whole or not at all",
+                    value_columns.join(",")
+                ),
             ));
         }
         let mut values = Vec::with_capacity(value_columns.len());

@@ -569,7 +569,11 @@ fn header_text(c: &Cloud, f: PlyFormat, comments: &[String]) -> String {
         PlyFormat::BinaryLittleEndian => "format binary_little_endian 1.0\n",
         PlyFormat::Ascii => "format ascii 1.0\n",
     });
-    h.push_str("comment stripecal point cloud: x y z in mm, robot base frame\n");
+    if comments.iter().any(|c| c == "frame cam") {
+        h.push_str("comment stripecal point cloud: x y z in mm, camera frame\n");
+    } else {
+        h.push_str("comment stripecal point cloud: x y z in mm, robot base frame\n");
+    }
     for text in comments {
         let _ = writeln!(h, "comment {text}");
     }

@@ -68,14 +68,21 @@ pub enum RobotReading {
     Joints(Vec<f64>),
     /// `T_base_hand` reported by the controller.
     FlangePose(Iso3),
+    /// No pose at all: the sensor is fixed (a bench dataset, whose views.csv has no
+    /// pose columns; a scan of a fixed sensor, whose scan.csv has the image column
+    /// alone).
+    Fixed,
 }
 
 impl RobotReading {
     /// `T_base_hand` for this reading: forward kinematics of `robot` for joints, the
-    /// pose itself for flange poses. Errors when joints are given without a robot and
-    /// when a flange pose is not finite.
+    /// pose itself for flange poses. Errors when joints are given without a robot, when
+    /// a flange pose is not finite, and for [`RobotReading::Fixed`] (there is no pose).
     pub fn base_hand(&self, robot: Option<&Robot>) -> Result<Iso3> {
         match self {
+            RobotReading::Fixed => Err(Error::InvalidInput(
+                "no robot pose: the sensor is fixed (no pose columns)".into(),
+            )),
             RobotReading::FlangePose(t) => {
                 let finite = t.translation.vector.iter().all(|x| x.is_finite())
                     && t.rotation.coords.iter().all(|x| x.is_finite());
@@ -106,7 +113,7 @@ pub struct View {
     pub board_image: PathBuf,
     /// The laser image, `None` when the column is empty. May equal `board_image`.
     pub laser_image: Option<PathBuf>,
-    /// Joint readings or the flange pose.
+    /// Joint readings, the flange pose, or [`RobotReading::Fixed`] in a bench dataset.
     pub reading: RobotReading,
 }
 
@@ -127,6 +134,26 @@ pub struct Dataset {
     pub root: PathBuf,
     pub rig: Rig,
     pub views: Vec<View>,
+}
+
+impl Dataset {
+    /// A bench dataset: views.csv has no pose columns (the sensor calibrated on its
+    /// own, the board moved by hand; spec/DATASET.md).
+    pub fn is_bench(&self) -> bool {
+        self.views
+            .first()
+            .is_some_and(|v| v.reading == RobotReading::Fixed)
+    }
+}
+
+impl Scan {
+    /// A scan of a fixed sensor: scan.csv has the image column alone; its points are
+    /// in the sensor frame.
+    pub fn is_fixed(&self) -> bool {
+        self.frames
+            .first()
+            .is_some_and(|f| f.reading == RobotReading::Fixed)
+    }
 }
 
 /// A scan folder: scan.csv (+ images, optional rig.json).

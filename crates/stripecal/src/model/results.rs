@@ -81,6 +81,15 @@ pub struct Calibration {
     pub extra: serde_json::Map<String, serde_json::Value>,
 }
 
+impl Calibration {
+    /// A bench calibration (from a dataset without poses): camera and laser plane only,
+    /// no `hand_cam`, `base_board` or `robot` in its file; `hand_cam` and `base_board`
+    /// hold the identity. Told by the extra key `"bench": true`.
+    pub fn is_bench(&self) -> bool {
+        self.extra.get("bench").and_then(|v| v.as_bool()) == Some(true)
+    }
+}
+
 /// A sphere (truth of a scan).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Sphere {

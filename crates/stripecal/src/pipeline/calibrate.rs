@@ -50,6 +50,9 @@ pub(super) fn calibrate_unjudged(
 ) -> Result<(CalibrationReport, Vec<QualityCheck>)> {
     check_poses_finite(views)?;
     let held = held(opts)?;
+    if super::bench::is_bench(views) {
+        return super::bench::calibrate_bench(views, rig, opts, held.as_ref());
+    }
     if let Some(h) = held.as_ref().filter(|h| h.chain_held()) {
         let rep = calibrate_held_chain(views, rig, opts, h)?;
         let checks = vec![
@@ -202,7 +205,7 @@ fn correct_stripes(
 
 /// The laser plane's first estimate from the views' stripe points (`None` when no view
 /// has any: a calibration without a laser).
-fn laser_plane_stage(
+pub(super) fn laser_plane_stage(
     used_obs: &[ViewObs],
     used_poses: &[Iso3],
     camera: &Camera,
@@ -279,7 +282,7 @@ fn check_poses_finite(views: &[ViewObs]) -> Result<()> {
 /// The camera calibration. The one-stage adjustment refines the camera with the
 /// requested centre model; its starting camera only needs the first-order conic model
 /// (much cheaper) and looser tolerances.
-fn camera_stage(
+pub(super) fn camera_stage(
     views: &[ViewObs],
     rig: &Rig,
     opts: &CalibrateOptions,

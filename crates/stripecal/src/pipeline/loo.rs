@@ -10,6 +10,13 @@
 //! - its stripe points (with a laser plane): each triangulated with the laser plane,
 //!   its distance from the predicted board plane, RMS in mm.
 //!
+//! On the bench (no robot: the result's per-view board poses) the refit is the bench
+//! adjustment without the view, and the view's board pose comes from its own circles
+//! alone, fitted with the refit camera held (the same adjustment, camera and plane
+//! held, the view's stripe points left out): its stripe points, triangulated with the
+//! refit plane, against that board plane are the figure (mm); its circles' residuals
+//! of that pose fit are reported as its board figures.
+//!
 //! This is the figure a user can quote for a real rig: no ground truth is needed, and
 //! the view is never part of the fit that predicts it. The refits run in parallel.
 
@@ -17,7 +24,9 @@ use nalgebra::{Vector2, Vector3};
 use rayon::prelude::*;
 
 use crate::calib::conic::{predict_centre, CentreModel};
-use crate::calib::joint::{joint_adjustment, JointOptions, JointResult, JointStart};
+use crate::calib::joint::{
+    bench_adjustment, joint_adjustment, FreeBlocks, JointOptions, JointResult, JointStart,
+};
 use crate::calib::laser_plane::board_plane_in_cam;
 use crate::calib::ViewObs;
 use crate::error::{Error, Result};
@@ -59,13 +68,29 @@ pub(super) fn leave_one_out(
                 .filter(|(i, _)| *i != k)
                 .map(|(_, v)| v.clone())
                 .collect();
-            let fit = joint_adjustment(&others, board, &start, &opts).map_err(|e| {
+            let failed = |e: Error| {
                 Error::InvalidInput(format!(
                     "leave-one-out: the calibration without view {} failed: {e}",
                     used[k].view
                 ))
-            })?;
-            predict_view(&used[k], board, &fit, opts.centre_model)
+            };
+            if full.board_poses.is_empty() {
+                let fit = joint_adjustment(&others, board, &start, &opts).map_err(failed)?;
+                return predict_view(&used[k], board, &fit, opts.centre_model);
+            }
+            let warm: Vec<Iso3> = others
+                .iter()
+                .map(|v| bench_pose(full, v.view))
+                .collect::<Result<_>>()?;
+            let fit = bench_adjustment(&others, board, &start, &warm, &opts).map_err(failed)?;
+            let cb = own_board_pose(
+                &used[k],
+                board,
+                &fit,
+                bench_pose(full, used[k].view)?,
+                &opts,
+            )?;
+            predict_with_pose(&used[k], board, &fit, cb, opts.centre_model)
         })
         .collect::<Result<_>>()?;
     let med = |views: &[LooView], f: &dyn Fn(&LooView) -> Option<f64>| {
@@ -104,6 +129,64 @@ fn predict_view(
         _ => a,
     };
     let cb = (a * fit.hand_cam).inverse() * fit.base_board;
+    predict_with_pose(v, board, fit, cb, model)
+}
+
+/// The full bench solution's board pose of view `view`.
+fn bench_pose(full: &JointResult, view: usize) -> Result<Iso3> {
+    full.board_poses
+        .iter()
+        .find(|(v, _)| *v == view)
+        .map(|(_, t)| *t)
+        .ok_or_else(|| Error::InvalidInput(format!("leave-one-out: view {view} has no board pose")))
+}
+
+/// On the bench: view `v`'s board pose from its own circles, with `fit`'s camera held
+/// (its stripe points left out), starting at `start`.
+fn own_board_pose(
+    v: &ViewObs,
+    board: &Board,
+    fit: &JointResult,
+    start: Iso3,
+    opts: &JointOptions,
+) -> Result<Iso3> {
+    let circles_only = ViewObs {
+        stripe: Vec::new(),
+        ..v.clone()
+    };
+    let held = JointOptions {
+        free: FreeBlocks {
+            camera: false,
+            laser_plane: false,
+            ..opts.free
+        },
+        ..opts.clone()
+    };
+    let js = JointStart {
+        camera: fit.camera.clone(),
+        plane: fit.plane,
+        hand_cam: Iso3::identity(),
+        base_board: Iso3::identity(),
+    };
+    let r = bench_adjustment(&[circles_only], board, &js, &[start], &held).map_err(|e| {
+        Error::InvalidInput(format!(
+            "leave-one-out: view {}: its board pose from its own circles failed: {e}",
+            v.view
+        ))
+    })?;
+    r.board_poses.first().map(|(_, t)| *t).ok_or_else(|| {
+        Error::InvalidInput(format!("leave-one-out: view {}: no board pose", v.view))
+    })
+}
+
+/// View `v`'s observations against the board pose `cb` and `fit`'s camera and plane.
+fn predict_with_pose(
+    v: &ViewObs,
+    board: &Board,
+    fit: &JointResult,
+    cb: Iso3,
+    model: CentreModel,
+) -> Result<LooView> {
     let s = fit.board_scale;
     // The board's points are imaged as rig.json's board at t / s (see the layout).
     let cb_img = Iso3::from_parts((cb.translation.vector / s).into(), cb.rotation);

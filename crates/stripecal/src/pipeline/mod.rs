@@ -26,6 +26,7 @@
 //! 6. The quality gates ([`gates`]): a calibration that fails one is an
 //!    [`Error::Quality`] (unless [`CalibrateOptions::accept_poor`]).
 
+mod bench;
 mod board_scale;
 pub mod board_stripe;
 mod calibrate;
@@ -62,6 +63,7 @@ use crate::model::{
 use crate::vision::stripe::{EdgeOptions, StripeOptions};
 use crate::vision::target::TargetOptions;
 
+pub use bench::BENCH_KEY;
 pub use calibrate::calibrate_observations;
 pub use observe::observe_dataset;
 use observe::{observe, Observed};

@@ -10,7 +10,7 @@ use super::CalibrateOptions;
 use crate::calib::{CircleObs, StripeShape, ViewObs};
 use crate::error::{Error, Result};
 use crate::io::load_gray_info;
-use crate::model::{Dataset, View};
+use crate::model::{Dataset, RobotReading, View};
 use crate::vision::stripe::{extract_stripe, flag_reflectance_edges, EdgeOptions, StripeOptions};
 use crate::vision::target::detect_target;
 
@@ -82,10 +82,15 @@ fn observe_view(
 ) -> Result<std::result::Result<ViewObs, String>> {
     let rig = &ds.rig;
     let tag = format!("view {i} (views.csv line {})", v.line);
-    let base_hand = v
-        .reading
-        .base_hand(rig.robot.as_ref())
-        .map_err(|e| Error::InvalidInput(format!("{tag}: robot pose: {e}")))?;
+    // A bench view (no pose columns) has no robot pose: its board pose is free.
+    let base_hand = match v.reading {
+        RobotReading::Fixed => None,
+        _ => Some(
+            v.reading
+                .base_hand(rig.robot.as_ref())
+                .map_err(|e| Error::InvalidInput(format!("{tag}: robot pose: {e}")))?,
+        ),
+    };
     let (board_img, info) = load_gray_info(ds.image_path(&v.board_image))?;
     if board_img.size() != (rig.width as usize, rig.height as usize) {
         return Err(Error::InvalidInput(format!(
@@ -160,7 +165,7 @@ fn observe_view(
         circles,
         stripe,
         reading: Some(v.reading.clone()),
-        base_hand: Some(base_hand),
+        base_hand,
         alternatives: det.alternatives,
         stripe_shape: shape,
     }))

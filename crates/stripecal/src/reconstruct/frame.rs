@@ -168,6 +168,11 @@ impl Reconstructor {
         match reading {
             RobotReading::Joints(q) => self.frame_joints(img, q, frame, out),
             RobotReading::FlangePose(t) => self.frame_pose(img, t, frame, out),
+            // A fixed sensor: the points in the camera frame (`T_base_cam` the identity).
+            RobotReading::Fixed => {
+                let cam_hand = self.tri.hand_cam().inverse();
+                self.frame_pose(img, &cam_hand, frame, out)
+            }
         }
     }
 }

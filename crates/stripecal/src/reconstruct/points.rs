@@ -31,6 +31,9 @@ pub struct ScanPoints {
     /// Frames left out because their image could not be used (a scan reconstructed
     /// with [`super::BadImage::Skip`]), in frame order, each with the reason.
     pub skipped: Vec<BadFrame>,
+    /// The points are in the camera frame (a fixed-sensor scan, no poses), not the base
+    /// frame: the PLY header says `comment frame cam`.
+    pub camera_frame: bool,
 }
 
 impl ScanPoints {
@@ -114,6 +117,7 @@ impl ScanPoints {
             },
             dropped: p.dropped,
             skipped: p.skipped.clone(),
+            camera_frame: p.camera_frame,
         }
     }
 
@@ -121,7 +125,10 @@ impl ScanPoints {
     /// `skipped frame ...` line per skipped frame (which, where and why; control
     /// characters replaced by spaces).
     pub fn ply_comments(&self) -> Vec<String> {
-        let mut c = Vec::with_capacity(1 + self.skipped.len());
+        let mut c = Vec::with_capacity(2 + self.skipped.len());
+        if self.camera_frame {
+            c.push("frame cam".to_string());
+        }
         c.push(format!("skipped_frames {}", self.skipped.len()));
         for b in &self.skipped {
             let text = format!("skipped {b}");

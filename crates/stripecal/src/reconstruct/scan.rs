@@ -46,6 +46,7 @@ pub fn reconstruct_frames(
     for p in parts {
         out.append(&p?);
     }
+    out.camera_frame = !readings.is_empty() && readings.iter().all(|r| *r == RobotReading::Fixed);
     Ok(out)
 }
 
@@ -84,6 +85,15 @@ pub fn reconstruct_scan(
         if let Some(rig) = &scan.rig {
             opts.stripe.direction = rig.stripe_direction;
         }
+    }
+    if calibration.is_bench() && !scan.is_fixed() {
+        return Err(Error::InvalidInput(
+            "a bench calibration (no hand_cam: calibrated without a robot) cannot reconstruct \
+             a scan with robot poses; calibrate on the robot (e.g. `stripecal calibrate --from \
+             BENCH.json DATASET`), or give a scan without pose columns (points in the camera \
+             frame)"
+                .into(),
+        ));
     }
     let proto = Reconstructor::new(calibration, &opts)?;
     let (width, height) = (calibration.camera.width, calibration.camera.height);
@@ -197,6 +207,7 @@ pub fn reconstruct_scan(
     }
     skipped.sort_by_key(|b| b.frame);
     out.skipped = skipped;
+    out.camera_frame = scan.is_fixed();
     Ok(out)
 }
 

@@ -107,6 +107,11 @@ impl Triangulator {
         )
     }
 
+    /// `T_hand_cam`.
+    pub fn hand_cam(&self) -> &Iso3 {
+        &self.hand_cam
+    }
+
     /// The camera.
     pub fn camera(&self) -> &Camera {
         &self.camera

@@ -442,6 +442,7 @@ pub fn reading_is_valid(r: &RobotReading) -> bool {
     match r {
         RobotReading::Joints(q) => !q.is_empty() && q.iter().all(|x| x.is_finite()),
         RobotReading::FlangePose(t) => finite_iso(t),
+        RobotReading::Fixed => true,
     }
 }
 

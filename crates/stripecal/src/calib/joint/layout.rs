@@ -22,6 +22,11 @@
 //! | block        | values | columns (estimated)                 | update            |
 //! |--------------|--------|-------------------------------------|-------------------|
 //! | robot pose   | 6      | flange-frame correction `D_i`: `w`, `t` | `R Exp(w)`, `t+v` |
+//! | board pose   | 6      | `T_cam_board(i)` on the bench: `w`, `t` | `R Exp(w)`, `t+v` |
+//!
+//! The board pose is the bench's ([`super::bench`]): no robot, every view's board pose
+//! free. It starts at the view's own pose (not the identity), and reaches the residuals
+//! through `Z`'s slots (with `A_i` and `X` the identity, `T_cam_board = Z`).
 //!
 //! A *slot* is a position in the full set of global parameters (the dual numbers of the
 //! Jacobian run over all [`SLOTS`] of them); a *column* is a position in the solver's
@@ -67,6 +72,8 @@ pub(super) enum Block {
     BoardScale,
     /// Per view: the correction `D_i` of the robot's flange pose, `A_i' = A_i D_i`.
     RobotPose,
+    /// Per view, on the bench: the board pose `T_cam_board(i)` ([`super::bench`]).
+    BoardPose,
     /// Corrections to the robot's DH rows (global, no slots).
     Robot,
 }
@@ -187,6 +194,9 @@ pub(super) struct JointParams {
     /// Per view used: the robot-pose correction `D_i = (R, t)` (empty when not
     /// estimated: the robot poses are taken as exact).
     pub corrections: Vec<(Matrix3<f64>, Vector3<f64>)>,
+    /// Per view used, on the bench: the board pose `T_cam_board(i) = (R, t)` (empty
+    /// with a robot: the board poses follow from the chain).
+    pub board_poses: Vec<(Matrix3<f64>, Vector3<f64>)>,
     /// The DH corrections ([`super::robot::RobotBlock::params`]; empty without a robot
     /// block).
     pub robot: Vec<f64>,
@@ -211,6 +221,9 @@ pub(super) struct ParamLayout {
     view_ids: Vec<usize>,
     /// Estimated values per view (all per-view blocks).
     per_view_cols: usize,
+    /// The per-view columns' starting values, view after view (the robot-pose
+    /// corrections 0, the bench's board poses their starting poses).
+    view_base: Vec<f64>,
     /// The laser plane's chart.
     pub chart: PlaneChart,
     /// The robot block (its corrections estimated), when the robot is calibrated.
@@ -231,6 +244,36 @@ impl ParamLayout {
         view_ids: &[usize],
         robot_noise: bool,
         robot: Option<RobotBlock>,
+    ) -> ParamLayout {
+        Self::build(start, free, scale, view_ids, robot_noise, robot, None)
+    }
+
+    /// The bench's layout ([`super::bench`]): the camera and the laser plane as `free`
+    /// says, `X`, `Z` and the board scale held (at the identity and 1), and per view of
+    /// `view_ids` its board pose, free, starting at `board_poses` (`T_cam_board`).
+    pub fn bench(
+        start: &JointStart,
+        free: &FreeBlocks,
+        view_ids: &[usize],
+        board_poses: &[Iso3],
+    ) -> ParamLayout {
+        let free = FreeBlocks {
+            hand_cam: false,
+            base_board: false,
+            board_scale: false,
+            ..*free
+        };
+        Self::build(start, &free, 1.0, view_ids, false, None, Some(board_poses))
+    }
+
+    fn build(
+        start: &JointStart,
+        free: &FreeBlocks,
+        scale: f64,
+        view_ids: &[usize],
+        robot_noise: bool,
+        robot: Option<RobotBlock>,
+        board_poses: Option<&[Iso3]>,
     ) -> ParamLayout {
         let mut cam_free = vec![free.camera; 4];
         cam_free.extend(
@@ -260,6 +303,7 @@ impl ParamLayout {
             BlockDef::transform(Block::BaseBoard, "base_board", free.base_board),
             BlockDef::euclidean(Block::BoardScale, &["board_scale"], vec![free.board_scale]),
             BlockDef::transform(Block::RobotPose, "robot", robot_noise).per_view(),
+            BlockDef::transform(Block::BoardPose, "board", board_poses.is_some()).per_view(),
             BlockDef {
                 block: Block::Robot,
                 kind: BlockKind::Euclidean,
@@ -296,7 +340,20 @@ impl ParamLayout {
         }
         debug_assert_eq!(col_of_slot.len(), SLOTS);
         let n0 = start.plane.map_or(Vector3::z(), |p| p.normal);
+        let mut view_base = vec![0.0; view_ids.len() * view_col];
+        if let Some(poses) = board_poses {
+            let c = col0[blocks
+                .iter()
+                .position(|b| b.block == Block::BoardPose)
+                .unwrap_or(0)];
+            for (v, t) in poses.iter().enumerate().take(view_ids.len()) {
+                let (rv, tr) = iso_to_rotvec(t);
+                let b = v * view_col + c;
+                view_base[b..b + 6].copy_from_slice(&[rv.x, rv.y, rv.z, tr.x, tr.y, tr.z]);
+            }
+        }
         let mut layout = ParamLayout {
+            view_base,
             blocks,
             slot0,
             col0,
@@ -432,13 +489,15 @@ impl ParamLayout {
     }
 
     /// The parameter vector of the start: its estimated slots, then the per-view
-    /// blocks at the identity (zero corrections).
+    /// blocks at their starts (the robot-pose corrections at the identity, the bench's
+    /// board poses at their starting poses).
     pub fn encode(&self) -> Vec<f64> {
         let mut p: Vec<f64> = (0..SLOTS)
             .filter(|&s| self.col_of_slot[s].is_some())
             .map(|s| self.base[s])
             .collect();
-        p.resize(self.num_params(), 0.0);
+        p.extend_from_slice(&self.view_base);
+        debug_assert_eq!(p.len(), self.num_params());
         p
     }
 
@@ -471,18 +530,25 @@ impl ParamLayout {
             z_rot: rotvec_to_matrix(&Vector3::new(v[z], v[z + 1], v[z + 2])),
             z_t: Vector3::new(v[z + 3], v[z + 4], v[z + 5]),
             scale: v[self.slots(Block::BoardScale).start],
-            corrections: (0..self.num_views())
-                .map_while(|i| self.view_columns(Block::RobotPose, i))
-                .map(|c| {
-                    let b = c.start;
-                    (
-                        rotvec_to_matrix(&Vector3::new(p[b], p[b + 1], p[b + 2])),
-                        Vector3::new(p[b + 3], p[b + 4], p[b + 5]),
-                    )
-                })
-                .collect(),
+            corrections: self.view_transforms(p, Block::RobotPose),
+            board_poses: self.view_transforms(p, Block::BoardPose),
             robot: p[self.robot_columns()].to_vec(),
         }
+    }
+
+    /// Every view's instance of a per-view transform block of `p` (empty when not
+    /// estimated).
+    fn view_transforms(&self, p: &[f64], block: Block) -> Vec<(Matrix3<f64>, Vector3<f64>)> {
+        (0..self.num_views())
+            .map_while(|i| self.view_columns(block, i))
+            .map(|c| {
+                let b = c.start;
+                (
+                    rotvec_to_matrix(&Vector3::new(p[b], p[b + 1], p[b + 2])),
+                    Vector3::new(p[b + 3], p[b + 4], p[b + 5]),
+                )
+            })
+            .collect()
     }
 
     /// The transform of a [`BlockKind::RigidTransform`] block of `p`.
@@ -554,9 +620,16 @@ impl JointParams {
     }
 
     /// `T_cam_board` of each view, `(R, t)`, from the robot poses `a` (corrected,
-    /// [`Self::flange_poses`]).
+    /// [`Self::flange_poses`]); on the bench the board poses themselves.
     pub fn view_poses(&self, a: &[Iso3]) -> Vec<([[f64; 3]; 3], [f64; 3])> {
         use crate::numerics::mat3::m3;
+        if !self.board_poses.is_empty() {
+            return self
+                .board_poses
+                .iter()
+                .map(|(r, t)| (m3(r), [t.x, t.y, t.z]))
+                .collect();
+        }
         let xr: [[f64; 3]; 3] = m3(&self.x_rot);
         let zr: [[f64; 3]; 3] = m3(&self.z_rot);
         let xt = [self.x_t.x, self.x_t.y, self.x_t.z];

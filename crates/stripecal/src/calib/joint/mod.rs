@@ -62,10 +62,12 @@
 //! - `residuals.rs`: the circle and stripe terms and their Jacobian rows;
 //! - `robot_noise.rs`: the per-view robot-pose correction, its prior rows, floors and
 //!   per-view test;
+//! - `bench.rs`: the bench (no robot): each view's board pose a free per-view block;
 //! - `covariance.rs`: sigmas of the estimated numbers;
 //! - `report.rs`: per-view figures;
 //! - here: the public API and the solve schedule.
 
+mod bench;
 mod chain;
 mod covariance;
 mod layout;
@@ -77,6 +79,7 @@ mod robot_noise;
 mod robot_select;
 mod robot_solve;
 
+pub use self::bench::bench_adjustment;
 pub(crate) use self::covariance::camera_name;
 pub use self::robot::{
     flange_twists, point_gradients as dh_point_gradients, DhKind, DhParam, RobotMode,
@@ -94,7 +97,7 @@ use crate::calib::ViewObs;
 use crate::error::{Error, Result};
 use crate::model::board::Board;
 use crate::model::camera::Camera;
-use crate::model::geometry::{Iso3, Plane};
+use crate::model::geometry::{iso_from_parts, Iso3, Plane};
 use crate::model::{NamedCovariance, RobotCalibration, RobotPoseNoise};
 use crate::numerics::lm::{levenberg_marquardt, LmOptions, LmResult, StopReason};
 
@@ -334,6 +337,9 @@ pub struct JointResult {
     pub circle_residuals: Vec<(usize, usize, usize, f64, f64, f64, f64)>,
     /// Stripe `(view, u, v, distance px)`.
     pub stripe_residuals: Vec<(usize, f64, f64, f64)>,
+    /// On the bench ([`bench_adjustment`]): each used view's estimated board pose
+    /// `T_cam_board`, `(ViewObs::view, pose)`; empty with a robot.
+    pub board_poses: Vec<(usize, Iso3)>,
     pub warnings: Vec<String>,
 }
 
@@ -525,6 +531,13 @@ fn finish(
         unobservable,
         circle_residuals: reports.circle_residuals,
         stripe_residuals: reports.stripe_residuals,
+        board_poses: problem
+            .terms
+            .used
+            .iter()
+            .zip(&s.board_poses)
+            .map(|(&v, (r, t))| (v, iso_from_parts(r, t)))
+            .collect(),
         warnings,
     })
 }

@@ -78,9 +78,32 @@ impl Terms {
     /// The terms of the views with a robot pose and an observation (the others skipped
     /// with a warning); errors on a non-finite observation or a circle off the board.
     pub fn collect(views: &[ViewObs], board: &Board, warnings: &mut Vec<String>) -> Result<Terms> {
+        Self::collect_views(views, board, false, warnings)
+    }
+
+    /// The terms of the views with an observation, on the bench: no robot pose is
+    /// needed (`a` holds the identity for each; the board poses are estimated).
+    pub fn collect_bench(
+        views: &[ViewObs],
+        board: &Board,
+        warnings: &mut Vec<String>,
+    ) -> Result<Terms> {
+        Self::collect_views(views, board, true, warnings)
+    }
+
+    fn collect_views(
+        views: &[ViewObs],
+        board: &Board,
+        bench: bool,
+        warnings: &mut Vec<String>,
+    ) -> Result<Terms> {
         let mut t = Terms::default();
         for v in views {
-            let Some(bh) = v.base_hand else {
+            let bh = if bench {
+                Iso3::identity()
+            } else if let Some(bh) = v.base_hand {
+                bh
+            } else {
                 warnings.push(format!("view {}: left out, no robot pose", v.view));
                 continue;
             };
@@ -171,6 +194,8 @@ pub(super) struct JointProblem<'a> {
     weights: [AtomicU64; 4],
     /// Whether the robot-pose corrections are estimated (prior rows, sparse rows).
     robot: bool,
+    /// The bench: every view's board pose estimated (sparse rows, no prior rows).
+    bench: bool,
     /// The robot's figures as floors of the robot-pose sigmas.
     robot_figures: Floors,
     /// What the robot-pose groups keep between evaluations.
@@ -225,6 +250,7 @@ impl<'a> JointProblem<'a> {
                 w(t0),
             ],
             robot: layout.per_view_free(Block::RobotPose),
+            bench: layout.per_view_free(Block::BoardPose),
             robot_figures,
             robot_state: Mutex::new(robot_state),
             view_runs,
@@ -321,7 +347,7 @@ impl<'a> JointProblem<'a> {
     /// Values per Jacobian row: every column (dense) without the robot-pose noise, the
     /// global columns and the view's six correction columns with it.
     fn row_width(&self) -> usize {
-        if self.robot {
+        if self.robot || self.bench {
             self.layout.num_global() + 6
         } else {
             self.num_params()
@@ -584,6 +610,8 @@ struct ViewLinearisation {
     /// With the robot block: the map from the flange's own perturbation to `X`'s
     /// increment, and each view's flange perturbation per DH correction.
     robot: Option<RobotLinearisation>,
+    /// The bench: the derivatives along `Z`'s slots are the view's board-pose columns.
+    bench: bool,
 }
 
 /// The map from the flange's own perturbation to `X`'s increment, and each view's
@@ -634,11 +662,23 @@ impl JointProblem<'_> {
         let zr = rot_times_exp_first_order(&s.z_rot, &wz);
         let xt: [DSlots; 3] = std::array::from_fn(|i| DSlots::var(s.x_t[i], sx + 3 + i));
         let zt: [DSlots; 3] = std::array::from_fn(|i| DSlots::var(s.z_t[i], sz + 3 + i));
-        let poses: Vec<_> = s
-            .flange_poses(&self.flanges(s))
-            .iter()
-            .map(|a| cam_board(a, &xr, &xt, &zr, &zt))
-            .collect();
+        let poses: Vec<_> = if s.board_poses.is_empty() {
+            s.flange_poses(&self.flanges(s))
+                .iter()
+                .map(|a| cam_board(a, &xr, &xt, &zr, &zt))
+                .collect()
+        } else {
+            // The bench: `A_i` and `X` the identity, each view's board pose in `Z`'s
+            // slots (their derivatives are the view's board-pose columns).
+            s.board_poses
+                .iter()
+                .map(|(r, t)| {
+                    let zr = rot_times_exp_first_order(r, &wz);
+                    let zt: [DSlots; 3] = std::array::from_fn(|i| DSlots::var(t[i], sz + 3 + i));
+                    cam_board(&Iso3::identity(), &xr, &xt, &zr, &zt)
+                })
+                .collect()
+        };
         let maps = s
             .corrections
             .iter()
@@ -695,6 +735,7 @@ impl JointProblem<'_> {
             lines,
             maps,
             robot,
+            bench: self.bench,
         }
     }
 
@@ -758,11 +799,13 @@ impl JointProblem<'_> {
                             row[*col] = wc * ua.d[slot];
                         }
                     }
-                    let mut gx = [0.0; 6];
+                    let (mut gx, mut gz) = ([0.0; 6], [0.0; 6]);
                     for kk in 0..CHAIN {
                         let acc: f64 = (0..6).map(|q| ua.d[9 + q] * ch[q][kk]).sum();
                         if kk < 6 {
                             gx[kk] = acc;
+                        } else if kk < 12 {
+                            gz[kk - 6] = acc;
                         }
                         if let Some(col) = col_of[sx + kk] {
                             row[col] = wc * acc;
@@ -775,6 +818,11 @@ impl JointProblem<'_> {
                         }
                     }
                     robot_columns(&views.robot, c.view, &gx, wc, &mut row[rcols.clone()]);
+                    if views.bench {
+                        for (o, v) in row[ng..ng + 6].iter_mut().zip(gz) {
+                            *o = wc * v;
+                        }
+                    }
                 }
                 Ok(())
             })
@@ -799,6 +847,7 @@ impl JointProblem<'_> {
         let col_of = self.layout.columns();
         let sp = self.layout.slots(Block::Plane).start;
         let sx = self.layout.slots(Block::HandCam).start;
+        let sz = self.layout.slots(Block::BaseBoard).start;
         let rcols = self.layout.robot_columns();
         let ws = self.ws();
         rs.par_iter_mut()
@@ -853,6 +902,11 @@ impl JointProblem<'_> {
                 if let Some(m) = views.maps.get(st.view) {
                     let d = robot_noise::correction_columns(&gx, m);
                     for (o, v) in row[ng..ng + 6].iter_mut().zip(d) {
+                        *o = ws * v;
+                    }
+                }
+                if views.bench {
+                    for (o, v) in row[ng..ng + 6].iter_mut().zip(&full[sz..sz + 6]) {
                         *o = ws * v;
                     }
                 }
@@ -913,19 +967,37 @@ impl LeastSquares for JointProblem<'_> {
         let (vc, vs) = vimage.split_at_mut(2 * nc * w);
         self.circle_rows(&s, &views, rc, vc)?;
         self.stripe_rows(&s, &views, rs, vs)?;
-        if self.robot {
+        if self.robot || self.bench {
             let ng = self.layout.num_global();
-            robot_noise::prior_rows(&s, self.robot_weights(), rp, vp, w, ng);
+            if self.robot {
+                robot_noise::prior_rows(&s, self.robot_weights(), rp, vp, w, ng);
+            }
+            let block = if self.robot {
+                Block::RobotPose
+            } else {
+                Block::BoardPose
+            };
             let mut template: Vec<usize> = (0..w).collect();
-            for &(view, i0, i1) in &self.view_runs {
-                if let Some(vc) = self.layout.view_columns(Block::RobotPose, view) {
+            let po = self.prior_offset();
+            // Without the robot-pose noise there are no prior rows; rows as wide as the
+            // vector (the bench's single view with everything else held) are dense and
+            // store no columns.
+            let runs = if cols.is_empty() {
+                &[][..]
+            } else {
+                &self.view_runs[..]
+            };
+            for &(view, i0, i1) in runs.iter().filter(|r| self.robot || r.1 < po) {
+                if let Some(vc) = self.layout.view_columns(block, view) {
                     template[ng..].iter_mut().zip(vc).for_each(|(c, v)| *c = v);
                 }
                 for row in cols[i0 * w..i1 * w].chunks_exact_mut(w) {
                     row.copy_from_slice(&template);
                 }
             }
-            self.store_image_information(vals, w, ng);
+            if self.robot {
+                self.store_image_information(vals, w, ng);
+            }
         }
         Ok(())
     }

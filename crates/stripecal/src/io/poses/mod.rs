@@ -443,12 +443,17 @@ pub(super) enum Layout {
     Joints(usize),
     /// Flange-pose columns.
     Flange(PoseColumns),
+    /// No pose column (a bench dataset, a fixed-sensor scan).
+    Fixed,
 }
 
 impl Layout {
     /// The layout of a header whose value columns are `rest`, the first of which is
     /// header column `first` (1-based).
     pub fn of_header(rest: &[&str], first: usize) -> std::result::Result<Layout, String> {
+        if rest.is_empty() {
+            return Ok(Layout::Fixed);
+        }
         if rest.iter().any(|c| joints::is_joint_column(c)) {
             joints::check_header(rest, first).map(Layout::Joints)
         } else {
@@ -462,6 +467,7 @@ impl Layout {
         match r {
             RobotReading::Joints(q) => (Layout::Joints(q.len()), q.clone()),
             RobotReading::FlangePose(t) => (Layout::Flange(pose.clone()), pose.to_values(t)),
+            RobotReading::Fixed => (Layout::Fixed, Vec::new()),
         }
     }
 
@@ -469,7 +475,7 @@ impl Layout {
     pub fn check_robot(&self, robot: Option<&Robot>) -> Option<String> {
         match self {
             Layout::Joints(n) => joints::check_robot(*n, robot),
-            Layout::Flange(_) => None,
+            Layout::Flange(_) | Layout::Fixed => None,
         }
     }
 
@@ -478,6 +484,7 @@ impl Layout {
         match self {
             Layout::Joints(n) => joints::columns(*n),
             Layout::Flange(p) => p.names().iter().map(|s| s.to_string()).collect(),
+            Layout::Fixed => Vec::new(),
         }
     }
 
@@ -486,6 +493,7 @@ impl Layout {
     pub fn reading(&self, values: Vec<f64>) -> std::result::Result<RobotReading, (String, String)> {
         match self {
             Layout::Joints(_) => Ok(RobotReading::Joints(values)),
+            Layout::Fixed => Ok(RobotReading::Fixed),
             Layout::Flange(p) => p
                 .to_iso(&values)
                 .map(RobotReading::FlangePose)
@@ -498,6 +506,7 @@ impl Layout {
         match self {
             Layout::Joints(n) => format!("{n} joint readings"),
             Layout::Flange(p) => p.describe(),
+            Layout::Fixed => "no pose (a fixed sensor)".to_string(),
         }
     }
 }

@@ -227,7 +227,7 @@ impl UncertaintyModel {
         let base_hand = reading.base_hand(robot)?;
         let q = match reading {
             RobotReading::Joints(q) => Some(q.as_slice()),
-            RobotReading::FlangePose(_) => None,
+            RobotReading::FlangePose(_) | RobotReading::Fixed => None,
         };
         let mut map = self.m_fixed.clone();
         let dh: Vec<(usize, DhParam)> = self

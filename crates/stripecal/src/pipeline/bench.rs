@@ -1,0 +1,133 @@
+//! The bench pipeline (a dataset without poses, spec/DATASET.md): the sensor calibrated
+//! on its own, the board moved by hand. The stages of [`super::calibrate`] without the
+//! robot's: camera (Zhang's per-view board poses), labellings (on the bench every view's
+//! labelling of a symmetric board is free: each view has its own board pose, so nothing
+//! is refused for it), stripe points on the board plane (points off it, e.g. the line
+//! continuing onto the floor under a standing board, rejected and counted), laser plane,
+//! the bench adjustment ([`crate::calib::joint::bench_adjustment`]: camera, plane and a
+//! free board pose per view), the leave-one-view-out figure, the report and the gates
+//! (`views`, `determined`, `converged`; no robot gate).
+
+use super::calibrate::{
+    camera_stage, check_usable, joint_options, kept, laser_plane_stage, mark_used,
+};
+use super::gates::{converged, determined, view_residuals, views_check};
+use super::held::Held;
+use super::labels::resolve_labellings;
+use super::loo::leave_one_out;
+use super::report::{build_report, SelfChecks, Stage};
+use super::stripe_select::select_stripes;
+use super::{CalibrateOptions, CalibrationReport, Method, ViewStatus};
+use crate::calib::joint::{bench_adjustment, JointStart};
+use crate::calib::ViewObs;
+use crate::error::{Error, Result};
+use crate::model::{QualityCheck, Rig};
+use crate::numerics::robust::median;
+
+/// The extra key of a bench calibration (`"bench": true`): calibration.json then has no
+/// `hand_cam`, `base_board` or `robot` (spec/DATASET.md).
+pub const BENCH_KEY: &str = "bench";
+
+/// Whether `views` are bench views: none has a robot pose.
+pub(super) fn is_bench(views: &[ViewObs]) -> bool {
+    !views.is_empty() && views.iter().all(|v| v.base_hand.is_none())
+}
+
+/// The bench pipeline (module docs) without the final verdict.
+pub(super) fn calibrate_bench(
+    views: &[ViewObs],
+    rig: &Rig,
+    opts: &CalibrateOptions,
+    held: Option<&Held<'_>>,
+) -> Result<(CalibrationReport, Vec<QualityCheck>)> {
+    if opts.method != Method::OneStage {
+        return Err(Error::InvalidInput(
+            "a bench dataset (no pose columns) is calibrated by the one-stage adjustment only"
+                .into(),
+        ));
+    }
+    let board = &rig.board;
+    let mut warnings = Vec::new();
+    let mut status: Vec<ViewStatus> = views.iter().map(ViewStatus::observed).collect();
+    let camcal = camera_stage(views, rig, opts)?;
+    warnings.extend(camcal.warnings.iter().cloned());
+    // Without robot poses every view keeps the labelling its image gave.
+    let (labelled, _) = resolve_labellings(views, &camcal.poses, board, &mut warnings);
+    let (obs, poses) = select_stripes(&labelled, &camcal.camera, &mut status)?;
+    let total = obs.len();
+    let (mut used_obs, mut used_poses) = (obs, poses);
+    check_usable(&used_obs, &warnings)?;
+    let mut jopts = joint_options(opts, rig);
+    jopts.robot = None;
+    jopts.robot_noise = false;
+    let standoff = {
+        let mut d: Vec<f64> = used_poses
+            .iter()
+            .map(|p| p.translation.vector.norm())
+            .collect();
+        median(&mut d)
+    };
+    let mut first_pass = true;
+    let (plane, start, adj, views_gate) = loop {
+        let plane = laser_plane_stage(&used_obs, &used_poses, &camcal.camera, &mut warnings)?;
+        let mut start = JointStart {
+            camera: camcal.camera.clone(),
+            plane: plane.as_ref().map(|p| p.plane),
+            hand_cam: nalgebra::Isometry3::identity(),
+            base_board: nalgebra::Isometry3::identity(),
+        };
+        if let Some(h) = held {
+            h.apply(&mut start);
+        }
+        let adj = bench_adjustment(&used_obs, board, &start, &used_poses, &jopts)?;
+        let (bad, msg) = view_residuals(&adj, camcal.rms_px);
+        let kept_n = used_obs.len() - bad.len();
+        let check = views_check(&bad, &msg, kept_n, total);
+        if bad.is_empty() || !check.passed || !first_pass {
+            break (plane, start, adj, check);
+        }
+        first_pass = false;
+        for &v in &bad {
+            let note = format!("view {v}: left out: {msg}");
+            warnings.push(note.clone());
+            if let Some(s) = status.iter_mut().find(|s| s.view == v) {
+                s.note = Some(note);
+            }
+        }
+        let keep: Vec<bool> = used_obs.iter().map(|v| !bad.contains(&v.view)).collect();
+        (used_obs, used_poses) = kept(&used_obs, &used_poses, &keep);
+        check_usable(&used_obs, &warnings)?;
+    };
+    warnings.extend(adj.warnings.iter().cloned());
+    mark_used(&mut status, &used_obs);
+    let leave_one_out = if opts.leave_one_out {
+        leave_one_out(&used_obs, board, &adj, &jopts)?
+    } else {
+        None
+    };
+    let gate_checks = vec![
+        views_gate,
+        determined(&adj, &adj.camera, standoff),
+        converged(&adj, opts.method),
+    ];
+    let stage = Stage {
+        camera: Some(camcal),
+        plane,
+        axzb: None,
+        start,
+        adjustment: adj,
+        frame_note: None,
+        views_used: used_obs.len(),
+        checks: SelfChecks {
+            board_scale: None,
+            leave_one_out,
+        },
+        held,
+    };
+    let mut rep = build_report(stage, rig, opts, status, warnings);
+    let c = &mut rep.calibration;
+    c.robot = None;
+    c.extra
+        .insert(BENCH_KEY.into(), serde_json::Value::Bool(true));
+    Ok((rep, gate_checks))
+}
