@@ -11,6 +11,7 @@
 use super::calibrate::{
     camera_stage, check_usable, joint_options, kept, laser_plane_stage, mark_used,
 };
+use super::flat_views::{flatness_extra, leave_out_bent};
 use super::gates::{converged, determined, view_residuals, views_check};
 use super::held::Held;
 use super::labels::resolve_labellings;
@@ -51,6 +52,10 @@ pub(super) fn calibrate_bench(
     let mut status: Vec<ViewStatus> = views.iter().map(ViewStatus::observed).collect();
     let camcal = camera_stage(views, rig, opts)?;
     warnings.extend(camcal.warnings.iter().cloned());
+    // Views of a board that is not flat: named with their sag and left out.
+    let (views, camcal, flatness) =
+        leave_out_bent(views, camcal, rig, opts, &mut status, &mut warnings)?;
+    let views = &views[..];
     // Without robot poses every view keeps the labelling its image gave.
     let (labelled, _) = resolve_labellings(views, &camcal.poses, board, &mut warnings);
     let (obs, poses) = select_stripes(&labelled, &camcal.camera, &mut status)?;
@@ -111,6 +116,7 @@ pub(super) fn calibrate_bench(
         converged(&adj, opts.method),
     ];
     let stage = Stage {
+        board_stripe: None,
         camera: Some(camcal),
         plane,
         axzb: None,
@@ -129,5 +135,7 @@ pub(super) fn calibrate_bench(
     c.robot = None;
     c.extra
         .insert(BENCH_KEY.into(), serde_json::Value::Bool(true));
+    c.extra
+        .insert("board_flatness".into(), flatness_extra(&flatness));
     Ok((rep, gate_checks))
 }

@@ -30,6 +30,7 @@ mod bench;
 mod board_scale;
 pub mod board_stripe;
 mod calibrate;
+mod flat_views;
 pub mod gates;
 mod held;
 mod kinematics;
@@ -145,6 +146,9 @@ pub struct CalibrateOptions {
     /// Correct the stripe's bias on the board before the final adjustment
     /// ([`board_stripe`]; default true; one-stage method only).
     pub board_stripe_bias: bool,
+    /// On the bench: views whose board sags by more than this (mm, and by more than 3
+    /// sigma) are named and left out ([`flat_views`]; default 0.02).
+    pub max_board_sag_mm: f64,
 }
 
 impl Default for CalibrateOptions {
@@ -168,6 +172,7 @@ impl Default for CalibrateOptions {
             robot_pose_noise: false,
             robot: crate::calib::joint::RobotMode::Fixed,
             board_stripe_bias: true,
+            max_board_sag_mm: 0.02,
         }
     }
 }

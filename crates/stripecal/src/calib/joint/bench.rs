@@ -189,6 +189,7 @@ mod tests {
                     reading: None,
                     base_hand: None,
                     alternatives: Vec::new(),
+                    stripe_shape: None,
                 }
             })
             .collect();
