@@ -54,14 +54,17 @@ use crate::model::camera::Camera;
 use crate::model::geometry::{Iso3, Plane};
 use crate::model::StripeDirection;
 use crate::reconstruct::fit::stripe_bias::{
-    board_point_profile, extractor_response, neglected_share, BoardSurface, PointProfile, Rig,
+    board_point_profile, board_point_scale, extractor_response, neglected_share, BoardSurface,
+    PointProfile, Rig,
 };
 use crate::vision::stripe::StripeOptions;
 
 /// Fewest stripe points with a width for the sheet's sigma.
 pub const MIN_POINTS: usize = 50;
-/// Points used for the width fit and for the emitter's sensitivity, at most.
-const SUB_POINTS: usize = 3000;
+/// Points used for the width fit, at most.
+const WIDTH_POINTS: usize = 1500;
+/// Points used for the emitter's sensitivity (a relative RMS), at most.
+const EMITTER_POINTS: usize = 200;
 /// The emitter's assumed position range within the plane, +- mm.
 pub const EMITTER_RANGE_MM: f64 = 30.0;
 /// Points lit at a larger incidence are not modelled.
@@ -168,15 +171,11 @@ pub fn correct_board_stripes(
         .map(|b| b.as_ref().and_then(|b| BoardSurface::new(&rig, b)))
         .collect();
     // 1. Sheet and PSF sigmas from the widths (g and the slope do not depend on them).
-    let step = pts.len().div_ceil(SUB_POINTS).max(1);
+    let step = pts.len().div_ceil(WIDTH_POINTS).max(1);
     let sub: Vec<&Pt> = pts.iter().step_by(step).collect();
     let geo: Vec<Option<(f64, f64)>> = sub
-        .par_iter()
-        .map_init(PointProfile::default, |prof, q| {
-            let s = surfaces[q.view].as_ref()?;
-            board_point_profile(&rig, s, q.line, &q.p, 0.1, 0.5, prof)
-                .then_some((prof.g, prof.slope))
-        })
+        .iter()
+        .map(|q| board_point_scale(&rig, surfaces[q.view].as_ref()?, q.line, &q.p))
         .collect();
     let (mut a, mut r) = (Matrix2::<f64>::zeros(), Vector2::<f64>::zeros());
     let mut used = 0;
@@ -227,6 +226,8 @@ pub fn correct_board_stripes(
     let delta = deltas(&rig, &all);
     // The emitter's part of the remainder, relative to the correction.
     let (e1, e2) = (rig.e1, rig.e2);
+    let step = pts.len().div_ceil(EMITTER_POINTS).max(1);
+    let sub: Vec<&Pt> = pts.iter().step_by(step).collect();
     let nominal_sub = deltas(&rig, &sub);
     let rms = |v: &[f64]| (v.iter().map(|x| x * x).sum::<f64>() / v.len().max(1) as f64).sqrt();
     let mut rel_emitter = 0.0f64;

@@ -136,7 +136,7 @@ use super::emitter::{estimate_emitter, EmitterEstimate};
 use super::sheet_sigma::{estimate_sheet_sigma, SheetSigmaEstimate};
 use super::{fit_sphere, FitOptions, SphereFitResult};
 
-pub(crate) use plane::{board_point_profile, Board as BoardSurface};
+pub(crate) use plane::{board_point_profile, board_point_scale, Board as BoardSurface};
 pub use points::predicted_bias_px;
 use points::{corrected_points, corrections, point_geo};
 pub(crate) use profile::{extractor_response, plane_basis, point_profile, PointProfile, Rig};

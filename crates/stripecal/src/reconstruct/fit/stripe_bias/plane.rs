@@ -118,6 +118,20 @@ impl<'b> Board<'b> {
     }
 }
 
+/// The local scale `|d a / d t|` (px per mm of sheet offset) and the stripe's slope
+/// against the scan line at the point of scan line `line` near `p_near` (`None` where
+/// the line cannot be followed).
+pub(crate) fn board_point_scale(
+    rig: &Rig<'_>,
+    board: &Board<'_>,
+    line: f64,
+    p_near: &Vector3<f64>,
+) -> Option<(f64, f64)> {
+    let s_near = (p_near - board.p0(rig, 0.0)).dot(&board.e);
+    let l0 = board.point(rig, 0.0, line, s_near)?;
+    Some((l0.da_dt.abs(), l0.slope))
+}
+
 /// The samples of one stripe point of a board ([`super::profile::point_profile`]'s
 /// counterpart): scan line `line`, near the camera-frame point `p_near`, sheet sigma
 /// `sigma` (mm), PSF sigma `psf` (px). `false` when the scan line cannot be modelled.
