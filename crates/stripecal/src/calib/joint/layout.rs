@@ -496,6 +496,8 @@ impl ParamLayout {
             .filter(|&s| self.col_of_slot[s].is_some())
             .map(|s| self.base[s])
             .collect();
+        // The slotless robot corrections start at zero.
+        p.resize(self.n_global, 0.0);
         p.extend_from_slice(&self.view_base);
         debug_assert_eq!(p.len(), self.num_params());
         p
