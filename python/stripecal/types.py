@@ -780,9 +780,11 @@ class ViewRender(TypedDict):
     with its truth; N target points, M stripe points."""
 
     board_image: Optional[Gray]
-    """The board image (rows, cols); None for scan frames."""
+    """The board image (rows, cols), or (rows, cols, 3) RGB for a colour twin
+    (``imaging.colour``); None for scan frames."""
     laser_image: Optional[Gray]
-    """The laser image (the frame for scans); None in single-image mode."""
+    """The laser image (the frame for scans), (rows, cols) or (rows, cols, 3) RGB for a
+    colour twin; None in single-image mode."""
     circle_indices: I64
     """Same as ``target_indices`` (historical name)."""
     circle_centers: F64
