@@ -442,6 +442,12 @@ class CalibrationExtra(TypedDict, total=False):
     held_blocks: List[str]
     """The blocks held at the values of the calibration it started from (their
     uncertainty is that file's; the others' is conditional on them)."""
+    stripe_channel: str
+    """The signal the stripes were found in, ``"gray"``, ``"red"``, ``"green"`` or
+    ``"blue"`` (written when rig.json's ``stripe.channel`` is not gray; docs/colour.md)."""
+    stripe_channel_scores: Dict[str, float]
+    """``stripe.channel: auto``: each signal's score (summed stripe peak-to-noise ratio
+    over the laser images looked at) by name."""
 
 
 CalibrationExtraInput = Union[CalibrationExtra, Dict[str, object]]

@@ -190,10 +190,20 @@ pub fn write_ply_py(
 /// a colour image's channels: (rows, cols, 3) RGB (alpha dropped); gray images stay 2D.
 #[pyfunction]
 #[pyo3(signature = (path, colour = false))]
-pub fn load_image<'py>(py: Python<'py>, path: PathBuf, colour: bool) -> PyResult<Bound<'py, PyAny>> {
+pub fn load_image<'py>(
+    py: Python<'py>,
+    path: PathBuf,
+    colour: bool,
+) -> PyResult<Bound<'py, PyAny>> {
     let img = py
         .detach(|| {
-            stripecal::io::load_image(&path).map(|i| if colour { i } else { AnyImage::Gray(i.into_gray()) })
+            stripecal::io::load_image(&path).map(|i| {
+                if colour {
+                    i
+                } else {
+                    AnyImage::Gray(i.into_gray())
+                }
+            })
         })
         .py_err(py)?;
     match img {

@@ -100,8 +100,14 @@ fn image_to_py<'py>(
 
 fn render_to_py<'py>(py: Python<'py>, r: &ViewRender) -> PyResult<Bound<'py, PyDict>> {
     let d = PyDict::new(py);
-    d.set_item("board_image", image_to_py(py, &r.board_rgb, &r.board_image)?)?;
-    d.set_item("laser_image", image_to_py(py, &r.laser_rgb, &r.laser_image)?)?;
+    d.set_item(
+        "board_image",
+        image_to_py(py, &r.board_rgb, &r.board_image)?,
+    )?;
+    d.set_item(
+        "laser_image",
+        image_to_py(py, &r.laser_rgb, &r.laser_image)?,
+    )?;
     let idx: Vec<i64> = r
         .circles
         .iter()

@@ -19,7 +19,9 @@ use stripecal_sim::{SimConfig, Twin};
 /// `f(r, g, b)` per pixel, as a 16-bit image on the 8-bit scale x 257 with `offset`
 /// (8-bit gray levels) added, clamped.
 fn signal(c: &AnyRgb, offset: f64, f: impl Fn(usize, f64, f64, f64) -> f64) -> AnyGray {
-    let AnyRgb::U8(c) = c else { panic!("8-bit twin") };
+    let AnyRgb::U8(c) = c else {
+        panic!("8-bit twin")
+    };
     let data = (0..c.width * c.height)
         .map(|i| {
             let p = &c.data[3 * i..3 * i + 3];
@@ -36,7 +38,9 @@ fn signal(c: &AnyRgb, offset: f64, f: impl Fn(usize, f64, f64, f64) -> f64) -> A
 
 /// A box mean of `(g + b) / 2` over `(2 r + 1)^2` pixels (clamped at the borders).
 fn box_other(c: &AnyRgb, r: usize) -> Vec<f64> {
-    let AnyRgb::U8(c) = c else { panic!("8-bit twin") };
+    let AnyRgb::U8(c) = c else {
+        panic!("8-bit twin")
+    };
     let (w, h) = (c.width, c.height);
     let o: Vec<f64> = (0..w * h)
         .map(|i| 0.5 * (c.data[3 * i + 1] as f64 + c.data[3 * i + 2] as f64))
@@ -67,7 +71,7 @@ impl Acc {
     fn report(&mut self, name: &str) {
         self.err.sort_by(|a, b| a.abs().total_cmp(&b.abs()));
         let n = self.err.len();
-        let rms = (self.err.iter().map(|e| e * e).sum::<f64>() / n.max(1) as f64).sqrt();
+        let rms = (self.err.iter().fold(0.0, |a, e| a + e * e) / n.max(1) as f64).sqrt();
         let p95 = self.err.get(n * 95 / 100).map_or(f64::NAN, |e| e.abs());
         println!(
             "{name:<34} rms {rms:.4} px   p95 {p95:.4} px   points {n:>5} of {} truth lines",
@@ -79,9 +83,9 @@ impl Acc {
 fn main() {
     let args: Vec<String> = std::env::args().collect();
     let seeds: u64 = args.get(1).map_or(3, |s| s.parse().expect("seeds"));
-    let over: serde_json::Value = args
-        .get(2)
-        .map_or(serde_json::json!({}), |s| serde_json::from_str(s).expect("JSON"));
+    let over: serde_json::Value = args.get(2).map_or(serde_json::json!({}), |s| {
+        serde_json::from_str(s).expect("JSON")
+    });
     let names = [
         "gray (BT.601)",
         "R",
@@ -130,7 +134,11 @@ fn main() {
                 let Ok(mut st) = extract_stripe(s.view().unwrap(), &opts) else {
                     continue;
                 };
-                let board = if k == 4 { &rg.board_image } else { &rc.board_image };
+                let board = if k == 4 {
+                    &rg.board_image
+                } else {
+                    &rc.board_image
+                };
                 flag_reflectance_edges(
                     &mut st,
                     board.as_ref().unwrap().view().unwrap(),

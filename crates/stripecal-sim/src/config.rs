@@ -268,8 +268,13 @@ impl ImagingCfg {
 
     /// The knobs of colour images, as truth.json's sim_config leaves them out of gray
     /// twins (so a gray twin's truth.json is what it was before they existed).
-    pub const COLOUR_KNOBS: [&'static str; 5] =
-        ["colour", "laser_colour", "ambient_rgb", "plate_rgb", "ink_rgb"];
+    pub const COLOUR_KNOBS: [&'static str; 5] = [
+        "colour",
+        "laser_colour",
+        "ambient_rgb",
+        "plate_rgb",
+        "ink_rgb",
+    ];
 }
 
 /// The ball scan.
@@ -759,7 +764,9 @@ impl SimConfig {
         match &self.stripe_channel {
             Some(name) => StripeChannel::from_name(name)
                 .map_err(|e| SimError::Config(format!("stripe_channel: {e}"))),
-            None if self.imaging.colour => Ok(StripeChannel::ALL[1 + self.imaging.laser_channel()?]),
+            None if self.imaging.colour => {
+                Ok(StripeChannel::ALL[1 + self.imaging.laser_channel()?])
+            }
             None => Ok(StripeChannel::Gray),
         }
     }

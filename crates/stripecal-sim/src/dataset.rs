@@ -440,9 +440,19 @@ impl Twin {
         let im = &self.cfg.imaging;
         let seed = self.cfg.seed;
         Ok(match rgb {
-            None => (form_image(lin, &self.camera, im, exposure, seed, stream), None),
+            None => (
+                form_image(lin, &self.camera, im, exposure, seed, stream),
+                None,
+            ),
             Some(l) => {
-                let c = form_rgb([&l[0], &l[1], &l[2]], &self.camera, im, exposure, seed, stream)?;
+                let c = form_rgb(
+                    [&l[0], &l[1], &l[2]],
+                    &self.camera,
+                    im,
+                    exposure,
+                    seed,
+                    stream,
+                )?;
                 (c.to_gray(), Some(c))
             }
         })

@@ -65,7 +65,15 @@ pub fn form_rgb(
         .map(|c| {
             let las = if c == laser { 1.0 } else { 0.0 };
             let s = stream ^ ((c as u64 + 1) << 56);
-            form_channel(lins[c], cam, im, exposure, seed, s, [im.ambient_rgb[c], las])
+            form_channel(
+                lins[c],
+                cam,
+                im,
+                exposure,
+                seed,
+                s,
+                [im.ambient_rgb[c], las],
+            )
         })
         .collect();
     let n = chans[0].len();

@@ -181,13 +181,22 @@ fn rig_stripe_channel() {
         write_rig(&p, &r).unwrap();
         assert_eq!(read_rig(&p).unwrap(), r);
         let text = fs::read_to_string(&p).unwrap();
-        assert_eq!(text.contains("\"channel\""), c != StripeChannel::Gray, "{text}");
+        assert_eq!(
+            text.contains("\"channel\""),
+            c != StripeChannel::Gray,
+            "{text}"
+        );
         let given = RIG_JSON.replacen(
             "\"format\"",
             &format!("\"stripe\": {{\"channel\": \"{}\"}}, \"format\"", c.name()),
             1,
         );
-        assert_eq!(rig_from_json(Path::new("rig.json"), &given).unwrap().stripe_channel, c);
+        assert_eq!(
+            rig_from_json(Path::new("rig.json"), &given)
+                .unwrap()
+                .stripe_channel,
+            c
+        );
     }
     for bad in ["\"purple\"", "\"Red\"", "3"] {
         let text = RIG_JSON.replacen(
@@ -201,7 +210,10 @@ fn rig_stripe_channel() {
         };
         assert_eq!(path, Path::new("some/rig.json"));
         assert_eq!(location, "stripe.channel", "{e}");
-        assert!(e.to_string().starts_with("some/rig.json: stripe.channel: "), "{e}");
+        assert!(
+            e.to_string().starts_with("some/rig.json: stripe.channel: "),
+            "{e}"
+        );
     }
 }
 

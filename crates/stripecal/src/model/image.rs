@@ -102,7 +102,9 @@ impl<T: Copy + Default + Into<u32> + TryFrom<u32>> RgbImage<T> {
         height: usize,
         channels: usize,
     ) -> Option<Self> {
-        if !(channels == 3 || channels == 4) || width.checked_mul(height)?.checked_mul(channels)? != samples.len() {
+        if !(channels == 3 || channels == 4)
+            || width.checked_mul(height)?.checked_mul(channels)? != samples.len()
+        {
             return None;
         }
         let data = if channels == 3 {
@@ -135,7 +137,13 @@ impl<T: Copy + Default + Into<u32> + TryFrom<u32>> RgbImage<T> {
         GrayImage {
             width: self.width,
             height: self.height,
-            data: self.data.iter().skip(c.min(2)).step_by(3).copied().collect(),
+            data: self
+                .data
+                .iter()
+                .skip(c.min(2))
+                .step_by(3)
+                .copied()
+                .collect(),
         }
     }
 }
@@ -373,6 +381,9 @@ mod tests {
         assert!(RgbImage::from_interleaved(&px, 3, 1, 4).is_none());
         assert!(RgbImage::from_interleaved(&px, 2, 1, 2).is_none());
         let any = AnyImage::Rgb(AnyRgb::U8(c));
-        assert_eq!((any.size(), any.bit_depth(), any.is_colour()), ((2, 1), 8, true));
+        assert_eq!(
+            (any.size(), any.bit_depth(), any.is_colour()),
+            ((2, 1), 8, true)
+        );
     }
 }

@@ -62,8 +62,8 @@ use crate::vision::stripe::{EdgeOptions, StripeOptions};
 use crate::vision::target::TargetOptions;
 
 pub use calibrate::calibrate_observations;
-pub use observe::{dataset_channel, observe_dataset};
 pub(crate) use observe::decide_channel_lenient;
+pub use observe::{dataset_channel, observe_dataset};
 use observe::{observe, Observed};
 pub use plan::{
     nominal_from_truth, plan_poses, read_nominal, read_plan_rig, PlanOptions, PlannedPose,

@@ -143,7 +143,10 @@ fn noise_of<T: Pixel>(data: &[T], w: usize, h: usize) -> f64 {
     let mut d: Vec<u32> = Vec::with_capacity((w - 1) * h.div_ceil(2));
     for y in (0..h).step_by(2) {
         let row = &data[y * w..(y + 1) * w];
-        d.extend(row.windows(2).map(|p| p[0].to_u32().abs_diff(p[1].to_u32())));
+        d.extend(
+            row.windows(2)
+                .map(|p| p[0].to_u32().abs_diff(p[1].to_u32())),
+        );
     }
     let keep = (d.len() * 4 / 5).max(1);
     let (small, _, _) = d.select_nth_unstable(keep - 1);
@@ -193,8 +196,7 @@ pub fn channel_scores(img: &AnyImage, opts: &StripeOptions) -> Result<[f64; 4]> 
                 s.points
                     .iter()
                     .filter(|p| p.trusted())
-                    .map(|p| p.peak as f64)
-                    .sum::<f64>()
+                    .fold(0.0, |acc, p| acc + p.peak as f64)
                     / sigma
             }
             Err(Error::Detection(_)) => 0.0,
@@ -252,7 +254,14 @@ mod tests {
 
     /// A red (or `rgb`-coloured) Gaussian stripe along the columns over a white
     /// background of `bg` with dark squares, pseudo-random noise of ~`noise` per channel.
-    fn colour_stripe(w: usize, h: usize, rgb: [f64; 3], amp: f64, bg: f64, noise: f64) -> RgbImage<u8> {
+    fn colour_stripe(
+        w: usize,
+        h: usize,
+        rgb: [f64; 3],
+        amp: f64,
+        bg: f64,
+        noise: f64,
+    ) -> RgbImage<u8> {
         let mut s = 42u64;
         let mut data = Vec::with_capacity(w * h * 3);
         for y in 0..h {
@@ -265,7 +274,9 @@ mod tests {
                     // a sum of 4 uniforms: ~Gaussian, std noise
                     let mut n = 0.0;
                     for _ in 0..4 {
-                        s = s.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+                        s = s
+                            .wrapping_mul(6364136223846793005)
+                            .wrapping_add(1442695040888963407);
                         n += (s >> 40) as f64 / (1u64 << 24) as f64 - 0.5;
                     }
                     let v = bg * ink + laser * ch + n * noise * 3f64.sqrt();
@@ -273,7 +284,11 @@ mod tests {
                 }
             }
         }
-        RgbImage { width: w, height: h, data }
+        RgbImage {
+            width: w,
+            height: h,
+            data,
+        }
     }
 
     #[test]
@@ -292,10 +307,19 @@ mod tests {
         ));
         let e = stripe_signal(&gray, StripeChannel::Green, &o).unwrap_err();
         assert!(e.to_string().contains("\"green\" needs a colour"), "{e}");
-        let e = stripe_signal_of_file(std::path::Path::new("a/laser.png"), &gray, StripeChannel::Red, &o)
-            .unwrap_err();
+        let e = stripe_signal_of_file(
+            std::path::Path::new("a/laser.png"),
+            &gray,
+            StripeChannel::Red,
+            &o,
+        )
+        .unwrap_err();
         assert!(matches!(e, Error::Format { .. }), "{e:?}");
-        assert!(e.to_string().starts_with("a/laser.png: stripe.channel \"red\""), "{e}");
+        assert!(
+            e.to_string()
+                .starts_with("a/laser.png: stripe.channel \"red\""),
+            "{e}"
+        );
     }
 
     #[test]
@@ -306,7 +330,11 @@ mod tests {
             let s = noise_sigma(&AnyGray::U8(c.channel(1)));
             assert!((s / noise - 1.0).abs() < 0.2, "{s} vs {noise}");
         }
-        let flat = AnyGray::U8(GrayImage { width: 20, height: 20, data: vec![7; 400] });
+        let flat = AnyGray::U8(GrayImage {
+            width: 20,
+            height: 20,
+            data: vec![7; 400],
+        });
         assert!((noise_sigma(&flat) - 1.0 / 12f64.sqrt()).abs() < 1e-12);
     }
 
@@ -326,7 +354,9 @@ mod tests {
             let direct = stripe_signal(&img, want, &o).unwrap();
             assert_eq!(sig, direct);
         }
-        let gray = AnyImage::Gray(AnyGray::U8(colour_stripe(160, 120, [1.0, 0.0, 0.0], 120.0, 60.0, 1.0).channel(0)));
+        let gray = AnyImage::Gray(AnyGray::U8(
+            colour_stripe(160, 120, [1.0, 0.0, 0.0], 120.0, 60.0, 1.0).channel(0),
+        ));
         let s = channel_scores(&gray, &o).unwrap();
         assert!(s[0] > 0.0 && s[1..] == [0.0; 3], "{s:?}");
         assert_eq!(choose_channel(&[s]), StripeChannel::Gray);
