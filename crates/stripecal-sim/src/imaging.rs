@@ -78,8 +78,8 @@ pub fn form_rgb(
         .collect();
     let n = chans[0].len();
     let mut data = Vec::with_capacity(3 * n);
-    for i in 0..n {
-        data.extend([chans[0][i], chans[1][i], chans[2][i]]);
+    for ((r, g), b) in chans[0].iter().zip(&chans[1]).zip(&chans[2]) {
+        data.extend([*r, *g, *b]);
     }
     let (width, height) = (lins[0].width, lins[0].height);
     Ok(if im.bit_depth == 16 {
