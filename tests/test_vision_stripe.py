@@ -88,8 +88,12 @@ def test_uint16_and_single_image(view: Dict[str, Any]) -> None:
 def test_bad_images_raise_typed_errors() -> None:
     with pytest.raises(stripecal.InvalidInputError, match="empty"):
         stripecal.extract_stripe(np.zeros((0, 10), np.uint8))
+    with pytest.raises(stripecal.InvalidInputError, match="3 or 4"):
+        stripecal.extract_stripe(np.zeros((10, 10, 2), np.uint8))
     with pytest.raises(stripecal.InvalidInputError, match="2D"):
-        stripecal.extract_stripe(np.zeros((10, 10, 3), np.uint8))
+        stripecal.extract_stripe(np.zeros((10, 10, 3, 1), np.uint8))
+    with pytest.raises(stripecal.DetectionError):  # colour is accepted: no stripe in it
+        stripecal.extract_stripe(np.zeros((10, 10, 3), np.uint8), channel="red")
     with pytest.raises(TypeError, match="uint8 or uint16"):
         stripecal.extract_stripe(np.zeros((10, 10), np.float32))
     with pytest.raises(TypeError):

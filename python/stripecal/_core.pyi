@@ -271,6 +271,7 @@ class Rig:
         robot: Optional[Robot] = None,
         distortion_model: str = "radial1",
         stripe_direction: str = "auto",
+        stripe_channel: str = "gray",
     ) -> Rig: ...
     @property
     def camera_size(self) -> Tuple[int, int]: ...
@@ -286,6 +287,8 @@ class Rig:
     def distortion_model(self) -> str: ...
     @property
     def stripe_direction(self) -> str: ...
+    @property
+    def stripe_channel(self) -> str: ...
     def save(self, path: _Path) -> None: ...
     def to_json(self) -> str: ...
     @staticmethod
@@ -473,7 +476,9 @@ def write_ply(
     properties: Optional[Dict[str, npt.ArrayLike]] = None,
     binary: bool = True,
 ) -> None: ...
-def load_image(path: _Path) -> Union[npt.NDArray[np.uint8], npt.NDArray[np.uint16]]: ...
+def load_image(
+    path: _Path, colour: bool = False
+) -> Union[npt.NDArray[np.uint8], npt.NDArray[np.uint16]]: ...
 def save_image(
     path: _Path, image: Union[npt.NDArray[np.uint8], npt.NDArray[np.uint16]]
 ) -> None: ...
@@ -576,10 +581,11 @@ class LineFit:
     def distances(self, points: npt.ArrayLike) -> _F64: ...
 
 def extract_stripe(
-    image: _Gray,
+    image: npt.NDArray[Any],  # 2D gray or (H, W, 3 or 4) colour, uint8 or uint16
     direction: str = "auto",
     method: str = "centroid",
-    board_image: Optional[_Gray] = None,
+    board_image: Optional[npt.NDArray[Any]] = None,
+    channel: str = "gray",
 ) -> Stripe: ...
 def fit_line(points: npt.ArrayLike, inlier_px: float = 1.0) -> LineFit: ...
 
@@ -750,6 +756,7 @@ def reconstruct(
     direction: str = "auto",
     min_ray_plane_angle_deg: float = 2.0,
     drop_flags: int = 0,
+    channel: str = "gray",
 ) -> Cloud: ...
 def reconstruct_scan(
     calibration: Calibration,
@@ -763,6 +770,7 @@ def reconstruct_scan(
     stripe_sigma_px: Optional[float] = None,
     repeatability_mm: Optional[float] = None,
     encoder_sigma_deg: Optional[float] = None,
+    channel: Optional[str] = None,
 ) -> Cloud: ...
 def measure_sphere(
     calibration: Calibration,

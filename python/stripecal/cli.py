@@ -325,6 +325,11 @@ def print_calibration(cal: stripecal.Calibration) -> None:
     stripe = (f", stripe {q['stripe_rms_px']:.4f} px ({smm:.4f} mm)" if cal.laser_plane is not None and smm is not None
               else " (no stripe points)")
     print(f"\n  residual RMS: circles {q['circle_rms_px']:.4f} px{stripe}")
+    channel = extra.get("stripe_channel")
+    if isinstance(channel, str):
+        scores = extra.get("stripe_channel_scores")
+        how = ("auto: " + ", ".join(f"{k} {v:.0f}" for k, v in scores.items()) if isinstance(scores, dict) else "rig.json")
+        print(f"  stripe found in the {channel} channel ({how})")
     views = cal.views
     if views:
         print("\n  view  used  circles  stripe pts  off plane  circle RMS px  stripe RMS px  note")

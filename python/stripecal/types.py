@@ -444,6 +444,12 @@ class CalibrationExtra(TypedDict, total=False):
     held_blocks: List[str]
     """The blocks held at the values of the calibration it started from (their
     uncertainty is that file's; the others' is conditional on them)."""
+    stripe_channel: str
+    """The signal the stripes were found in, ``"gray"``, ``"red"``, ``"green"`` or
+    ``"blue"`` (written when rig.json's ``stripe.channel`` is not gray; docs/colour.md)."""
+    stripe_channel_scores: Dict[str, float]
+    """``stripe.channel: auto``: each signal's score (summed stripe peak-to-noise ratio
+    over the laser images looked at) by name."""
 
 
 CalibrationExtraInput = Union[CalibrationExtra, Dict[str, object]]
@@ -829,9 +835,11 @@ class ViewRender(TypedDict):
     with its truth; N target points, M stripe points."""
 
     board_image: Optional[Gray]
-    """The board image (rows, cols); None for scan frames."""
+    """The board image (rows, cols), or (rows, cols, 3) RGB for a colour twin
+    (``imaging.colour``); None for scan frames."""
     laser_image: Optional[Gray]
-    """The laser image (the frame for scans); None in single-image mode."""
+    """The laser image (the frame for scans), (rows, cols) or (rows, cols, 3) RGB for a
+    colour twin; None in single-image mode."""
     circle_indices: I64
     """Same as ``target_indices`` (historical name)."""
     circle_centers: F64

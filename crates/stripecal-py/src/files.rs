@@ -8,11 +8,11 @@ use pyo3::exceptions::PyTypeError;
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 use stripecal::io::{
-    load_gray, read_calibration, read_ply, read_rig, read_sphere_fit, read_truth, save_gray_png,
+    read_calibration, read_ply, read_rig, read_sphere_fit, read_truth, save_gray_png,
     write_calibration, write_ply as core_write_ply, write_rig, write_sphere_fit, write_truth,
     PlyFormat,
 };
-use stripecal::model::image::{AnyGray, GrayImage};
+use stripecal::model::image::{AnyGray, AnyImage, AnyRgb, GrayImage};
 use stripecal::model::{Cloud, Dataset, Scan};
 
 use crate::convert::{f64_array, fmt_shape, nd, rows_of};
@@ -185,14 +185,32 @@ pub fn write_ply_py(
         .py_err(py)
 }
 
-/// Reads a PNG or TIFF image as a 2D grayscale array (rows, cols) of uint8 or uint16
-/// (colour images are converted to gray).
+/// Reads a PNG, TIFF, BMP or JPEG image as a 2D grayscale array (rows, cols) of uint8
+/// or uint16 (colour images are converted to gray by BT.601 luma). `colour=True` keeps
+/// a colour image's channels: (rows, cols, 3) RGB (alpha dropped); gray images stay 2D.
 #[pyfunction]
-pub fn load_image<'py>(py: Python<'py>, path: PathBuf) -> PyResult<Bound<'py, PyAny>> {
-    let img = py.detach(|| load_gray(&path)).py_err(py)?;
+#[pyo3(signature = (path, colour = false))]
+pub fn load_image<'py>(
+    py: Python<'py>,
+    path: PathBuf,
+    colour: bool,
+) -> PyResult<Bound<'py, PyAny>> {
+    let img = py
+        .detach(|| {
+            stripecal::io::load_image(&path).map(|i| {
+                if colour {
+                    i
+                } else {
+                    AnyImage::Gray(i.into_gray())
+                }
+            })
+        })
+        .py_err(py)?;
     match img {
-        AnyGray::U8(i) => nd(py, &[i.height, i.width], i.data),
-        AnyGray::U16(i) => nd(py, &[i.height, i.width], i.data),
+        AnyImage::Gray(AnyGray::U8(i)) => nd(py, &[i.height, i.width], i.data),
+        AnyImage::Gray(AnyGray::U16(i)) => nd(py, &[i.height, i.width], i.data),
+        AnyImage::Rgb(AnyRgb::U8(i)) => nd(py, &[i.height, i.width, 3], i.data),
+        AnyImage::Rgb(AnyRgb::U16(i)) => nd(py, &[i.height, i.width, 3], i.data),
     }
 }
 

@@ -1,5 +1,6 @@
 //! Images from numpy: 2D `uint8` / `uint16` arrays (any strides) copied into an owned
-//! gray image, so the GIL can be released while Rust works on it.
+//! gray image, and `(rows, columns, 3 or 4)` colour arrays into an owned RGB image, so
+//! the GIL can be released while Rust works on them.
 
 use numpy::{
     PyArrayDescrMethods, PyArrayDyn, PyArrayMethods, PyUntypedArray, PyUntypedArrayMethods,
@@ -7,7 +8,7 @@ use numpy::{
 use pyo3::exceptions::PyTypeError;
 use pyo3::prelude::*;
 
-use stripecal::model::image::{AnyGray, GrayImage};
+use stripecal::model::image::{AnyGray, AnyImage, AnyRgb, GrayImage, RgbImage};
 
 use crate::convert::type_name;
 use crate::errors::invalid_input;
@@ -91,12 +92,18 @@ fn copy_any<T: numpy::Element + Copy>(a: &Bound<'_, PyUntypedArray>) -> PyResult
 /// uint8/uint16 array (RGB or RGBA, alpha ignored) becomes gray by BT.601 luma, the
 /// contract's conversion.
 pub fn gray_or_colour_from_py(obj: &Bound<'_, PyAny>, name: &str) -> PyResult<AnyGray> {
+    Ok(image_from_py(obj, name)?.into_gray())
+}
+
+/// A gray `(rows, columns)` or colour `(rows, columns, 3 or 4)` uint8/uint16 array
+/// (RGB or RGBA, alpha dropped) as an owned image that keeps its colour.
+pub fn image_from_py(obj: &Bound<'_, PyAny>, name: &str) -> PyResult<AnyImage> {
     let py = obj.py();
     let Ok(a) = obj.cast::<PyUntypedArray>() else {
-        return gray_from_py(obj, name);
+        return gray_from_py(obj, name).map(AnyImage::Gray);
     };
     if a.ndim() != 3 {
-        return gray_from_py(obj, name);
+        return gray_from_py(obj, name).map(AnyImage::Gray);
     }
     let shape = a.shape().to_vec();
     if shape.contains(&0) || !(shape[2] == 3 || shape[2] == 4) {
@@ -112,21 +119,11 @@ pub fn gray_or_colour_from_py(obj: &Bound<'_, PyAny>, name: &str) -> PyResult<An
     let dt = a.dtype();
     let lost = || invalid_input(py, format!("{name}: colour conversion failed"));
     if dt.is_equiv_to(&numpy::dtype::<u8>(py)) {
-        let data = stripecal::model::image::gray_from_interleaved(&copy_any::<u8>(a)?, c)
-            .ok_or_else(lost)?;
-        Ok(AnyGray::U8(GrayImage {
-            width: w,
-            height: h,
-            data,
-        }))
+        let c = RgbImage::from_interleaved(&copy_any::<u8>(a)?, w, h, c).ok_or_else(lost)?;
+        Ok(AnyImage::Rgb(AnyRgb::U8(c)))
     } else if dt.is_equiv_to(&numpy::dtype::<u16>(py)) {
-        let data = stripecal::model::image::gray_from_interleaved(&copy_any::<u16>(a)?, c)
-            .ok_or_else(lost)?;
-        Ok(AnyGray::U16(GrayImage {
-            width: w,
-            height: h,
-            data,
-        }))
+        let c = RgbImage::from_interleaved(&copy_any::<u16>(a)?, w, h, c).ok_or_else(lost)?;
+        Ok(AnyImage::Rgb(AnyRgb::U16(c)))
     } else {
         Err(PyTypeError::new_err(format!(
             "{name} must have dtype uint8 or uint16, got {dt}: convert it explicitly (e.g. \

@@ -10,18 +10,18 @@ use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyList, PySequence};
 
 use stripecal::io::{write_ply_with_comments, PlyFormat};
-use stripecal::model::image::AnyGray;
+use stripecal::model::image::AnyImage;
 use stripecal::model::RobotReading;
 use stripecal::pipeline::measure::{scan_readings, scan_uncertainty_model};
 use stripecal::reconstruct::{
     self as core, BadImage, FitOptions, PlaneFit, ReconstructOptions, ScanPoints,
     UncertaintyOptions,
 };
-use stripecal::vision::stripe::StripeDirection;
+use stripecal::vision::stripe::{colour, StripeChannel, StripeDirection};
 
 use crate::convert::{f64_array, fmt_shape, nd, progress_step, py_to_iso};
 use crate::errors::{invalid_input, ResultExt};
-use crate::imageview::gray_from_py;
+use crate::imageview::image_from_py;
 use crate::results::{PyCalibration, PySphereFit};
 
 /// Reconstructed points: `points` (M, 3) float64 mm in the robot base frame, and per
@@ -191,14 +191,17 @@ fn options(
 }
 
 /// Reconstructs stripe images taken at joint readings: `images` (N, H, W) uint8/uint16
-/// (or a sequence of N 2D arrays), `joints` (N, J) encoder readings in degrees (J = the
-/// calibration robot's joints). Every image must have the calibrated camera's size.
-/// `direction`: "auto" (from the laser plane), "rows" or "cols". Rays meeting the laser
-/// plane at less than `min_ray_plane_angle_deg` are dropped; so are stripe points with
-/// any of the `drop_flags` bits. Runs in parallel with the GIL released. Errors name the
-/// frame.
+/// (or (N, H, W, 3) colour, or a sequence of N 2D or (H, W, 3 or 4) arrays), `joints`
+/// (N, J) encoder readings in degrees (J = the calibration robot's joints). Every image
+/// must have the calibrated camera's size. `direction`: "auto" (from the laser plane),
+/// "rows" or "cols". `channel`: the signal the stripe is found in ("gray", "red",
+/// "green", "blue", or "auto": decided once from at most 5 of the images; see
+/// `extract_stripe`). Rays meeting the laser plane at less than
+/// `min_ray_plane_angle_deg` are dropped; so are stripe points with any of the
+/// `drop_flags` bits. Runs in parallel with the GIL released. Errors name the frame.
 #[pyfunction]
-#[pyo3(signature = (calibration, images, joints, direction = "auto", min_ray_plane_angle_deg = 2.0, drop_flags = 0))]
+#[pyo3(signature = (calibration, images, joints, direction = "auto", min_ray_plane_angle_deg = 2.0, drop_flags = 0, channel = "gray"))]
+#[allow(clippy::too_many_arguments)]
 pub fn reconstruct(
     py: Python<'_>,
     calibration: &Bound<'_, PyCalibration>,
@@ -207,8 +210,10 @@ pub fn reconstruct(
     direction: &str,
     min_ray_plane_angle_deg: f64,
     drop_flags: u8,
+    channel: &str,
 ) -> PyResult<PyCloud> {
     let opts = options(py, direction, min_ray_plane_angle_deg, drop_flags)?;
+    let channel = StripeChannel::from_name(channel).py_err(py)?;
     let q = f64_array(joints, "joints")?;
     if q.ndim() != 2 {
         return Err(invalid_input(
@@ -224,10 +229,13 @@ pub fn reconstruct(
     let len = match (images.getattr("shape"), &seq) {
         (Ok(s), _) => {
             let s: Vec<usize> = s.extract()?;
-            if s.len() != 3 {
+            if !(s.len() == 3 || s.len() == 4) {
                 return Err(invalid_input(
                     py,
-                    format!("images must have shape (N, H, W), got {}", fmt_shape(&s)),
+                    format!(
+                        "images must have shape (N, H, W) or (N, H, W, 3), got {}",
+                        fmt_shape(&s)
+                    ),
                 ));
             }
             s[0]
@@ -245,10 +253,21 @@ pub fn reconstruct(
             format!("{len} images but {n} rows of joints: images and joints pair by row"),
         ));
     }
-    let mut imgs: Vec<AnyGray> = Vec::with_capacity(n);
+    let mut imgs: Vec<AnyImage> = Vec::with_capacity(n);
     for i in 0..n {
         let item = images.get_item(i)?;
-        imgs.push(gray_from_py(&item, &format!("images[{i}]"))?);
+        let img = image_from_py(&item, &format!("images[{i}]"))?;
+        if !img.is_colour() && channel.rgb_index().is_some() {
+            return Err(invalid_input(
+                py,
+                format!(
+                    "channel {:?} needs colour images (H, W, 3 or 4): images[{i}] is gray \
+                     (2D); use channel=\"gray\" or \"auto\"",
+                    channel.name()
+                ),
+            ));
+        }
+        imgs.push(img);
     }
     let readings: Vec<RobotReading> = q
         .rows()
@@ -258,7 +277,20 @@ pub fn reconstruct(
     let cal = &calibration.get().inner;
     let sp = py
         .detach(|| -> stripecal::Result<ScanPoints> {
-            let views = imgs
+            let channel = if channel == StripeChannel::Auto {
+                let scores = colour::auto_sample(imgs.len())
+                    .into_iter()
+                    .map(|i| colour::channel_scores(&imgs[i], &opts.stripe))
+                    .collect::<stripecal::Result<Vec<_>>>()?;
+                colour::choose_channel(&scores)
+            } else {
+                channel
+            };
+            let signals = imgs
+                .iter()
+                .map(|i| colour::stripe_signal(i, channel, &opts.stripe))
+                .collect::<stripecal::Result<Vec<_>>>()?;
+            let views = signals
                 .iter()
                 .map(|i| i.view())
                 .collect::<stripecal::Result<Vec<_>>>()?;
@@ -285,13 +317,18 @@ pub fn reconstruct(
 /// (`KeyboardInterrupt`); nothing is returned. The GIL is released while frames are
 /// processed.
 ///
+/// `channel`: the signal of colour frames the stripe is found in ("gray", "red",
+/// "green", "blue" or "auto", see `extract_stripe`); None (default): the scan's rig.json
+/// `stripe.channel`, gray without one. A colour name with a gray frame is a
+/// `FormatError` naming the file.
+///
 /// `covariance=True` also computes each point's 3x3 covariance in the base frame
 /// (`Cloud.covariance`, (M, 3, 3) mm^2) from the calibration's covariance, the stripe's
 /// noise (`stripe_sigma_px`; default the calibration's `quality.stripe_rms_px`) and the
 /// robot's figures (`repeatability_mm`, `encoder_sigma_deg`; default those of the
 /// calibration's robot, if any).
 #[pyfunction]
-#[pyo3(signature = (calibration, scan_dir, direction = "auto", min_ray_plane_angle_deg = 2.0, drop_flags = 0, progress = None, on_bad_image = "stop", covariance = false, stripe_sigma_px = None, repeatability_mm = None, encoder_sigma_deg = None))]
+#[pyo3(signature = (calibration, scan_dir, direction = "auto", min_ray_plane_angle_deg = 2.0, drop_flags = 0, progress = None, on_bad_image = "stop", covariance = false, stripe_sigma_px = None, repeatability_mm = None, encoder_sigma_deg = None, channel = None))]
 #[allow(clippy::too_many_arguments)]
 pub fn reconstruct_scan(
     py: Python<'_>,
@@ -306,6 +343,7 @@ pub fn reconstruct_scan(
     stripe_sigma_px: Option<f64>,
     repeatability_mm: Option<f64>,
     encoder_sigma_deg: Option<f64>,
+    channel: Option<&str>,
 ) -> PyResult<PyCloud> {
     let unc = UncertaintyOptions {
         stripe_sigma_px,
@@ -315,6 +353,9 @@ pub fn reconstruct_scan(
     };
     let mut opts = options(py, direction, min_ray_plane_angle_deg, drop_flags)?;
     opts.on_bad_image = BadImage::from_name(on_bad_image).py_err(py)?;
+    opts.channel = channel
+        .map(|c| StripeChannel::from_name(c).py_err(py))
+        .transpose()?;
     let cal = &calibration.get().inner;
     // The first error of the callback (an exception of `progress`, or the pending
     // KeyboardInterrupt of a signal); it stops the run and is what is raised.

@@ -6,7 +6,7 @@ use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyList};
 use stripecal::io::{rig_from_json, rig_to_json, write_rig};
 use stripecal::model::camera::DistortionModel;
-use stripecal::model::{Dataset, Rig, RobotReading, Scan, StripeDirection};
+use stripecal::model::{Dataset, Rig, RobotReading, Scan, StripeChannel, StripeDirection};
 use stripecal::Iso3;
 
 use crate::board::PyBoard;
@@ -24,7 +24,7 @@ pub struct PyRig {
 #[pymethods]
 impl PyRig {
     #[new]
-    #[pyo3(signature = (camera_size, board, robot = None, distortion_model = "radial1", stripe_direction = "auto"))]
+    #[pyo3(signature = (camera_size, board, robot = None, distortion_model = "radial1", stripe_direction = "auto", stripe_channel = "gray"))]
     fn new(
         py: Python<'_>,
         camera_size: (i64, i64),
@@ -32,6 +32,7 @@ impl PyRig {
         robot: Option<&Bound<'_, PyRobot>>,
         distortion_model: &str,
         stripe_direction: &str,
+        stripe_channel: &str,
     ) -> PyResult<Self> {
         Ok(PyRig {
             inner: Rig {
@@ -41,6 +42,7 @@ impl PyRig {
                 board: board.get().inner.clone(),
                 robot: robot.map(|r| r.get().inner.clone()),
                 stripe_direction: StripeDirection::from_name(stripe_direction).py_err(py)?,
+                stripe_channel: StripeChannel::from_name(stripe_channel).py_err(py)?,
             },
         })
     }
@@ -87,6 +89,15 @@ impl PyRig {
         self.inner.stripe_direction.name()
     }
 
+    /// The laser's colour in colour laser images (rig.json `stripe.channel`): `"gray"`
+    /// (the default: BT.601 gray), `"red"`, `"green"`, `"blue"` (the stripe is found in
+    /// that colour's channel) or `"auto"` (decided once per dataset from its laser
+    /// images).
+    #[getter]
+    fn stripe_channel(&self) -> &'static str {
+        self.inner.stripe_channel.name()
+    }
+
     /// Writes rig.json (atomically).
     fn save(&self, py: Python<'_>, path: PathBuf) -> PyResult<()> {
         let rig = &self.inner;
@@ -109,7 +120,7 @@ impl PyRig {
     fn __repr__(&self) -> String {
         let r = &self.inner;
         format!(
-            "Rig(camera_size=({}, {}), board={}x{}, robot={}, distortion_model='{}', stripe_direction='{}')",
+            "Rig(camera_size=({}, {}), board={}x{}, robot={}, distortion_model='{}', stripe_direction='{}', stripe_channel='{}')",
             r.width,
             r.height,
             r.board.rows,
@@ -119,7 +130,8 @@ impl PyRig {
                 .map(|r| crate::convert::quote(&r.name))
                 .unwrap_or_else(|| "None".into()),
             r.distortion_model.name(),
-            r.stripe_direction.name()
+            r.stripe_direction.name(),
+            r.stripe_channel.name()
         )
     }
 }

@@ -8,7 +8,7 @@ use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyList};
 use serde_json::Value;
 
-use stripecal::model::image::AnyGray;
+use stripecal::model::image::{AnyGray, AnyRgb};
 use stripecal_sim::{SimConfig, SimError, Twin, ViewRender};
 
 use crate::convert::{f64_array, iso_to_py, json_to_py, nd, rows_of};
@@ -77,21 +77,36 @@ fn gray_to_py<'py>(py: Python<'py>, img: &AnyGray) -> PyResult<Bound<'py, PyAny>
     }
 }
 
+/// An RGB image as a (rows, cols, 3) array.
+fn rgb_to_py<'py>(py: Python<'py>, img: &AnyRgb) -> PyResult<Bound<'py, PyAny>> {
+    match img {
+        AnyRgb::U8(i) => nd(py, &[i.height, i.width, 3], i.data.clone()),
+        AnyRgb::U16(i) => nd(py, &[i.height, i.width, 3], i.data.clone()),
+    }
+}
+
+/// The image as rendered: RGB for a colour twin, else gray.
+fn image_to_py<'py>(
+    py: Python<'py>,
+    rgb: &Option<AnyRgb>,
+    gray: &Option<AnyGray>,
+) -> PyResult<Option<Bound<'py, PyAny>>> {
+    match (rgb, gray) {
+        (Some(c), _) => rgb_to_py(py, c).map(Some),
+        (None, Some(g)) => gray_to_py(py, g).map(Some),
+        (None, None) => Ok(None),
+    }
+}
+
 fn render_to_py<'py>(py: Python<'py>, r: &ViewRender) -> PyResult<Bound<'py, PyDict>> {
     let d = PyDict::new(py);
     d.set_item(
         "board_image",
-        r.board_image
-            .as_ref()
-            .map(|i| gray_to_py(py, i))
-            .transpose()?,
+        image_to_py(py, &r.board_rgb, &r.board_image)?,
     )?;
     d.set_item(
         "laser_image",
-        r.laser_image
-            .as_ref()
-            .map(|i| gray_to_py(py, i))
-            .transpose()?,
+        image_to_py(py, &r.laser_rgb, &r.laser_image)?,
     )?;
     let idx: Vec<i64> = r
         .circles

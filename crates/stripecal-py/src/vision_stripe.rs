@@ -1,21 +1,22 @@
 //! `stripecal.extract_stripe`, `stripecal.Stripe`, `stripecal.fit_line`,
 //! `stripecal.LineFit`: laser stripe extraction and the robust line fit.
 //!
-//! Images are 2D uint8/uint16 numpy arrays of any strides (copied, then the GIL is
-//! released); other dtypes are a `TypeError`, other shapes or empty arrays an
-//! `InvalidInputError`.
+//! Images are 2D uint8/uint16 numpy arrays of any strides, or `(rows, columns, 3 or 4)`
+//! colour ones (copied, then the GIL is released); other dtypes are a `TypeError`, other
+//! shapes or empty arrays an `InvalidInputError`.
 
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 
-use stripecal::model::image::AnyGray;
+use stripecal::model::image::{AnyGray, AnyImage};
 use stripecal::vision::stripe::{
-    self as core, EdgeOptions, LineFit, Stripe, StripeDirection, StripeMethod, StripeOptions,
+    self as core, EdgeOptions, LineFit, Stripe, StripeChannel, StripeDirection, StripeMethod,
+    StripeOptions,
 };
 
 use crate::convert::{f64_array, fmt_shape, nd};
 use crate::errors::{invalid_input, ResultExt};
-use crate::imageview::gray_from_py;
+use crate::imageview::{gray_or_colour_from_py, image_from_py};
 
 /// The stripe of one image: one point per scan line (rows for direction "cols", columns
 /// for "rows"), in scan-line order.
@@ -166,33 +167,59 @@ fn view<'a>(py: Python<'_>, img: &'a AnyGray) -> PyResult<stripecal::model::imag
     img.view().py_err(py)
 }
 
-/// Extracts the laser stripe of `image` (2D uint8/uint16): one sub-pixel point per scan
-/// line. `direction`: "auto" (decided from the image), "rows" (the stripe runs along
-/// rows: one point per column) or "cols" (one point per row). `method`: "centroid" (gray
-/// centroid over an adaptive window, the paper's way) or "gaussian" (least-squares
-/// Gaussian fit). `board_image`: the board image of the same pose (laser off); its
+/// Extracts the laser stripe of `image` (2D uint8/uint16 gray, or `(H, W, 3 or 4)`
+/// uint8/uint16 RGB(A)): one sub-pixel point per scan line. `direction`: "auto" (decided
+/// from the image), "rows" (the stripe runs along rows: one point per column) or "cols"
+/// (one point per row). `method`: "centroid" (gray centroid over an adaptive window, the
+/// paper's way) or "gaussian" (least-squares Gaussian fit). `channel`: the signal the
+/// stripe is found in (rig.json's `stripe.channel`): "gray" (BT.601 gray of a colour
+/// image), "red", "green" or "blue" (that colour's channel of a colour image: a colour
+/// laser's stripe; a gray image is an `InvalidInputError`) or "auto" (chosen from this
+/// image: the signal where the stripe has the highest peak-to-noise ratio).
+/// `board_image`: the board image of the same pose (laser off, gray or colour); its
 /// reflectance edges flag the points they bias (`Stripe.EDGE`). For single-image views
 /// pass the same array as `image`: the stripe's own footprint is then left out of the
-/// edge test. Raises `DetectionError` when no scan line holds a stripe.
+/// edge test (on the image's gray). Raises `DetectionError` when no scan line holds a
+/// stripe.
 #[pyfunction]
-#[pyo3(signature = (image, direction = "auto", method = "centroid", board_image = None))]
+#[pyo3(signature = (image, direction = "auto", method = "centroid", board_image = None, channel = "gray"))]
 pub fn extract_stripe(
     py: Python<'_>,
     image: &Bound<'_, PyAny>,
     direction: &str,
     method: &str,
     board_image: Option<&Bound<'_, PyAny>>,
+    channel: &str,
 ) -> PyResult<PyStripe> {
     let opts = StripeOptions {
         direction: StripeDirection::from_name(direction).py_err(py)?,
         method: StripeMethod::from_name(method).py_err(py)?,
         ..StripeOptions::default()
     };
-    let img = gray_from_py(image, "image")?;
+    let channel = StripeChannel::from_name(channel).py_err(py)?;
+    let any = image_from_py(image, "image")?;
+    if !any.is_colour() && channel.rgb_index().is_some() {
+        return Err(invalid_input(
+            py,
+            format!(
+                "channel {:?} needs a colour image (rows, columns, 3 or 4): image is gray \
+                 (2D); use channel=\"gray\" or \"auto\"",
+                channel.name()
+            ),
+        ));
+    }
+    let signal = py
+        .detach(|| core::stripe_signal(&any, channel, &opts).map(|s| s.into_owned()))
+        .py_err(py)?;
+    // the image's own gray: the board's appearance in single-image views
+    let img: AnyGray = match &any {
+        AnyImage::Gray(g) => g.clone(),
+        AnyImage::Rgb(c) => c.to_gray(),
+    };
     let board = match board_image {
         None => None,
         Some(b) if b.is(image) => Some(None),
-        Some(b) => Some(Some(gray_from_py(b, "board_image")?)),
+        Some(b) => Some(Some(gray_or_colour_from_py(b, "board_image")?)),
     };
     if let Some(Some(b)) = &board {
         if b.size() != img.size() {
@@ -209,6 +236,7 @@ pub fn extract_stripe(
         }
     }
     let v = view(py, &img)?;
+    let sv = view(py, &signal)?;
     let bv = match &board {
         Some(Some(b)) => Some(view(py, b)?),
         _ => None,
@@ -216,7 +244,7 @@ pub fn extract_stripe(
     let single = matches!(board, Some(None)) || (bv.is_some() && board_equals(&board, &img));
     let stripe = py
         .detach(|| -> stripecal::Result<Stripe> {
-            let mut s = core::extract_stripe(v, &opts)?;
+            let mut s = core::extract_stripe(sv, &opts)?;
             let eo = EdgeOptions {
                 single_image: single,
                 ..EdgeOptions::default()

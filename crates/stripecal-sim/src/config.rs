@@ -222,6 +222,60 @@ pub struct ImagingCfg {
     pub speckle_contrast: f64,
     /// Speckle grain size (Gaussian correlation sigma), px.
     pub speckle_grain_px: f64,
+    /// Colour images: the calibration views and the ball scan are rendered as RGB
+    /// (written as RGB PNGs) from per-channel reflectances, ambient and laser colour,
+    /// with independent noise of `noise_gray` in each channel (default `false`: gray).
+    #[serde(default)]
+    pub colour: bool,
+    /// Colour images: the laser's colour, `"red"`, `"green"` or `"blue"`: its light is
+    /// in that channel only, at `laser_peak`.
+    #[serde(default = "default_laser_colour")]
+    pub laser_colour: String,
+    /// Colour images: the ambient light's level per channel (R, G, B), relative to
+    /// `ambient`, `laser_ambient` and `single_image_ambient` (`[1, 1, 1]`: white
+    /// daylight).
+    #[serde(default = "default_white")]
+    pub ambient_rgb: [f64; 3],
+    /// Colour images: the plate's reflectance per channel; `None`: `plate_reflectance`
+    /// in every channel (white).
+    #[serde(default)]
+    pub plate_rgb: Option<[f64; 3]>,
+    /// Colour images: the printed features' (circles', squares') reflectance per
+    /// channel; `None`: `circle_reflectance` in every channel (black ink).
+    #[serde(default)]
+    pub ink_rgb: Option<[f64; 3]>,
+}
+
+fn default_laser_colour() -> String {
+    "red".into()
+}
+
+fn default_white() -> [f64; 3] {
+    [1.0; 3]
+}
+
+impl ImagingCfg {
+    /// The laser colour's channel (0 red, 1 green, 2 blue).
+    pub fn laser_channel(&self) -> Result<usize, SimError> {
+        match self.laser_colour.as_str() {
+            "red" => Ok(0),
+            "green" => Ok(1),
+            "blue" => Ok(2),
+            other => Err(SimError::Config(format!(
+                "imaging.laser_colour: {other:?} (expected \"red\", \"green\" or \"blue\")"
+            ))),
+        }
+    }
+
+    /// The knobs of colour images, as truth.json's sim_config leaves them out of gray
+    /// twins (so a gray twin's truth.json is what it was before they existed).
+    pub const COLOUR_KNOBS: [&'static str; 5] = [
+        "colour",
+        "laser_colour",
+        "ambient_rgb",
+        "plate_rgb",
+        "ink_rgb",
+    ];
 }
 
 /// The ball scan.
@@ -286,6 +340,10 @@ pub struct SimConfig {
     pub working_range_mm: [f64; 2],
     /// rig.json `stripe.direction` hint: `auto`, `rows` or `cols`.
     pub stripe_direction: String,
+    /// rig.json `stripe.channel`: `gray`, `red`, `green`, `blue` or `auto`; `None` (the
+    /// default): the laser's colour for colour images (`imaging.colour`), gray otherwise.
+    #[serde(default)]
+    pub stripe_channel: Option<String>,
     /// How views.csv and scan.csv give the robot poses: `None` (the default) writes the
     /// encoder readings `q1..qN`; a pose convention writes the flange pose a controller
     /// would report instead, the NOMINAL robot's forward kinematics of the readings, in
@@ -418,6 +476,11 @@ impl SimConfig {
                 laser_emitter_mm: None,
                 speckle_contrast: 0.0,
                 speckle_grain_px: 1.0,
+                colour: false,
+                laser_colour: default_laser_colour(),
+                ambient_rgb: default_white(),
+                plate_rgb: None,
+                ink_rgb: None,
             },
             scan: ScanCfg {
                 enabled: true,
@@ -432,6 +495,7 @@ impl SimConfig {
             },
             working_range_mm: [80.0, 130.0],
             stripe_direction: "auto".into(),
+            stripe_channel: None,
             pose_columns: None,
             verify: VerifyCfg::default(),
             bench: BenchCfg::default(),
@@ -682,10 +746,36 @@ impl SimConfig {
         }
         stripecal::model::StripeDirection::from_name(&self.stripe_direction)
             .map_err(|e| SimError::Config(format!("stripe_direction: {e}")))?;
+        self.stripe_channel_model()?;
+        im.laser_channel()?;
+        for (k, v) in [
+            ("imaging.ambient_rgb", Some(im.ambient_rgb)),
+            ("imaging.plate_rgb", im.plate_rgb),
+            ("imaging.ink_rgb", im.ink_rgb),
+        ] {
+            if let Some(v) = v {
+                if v.iter().any(|x| !(x.is_finite() && *x >= 0.0)) {
+                    return bad(k, format!("{v:?} must be finite and >= 0"));
+                }
+            }
+        }
         self.pose_columns_model()?;
         self.verify.validate()?;
         self.bench.validate()?;
         Ok(())
+    }
+
+    /// rig.json's `stripe.channel` (see [`SimConfig::stripe_channel`]).
+    pub fn stripe_channel_model(&self) -> Result<stripecal::model::StripeChannel, SimError> {
+        use stripecal::model::StripeChannel;
+        match &self.stripe_channel {
+            Some(name) => StripeChannel::from_name(name)
+                .map_err(|e| SimError::Config(format!("stripe_channel: {e}"))),
+            None if self.imaging.colour => {
+                Ok(StripeChannel::ALL[1 + self.imaging.laser_channel()?])
+            }
+            None => Ok(StripeChannel::Gray),
+        }
     }
 
     /// The flange-pose columns of views.csv and scan.csv, `None` for joint readings.

@@ -8,7 +8,7 @@ use serde_json::{json, Value};
 
 use stripecal::io;
 use stripecal::model::geometry::{Iso3, Plane};
-use stripecal::model::image::AnyGray;
+use stripecal::model::image::{AnyGray, AnyRgb};
 use stripecal::model::kinematics::IkOptions;
 use stripecal::model::{
     Calibration, Rig, RobotReading, ScanFrame, Sphere, StripeDirection, Truth, View,
@@ -16,7 +16,7 @@ use stripecal::model::{
 use stripecal::{Board, Camera, DistortionModel, Robot};
 
 use crate::config::{pose_cfg, pose_model, SimConfig};
-use crate::imaging::{form_image, Exposure};
+use crate::imaging::{form_image, form_rgb, Exposure};
 use crate::poses::{PoseInfo, PoseProblem};
 use crate::render::{LinearImage, Renderer};
 use crate::scene::{ImageScene, Laser, World};
@@ -62,10 +62,16 @@ pub struct Twin {
 
 /// One rendered view (or scan frame) with its truth.
 pub struct ViewRender {
-    /// Board image (laser off); in single-image mode the one image.
+    /// Board image (laser off); in single-image mode the one image. Colour images
+    /// (`imaging.colour`): the BT.601 gray of `board_rgb`.
     pub board_image: Option<AnyGray>,
     /// Laser image; `None` in single-image mode (the board image holds the stripe).
+    /// Colour images: the BT.601 gray of `laser_rgb`.
     pub laser_image: Option<AnyGray>,
+    /// Colour images only: the board image as rendered (RGB).
+    pub board_rgb: Option<AnyRgb>,
+    /// Colour images only: the laser image as rendered (RGB).
+    pub laser_rgb: Option<AnyRgb>,
     /// Imaged target points: circle centres or chessboard corners
     /// ([`crate::truth::target_truth`]; empty for scan frames). The name is historical.
     pub circles: Vec<PointTruth>,
@@ -376,9 +382,88 @@ impl Twin {
         Ok((self.renderer()?.render(&scene), scene))
     }
 
+    /// The world of `base` with colour channel `c`'s reflectances (`imaging.plate_rgb`,
+    /// `imaging.ink_rgb`, swapped like the gray ones for light circles); `None` when
+    /// they are the gray ones (the gray render serves the channel).
+    fn channel_world(&self, base: &World, c: usize) -> Option<World> {
+        let im = &self.cfg.imaging;
+        let plate = im.plate_rgb.map_or(im.plate_reflectance, |v| v[c]);
+        let ink = im.ink_rgb.map_or(im.circle_reflectance, |v| v[c]);
+        if plate == im.plate_reflectance && ink == im.circle_reflectance {
+            return None;
+        }
+        let (plate, circle) = if self.board.dark_circles {
+            (plate, ink)
+        } else {
+            (ink, plate)
+        };
+        Some(World {
+            plate_reflectance: plate,
+            circle_reflectance: circle,
+            ..base.clone()
+        })
+    }
+
+    /// The linear images of a pose per colour channel: `lin` (the gray render) where
+    /// the channel's reflectances are the gray ones, a render with its own otherwise.
+    fn linear_rgb(
+        &self,
+        q_deg: &[f64],
+        with_sphere: bool,
+        lin: LinearImage,
+    ) -> Result<[std::sync::Arc<LinearImage>; 3], SimError> {
+        let base = if with_sphere {
+            &self.scan_world
+        } else {
+            &self.calib_world
+        };
+        let gray = std::sync::Arc::new(lin);
+        let mut out = [gray.clone(), gray.clone(), gray];
+        for (c, slot) in out.iter_mut().enumerate() {
+            if let Some(w) = self.channel_world(base, c) {
+                let scene = w.image_scene(&self.base_cam(q_deg)?, self.laser());
+                *slot = std::sync::Arc::new(self.renderer()?.render(&scene));
+            }
+        }
+        Ok(out)
+    }
+
+    /// The image of one exposure: gray, or with `imaging.colour` the RGB image and its
+    /// BT.601 gray.
+    fn expose(
+        &self,
+        lin: &LinearImage,
+        rgb: Option<&[std::sync::Arc<LinearImage>; 3]>,
+        exposure: Exposure,
+        stream: u64,
+    ) -> Result<(AnyGray, Option<AnyRgb>), SimError> {
+        let im = &self.cfg.imaging;
+        let seed = self.cfg.seed;
+        Ok(match rgb {
+            None => (
+                form_image(lin, &self.camera, im, exposure, seed, stream),
+                None,
+            ),
+            Some(l) => {
+                let c = form_rgb(
+                    [&l[0], &l[1], &l[2]],
+                    &self.camera,
+                    im,
+                    exposure,
+                    seed,
+                    stream,
+                )?;
+                (c.to_gray(), Some(c))
+            }
+        })
+    }
+
     /// Renders calibration view `index` at `q_deg`: board (and laser) image with truth.
     pub fn render_view(&self, q_deg: &[f64], index: usize) -> Result<ViewRender, SimError> {
         let (lin, scene) = self.render_linear(q_deg, false)?;
+        if self.cfg.imaging.colour {
+            return self.render_view_rgb(q_deg, index, lin, scene);
+        }
         let im = &self.cfg.imaging;
         let seed = self.cfg.seed;
         let (board_image, laser_image) = if im.single_image {
@@ -416,6 +501,37 @@ impl Twin {
         Ok(ViewRender {
             board_image: Some(board_image),
             laser_image,
+            board_rgb: None,
+            laser_rgb: None,
+            circles: target_truth(&scene, &self.camera, 0.0),
+            stripe: stripe_truth(&scene, &self.camera, self.direction),
+            base_cam: self.base_cam(q_deg)?,
+        })
+    }
+
+    /// [`Self::render_view`] of colour images.
+    fn render_view_rgb(
+        &self,
+        q_deg: &[f64],
+        index: usize,
+        lin: LinearImage,
+        scene: ImageScene,
+    ) -> Result<ViewRender, SimError> {
+        let rgb = self.linear_rgb(q_deg, false, lin)?;
+        let s = 3 * index as u64;
+        let (board_image, board_rgb, laser_image, laser_rgb) = if self.cfg.imaging.single_image {
+            let (g, c) = self.expose(&rgb[0], Some(&rgb), Exposure::Single, s)?;
+            (g, c, None, None)
+        } else {
+            let (g, c) = self.expose(&rgb[0], Some(&rgb), Exposure::Board, s)?;
+            let (lg, lc) = self.expose(&rgb[0], Some(&rgb), Exposure::Laser, s + 1)?;
+            (g, c, Some(lg), lc)
+        };
+        Ok(ViewRender {
+            board_image: Some(board_image),
+            laser_image,
+            board_rgb,
+            laser_rgb,
             circles: target_truth(&scene, &self.camera, 0.0),
             stripe: stripe_truth(&scene, &self.camera, self.direction),
             base_cam: self.base_cam(q_deg)?,
@@ -459,17 +575,18 @@ impl Twin {
     /// Renders scan frame `index` at `q_deg` (stripe image only) with its truth.
     pub fn render_scan_frame(&self, q_deg: &[f64], index: usize) -> Result<ViewRender, SimError> {
         let (lin, scene) = self.render_linear(q_deg, true)?;
-        let img = form_image(
-            &lin,
-            &self.camera,
-            &self.cfg.imaging,
-            Exposure::Laser,
-            self.cfg.seed,
-            1_000_000 + index as u64,
-        );
+        let stream = 1_000_000 + index as u64;
+        let (img, rgb) = if self.cfg.imaging.colour {
+            let l = self.linear_rgb(q_deg, true, lin)?;
+            self.expose(&l[0], Some(&l), Exposure::Laser, stream)?
+        } else {
+            self.expose(&lin, None, Exposure::Laser, stream)?
+        };
         Ok(ViewRender {
             board_image: None,
             laser_image: Some(img),
+            board_rgb: None,
+            laser_rgb: rgb,
             circles: vec![],
             stripe: stripe_truth(&scene, &self.camera, self.direction),
             base_cam: self.base_cam(q_deg)?,
@@ -485,6 +602,7 @@ impl Twin {
             board: self.board.clone(),
             robot: Some(self.robot_nominal.clone()),
             stripe_direction: StripeDirection::from_name(&self.cfg.stripe_direction)?,
+            stripe_channel: self.cfg.stripe_channel_model()?,
         })
     }
 
@@ -509,6 +627,17 @@ impl Twin {
             // off: truth.json as before the bench mode existed
             if let Some(m) = cfg.as_object_mut() {
                 m.remove("bench");
+            }
+        }
+        if !self.cfg.imaging.colour && self.cfg.stripe_channel.is_none() {
+            // gray: truth.json as before the colour knobs existed
+            if let Some(m) = cfg.as_object_mut() {
+                m.remove("stripe_channel");
+                if let Some(im) = m.get_mut("imaging").and_then(|v| v.as_object_mut()) {
+                    for k in crate::config::ImagingCfg::COLOUR_KNOBS {
+                        im.remove(k);
+                    }
+                }
             }
         }
         extra.insert("sim_config".into(), cfg);

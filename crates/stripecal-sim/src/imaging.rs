@@ -3,7 +3,7 @@
 
 use rayon::prelude::*;
 
-use stripecal::model::image::{AnyGray, GrayImage};
+use stripecal::model::image::{AnyGray, AnyRgb, GrayImage, RgbImage};
 use stripecal::Camera;
 
 use crate::config::ImagingCfg;
@@ -30,11 +30,95 @@ pub fn form_image(
     seed: u64,
     stream: u64,
 ) -> AnyGray {
+    let quant = form_channel(lin, cam, im, exposure, seed, stream, [1.0, 1.0]);
+    let (width, height) = (lin.width, lin.height);
+    if im.bit_depth == 16 {
+        AnyGray::U16(GrayImage {
+            width,
+            height,
+            data: quant,
+        })
+    } else {
+        AnyGray::U8(GrayImage {
+            width,
+            height,
+            data: quant.into_iter().map(|x| x as u8).collect(),
+        })
+    }
+}
+
+/// Forms an RGB image from one linear image per channel (`lins[c]`: the scene rendered
+/// with that channel's reflectances): channel `c` is [`form_image`] with the ambient
+/// scaled by `imaging.ambient_rgb[c]`, the laser light kept only in the laser colour's
+/// channel, and its own noise (stream `stream` and the channel); the channels are
+/// independent. Errors only on a bad `imaging.laser_colour`.
+pub fn form_rgb(
+    lins: [&LinearImage; 3],
+    cam: &Camera,
+    im: &ImagingCfg,
+    exposure: Exposure,
+    seed: u64,
+    stream: u64,
+) -> Result<AnyRgb, crate::SimError> {
+    let laser = im.laser_channel()?;
+    let chans: Vec<Vec<u16>> = (0..3)
+        .map(|c| {
+            let las = if c == laser { 1.0 } else { 0.0 };
+            let s = stream ^ ((c as u64 + 1) << 56);
+            form_channel(
+                lins[c],
+                cam,
+                im,
+                exposure,
+                seed,
+                s,
+                [im.ambient_rgb[c], las],
+            )
+        })
+        .collect();
+    let n = chans[0].len();
+    let mut data = Vec::with_capacity(3 * n);
+    for ((r, g), b) in chans[0].iter().zip(&chans[1]).zip(&chans[2]) {
+        data.extend([*r, *g, *b]);
+    }
+    let (width, height) = (lins[0].width, lins[0].height);
+    Ok(if im.bit_depth == 16 {
+        AnyRgb::U16(RgbImage {
+            width,
+            height,
+            data,
+        })
+    } else {
+        AnyRgb::U8(RgbImage {
+            width,
+            height,
+            data: data.into_iter().map(|x| x as u8).collect(),
+        })
+    })
+}
+
+/// The quantised samples of [`form_image`] (`<=` the bit depth's maximum) with the
+/// ambient level scaled by `scale[0]` and the laser light by `scale[1]` (`[1, 1]`: the
+/// gray image, bit for bit).
+fn form_channel(
+    lin: &LinearImage,
+    cam: &Camera,
+    im: &ImagingCfg,
+    exposure: Exposure,
+    seed: u64,
+    stream: u64,
+    scale: [f64; 2],
+) -> Vec<u16> {
     let (w, h) = (lin.width, lin.height);
     let (amb, las) = match exposure {
         Exposure::Board => (im.ambient, 0.0),
         Exposure::Laser => (im.laser_ambient, 1.0),
         Exposure::Single => (im.single_image_ambient, 1.0),
+    };
+    let (amb, las) = if scale == [1.0, 1.0] {
+        (amb, las)
+    } else {
+        (amb * scale[0], las * scale[1])
     };
     let speckle = if las > 0.0 && im.speckle_contrast > 0.0 {
         Some(speckle_field(
@@ -103,19 +187,7 @@ pub fn form_image(
                 .collect::<Vec<u16>>()
         })
         .collect();
-    if im.bit_depth == 16 {
-        AnyGray::U16(GrayImage {
-            width: w,
-            height: h,
-            data: quant,
-        })
-    } else {
-        AnyGray::U8(GrayImage {
-            width: w,
-            height: h,
-            data: quant.into_iter().map(|x| x as u8).collect(),
-        })
-    }
+    quant
 }
 
 /// Separable Gaussian blur with mirrored borders (kernel radius ceil(4 sigma)).

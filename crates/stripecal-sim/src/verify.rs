@@ -703,6 +703,8 @@ impl Twin {
         );
         Ok(ViewRender {
             board_image: None,
+            board_rgb: None,
+            laser_rgb: None,
             laser_image: Some(img),
             circles: vec![],
             stripe: stripe_truth(&scene, &self.camera, self.direction),

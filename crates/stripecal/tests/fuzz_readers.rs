@@ -875,8 +875,9 @@ proptest! {
         robot in proptest::option::of(arb_robot()),
         dir in prop::sample::select(vec![StripeDirection::Auto, StripeDirection::Rows, StripeDirection::Cols]),
         model in prop::sample::select(vec![DistortionModel::Radial1, DistortionModel::Radial2, DistortionModel::OpenCv5]),
+        channel in prop::sample::select(stripecal::model::StripeChannel::ALL.to_vec()),
     ) {
-        let rig = Rig { width: w, height: h, distortion_model: model, board, robot, stripe_direction: dir };
+        let rig = Rig { width: w, height: h, distortion_model: model, board, robot, stripe_direction: dir, stripe_channel: channel };
         check_rig_rewrites("rig round trip", &rig);
     }
 

@@ -10,7 +10,7 @@ use stripecal::model::geometry::iso_from_rotvec;
 use stripecal::model::image::{AnyGray, GrayImage};
 use stripecal::model::{
     Calibration, Cloud, Dataset, NamedCovariance, Quality, Rig, RobotReading, Scan, ScanFrame,
-    Sphere, SphereFit, StripeDirection, Truth, View,
+    Sphere, SphereFit, StripeChannel, StripeDirection, Truth, View,
 };
 use stripecal::{Board, BoardKind, Camera, DistortionModel, Error, Iso3, Plane, Robot};
 
@@ -70,6 +70,7 @@ fn rig(robot: Option<Robot>) -> Rig {
         board: Board::hp3_paper(),
         robot,
         stripe_direction: StripeDirection::Cols,
+        stripe_channel: StripeChannel::Red,
     }
 }
 
@@ -165,6 +166,55 @@ fn rig_defaults_and_unknown_keys() {
     assert_eq!(r.board.kind, BoardKind::Chessboard);
     assert_eq!(r.board.pitch_mm, 4.0);
     assert!(r.robot.is_none());
+    assert_eq!(r.stripe_channel, StripeChannel::Gray);
+}
+
+/// `stripe.channel` (spec/DATASET.md): every name read and written back, gray (the
+/// default) not written, an unknown colour a format error naming rig.json and the key.
+#[test]
+fn rig_stripe_channel() {
+    let d = tmp();
+    let p = d.path().join("rig.json");
+    for c in StripeChannel::ALL {
+        let mut r = rig(None);
+        r.stripe_channel = c;
+        write_rig(&p, &r).unwrap();
+        assert_eq!(read_rig(&p).unwrap(), r);
+        let text = fs::read_to_string(&p).unwrap();
+        assert_eq!(
+            text.contains("\"channel\""),
+            c != StripeChannel::Gray,
+            "{text}"
+        );
+        let given = RIG_JSON.replacen(
+            "\"format\"",
+            &format!("\"stripe\": {{\"channel\": \"{}\"}}, \"format\"", c.name()),
+            1,
+        );
+        assert_eq!(
+            rig_from_json(Path::new("rig.json"), &given)
+                .unwrap()
+                .stripe_channel,
+            c
+        );
+    }
+    for bad in ["\"purple\"", "\"Red\"", "3"] {
+        let text = RIG_JSON.replacen(
+            "\"format\"",
+            &format!("\"stripe\": {{\"direction\": \"rows\", \"channel\": {bad}}}, \"format\""),
+            1,
+        );
+        let e = rig_from_json(Path::new("some/rig.json"), &text).unwrap_err();
+        let Error::Format { path, location, .. } = &e else {
+            panic!("{e:?}")
+        };
+        assert_eq!(path, Path::new("some/rig.json"));
+        assert_eq!(location, "stripe.channel", "{e}");
+        assert!(
+            e.to_string().starts_with("some/rig.json: stripe.channel: "),
+            "{e}"
+        );
+    }
 }
 
 /// The robot's optional figures (spec, section Robot): read, written back, absent by

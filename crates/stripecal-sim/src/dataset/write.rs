@@ -62,11 +62,15 @@ impl Twin {
             } else {
                 format!("images/view_{i:03}_laser.png")
             };
-            if let Some(b) = &r.board_image {
-                io::save_gray_png(tmp.join(&board_name), b)?;
+            match (&r.board_rgb, &r.board_image) {
+                (Some(c), _) => io::save_rgb_png(tmp.join(&board_name), c)?,
+                (None, Some(b)) => io::save_gray_png(tmp.join(&board_name), b)?,
+                (None, None) => {}
             }
-            if let Some(l) = &r.laser_image {
-                io::save_gray_png(tmp.join(&laser_name), l)?;
+            match (&r.laser_rgb, &r.laser_image) {
+                (Some(c), _) => io::save_rgb_png(tmp.join(&laser_name), c)?,
+                (None, Some(l)) => io::save_gray_png(tmp.join(&laser_name), l)?,
+                (None, None) => {}
             }
             views.push(View {
                 line: i + 2,
@@ -238,8 +242,10 @@ impl Twin {
             progress(stage, k, qs.len());
             let r = render(q, k)?;
             let img_name = format!("images/scan_{k:04}.png");
-            if let Some(img) = &r.laser_image {
-                io::save_gray_png(tmp.join(&img_name), img)?;
+            match (&r.laser_rgb, &r.laser_image) {
+                (Some(c), _) => io::save_rgb_png(tmp.join(&img_name), c)?,
+                (None, Some(img)) => io::save_gray_png(tmp.join(&img_name), img)?,
+                (None, None) => {}
             }
             sphere_pts += r.stripe.iter().filter(|p| p.surface == "sphere").count();
             frames.push(ScanFrame {

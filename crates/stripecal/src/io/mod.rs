@@ -36,7 +36,8 @@ pub use csv::{
     write_views_csv_with,
 };
 pub use imageio::{
-    load_gray, load_gray_info, save_gray_png, ImageInfo, MAX_IMAGE_BYTES, MAX_IMAGE_SIDE,
+    load_gray, load_gray_info, load_image, load_image_info, save_gray_png, save_png, save_rgb_png,
+    ImageInfo, MAX_IMAGE_BYTES, MAX_IMAGE_SIDE,
 };
 pub use ply::{read_ply, write_ply, write_ply_with_comments, PlyFormat};
 pub use poses::{

@@ -10,7 +10,7 @@ use crate::error::{Error, Result};
 use crate::model::board::{Board, BoardKind};
 use crate::model::camera::DistortionModel;
 use crate::model::kinematics::{DhJoint, Robot};
-use crate::model::{Rig, StripeDirection};
+use crate::model::{Rig, StripeChannel, StripeDirection};
 
 /// The `format` value of rig.json.
 pub(super) const RIG_FORMAT: &str = "stripecal/rig@1";
@@ -44,17 +44,25 @@ pub fn rig_from_json(path: &Path, text: &str) -> Result<Rig> {
         Some(r) => Some(robot_from(&r)?),
     };
 
-    let stripe_direction = match root.opt_obj("stripe")? {
+    let stripe = root.opt_obj("stripe")?;
+    let stripe_direction = match stripe.as_ref().and_then(|s| s.opt("direction")) {
         None => StripeDirection::default(),
-        Some(s) => match s.opt("direction") {
-            None => StripeDirection::default(),
-            Some(v) => StripeDirection::from_name(v.str()?).map_err(|_| {
-                v.err(format!(
-                    "expected \"auto\", \"rows\" or \"cols\", got {:?}",
-                    v.str().unwrap_or_default()
-                ))
-            })?,
-        },
+        Some(v) => StripeDirection::from_name(v.str()?).map_err(|_| {
+            v.err(format!(
+                "expected \"auto\", \"rows\" or \"cols\", got {:?}",
+                v.str().unwrap_or_default()
+            ))
+        })?,
+    };
+    let stripe_channel = match stripe.as_ref().and_then(|s| s.opt("channel")) {
+        None => StripeChannel::default(),
+        Some(v) => StripeChannel::from_name(v.str()?).map_err(|_| {
+            v.err(format!(
+                "unknown laser colour {:?}: expected \"gray\", \"red\", \"green\", \"blue\" or \
+                 \"auto\"",
+                v.str().unwrap_or_default()
+            ))
+        })?,
     };
 
     Ok(Rig {
@@ -64,6 +72,7 @@ pub fn rig_from_json(path: &Path, text: &str) -> Result<Rig> {
         board,
         robot,
         stripe_direction,
+        stripe_channel,
     })
 }
 
@@ -249,7 +258,8 @@ fn board_value(b: &Board) -> Value {
 }
 
 /// rig.json text (pretty-printed, 2-space indent, final newline). The `robot` key is
-/// left out when the rig has none.
+/// left out when the rig has none, `stripe.channel` when it is the default `gray` (so
+/// a gray rig's file is what it was before the key existed).
 pub fn rig_to_json(r: &Rig) -> String {
     let mut cam = Map::new();
     cam.insert("width".into(), Value::from(r.width));
@@ -267,6 +277,9 @@ pub fn rig_to_json(r: &Rig) -> String {
     }
     let mut stripe = Map::new();
     stripe.insert("direction".into(), Value::from(r.stripe_direction.name()));
+    if r.stripe_channel != StripeChannel::Gray {
+        stripe.insert("channel".into(), Value::from(r.stripe_channel.name()));
+    }
     m.insert("stripe".into(), Value::Object(stripe));
     to_pretty(&Value::Object(m))
 }

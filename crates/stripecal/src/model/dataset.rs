@@ -44,6 +44,72 @@ impl StripeDirection {
     }
 }
 
+/// The `stripe.channel` of rig.json: which representation of a laser image the stripe
+/// is found in (spec/DATASET.md; how a colour's contrast is formed:
+/// [`crate::vision::stripe::colour`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Hash)]
+pub enum StripeChannel {
+    /// The image converted to gray by BT.601 luma (gray images as they are).
+    #[default]
+    Gray,
+    /// The red channel's contrast (a red laser).
+    Red,
+    /// The green channel's contrast (a green laser).
+    Green,
+    /// The blue channel's contrast (a blue or violet laser).
+    Blue,
+    /// Decided once per dataset from its laser images (may pick `Gray`).
+    Auto,
+}
+
+impl StripeChannel {
+    /// The names rig.json and the APIs use, in [`StripeChannel::ALL`]'s order.
+    pub const NAMES: [&'static str; 5] = ["gray", "red", "green", "blue", "auto"];
+    /// Every value.
+    pub const ALL: [StripeChannel; 5] = [
+        StripeChannel::Gray,
+        StripeChannel::Red,
+        StripeChannel::Green,
+        StripeChannel::Blue,
+        StripeChannel::Auto,
+    ];
+
+    /// `gray`, `red`, `green`, `blue` or `auto`.
+    pub fn name(self) -> &'static str {
+        match self {
+            StripeChannel::Gray => "gray",
+            StripeChannel::Red => "red",
+            StripeChannel::Green => "green",
+            StripeChannel::Blue => "blue",
+            StripeChannel::Auto => "auto",
+        }
+    }
+
+    /// Parses `gray`, `red`, `green`, `blue` or `auto` ([`Error::InvalidInput`] naming
+    /// the accepted names otherwise).
+    pub fn from_name(s: &str) -> Result<Self> {
+        StripeChannel::ALL
+            .into_iter()
+            .find(|c| c.name() == s)
+            .ok_or_else(|| {
+                Error::InvalidInput(format!(
+                    "unknown stripe channel {s:?}: expected \"gray\", \"red\", \"green\", \"blue\" \
+                     or \"auto\""
+                ))
+            })
+    }
+
+    /// The colour's index in an RGB pixel (0, 1, 2); `None` for `Gray` and `Auto`.
+    pub fn rgb_index(self) -> Option<usize> {
+        match self {
+            StripeChannel::Red => Some(0),
+            StripeChannel::Green => Some(1),
+            StripeChannel::Blue => Some(2),
+            StripeChannel::Gray | StripeChannel::Auto => None,
+        }
+    }
+}
+
 /// The rig description (`rig.json`).
 #[derive(Debug, Clone, PartialEq)]
 pub struct Rig {
@@ -59,6 +125,8 @@ pub struct Rig {
     pub robot: Option<Robot>,
     /// Stripe direction hint.
     pub stripe_direction: StripeDirection,
+    /// The laser's colour in colour laser images (`stripe.channel`, default gray).
+    pub stripe_channel: StripeChannel,
 }
 
 /// What the robot reported for one pose.

@@ -1,9 +1,11 @@
-//! Plain grayscale image buffers (u8 or u16), the only image type the core crate uses.
+//! Plain image buffers (u8 or u16): grayscale, the type every vision stage works on,
+//! and interleaved RGB, which laser images keep until their stripe signal is formed
+//! ([`crate::vision::stripe::colour`]).
 //!
 //! ## Conventions
 //!
-//! Row-major, `data[row * width + col]`; pixel `(col, row)` has its centre at
-//! `(u, v) = (col, row)`.
+//! Row-major, `data[row * width + col]` (RGB: `data[3 * (row * width + col) + c]`, `c`
+//! 0 red, 1 green, 2 blue); pixel `(col, row)` has its centre at `(u, v) = (col, row)`.
 
 /// An owned grayscale image.
 use crate::error::{Error, Result};
@@ -80,6 +82,142 @@ pub fn gray_from_interleaved<T: Copy + Into<u32> + TryFrom<u32>>(
         .chunks_exact(channels)
         .map(|c| T::try_from(luma_bt601(c[0].into(), c[1].into(), c[2].into())).ok())
         .collect()
+}
+
+/// An owned colour image: interleaved RGB samples, 3 per pixel.
+#[derive(Debug, Clone, PartialEq)]
+pub struct RgbImage<T> {
+    pub width: usize,
+    pub height: usize,
+    /// `3 * width * height` samples: R, G, B of pixel 0, then of pixel 1...
+    pub data: Vec<T>,
+}
+
+impl<T: Copy + Default + Into<u32> + TryFrom<u32>> RgbImage<T> {
+    /// An image from interleaved samples with `channels` per pixel (3: RGB, 4: RGBA,
+    /// alpha dropped); `None` for another channel count or a buffer of the wrong length.
+    pub fn from_interleaved(
+        samples: &[T],
+        width: usize,
+        height: usize,
+        channels: usize,
+    ) -> Option<Self> {
+        if !(channels == 3 || channels == 4)
+            || width.checked_mul(height)?.checked_mul(channels)? != samples.len()
+        {
+            return None;
+        }
+        let data = if channels == 3 {
+            samples.to_vec()
+        } else {
+            samples
+                .chunks_exact(4)
+                .flat_map(|c| [c[0], c[1], c[2]])
+                .collect()
+        };
+        Some(RgbImage {
+            width,
+            height,
+            data,
+        })
+    }
+
+    /// BT.601 luma ([`luma_bt601`]), the contract's gray conversion.
+    pub fn to_gray(&self) -> GrayImage<T> {
+        GrayImage {
+            width: self.width,
+            height: self.height,
+            // the luma of channels <= MAX is <= MAX: the conversion cannot fail
+            data: gray_from_interleaved(&self.data, 3).unwrap_or_default(),
+        }
+    }
+
+    /// Channel `c` (0 red, 1 green, 2 blue) as a gray image.
+    pub fn channel(&self, c: usize) -> GrayImage<T> {
+        GrayImage {
+            width: self.width,
+            height: self.height,
+            data: self
+                .data
+                .iter()
+                .skip(c.min(2))
+                .step_by(3)
+                .copied()
+                .collect(),
+        }
+    }
+}
+
+/// An 8- or 16-bit RGB image.
+#[derive(Debug, Clone, PartialEq)]
+pub enum AnyRgb {
+    U8(RgbImage<u8>),
+    U16(RgbImage<u16>),
+}
+
+impl AnyRgb {
+    /// `(width, height)`.
+    pub fn size(&self) -> (usize, usize) {
+        match self {
+            AnyRgb::U8(i) => (i.width, i.height),
+            AnyRgb::U16(i) => (i.width, i.height),
+        }
+    }
+
+    /// BT.601 gray.
+    pub fn to_gray(&self) -> AnyGray {
+        match self {
+            AnyRgb::U8(i) => AnyGray::U8(i.to_gray()),
+            AnyRgb::U16(i) => AnyGray::U16(i.to_gray()),
+        }
+    }
+
+    /// Channel `c` (0 red, 1 green, 2 blue) as a gray image.
+    pub fn channel(&self, c: usize) -> AnyGray {
+        match self {
+            AnyRgb::U8(i) => AnyGray::U8(i.channel(c)),
+            AnyRgb::U16(i) => AnyGray::U16(i.channel(c)),
+        }
+    }
+}
+
+/// A decoded image: gray, or colour kept as RGB (laser images, whose stripe may be in
+/// one colour: [`crate::model::StripeChannel`]).
+#[derive(Debug, Clone, PartialEq)]
+pub enum AnyImage {
+    Gray(AnyGray),
+    Rgb(AnyRgb),
+}
+
+impl AnyImage {
+    /// `(width, height)`.
+    pub fn size(&self) -> (usize, usize) {
+        match self {
+            AnyImage::Gray(g) => g.size(),
+            AnyImage::Rgb(c) => c.size(),
+        }
+    }
+
+    /// Whether the image has colour channels.
+    pub fn is_colour(&self) -> bool {
+        matches!(self, AnyImage::Rgb(_))
+    }
+
+    /// 8 or 16.
+    pub fn bit_depth(&self) -> u8 {
+        match self {
+            AnyImage::Gray(AnyGray::U8(_)) | AnyImage::Rgb(AnyRgb::U8(_)) => 8,
+            AnyImage::Gray(AnyGray::U16(_)) | AnyImage::Rgb(AnyRgb::U16(_)) => 16,
+        }
+    }
+
+    /// The image as gray: itself, or BT.601 luma of a colour image.
+    pub fn into_gray(self) -> AnyGray {
+        match self {
+            AnyImage::Gray(g) => g,
+            AnyImage::Rgb(c) => c.to_gray(),
+        }
+    }
 }
 
 // ---- borrowed views (used by vision/) ----
@@ -229,5 +367,23 @@ mod tests {
         let g = gray_from_interleaved(&[255u8, 0, 0, 9, 0, 255, 0, 9], 4).unwrap();
         assert_eq!(g, vec![76, 150]);
         assert!(gray_from_interleaved(&[1u16, 2], 2).is_none());
+    }
+
+    #[test]
+    fn rgb_images() {
+        let px = [255u8, 0, 0, 9, 0, 255, 0, 9];
+        let c = RgbImage::from_interleaved(&px, 2, 1, 4).unwrap();
+        assert_eq!(c.data, vec![255, 0, 0, 0, 255, 0]);
+        assert_eq!(c.to_gray().data, vec![76, 150]);
+        assert_eq!(c.channel(0).data, vec![255, 0]);
+        assert_eq!(c.channel(1).data, vec![0, 255]);
+        assert_eq!(c.channel(2).data, vec![0, 0]);
+        assert!(RgbImage::from_interleaved(&px, 3, 1, 4).is_none());
+        assert!(RgbImage::from_interleaved(&px, 2, 1, 2).is_none());
+        let any = AnyImage::Rgb(AnyRgb::U8(c));
+        assert_eq!(
+            (any.size(), any.bit_depth(), any.is_colour()),
+            ((2, 1), 8, true)
+        );
     }
 }

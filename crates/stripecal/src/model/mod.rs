@@ -15,7 +15,9 @@ mod quality;
 mod results;
 
 pub use checks::{BoardScaleCheck, LeaveOneOut, LooView, LOO_DISAGREE_FACTOR};
-pub use dataset::{Dataset, Rig, RobotReading, Scan, ScanFrame, StripeDirection, View};
+pub use dataset::{
+    Dataset, Rig, RobotReading, Scan, ScanFrame, StripeChannel, StripeDirection, View,
+};
 pub use quality::{QualityCheck, QualityFailure};
 pub use results::{
     AdjustmentSummary, Calibration, CameraSigma, Cloud, DhCorrection, NamedCovariance, PlaneSigma,

@@ -66,7 +66,8 @@ use crate::vision::target::TargetOptions;
 
 pub use bench::BENCH_KEY;
 pub use calibrate::calibrate_observations;
-pub use observe::observe_dataset;
+pub(crate) use observe::decide_channel_lenient;
+pub use observe::{dataset_channel, observe_dataset};
 use observe::{observe, Observed};
 pub use plan::{
     nominal_from_truth, plan_poses, read_nominal, read_plan_rig, PlanOptions, PlannedPose,
@@ -272,6 +273,7 @@ pub fn calibrate_dataset_loaded(
         obs,
         mut warnings,
         left_out,
+        channel,
     } = observe(ds, opts)?;
     if obs.len() < 3 && obs.len() < ds.views.len() {
         // Not an input the adjustment could start from because views were refused: say
@@ -297,6 +299,24 @@ pub fn calibrate_dataset_loaded(
         }
     }
     rep.views.sort_by_key(|s| s.view);
+    if ds.rig.stripe_channel != crate::model::StripeChannel::Gray {
+        // the signal the stripes were found in (rig.json's, or what `auto` chose)
+        rep.calibration.extra.insert(
+            "stripe_channel".into(),
+            serde_json::Value::from(channel.0.name()),
+        );
+        if let Some(scores) = channel.1 {
+            let m: serde_json::Map<String, serde_json::Value> =
+                crate::vision::stripe::colour::SCORED
+                    .iter()
+                    .zip(scores)
+                    .map(|(c, s)| (c.name().to_string(), serde_json::Value::from(s.round())))
+                    .collect();
+            rep.calibration
+                .extra
+                .insert("stripe_channel_scores".into(), serde_json::Value::Object(m));
+        }
+    }
     warnings.append(&mut rep.warnings);
     rep.warnings = warnings;
     if !rep.warnings.is_empty() {

@@ -1,7 +1,9 @@
 //! Step 1: observations of a dataset's views: the target detected in the board image,
-//! the stripe extracted from the laser image (points at reflectance edges dropped) and
-//! `T_base_hand` from the robot reading.
+//! the stripe extracted from the laser image (in the signal rig.json's `stripe.channel`
+//! names, `auto` decided once for the dataset: [`dataset_channel`]; points at
+//! reflectance edges dropped) and `T_base_hand` from the robot reading.
 
+use std::borrow::Cow;
 use std::sync::atomic::{AtomicUsize, Ordering};
 
 use rayon::prelude::*;
@@ -9,9 +11,13 @@ use rayon::prelude::*;
 use super::CalibrateOptions;
 use crate::calib::{CircleObs, StripeShape, ViewObs};
 use crate::error::{Error, Result};
-use crate::io::load_gray_info;
-use crate::model::{Dataset, RobotReading, View};
-use crate::vision::stripe::{extract_stripe, flag_reflectance_edges, EdgeOptions, StripeOptions};
+use crate::io::load_image_info;
+use crate::model::image::{AnyGray, AnyImage};
+use crate::model::{Dataset, RobotReading, StripeChannel, View};
+use crate::vision::stripe::colour::{auto_sample, channel_scores, choose_channel};
+use crate::vision::stripe::{
+    extract_stripe, flag_reflectance_edges, stripe_signal_of_file, EdgeOptions, StripeOptions,
+};
 use crate::vision::target::detect_target;
 
 /// The observations of a dataset: the views whose board was found, warnings, and the
@@ -21,6 +27,64 @@ pub(super) struct Observed {
     pub warnings: Vec<String>,
     /// `(view, why)` for each view whose board was not found.
     pub left_out: Vec<(usize, String)>,
+    /// The signal the stripes were found in (never `Auto`), and for `auto` the scores
+    /// it was chosen by (gray, red, green, blue).
+    pub channel: (StripeChannel, Option<[f64; 4]>),
+}
+
+/// The stripe channel of a dataset: rig.json's `stripe.channel`, `auto` decided once
+/// from at most [`crate::vision::stripe::colour::AUTO_IMAGES`] of its laser images
+/// (evenly spread over the views), with the summed scores for `auto`.
+pub fn dataset_channel(
+    ds: &Dataset,
+    opts: &StripeOptions,
+) -> Result<(StripeChannel, Option<[f64; 4]>)> {
+    let ch = ds.rig.stripe_channel;
+    if ch != StripeChannel::Auto {
+        return Ok((ch, None));
+    }
+    let lasers: Vec<&std::path::Path> = ds
+        .views
+        .iter()
+        .filter_map(|v| v.laser_image.as_deref())
+        .collect();
+    let paths: Vec<std::path::PathBuf> = auto_sample(lasers.len())
+        .into_iter()
+        .map(|i| ds.image_path(lasers[i]))
+        .collect();
+    decide_channel(&paths, opts)
+}
+
+/// The `auto` choice from the laser images at `paths` (read in parallel), with the
+/// summed scores (gray, red, green, blue).
+pub(crate) fn decide_channel(
+    paths: &[std::path::PathBuf],
+    opts: &StripeOptions,
+) -> Result<(StripeChannel, Option<[f64; 4]>)> {
+    let scores: Vec<[f64; 4]> = paths
+        .par_iter()
+        .map(|p| channel_scores(&load_image_info(p)?.0, opts))
+        .collect::<Result<_>>()?;
+    let mut sum = [0.0; 4];
+    for s in &scores {
+        for k in 0..4 {
+            sum[k] += s[k];
+        }
+    }
+    Ok((choose_channel(&scores), Some(sum)))
+}
+
+/// The `auto` choice from the laser images at `paths`, those that cannot be read or
+/// decoded left out (a scan's bad frames are reported by the reconstruction itself).
+pub(crate) fn decide_channel_lenient(
+    paths: &[std::path::PathBuf],
+    opts: &StripeOptions,
+) -> StripeChannel {
+    let scores: Vec<[f64; 4]> = paths
+        .par_iter()
+        .filter_map(|p| channel_scores(&load_image_info(p).ok()?.0, opts).ok())
+        .collect();
+    choose_channel(&scores)
 }
 
 /// Detects circles and stripes of every view of a dataset (in parallel over views).
@@ -40,16 +104,18 @@ pub(super) fn observe(ds: &Dataset, opts: &CalibrateOptions) -> Result<Observed>
     let lossy = AtomicUsize::new(0);
     let mut stripe_opts = opts.stripe.clone();
     stripe_opts.direction = ds.rig.stripe_direction;
+    let channel = dataset_channel(ds, &stripe_opts)?;
     let results: Vec<Result<std::result::Result<ViewObs, String>>> = ds
         .views
         .par_iter()
         .enumerate()
-        .map(|(i, v)| observe_view(ds, i, v, opts, &stripe_opts, &lossy))
+        .map(|(i, v)| observe_view(ds, i, v, opts, &stripe_opts, channel.0, &lossy))
         .collect();
     let mut o = Observed {
         obs: Vec::new(),
         warnings: Vec::new(),
         left_out: Vec::new(),
+        channel,
     };
     let lossy = lossy.into_inner();
     if lossy > 0 {
@@ -78,6 +144,7 @@ fn observe_view(
     v: &View,
     opts: &CalibrateOptions,
     stripe_opts: &StripeOptions,
+    channel: StripeChannel,
     lossy: &AtomicUsize,
 ) -> Result<std::result::Result<ViewObs, String>> {
     let rig = &ds.rig;
@@ -91,7 +158,12 @@ fn observe_view(
                 .map_err(|e| Error::InvalidInput(format!("{tag}: robot pose: {e}")))?,
         ),
     };
-    let (board_img, info) = load_gray_info(ds.image_path(&v.board_image))?;
+    let board_path = ds.image_path(&v.board_image);
+    let (board_any, info) = load_image_info(&board_path)?;
+    let board_img: Cow<'_, AnyGray> = match &board_any {
+        AnyImage::Gray(g) => Cow::Borrowed(g),
+        AnyImage::Rgb(c) => Cow::Owned(c.to_gray()),
+    };
     if board_img.size() != (rig.width as usize, rig.height as usize) {
         return Err(Error::InvalidInput(format!(
             "{tag}: {} is {} x {}, rig.json says {} x {}",
@@ -124,24 +196,30 @@ fn observe_view(
     let mut shape = None;
     if let Some(lp) = &v.laser_image {
         let single = lp == &v.board_image;
-        let laser_img;
-        let lview = if single {
-            bview
+        let laser_any;
+        let laser_path = ds.image_path(lp);
+        let signal = if single {
+            if channel == StripeChannel::Gray {
+                Cow::Borrowed(board_img.as_ref())
+            } else {
+                stripe_signal_of_file(&board_path, &board_any, channel, stripe_opts)?
+            }
         } else {
-            let (img, info) = load_gray_info(ds.image_path(lp))?;
+            let (img, info) = load_image_info(&laser_path)?;
             if info.lossy {
                 lossy.fetch_add(1, Ordering::Relaxed);
             }
-            laser_img = img;
-            if laser_img.size() != board_img.size() {
+            laser_any = img;
+            if laser_any.size() != board_img.size() {
                 return Err(Error::InvalidInput(format!(
                     "{tag}: {} and {} differ in size",
                     lp.display(),
                     v.board_image.display()
                 )));
             }
-            laser_img.view()?
+            stripe_signal_of_file(&laser_path, &laser_any, channel, stripe_opts)?
         };
+        let lview = signal.view()?;
         match extract_stripe(lview, stripe_opts) {
             Ok(mut s) => {
                 let eo = EdgeOptions {

@@ -3,7 +3,7 @@
 use crate::error::{Error, Result};
 use crate::model::camera::Camera;
 use crate::model::geometry::Plane;
-use crate::model::StripeDirection;
+use crate::model::{StripeChannel, StripeDirection};
 use crate::vision::stripe::StripeOptions;
 
 /// Default smallest angle between a viewing ray and the laser plane, degrees.
@@ -60,6 +60,10 @@ pub struct ReconstructOptions {
     /// Scan folders only: stop at a frame whose image cannot be used, or skip it
     /// ([`BadImage`]; default [`BadImage::Stop`]).
     pub on_bad_image: BadImage,
+    /// Scan folders only: the signal of colour frames the stripe is found in
+    /// ([`crate::vision::stripe::colour`]); `None` (the default): the scan's rig.json
+    /// `stripe.channel`, gray without one.
+    pub channel: Option<StripeChannel>,
 }
 
 impl Default for ReconstructOptions {
@@ -69,6 +73,7 @@ impl Default for ReconstructOptions {
             min_ray_plane_angle_deg: DEFAULT_MIN_RAY_PLANE_ANGLE_DEG,
             drop_flags: 0,
             on_bad_image: BadImage::Stop,
+            channel: None,
         }
     }
 }

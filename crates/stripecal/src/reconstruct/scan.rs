@@ -7,8 +7,10 @@ use std::path::Path;
 use rayon::prelude::*;
 
 use crate::error::{BadFrame, Error, Result};
-use crate::model::image::{AnyGray, AnyView};
-use crate::model::{Calibration, RobotReading, Scan, ScanFrame, StripeDirection};
+use crate::model::image::{AnyImage, AnyView};
+use crate::model::{Calibration, RobotReading, Scan, ScanFrame, StripeChannel, StripeDirection};
+use crate::vision::stripe::colour::auto_sample;
+use crate::vision::stripe::stripe_signal_of_file;
 
 use super::{BadImage, DropCounts, ReconstructOptions, Reconstructor, ScanPoints};
 
@@ -52,8 +54,13 @@ pub fn reconstruct_frames(
 
 /// Reconstructs a scan folder (scan.csv + images). The robot and camera come from the
 /// calibration; `opts.stripe.direction: Auto` takes the scan's rig.json hint when it has
-/// one, else the calibration's ([`stripe_direction_from_plane`]). Images are decoded and
-/// processed in parallel in chunks.
+/// one, else the calibration's ([`stripe_direction_from_plane`]). The stripe is found in
+/// the signal `opts.channel` names, or (`None`) the scan's rig.json `stripe.channel`
+/// (gray without one); `auto` is decided once for the scan from at most
+/// [`crate::vision::stripe::colour::AUTO_IMAGES`] of its frames
+///. A colour name with a gray frame is an
+/// [`Error::Format`] naming the file, whatever `on_bad_image` says. Images are decoded
+/// and processed in parallel in chunks.
 ///
 /// `progress(frames_done, frames_total, points_so_far)` is called on the calling thread
 /// before the first chunk and after each one; when it returns
@@ -97,6 +104,24 @@ pub fn reconstruct_scan(
     }
     let proto = Reconstructor::new(calibration, &opts)?;
     let (width, height) = (calibration.camera.width, calibration.camera.height);
+    let mut channel = opts
+        .channel
+        .or_else(|| scan.rig.as_ref().map(|r| r.stripe_channel))
+        .unwrap_or_default();
+    if channel == StripeChannel::Auto {
+        // decided from frames that can be read (a missing one is reported below)
+        let readable: Vec<std::path::PathBuf> = scan
+            .frames
+            .iter()
+            .map(|f| scan.image_path(&f.image))
+            .filter(|p| p.is_file())
+            .collect();
+        let paths: Vec<std::path::PathBuf> = auto_sample(readable.len())
+            .into_iter()
+            .map(|i| readable[i].clone())
+            .collect();
+        channel = crate::pipeline::decide_channel_lenient(&paths, &opts.stripe);
+    }
     let skip = opts.on_bad_image == BadImage::Skip;
     let bad = |i: usize, f: &ScanFrame, reason: String| BadFrame {
         frame: i,
@@ -137,7 +162,8 @@ pub fn reconstruct_scan(
                         Ok(img) => img,
                         Err(reason) => return Ok(Err(reason)),
                     };
-                    let view = match img.view() {
+                    let signal = stripe_signal_of_file(&path, &img, channel, &opts.stripe)?;
+                    let view = match signal.view() {
                         Ok(v) => v,
                         Err(e) => return Ok(Err(e.to_string())),
                     };
@@ -151,7 +177,7 @@ pub fn reconstruct_scan(
                             )),
                             other => other,
                         })?;
-                    Ok(Ok((sp, bit_depth(&img))))
+                    Ok(Ok((sp, img.bit_depth())))
                 },
             )
             .collect();
@@ -224,9 +250,9 @@ fn check_file(path: &Path) -> std::result::Result<(), String> {
 
 /// A frame's image, decoded and checked against the calibrated camera's size, or what is
 /// wrong with it.
-fn frame_image(path: &Path, width: u32, height: u32) -> std::result::Result<AnyGray, String> {
+fn frame_image(path: &Path, width: u32, height: u32) -> std::result::Result<AnyImage, String> {
     check_file(path)?;
-    let img = match crate::io::load_gray(path) {
+    let img = match crate::io::load_image(path) {
         Ok(img) => img,
         Err(Error::Io { source, .. }) => return Err(format!("cannot be read: {source}")),
         Err(Error::Image { message, .. }) => return Err(format!("cannot be decoded: {message}")),
@@ -239,14 +265,6 @@ fn frame_image(path: &Path, width: u32, height: u32) -> std::result::Result<AnyG
         ));
     }
     Ok(img)
-}
-
-/// 8 or 16.
-fn bit_depth(img: &AnyGray) -> u8 {
-    match img {
-        AnyGray::U8(_) => 8,
-        AnyGray::U16(_) => 16,
-    }
 }
 
 /// Loads a scan folder for a calibration (checks joint counts against its robot). The

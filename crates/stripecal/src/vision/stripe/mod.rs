@@ -44,7 +44,11 @@
 //!
 //! Gray-level options are on the 8-bit scale and multiplied by 257 for 16-bit images
 //! (which use the full range, spec/DATASET.md).
+//!
+//! Colour laser images: the extractor runs on one channel's image, the signal that
+//! `stripe.channel` names ([`colour`]: BT.601 gray, or the laser colour's channel).
 
+pub mod colour;
 mod edges;
 mod extract;
 mod gauss;
@@ -52,7 +56,8 @@ mod line;
 mod peak;
 mod ridge;
 
-pub use crate::model::StripeDirection;
+pub use crate::model::{StripeChannel, StripeDirection};
+pub use colour::{stripe_signal, stripe_signal_of_file};
 pub use edges::{flag_reflectance_edges, EdgeOptions};
 pub use extract::{resolve_direction, StripeExtractor};
 pub use line::{fit_line, fit_line_with, LineFit, LineFitOptions};
