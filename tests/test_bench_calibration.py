@@ -179,11 +179,8 @@ def _rotvec_matrix(w: np.ndarray) -> np.ndarray:
     return np.eye(3) + math.sin(th) * kx + (1 - math.cos(th)) * kx @ kx
 
 
-def test_a_bench_calibration_held_makes_three_robot_views_enough(
-    bench_cal: sc.Calibration, twin: Tuple[Path, Path, Dict], tmp_path: Path
-) -> None:
-    """Issue 17 item 3 with `--fix camera,laser_plane`: the bench's camera and plane
-    held, 3 robot views of the same twin give the hand-eye within 0.005 deg and 0.02 mm."""
+def _three_robot_views(bench_cal: sc.Calibration, twin: Tuple[Path, Path, Dict], tmp_path: Path) -> Tuple[Path, Path]:
+    """Robot views 0, 5 and 10 of the twin, and the bench calibration saved."""
     src = twin[0] / "twin" / "calib"
     ds = tmp_path / "three"
     ds.mkdir()
@@ -193,6 +190,48 @@ def test_a_bench_calibration_held_makes_three_robot_views_enough(
     (ds / "views.csv").write_text("\n".join([lines[0], lines[1], lines[6], lines[11]]) + "\n")
     bench_json = tmp_path / "bench.json"
     bench_cal.save(bench_json)
+    return ds, bench_json
+
+
+def _hand_eye_errors(cal: sc.Calibration, truth: Dict) -> Tuple[float, np.ndarray]:
+    x = _rotvec_matrix(np.array(truth["rotation_vector"]))
+    h = np.asarray(cal.hand_cam)
+    cos = (np.trace(h[:3, :3].T @ x) - 1) / 2
+    return math.degrees(math.acos(min(1.0, cos))), h[:3, 3] - np.array(truth["translation_mm"])
+
+
+def test_a_bench_calibration_as_a_prior_makes_three_robot_views_enough(
+    bench_cal: sc.Calibration, twin: Tuple[Path, Path, Dict], tmp_path: Path
+) -> None:
+    """Issue 17 item 3, the default `--from`: the bench's camera and plane enter with
+    their covariance; 3 robot views give the hand-eye within 0.005 deg and 0.02 mm, the
+    camera and plane sigmas are the bench's, and the hand-eye's sigma grows by what the
+    bench's uncertainty contributes (against the same views with the blocks held)."""
+    ds, bench_json = _three_robot_views(bench_cal, twin, tmp_path)
+    prior = sc.calibrate(ds, from_calibration=bench_json, leave_one_out=False)
+    held = sc.calibrate(ds, from_calibration=bench_json, fix=["camera", "laser_plane"], leave_one_out=False)
+    deg, dt = _hand_eye_errors(prior, twin[2]["hand_cam"])
+    assert deg <= 0.005 and np.linalg.norm(dt) <= 0.02
+    assert prior.uncertainty["camera"]["fu"] == bench_cal.uncertainty["camera"]["fu"]
+    assert prior.uncertainty["laser_plane"]["d_mm"] == bench_cal.uncertainty["laser_plane"]["d_mm"]
+    sp = np.array(prior.uncertainty["hand_cam"]["translation_mm"])
+    sh = np.array(held.uncertainty["hand_cam"]["translation_mm"])
+    assert np.all(sp >= sh) and np.any(sp > 1.2 * sh), (sp, sh)
+    # Honest: the translation error within 3 of the propagated sigmas.
+    assert np.all(np.abs(dt) <= 3 * sp), (dt, sp)
+    assert prior.extra["prior"]["blocks"] == ["camera", "laser_plane"]
+    assert prior.covariance is not None
+    names, m = prior.covariance
+    i, j = names.index("hand_cam.translation_mm[0]"), names.index("camera.fu")
+    assert m[i, j] != 0.0
+
+
+def test_a_bench_calibration_held_makes_three_robot_views_enough(
+    bench_cal: sc.Calibration, twin: Tuple[Path, Path, Dict], tmp_path: Path
+) -> None:
+    """Issue 17 item 3 with `--fix camera,laser_plane`: the bench's camera and plane
+    held, 3 robot views of the same twin give the hand-eye within 0.005 deg and 0.02 mm."""
+    ds, bench_json = _three_robot_views(bench_cal, twin, tmp_path)
     cal = sc.calibrate(
         ds, from_calibration=bench_json, fix=["camera", "laser_plane"], leave_one_out=False
     )

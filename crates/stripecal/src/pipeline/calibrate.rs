@@ -49,6 +49,14 @@ pub(super) fn calibrate_unjudged(
     opts: &CalibrateOptions,
 ) -> Result<(CalibrationReport, Vec<QualityCheck>)> {
     check_poses_finite(views)?;
+    // `--from` without `--fix`: the file's camera and plane as a prior.
+    if let Some(from) = opts
+        .from
+        .as_ref()
+        .filter(|_| super::held::holds_nothing(opts) && !super::bench::is_bench(views))
+    {
+        return super::prior::calibrate_with_prior(views, rig, opts, from);
+    }
     let held = held(opts)?;
     if super::bench::is_bench(views) {
         return super::bench::calibrate_bench(views, rig, opts, held.as_ref());

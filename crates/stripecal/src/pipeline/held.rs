@@ -18,7 +18,7 @@ pub(super) struct Held<'a> {
 
 /// The held blocks of `opts`: `None` when nothing is held. Errors: blocks held without
 /// `--from`, a held laser plane the file does not have, `--from` holding nothing
-/// (priors from the file's covariance are not available).
+/// on a bench dataset (priors are [`super::prior`], robot datasets only).
 pub(super) fn held(opts: &CalibrateOptions) -> Result<Option<Held<'_>>> {
     let names = held_names(&opts.free);
     match (&opts.from, names.is_empty()) {
@@ -29,9 +29,9 @@ pub(super) fn held(opts: &CalibrateOptions) -> Result<Option<Held<'_>>> {
             if names.len() == 1 { "it" } else { "them" }
         ))),
         (Some(_), true) => Err(Error::InvalidInput(
-            "--from without --fix or --laser-only: starting from an earlier calibration with \
-             its covariance as a prior is not available yet; hold its blocks with --fix \
-             camera,laser_plane,hand_cam,base_board (any of them) or --laser-only"
+            "--from without --fix on a bench dataset: starting a bench calibration from an \
+             earlier one with its covariance as a prior is not available; hold its blocks \
+             with --fix camera,laser_plane"
                 .into(),
         )),
         (Some(from), false) => {
@@ -48,6 +48,11 @@ pub(super) fn held(opts: &CalibrateOptions) -> Result<Option<Held<'_>>> {
             }))
         }
     }
+}
+
+/// Whether `opts` hold no block (`--from` alone is then a prior, [`super::prior`]).
+pub(super) fn holds_nothing(opts: &CalibrateOptions) -> bool {
+    held_names(&opts.free).is_empty()
 }
 
 /// The contract's names of the blocks `free` holds.

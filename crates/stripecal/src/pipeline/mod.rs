@@ -41,6 +41,7 @@ pub mod measure;
 mod observe;
 mod pairing;
 mod plan;
+mod prior;
 mod report;
 pub mod stripe_select;
 #[cfg(test)]
