@@ -35,6 +35,21 @@ def bowed(tmp_path_factory: pytest.TempPathFactory) -> Tuple[sc.Calibration, Dic
     return sc.calibrate(root / "calib"), truth
 
 
+def test_a_bench_truth_reads_and_round_trips(tmp_path: Path, bowed: Tuple[sc.Calibration, Dict]) -> None:
+    """truth.json of a bench twin has the keys of a bench calibration (no hand_cam,
+    base_board or robot): it loads, and writes back without them."""
+    _, truth = bowed
+    assert "hand_cam" not in truth and truth["bench"] is True
+    path = tmp_path / "truth.json"
+    path.write_text(json.dumps(truth))
+    t = sc.load_truth(path)
+    assert t.robot is None and abs(t.laser_plane[1] - truth["laser_plane"]["d_mm"]) < 1e-12
+    t.save(tmp_path / "again.json")
+    again = json.loads((tmp_path / "again.json").read_text())
+    assert "hand_cam" not in again and "base_board" not in again and again["bench"] is True
+    assert sc.load_truth(tmp_path / "again.json") == t
+
+
 def test_the_bowed_view_is_named_with_its_sag_and_left_out(bowed: Tuple[sc.Calibration, Dict]) -> None:
     cal, _ = bowed
     figures = {f["view"]: f for f in cal.extra["board_flatness"]}

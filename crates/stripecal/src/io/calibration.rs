@@ -526,7 +526,21 @@ pub fn truth_from_json(path: &Path, text: &str) -> Result<Truth> {
     let doc = parse(path, text)?;
     let root = Obj::root(path, &doc)?;
     root.check_format(TRUTH_FORMAT)?;
-    let c = common_from(&root)?;
+    // A bench twin's truth (no robot): the same keys as a bench calibration, neither
+    // `hand_cam` nor `base_board` (read as identities; the file's `"bench": true` stays in
+    // `extra`, and the writer leaves them out again).
+    let bench = root.opt("hand_cam").is_none() && root.opt("base_board").is_none();
+    let c = if bench {
+        Common {
+            camera: camera_from(&root.obj("camera")?)?,
+            laser_plane: opt_plane_from(&root)?,
+            hand_cam: Iso3::identity(),
+            base_board: Iso3::identity(),
+            robot: None,
+        }
+    } else {
+        common_from(&root)?
+    };
     let laser_plane = c
         .laser_plane
         .ok_or_else(|| root.err("`laser_plane` is null: a truth has a laser plane"))?;
@@ -587,6 +601,11 @@ pub fn truth_to_json(t: &Truth) -> String {
         );
     }
     append_extra(&mut m, &t.extra);
+    if t.extra.get(BENCH_KEY) == Some(&Value::Bool(true)) {
+        for k in ["hand_cam", "base_board", "robot"] {
+            m.remove(k);
+        }
+    }
     to_pretty(&Value::Object(m))
 }
 
