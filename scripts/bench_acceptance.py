@@ -8,7 +8,10 @@ its normal's angle in deg), the targets (fu 0.01 %, u0 and v0 0.1 px, plane 0.01
 how many of the estimated numbers (camera fu fv u0 v0 k1, plane normal[0..2] and d) the
 reported 3-sigma covers; then the totals.
 
-    python scripts/bench_acceptance.py [--seeds 1-10] [--work DIR] [--robot]
+    python scripts/bench_acceptance.py [--seeds 1-10] [--work DIR] [--robot] [--twin-bench]
+
+`--twin-bench`: the twin's own bench mode instead (`bench.enabled`: 15 hand-placed board
+poses, tilts up to 45 deg, 3 of them partly out of the image; docs/twin.md).
 
 `--robot` also calibrates the same views with their robot poses (for comparison).
 `--prior` (issue 17, item 3): the bench calibration as the prior (the default `--from`:
@@ -40,6 +43,20 @@ def render(seed: int, work: str) -> str:
             seed=seed,
             poses={"count": 15},
             imaging={"noise_gray": 1.0, "psf_sigma_px": 0.7},
+        )
+        sim.Twin(cfg).write(root)
+    return os.path.join(root, "calib")
+
+
+def render_bench(seed: int, work: str) -> str:
+    """The twin's bench mode dataset of `seed` (rendered once)."""
+    root = os.path.join(work, f"b{seed}")
+    if not os.path.exists(os.path.join(root, "calib", "truth.json")):
+        cfg = sim.preset(
+            "hp3-paper",
+            seed=seed,
+            imaging={"noise_gray": 1.0, "psf_sigma_px": 0.7},
+            bench={"enabled": True},
         )
         sim.Twin(cfg).write(root)
     return os.path.join(root, "calib")
@@ -144,7 +161,10 @@ def main() -> None:
     ap.add_argument("--work", default="/tmp/stripecal_bench_acceptance")
     ap.add_argument("--robot", action="store_true")
     ap.add_argument("--prior", action="store_true")
+    ap.add_argument("--twin-bench", action="store_true")
     a = ap.parse_args()
+    if a.twin_bench and (a.robot or a.prior):
+        ap.error("--twin-bench has no robot poses: not with --robot or --prior")
     lo, _, hi = a.seeds.partition("-")
     seeds = list(range(int(lo), int(hi or lo) + 1))
     targets = {"fu_pct": 0.01, "u0_px": 0.1, "v0_px": 0.1, "d_mm": 0.01}
@@ -155,8 +175,11 @@ def main() -> None:
         f"{'3s cover':>8} {'LOO mm':>7} {'t s':>5}  worst |err|/sigma"
     )
     for seed in seeds:
-        src = render(seed, a.work)
-        bench = to_bench(src, os.path.join(a.work, f"s{seed}", "bench"))
+        if a.twin_bench:
+            src = bench = render_bench(seed, a.work)
+        else:
+            src = render(seed, a.work)
+            bench = to_bench(src, os.path.join(a.work, f"s{seed}", "bench"))
         with open(os.path.join(src, "truth.json")) as f:
             truth = json.load(f)
         t0 = time.perf_counter()
