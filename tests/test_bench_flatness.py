@@ -74,3 +74,25 @@ def test_the_other_views_calibrate_to_the_targets(bowed: Tuple[sc.Calibration, D
     assert cal.laser_plane is not None
     _, d = cal.laser_plane
     assert abs(d - truth["laser_plane"]["d_mm"]) < 0.01
+
+
+def test_a_colour_bench_with_the_line_on_the_floor(tmp_path: Path) -> None:
+    """The twin's bench mode in colour (a red line over a white board standing on a floor):
+    RGB images, the stripe found in the red channel, the floor's stripe points rejected
+    and counted, the plane to the truth."""
+    cfg = sim.preset(
+        "hp3-paper",
+        seed=2,
+        imaging={"noise_gray": 1.0, "psf_sigma_px": 0.7, "colour": True, "laser_colour": "red"},
+        bench={"enabled": True, "views": 8, "partial_views": 0, "floor": {"enabled": True}},
+    )
+    summary = sim.Twin(cfg).write(tmp_path)
+    calib = Path(str(summary["calib_dir"]))
+    ds = sc.load_dataset(calib)
+    assert ds.is_bench and ds.rig.stripe_channel == "red"
+    assert sc.load_image(ds.laser_images[0], colour=True).shape[-1] == 3
+    cal = sc.calibrate(calib)
+    truth = json.loads((calib / "truth.json").read_text())
+    assert cal.extra["stripe_channel"] == "red"
+    assert cal.laser_plane is not None and abs(cal.laser_plane[1] - truth["laser_plane"]["d_mm"]) < 0.01
+    assert sum(v["stripe_off_plane"] for v in cal.views) > 0

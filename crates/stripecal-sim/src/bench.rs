@@ -233,7 +233,11 @@ pub struct BenchView {
 impl Twin {
     /// The bench world: the board (the world frame is the board frame), the backdrop far
     /// away and black, and the floor of `floor` (camera frame) if any.
-    fn bench_world(&self, board_cam: &Iso3, floor: Option<(Vector3<f64>, f64)>) -> World {
+    pub(crate) fn bench_world(
+        &self,
+        board_cam: &Iso3,
+        floor: Option<(Vector3<f64>, f64)>,
+    ) -> World {
         let free_plate = floor.map(|(n, d)| {
             // the floor's frame: origin at the camera's foot, z = n, x = camera x
             let x = (Vector3::x() - n * n.x).normalize();

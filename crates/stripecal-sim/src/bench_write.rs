@@ -11,7 +11,7 @@ use std::path::{Path, PathBuf};
 use serde_json::{json, Value};
 
 use stripecal::io;
-use stripecal::model::image::AnyGray;
+use stripecal::model::image::{AnyGray, AnyRgb};
 
 use crate::bench::BenchView;
 use crate::config::pose_cfg;
@@ -24,6 +24,10 @@ use crate::{DatasetSummary, SimError, Twin};
 pub struct BenchRender {
     pub board_image: AnyGray,
     pub laser_image: AnyGray,
+    /// With `imaging.colour`: the RGB images (`board_image`, `laser_image` their BT.601
+    /// gray).
+    pub board_rgb: Option<AnyRgb>,
+    pub laser_rgb: Option<AnyRgb>,
     /// Imaged target points ([`target_truth`], on the bent sheet for a bent view).
     pub circles: Vec<PointTruth>,
     /// The true stripe centre line (board and floor; the backdrop is dropped).
@@ -38,22 +42,34 @@ impl Twin {
         let seed = self.cfg.seed;
         let scene = self.bench_scene(v, true);
         let lin = r.render(&scene);
-        let board_image = form_image(
-            &lin,
-            &self.camera,
-            im,
-            Exposure::Board,
-            seed,
-            3 * index as u64,
-        );
-        let laser_image = form_image(
-            &lin,
-            &self.camera,
-            im,
-            Exposure::Laser,
-            seed,
-            3 * index as u64 + 1,
-        );
+        let s = 3 * index as u64;
+        let (board_image, board_rgb, laser_image, laser_rgb) = if im.colour {
+            // Each channel rendered with its own reflectances where they differ from the
+            // gray ones (as the robot views, [`Twin::render_view`]).
+            let board_cam = v.cam_board.inverse();
+            let base = self.bench_world(&board_cam, v.floor);
+            let gray = std::sync::Arc::new(lin);
+            let mut rgb = [gray.clone(), gray.clone(), gray];
+            for (c, slot) in rgb.iter_mut().enumerate() {
+                if let Some(w) = self.channel_world(&base, c) {
+                    let mut sc = w.image_scene(&board_cam, self.laser());
+                    if let Some(b) = v.bow {
+                        sc = sc.with_bow(b);
+                    }
+                    *slot = std::sync::Arc::new(r.render(&sc));
+                }
+            }
+            let (bg, bc) = self.expose(&rgb[0], Some(&rgb), Exposure::Board, s)?;
+            let (lg, lc) = self.expose(&rgb[0], Some(&rgb), Exposure::Laser, s + 1)?;
+            (bg, bc, lg, lc)
+        } else {
+            (
+                form_image(&lin, &self.camera, im, Exposure::Board, seed, s),
+                None,
+                form_image(&lin, &self.camera, im, Exposure::Laser, seed, s + 1),
+                None,
+            )
+        };
         let stripe = stripe_truth(&scene, &self.camera, self.direction)
             .into_iter()
             .filter(|p| p.surface != "table")
@@ -61,6 +77,8 @@ impl Twin {
         Ok(BenchRender {
             board_image,
             laser_image,
+            board_rgb,
+            laser_rgb,
             circles: target_truth(&scene, &self.camera, 0.0),
             stripe,
         })
@@ -91,8 +109,14 @@ impl Twin {
             let r = self.render_bench_view(v, i)?;
             let board_name = format!("images/view_{i:03}_board.png");
             let laser_name = format!("images/view_{i:03}_laser.png");
-            io::save_gray_png(tmp.join(&board_name), &r.board_image)?;
-            io::save_gray_png(tmp.join(&laser_name), &r.laser_image)?;
+            match &r.board_rgb {
+                Some(c) => io::save_rgb_png(tmp.join(&board_name), c)?,
+                None => io::save_gray_png(tmp.join(&board_name), &r.board_image)?,
+            }
+            match &r.laser_rgb {
+                Some(c) => io::save_rgb_png(tmp.join(&laser_name), c)?,
+                None => io::save_gray_png(tmp.join(&laser_name), &r.laser_image)?,
+            }
             csv.push_str(&format!("{board_name},{laser_name}\n"));
             let on_board = r.stripe.iter().filter(|p| p.surface == "board").count();
             view_circles.push(r.circles.len());

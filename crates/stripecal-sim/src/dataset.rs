@@ -385,7 +385,7 @@ impl Twin {
     /// The world of `base` with colour channel `c`'s reflectances (`imaging.plate_rgb`,
     /// `imaging.ink_rgb`, swapped like the gray ones for light circles); `None` when
     /// they are the gray ones (the gray render serves the channel).
-    fn channel_world(&self, base: &World, c: usize) -> Option<World> {
+    pub(crate) fn channel_world(&self, base: &World, c: usize) -> Option<World> {
         let im = &self.cfg.imaging;
         let plate = im.plate_rgb.map_or(im.plate_reflectance, |v| v[c]);
         let ink = im.ink_rgb.map_or(im.circle_reflectance, |v| v[c]);
@@ -430,7 +430,7 @@ impl Twin {
 
     /// The image of one exposure: gray, or with `imaging.colour` the RGB image and its
     /// BT.601 gray.
-    fn expose(
+    pub(crate) fn expose(
         &self,
         lin: &LinearImage,
         rgb: Option<&[std::sync::Arc<LinearImage>; 3]>,
