@@ -48,17 +48,13 @@ impl Twin {
             // gray ones (as the robot views, [`Twin::render_view`]).
             let board_cam = v.cam_board.inverse();
             let base = self.bench_world(&board_cam, v.floor);
-            let gray = std::sync::Arc::new(lin);
-            let mut rgb = [gray.clone(), gray.clone(), gray];
-            for (c, slot) in rgb.iter_mut().enumerate() {
-                if let Some(w) = self.channel_world(&base, c) {
-                    let mut sc = w.image_scene(&board_cam, self.laser());
-                    if let Some(b) = v.bow {
-                        sc = sc.with_bow(b);
-                    }
-                    *slot = std::sync::Arc::new(r.render(&sc));
+            let rgb = self.channel_renders(&base, lin, |w| {
+                let sc = w.image_scene(&board_cam, self.laser());
+                match v.bow {
+                    Some(b) => sc.with_bow(b),
+                    None => sc,
                 }
-            }
+            })?;
             let (bg, bc) = self.expose(&rgb[0], Some(&rgb), Exposure::Board, s)?;
             let (lg, lc) = self.expose(&rgb[0], Some(&rgb), Exposure::Laser, s + 1)?;
             (bg, bc, lg, lc)

@@ -385,7 +385,7 @@ impl Twin {
     /// The world of `base` with colour channel `c`'s reflectances (`imaging.plate_rgb`,
     /// `imaging.ink_rgb`, swapped like the gray ones for light circles); `None` when
     /// they are the gray ones (the gray render serves the channel).
-    pub(crate) fn channel_world(&self, base: &World, c: usize) -> Option<World> {
+    fn channel_world(&self, base: &World, c: usize) -> Option<World> {
         let im = &self.cfg.imaging;
         let plate = im.plate_rgb.map_or(im.plate_reflectance, |v| v[c]);
         let ink = im.ink_rgb.map_or(im.circle_reflectance, |v| v[c]);
@@ -417,12 +417,24 @@ impl Twin {
         } else {
             &self.calib_world
         };
+        let base_cam = self.base_cam(q_deg)?;
+        self.channel_renders(base, lin, |w| w.image_scene(&base_cam, self.laser()))
+    }
+
+    /// The linear images per colour channel of the scene `scene_of(world)`: `lin` (the
+    /// gray render of `base`) where the channel's reflectances are the gray ones, a
+    /// render of the channel's own world otherwise.
+    pub(crate) fn channel_renders(
+        &self,
+        base: &World,
+        lin: LinearImage,
+        scene_of: impl Fn(&World) -> ImageScene,
+    ) -> Result<[std::sync::Arc<LinearImage>; 3], SimError> {
         let gray = std::sync::Arc::new(lin);
         let mut out = [gray.clone(), gray.clone(), gray];
         for (c, slot) in out.iter_mut().enumerate() {
             if let Some(w) = self.channel_world(base, c) {
-                let scene = w.image_scene(&self.base_cam(q_deg)?, self.laser());
-                *slot = std::sync::Arc::new(self.renderer()?.render(&scene));
+                *slot = std::sync::Arc::new(self.renderer()?.render(&scene_of(&w)));
             }
         }
         Ok(out)

@@ -341,6 +341,22 @@ pub fn calibration_robot_pose_noise(c: &Calibration) -> Result<Option<RobotPoseN
     robot_pose_noise_from(&root).map(Some)
 }
 
+/// The common keys, or a bench file's (neither `hand_cam` nor `base_board`: read as
+/// identities, no robot); `true` for a bench file.
+fn common_or_bench(root: &Obj<'_>) -> Result<(Common, bool)> {
+    if root.opt("hand_cam").is_none() && root.opt("base_board").is_none() {
+        let c = Common {
+            camera: camera_from(&root.obj("camera")?)?,
+            laser_plane: opt_plane_from(root)?,
+            hand_cam: Iso3::identity(),
+            base_board: Iso3::identity(),
+            robot: None,
+        };
+        return Ok((c, true));
+    }
+    Ok((common_from(root)?, false))
+}
+
 /// Parses calibration.json text; `path` is used in error messages only.
 ///
 /// Required: `format`, `camera` (all of `width, height, fu, fv, u0, v0,
@@ -355,18 +371,7 @@ pub fn calibration_from_json(path: &Path, text: &str) -> Result<Calibration> {
     let doc = parse(path, text)?;
     let root = Obj::root(path, &doc)?;
     root.check_format(CALIBRATION_FORMAT)?;
-    let bench = root.opt("hand_cam").is_none() && root.opt("base_board").is_none();
-    let c = if bench {
-        Common {
-            camera: camera_from(&root.obj("camera")?)?,
-            laser_plane: opt_plane_from(&root)?,
-            hand_cam: Iso3::identity(),
-            base_board: Iso3::identity(),
-            robot: None,
-        }
-    } else {
-        common_from(&root)?
-    };
+    let (c, bench) = common_or_bench(&root)?;
     let q = root.obj("quality")?;
     let quality = Quality {
         circle_rms_px: q.nonneg_f64("circle_rms_px")?,
@@ -526,21 +531,9 @@ pub fn truth_from_json(path: &Path, text: &str) -> Result<Truth> {
     let doc = parse(path, text)?;
     let root = Obj::root(path, &doc)?;
     root.check_format(TRUTH_FORMAT)?;
-    // A bench twin's truth (no robot): the same keys as a bench calibration, neither
-    // `hand_cam` nor `base_board` (read as identities; the file's `"bench": true` stays in
-    // `extra`, and the writer leaves them out again).
-    let bench = root.opt("hand_cam").is_none() && root.opt("base_board").is_none();
-    let c = if bench {
-        Common {
-            camera: camera_from(&root.obj("camera")?)?,
-            laser_plane: opt_plane_from(&root)?,
-            hand_cam: Iso3::identity(),
-            base_board: Iso3::identity(),
-            robot: None,
-        }
-    } else {
-        common_from(&root)?
-    };
+    // A bench twin's truth (no robot): the same keys as a bench calibration (the file's
+    // `"bench": true` stays in `extra`, and the writer leaves them out again).
+    let (c, _) = common_or_bench(&root)?;
     let laser_plane = c
         .laser_plane
         .ok_or_else(|| root.err("`laser_plane` is null: a truth has a laser plane"))?;

@@ -19,6 +19,7 @@ pub use dataset::{
     Dataset, Rig, RobotReading, Scan, ScanFrame, StripeChannel, StripeDirection, View,
 };
 pub use quality::{QualityCheck, QualityFailure};
+pub(crate) use results::calibration_number;
 pub use results::{
     AdjustmentSummary, Calibration, CameraSigma, Cloud, DhCorrection, NamedCovariance, PlaneSigma,
     PoseSigma, Quality, RobotCalibration, RobotPoseNoise, RobotPoseView, Sphere, SphereFit, Truth,

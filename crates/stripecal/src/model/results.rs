@@ -7,6 +7,52 @@ use crate::model::camera::Camera;
 use crate::model::geometry::{Iso3, Plane};
 use crate::model::kinematics::Robot;
 
+/// One of a calibration's numbers by its contract name (the names of
+/// [`NamedCovariance`]): the camera's, the laser plane's, and `hand_cam`'s and
+/// `base_board`'s rotation vectors and translations; `None` for other names (the board
+/// scale, the DH values: their owners read those) and for a plane that is absent.
+pub(crate) fn calibration_number(
+    camera: &Camera,
+    plane: Option<&Plane>,
+    hand_cam: &Iso3,
+    base_board: &Iso3,
+    name: &str,
+) -> Option<f64> {
+    let index = |prefix: &str| -> Option<usize> {
+        name.strip_prefix(prefix)?
+            .strip_prefix('[')?
+            .strip_suffix(']')?
+            .parse()
+            .ok()
+    };
+    let params = camera.params();
+    if let Some(k) = index("camera.distortion").filter(|&k| k < 5) {
+        return Some(params[4 + k]);
+    }
+    if let Some(k) = name.strip_prefix("camera.").and_then(|p| {
+        crate::model::camera::PARAM_NAMES[..4]
+            .iter()
+            .position(|&x| x == p)
+    }) {
+        return Some(params[k]);
+    }
+    if let Some(k) = index("laser_plane.normal").filter(|&k| k < 3) {
+        return plane.map(|p| p.normal[k]);
+    }
+    if name == "laser_plane.d_mm" {
+        return plane.map(|p| p.d);
+    }
+    for (key, t) in [("hand_cam", hand_cam), ("base_board", base_board)] {
+        if let Some(k) = index(&format!("{key}.rotation_vector")).filter(|&k| k < 3) {
+            return Some(crate::model::geometry::iso_to_rotvec(t).0[k]);
+        }
+        if let Some(k) = index(&format!("{key}.translation_mm")).filter(|&k| k < 3) {
+            return Some(t.translation.vector[k]);
+        }
+    }
+    None
+}
+
 /// The covariance of a calibration's estimated numbers (calibration.json `covariance`):
 /// `parameters` names them by their keys (`camera.fu`, `laser_plane.normal[0]`,
 /// `hand_cam.rotation_vector[2]`, ...; vectors indexed), `matrix` is their covariance

@@ -9,7 +9,7 @@
 //! (`views`, `determined`, `converged`; no robot gate).
 
 use super::calibrate::{
-    camera_stage, check_usable, joint_options, kept, laser_plane_stage, mark_used,
+    camera_stage, check_usable, joint_options, laser_plane_stage, leave_out, mark_used,
 };
 use super::flat_views::{flatness_extra, leave_out_bent};
 use super::gates::{converged, determined, view_residuals, views_check};
@@ -92,16 +92,14 @@ pub(super) fn calibrate_bench(
             break (plane, start, adj, check);
         }
         first_pass = false;
-        for &v in &bad {
-            let note = format!("view {v}: left out: {msg}");
-            warnings.push(note.clone());
-            if let Some(s) = status.iter_mut().find(|s| s.view == v) {
-                s.note = Some(note);
-            }
-        }
-        let keep: Vec<bool> = used_obs.iter().map(|v| !bad.contains(&v.view)).collect();
-        (used_obs, used_poses) = kept(&used_obs, &used_poses, &keep);
-        check_usable(&used_obs, &warnings)?;
+        leave_out(
+            &bad,
+            &msg,
+            &mut used_obs,
+            &mut used_poses,
+            &mut warnings,
+            &mut status,
+        )?;
     };
     warnings.extend(adj.warnings.iter().cloned());
     mark_used(&mut status, &used_obs);

@@ -70,12 +70,9 @@ pub const EMITTER_RANGE_MM: f64 = 30.0;
 /// Points lit at a larger incidence are not modelled.
 const MAX_INCIDENCE_DEG: f64 = 80.0;
 
-/// The corrected views and what the correction did.
+/// What the correction did.
 #[derive(Debug, Clone)]
 pub struct BoardStripeCorrection {
-    /// The views with their stripe points moved by the predicted bias (points the model
-    /// cannot follow left out).
-    pub views: Vec<ViewObs>,
     /// The sheet's Gaussian sigma, mm, and the PSF's, px, from the widths.
     pub sheet_sigma_mm: f64,
     pub psf_sigma_px: f64,
@@ -99,15 +96,17 @@ struct Pt {
     width: f64,
 }
 
-/// The correction (module docs); `None` when nothing can be corrected (no view with
-/// widths, too few points, a sheet sigma that the widths do not determine).
+/// The correction (module docs): the views with their stripe points moved by the
+/// predicted bias (points the model cannot follow left out), and what it did; `None`
+/// when nothing can be corrected (no view with widths, too few points, a sheet sigma
+/// that the widths do not determine).
 pub fn correct_board_stripes(
     views: &[ViewObs],
     cam_board: &[Iso3],
     camera: &Camera,
     plane: &Plane,
     stripe: &StripeOptions,
-) -> Option<BoardStripeCorrection> {
+) -> Option<(Vec<ViewObs>, BoardStripeCorrection)> {
     let direction = views
         .iter()
         .find_map(|v| v.stripe_shape.as_ref().map(|s| s.direction))?;
@@ -131,16 +130,21 @@ pub fn correct_board_stripes(
         MAX_INCIDENCE_DEG,
     );
     let along = rig.along;
-    let boards: Vec<Option<Plane>> = cam_board
+    // The views' board planes in the camera frame.
+    let boards: Vec<Plane> = cam_board
         .iter()
         .map(|cb| {
             let n = cb.rotation * Vector3::z();
-            Some(Plane {
+            Plane {
                 normal: n,
                 d: n.dot(&cb.translation.vector),
-            })
+            }
         })
         .collect();
+    // The boards as the model sees them for a rig (`None`: the sheet parallel to one).
+    let surfaces_of = |rig: &Rig<'_>| -> Vec<Option<BoardSurface<'_>>> {
+        boards.iter().map(|b| BoardSurface::new(rig, b)).collect()
+    };
     let mut pts = Vec::new();
     for (vi, (v, cb)) in views.iter().zip(cam_board).enumerate() {
         let Some(shape) = v.stripe_shape.as_ref() else {
@@ -166,10 +170,7 @@ pub fn correct_board_stripes(
     if pts.len() < MIN_POINTS {
         return None;
     }
-    let surfaces: Vec<Option<BoardSurface<'_>>> = boards
-        .iter()
-        .map(|b| b.as_ref().and_then(|b| BoardSurface::new(&rig, b)))
-        .collect();
+    let surfaces = surfaces_of(&rig);
     // 1. Sheet and PSF sigmas from the widths (g and the slope do not depend on them).
     let step = pts.len().div_ceil(WIDTH_POINTS).max(1);
     let sub: Vec<&Pt> = pts.iter().step_by(step).collect();
@@ -204,10 +205,7 @@ pub fn correct_board_stripes(
     let (sigma, psf) = (s2.sqrt(), b2.sqrt());
     // 2. The predicted bias per point.
     let deltas = |rig: &Rig<'_>, which: &[&Pt]| -> Vec<Option<f64>> {
-        let surf: Vec<Option<BoardSurface<'_>>> = boards
-            .iter()
-            .map(|b| b.as_ref().and_then(|b| BoardSurface::new(rig, b)))
-            .collect();
+        let surf = surfaces_of(rig);
         which
             .par_iter()
             .map_init(
@@ -294,8 +292,7 @@ pub fn correct_board_stripes(
         }
     }
     let nc = corrected as f64;
-    Some(BoardStripeCorrection {
-        views: out,
+    let summary = BoardStripeCorrection {
         sheet_sigma_mm: sigma,
         psf_sigma_px: psf,
         corrected,
@@ -303,5 +300,6 @@ pub fn correct_board_stripes(
         mean_px: sum / nc,
         rms_px: (sum2 / nc).sqrt(),
         share,
-    })
+    };
+    Some((out, summary))
 }

@@ -134,16 +134,14 @@ pub(super) fn calibrate_unjudged(
             break (plane, start, adj, check);
         }
         first_pass = false;
-        for &v in &bad {
-            let note = format!("view {v}: left out: {msg}");
-            warnings.push(note.clone());
-            if let Some(s) = status.iter_mut().find(|s| s.view == v) {
-                s.note = Some(note);
-            }
-        }
-        let keep: Vec<bool> = used_obs.iter().map(|v| !bad.contains(&v.view)).collect();
-        (used_obs, used_poses) = kept(&used_obs, &used_poses, &keep);
-        check_usable(&used_obs, &warnings)?;
+        leave_out(
+            &bad,
+            &msg,
+            &mut used_obs,
+            &mut used_poses,
+            &mut warnings,
+            &mut status,
+        )?;
     };
     let (adj, used_obs, board_stripe) =
         correct_stripes(adj, used_obs, &used_poses, board, &jopts, opts)?;
@@ -195,7 +193,7 @@ fn correct_stripes(
     else {
         return Ok((adj, used_obs, None));
     };
-    let Some(corr) =
+    let Some((views, corr)) =
         correct_board_stripes(&used_obs, used_poses, &adj.camera, &plane, &opts.stripe)
     else {
         return Ok((adj, used_obs, None));
@@ -206,9 +204,9 @@ fn correct_stripes(
         hand_cam: adj.hand_cam,
         base_board: adj.base_board,
     };
-    let mut again = joint_adjustment(&corr.views, board, &start, jopts)?;
+    let mut again = joint_adjustment(&views, board, &start, jopts)?;
     again.add_correction_uncertainty(&adj, corr.share);
-    Ok((again, corr.views.clone(), Some(corr)))
+    Ok((again, views, Some(corr)))
 }
 
 /// The laser plane's first estimate from the views' stripe points (`None` when no view
@@ -335,6 +333,29 @@ pub(super) fn grid_extent(board: &Board) -> (nalgebra::Vector2<f64>, nalgebra::V
     }
     let m = 0.5 * board.pitch_mm;
     (lo.add_scalar(-m), hi.add_scalar(m))
+}
+
+/// The views `bad` (residuals far above the others', `msg` says how) named in
+/// `warnings` and `status` and left out of `used_obs` and `used_poses`; an error when too
+/// few remain ([`check_usable`]).
+pub(super) fn leave_out(
+    bad: &[usize],
+    msg: &str,
+    used_obs: &mut Vec<ViewObs>,
+    used_poses: &mut Vec<Iso3>,
+    warnings: &mut Vec<String>,
+    status: &mut [ViewStatus],
+) -> Result<()> {
+    for &v in bad {
+        let note = format!("view {v}: left out: {msg}");
+        warnings.push(note.clone());
+        if let Some(s) = status.iter_mut().find(|s| s.view == v) {
+            s.note = Some(note);
+        }
+    }
+    let keep: Vec<bool> = used_obs.iter().map(|v| !bad.contains(&v.view)).collect();
+    (*used_obs, *used_poses) = kept(used_obs, used_poses, &keep);
+    check_usable(used_obs, warnings)
 }
 
 /// The views (and poses) marked in `keep`.

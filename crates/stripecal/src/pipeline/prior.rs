@@ -33,8 +33,7 @@ use super::{CalibrateOptions, CalibrationReport};
 use crate::calib::joint::DhParam;
 use crate::calib::ViewObs;
 use crate::error::{Error, Result};
-use crate::model::camera::PARAM_NAMES;
-use crate::model::geometry::iso_to_rotvec;
+use crate::model::calibration_number;
 use crate::model::{Calibration, NamedCovariance, QualityCheck, Rig};
 use crate::reconstruct::uncertainty::perturbed_calibration;
 
@@ -184,36 +183,15 @@ fn update_uncertainty(
 /// One of a calibration's numbers by its contract name (`None` when it has no such
 /// number).
 fn named_value(c: &Calibration, name: &str) -> Option<f64> {
-    let index = |prefix: &str| -> Option<usize> {
-        name.strip_prefix(prefix)?
-            .strip_prefix('[')?
-            .strip_suffix(']')?
-            .parse()
-            .ok()
-    };
-    let params = c.camera.params();
-    if let Some(k) = index("camera.distortion").filter(|&k| k < 5) {
-        return Some(params[4 + k]);
-    }
-    if let Some(p) = name
-        .strip_prefix("camera.")
-        .and_then(|p| PARAM_NAMES[..4].iter().position(|&x| x == p))
-    {
-        return Some(params[p]);
-    }
-    if let Some(k) = index("laser_plane.normal").filter(|&k| k < 3) {
-        return c.laser_plane.map(|p| p.normal[k]);
-    }
-    if name == "laser_plane.d_mm" {
-        return c.laser_plane.map(|p| p.d);
-    }
-    for (key, t) in [("hand_cam", &c.hand_cam), ("base_board", &c.base_board)] {
-        if let Some(k) = index(&format!("{key}.rotation_vector")).filter(|&k| k < 3) {
-            return Some(iso_to_rotvec(t).0[k]);
-        }
-        if let Some(k) = index(&format!("{key}.translation_mm")).filter(|&k| k < 3) {
-            return Some(t.translation.vector[k]);
-        }
+    let n = calibration_number(
+        &c.camera,
+        c.laser_plane.as_ref(),
+        &c.hand_cam,
+        &c.base_board,
+        name,
+    );
+    if n.is_some() {
+        return n;
     }
     let robot = c.robot.as_ref()?;
     let p = DhParam::from_name(name, robot.dof())?;

@@ -14,6 +14,7 @@ use nalgebra::{DMatrix, Matrix3, Vector3};
 
 use super::layout::{Block, JointParams, ParamLayout};
 use super::{JointSigma, TransformSigma};
+use crate::model::calibration_number;
 use crate::model::camera::PARAM_NAMES;
 use crate::model::NamedCovariance;
 
@@ -121,32 +122,16 @@ pub(super) fn joint_sigma(named: &NamedCovariance) -> JointSigma {
 /// The value of one of the calibration's numbers by its contract name (`None` for names
 /// it does not read: the DH corrections).
 fn named_value(r: &super::JointResult, name: &str) -> Option<f64> {
-    let index = |prefix: &str| -> Option<usize> {
-        name.strip_prefix(prefix)?
-            .strip_prefix('[')?
-            .strip_suffix(']')?
-            .parse()
-            .ok()
-    };
-    let params = r.camera.params();
-    if let Some(i) = (0..PARAM_NAMES.len()).find(|&i| camera_name(i) == name) {
-        return Some(params[i]);
+    if name == "board.scale" {
+        return Some(r.board_scale);
     }
-    if let Some(k) = index("laser_plane.normal") {
-        return r.plane.map(|p| p.normal[k]);
-    }
-    if name == "laser_plane.d_mm" {
-        return r.plane.map(|p| p.d);
-    }
-    for (key, t) in [("hand_cam", &r.hand_cam), ("base_board", &r.base_board)] {
-        if let Some(k) = index(&format!("{key}.rotation_vector")) {
-            return Some(crate::model::geometry::iso_to_rotvec(t).0[k]);
-        }
-        if let Some(k) = index(&format!("{key}.translation_mm")) {
-            return Some(t.translation.vector[k]);
-        }
-    }
-    (name == "board.scale").then_some(r.board_scale)
+    calibration_number(
+        &r.camera,
+        r.plane.as_ref(),
+        &r.hand_cam,
+        &r.base_board,
+        name,
+    )
 }
 
 impl super::JointResult {

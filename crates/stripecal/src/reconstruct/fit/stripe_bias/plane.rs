@@ -20,18 +20,7 @@ use nalgebra::Vector3;
 
 use crate::model::geometry::Plane;
 
-use super::profile::{project_jac, sub_lines, PointProfile, Rig};
-use super::HALF_SAMPLES;
-
-/// The board point on the sheet offset `t` imaged on scan line `line`: `(s, point, along
-/// coordinate, d along / dt, slope d along / d line)`.
-struct LinePoint {
-    s: f64,
-    p: Vector3<f64>,
-    a: f64,
-    da_dt: f64,
-    slope: f64,
-}
+use super::profile::{project_jac, sample_lines, PointProfile, Rig, Section, Surface};
 
 /// The board (camera frame) as the model sees it: its plane, the direction of its line
 /// with the sheet and `d p0 / d t`.
@@ -66,7 +55,16 @@ impl<'b> Board<'b> {
         rig.n * ((a - self.c * b) / det) + self.plane.normal * ((b - self.c * a) / det)
     }
 
-    fn point(&self, rig: &Rig<'_>, t: f64, line: f64, s0: f64) -> Option<LinePoint> {
+    /// The board point on the sheet's centre plane imaged on scan line `line`, started at
+    /// the point nearest `p_near`.
+    fn on_line(&self, rig: &Rig<'_>, line: f64, p_near: &Vector3<f64>) -> Option<Section> {
+        let s_near = (p_near - self.p0(rig, 0.0)).dot(&self.e);
+        self.point(rig, 0.0, line, s_near)
+    }
+
+    /// The board point on the sheet offset `t` imaged on scan line `line`, by Newton's
+    /// method along the board's line from `s0`.
+    fn point(&self, rig: &Rig<'_>, t: f64, line: f64, s0: f64) -> Option<Section> {
         let (al, li) = (rig.along, 1 - rig.along);
         let p0 = self.p0(rig, t);
         let mut s = s0;
@@ -87,8 +85,8 @@ impl<'b> Board<'b> {
                 let ds_dt = -jl.dot(&self.dp0_dt.transpose()) / df;
                 let da_dt = ja.dot(&(self.dp0_dt + self.e * ds_dt).transpose());
                 let slope = ja.dot(&self.e.transpose()) / df;
-                return Some(LinePoint {
-                    s,
+                return Some(Section {
+                    phi: s,
                     p,
                     a: uv[al],
                     da_dt,
@@ -98,6 +96,12 @@ impl<'b> Board<'b> {
             s -= (f / df).clamp(-50.0, 50.0);
         }
         None
+    }
+}
+
+impl Surface for Board<'_> {
+    fn section(&self, rig: &Rig<'_>, t: f64, line: f64, hint: f64) -> Option<Section> {
+        self.point(rig, t, line, hint)
     }
 
     /// Seen by the camera, lit by the emitter: `cos(incidence) / r_emitter`; else 0.
@@ -127,8 +131,7 @@ pub(crate) fn board_point_scale(
     line: f64,
     p_near: &Vector3<f64>,
 ) -> Option<(f64, f64)> {
-    let s_near = (p_near - board.p0(rig, 0.0)).dot(&board.e);
-    let l0 = board.point(rig, 0.0, line, s_near)?;
+    let l0 = board.on_line(rig, line, p_near)?;
     Some((l0.da_dt.abs(), l0.slope))
 }
 
@@ -146,8 +149,7 @@ pub(crate) fn board_point_profile(
     out: &mut PointProfile,
 ) -> bool {
     out.samples.clear();
-    let s_near = (p_near - board.p0(rig, 0.0)).dot(&board.e);
-    let Some(l0) = board.point(rig, 0.0, line, s_near) else {
+    let Some(l0) = board.on_line(rig, line, p_near) else {
         return false;
     };
     let w00 = board.shading(rig, &l0.p);
@@ -157,37 +159,6 @@ pub(crate) fn board_point_profile(
     out.a0 = l0.a;
     out.g = l0.da_dt.abs();
     out.slope = l0.slope;
-    let mut lines = Vec::new();
-    sub_lines(psf, out.g * sigma, out.slope, &mut lines);
-    let sl = (psf * psf + 1.0 / 12.0).sqrt();
-    let m = ((4.0 * sigma * out.g / (0.5 * sl)).ceil() as usize).clamp(HALF_SAMPLES, 400);
-    let dt = 4.0 * sigma / m as f64;
-    for &(x, om) in &lines {
-        let Some(c0) = board.point(rig, 0.0, line + x, l0.s) else {
-            continue;
-        };
-        let w0 = board.shading(rig, &c0.p);
-        if w0 <= 0.0 {
-            continue;
-        }
-        out.samples.push((c0.a, dt * om * w0 * c0.da_dt.abs()));
-        for dir in [-1.0f64, 1.0] {
-            let mut s = c0.s;
-            for k in 1..=m {
-                let t = dir * k as f64 * dt;
-                let Some(q) = board.point(rig, t, line + x, s) else {
-                    break;
-                };
-                let w = board.shading(rig, &q.p);
-                if w <= 0.0 {
-                    break;
-                }
-                s = q.s;
-                let z = t / sigma;
-                out.samples
-                    .push((q.a, dt * om * w * q.da_dt.abs() * (-0.5 * z * z).exp()));
-            }
-        }
-    }
+    sample_lines(rig, board, line, l0.phi, sigma, psf, out);
     true
 }

@@ -87,10 +87,35 @@ pub(crate) fn project_jac(cam: &Camera, p: &Vector3<f64>) -> Option<([f64; 2], M
     (uv[0].is_finite() && uv[1].is_finite()).then_some((uv, j))
 }
 
+/// A surface the sheet lights, as the profile model sees it: the point at sheet offset
+/// `t` imaged on scan line `line` (Newton's method from the surface parameter `hint`:
+/// the section circle's angle of a sphere, the position along a board's line), and its
+/// shading (0 where the camera or the emitter does not see it).
+pub(crate) trait Surface {
+    fn section(&self, rig: &Rig<'_>, t: f64, line: f64, hint: f64) -> Option<Section>;
+    fn shading(&self, rig: &Rig<'_>, p: &Vector3<f64>) -> f64;
+}
+
+/// A sphere (camera frame): centre and radius.
+pub(crate) struct SphereSurface<'c> {
+    pub c: &'c Vector3<f64>,
+    pub r: f64,
+}
+
+impl Surface for SphereSurface<'_> {
+    fn section(&self, rig: &Rig<'_>, t: f64, line: f64, hint: f64) -> Option<Section> {
+        section_point(rig, self.c, self.r, t, line, hint)
+    }
+    fn shading(&self, rig: &Rig<'_>, p: &Vector3<f64>) -> f64 {
+        shading(rig, self.c, self.r, p)
+    }
+}
+
 /// The sphere point on the plane `n . p = d + t` imaged on scan line `line`, by Newton's
 /// method on the section circle's angle from `phi0`: `(phi, point, along coordinate,
 /// d along / dt, stripe slope d along / d line)`.
 pub(crate) struct Section {
+    /// The surface parameter ([`Surface::section`]'s `hint` for the next offset).
     pub phi: f64,
     pub p: Vector3<f64>,
     pub a: f64,
@@ -227,16 +252,33 @@ pub(crate) fn point_profile(
     out.a0 = s0.a;
     out.g = s0.da_dt.abs();
     out.slope = s0.slope;
+    sample_lines(rig, &SphereSurface { c, r }, line, s0.phi, sigma, psf, out);
+    true
+}
+
+/// The samples of a stripe point whose `t = 0` quantities (`a0`, `g`, `slope`) are in
+/// `out`: on the scan line and the neighbouring ones the blur mixes in ([`sub_lines`]),
+/// sheet offsets at most half the pixel kernel's sigma apart in the image, each weighted
+/// by the Gaussian sheet, the shading and `|da/dt|`, continued outwards in `t` from the
+/// surface parameter `hint` until the surface is no longer seen or lit.
+pub(crate) fn sample_lines<S: Surface>(
+    rig: &Rig<'_>,
+    surf: &S,
+    line: f64,
+    hint: f64,
+    sigma: f64,
+    psf: f64,
+    out: &mut PointProfile,
+) {
     sub_lines(psf, out.g * sigma, out.slope, &mut out.lines);
-    // Samples at most half the kernel's sigma apart in the image.
     let sl = (psf * psf + 1.0 / 12.0).sqrt();
     let m = ((4.0 * sigma * out.g / (0.5 * sl)).ceil() as usize).clamp(HALF_SAMPLES, 400);
     let dt = 4.0 * sigma / m as f64;
     for &(x, om) in &out.lines {
-        let Some(s0) = section_point(rig, c, r, 0.0, line + x, phi0) else {
+        let Some(s0) = surf.section(rig, 0.0, line + x, hint) else {
             continue;
         };
-        let w0 = shading(rig, c, r, &s0.p);
+        let w0 = surf.shading(rig, &s0.p);
         if w0 <= 0.0 {
             continue;
         }
@@ -244,24 +286,23 @@ pub(crate) fn point_profile(
         // points sampled differently)
         out.samples.push((s0.a, dt * om * w0 * s0.da_dt.abs()));
         for dir in [-1.0f64, 1.0] {
-            let mut phi = s0.phi;
+            let mut h = s0.phi;
             for k in 1..=m {
                 let t = dir * k as f64 * dt;
-                let Some(s) = section_point(rig, c, r, t, line + x, phi) else {
+                let Some(s) = surf.section(rig, t, line + x, h) else {
                     break;
                 };
-                let w = shading(rig, c, r, &s.p);
+                let w = surf.shading(rig, &s.p);
                 if w <= 0.0 {
                     break;
                 }
-                phi = s.phi;
+                h = s.phi;
                 let z = t / sigma;
                 out.samples
                     .push((s.a, dt * om * w * s.da_dt.abs() * (-0.5 * z * z).exp()));
             }
         }
     }
-    true
 }
 
 /// The neighbouring scan lines (offsets px, weights summing to 1) the across-line blur
