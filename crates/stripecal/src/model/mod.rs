@@ -11,12 +11,17 @@ mod dataset;
 pub mod geometry;
 pub mod image;
 pub mod kinematics;
+mod profile;
 mod quality;
 mod results;
 
 pub use checks::{BoardScaleCheck, LeaveOneOut, LooView, LOO_DISAGREE_FACTOR};
 pub use dataset::{
     Dataset, Rig, RobotReading, Scan, ScanFrame, StripeChannel, StripeDirection, View,
+};
+pub use profile::{
+    Profile, ProfileDataset, ProfileRig, ProfileScan, ProfileView, ProfilerCalibration,
+    ProfilerQuality, SensorKind,
 };
 pub use quality::{QualityCheck, QualityFailure};
 pub(crate) use results::calibration_number;
