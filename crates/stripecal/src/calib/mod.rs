@@ -19,6 +19,7 @@ pub mod flatness;
 pub mod homography;
 pub mod joint;
 pub mod laser_plane;
+pub mod profile;
 pub mod zhang;
 
 use crate::model::geometry::Iso3;

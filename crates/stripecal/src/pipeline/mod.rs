@@ -42,6 +42,7 @@ mod observe;
 mod pairing;
 mod plan;
 mod prior;
+pub mod profile;
 mod report;
 pub mod stripe_select;
 #[cfg(test)]

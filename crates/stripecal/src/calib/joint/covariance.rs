@@ -83,6 +83,14 @@ pub(super) fn named_covariance(
         names.push("board.scale".into());
         rows.push(vec![(c, 1.0)]);
     }
+    for (k, c) in layout.slotless_columns(Block::SphereCentre).enumerate() {
+        names.push(format!("sphere.center_mm[{k}]"));
+        rows.push(vec![(c, 1.0)]);
+    }
+    for c in layout.slotless_columns(Block::SphereDiameter) {
+        names.push("sphere.diameter_mm".into());
+        rows.push(vec![(c, 1.0)]);
+    }
     let all = layout.names();
     for c in layout.robot_columns() {
         names.push(all[c].clone());

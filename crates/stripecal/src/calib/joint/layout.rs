@@ -12,6 +12,12 @@
 //! | `X`, `Z`     | 6 each| rotation vector `w`, translation `t` | `R Exp(w)`, `t+v` |
 //! | board scale  | 1     | `s` (every board coordinate times s) | `p + dp`          |
 //! | robot        | none  | the DH corrections chosen ([`super::robot`]) | `p + dp`  |
+//! | sphere centre| none  | a profiler's sphere centre in the base frame, mm | `p + dp` |
+//! | sphere diameter | none | the sphere's diameter, mm (when not declared) | `p + dp` |
+//!
+//! A profiler ([`super::profile`]) has no camera, laser plane, `Z` or board: those
+//! blocks are held (no columns), `X` is `T_hand_sensor`, and its sphere's centre and
+//! diameter are slotless global blocks (its residuals have analytic derivatives).
 //!
 //! The robot block is global but has no slots: its columns follow the other global
 //! columns, and a view's residuals reach them through its flange pose (the chain of
@@ -74,6 +80,10 @@ pub(super) enum Block {
     RobotPose,
     /// Per view, on the bench: the board pose `T_cam_board(i)` ([`super::bench`]).
     BoardPose,
+    /// A profiler's sphere centre in the base frame, mm (global, no slots).
+    SphereCentre,
+    /// A profiler's sphere diameter, mm (global, no slots).
+    SphereDiameter,
     /// Corrections to the robot's DH rows (global, no slots).
     Robot,
 }
@@ -113,6 +123,14 @@ impl BlockDef {
             free,
             per_view: false,
             slotless: false,
+        }
+    }
+
+    /// The block without slots (its columns follow the slotted ones).
+    fn slotless(self) -> BlockDef {
+        BlockDef {
+            slotless: true,
+            ..self
         }
     }
 
@@ -202,6 +220,15 @@ pub(super) struct JointParams {
     pub robot: Vec<f64>,
 }
 
+/// A profiler's sphere at the start of its adjustment, and whether its diameter is
+/// estimated (the centre always is).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(super) struct SphereStart {
+    pub centre: Vector3<f64>,
+    pub diameter: f64,
+    pub diameter_free: bool,
+}
+
 /// The layout of the adjustment's parameter vector (module docs).
 #[derive(Debug, Clone)]
 pub(super) struct ParamLayout {
@@ -228,6 +255,22 @@ pub(super) struct ParamLayout {
     pub chart: PlaneChart,
     /// The robot block (its corrections estimated), when the robot is calibrated.
     pub robot: Option<RobotBlock>,
+    /// A profiler's sphere at the start (`None` for a camera).
+    sphere: Option<SphereStart>,
+}
+
+/// What [`ParamLayout::build`] registers: each block's estimated values and the start.
+struct BuildSpec<'a> {
+    cam_free: Vec<bool>,
+    plane_free: bool,
+    free: FreeBlocks,
+    robot_noise: bool,
+    robot: Option<RobotBlock>,
+    board_poses: Option<&'a [Iso3]>,
+    sphere: Option<SphereStart>,
+    /// The slots' values at the start, and the plane's normal there.
+    base: [f64; SLOTS],
+    n0: Vector3<f64>,
 }
 
 impl ParamLayout {
@@ -245,7 +288,8 @@ impl ParamLayout {
         robot_noise: bool,
         robot: Option<RobotBlock>,
     ) -> ParamLayout {
-        Self::build(start, free, scale, view_ids, robot_noise, robot, None)
+        let spec = BuildSpec::camera(start, free, scale, robot_noise, robot, None);
+        Self::build(spec, view_ids)
     }
 
     /// The bench's layout ([`super::bench`]): the camera and the laser plane as `free`
@@ -263,28 +307,59 @@ impl ParamLayout {
             board_scale: false,
             ..*free
         };
-        Self::build(start, &free, 1.0, view_ids, false, None, Some(board_poses))
+        let spec = BuildSpec::camera(start, &free, 1.0, false, None, Some(board_poses));
+        Self::build(spec, view_ids)
     }
 
-    fn build(
-        start: &JointStart,
-        free: &FreeBlocks,
-        scale: f64,
+    /// A profiler's layout ([`super::profile`]): `X = T_hand_sensor` (estimated when
+    /// `hand_free`), the sphere's centre and (when `sphere.diameter_free`) its diameter,
+    /// the robot block; every camera block held.
+    pub fn profiler(
+        hand_sensor: &Iso3,
+        hand_free: bool,
+        sphere: SphereStart,
         view_ids: &[usize],
-        robot_noise: bool,
         robot: Option<RobotBlock>,
-        board_poses: Option<&[Iso3]>,
     ) -> ParamLayout {
-        let mut cam_free = vec![free.camera; 4];
-        cam_free.extend(
-            start
-                .camera
-                .model
-                .free_coefficients()
-                .iter()
-                .map(|&f| f && free.camera),
-        );
-        let plane_free = free.laser_plane && start.plane.is_some();
+        let mut base = [0.0; SLOTS];
+        let (rv, tr) = iso_to_rotvec(hand_sensor);
+        // the camera's slots are never read; the board scale is 1
+        base[9 + 3..9 + 3 + 6].copy_from_slice(&[rv.x, rv.y, rv.z, tr.x, tr.y, tr.z]);
+        base[SLOTS - 1] = 1.0;
+        let spec = BuildSpec {
+            cam_free: vec![false; 9],
+            plane_free: false,
+            free: FreeBlocks {
+                camera: false,
+                laser_plane: false,
+                hand_cam: hand_free,
+                base_board: false,
+                board_scale: false,
+            },
+            robot_noise: false,
+            robot,
+            board_poses: None,
+            sphere: Some(sphere),
+            base,
+            n0: Vector3::z(),
+        };
+        let layout = Self::build(spec, view_ids);
+        debug_assert_eq!(layout.slots(Block::HandCam).start, 12);
+        layout
+    }
+
+    fn build(spec: BuildSpec<'_>, view_ids: &[usize]) -> ParamLayout {
+        let BuildSpec {
+            cam_free,
+            plane_free,
+            free,
+            robot_noise,
+            robot,
+            board_poses,
+            sphere,
+            base,
+            n0,
+        } = spec;
         let blocks = vec![
             BlockDef {
                 block: Block::Camera,
@@ -304,6 +379,18 @@ impl ParamLayout {
             BlockDef::euclidean(Block::BoardScale, &["board_scale"], vec![free.board_scale]),
             BlockDef::transform(Block::RobotPose, "robot", robot_noise).per_view(),
             BlockDef::transform(Block::BoardPose, "board", board_poses.is_some()).per_view(),
+            BlockDef::euclidean(
+                Block::SphereCentre,
+                &["sphere_cx_mm", "sphere_cy_mm", "sphere_cz_mm"],
+                vec![sphere.is_some(); 3],
+            )
+            .slotless(),
+            BlockDef::euclidean(
+                Block::SphereDiameter,
+                &["sphere_diameter_mm"],
+                vec![sphere.is_some_and(|s| s.diameter_free)],
+            )
+            .slotless(),
             BlockDef {
                 block: Block::Robot,
                 kind: BlockKind::Euclidean,
@@ -339,7 +426,6 @@ impl ParamLayout {
             }
         }
         debug_assert_eq!(col_of_slot.len(), SLOTS);
-        let n0 = start.plane.map_or(Vector3::z(), |p| p.normal);
         let mut view_base = vec![0.0; view_ids.len() * view_col];
         if let Some(poses) = board_poses {
             let c = col0[blocks
@@ -352,21 +438,20 @@ impl ParamLayout {
                 view_base[b..b + 6].copy_from_slice(&[rv.x, rv.y, rv.z, tr.x, tr.y, tr.z]);
             }
         }
-        let mut layout = ParamLayout {
+        ParamLayout {
             view_base,
             blocks,
             slot0,
             col0,
             col_of_slot,
-            base: [0.0; SLOTS],
+            base,
             n_global: col,
             view_ids: view_ids.to_vec(),
             per_view_cols: view_col,
             chart: PlaneChart::around(n0),
             robot,
-        };
-        layout.base = layout.slot_values(start, scale);
-        layout
+            sphere,
+        }
     }
 
     /// The layout of an adjustment with options `opts` over the views `used` (dataset
@@ -397,8 +482,7 @@ impl ParamLayout {
 
     /// The columns of the robot block (empty without one).
     pub fn robot_columns(&self) -> Range<usize> {
-        let i = self.index(Block::Robot);
-        self.col0[i]..self.col0[i] + self.blocks[i].estimated()
+        self.slotless_columns(Block::Robot)
     }
 
     /// The columns of view `v`'s instance of a per-view block (`None`: not estimated).
@@ -468,26 +552,6 @@ impl ParamLayout {
         names
     }
 
-    /// Every slot's value at `start`: the camera's parameters, the plane's chart
-    /// coordinates (0, 0) and offset, `X` and `Z` as rotation vector and translation,
-    /// the board scale.
-    fn slot_values(&self, start: &JointStart, scale: f64) -> [f64; SLOTS] {
-        let mut v = [0.0; SLOTS];
-        v[self.slots(Block::Camera)].copy_from_slice(&start.camera.params());
-        let sp = self.slots(Block::Plane).start;
-        v[sp + 2] = start.plane.map_or(0.0, |p| p.d);
-        for (block, t) in [
-            (Block::HandCam, &start.hand_cam),
-            (Block::BaseBoard, &start.base_board),
-        ] {
-            let (rv, tr) = iso_to_rotvec(t);
-            let s = self.slots(block).start;
-            v[s..s + 6].copy_from_slice(&[rv.x, rv.y, rv.z, tr.x, tr.y, tr.z]);
-        }
-        v[self.slots(Block::BoardScale).start] = scale;
-        v
-    }
-
     /// The parameter vector of the start: its estimated slots, then the per-view
     /// blocks at their starts (the robot-pose corrections at the identity, the bench's
     /// board poses at their starting poses).
@@ -496,7 +560,13 @@ impl ParamLayout {
             .filter(|&s| self.col_of_slot[s].is_some())
             .map(|s| self.base[s])
             .collect();
-        // The slotless robot corrections start at zero.
+        // The slotless blocks: the sphere at its start, the robot corrections at zero.
+        if let Some(sp) = &self.sphere {
+            p.extend_from_slice(sp.centre.as_slice());
+            if sp.diameter_free {
+                p.push(sp.diameter);
+            }
+        }
         p.resize(self.n_global, 0.0);
         p.extend_from_slice(&self.view_base);
         debug_assert_eq!(p.len(), self.num_params());
@@ -536,6 +606,31 @@ impl ParamLayout {
             board_poses: self.view_transforms(p, Block::BoardPose),
             robot: p[self.robot_columns()].to_vec(),
         }
+    }
+
+    /// The columns of a global slotless block (empty when not estimated).
+    pub fn slotless_columns(&self, block: Block) -> Range<usize> {
+        let i = self.index(block);
+        debug_assert!(self.blocks[i].slotless, "{block:?} has slots");
+        self.col0[i]..self.col0[i] + self.blocks[i].estimated()
+    }
+
+    /// A profiler's sphere centre of `p` (zero for a camera).
+    pub fn sphere_centre(&self, p: &[f64]) -> Vector3<f64> {
+        let c = self.slotless_columns(Block::SphereCentre);
+        if c.is_empty() {
+            return self.sphere.map_or(Vector3::zeros(), |s| s.centre);
+        }
+        Vector3::new(p[c.start], p[c.start + 1], p[c.start + 2])
+    }
+
+    /// A profiler's sphere diameter of `p` (the start's when held; zero for a camera).
+    pub fn sphere_diameter(&self, p: &[f64]) -> f64 {
+        let c = self.slotless_columns(Block::SphereDiameter);
+        if c.is_empty() {
+            return self.sphere.map_or(0.0, |s| s.diameter);
+        }
+        p[c.start]
     }
 
     /// Every view's instance of a per-view transform block of `p` (empty when not
@@ -582,6 +677,56 @@ impl ParamLayout {
             }
         }
     }
+}
+
+impl BuildSpec<'_> {
+    /// A camera's blocks: the camera's four intrinsics and its model's free distortion
+    /// coefficients, the plane (held without a starting plane), `X`, `Z` and the board
+    /// scale as `free` says.
+    fn camera<'a>(
+        start: &JointStart,
+        free: &FreeBlocks,
+        scale: f64,
+        robot_noise: bool,
+        robot: Option<RobotBlock>,
+        board_poses: Option<&'a [Iso3]>,
+    ) -> BuildSpec<'a> {
+        let mut cam_free = vec![free.camera; 4];
+        cam_free.extend(
+            start
+                .camera
+                .model
+                .free_coefficients()
+                .iter()
+                .map(|&f| f && free.camera),
+        );
+        BuildSpec {
+            cam_free,
+            plane_free: free.laser_plane && start.plane.is_some(),
+            free: *free,
+            robot_noise,
+            robot,
+            board_poses,
+            sphere: None,
+            base: slot_values(start, scale),
+            n0: start.plane.map_or(Vector3::z(), |p| p.normal),
+        }
+    }
+}
+
+/// Every slot's value at `start`: the camera's parameters (slots 0..9), the plane's
+/// chart coordinates (0, 0) and offset (9..12), `X` (12..18) and `Z` (18..24) as
+/// rotation vector and translation, the board scale (24).
+fn slot_values(start: &JointStart, scale: f64) -> [f64; SLOTS] {
+    let mut v = [0.0; SLOTS];
+    v[0..9].copy_from_slice(&start.camera.params());
+    v[11] = start.plane.map_or(0.0, |p| p.d);
+    for (s, t) in [(12, &start.hand_cam), (18, &start.base_board)] {
+        let (rv, tr) = iso_to_rotvec(t);
+        v[s..s + 6].copy_from_slice(&[rv.x, rv.y, rv.z, tr.x, tr.y, tr.z]);
+    }
+    v[24] = scale;
+    v
 }
 
 /// The update of one block's columns `r`.

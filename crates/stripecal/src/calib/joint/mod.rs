@@ -72,6 +72,7 @@ mod chain;
 mod covariance;
 mod layout;
 mod predict;
+pub mod profile;
 mod report;
 mod residuals;
 mod robot;

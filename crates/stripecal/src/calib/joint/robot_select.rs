@@ -33,7 +33,6 @@
 use nalgebra::{DMatrix, DVector};
 
 use super::layout::ParamLayout;
-use super::residuals::JointProblem;
 use super::robot::{DhParam, RobotMode};
 use crate::error::{Error, Result};
 use crate::numerics::lm::{JacobianRows, LeastSquares};
@@ -55,7 +54,7 @@ pub(super) struct Information {
 }
 
 /// `N`, `g` and the variance factor of `problem` at `p`.
-pub(super) fn information(problem: &JointProblem<'_>, p: &[f64]) -> Result<Information> {
+pub(super) fn information<P: LeastSquares + ?Sized>(problem: &P, p: &[f64]) -> Result<Information> {
     let n = problem.num_params();
     let m = problem.num_residuals();
     let w = problem.jacobian_row_width().unwrap_or(n);
@@ -210,6 +209,7 @@ fn reason(
     for (prefix, what) in [
         ("hand_cam_", "the hand-eye X"),
         ("base_board_", "the robot-world Z"),
+        ("sphere_c", "the sphere's centre"),
     ] {
         let block: Vec<usize> = (0..names.len())
             .filter(|&j| names[j].starts_with(prefix))

@@ -1,0 +1,353 @@
+//! A profiler calibration's checks: views whose points do not fit, the mirror test,
+//! undetermined numbers, convergence, and the declared diameter against the data.
+//!
+//! ## The mirror test
+//!
+//! Flipping the side of every view is the mirror image of the solution. When the
+//! sphere's centres as the sensor sees them, `p_i = (A_i X)^-1 c`, lie in one plane (the
+//! same stand-off, the same place along the line, or the same offset from the laser
+//! plane in every view), a proper rigid motion maps the mirrored centres onto the true
+//! ones and a mirrored hand-eye fits exactly as well. So the adjustment is run again from
+//! the mirrored start over the same points, and the two costs compared:
+//! `dchi2 = (SSR_mirror - SSR_chosen) / s^2` (`s^2` the chosen fit's variance factor).
+//! Below [`MIRROR_CHI2`] (a 5-sigma chi-square(1) margin) the data cannot decide: the
+//! calibration fails and names the plane the centres lie in. For speed both solves use
+//! every k-th point of the chosen selection (at most [`MIRROR_POINTS`]), and `dchi2` is
+//! scaled back by k.
+
+use nalgebra::{Matrix3, Point3, SymmetricEigen, Vector3};
+
+use crate::calib::joint::profile::{
+    profile_adjustment, ProfileFit, ProfileOptions, ProfileStart, ProfileViewObs,
+};
+use crate::calib::profile::start::MIN_VIEWS;
+use crate::error::Result;
+use crate::model::QualityCheck;
+
+/// The mirror must fit worse by this many variances (chi-square(1) at 5 sigma).
+pub const MIRROR_CHI2: f64 = 25.0;
+/// Points the mirror test solves with at most.
+pub const MIRROR_POINTS: usize = 6000;
+/// A view whose fit keeps less than this share of its arc's points does not fit.
+pub const MIN_KEPT_SHARE: f64 = 0.5;
+/// The declared diameter is contradicted beyond 3 sigma and this share of it.
+pub const DIAMETER_TOLERANCE: f64 = 0.002;
+
+/// The mirror test's figures (module docs).
+#[derive(Debug, Clone, PartialEq)]
+pub struct MirrorTest {
+    pub ssr_chosen_mm2: f64,
+    pub ssr_mirror_mm2: f64,
+    /// `(SSR_mirror - SSR_chosen) / s^2`, scaled to every point.
+    pub delta_chi2: f64,
+    /// The spread of the sphere's centres as the sensor saw them: standard deviations
+    /// along sensor x (place along the line), y (offset from the laser plane), z
+    /// (stand-off), and across their best-fitting plane, mm.
+    pub spread_mm: [f64; 4],
+    pub passed: bool,
+}
+
+impl MirrorTest {
+    /// What the spread says: the plane the centres lie in, nearly or exactly.
+    pub fn plane(&self) -> String {
+        let [x, y, z, n] = self.spread_mm;
+        let (what, s) = [
+            ("the same place along the line (sensor x)", x),
+            ("the same offset from the laser plane (sensor y)", y),
+            ("the same stand-off (sensor z)", z),
+        ]
+        .into_iter()
+        .min_by(|a, b| a.1.total_cmp(&b.1))
+        .unwrap_or(("", 0.0));
+        if n < 0.5 * s {
+            format!("one tilted plane (spread across it {n:.3} mm)")
+        } else {
+            format!("{what}: spread {s:.3} mm")
+        }
+    }
+
+    /// The `mirror` gate.
+    pub fn check(&self) -> QualityCheck {
+        if self.passed {
+            QualityCheck::pass(
+                "mirror",
+                format!(
+                    "the mirrored hand-eye fits worse by chi2 {:.0} (needs > {MIRROR_CHI2:.0})",
+                    self.delta_chi2
+                ),
+            )
+        } else {
+            QualityCheck::fail(
+                "mirror",
+                format!(
+                    "a mirrored hand-eye fits as well (its cost against the chosen one: chi2 \
+                     {:+.1}, needs > {MIRROR_CHI2:.0}): the sphere's centres as the sensor \
+                     sees them lie in one plane, {}; vary the stand-off, the sphere's place \
+                     along the line and the laser plane's offset from its centre (both sides) \
+                     between the poses",
+                    self.delta_chi2,
+                    self.plane()
+                ),
+                vec![],
+            )
+        }
+    }
+}
+
+/// The declared diameter against the data's estimate.
+#[derive(Debug, Clone, PartialEq)]
+pub struct DiameterCheck {
+    pub declared_mm: f64,
+    pub estimate_mm: f64,
+    pub sigma_mm: f64,
+    pub disagrees: bool,
+}
+
+impl DiameterCheck {
+    /// The warning of a disagreement.
+    pub fn message(&self) -> String {
+        format!(
+            "the sphere's declared diameter {:.4} mm disagrees with the profiles: they say \
+             {:.4} +- {:.4} mm ({:+.4} mm, {:.1} sigma); check rig.json's artefact.diameter_mm \
+             (or set it to null to estimate it)",
+            self.declared_mm,
+            self.estimate_mm,
+            self.sigma_mm,
+            self.estimate_mm - self.declared_mm,
+            (self.estimate_mm - self.declared_mm).abs() / self.sigma_mm.max(1e-300)
+        )
+    }
+}
+
+/// The start at a fit's values.
+fn start_at(fit: &ProfileFit, diameter_free: bool) -> ProfileStart {
+    ProfileStart {
+        hand_sensor: fit.hand_sensor,
+        centre: fit.centre,
+        diameter: fit.diameter,
+        diameter_free,
+    }
+}
+
+/// The views with the fit's selection as their points to keep, every `step`-th, their
+/// flange poses the fit's (the robot held at the refined one).
+fn held(obs: &[ProfileViewObs], fit: &ProfileFit, step: usize) -> Vec<ProfileViewObs> {
+    obs.iter()
+        .zip(&fit.selected)
+        .zip(&fit.flanges)
+        .map(|((o, s), a)| ProfileViewObs {
+            a: *a,
+            arc: s.iter().step_by(step).copied().collect(),
+            q: None,
+            ..o.clone()
+        })
+        .collect()
+}
+
+fn kept_only(popts: &ProfileOptions) -> ProfileOptions {
+    ProfileOptions {
+        robot: None,
+        keep_selection: true,
+        ..popts.clone()
+    }
+}
+
+/// The views kept, and `(views.csv row, note)` of those left out.
+type Kept = (Vec<ProfileViewObs>, Vec<(usize, String)>);
+
+/// Views whose fit keeps less than [`MIN_KEPT_SHARE`] of their arc's points, worst
+/// first, left out and the adjustment re-run, while more than [`MIN_VIEWS`] remain.
+pub(super) fn poor_views(
+    mut obs: Vec<ProfileViewObs>,
+    fit: &mut ProfileFit,
+    start: &ProfileStart,
+    popts: &ProfileOptions,
+) -> Result<Kept> {
+    let mut left = Vec::new();
+    loop {
+        let share: Vec<f64> = obs
+            .iter()
+            .zip(&fit.selected)
+            .map(|(o, s)| s.len() as f64 / o.arc.len().max(1) as f64)
+            .collect();
+        let Some((k, worst)) = share
+            .iter()
+            .copied()
+            .enumerate()
+            .min_by(|a, b| a.1.total_cmp(&b.1))
+        else {
+            break;
+        };
+        if worst >= MIN_KEPT_SHARE || obs.len() <= MIN_VIEWS {
+            break;
+        }
+        let o = obs.remove(k);
+        left.push((
+            o.view,
+            format!(
+                "view {}: only {:.0} % of its arc's points lie on the sphere its robot pose \
+                 predicts (its profile does not fit); left out",
+                o.view,
+                100.0 * worst
+            ),
+        ));
+        *fit = profile_adjustment(&obs, start, popts)?;
+    }
+    Ok((obs, left))
+}
+
+/// The sphere's centre as the sensor saw it in each view.
+pub(super) fn centres_in_sensor(fit: &ProfileFit) -> Vec<Vector3<f64>> {
+    fit.flanges
+        .iter()
+        .map(|a| ((a * fit.hand_sensor).inverse() * Point3::from(fit.centre)).coords)
+        .collect()
+}
+
+fn spread(p: &[Vector3<f64>]) -> [f64; 4] {
+    let n = p.len().max(1) as f64;
+    let mean = p.iter().sum::<Vector3<f64>>() / n;
+    let cov = p
+        .iter()
+        .map(|x| (x - mean) * (x - mean).transpose())
+        .sum::<Matrix3<f64>>()
+        / n;
+    let e = SymmetricEigen::new(cov);
+    let least = e.eigenvalues.min().max(0.0).sqrt();
+    [
+        cov[(0, 0)].sqrt(),
+        cov[(1, 1)].sqrt(),
+        cov[(2, 2)].sqrt(),
+        least,
+    ]
+}
+
+/// The mirror test (module docs) of `fit` against the mirrored start.
+pub(super) fn mirror(
+    obs: &[ProfileViewObs],
+    fit: &ProfileFit,
+    mirror_start: &ProfileStart,
+    popts: &ProfileOptions,
+) -> Result<MirrorTest> {
+    let step = fit.points_used().div_ceil(MIRROR_POINTS).max(1);
+    let sub = held(obs, fit, step);
+    let o = kept_only(popts);
+    let chosen = profile_adjustment(&sub, &start_at(fit, mirror_start.diameter_free), &o)?;
+    let ssr_m = match profile_adjustment(&sub, mirror_start, &o) {
+        Ok(m) => m.ssr,
+        // a mirror that cannot even be solved does not fit
+        Err(_) => f64::INFINITY,
+    };
+    let s2 = (fit.sigma_mm * fit.sigma_mm).max(1e-300);
+    let delta = (ssr_m - chosen.ssr) / s2 * step as f64;
+    Ok(MirrorTest {
+        ssr_chosen_mm2: chosen.ssr * step as f64,
+        ssr_mirror_mm2: ssr_m * step as f64,
+        delta_chi2: delta,
+        spread_mm: spread(&centres_in_sensor(fit)),
+        passed: delta > MIRROR_CHI2,
+    })
+}
+
+/// The declared diameter against the estimate with the diameter freed (the fit's
+/// points, the robot held at the fit's).
+pub(super) fn diameter(
+    obs: &[ProfileViewObs],
+    fit: &ProfileFit,
+    declared: f64,
+    popts: &ProfileOptions,
+) -> Result<DiameterCheck> {
+    let free = profile_adjustment(&held(obs, fit, 1), &start_at(fit, true), &kept_only(popts))?;
+    let sigma = free
+        .covariance
+        .sigma("sphere.diameter_mm")
+        .unwrap_or(f64::NAN);
+    let d = free.diameter - declared;
+    Ok(DiameterCheck {
+        declared_mm: declared,
+        estimate_mm: free.diameter,
+        sigma_mm: sigma,
+        disagrees: d.abs() > 3.0 * sigma && d.abs() > DIAMETER_TOLERANCE * declared,
+    })
+}
+
+/// The `views` check: which views were left out and why (passes while enough remain).
+pub(super) fn views_check(status: &[super::ProfileViewStatus], used: usize) -> QualityCheck {
+    let out: Vec<usize> = status
+        .iter()
+        .filter(|s| s.note.is_some())
+        .map(|s| s.view)
+        .collect();
+    let msg = if out.is_empty() {
+        format!("all {used} profiles used")
+    } else {
+        format!(
+            "{used} profiles used; left out (named in the views): {}",
+            out.iter()
+                .map(|v| v.to_string())
+                .collect::<Vec<_>>()
+                .join(", ")
+        )
+    };
+    QualityCheck {
+        name: "views".into(),
+        passed: used >= MIN_VIEWS,
+        message: msg,
+        views: out,
+    }
+}
+
+/// The `determined` gate: every estimated number has a finite, positive sigma.
+pub(super) fn determined(fit: &ProfileFit) -> QualityCheck {
+    let bad: Vec<&String> = fit
+        .covariance
+        .parameters
+        .iter()
+        .enumerate()
+        .filter(|(i, _)| {
+            let v = fit.covariance.matrix[(*i, *i)];
+            !(v.is_finite() && v > 0.0)
+        })
+        .map(|(_, n)| n)
+        .collect();
+    if bad.is_empty() {
+        QualityCheck::pass(
+            "determined",
+            format!(
+                "every one of the {} estimated numbers has a finite sigma",
+                fit.covariance.parameters.len()
+            ),
+        )
+    } else {
+        QualityCheck::fail(
+            "determined",
+            format!(
+                "not determined by these profiles: {}",
+                bad.iter()
+                    .map(|s| s.as_str())
+                    .collect::<Vec<_>>()
+                    .join(", ")
+            ),
+            vec![],
+        )
+    }
+}
+
+/// The `converged` gate.
+pub(super) fn converged(fit: &ProfileFit) -> QualityCheck {
+    if fit.converged {
+        QualityCheck::pass(
+            "converged",
+            format!("the adjustment converged in {} iterations", fit.iterations),
+        )
+    } else {
+        QualityCheck::fail(
+            "converged",
+            format!(
+                "the adjustment did not converge in {} iterations",
+                fit.iterations
+            ),
+            vec![],
+        )
+    }
+}

@@ -1,0 +1,293 @@
+//! A profiler's calibration from profiles of a reference sphere (spec/DATASET.md, "A
+//! profile dataset"): from the profiles and the robot readings to `T_hand_sensor`, the
+//! sphere and, with joint readings, the robot.
+//!
+//! ## Steps
+//!
+//! 1. Arcs ([`crate::calib::profile::arc`]): each profile's arc of the sphere; a profile
+//!    without one (the line missed the sphere) is named and left out.
+//! 2. Consensus ([`consensus`]): the closed-form start
+//!    ([`crate::calib::profile::start`]) over the views with an arc; a view whose circle
+//!    the others' solution cannot place (a pose paired with the wrong profile) is named
+//!    and left out, worst first, while enough remain.
+//! 3. The one-stage adjustment ([`crate::calib::joint::profile`]) from the chosen start,
+//!    its points re-selected; the DH corrections with `--robot`.
+//! 4. The mirror test ([`checks::mirror`]): the adjustment again from the mirrored
+//!    start; when it fits about as well the calibration fails, naming the plane the
+//!    sphere's centres lie in.
+//! 5. The gates ([`checks`]): views whose points do not fit, undetermined numbers,
+//!    convergence; the declared diameter against the data's estimate.
+//! 6. Leave-one-view-out ([`loo`], DECISIONS 3): each view's profile against the sphere
+//!    predicted by the others from its robot pose.
+
+mod checks;
+mod consensus;
+mod loo;
+mod record;
+
+use nalgebra::Vector3;
+
+use crate::calib::joint::profile::{
+    profile_adjustment, ProfileFit, ProfileOptions, ProfileStart, ProfileViewObs,
+};
+use crate::calib::joint::{RobotMode, RobotOptions};
+use crate::calib::profile::arc::{find_arc, ArcOptions};
+use crate::error::{Error, Result};
+use crate::model::{
+    Profile, ProfileRig, ProfilerCalibration, QualityCheck, QualityFailure, RobotReading,
+};
+
+pub use checks::{DiameterCheck, MirrorTest};
+pub use loo::{ProfileLoo, ProfileLooView};
+
+/// One profile of the dataset, read.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ProfileInput {
+    /// Its row in views.csv (0-based).
+    pub view: usize,
+    /// Its line in views.csv (1-based, the header is line 1).
+    pub line: usize,
+    /// The profile file as named in views.csv.
+    pub file: String,
+    pub profile: Profile,
+    pub reading: RobotReading,
+}
+
+/// Options of [`calibrate_profiles`].
+#[derive(Debug, Clone, PartialEq)]
+pub struct ProfileCalibrateOptions {
+    /// The robot's DH corrections (`--robot`; needs joint readings).
+    pub robot: RobotMode,
+    /// Compute the leave-one-view-out figures (default true).
+    pub leave_one_out: bool,
+    /// Return a calibration that failed a gate instead of an error, marked.
+    pub accept_poor: bool,
+}
+
+impl Default for ProfileCalibrateOptions {
+    fn default() -> Self {
+        ProfileCalibrateOptions {
+            robot: RobotMode::Fixed,
+            leave_one_out: true,
+            accept_poor: false,
+        }
+    }
+}
+
+/// What the calibration did with one profile.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ProfileViewStatus {
+    pub view: usize,
+    pub line: usize,
+    pub file: String,
+    /// Points read, gaps skipped.
+    pub points: usize,
+    pub gaps: usize,
+    /// Points of its arc, and of the sphere in the final fit.
+    pub arc_points: usize,
+    pub sphere_points: usize,
+    /// Points not on the sphere (table, stand, spikes): `points - sphere_points`.
+    pub rejected: usize,
+    /// RMS distance of its sphere points from the fitted sphere, mm.
+    pub rms_mm: Option<f64>,
+    /// The side of the profile plane the sphere's centre lies on (+1: sensor y > 0).
+    pub side: Option<f64>,
+    /// The sphere's centre as the sensor saw it in this view (fitted), mm.
+    pub centre_in_sensor: Option<Vector3<f64>>,
+    pub used: bool,
+    /// Why it was left out.
+    pub note: Option<String>,
+}
+
+/// The result of a profiler's calibration.
+#[derive(Debug, Clone)]
+pub struct ProfileReport {
+    pub calibration: ProfilerCalibration,
+    pub fit: ProfileFit,
+    pub views: Vec<ProfileViewStatus>,
+    pub mirror: MirrorTest,
+    pub diameter_check: Option<DiameterCheck>,
+    pub leave_one_out: Option<ProfileLoo>,
+    pub warnings: Vec<String>,
+}
+
+/// The arc options for a rig: circles up to the sphere's radius (with a margin for
+/// noise) when declared.
+fn arc_options(rig: &ProfileRig) -> ArcOptions {
+    ArcOptions {
+        max_radius: rig.diameter_mm.map_or(1000.0, |d| 0.5 * d * 1.02 + 0.2),
+        ..ArcOptions::default()
+    }
+}
+
+/// Calibrates a profiler from its profiles (module docs).
+pub fn calibrate_profiles(
+    inputs: &[ProfileInput],
+    rig: &ProfileRig,
+    opts: &ProfileCalibrateOptions,
+) -> Result<ProfileReport> {
+    if inputs.is_empty() {
+        return Err(Error::Degenerate("no profiles to calibrate from".into()));
+    }
+    if inputs.iter().any(|i| i.reading == RobotReading::Fixed) {
+        return Err(Error::InvalidInput(
+            "a profiler is calibrated from robot poses: views.csv needs joint readings or \
+             flange-pose columns beside the profile column"
+                .into(),
+        ));
+    }
+    let robot = match opts.robot {
+        RobotMode::Fixed => None,
+        mode => Some(RobotOptions {
+            nominal: rig.robot.clone().ok_or_else(|| {
+                Error::InvalidInput(format!(
+                    "--robot {} needs rig.json's robot (DH table) and joint readings",
+                    mode.name()
+                ))
+            })?,
+            mode,
+        }),
+    };
+    let mut warnings = Vec::new();
+    let mut status: Vec<ProfileViewStatus> = inputs.iter().map(status_of).collect();
+    // 1. arcs
+    let aopts = arc_options(rig);
+    let mut obs: Vec<ProfileViewObs> = Vec::new();
+    let mut arcs = Vec::new();
+    for (k, inp) in inputs.iter().enumerate() {
+        let a = inp
+            .reading
+            .base_hand(rig.robot.as_ref())
+            .map_err(|e| Error::InvalidInput(format!("{}: {e}", view_name(inp))))?;
+        match find_arc(&inp.profile.points, &aopts, inp.view as u64) {
+            Ok(arc) => {
+                status[k].arc_points = arc.inliers.len();
+                obs.push(ProfileViewObs {
+                    view: inp.view,
+                    a,
+                    q: match &inp.reading {
+                        RobotReading::Joints(q) => Some(q.clone()),
+                        _ => None,
+                    },
+                    points: inp.profile.points.clone(),
+                    arc: arc.inliers.clone(),
+                });
+                arcs.push(arc);
+            }
+            Err(why) => {
+                let note = format!("{}: {why}; left out", view_name(inp));
+                warnings.push(note.clone());
+                status[k].note = Some(note);
+            }
+        }
+    }
+    // 2. consensus and the start
+    let cons = consensus::consensus(&obs, &arcs, rig.diameter_mm.map(|d| 0.5 * d))?;
+    for (row, note) in &cons.left_out {
+        if let Some(s) = status.iter_mut().find(|s| s.view == *row) {
+            s.note = Some(note.clone());
+        }
+        warnings.push(note.clone());
+    }
+    let obs: Vec<ProfileViewObs> = obs
+        .into_iter()
+        .filter(|o| !cons.left_out.iter().any(|(r, _)| *r == o.view))
+        .collect();
+    let popts = ProfileOptions {
+        robot: robot.clone(),
+        ..ProfileOptions::default()
+    };
+    let start_of = |s: &crate::calib::profile::start::Start| ProfileStart {
+        hand_sensor: s.hand_sensor,
+        centre: s.centre,
+        diameter: rig.diameter_mm.unwrap_or(2.0 * s.radius),
+        diameter_free: rig.diameter_mm.is_none(),
+    };
+    // 3. the adjustment, its views judged
+    let mut fit = profile_adjustment(&obs, &start_of(&cons.starts.chosen), &popts)?;
+    let (obs, left) = checks::poor_views(obs, &mut fit, &start_of(&cons.starts.chosen), &popts)?;
+    for (row, note) in left {
+        if let Some(s) = status.iter_mut().find(|s| s.view == row) {
+            s.note = Some(note.clone());
+        }
+        warnings.push(note);
+    }
+    // 4. the mirror
+    let mirror = checks::mirror(&obs, &fit, &start_of(&cons.starts.mirror), &popts)?;
+    // 5. gates and checks
+    let mut checks_out: Vec<QualityCheck> = vec![
+        checks::views_check(&status, obs.len()),
+        mirror.check(),
+        checks::determined(&fit),
+        checks::converged(&fit),
+    ];
+    let diameter_check = match rig.diameter_mm {
+        Some(d) => Some(checks::diameter(&obs, &fit, d, &popts)?),
+        None => None,
+    };
+    if let Some(dc) = diameter_check.as_ref().filter(|d| d.disagrees) {
+        warnings.push(dc.message());
+    }
+    checks_out.retain(|c| !c.message.is_empty());
+    // 6. leave-one-out
+    let leave_one_out = if opts.leave_one_out && obs.len() > crate::calib::profile::start::MIN_VIEWS
+    {
+        Some(loo::leave_one_out(&obs, &fit, &popts)?)
+    } else {
+        None
+    };
+    record::fill_status(&mut status, &obs, &fit);
+    let failed: Vec<QualityCheck> = checks_out.iter().filter(|c| !c.passed).cloned().collect();
+    let calibration = record::calibration(
+        rig,
+        &fit,
+        &status,
+        &checks_out,
+        &mirror,
+        diameter_check.as_ref(),
+        leave_one_out.as_ref(),
+        &warnings,
+        opts.accept_poor && !failed.is_empty(),
+    );
+    if !failed.is_empty() && !opts.accept_poor {
+        return Err(Error::Quality(Box::new(QualityFailure {
+            failed,
+            report: None,
+        })));
+    }
+    Ok(ProfileReport {
+        calibration,
+        fit,
+        views: status,
+        mirror,
+        diameter_check,
+        leave_one_out,
+        warnings,
+    })
+}
+
+/// `view 3 (views.csv line 5, profiles/p3.csv)`.
+pub(crate) fn view_name(i: &ProfileInput) -> String {
+    format!("view {} (views.csv line {}, {})", i.view, i.line, i.file)
+}
+
+fn status_of(i: &ProfileInput) -> ProfileViewStatus {
+    ProfileViewStatus {
+        view: i.view,
+        line: i.line,
+        file: i.file.clone(),
+        points: i.profile.points.len(),
+        gaps: i.profile.gaps,
+        arc_points: 0,
+        sphere_points: 0,
+        rejected: i.profile.points.len(),
+        rms_mm: None,
+        side: None,
+        centre_in_sensor: None,
+        used: false,
+        note: None,
+    }
+}
+
+#[cfg(test)]
+mod tests;

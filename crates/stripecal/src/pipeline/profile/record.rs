@@ -1,0 +1,147 @@
+//! A profiler calibration's record: the numbers, their one-sigmas and the figures the
+//! calibration reports about itself (views, mirror test, diameter check, leave-one-out),
+//! as the contract's keys plus extra keys of calibration.json.
+
+use serde_json::{json, Map, Value};
+
+use super::checks::{centres_in_sensor, DiameterCheck, MirrorTest};
+use super::loo::ProfileLoo;
+use super::ProfileViewStatus;
+use crate::calib::joint::profile::{ProfileFit, ProfileViewObs};
+use crate::io::{robot_calibration_extra, robot_uncertainty, warnings_to_json};
+use crate::model::{ProfileRig, ProfilerCalibration, ProfilerQuality, QualityCheck};
+
+fn num(x: f64) -> Value {
+    if x.is_finite() {
+        json!(x)
+    } else {
+        Value::Null
+    }
+}
+
+/// Fills each view's figures from the fit (`obs` the views used, in the fit's order).
+pub(super) fn fill_status(
+    status: &mut [ProfileViewStatus],
+    obs: &[ProfileViewObs],
+    fit: &ProfileFit,
+) {
+    let centres = centres_in_sensor(fit);
+    for (k, o) in obs.iter().enumerate() {
+        if let Some(s) = status.iter_mut().find(|s| s.view == o.view) {
+            s.used = true;
+            s.note = None;
+            s.sphere_points = fit.selected[k].len();
+            s.rejected = s.points - s.sphere_points;
+            s.rms_mm = Some(fit.view_rms_mm[k]);
+            s.centre_in_sensor = Some(centres[k]);
+            s.side = Some(if centres[k].y < 0.0 { -1.0 } else { 1.0 });
+        }
+    }
+}
+
+/// The calibration.json record of a profiler (module docs).
+#[allow(clippy::too_many_arguments)]
+pub(super) fn calibration(
+    rig: &ProfileRig,
+    fit: &ProfileFit,
+    status: &[ProfileViewStatus],
+    checks: &[QualityCheck],
+    mirror: &MirrorTest,
+    diameter: Option<&DiameterCheck>,
+    loo: Option<&ProfileLoo>,
+    warnings: &[String],
+    accepted_poor: bool,
+) -> ProfilerCalibration {
+    let cov = &fit.covariance;
+    let sd = |n: &str| cov.sigma(n).unwrap_or(0.0);
+    let v3 = |p: &str| Value::Array((0..3).map(|k| num(sd(&format!("{p}[{k}]")))).collect());
+    let mut u = Map::new();
+    u.insert(
+        "hand_cam".into(),
+        json!({"rotation_vector": v3("hand_cam.rotation_vector"),
+               "translation_mm": v3("hand_cam.translation_mm")}),
+    );
+    u.insert(
+        "sphere".into(),
+        json!({"center_mm": v3("sphere.center_mm"), "diameter_mm": num(sd("sphere.diameter_mm"))}),
+    );
+    let mut extra = Map::new();
+    if let Some(rc) = &fit.robot {
+        u.insert("robot".into(), robot_uncertainty(rc));
+        extra.extend(robot_calibration_extra(rc));
+    }
+    extra.insert(
+        "sphere_diameter_estimated".into(),
+        Value::Bool(rig.diameter_mm.is_none()),
+    );
+    extra.insert(
+        "adjustment".into(),
+        json!({"sigma_mm": num(fit.sigma_mm), "points_used": fit.points_used(),
+               "iterations": fit.iterations}),
+    );
+    extra.insert(
+        "views".into(),
+        Value::Array(
+            status
+                .iter()
+                .map(|s| {
+                    json!({
+                        "view": s.view, "line": s.line, "profile": s.file, "used": s.used,
+                        "points": s.points, "gaps": s.gaps, "arc_points": s.arc_points,
+                        "sphere_points": s.sphere_points, "rejected": s.rejected,
+                        "rms_mm": s.rms_mm.map_or(Value::Null, num),
+                        "side": s.side.map_or(Value::Null, num),
+                        "centre_in_sensor_mm": s.centre_in_sensor
+                            .map_or(Value::Null, |c| json!([c.x, c.y, c.z])),
+                        "note": s.note,
+                    })
+                })
+                .collect(),
+        ),
+    );
+    let [x, y, z, n] = mirror.spread_mm;
+    extra.insert(
+        "mirror".into(),
+        json!({"ssr_chosen_mm2": num(mirror.ssr_chosen_mm2),
+               "ssr_mirror_mm2": num(mirror.ssr_mirror_mm2),
+               "delta_chi2": num(mirror.delta_chi2), "passed": mirror.passed,
+               "centre_spread_mm": {"x": x, "y": y, "z": z, "across_plane": n}}),
+    );
+    if let Some(d) = diameter {
+        extra.insert(
+            "diameter_check".into(),
+            json!({"declared_mm": d.declared_mm, "estimate_mm": num(d.estimate_mm),
+                   "sigma_mm": num(d.sigma_mm), "disagrees": d.disagrees}),
+        );
+    }
+    if let Some(l) = loo {
+        extra.insert(
+            "leave_one_out".into(),
+            json!({"median_rms_mm": l.median_rms_mm,
+                   "views": l.views.iter().map(|v| json!({"view": v.view, "points": v.points,
+                       "rms_mm": num(v.rms_mm), "disagrees": v.disagrees})).collect::<Vec<_>>()}),
+        );
+    }
+    if !warnings.is_empty() {
+        extra.insert("warnings".into(), warnings_to_json(warnings));
+    }
+    ProfilerCalibration {
+        hand_sensor: fit.hand_sensor,
+        robot: fit
+            .robot
+            .as_ref()
+            .map(|r| r.robot.clone())
+            .or_else(|| rig.robot.clone()),
+        sphere_center_mm: fit.centre,
+        sphere_diameter_mm: fit.diameter,
+        quality: ProfilerQuality {
+            profile_rms_mm: fit.rms_mm(),
+            views_used: fit.selected.len(),
+            checks: checks.to_vec(),
+            accepted_poor,
+        },
+        uncertainty: u,
+        covariance: Some(fit.covariance.clone()),
+        extra,
+    }
+}
