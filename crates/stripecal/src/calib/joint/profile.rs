@@ -29,9 +29,18 @@
 //!
 //! ## Uncertainty
 //!
-//! `s^2 (J^T J)^-1`, `s^2 = SSR / (m - n)` over the points used, mapped to the file's
+//! `k s^2 (J^T J)^-1`, `s^2 = SSR / (m - n)` over the points used, mapped to the file's
 //! names (`hand_cam.rotation_vector[k]` through the inverse right Jacobian,
 //! `sphere.center_mm[k]`, `sphere.diameter_mm`, the DH corrections'), as the camera's.
+//!
+//! `k` is the view-clustered variance factor: a profile's thousands of points share its
+//! robot pose, so a pose error (a robot that is off by a little, as every real robot is)
+//! moves them together and does not average out over them. The cluster-robust
+//! (sandwich) covariance with the views as clusters, `G/(G-1) N^-1 (sum_v g_v g_v^T)
+//! N^-1` (`g_v = sum_{i in v} J_i^T r_i`, `N = J^T J`), is compared with the i.i.d. one
+//! parameter by parameter; `k` is the median of the ratios, at least 1 (1 when the
+//! residuals are independent noise, large when the views' poses are off). One factor
+//! keeps the i.i.d. covariance's correlations.
 
 use nalgebra::{Matrix3, Vector3};
 use rayon::prelude::*;
@@ -106,6 +115,8 @@ pub struct ProfileFit {
     pub covariance: NamedCovariance,
     /// The a-posteriori sigma of a point's distance from the sphere, mm.
     pub sigma_mm: f64,
+    /// The view-clustered variance factor the covariance carries (>= 1; module docs).
+    pub view_variance_factor: f64,
     /// Sum of squared residuals of the points used, mm^2.
     pub ssr: f64,
     /// Per view: the points used (indices into its `points`).
@@ -348,6 +359,76 @@ fn reselect(res: &[Vec<f64>], selected: &[Vec<usize>]) -> Vec<Vec<usize>> {
         .collect()
 }
 
+/// The view-clustered variance factor (module docs): the median over the parameters of
+/// the cluster-robust variance (views as clusters) over the i.i.d. one, at least 1.
+fn view_variance_factor(
+    layout: &ParamLayout,
+    p: &[f64],
+    views: &[ProfileViewObs],
+    flanges: &[Iso3],
+    selected: &[Vec<usize>],
+    res: &crate::numerics::lm::LmResult,
+) -> Result<f64> {
+    let n = layout.num_params();
+    let g = views.len();
+    if g < 3 {
+        return Ok(1.0);
+    }
+    let Some(ninv) = res.jtj.clone().try_inverse() else {
+        return Ok(1.0);
+    };
+    // the layout's flanges come from its robot block: rows at the fit's poses
+    let terms = Terms {
+        points: views
+            .iter()
+            .zip(selected)
+            .enumerate()
+            .flat_map(|(v, (o, sel))| {
+                sel.iter()
+                    .map(move |&i| (v, o.points[i][0], o.points[i][1]))
+            })
+            .collect(),
+        a: flanges.to_vec(),
+    };
+    let prob = ProfileProblem {
+        layout,
+        terms: &terms,
+    };
+    let m = terms.points.len();
+    let mut r = vec![0.0; m];
+    let mut rows = JacobianRows::new(m, n, n);
+    prob.residuals_and_jacobian_rows(p, &mut r, &mut rows)?;
+    let mut b = nalgebra::DMatrix::<f64>::zeros(n, n);
+    let mut gv = nalgebra::DVector::<f64>::zeros(n);
+    let mut cur = usize::MAX;
+    for (i, &(v, _, _)) in terms.points.iter().enumerate() {
+        if v != cur {
+            if cur != usize::MAX {
+                b += &gv * gv.transpose();
+            }
+            gv.fill(0.0);
+            cur = v;
+        }
+        let (_, vals) = rows.row(i);
+        for (k, x) in vals.iter().enumerate() {
+            gv[k] += x * r[i];
+        }
+    }
+    b += &gv * gv.transpose();
+    let robust = &ninv * b * &ninv * (g as f64 / (g - 1) as f64);
+    let mut ratios: Vec<f64> = (0..n)
+        .filter_map(|k| {
+            let s = res.covariance[(k, k)];
+            (s.is_finite() && s > 0.0).then(|| robust[(k, k)] / s)
+        })
+        .collect();
+    if ratios.is_empty() {
+        return Ok(1.0);
+    }
+    ratios.sort_by(f64::total_cmp);
+    Ok(ratios[ratios.len() / 2].max(1.0))
+}
+
 /// The profiler's adjustment (module docs) of `views` from `start`.
 pub fn profile_adjustment(
     views: &[ProfileViewObs],
@@ -483,7 +564,12 @@ pub fn profile_adjustment(
         });
     }
     let s = layout.decode(&p);
-    let covariance = named_covariance(&layout, &p, &s, &res.covariance, 1.0);
+    let flanges_now = match &layout.robot {
+        Some(rb) => rb.flanges(&p[layout.robot_columns()]),
+        None => a.clone(),
+    };
+    let view_factor = view_variance_factor(&layout, &p, views, &flanges_now, &selected, &res)?;
+    let covariance = named_covariance(&layout, &p, &s, &(&res.covariance * view_factor), 1.0);
     let robot = outcome
         .as_ref()
         .map(|o| report(o, &layout, &p, &res.covariance));
@@ -509,6 +595,7 @@ pub fn profile_adjustment(
         flanges,
         covariance,
         sigma_mm: res.sigma2.sqrt(),
+        view_variance_factor: view_factor,
         ssr: res.ssr,
         selected,
         view_rms_mm,

@@ -77,7 +77,8 @@ pub(super) fn calibration(
     extra.insert(
         "adjustment".into(),
         json!({"sigma_mm": num(fit.sigma_mm), "points_used": fit.points_used(),
-               "iterations": fit.iterations}),
+               "iterations": fit.iterations,
+               "view_variance_factor": num(fit.view_variance_factor)}),
     );
     extra.insert(
         "views".into(),
