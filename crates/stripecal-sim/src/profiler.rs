@@ -131,6 +131,9 @@ pub struct ProfilerCfg {
 /// The most calibration views a profiler twin renders.
 pub const MAX_VIEWS: usize = 200;
 
+/// The most scan frames a profiler twin renders.
+pub const MAX_SCAN_FRAMES: usize = 10_000;
+
 /// The degenerate modes of `profiler.degenerate`.
 pub const DEGENERATE_MODES: [&str; 4] = ["none", "same_standoff", "same_place", "same_offset"];
 
@@ -355,6 +358,12 @@ impl ProfilerCfg {
             return bad(
                 "poses",
                 format!("{:?} (expected \"joints\" or \"flange\")", self.poses),
+            );
+        }
+        if self.scan_frames > MAX_SCAN_FRAMES {
+            return bad(
+                "scan_frames",
+                format!("{} > {MAX_SCAN_FRAMES}", self.scan_frames),
             );
         }
         self.pose_columns_model()?;

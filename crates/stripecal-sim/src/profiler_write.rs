@@ -261,8 +261,8 @@ impl Twin {
         let mut table = format!("profile,{}\n", cols.join(","));
         let mut entries = Vec::with_capacity(views.len());
         let mut counts = Vec::with_capacity(views.len());
-        let digits = if views.len() > 999 { 4 } else { 3 };
-        let digits = if stem == "scan" { 4 } else { digits };
+        // views: at most MAX_VIEWS (3 digits); scans: 4 (wider when longer)
+        let digits = if stem == "scan" { 4 } else { 3 };
         for (i, v) in views.iter().enumerate() {
             progress(&stage, i, views.len());
             let file = format!("profiles/{stem}_{i:0digits$}.csv");
