@@ -62,3 +62,17 @@ def test_profiler_truth_refuses_a_camera_truth(tmp_path):
     (tmp_path / "truth.json").write_text('{"format": "stripecal/truth@1", "camera": {}}')
     with pytest.raises(ValueError, match="profiler"):
         sim.profiler_truth(tmp_path)
+
+
+def test_simulate_cli_summarises_a_profiler_twin(tmp_path, capsys):
+    from stripecal.cli import main
+
+    out = tmp_path / "sim"
+    rc = main(["simulate", str(out), "--preset", "hp3-profiler", "--seed", "2",
+               "--set", "profiler.views=2", "--set", "profiler.scan_frames=3"])
+    assert rc == 0
+    text = capsys.readouterr().out
+    assert "calibration views: 2 profiles" in text and "profiles/" in text
+    assert "3 profiles" in text and "circles" not in text
+    t = sim.profiler_truth(out / "calib")
+    assert t["seed"] == 2 and len(t["views"]) == 2

@@ -629,6 +629,33 @@ mod tests {
     }
 
     #[test]
+    fn scan_points_lie_on_the_sphere_and_the_camera_truth_is_unchanged() {
+        let t =
+            twin(json!({"profiler": {"noise_z_mm": 0.0, "scan_frames": 9, "scan_step_mm": 7.0}}));
+        let sc = t.profiler_scene();
+        let scan = t.profiler_scan().unwrap();
+        let mut worst = 0.0f64;
+        let mut on_sphere = 0;
+        for v in &scan {
+            let bs = t.robot_true.forward(&v.q_deg).unwrap() * t.hand_sensor();
+            for s in t.profiler_profile(v, None) {
+                if let Some((z, Hit::Sphere)) = s.truth {
+                    let p = (bs * Point3::new(s.x_mm, 0.0, z)).coords;
+                    worst = worst.max(((p - sc.center).norm() - sc.radius).abs());
+                    on_sphere += 1;
+                }
+            }
+        }
+        assert!(worst < 1e-9 && on_sphere > 9 * 1000, "{worst} {on_sphere}");
+        // the camera twin's truth.json does not mention the profiler while it is off
+        let cam = Twin::new(SimConfig::preset("hp3-paper").unwrap()).unwrap();
+        assert!(cam.truth(false).extra["sim_config"]
+            .get("profiler")
+            .is_none());
+        assert!(t.truth(false).extra["sim_config"].get("profiler").is_some());
+    }
+
+    #[test]
     fn flange_poses_replace_the_joints() {
         let dir = tempfile::tempdir().unwrap();
         let t = twin(json!({"profiler": {"views": 3, "scan_frames": 0, "poses": "flange"}}));
