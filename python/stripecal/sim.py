@@ -16,7 +16,9 @@ preset and override what you need::
 Presets: ``hp3-paper`` (the paper's rig and 8 x 11 circle board), ``hp3-wide`` (a
 wide-angle, distorted camera), ``hp3-chessboard`` and ``hp3-asymmetric`` (the paper's
 rig with a chessboard or an asymmetric circle grid), ``hp3-sheet`` (a chessboard on a
-large white sheet above the table, the laser beside the pattern, one image per view). ``board.kind`` selects the target:
+large white sheet above the table, the laser beside the pattern, one image per view),
+``hp3-profiler`` (a line profiler measuring a reference sphere; below). ``board.kind``
+selects the target:
 ``"circles"``, ``"asymmetric_circles"`` or ``"chessboard"`` (with ``board.square_mm``).
 
 For robot kinematic calibration: ``robot_error`` (one-sigma random DH errors drawn
