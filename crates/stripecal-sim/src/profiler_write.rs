@@ -656,6 +656,29 @@ mod tests {
     }
 
     #[test]
+    fn a_tall_stand_is_seen_on_its_cylinder() {
+        let t = twin(json!({"profiler": {
+            "noise_z_mm": 0.0, "stand_height_mm": 130.0, "z_max_mm": 500.0,
+            "tilt_min_deg": 25.0, "tilt_max_deg": 35.0, "scan_frames": 0
+        }}));
+        let sc = t.profiler_scene();
+        let mut stand = 0;
+        for v in t.profiler_views().unwrap() {
+            let bs = t.robot_true.forward(&v.q_deg).unwrap() * t.hand_sensor();
+            for s in t.profiler_profile(&v, None) {
+                if let Some((z, Hit::Stand)) = s.truth {
+                    let p = (bs * Point3::new(s.x_mm, 0.0, z)).coords;
+                    let rad = ((p.x - sc.center.x).powi(2) + (p.y - sc.center.y).powi(2)).sqrt();
+                    assert!((rad - sc.stand_radius).abs() < 1e-9, "{rad}");
+                    assert!(p.z >= sc.table_z - 1e-9 && p.z <= sc.center.z - sc.radius + 1e-9);
+                    stand += 1;
+                }
+            }
+        }
+        assert!(stand > 50, "stand points: {stand}");
+    }
+
+    #[test]
     fn flange_poses_replace_the_joints() {
         let dir = tempfile::tempdir().unwrap();
         let t = twin(json!({"profiler": {"views": 3, "scan_frames": 0, "poses": "flange"}}));
