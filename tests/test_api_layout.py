@@ -42,7 +42,7 @@ def test_sim_area() -> None:
     # the twin's module wraps the extension (Twin takes a config dict): its names are
     # reached as stripecal.sim.X, the module itself is a top-level name
     assert stripecal.sim is importlib.import_module("stripecal.sim")
-    assert set(stripecal.sim.__all__) == {"Twin", "calibration_pose_set", "preset", "presets", "surface_errors"}
+    assert set(stripecal.sim.__all__) == {"Twin", "calibration_pose_set", "preset", "presets", "profiler_truth", "surface_errors"}
 
 
 def test_every_top_level_name_in_exactly_one_area() -> None:

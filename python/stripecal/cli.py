@@ -126,7 +126,36 @@ def _render(args: argparse.Namespace, out: str) -> Tuple[stripecal.sim.Twin, Twi
     return twin, summary
 
 
+def _print_profiler_summary(twin: stripecal.sim.Twin, summary: TwinSummary, elapsed: float) -> None:
+    """The summary of the profiler mode (a profile dataset, no images)."""
+    cfg = twin.config
+    pc = cfg["profiler"]
+    prof = summary["profiler"]
+    assert prof is not None
+    print(f"preset {cfg['preset']}, seed {cfg['seed']}: line profiler ({pc['line_length_mm']} mm line, "
+          f"{pc['spacing_mm']} mm spacing), sphere {pc['sphere_diameter_mm']} mm, "
+          f"robot {twin.robot_nominal.name}; rendered in {elapsed:.1f} s")
+    views = summary["views"]
+    print(f"\ncalibration views: {len(views)} profiles")
+    dof = len(views[0]["q_deg"]) if views else 0
+    header = "  view  " + " ".join(f"{'q' + str(i + 1):>8}" for i in range(dof))
+    print(header + "   centre in sensor (x, y, z) mm    tilt   sphere  table  gaps  spikes")
+    for i, (v, c) in enumerate(zip(views, prof["views"])):
+        q = " ".join(f"{x:8.2f}" for x in v["q_deg"])
+        x, y, z = c["sphere_center_sensor_mm"]
+        print(f"  {i:>4}  {q}   ({x:6.1f}, {y:6.1f}, {z:6.1f})  {v['tilt_deg']:4.1f} deg"
+              f"  {c['sphere']:>6} {c['table'] + c['stand']:>6} {c['gaps']:>5} {c['spikes']:>6}")
+    print("  (joint readings in degrees; tilt of the sensor's z from its home direction)")
+    print(f"\nwrote {summary['calib_dir']}  (rig.json, views.csv, profiles/, truth.json)")
+    if summary["scan_dir"] is not None:
+        print(f"wrote {summary['scan_dir']}  (rig.json, scan.csv, profiles/, truth.json; "
+              f"{summary['scan_frames']} profiles, {summary['scan_sphere_points']} points on the sphere)")
+
+
 def _print_summary(twin: stripecal.sim.Twin, summary: TwinSummary, elapsed: float) -> None:
+    if summary.get("profiler") is not None:
+        _print_profiler_summary(twin, summary, elapsed)
+        return
     cfg = twin.config
     cam = twin.camera
     print(f"preset {cfg['preset']}, seed {cfg['seed']}: camera {cam.width} x {cam.height}, "

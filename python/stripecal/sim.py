@@ -16,7 +16,9 @@ preset and override what you need::
 Presets: ``hp3-paper`` (the paper's rig and 8 x 11 circle board), ``hp3-wide`` (a
 wide-angle, distorted camera), ``hp3-chessboard`` and ``hp3-asymmetric`` (the paper's
 rig with a chessboard or an asymmetric circle grid), ``hp3-sheet`` (a chessboard on a
-large white sheet above the table, the laser beside the pattern, one image per view). ``board.kind`` selects the target:
+large white sheet above the table, the laser beside the pattern, one image per view),
+``hp3-profiler`` (a line profiler measuring a reference sphere; below). ``board.kind``
+selects the target:
 ``"circles"``, ``"asymmetric_circles"`` or ``"chessboard"`` (with ``board.square_mm``).
 
 For robot kinematic calibration: ``robot_error`` (one-sigma random DH errors drawn
@@ -35,6 +37,34 @@ and, with ``bench.scan.enabled``, a fixed-sensor scan of a ball on a conveyor to
 (the true ``sag_mm`` in truth.json), ``bench.floor`` stands the board on a floor that
 carries the laser line on. :meth:`Twin.bench_views` gives the true board poses.
 
+The profiler mode (issue 18; preset ``hp3-profiler`` or ``profiler={"enabled": True,
+...}``, docs/twin.md "The profiler mode"): a calibrated line PROFILER on the HP3's flange
+measures a reference sphere on a stand above a table; :meth:`Twin.write` writes a
+profile dataset to ``out/calib`` (rig.json ``sensor.kind = "profiler"``, views.csv
+``profile,q1..q6``, ``profiles/view_NNN.csv`` with ``x_mm,z_mm,intensity``) and a scan
+across the ball to ``out/scan``; :func:`profiler_truth` reads their truth.json back.
+Knobs of ``profiler``: ``line_length_mm`` (90) and ``spacing_mm`` (0.03: 3000 samples,
+x centred on 0), the measuring range ``z_min_mm``/``z_max_mm`` (150..350; hits outside
+are gaps), ``noise_z_mm`` (0.01, Gaussian on z), ``gap_fraction`` (0.02 random
+dropouts), ``spike_fraction`` (0.01) of magnitude ``spike_min_mm``..``spike_max_mm``
+(0.5..3, random sign), ``invalid_z`` (-99999.9999; gaps are written as an empty z,
+``nan`` and this sentinel in turn), ``intensity`` (a third column), the sphere
+(``sphere_diameter_mm`` 80, ``sphere_center_mm`` base frame, ``stand_height_mm`` 60 above
+the table, ``stand_diameter_mm`` 20), ``diameter_declared`` (``True``: rig.json declares
+the true diameter, ``False``: ``null``, a number: that one), the true ``hand_sensor``
+(``T_hand_sensor``: ~100 mm below the flange, looking along the flange's z), the views
+(``views`` 15; the sphere centre in the sensor frame: stand-off ``standoff_min_mm`` ..
+``standoff_max_mm`` (200..250), place along the line within ``+-place_max_mm`` (15),
+plane offset ``|y|`` in ``offset_min_frac`` .. ``offset_max_frac`` (0.1..0.75) of the
+radius with alternating sign; tilts ``tilt_min_deg`` .. ``tilt_max_deg`` (10..30) about
+a horizontal axis and ``+-spin_max_deg`` (30) about the sensor's z),
+``degenerate`` (``"none"``, ``"same_standoff"``, ``"same_place"``, ``"same_offset"``)
+with ``near_degenerate_mm`` (the fixed coordinate varies only over this range),
+``max_joint_delta_deg``, ``poses`` (``"joints"`` or ``"flange"``: the pose columns
+``pose_columns``, default ``"quaternion"``), ``scan_frames`` (60, 0: no scan) and
+``scan_step_mm`` (1). ``robot_error`` draws the true robot as in the camera twin
+(rig.json keeps the nominal one).
+
 Unknown keys are an error, so a misspelt knob never goes unnoticed. All rendering runs
 in Rust (``stripecal._core``); this module only converts configurations.
 """
@@ -44,7 +74,7 @@ from __future__ import annotations
 import copy
 import json
 import os
-from typing import Any, Callable, List, Optional, Tuple, Union
+from typing import Any, Callable, List, Optional, Tuple, Union, cast
 
 import numpy as np
 import numpy.typing as npt
@@ -52,9 +82,17 @@ import numpy.typing as npt
 from stripecal._core import Board, Camera, Robot, Truth
 from stripecal._core import Twin as _CoreTwin
 from stripecal._core import load_truth, sim_config, sim_presets, sim_surface_errors
-from stripecal.types import BenchView, SimConfig, SimPose, TwinSummary, VerifyScan, ViewRender
+from stripecal.types import (
+    BenchView,
+    ProfilerTruth,
+    SimConfig,
+    SimPose,
+    TwinSummary,
+    VerifyScan,
+    ViewRender,
+)
 
-__all__ = ["Twin", "calibration_pose_set", "preset", "presets", "surface_errors"]
+__all__ = ["Twin", "calibration_pose_set", "preset", "presets", "profiler_truth", "surface_errors"]
 
 
 def presets() -> List[str]:
@@ -65,7 +103,9 @@ def presets() -> List[str]:
     ``hp3-sheet``: an 8 x 9 inner-corner chessboard of 4 mm squares on a white sheet
     reaching 20 mm beyond its outer corners and lying 4 mm above the table, laser and
     board in one image, 15 poses with the stripe mostly on the sheet beside the pattern
-    and across the sheet's edge onto the table)."""
+    and across the sheet's edge onto the table; ``hp3-profiler``: the HP3 carrying a
+    calibrated line profiler that measures an 80 mm sphere, 15 views, joint readings,
+    a 60-profile scan)."""
     return list(sim_presets())
 
 
@@ -252,3 +292,25 @@ def surface_errors(
     pts = np.asarray(points, dtype=np.float64).reshape(-1, 3)
     out: npt.NDArray[np.float64] = np.asarray(sim_surface_errors(pts, t), dtype=np.float64)
     return out
+
+
+def profiler_truth(path: Union[str, "os.PathLike[str]"]) -> ProfilerTruth:
+    """truth.json of a profiler twin (``calib/`` or ``scan/``; ``path`` is the file or
+    its folder): the true ``hand_cam`` (``T_hand_sensor``), the ``sphere`` (base frame),
+    the TRUE ``robot`` (with joint readings), the ``table`` and ``stand``, and per
+    profile (``views`` or ``frames``) the sphere centre in the sensor frame. Raises
+    ``ValueError`` for a file that is not a profiler twin's truth."""
+    p = os.fspath(path)
+    if os.path.isdir(p):
+        p = os.path.join(p, "truth.json")
+    with open(p, encoding="utf-8") as f:
+        data = json.load(f)
+    if not isinstance(data, dict) or data.get("format") != "stripecal/truth@1":
+        raise ValueError(f"{p}: not a stripecal truth.json (format stripecal/truth@1)")
+    sensor = data.get("sensor")
+    if not isinstance(sensor, dict) or sensor.get("kind") != "profiler":
+        raise ValueError(f"{p}: not the truth of a profiler twin (sensor.kind is not \"profiler\")")
+    for key in ("hand_cam", "sphere"):
+        if key not in data:
+            raise ValueError(f"{p}: key {key!r} missing")
+    return cast(ProfilerTruth, data)

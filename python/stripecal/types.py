@@ -67,6 +67,14 @@ __all__ = [
     "LeaveOneOutView",
     "PlaneSigma",
     "PlyCloud",
+    "ProfilerCounts",
+    "ProfilerPose",
+    "ProfilerRobot",
+    "ProfilerStand",
+    "ProfilerSummary",
+    "ProfilerTruth",
+    "ProfilerTruthView",
+    "ProfilerViewCounts",
     "QualityCheck",
     "PoseSigma",
     "ResidualSigma",
@@ -84,6 +92,7 @@ __all__ = [
     "TwinPlane",
     "TwinSphere",
     "TwinSummary",
+    "TwinDhRow",
     "TwinViewSummary",
     "VerifyScan",
     "ViewRender",
@@ -783,6 +792,131 @@ class TwinPlane(TypedDict):
     """Offset, mm."""
 
 
+class ProfilerCounts(TypedDict):
+    """What one profile written by the profiler mode holds."""
+
+    points: int
+    """Points written with a z (spikes included)."""
+    sphere: int
+    """Of those, on the sphere."""
+    table: int
+    """Of those, on the table."""
+    stand: int
+    """Of those, on the sphere's stand."""
+    gaps: int
+    """Points written as gaps (empty z, ``nan`` or ``invalid_z``)."""
+    dropouts: int
+    """Of the gaps, random dropouts of valid points (the rest: out of range)."""
+    spikes: int
+    """Points with a spike."""
+
+
+class ProfilerViewCounts(ProfilerCounts):
+    """A calibration view of the profiler mode: its counts and the true sphere centre."""
+
+    sphere_center_sensor_mm: List[float]
+    """The sphere's centre in the sensor frame ``[x, y, z]``, mm."""
+
+
+class ProfilerSummary(TypedDict):
+    """The profiler mode's part of :class:`TwinSummary` (``profiler.enabled``)."""
+
+    views: List[ProfilerViewCounts]
+    """Per calibration view."""
+    scan: List[ProfilerCounts]
+    """Per scan frame."""
+    points: int
+    """Points written with a z, views and scan."""
+    sphere_points: int
+    """Of those on the sphere."""
+    gaps: int
+    """Gaps written, views and scan."""
+    spikes: int
+    """Spikes written, views and scan."""
+
+
+class ProfilerPose(TypedDict):
+    """A rigid transform as truth.json writes it."""
+
+    rotation_vector: List[float]
+    """Rotation vector, radians."""
+    translation_mm: List[float]
+    """Translation, mm."""
+
+
+class TwinDhRow(TypedDict, total=False):
+    """One DH row as rig.json and truth.json write it (``beta_deg`` only when not 0)."""
+
+    theta0_deg: float
+    alpha_deg: float
+    a_mm: float
+    d_mm: float
+    beta_deg: float
+
+
+class ProfilerRobot(TypedDict):
+    """A robot's DH table as truth.json writes it."""
+
+    name: str
+    joints: List[TwinDhRow]
+
+
+class ProfilerTruthView(TypedDict):
+    """One profile of a profiler twin's truth.json (``views`` or ``frames``)."""
+
+    profile: str
+    """The profile file, relative to the folder."""
+    q_deg: List[float]
+    """The true joint readings, degrees."""
+    base_hand: ProfilerPose
+    """The true flange pose ``T_base_hand`` (true robot)."""
+    sphere_center_sensor_mm: List[float]
+    """The sphere's centre in the sensor frame, mm."""
+    tilt_deg: float
+    """Angle between the sensor's z and its z at the home pose, degrees."""
+    points: ProfilerCounts
+    """What the profile file holds."""
+
+
+class ProfilerStand(TypedDict):
+    """The stand under a profiler twin's sphere: a vertical cylinder from the table up."""
+
+    diameter_mm: float
+    """Its diameter, mm (0: no stand)."""
+    axis_xy_mm: List[float]
+    """Its axis' base ``[x, y]``, mm (under the sphere's centre)."""
+
+
+class ProfilerTruth(TypedDict, total=False):
+    """truth.json of a profiler twin (``stripecal.sim.profiler_truth``): ``format``,
+    ``sensor``, ``hand_cam``, ``sphere``, ``table``, ``stand``, ``profiler``, ``seed``
+    always; ``robot`` with joint readings; ``views`` in ``calib/``, ``frames`` in
+    ``scan/``."""
+
+    format: str
+    """``"stripecal/truth@1"``."""
+    sensor: Dict[str, str]
+    """``{"kind": "profiler"}``."""
+    hand_cam: ProfilerPose
+    """The true ``T_hand_sensor``."""
+    robot: ProfilerRobot
+    """The TRUE DH rows (rig.json holds the nominal ones); only with joint readings."""
+    sphere: TwinSphere
+    """The reference sphere, base frame."""
+    table: TwinPlane
+    """The table plane, base frame (``normal`` up)."""
+    stand: ProfilerStand
+    """The sphere's stand."""
+    profiler: SimConfig
+    """The profiler knobs the twin used (the ``profiler`` part of a :data:`SimConfig`)."""
+    seed: int
+    """The twin's seed."""
+    views: List[ProfilerTruthView]
+    """Per calibration view (``calib/truth.json``)."""
+    frames: List[ProfilerTruthView]
+    """Per scan frame (``scan/truth.json``)."""
+
+
 class VerifyScan(TypedDict):
     """A verification scan of the twin (``Twin.verify_scans``)."""
 
@@ -828,6 +962,9 @@ class TwinSummary(TypedDict):
     """``"rows"`` or ``"cols"``: how the stripe runs in the images."""
     sphere: Optional[TwinSphere]
     """The reference ball, or None."""
+    profiler: Optional[ProfilerSummary]
+    """The profiler mode's counts (``profiler.enabled``; then ``calib_dir`` holds a
+    profile dataset and ``scan_dir`` a profile scan), or None."""
 
 
 class ViewRender(TypedDict):

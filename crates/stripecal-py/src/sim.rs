@@ -9,6 +9,7 @@ use pyo3::types::{PyDict, PyList};
 use serde_json::Value;
 
 use stripecal::model::image::{AnyGray, AnyRgb};
+use stripecal_sim::profiler_write::{ProfileCounts, ProfilerSummary};
 use stripecal_sim::{SimConfig, SimError, Twin, ViewRender};
 
 use crate::convert::{f64_array, iso_to_py, json_to_py, nd, rows_of};
@@ -170,6 +171,36 @@ fn render_to_py<'py>(py: Python<'py>, r: &ViewRender) -> PyResult<Bound<'py, PyD
     )?;
     d.set_item("base_cam", iso_to_py(py, &r.base_cam)?)?;
     Ok(d)
+}
+
+fn counts_json(c: &ProfileCounts) -> Value {
+    serde_json::json!({
+        "points": c.points, "sphere": c.sphere, "table": c.table, "stand": c.stand,
+        "gaps": c.gaps, "dropouts": c.dropouts, "spikes": c.spikes,
+    })
+}
+
+/// The profiler mode's part of `Twin.write`'s summary: per view and per scan frame the
+/// point counts, per view the sphere centre in the sensor frame, and the totals.
+fn profiler_summary_to_py<'py>(
+    py: Python<'py>,
+    p: &ProfilerSummary,
+) -> PyResult<Bound<'py, PyAny>> {
+    let all = p.views.iter().chain(&p.scan);
+    let total = |f: fn(&ProfileCounts) -> usize| all.clone().map(f).sum::<usize>();
+    let v = serde_json::json!({
+        "views": p.views.iter().zip(&p.centers_sensor_mm).map(|(c, x)| {
+            let mut o = counts_json(c);
+            o["sphere_center_sensor_mm"] = serde_json::json!(x);
+            o
+        }).collect::<Vec<_>>(),
+        "scan": p.scan.iter().map(counts_json).collect::<Vec<_>>(),
+        "points": total(|c| c.points),
+        "sphere_points": total(|c| c.sphere),
+        "gaps": total(|c| c.gaps),
+        "spikes": total(|c| c.spikes),
+    });
+    json_to_py(py, &v)
 }
 
 fn joints(py: Python<'_>, q: &Bound<'_, PyAny>, dof: usize) -> PyResult<Vec<f64>> {
@@ -441,6 +472,13 @@ impl PyTwin {
         d.set_item("verify_dir", s.verify_dir)?;
         d.set_item("verify_frames", s.verify_frames)?;
         d.set_item("stripe_direction", s.direction.name())?;
+        d.set_item(
+            "profiler",
+            s.profiler
+                .as_ref()
+                .map(|p| profiler_summary_to_py(py, p))
+                .transpose()?,
+        )?;
         d.set_item(
             "sphere",
             self.inner

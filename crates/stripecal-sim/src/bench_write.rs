@@ -173,6 +173,7 @@ impl Twin {
             verify_dir: None,
             verify_frames: 0,
             direction: self.direction,
+            profiler: None,
         })
     }
 }

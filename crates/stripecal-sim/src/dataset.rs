@@ -641,6 +641,12 @@ impl Twin {
                 m.remove("bench");
             }
         }
+        if !self.cfg.profiler.enabled {
+            // off: truth.json as before the profiler mode existed
+            if let Some(m) = cfg.as_object_mut() {
+                m.remove("profiler");
+            }
+        }
         if !self.cfg.imaging.colour && self.cfg.stripe_channel.is_none() {
             // gray: truth.json as before the colour knobs existed
             if let Some(m) = cfg.as_object_mut() {

@@ -21,6 +21,8 @@
 //!   centroids, chessboard corners as projected points) and stripe centre lines, plus
 //!   the true parameters.
 //! - Board-only views at random camera poses for detection tests ([`views`]).
+//! - Line profilers ([`profiler`], issue 18): profiles `(x, z)` of a reference sphere on
+//!   its stand and table, written as a profile dataset and scan.
 //! - Verification artefacts: a ball bar in 7 positions and a flat plate in 3, with their
 //!   certificate `artefacts.json` ([`verify`]).
 //!
@@ -37,6 +39,9 @@ pub mod dataset;
 pub mod imaging;
 pub mod poses;
 pub mod poses_wide;
+pub mod profiler;
+pub mod profiler_poses;
+pub mod profiler_write;
 pub mod render;
 pub mod rng;
 pub mod robot_error;

@@ -26,6 +26,8 @@ pub struct DatasetSummary {
     pub verify_dir: Option<PathBuf>,
     pub verify_frames: usize,
     pub direction: StripeDirection,
+    /// The profiler mode's counts (`profiler.enabled`), `None` otherwise.
+    pub profiler: Option<crate::profiler_write::ProfilerSummary>,
 }
 
 impl Twin {
@@ -38,6 +40,10 @@ impl Twin {
         out: &Path,
         progress: &mut dyn FnMut(&str, usize, usize),
     ) -> Result<DatasetSummary, SimError> {
+        if self.cfg.profiler.enabled {
+            // the profile dataset instead ([`crate::profiler`])
+            return self.write_profiler(out, progress);
+        }
         if self.cfg.bench.enabled {
             // the bench dataset instead ([`crate::bench`])
             return self.write_bench(out, progress);
@@ -161,6 +167,7 @@ impl Twin {
             verify_dir,
             verify_frames,
             direction: self.direction,
+            profiler: None,
         })
     }
 
