@@ -11,7 +11,9 @@
 //! the mirrored start over the same points, and the two costs compared:
 //! `dchi2 = (SSR_mirror - SSR_chosen) / s^2` (`s^2` the chosen fit's variance factor).
 //! Below [`MIRROR_CHI2`] (a 5-sigma chi-square(1) margin) the data cannot decide: the
-//! calibration fails and names the plane the centres lie in. For speed both solves use
+//! calibration fails and names the plane the centres lie in. A mirrored start whose
+//! adjustment flips the sides back (the sides of the two solutions agree, weighted by
+//! `|y_i|`) found no mirror minimum: `dchi2` is then infinite. For speed both solves use
 //! every k-th point of the chosen selection (at most [`MIRROR_POINTS`]), and `dchi2` is
 //! scaled back by k.
 
@@ -204,6 +206,23 @@ pub(super) fn centres_in_sensor(fit: &ProfileFit) -> Vec<Vector3<f64>> {
         .collect()
 }
 
+/// How far two solutions put the sphere on the same sides of the profile planes:
+/// `sum s_a s_b |y_a| / sum |y_a|` over the views (+1 the same sides, -1 every side
+/// flipped: the mirror image).
+fn side_agreement(a: &[Vector3<f64>], b: &[Vector3<f64>]) -> f64 {
+    let den: f64 = a.iter().map(|p| p.y.abs()).sum();
+    let num: f64 = a
+        .iter()
+        .zip(b)
+        .map(|(p, q)| p.y.signum() * q.y.signum() * p.y.abs())
+        .sum();
+    if den > 0.0 {
+        num / den
+    } else {
+        0.0
+    }
+}
+
 fn spread(p: &[Vector3<f64>]) -> [f64; 4] {
     let n = p.len().max(1) as f64;
     let mean = p.iter().sum::<Vector3<f64>>() / n;
@@ -233,8 +252,12 @@ pub(super) fn mirror(
     let sub = held(obs, fit, step);
     let o = kept_only(popts);
     let chosen = profile_adjustment(&sub, &start_at(fit, mirror_start.diameter_free), &o)?;
+    let centres = centres_in_sensor(fit);
     let ssr_m = match profile_adjustment(&sub, mirror_start, &o) {
-        Ok(m) => m.ssr,
+        // The mirrored start may fall back to the chosen solution (the sides flip back):
+        // then there is no mirror minimum at all.
+        Ok(m) if side_agreement(&centres, &centres_in_sensor(&m)) < 0.0 => m.ssr,
+        Ok(_) => f64::INFINITY,
         // a mirror that cannot even be solved does not fit
         Err(_) => f64::INFINITY,
     };
@@ -244,7 +267,7 @@ pub(super) fn mirror(
         ssr_chosen_mm2: chosen.ssr * step as f64,
         ssr_mirror_mm2: ssr_m * step as f64,
         delta_chi2: delta,
-        spread_mm: spread(&centres_in_sensor(fit)),
+        spread_mm: spread(&centres),
         passed: delta > MIRROR_CHI2,
     })
 }
