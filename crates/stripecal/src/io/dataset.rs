@@ -22,18 +22,11 @@ impl Dataset {
                 "views.csv has no views",
             ));
         }
-        if rig.robot.is_none() && matches!(views[0].reading, RobotReading::Joints(_)) {
-            return Err(Error::format(
-                &views_path,
-                "line 1",
-                "joint columns q1..qN need a robot (DH table) in rig.json; \
-                 without one, use flange-pose columns (e.g. x_mm,y_mm,z_mm,qw,qx,qy,qz)",
-            ));
-        }
+        check_joints_have_robot(&views_path, rig.robot.as_ref(), &views[0].reading)?;
         for v in &views {
-            check_image_exists(&root, &views_path, v.line, &v.board_image)?;
+            check_file_exists(&root, &views_path, v.line, "image", &v.board_image)?;
             if let Some(l) = &v.laser_image {
-                check_image_exists(&root, &views_path, v.line, l)?;
+                check_file_exists(&root, &views_path, v.line, "image", l)?;
             }
         }
         Ok(Dataset { root, rig, views })
@@ -52,7 +45,7 @@ impl Scan {
         let scan = Scan::read(root, robot)?;
         let csv_path = scan.root.join("scan.csv");
         for f in &scan.frames {
-            check_image_exists(&scan.root, &csv_path, f.line, &f.image)?;
+            check_file_exists(&scan.root, &csv_path, f.line, "image", &f.image)?;
         }
         Ok(scan)
     }
@@ -82,13 +75,39 @@ impl Scan {
     }
 }
 
-fn check_image_exists(root: &Path, csv: &Path, line: usize, rel: &Path) -> Result<()> {
+/// Checks that the file `rel` (an `image`, a `profile`) named on `line` of `csv` exists
+/// under `root`.
+pub(super) fn check_file_exists(
+    root: &Path,
+    csv: &Path,
+    line: usize,
+    what: &str,
+    rel: &Path,
+) -> Result<()> {
     let p = root.join(rel);
     if !p.is_file() {
         return Err(Error::format(
             csv,
             format!("line {line}"),
-            format!("image {} does not exist", p.display()),
+            format!("{what} {} does not exist", p.display()),
+        ));
+    }
+    Ok(())
+}
+
+/// Joint columns need a robot (a DH table) in rig.json: an error on line 1 of `csv`
+/// when the first row has joint readings and there is none.
+pub(super) fn check_joints_have_robot(
+    csv: &Path,
+    robot: Option<&Robot>,
+    first: &RobotReading,
+) -> Result<()> {
+    if robot.is_none() && matches!(first, RobotReading::Joints(_)) {
+        return Err(Error::format(
+            csv,
+            "line 1",
+            "joint columns q1..qN need a robot (DH table) in rig.json; \
+             without one, use flange-pose columns (e.g. x_mm,y_mm,z_mm,qw,qx,qy,qz)",
         ));
     }
     Ok(())
