@@ -43,10 +43,8 @@ impl Scan {
     /// `robot` is used to check the joint count when the scan has no rig.json.
     pub fn load(root: impl AsRef<Path>, robot: Option<&Robot>) -> Result<Scan> {
         let scan = Scan::read(root, robot)?;
-        let csv_path = scan.root.join("scan.csv");
-        for f in &scan.frames {
-            check_file_exists(&scan.root, &csv_path, f.line, "image", &f.image)?;
-        }
+        let names = scan.frames.iter().map(|f| (f.line, f.image.as_path()));
+        check_files_exist(&scan.root, "scan.csv", "image", names)?;
         Ok(scan)
     }
 
@@ -54,12 +52,7 @@ impl Scan {
     /// each frame's image itself (the reconstruction, which may skip bad frames).
     pub fn read(root: impl AsRef<Path>, robot: Option<&Robot>) -> Result<Scan> {
         let root = root.as_ref().to_path_buf();
-        let rig_path = root.join("rig.json");
-        let rig = if rig_path.exists() {
-            Some(read_rig(&rig_path)?)
-        } else {
-            None
-        };
+        let rig = read_if_present(&root.join("rig.json"), |p| read_rig(p))?;
         let robot = rig.as_ref().and_then(|r| r.robot.as_ref()).or(robot);
         let csv_path = root.join("scan.csv");
         let frames = read_scan_csv(&csv_path, robot)?;
@@ -73,6 +66,32 @@ impl Scan {
     pub fn image_path(&self, rel: &Path) -> PathBuf {
         self.root.join(rel)
     }
+}
+
+/// `read(path)` when the file exists, `None` otherwise (a scan's optional rig.json).
+pub(super) fn read_if_present<T>(
+    path: &Path,
+    read: impl FnOnce(&Path) -> Result<T>,
+) -> Result<Option<T>> {
+    if path.exists() {
+        read(path).map(Some)
+    } else {
+        Ok(None)
+    }
+}
+
+/// Checks that every file named in the table `root/csv` exists: `(line, name)` pairs.
+pub(super) fn check_files_exist<'a>(
+    root: &Path,
+    csv: &str,
+    what: &str,
+    names: impl Iterator<Item = (usize, &'a Path)>,
+) -> Result<()> {
+    let csv_path = root.join(csv);
+    for (line, rel) in names {
+        check_file_exists(root, &csv_path, line, what, rel)?;
+    }
+    Ok(())
 }
 
 /// Checks that the file `rel` (an `image`, a `profile`) named on `line` of `csv` exists

@@ -216,8 +216,18 @@ mod tests {
     #[test]
     fn gap_spellings_are_skipped_and_counted() {
         let spellings = [
-            "", "nan", "NaN", "NAN", "inf", "-inf", "+inf", "Inf", "-INF", "infinity",
-            "Infinity", "-Infinity",
+            "",
+            "nan",
+            "NaN",
+            "NAN",
+            "inf",
+            "-inf",
+            "+inf",
+            "Inf",
+            "-INF",
+            "infinity",
+            "Infinity",
+            "-Infinity",
         ];
         let mut text = String::from("x_mm,z_mm\n0,100\n");
         for (i, s) in spellings.iter().enumerate() {
@@ -331,6 +341,7 @@ mod tests {
             best = best.min(t0.elapsed().as_secs_f64());
             assert_eq!((p.points.len(), p.gaps), (2940, 60));
         }
+        eprintln!("a 3000-point profile parses in {:.1} us (best of 20)", best * 1e6);
         // "well under 1 ms" in an unoptimised test build, on a shared machine
         assert!(best < 1e-3, "best of 20: {best:.2e} s");
     }

@@ -19,7 +19,7 @@ use std::path::{Path, PathBuf};
 
 use super::atomic::read_text;
 use super::csv::parse_table;
-use super::dataset::{check_file_exists, check_joints_have_robot};
+use super::dataset::{check_files_exist, check_joints_have_robot, read_if_present};
 use super::profile_rig::read_profile_rig;
 use super::sensor::sensor_kind;
 use crate::error::{Error, Result};
@@ -95,9 +95,8 @@ impl ProfileDataset {
             ));
         }
         check_joints_have_robot(&views_path, rig.robot.as_ref(), &first.reading)?;
-        for v in &views {
-            check_file_exists(&root, &views_path, v.line, "profile", &v.profile)?;
-        }
+        let names = views.iter().map(|v| (v.line, v.profile.as_path()));
+        check_files_exist(&root, "views.csv", "profile", names)?;
         Ok(ProfileDataset { root, rig, views })
     }
 
@@ -113,10 +112,8 @@ impl ProfileScan {
     /// no rig.json (or its rig no robot).
     pub fn load(root: impl AsRef<Path>, robot: Option<&Robot>) -> Result<ProfileScan> {
         let scan = ProfileScan::read(root, robot)?;
-        let csv_path = scan.root.join("scan.csv");
-        for f in &scan.frames {
-            check_file_exists(&scan.root, &csv_path, f.line, "profile", &f.profile)?;
-        }
+        let names = scan.frames.iter().map(|f| (f.line, f.profile.as_path()));
+        check_files_exist(&scan.root, "scan.csv", "profile", names)?;
         Ok(scan)
     }
 
@@ -125,12 +122,7 @@ impl ProfileScan {
     /// ([`crate::reconstruct::reconstruct_profile_scan`]).
     pub fn read(root: impl AsRef<Path>, robot: Option<&Robot>) -> Result<ProfileScan> {
         let root = root.as_ref().to_path_buf();
-        let rig_path = root.join("rig.json");
-        let rig = if rig_path.exists() {
-            Some(read_profile_rig(&rig_path)?)
-        } else {
-            None
-        };
+        let rig = read_if_present(&root.join("rig.json"), |p| read_profile_rig(p))?;
         let robot = rig.as_ref().and_then(|r| r.robot.as_ref()).or(robot);
         let csv_path = root.join("scan.csv");
         let frames = read_profile_table(&csv_path, robot)?;
@@ -283,14 +275,22 @@ mod tests {
         assert_eq!(loc, "line 1");
         assert!(msg.contains("need a robot (DH table) in rig.json"), "{msg}");
 
-        let d = folder(Some(RIG_JOINTS), "views.csv", "profile\np/a.csv\n", &["p/a.csv"]);
+        let d = folder(
+            Some(RIG_JOINTS),
+            "views.csv",
+            "profile\np/a.csv\n",
+            &["p/a.csv"],
+        );
         let (_, loc, msg) = format_error(ProfileDataset::load(d.path()).unwrap_err());
         assert_eq!(loc, "line 1");
         assert!(msg.contains("needs robot poses"), "{msg}");
 
         let d = folder(Some(RIG_JOINTS), "views.csv", "profile,q1,q2\n", &[]);
         let (_, loc, msg) = format_error(ProfileDataset::load(d.path()).unwrap_err());
-        assert_eq!((loc.as_str(), msg.as_str()), ("line 2", "views.csv has no views"));
+        assert_eq!(
+            (loc.as_str(), msg.as_str()),
+            ("line 2", "views.csv has no views")
+        );
 
         // the joint count is checked against the rig's robot
         let d = folder(
@@ -329,7 +329,12 @@ mod tests {
 
     #[test]
     fn scans_fixed_posed_and_with_a_rig() {
-        let d = folder(None, "scan.csv", "profile\np/a.csv\np/b.csv\n", &["p/a.csv"]);
+        let d = folder(
+            None,
+            "scan.csv",
+            "profile\np/a.csv\np/b.csv\n",
+            &["p/a.csv"],
+        );
         assert!(is_profile_scan(d.path()).unwrap());
         let s = ProfileScan::read(d.path(), None).unwrap();
         assert!(s.is_fixed() && s.rig.is_none());
@@ -349,9 +354,17 @@ mod tests {
         assert!(!s.is_fixed());
         assert_eq!(s.rig.as_ref().unwrap().invalid_z, Some(-99999.9999));
         // without a rig, the caller's robot checks the joint count
-        let d = folder(None, "scan.csv", "profile,q1,q2\np/a.csv,1,2\n", &["p/a.csv"]);
+        let d = folder(
+            None,
+            "scan.csv",
+            "profile,q1,q2\np/a.csv,1,2\n",
+            &["p/a.csv"],
+        );
         let e = ProfileScan::load(d.path(), Some(&Robot::hp3())).unwrap_err();
-        assert!(e.to_string().contains("2 joint columns, robot has 6"), "{e}");
+        assert!(
+            e.to_string().contains("2 joint columns, robot has 6"),
+            "{e}"
+        );
 
         // a camera scan is not a profile scan, and is refused by the profile reader
         let d = folder(None, "scan.csv", "image,q1\na.png,0\n", &[]);
