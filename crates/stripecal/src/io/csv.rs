@@ -67,6 +67,13 @@ fn parse_header(
     }
     reject_quotes(path, 1, header)?;
     let fields: Vec<&str> = header.split(',').map(str::trim).collect();
+    if fields.contains(&"profile") && !names.contains(&"profile") {
+        return Err(at(format!(
+            "column `profile` names profile files: this is a line profiler's table (read the \
+             folder as a profile dataset or scan: ProfileDataset::load, ProfileScan::load); a \
+             camera's header is {expected}"
+        )));
+    }
     for (i, name) in names.iter().enumerate() {
         match fields.get(i) {
             Some(f) if f == name => {}
@@ -100,7 +107,12 @@ fn parse_number(path: &Path, line_no: usize, column: &str, raw: &str) -> Result<
 
 /// Parses a whole table. `names` are the leading file columns (`board_image,laser_image`,
 /// `image`, or a profiler's `profile`), the rest the pose columns of [`Layout`].
-pub(super) fn parse_table(path: &Path, text: &str, names: &[&str], robot: Option<&Robot>) -> Result<Vec<Row>> {
+pub(super) fn parse_table(
+    path: &Path,
+    text: &str,
+    names: &[&str],
+    robot: Option<&Robot>,
+) -> Result<Vec<Row>> {
     let lines: Vec<&str> = text
         .split('\n')
         .map(|l| l.strip_suffix('\r').unwrap_or(l))
@@ -215,7 +227,12 @@ pub fn read_scan_csv(p: impl AsRef<Path>, robot: Option<&Robot>) -> Result<Vec<S
 
 /// An image name as it can be written: UTF-8, no commas, quotes, line breaks or
 /// surrounding spaces (the reader trims fields).
-pub(super) fn name_field(what: &str, row: usize, p: Option<&Path>, required: bool) -> Result<String> {
+pub(super) fn name_field(
+    what: &str,
+    row: usize,
+    p: Option<&Path>,
+    required: bool,
+) -> Result<String> {
     let Some(p) = p else {
         return if required {
             Err(Error::InvalidInput(format!(
@@ -242,7 +259,12 @@ pub(super) fn name_field(what: &str, row: usize, p: Option<&Path>, required: boo
     Ok(s.to_string())
 }
 
-pub(super) fn push_reading(out: &mut String, row: usize, r: &RobotReading, pose: &PoseColumns) -> Result<()> {
+pub(super) fn push_reading(
+    out: &mut String,
+    row: usize,
+    r: &RobotReading,
+    pose: &PoseColumns,
+) -> Result<()> {
     let (_, values) = Layout::of_reading(r, pose);
     for x in values {
         if !x.is_finite() {

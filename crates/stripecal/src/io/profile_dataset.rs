@@ -366,6 +366,11 @@ mod tests {
             "{e}"
         );
 
+        // the camera's scan reader refuses a profile scan, saying what it is
+        let (_, loc, msg) = format_error(crate::model::Scan::read(d.path(), None).unwrap_err());
+        assert_eq!(loc, "line 1");
+        assert!(msg.contains("this is a line profiler's table"), "{msg}");
+
         // a camera scan is not a profile scan, and is refused by the profile reader
         let d = folder(None, "scan.csv", "image,q1\na.png,0\n", &[]);
         assert!(!is_profile_scan(d.path()).unwrap());
