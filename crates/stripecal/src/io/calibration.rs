@@ -569,7 +569,10 @@ pub fn truth_from_json(path: &Path, text: &str) -> Result<Truth> {
     let laser_plane = c
         .laser_plane
         .ok_or_else(|| root.err("`laser_plane` is null: a truth has a laser plane"))?;
-    let sphere = root.opt_obj("sphere")?.map(|s| sphere_from(&s)).transpose()?;
+    let sphere = root
+        .opt_obj("sphere")?
+        .map(|s| sphere_from(&s))
+        .transpose()?;
     let working_range_mm = match root.opt("working_range_mm") {
         None => None,
         Some(v) => {

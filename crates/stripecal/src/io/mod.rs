@@ -52,10 +52,6 @@ pub use poses::{
     convention_columns, convention_names, matrix_to_pose, pose_to_matrix, PoseColumns, MATRIX_TOL,
     QUATERNION_TOL,
 };
-pub use records::{
-    calibration_extra, robot_calibration_extra, robot_pose_noise_extra, robot_uncertainty,
-    self_checks_extra, uncertainty_to_json, view_record_to_json, warnings_to_json,
-};
 pub use profile::{parse_profile, read_profile, INVALID_Z_REL_TOL};
 pub use profile_dataset::{is_profile_dataset, is_profile_scan};
 pub use profile_rig::{
@@ -64,6 +60,10 @@ pub use profile_rig::{
 pub use profiler_calibration::{
     profiler_calibration_from_json, profiler_calibration_to_json, read_profiler_calibration,
     write_profiler_calibration,
+};
+pub use records::{
+    calibration_extra, robot_calibration_extra, robot_pose_noise_extra, robot_uncertainty,
+    self_checks_extra, uncertainty_to_json, view_record_to_json, warnings_to_json,
 };
 pub use rig::{read_rig, rig_from_json, rig_to_json, write_rig};
 pub use sensor::{calibration_sensor_kind, sensor_kind};

@@ -341,7 +341,10 @@ mod tests {
             best = best.min(t0.elapsed().as_secs_f64());
             assert_eq!((p.points.len(), p.gaps), (2940, 60));
         }
-        eprintln!("a 3000-point profile parses in {:.1} us (best of 20)", best * 1e6);
+        eprintln!(
+            "a 3000-point profile parses in {:.1} us (best of 20)",
+            best * 1e6
+        );
         // "well under 1 ms" in an unoptimised test build, on a shared machine
         assert!(best < 1e-3, "best of 20: {best:.2e} s");
     }

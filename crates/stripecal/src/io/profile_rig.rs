@@ -52,9 +52,8 @@ pub fn profile_rig_from_json(path: &Path, text: &str) -> Result<ProfileRig> {
         }
     }
     if !artefact.map().contains_key("diameter_mm") {
-        return Err(artefact.err(
-            "missing key `artefact.diameter_mm` (a positive number, or null: estimate it)",
-        ));
+        return Err(artefact
+            .err("missing key `artefact.diameter_mm` (a positive number, or null: estimate it)"));
     }
     let diameter_mm = artefact.opt_positive_f64("diameter_mm")?;
 
@@ -195,7 +194,10 @@ mod tests {
             .unwrap_err(),
         );
         assert_eq!(loc, "artefact.kind");
-        assert!(msg.contains("\"cube\"") && msg.contains("\"sphere\""), "{msg}");
+        assert!(
+            msg.contains("\"cube\"") && msg.contains("\"sphere\""),
+            "{msg}"
+        );
         let (loc, _) = location(
             read(
                 r#"{"format": "stripecal/rig@1", "sensor": {"kind": "profiler",

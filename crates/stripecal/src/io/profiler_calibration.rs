@@ -28,8 +28,8 @@ use serde_json::{Map, Value};
 
 use super::atomic::{read_text, write_atomic};
 use super::calibration::{
-    check_covariance, covariance_from, covariance_value, quality_checks_from,
-    quality_checks_value, sphere_from, sphere_is_valid, sphere_value, CALIBRATION_FORMAT,
+    check_covariance, covariance_from, covariance_value, quality_checks_from, quality_checks_value,
+    sphere_from, sphere_is_valid, sphere_value, CALIBRATION_FORMAT,
 };
 use super::json::{append_extra, invalid_message, num, parse, pose_value, to_pretty, Obj};
 use super::rig::{robot_from, robot_value};
@@ -200,7 +200,10 @@ mod tests {
             serde_json::json!({"center_mm": [0.01, 0.02, 0.03], "diameter_mm": 0.004}),
         );
         let mut extra = Map::new();
-        extra.insert("views".into(), serde_json::json!([{"view": 0, "rms_mm": 0.01}]));
+        extra.insert(
+            "views".into(),
+            serde_json::json!([{"view": 0, "rms_mm": 0.01}]),
+        );
         let names = ["hand_cam.rotation_vector[0]", "sphere.diameter_mm"];
         ProfilerCalibration {
             // a half turn and more: the rotation vector wraps, the matrix must not change
@@ -247,8 +250,7 @@ mod tests {
         // rotation matrices compared (DECISIONS 7): the JSON holds 17 significant digits
         assert!(rotation_gap(&c.hand_sensor, &back.hand_sensor) < 1e-14);
         assert!(
-            (c.hand_sensor.translation.vector - back.hand_sensor.translation.vector).norm()
-                < 1e-12
+            (c.hand_sensor.translation.vector - back.hand_sensor.translation.vector).norm() < 1e-12
         );
         assert_eq!(back.robot, c.robot);
         assert_eq!(back.sphere_center_mm, c.sphere_center_mm);
@@ -257,7 +259,10 @@ mod tests {
         assert_eq!(back.uncertainty, c.uncertainty);
         assert_eq!(back.covariance, c.covariance);
         assert_eq!(back.extra, c.extra);
-        assert_eq!(calibration_sensor_kind(&path).unwrap(), SensorKind::Profiler);
+        assert_eq!(
+            calibration_sensor_kind(&path).unwrap(),
+            SensorKind::Profiler
+        );
 
         let text = std::fs::read_to_string(&path).unwrap();
         let doc: Value = serde_json::from_str(&text).unwrap();
@@ -321,10 +326,26 @@ mod tests {
         let path = Path::new("calibration.json");
         let base: Value = serde_json::from_str(&profiler_calibration_to_json(&sample())).unwrap();
         for (key, edit, want) in [
-            ("sphere.diameter_mm", serde_json::json!(-1.0), "sphere.diameter_mm"),
-            ("quality.profile_rms_mm", serde_json::json!("x"), "quality.profile_rms_mm"),
-            ("quality.views_used", serde_json::json!(1.5), "quality.views_used"),
-            ("sphere.center_mm", serde_json::json!([1, 2]), "sphere.center_mm"),
+            (
+                "sphere.diameter_mm",
+                serde_json::json!(-1.0),
+                "sphere.diameter_mm",
+            ),
+            (
+                "quality.profile_rms_mm",
+                serde_json::json!("x"),
+                "quality.profile_rms_mm",
+            ),
+            (
+                "quality.views_used",
+                serde_json::json!(1.5),
+                "quality.views_used",
+            ),
+            (
+                "sphere.center_mm",
+                serde_json::json!([1, 2]),
+                "sphere.center_mm",
+            ),
         ] {
             let mut doc = base.clone();
             let (a, b) = key.split_once('.').unwrap();

@@ -82,7 +82,9 @@ impl ProfileScanSummary {
 /// error.
 fn bad_profile_reason(path: &Path, e: Error) -> String {
     match e {
-        Error::Io { source, .. } if !path.exists() => format!("profile file does not exist ({source})"),
+        Error::Io { source, .. } if !path.exists() => {
+            format!("profile file does not exist ({source})")
+        }
         Error::Io { source, .. } => format!("profile file cannot be read: {source}"),
         Error::Format {
             location, message, ..
@@ -256,19 +258,37 @@ mod tests {
     #[test]
     fn joint_readings_map_through_the_robot_and_the_hand_eye() {
         let robot = Robot::hp3();
-        let q = [vec![10.0, -20.0, 30.0, 5.0, -45.0, 60.0], vec![0.0, 5.0, -5.0, 0.0, 30.0, 0.0]];
+        let q = [
+            vec![10.0, -20.0, 30.0, 5.0, -45.0, 60.0],
+            vec![0.0, 5.0, -5.0, 0.0, 30.0, 0.0],
+        ];
         let c = calib(Some(robot.clone()));
         let (_d, s) = scan(q.iter().cloned().map(RobotReading::Joints).collect(), false);
         let (cloud, sum) =
             reconstruct_profile_scan(&s, &c, &ProfileReconstructOptions::default()).unwrap();
         // a.csv: 2 points, 1 gap (nan); b.csv: the rig's sentinel -99 is a gap
         assert_eq!(sum.gaps, vec![1, 1]);
-        assert_eq!((sum.points, sum.total_gaps(), sum.sensor_frame), (3, 2, false));
+        assert_eq!(
+            (sum.points, sum.total_gaps(), sum.sensor_frame),
+            (3, 2, false)
+        );
         let hs = iso_to_matrix(&c.hand_sensor);
         let want = [
-            by_matrix(&(iso_to_matrix(&robot.forward(&q[0]).unwrap()) * hs), -1.5, 200.0),
-            by_matrix(&(iso_to_matrix(&robot.forward(&q[0]).unwrap()) * hs), 2.25, 201.5),
-            by_matrix(&(iso_to_matrix(&robot.forward(&q[1]).unwrap()) * hs), -3.0, 150.0),
+            by_matrix(
+                &(iso_to_matrix(&robot.forward(&q[0]).unwrap()) * hs),
+                -1.5,
+                200.0,
+            ),
+            by_matrix(
+                &(iso_to_matrix(&robot.forward(&q[0]).unwrap()) * hs),
+                2.25,
+                201.5,
+            ),
+            by_matrix(
+                &(iso_to_matrix(&robot.forward(&q[1]).unwrap()) * hs),
+                -3.0,
+                150.0,
+            ),
         ];
         for (got, want) in cloud.points.iter().zip(&want) {
             assert!(close(got, want), "{got:?} vs {want:?}");
@@ -284,14 +304,18 @@ mod tests {
         // joint readings without a robot in the calibration name the frame and line
         let e = reconstruct_profile_scan(&s, &calib(None), &Default::default()).unwrap_err();
         assert!(
-            e.to_string().starts_with("invalid input: frame 0 (scan.csv line 2)"),
+            e.to_string()
+                .starts_with("invalid input: frame 0 (scan.csv line 2)"),
             "{e}"
         );
     }
 
     #[test]
     fn flange_poses_and_a_fixed_profiler() {
-        let t0 = iso_from_rotvec(&Vector3::new(0.0, 0.0, 1.0), &Vector3::new(500.0, 0.0, 300.0));
+        let t0 = iso_from_rotvec(
+            &Vector3::new(0.0, 0.0, 1.0),
+            &Vector3::new(500.0, 0.0, 300.0),
+        );
         let c = calib(None);
         let (_d, s) = scan(vec![RobotReading::FlangePose(t0)], false);
         let (cloud, _) = reconstruct_profile_scan(&s, &c, &Default::default()).unwrap();
@@ -308,7 +332,12 @@ mod tests {
         assert!(sum.sensor_frame);
         assert_eq!(
             cloud.points,
-            vec![[-1.5, 0.0, 200.0], [2.25, 0.0, 201.5], [4.0, 0.0, -99.0], [-3.0, 0.0, 150.0]]
+            vec![
+                [-1.5, 0.0, 200.0],
+                [2.25, 0.0, 201.5],
+                [4.0, 0.0, -99.0],
+                [-3.0, 0.0, 150.0]
+            ]
         );
         assert_eq!(sum.gaps, vec![1, 0]);
         let ply = d.path().join("cloud.ply");
