@@ -3,7 +3,8 @@
 
 Arbitrary bytes, arbitrary text and nearly valid documents go through ``load_rig``,
 ``load_dataset``, ``load_scan``, ``load_calibration``, ``load_truth``,
-``load_sphere_fit``, ``read_ply``, ``load_image``, ``pose_to_matrix`` and
+``load_sphere_fit``, ``read_ply``, ``load_image``, ``read_profile``,
+``load_profile_dataset``, ``read_profiler_calibration``, ``pose_to_matrix`` and
 ``matrix_to_pose``: only ``stripecal.StripecalError`` subclasses or ``OSError`` may come
 out (``TypeError`` for arguments of the wrong type), never another exception and in
 particular never ``pyo3_runtime.PanicException`` (a Rust panic crossing into Python).
@@ -178,7 +179,7 @@ def edit(doc: Any, path: list[int], new: Any) -> Any:
 
 
 @FUZZ
-@given(data=st.binary(max_size=600), which=st.integers(0, 5))
+@given(data=st.binary(max_size=600), which=st.integers(0, 7))
 def test_readers_take_arbitrary_bytes(data: bytes, which: int) -> None:
     readers = [
         ("rig.json", stripecal.load_rig),
@@ -187,6 +188,8 @@ def test_readers_take_arbitrary_bytes(data: bytes, which: int) -> None:
         ("sphere.json", stripecal.load_sphere_fit),
         ("cloud.ply", stripecal.read_ply),
         ("image.png", stripecal.load_image),
+        ("profile.csv", stripecal.read_profile),
+        ("calibration.json", stripecal.read_profiler_calibration),
     ]
     name, fn = readers[which]
     with tempfile.TemporaryDirectory() as d:
@@ -277,6 +280,64 @@ def test_load_dataset_and_scan_take_arbitrary_tables(
         scan_body = nl.join(["image" + header[len("board_image,laser_image"):]] + [",".join(["images/a.png"] + r) for r in rows])
         write(d, "scan.csv", scan_body.encode())
         call(stripecal.load_scan, d)
+
+
+PROFILER_RIG = {
+    "format": "stripecal/rig@1",
+    "sensor": {"kind": "profiler", "invalid_z": -99999.9999},
+    "artefact": {"kind": "sphere", "diameter_mm": 80.0},
+    "robot": RIG["robot"],
+}
+
+
+@FUZZ
+@given(
+    header=st.one_of(
+        st.just("x_mm,z_mm"),
+        st.just("intensity,z_mm,x_mm"),
+        st.lists(st.sampled_from(["x_mm", "z_mm", "intensity", "", "x"]), max_size=4).map(",".join),
+    ),
+    rows=st.lists(st.lists(csv_field, max_size=4), max_size=6),
+    crlf=st.booleans(),
+    invalid_z=st.one_of(st.none(), st.sampled_from([-99999.9999, 0.0, float("nan")])),
+)
+def test_read_profile_takes_arbitrary_tables(
+    header: str, rows: list[list[str]], crlf: bool, invalid_z: Any
+) -> None:
+    nl = "\r\n" if crlf else "\n"
+    body = nl.join([header] + [",".join(r) for r in rows])
+    with tempfile.TemporaryDirectory() as d:
+        prof = call(stripecal.read_profile, write(d, "p.csv", body.encode()), invalid_z)
+    if prof is not None:
+        # what is accepted is finite points plus counted gaps, one per data line
+        assert prof.points.shape[1] == 2 and finite(prof.points)
+        assert len(prof) + prof.gaps <= len(rows)
+
+
+@FUZZ
+@given(
+    header=st.one_of(
+        st.just("profile,q1,q2,q3,q4,q5,q6"),
+        st.sampled_from(CONVENTIONS).map(lambda c: "profile," + HEADERS[c]),
+        st.lists(st.sampled_from(["profile", "board_image", "image", "q1", "x_mm", "qw", ""]), max_size=8).map(",".join),
+    ),
+    rows=st.lists(st.lists(csv_field, max_size=13), max_size=4),
+    rig_edit=st.one_of(st.none(), st.tuples(st.lists(st.integers(0, 1000), min_size=1, max_size=3), json_value)),
+)
+def test_load_profile_dataset_takes_arbitrary_tables(header: str, rows: list[list[str]], rig_edit: Any) -> None:
+    body = "\n".join([header] + [",".join(["p/a.csv"] + r) for r in rows])
+    rig = PROFILER_RIG if rig_edit is None else edit(PROFILER_RIG, rig_edit[0], rig_edit[1])
+    with tempfile.TemporaryDirectory() as d:
+        write(d, "rig.json", json.dumps(rig).encode())
+        write(d, "views.csv", body.encode())
+        write(d, "p/a.csv", b"x_mm,z_mm\n0,200\n")
+        ds = call(stripecal.load_profile_dataset, d)
+        if ds is not None:
+            assert len(ds) >= 1
+            assert (ds.joints is None) != (ds.flange_poses is None)
+            poses = ds.flange_poses
+            if poses is not None:
+                assert all(is_rigid(m) for m in poses)
 
 
 # ------------------------------------------------------------------ PLY

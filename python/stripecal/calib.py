@@ -10,6 +10,9 @@ robot-world ``Z = T_base_board``.
   :class:`~stripecal.types.PosePlan`).
 - ``board_flatness`` (one view's detections and pose -> the sag of the best-fitting
   cylinder with its sigma, a :class:`~stripecal.types.Flatness`; docs/flatness.md).
+- :class:`ProfilerCalibration`: a calibrated line profiler's result (``T_hand_sensor``,
+  the reference sphere, the robot; calibration.json with ``"sensor": {"kind":
+  "profiler"}``, read and written by ``stripecal.io``).
 - The stages on their own: ``calibrate_camera``, ``fit_laser_plane``, ``solve_axzb`` /
   ``solve_axzb_full`` (``A_i X = Z B_i``).
 
@@ -23,6 +26,7 @@ from stripecal._core import Calibration as Calibration
 from stripecal._core import board_flatness as board_flatness
 from stripecal._core import fit_laser_plane as fit_laser_plane
 from stripecal._core import plan_poses as plan_poses
+from stripecal._core import ProfilerCalibration as ProfilerCalibration
 from stripecal._core import solve_axzb as solve_axzb
 from stripecal._core import solve_axzb_full as solve_axzb_full
 
@@ -33,6 +37,7 @@ __all__ = [
     "Calibration",
     "fit_laser_plane",
     "plan_poses",
+    "ProfilerCalibration",
     "solve_axzb",
     "solve_axzb_full",
 ]

@@ -85,6 +85,11 @@ __all__ = [
     "SimConfig",
     "SimPose",
     "SkippedFrame",
+    "SphereSigma",
+    "ProfilerExtraInput",
+    "ProfilerQuality",
+    "ProfilerUncertainty",
+    "ProfilerUncertaintyInput",
     "SphereFitExtra",
     "SphereFitExtraInput",
     "SphereInput",
@@ -245,6 +250,47 @@ class CalibrationUncertainty(TypedDict, total=False):
 CalibrationUncertaintyInput = Union[CalibrationUncertainty, Dict[str, object]]
 """What ``Calibration(uncertainty=...)`` accepts: the record or any dict of JSON-like
 values (stored as given)."""
+
+
+class ProfilerQuality(TypedDict):
+    """Quality figures of a line profiler's calibration (``ProfilerCalibration.quality``)."""
+
+    profile_rms_mm: float
+    """RMS distance of the sphere points used from the fitted sphere, mm."""
+    views_used: int
+    """Number of views the calibration used."""
+    accepted_poor: bool
+    """True when a quality gate failed and the calibration was kept anyway."""
+    checks: List[QualityCheck]
+    """Every quality gate's verdict."""
+
+
+class SphereSigma(TypedDict, total=False):
+    """One-sigma of a reference sphere (``ProfilerCalibration.uncertainty["sphere"]``)."""
+
+    center_mm: List[Optional[float]]
+    """Of the centre's three components (base frame), mm."""
+    diameter_mm: Optional[float]
+    """Of the diameter, mm (absent or None when it was declared, not estimated)."""
+
+
+class ProfilerUncertainty(TypedDict, total=False):
+    """One-sigma values of a line profiler's calibration
+    (``ProfilerCalibration.uncertainty``), mirroring the estimated values' keys."""
+
+    hand_cam: PoseSigma
+    """``T_hand_sensor``."""
+    sphere: SphereSigma
+    """The reference sphere."""
+
+
+ProfilerUncertaintyInput = Union[ProfilerUncertainty, Dict[str, object]]
+"""What ``ProfilerCalibration(uncertainty=...)`` accepts: the record or any dict of
+JSON-like values (stored as given)."""
+
+ProfilerExtraInput = Dict[str, object]
+"""What ``ProfilerCalibration(extra=...)`` accepts: any dict of JSON-like values (the
+other top-level keys of calibration.json, written back as given)."""
 
 
 class ResidualSigma(TypedDict):

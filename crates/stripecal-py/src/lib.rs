@@ -17,6 +17,7 @@ mod imageview;
 mod measure_py;
 mod plan_py;
 mod poses;
+mod profile_py;
 mod reconstruct_py;
 mod results;
 mod rig;
@@ -68,6 +69,13 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(files::write_ply_py, m)?)?;
     m.add_function(wrap_pyfunction!(files::load_image, m)?)?;
     m.add_function(wrap_pyfunction!(files::save_image, m)?)?;
+    m.add_class::<profile_py::PyProfile>()?;
+    m.add_class::<profile_py::PyProfileDataset>()?;
+    m.add_class::<profile_py::PyProfilerCalibration>()?;
+    m.add_function(wrap_pyfunction!(profile_py::read_profile_py, m)?)?;
+    m.add_function(wrap_pyfunction!(profile_py::load_profile_dataset, m)?)?;
+    m.add_function(wrap_pyfunction!(profile_py::read_profiler_calibration, m)?)?;
+    m.add_function(wrap_pyfunction!(profile_py::write_profiler_calibration, m)?)?;
     m.add_function(wrap_pyfunction!(poses::pose_to_matrix, m)?)?;
     m.add_function(wrap_pyfunction!(poses::matrix_to_pose, m)?)?;
 

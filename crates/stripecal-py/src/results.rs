@@ -11,7 +11,9 @@ use stripecal::io::{
     write_sphere_fit, write_truth,
 };
 use stripecal::model::geometry::Plane;
-use stripecal::model::{Calibration, Quality, QualityCheck, Sphere, SphereFit, Truth};
+use stripecal::model::{
+    Calibration, NamedCovariance, Quality, QualityCheck, Sphere, SphereFit, Truth,
+};
 
 use crate::camera::PyCamera;
 use crate::convert::{fixed, iso_to_py, json_to_py, map_to_py, nd, opt_dict_to_map, py_to_iso};
@@ -112,6 +114,22 @@ pub fn checks_to_py<'py>(py: Python<'py>, checks: &[QualityCheck]) -> PyResult<B
     Ok(out)
 }
 
+/// `(names, matrix (n, n))` of a covariance, or None.
+pub fn covariance_to_py<'py>(
+    py: Python<'py>,
+    c: Option<&NamedCovariance>,
+) -> PyResult<Option<(Vec<String>, Bound<'py, PyAny>)>> {
+    let Some(c) = c else {
+        return Ok(None);
+    };
+    let n = c.parameters.len();
+    let data: Vec<f64> = (0..n)
+        .flat_map(|i| (0..n).map(move |j| (i, j)))
+        .map(|(i, j)| c.matrix[(i, j)])
+        .collect();
+    Ok(Some((c.parameters.clone(), nd(py, &[n, n], data)?)))
+}
+
 /// A calibration result (calibration.json): camera, laser plane `n . p = d_mm` in the
 /// camera frame, `T_hand_cam` (X), `T_base_board` (Z), the robot used, quality figures
 /// and one-sigma uncertainties.
@@ -194,15 +212,7 @@ impl PyCalibration {
         &self,
         py: Python<'py>,
     ) -> PyResult<Option<(Vec<String>, Bound<'py, PyAny>)>> {
-        let Some(c) = &self.inner.covariance else {
-            return Ok(None);
-        };
-        let n = c.parameters.len();
-        let data: Vec<f64> = (0..n)
-            .flat_map(|i| (0..n).map(move |j| (i, j)))
-            .map(|(i, j)| c.matrix[(i, j)])
-            .collect();
-        Ok(Some((c.parameters.clone(), nd(py, &[n, n], data)?)))
+        covariance_to_py(py, self.inner.covariance.as_ref())
     }
 
     /// `T_hand_cam` (the paper's X), shape (4, 4), mm (the identity in a bench

@@ -141,7 +141,7 @@ fn path_str(root: &Path, rel: &Path) -> String {
 }
 
 /// Joint readings `(N, J)` when every reading is joints, else None.
-fn joints_array<'py>(
+pub(crate) fn joints_array<'py>(
     py: Python<'py>,
     readings: &[&RobotReading],
 ) -> PyResult<Option<Bound<'py, PyAny>>> {
@@ -165,7 +165,7 @@ fn joints_array<'py>(
 }
 
 /// Reported flange poses `(N, 4, 4)` when every reading is a pose, else None.
-fn poses_array<'py>(
+pub(crate) fn poses_array<'py>(
     py: Python<'py>,
     readings: &[&RobotReading],
 ) -> PyResult<Option<Bound<'py, PyAny>>> {

@@ -11,13 +11,14 @@ use super::json::{
     append_extra, invalid_message, num, parse, pose_value, to_pretty, vec3_value, Obj,
 };
 use super::rig::{distortion_model_from, robot_from, robot_value};
+use super::sensor::sensor_kind_of;
 use crate::error::{Error, Result};
 use crate::model::camera::Camera;
 use crate::model::geometry::{Iso3, Plane};
 use crate::model::kinematics::Robot;
 use crate::model::{
-    Calibration, NamedCovariance, Quality, QualityCheck, RobotPoseNoise, RobotPoseView, Sphere,
-    SphereFit, Truth,
+    Calibration, NamedCovariance, Quality, QualityCheck, RobotPoseNoise, RobotPoseView, SensorKind,
+    Sphere, SphereFit, Truth,
 };
 
 /// The `format` value of calibration.json.
@@ -205,7 +206,7 @@ fn check_common(
 /// non-negative diagonal. `null` entries (the rows and columns of a number the data did
 /// not determine, which the adjustment reports as NaN, as `uncertainty` does) are read
 /// as NaN.
-fn covariance_from(c: &Obj<'_>) -> Result<NamedCovariance> {
+pub(super) fn covariance_from(c: &Obj<'_>) -> Result<NamedCovariance> {
     let names: Vec<String> = c
         .req("parameters")?
         .arr()?
@@ -243,7 +244,7 @@ fn covariance_from(c: &Obj<'_>) -> Result<NamedCovariance> {
 /// column per parameter, finite values or NaN (`null` in the file: not determined), a
 /// non-negative diagonal, symmetry (to 1e-9 of the standard deviations' product; NaN
 /// where its mirror is NaN).
-fn check_covariance(c: &NamedCovariance) -> std::result::Result<(), String> {
+pub(super) fn check_covariance(c: &NamedCovariance) -> std::result::Result<(), String> {
     let (n, m) = (c.parameters.len(), &c.matrix);
     if m.nrows() != n || m.ncols() != n {
         return Err(format!(
@@ -276,7 +277,7 @@ fn check_covariance(c: &NamedCovariance) -> std::result::Result<(), String> {
     Ok(())
 }
 
-fn covariance_value(c: &NamedCovariance) -> Value {
+pub(super) fn covariance_value(c: &NamedCovariance) -> Value {
     let mut m = Map::new();
     m.insert(
         "parameters".into(),
@@ -371,6 +372,14 @@ pub fn calibration_from_json(path: &Path, text: &str) -> Result<Calibration> {
     let doc = parse(path, text)?;
     let root = Obj::root(path, &doc)?;
     root.check_format(CALIBRATION_FORMAT)?;
+    if sensor_kind_of(&root)? == SensorKind::Profiler {
+        return Err(Error::format(
+            path,
+            "sensor.kind",
+            "calibration.json is a profiler's (sensor.kind = \"profiler\"); this reader is for \
+             a camera calibration: read it with read_profiler_calibration",
+        ));
+    }
     let (c, bench) = common_or_bench(&root)?;
     let q = root.obj("quality")?;
     let quality = Quality {
@@ -446,7 +455,7 @@ pub fn calibration_to_json(c: &Calibration) -> String {
 }
 
 /// `quality.checks`: `[{"name", "passed", "message", "views": [...]}, ...]` (optional).
-fn quality_checks_from(q: &Obj<'_>) -> Result<Vec<QualityCheck>> {
+pub(super) fn quality_checks_from(q: &Obj<'_>) -> Result<Vec<QualityCheck>> {
     let Some(list) = q.opt("checks") else {
         return Ok(Vec::new());
     };
@@ -467,7 +476,7 @@ fn quality_checks_from(q: &Obj<'_>) -> Result<Vec<QualityCheck>> {
         .collect()
 }
 
-fn quality_checks_value(checks: &[QualityCheck]) -> Value {
+pub(super) fn quality_checks_value(checks: &[QualityCheck]) -> Value {
     Value::Array(
         checks
             .iter()
@@ -522,6 +531,29 @@ pub fn write_calibration(p: impl AsRef<Path>, c: &Calibration) -> Result<()> {
 
 // ---------------------------------------------------------------- truth.json
 
+/// `sphere`: `{"center_mm": [x, y, z], "diameter_mm": d > 0}` (truth.json, a profiler's
+/// calibration.json).
+pub(super) fn sphere_from(s: &Obj<'_>) -> Result<Sphere> {
+    Ok(Sphere {
+        center_mm: s.vec3("center_mm")?,
+        diameter_mm: s.positive_f64("diameter_mm")?,
+    })
+}
+
+/// The JSON of a sphere, as [`sphere_from`] reads it.
+pub(super) fn sphere_value(s: &Sphere) -> Value {
+    let mut m = Map::new();
+    m.insert("center_mm".into(), vec3_value(&s.center_mm));
+    m.insert("diameter_mm".into(), num(s.diameter_mm));
+    Value::Object(m)
+}
+
+/// Whether a sphere can be written and read back: a finite centre, a finite positive
+/// diameter.
+pub(super) fn sphere_is_valid(s: &Sphere) -> bool {
+    s.center_mm.iter().all(|x| x.is_finite()) && s.diameter_mm.is_finite() && s.diameter_mm > 0.0
+}
+
 /// Parses truth.json text; `path` is used in error messages only.
 ///
 /// Same required keys as calibration.json except `quality`; optional `robot`,
@@ -537,13 +569,10 @@ pub fn truth_from_json(path: &Path, text: &str) -> Result<Truth> {
     let laser_plane = c
         .laser_plane
         .ok_or_else(|| root.err("`laser_plane` is null: a truth has a laser plane"))?;
-    let sphere = match root.opt_obj("sphere")? {
-        None => None,
-        Some(s) => Some(Sphere {
-            center_mm: s.vec3("center_mm")?,
-            diameter_mm: s.positive_f64("diameter_mm")?,
-        }),
-    };
+    let sphere = root
+        .opt_obj("sphere")?
+        .map(|s| sphere_from(&s))
+        .transpose()?;
     let working_range_mm = match root.opt("working_range_mm") {
         None => None,
         Some(v) => {
@@ -582,10 +611,7 @@ pub fn truth_to_json(t: &Truth) -> String {
         t.robot.as_ref(),
     );
     if let Some(s) = &t.sphere {
-        let mut sm = Map::new();
-        sm.insert("center_mm".into(), vec3_value(&s.center_mm));
-        sm.insert("diameter_mm".into(), num(s.diameter_mm));
-        m.insert("sphere".into(), Value::Object(sm));
+        m.insert("sphere".into(), sphere_value(s));
     }
     if let Some([near, far]) = t.working_range_mm {
         m.insert(
@@ -618,10 +644,7 @@ pub fn write_truth(p: impl AsRef<Path>, t: &Truth) -> Result<()> {
         t.robot.as_ref(),
     )?;
     if let Some(s) = &t.sphere {
-        if !(s.center_mm.iter().all(|x| x.is_finite())
-            && s.diameter_mm.is_finite()
-            && s.diameter_mm > 0.0)
-        {
+        if !sphere_is_valid(s) {
             return Err(Error::InvalidInput(format!(
                 "truth: sphere centre {:?} / diameter {} must be finite and positive",
                 s.center_mm, s.diameter_mm

@@ -36,11 +36,11 @@ use crate::model::{RobotReading, ScanFrame, View};
 const VIEW_NAME_COLUMNS: [&str; 2] = ["board_image", "laser_image"];
 const SCAN_NAME_COLUMNS: [&str; 1] = ["image"];
 
-/// One parsed data row: image names (trimmed, possibly empty) and the reading.
-struct Row {
-    line: usize,
-    names: Vec<String>,
-    reading: RobotReading,
+/// One parsed data row: file names (trimmed, possibly empty) and the reading.
+pub(super) struct Row {
+    pub line: usize,
+    pub names: Vec<String>,
+    pub reading: RobotReading,
 }
 
 fn reject_quotes(path: &Path, line_no: usize, line: &str) -> Result<()> {
@@ -67,6 +67,13 @@ fn parse_header(
     }
     reject_quotes(path, 1, header)?;
     let fields: Vec<&str> = header.split(',').map(str::trim).collect();
+    if fields.contains(&"profile") && !names.contains(&"profile") {
+        return Err(at(format!(
+            "column `profile` names profile files: this is a line profiler's table (read the \
+             folder as a profile dataset or scan: ProfileDataset::load, ProfileScan::load); a \
+             camera's header is {expected}"
+        )));
+    }
     for (i, name) in names.iter().enumerate() {
         match fields.get(i) {
             Some(f) if f == name => {}
@@ -98,8 +105,14 @@ fn parse_number(path: &Path, line_no: usize, column: &str, raw: &str) -> Result<
     }
 }
 
-/// Parses a whole table. `names` are the leading image columns.
-fn parse_table(path: &Path, text: &str, names: &[&str], robot: Option<&Robot>) -> Result<Vec<Row>> {
+/// Parses a whole table. `names` are the leading file columns (`board_image,laser_image`,
+/// `image`, or a profiler's `profile`), the rest the pose columns of [`Layout`].
+pub(super) fn parse_table(
+    path: &Path,
+    text: &str,
+    names: &[&str],
+    robot: Option<&Robot>,
+) -> Result<Vec<Row>> {
     let lines: Vec<&str> = text
         .split('\n')
         .map(|l| l.strip_suffix('\r').unwrap_or(l))
@@ -214,7 +227,12 @@ pub fn read_scan_csv(p: impl AsRef<Path>, robot: Option<&Robot>) -> Result<Vec<S
 
 /// An image name as it can be written: UTF-8, no commas, quotes, line breaks or
 /// surrounding spaces (the reader trims fields).
-fn name_field(what: &str, row: usize, p: Option<&Path>, required: bool) -> Result<String> {
+pub(super) fn name_field(
+    what: &str,
+    row: usize,
+    p: Option<&Path>,
+    required: bool,
+) -> Result<String> {
     let Some(p) = p else {
         return if required {
             Err(Error::InvalidInput(format!(
@@ -241,7 +259,12 @@ fn name_field(what: &str, row: usize, p: Option<&Path>, required: bool) -> Resul
     Ok(s.to_string())
 }
 
-fn push_reading(out: &mut String, row: usize, r: &RobotReading, pose: &PoseColumns) -> Result<()> {
+pub(super) fn push_reading(
+    out: &mut String,
+    row: usize,
+    r: &RobotReading,
+    pose: &PoseColumns,
+) -> Result<()> {
     let (_, values) = Layout::of_reading(r, pose);
     for x in values {
         if !x.is_finite() {
@@ -257,7 +280,7 @@ fn push_reading(out: &mut String, row: usize, r: &RobotReading, pose: &PoseColum
 }
 
 /// The common layout of all rows (error when rows differ or there are none).
-fn common_layout<'a>(
+pub(super) fn common_layout<'a>(
     what: &str,
     readings: impl Iterator<Item = &'a RobotReading>,
     pose: &PoseColumns,
@@ -292,7 +315,7 @@ fn common_layout<'a>(
     })
 }
 
-fn header_line(names: &[&str], layout: &Layout) -> String {
+pub(super) fn header_line(names: &[&str], layout: &Layout) -> String {
     let mut cols: Vec<String> = names.iter().map(|s| s.to_string()).collect();
     cols.extend(layout.column_names());
     let mut h = cols.join(",");

@@ -22,18 +22,11 @@ impl Dataset {
                 "views.csv has no views",
             ));
         }
-        if rig.robot.is_none() && matches!(views[0].reading, RobotReading::Joints(_)) {
-            return Err(Error::format(
-                &views_path,
-                "line 1",
-                "joint columns q1..qN need a robot (DH table) in rig.json; \
-                 without one, use flange-pose columns (e.g. x_mm,y_mm,z_mm,qw,qx,qy,qz)",
-            ));
-        }
+        check_joints_have_robot(&views_path, rig.robot.as_ref(), &views[0].reading)?;
         for v in &views {
-            check_image_exists(&root, &views_path, v.line, &v.board_image)?;
+            check_file_exists(&root, &views_path, v.line, "image", &v.board_image)?;
             if let Some(l) = &v.laser_image {
-                check_image_exists(&root, &views_path, v.line, l)?;
+                check_file_exists(&root, &views_path, v.line, "image", l)?;
             }
         }
         Ok(Dataset { root, rig, views })
@@ -50,10 +43,8 @@ impl Scan {
     /// `robot` is used to check the joint count when the scan has no rig.json.
     pub fn load(root: impl AsRef<Path>, robot: Option<&Robot>) -> Result<Scan> {
         let scan = Scan::read(root, robot)?;
-        let csv_path = scan.root.join("scan.csv");
-        for f in &scan.frames {
-            check_image_exists(&scan.root, &csv_path, f.line, &f.image)?;
-        }
+        let names = scan.frames.iter().map(|f| (f.line, f.image.as_path()));
+        check_files_exist(&scan.root, "scan.csv", "image", names)?;
         Ok(scan)
     }
 
@@ -61,12 +52,7 @@ impl Scan {
     /// each frame's image itself (the reconstruction, which may skip bad frames).
     pub fn read(root: impl AsRef<Path>, robot: Option<&Robot>) -> Result<Scan> {
         let root = root.as_ref().to_path_buf();
-        let rig_path = root.join("rig.json");
-        let rig = if rig_path.exists() {
-            Some(read_rig(&rig_path)?)
-        } else {
-            None
-        };
+        let rig = read_if_present(&root.join("rig.json"), |p| read_rig(p))?;
         let robot = rig.as_ref().and_then(|r| r.robot.as_ref()).or(robot);
         let csv_path = root.join("scan.csv");
         let frames = read_scan_csv(&csv_path, robot)?;
@@ -82,13 +68,65 @@ impl Scan {
     }
 }
 
-fn check_image_exists(root: &Path, csv: &Path, line: usize, rel: &Path) -> Result<()> {
+/// `read(path)` when the file exists, `None` otherwise (a scan's optional rig.json).
+pub(super) fn read_if_present<T>(
+    path: &Path,
+    read: impl FnOnce(&Path) -> Result<T>,
+) -> Result<Option<T>> {
+    if path.exists() {
+        read(path).map(Some)
+    } else {
+        Ok(None)
+    }
+}
+
+/// Checks that every file named in the table `root/csv` exists: `(line, name)` pairs.
+pub(super) fn check_files_exist<'a>(
+    root: &Path,
+    csv: &str,
+    what: &str,
+    names: impl Iterator<Item = (usize, &'a Path)>,
+) -> Result<()> {
+    let csv_path = root.join(csv);
+    for (line, rel) in names {
+        check_file_exists(root, &csv_path, line, what, rel)?;
+    }
+    Ok(())
+}
+
+/// Checks that the file `rel` (an `image`, a `profile`) named on `line` of `csv` exists
+/// under `root`.
+pub(super) fn check_file_exists(
+    root: &Path,
+    csv: &Path,
+    line: usize,
+    what: &str,
+    rel: &Path,
+) -> Result<()> {
     let p = root.join(rel);
     if !p.is_file() {
         return Err(Error::format(
             csv,
             format!("line {line}"),
-            format!("image {} does not exist", p.display()),
+            format!("{what} {} does not exist", p.display()),
+        ));
+    }
+    Ok(())
+}
+
+/// Joint columns need a robot (a DH table) in rig.json: an error on line 1 of `csv`
+/// when the first row has joint readings and there is none.
+pub(super) fn check_joints_have_robot(
+    csv: &Path,
+    robot: Option<&Robot>,
+    first: &RobotReading,
+) -> Result<()> {
+    if robot.is_none() && matches!(first, RobotReading::Joints(_)) {
+        return Err(Error::format(
+            csv,
+            "line 1",
+            "joint columns q1..qN need a robot (DH table) in rig.json; \
+             without one, use flange-pose columns (e.g. x_mm,y_mm,z_mm,qw,qx,qy,qz)",
         ));
     }
     Ok(())

@@ -1,5 +1,8 @@
 //! Files of spec/DATASET.md: rig.json, views.csv, scan.csv, calibration.json,
-//! truth.json, sphere fits, PLY point clouds and grayscale images.
+//! truth.json, sphere fits, PLY point clouds and grayscale images; and a calibrated
+//! line profiler's: its rig.json, views.csv / scan.csv with a `profile` column, profile
+//! files and calibration.json ([`sensor_kind`] / [`calibration_sensor_kind`] tell which
+//! kind of sensor a rig or calibration describes).
 //!
 //! ## Conventions
 //!
@@ -21,8 +24,13 @@ mod imageio;
 mod json;
 mod ply;
 mod poses;
+mod profile;
+mod profile_dataset;
+mod profile_rig;
+mod profiler_calibration;
 mod records;
 mod rig;
+mod sensor;
 
 pub use artefacts::read_artefacts;
 pub use atomic::write_atomic;
@@ -44,8 +52,18 @@ pub use poses::{
     convention_columns, convention_names, matrix_to_pose, pose_to_matrix, PoseColumns, MATRIX_TOL,
     QUATERNION_TOL,
 };
+pub use profile::{parse_profile, read_profile, INVALID_Z_REL_TOL};
+pub use profile_dataset::{is_profile_dataset, is_profile_scan};
+pub use profile_rig::{
+    profile_rig_from_json, profile_rig_to_json, read_profile_rig, write_profile_rig,
+};
+pub use profiler_calibration::{
+    profiler_calibration_from_json, profiler_calibration_to_json, read_profiler_calibration,
+    write_profiler_calibration,
+};
 pub use records::{
     calibration_extra, robot_calibration_extra, robot_pose_noise_extra, robot_uncertainty,
     self_checks_extra, uncertainty_to_json, view_record_to_json, warnings_to_json,
 };
 pub use rig::{read_rig, rig_from_json, rig_to_json, write_rig};
+pub use sensor::{calibration_sensor_kind, sensor_kind};

@@ -571,6 +571,8 @@ fn header_text(c: &Cloud, f: PlyFormat, comments: &[String]) -> String {
     });
     if comments.iter().any(|c| c == "frame cam") {
         h.push_str("comment stripecal point cloud: x y z in mm, camera frame\n");
+    } else if comments.iter().any(|c| c == "frame sensor") {
+        h.push_str("comment stripecal point cloud: x y z in mm, profiler sensor frame\n");
     } else {
         h.push_str("comment stripecal point cloud: x y z in mm, robot base frame\n");
     }

@@ -6,11 +6,12 @@ use serde_json::{Map, Value};
 
 use super::atomic::{read_text, write_atomic};
 use super::json::{invalid_message, num, parse, to_pretty, Obj, Val};
+use super::sensor::sensor_kind_of;
 use crate::error::{Error, Result};
 use crate::model::board::{Board, BoardKind};
 use crate::model::camera::DistortionModel;
 use crate::model::kinematics::{DhJoint, Robot};
-use crate::model::{Rig, StripeChannel, StripeDirection};
+use crate::model::{Rig, SensorKind, StripeChannel, StripeDirection};
 
 /// The `format` value of rig.json.
 pub(super) const RIG_FORMAT: &str = "stripecal/rig@1";
@@ -23,11 +24,22 @@ pub(super) const RIG_FORMAT: &str = "stripecal/rig@1";
 /// when `markers` is not empty; for chessboards `board.square_mm` (a `pitch_mm`, if
 /// given, must equal it). `markers` defaults to the L `[[0,0],[0,1],[1,0]]` for
 /// `"circles"` and is empty (and must be) for the other kinds.
-/// Unknown keys are ignored.
+/// Unknown keys are ignored. An optional `"sensor": {"kind": "camera"}` is accepted; a
+/// profiler's rig (`sensor.kind = "profiler"`) is refused, naming
+/// [`super::read_profile_rig`].
 pub fn rig_from_json(path: &Path, text: &str) -> Result<Rig> {
     let doc = parse(path, text)?;
     let root = Obj::root(path, &doc)?;
     root.check_format(RIG_FORMAT)?;
+    if sensor_kind_of(&root)? == SensorKind::Profiler {
+        return Err(Error::format(
+            path,
+            "sensor.kind",
+            "rig.json describes a profiler (sensor.kind = \"profiler\"); this reader is for \
+             a camera rig: read it as a profile dataset (read_profile_rig, \
+             ProfileDataset::load)",
+        ));
+    }
 
     let cam = root.obj("camera")?;
     let width = cam.positive_u32("width")?;

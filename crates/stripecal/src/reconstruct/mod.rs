@@ -48,6 +48,10 @@
 //! is left out and listed in [`ScanPoints::skipped`] ([`BadImage::Skip`]). A frame whose
 //! image is fine but shows no stripe is not a bad image: it simply gives no points.
 //!
+//! A calibrated line profiler's scan (profiles in mm, no images) is mapped to the base
+//! frame by [`reconstruct_profile_scan`] (`p_base = T_base_hand(q) * T_hand_sensor *
+//! (x, 0, z)`).
+//!
 //! Fits of the points (sphere, plane) are in [`fit`], with the correction of a sphere
 //! scan for the curved-surface stripe bias ([`correct_sphere_bias`]: it takes the
 //! points' pixels and widths, `T_base_cam` per frame, the camera and the laser plane).
@@ -56,6 +60,7 @@ pub mod fit;
 mod frame;
 mod options;
 mod points;
+mod profile;
 mod scan;
 mod triangulate;
 pub mod uncertainty;
@@ -69,6 +74,7 @@ pub use options::{
     stripe_direction_from_plane, BadImage, ReconstructOptions, DEFAULT_MIN_RAY_PLANE_ANGLE_DEG,
 };
 pub use points::{at_frame, ScanPoints};
+pub use profile::{reconstruct_profile_scan, ProfileReconstructOptions, ProfileScanSummary};
 pub use scan::{load_scan, reconstruct_frames, reconstruct_scan};
 pub use triangulate::{laser_plane_of, triangulate, DropCounts, Triangulator};
 pub use uncertainty::{point_covariances, UncertaintyModel, UncertaintyOptions};

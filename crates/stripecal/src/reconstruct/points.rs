@@ -125,20 +125,7 @@ impl ScanPoints {
     /// `skipped frame ...` line per skipped frame (which, where and why; control
     /// characters replaced by spaces).
     pub fn ply_comments(&self) -> Vec<String> {
-        let mut c = Vec::with_capacity(2 + self.skipped.len());
-        if self.camera_frame {
-            c.push("frame cam".to_string());
-        }
-        c.push(format!("skipped_frames {}", self.skipped.len()));
-        for b in &self.skipped {
-            let text = format!("skipped {b}");
-            c.push(
-                text.chars()
-                    .map(|ch| if ch.is_control() { ' ' } else { ch })
-                    .collect(),
-            );
-        }
-        c
+        ply_comments(self.camera_frame.then_some("cam"), &self.skipped)
     }
 
     /// The PLY cloud: `x y z` and the properties `view` (frame index), `u`, `v`,
@@ -177,6 +164,26 @@ impl ScanPoints {
         }
         c
     }
+}
+
+/// The PLY header comments of a scan's cloud: `frame NAME` when the points are not in
+/// the base frame (`cam`, `sensor`), `skipped_frames N`, then one `skipped frame ...`
+/// line per skipped frame (control characters replaced by spaces).
+pub(super) fn ply_comments(frame: Option<&str>, skipped: &[BadFrame]) -> Vec<String> {
+    let mut c = Vec::with_capacity(2 + skipped.len());
+    if let Some(f) = frame {
+        c.push(format!("frame {f}"));
+    }
+    c.push(format!("skipped_frames {}", skipped.len()));
+    for b in skipped {
+        let text = format!("skipped {b}");
+        c.push(
+            text.chars()
+                .map(|ch| if ch.is_control() { ' ' } else { ch })
+                .collect(),
+        );
+    }
+    c
 }
 
 /// Puts `frame i` (and the scan.csv line, when known) in front of an error's message,
