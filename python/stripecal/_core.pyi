@@ -5,7 +5,7 @@
 # arrays (float64 unless noted). Shapes are given in the docstrings of the extension.
 
 import os
-from typing import Any, Callable, ClassVar, Dict, List, Optional, Sequence, Tuple, Union, final
+from typing import Any, Callable, ClassVar, Dict, List, Optional, Sequence, Tuple, Union, final, overload
 
 import numpy as np
 import numpy.typing as npt
@@ -737,8 +737,9 @@ def board_flatness(
     cam_board: npt.ArrayLike,
     sigma_px: Optional[float] = None,
 ) -> Flatness: ...
+@overload
 def calibrate(
-    dataset: Union[_Path, Dataset],
+    dataset: Dataset,
     *,
     distortion: Optional[str] = None,
     method: str = "one-stage",
@@ -755,6 +756,44 @@ def calibrate(
     robot: str = "fixed",
     board_stripe_bias: bool = True,
 ) -> Calibration: ...
+@overload
+def calibrate(
+    dataset: ProfileDataset,
+    *,
+    distortion: Optional[str] = None,
+    method: str = "one-stage",
+    robust: bool = False,
+    centre_model: str = "conic-exact",
+    from_calibration: Optional[Union[Calibration, _Path]] = None,
+    fix: Sequence[str] = ...,
+    laser_only: bool = False,
+    estimate_board_scale: bool = False,
+    board_scale_tolerance: float = 0.01,
+    leave_one_out: bool = True,
+    accept_poor: bool = False,
+    robot_pose_noise: bool = False,
+    robot: str = "fixed",
+    board_stripe_bias: bool = True,
+) -> ProfilerCalibration: ...
+@overload
+def calibrate(
+    dataset: _Path,
+    *,
+    distortion: Optional[str] = None,
+    method: str = "one-stage",
+    robust: bool = False,
+    centre_model: str = "conic-exact",
+    from_calibration: Optional[Union[Calibration, _Path]] = None,
+    fix: Sequence[str] = ...,
+    laser_only: bool = False,
+    estimate_board_scale: bool = False,
+    board_scale_tolerance: float = 0.01,
+    leave_one_out: bool = True,
+    accept_poor: bool = False,
+    robot_pose_noise: bool = False,
+    robot: str = "fixed",
+    board_stripe_bias: bool = True,
+) -> Union[Calibration, ProfilerCalibration]: ...
 def plan_poses(
     rig: Union[_Path, Rig, Dataset],
     nominal: Union[_Path, Calibration, Truth],

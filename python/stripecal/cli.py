@@ -24,6 +24,7 @@ import numpy as np
 import stripecal
 import stripecal.sim
 from stripecal._progress import Progress
+from stripecal.cli_profiler import print_profiler_calibration
 from stripecal.cli_measure import add_measure, add_verify, diameter_range, sphere_lines, write_json_atomic
 from stripecal.types import QualityCheck, SimConfig, SphereMeasurement, TwinSummary
 
@@ -287,6 +288,9 @@ def cmd_demo(args: argparse.Namespace) -> int:
     truth = stripecal.load_truth(os.path.join(calib_dir, "truth.json"))
     t1 = time.monotonic()
     cal = stripecal.calibrate(calib_dir)
+    if not isinstance(cal, stripecal.Calibration):
+        raise stripecal.InvalidInputError(f"the demo calibrates a camera's twin; {args.preset} renders a line profiler's "
+                                          f"dataset: run stripecal calibrate {calib_dir}")
     cal.save(os.path.join(out, "calibration.json"))
     print(f"\ncalibrated {cal.quality['views_used']} views in {time.monotonic() - t1:.1f} s (one-stage adjustment)")
     if summary["scan_dir"] is None:
@@ -433,7 +437,9 @@ def print_leave_one_out(cal: stripecal.Calibration) -> None:
 
 def cmd_calibrate(args: argparse.Namespace) -> int:
     """Calibrates a dataset folder (rig.json, views.csv, images): camera, laser plane,
-    hand-eye X and robot-world Z, with one-sigma uncertainties; writes calibration.json
+    hand-eye X and robot-world Z, with one-sigma uncertainties; a line profiler's dataset
+    (rig.json sensor.kind "profiler", a profile column in views.csv): T_hand_sensor, the
+    reference sphere and, with --robot, the robot (docs/profiler.md); writes calibration.json
     and prints the parameters, residuals and per-view figures. A calibration that fails a
     quality check (views whose robot pose does not fit their images and cannot be left
     out, undetermined parameters, no convergence) is printed for inspection and NOT
@@ -452,7 +458,7 @@ def cmd_calibrate(args: argparse.Namespace) -> int:
             robot=args.robot, board_stripe_bias=not args.no_board_stripe_correction,
         )
     except stripecal.CalibrationQualityError as e:
-        if e.calibration is not None:
+        if isinstance(e.calibration, stripecal.Calibration):
             print("the calibration below FAILED its quality checks (shown for inspection):\n")
             print_calibration(e.calibration)
         else:
@@ -467,12 +473,20 @@ def cmd_calibrate(args: argparse.Namespace) -> int:
         return 1
     elapsed = time.monotonic() - t0
     cal.save(args.output)
-    print_calibration(cal)
+    if isinstance(cal, stripecal.ProfilerCalibration):
+        print_profiler_calibration(cal)
+    else:
+        print_calibration(cal)
     print(f"\nwrote {os.path.abspath(args.output)}  ({elapsed:.1f} s)")
     if args.report:
-        from stripecal.report import write_report
+        if isinstance(cal, stripecal.ProfilerCalibration):
+            from stripecal.report_profiler import write_profiler_report
 
-        page = write_report(args.report, cal)
+            page = write_profiler_report(args.report, cal)
+        else:
+            from stripecal.report import write_report
+
+            page = write_report(args.report, cal)
         print(f"wrote {page}")
     return 0
 

@@ -27,8 +27,12 @@ use crate::board::PyBoard;
 use crate::camera::PyCamera;
 use crate::convert::{f64_array, fmt_shape, iso_to_py, nd, positive_u32, RIGID_TOL};
 use crate::errors::{invalid_input, map_err, map_err_at, quality_error, ResultExt};
+use crate::profile_py::{PyProfileDataset, PyProfilerCalibration};
 use crate::results::PyCalibration;
 use crate::rig::PyDataset;
+use stripecal::io::is_profile_dataset;
+use stripecal::model::ProfileDataset;
+use stripecal::pipeline::profile::{calibrate_profile_dataset_loaded, ProfileCalibrateOptions};
 
 /// `(N, 4, 4)` rigid transforms.
 fn isos_from_py(obj: &Bound<'_, PyAny>, name: &str) -> PyResult<Vec<Iso3>> {
@@ -247,7 +251,49 @@ pub fn calibrate(
     robot_pose_noise: bool,
     robot: &str,
     board_stripe_bias: bool,
-) -> PyResult<PyCalibration> {
+) -> PyResult<Py<PyAny>> {
+    if let Some(ds) = profile_dataset(py, dataset)? {
+        // A line profiler's dataset (rig.json sensor.kind = "profiler"): the camera's
+        // options do not apply to it.
+        let camera_only = [
+            ("distortion", distortion.is_some()),
+            ("method", method != "one-stage"),
+            ("robust", robust),
+            ("centre_model", centre_model != "conic-exact"),
+            ("from_calibration", from_calibration.is_some()),
+            ("fix", !fix.is_empty()),
+            ("laser_only", laser_only),
+            ("estimate_board_scale", estimate_board_scale),
+            ("robot_pose_noise", robot_pose_noise),
+            ("board_stripe_bias", !board_stripe_bias),
+        ];
+        if let Some((name, _)) = camera_only.iter().find(|(_, set)| *set) {
+            return Err(crate::errors::invalid_input(
+                py,
+                format!(
+                    "{name} is an option of a camera's calibration; this dataset is a line                      profiler's (rig.json sensor.kind = \"profiler\")"
+                ),
+            ));
+        }
+        let opts = ProfileCalibrateOptions {
+            robot: RobotMode::from_name(robot).py_err(py)?,
+            leave_one_out,
+            accept_poor,
+        };
+        let result = py.detach(|| calibrate_profile_dataset_loaded(&ds, &opts));
+        py.check_signals()?;
+        return match result {
+            Ok(rep) => Ok(Py::new(
+                py,
+                PyProfilerCalibration {
+                    inner: rep.calibration,
+                },
+            )?
+            .into_any()),
+            Err(stripecal::Error::Quality(f)) => Err(quality_error(py, &f, None)),
+            Err(e) => Err(map_err(py, e)),
+        };
+    }
     let from = match from_calibration {
         None => None,
         Some(c) => Some(if let Ok(pc) = c.cast::<PyCalibration>() {
@@ -313,7 +359,7 @@ pub fn calibrate(
     // result is dropped and KeyboardInterrupt raised, so no caller goes on to write it.
     py.check_signals()?;
     match result {
-        Ok(rep) => Ok(report_to_py(rep)),
+        Ok(rep) => Ok(Py::new(py, report_to_py(rep))?.into_any()),
         Err(stripecal::Error::Quality(f)) => {
             let cal = match &f.report {
                 Some(rep) => Some(Py::new(py, report_to_py((**rep).clone()))?.into_any()),
@@ -323,6 +369,27 @@ pub fn calibrate(
         }
         Err(e) => Err(map_err(py, e)),
     }
+}
+
+/// The profile dataset `dataset` names (a `ProfileDataset`, or a folder whose rig.json
+/// says `sensor.kind = "profiler"`), loaded; `None` for a camera's dataset.
+fn profile_dataset(py: Python<'_>, dataset: &Bound<'_, PyAny>) -> PyResult<Option<ProfileDataset>> {
+    if let Ok(ds) = dataset.cast::<PyProfileDataset>() {
+        return Ok(Some(ds.get().inner.clone()));
+    }
+    if dataset.cast::<PyDataset>().is_ok() {
+        return Ok(None);
+    }
+    let Ok(path) = dataset.extract::<PathBuf>() else {
+        return Ok(None);
+    };
+    // (without a rig.json the camera's loader says what is missing)
+    if !path.join("rig.json").is_file() || !py.detach(|| is_profile_dataset(&path)).py_err(py)? {
+        return Ok(None);
+    }
+    py.detach(|| ProfileDataset::load(&path))
+        .py_err(py)
+        .map(Some)
 }
 
 fn parse_centre_model(py: Python<'_>, s: &str) -> PyResult<CentreModel> {

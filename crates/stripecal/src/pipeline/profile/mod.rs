@@ -34,7 +34,8 @@ use crate::calib::joint::{RobotMode, RobotOptions};
 use crate::calib::profile::arc::{find_arc, ArcOptions};
 use crate::error::{Error, Result};
 use crate::model::{
-    Profile, ProfileRig, ProfilerCalibration, QualityCheck, QualityFailure, RobotReading,
+    Profile, ProfileDataset, ProfileRig, ProfilerCalibration, QualityCheck, QualityFailure,
+    RobotReading,
 };
 
 pub use checks::{DiameterCheck, MirrorTest};
@@ -264,6 +265,38 @@ pub fn calibrate_profiles(
         leave_one_out,
         warnings,
     })
+}
+
+/// Loads a profile dataset folder and calibrates it ([`calibrate_profile_dataset_loaded`]).
+pub fn calibrate_profile_dataset(
+    root: impl AsRef<std::path::Path>,
+    opts: &ProfileCalibrateOptions,
+) -> Result<ProfileReport> {
+    calibrate_profile_dataset_loaded(&ProfileDataset::load(root)?, opts)
+}
+
+/// Reads a loaded profile dataset's profiles (a malformed file is an error naming it and
+/// the line) and calibrates ([`calibrate_profiles`]).
+pub fn calibrate_profile_dataset_loaded(
+    ds: &ProfileDataset,
+    opts: &ProfileCalibrateOptions,
+) -> Result<ProfileReport> {
+    use rayon::prelude::*;
+    let inputs = ds
+        .views
+        .par_iter()
+        .enumerate()
+        .map(|(i, v)| {
+            Ok(ProfileInput {
+                view: i,
+                line: v.line,
+                file: v.profile.display().to_string(),
+                profile: crate::io::read_profile(ds.profile_path(&v.profile), ds.rig.invalid_z)?,
+                reading: v.reading.clone(),
+            })
+        })
+        .collect::<Result<Vec<_>>>()?;
+    calibrate_profiles(&inputs, &ds.rig, opts)
 }
 
 /// `view 3 (views.csv line 5, profiles/p3.csv)`.

@@ -61,10 +61,12 @@ pub(super) fn calibration(
         json!({"rotation_vector": v3("hand_cam.rotation_vector"),
                "translation_mm": v3("hand_cam.translation_mm")}),
     );
-    u.insert(
-        "sphere".into(),
-        json!({"center_mm": v3("sphere.center_mm"), "diameter_mm": num(sd("sphere.diameter_mm"))}),
-    );
+    let mut sphere = Map::new();
+    sphere.insert("center_mm".into(), v3("sphere.center_mm"));
+    if cov.index("sphere.diameter_mm").is_some() {
+        sphere.insert("diameter_mm".into(), num(sd("sphere.diameter_mm")));
+    }
+    u.insert("sphere".into(), Value::Object(sphere));
     let mut extra = Map::new();
     if let Some(rc) = &fit.robot {
         u.insert("robot".into(), robot_uncertainty(rc));
