@@ -26,7 +26,7 @@ const SCORED: usize = 300;
 /// The three points of a sample lie at least this far apart along x, mm.
 pub const MIN_SAMPLE_SPAN_MM: f64 = 2.0;
 /// Half-width of RANSAC's inlier band, mm (a coarse band: the refinement narrows it).
-const RANSAC_BAND_MM: f64 = 0.15;
+const RANSAC_BAND_MM: f64 = 0.25;
 /// The refined selection keeps points within this many robust sigmas of the circle.
 pub const BAND_SIGMAS: f64 = 5.0;
 /// ... and never narrower than this, mm.
@@ -44,6 +44,9 @@ pub struct Arc {
     pub rms_mm: f64,
     /// Extent of the arc's points along x, mm.
     pub span_mm: f64,
+    /// Where the circle's centre lies from the arc along z: +1 beyond it (`cz > z`, z
+    /// counts away from the sensor), -1 (z counts towards the sensor).
+    pub side: f64,
 }
 
 /// What may be accepted as the sphere's arc.
@@ -59,6 +62,8 @@ pub struct ArcOptions {
     /// The least depth of the arc (sagitta over its extent), mm: a straight stretch is
     /// no arc.
     pub min_sagitta_mm: f64,
+    /// The arc's [`Arc::side`] when known (`None`: either, each sample's own).
+    pub side: Option<f64>,
 }
 
 impl Default for ArcOptions {
@@ -68,6 +73,7 @@ impl Default for ArcOptions {
             min_points: 30,
             min_span_mm: 4.0,
             min_sagitta_mm: 0.3,
+            side: None,
         }
     }
 }
@@ -157,12 +163,13 @@ fn solve3(n: &[[f64; 3]; 3], g: &[f64; 3]) -> Option<[f64; 3]> {
     x.iter().all(|v| v.is_finite()).then(|| [x[0], x[1], x[2]])
 }
 
-/// The points of `pts` within `band` of the circle, on its near side (`z < cz`).
-fn near(pts: &[[f64; 2]], centre: [f64; 2], radius: f64, band: f64) -> Vec<usize> {
+/// The points of `pts` within `band` of the circle, on its near side (`side (z - cz) <
+/// 0`).
+fn near(pts: &[[f64; 2]], centre: [f64; 2], radius: f64, band: f64, side: f64) -> Vec<usize> {
     (0..pts.len())
         .filter(|&i| {
             let (dx, dz) = (pts[i][0] - centre[0], pts[i][1] - centre[1]);
-            dz < 0.0 && ((dx * dx + dz * dz).sqrt() - radius).abs() < band
+            side * dz < 0.0 && ((dx * dx + dz * dz).sqrt() - radius).abs() < band
         })
         .collect()
 }
@@ -178,7 +185,7 @@ pub fn find_arc(pts: &[[f64; 2]], opts: &ArcOptions, seed: u64) -> Result<Arc, N
     let scored: Vec<[f64; 2]> = order.iter().step_by(stride).map(|&i| pts[i]).collect();
     let mut rng = SplitMix64(seed ^ 0x9e37_79b9_7f4a_7c15);
     let n = order.len();
-    let mut best: Option<(usize, [f64; 2], f64)> = None;
+    let mut best: Option<(usize, [f64; 2], f64, f64)> = None;
     for _ in 0..SAMPLES {
         let mut s = [rng.below(n), rng.below(n), rng.below(n)];
         s.sort_unstable();
@@ -189,27 +196,29 @@ pub fn find_arc(pts: &[[f64; 2]], opts: &ArcOptions, seed: u64) -> Result<Arc, N
         let Some((centre, r)) = circle_through(a, b, c) else {
             continue;
         };
-        if r > opts.max_radius || centre[1] <= b[1] {
+        // the sample's own side: the centre lies beyond its middle point
+        let side = (centre[1] - b[1]).signum();
+        if r > opts.max_radius || opts.side.is_some_and(|s| s != side) {
             continue;
         }
         let score = scored
             .iter()
             .filter(|p| {
                 let (dx, dz) = (p[0] - centre[0], p[1] - centre[1]);
-                dz < 0.0 && ((dx * dx + dz * dz).sqrt() - r).abs() < RANSAC_BAND_MM
+                side * dz < 0.0 && ((dx * dx + dz * dz).sqrt() - r).abs() < RANSAC_BAND_MM
             })
             .count();
-        if best.is_none_or(|(s, _, _)| score > s) {
-            best = Some((score, centre, r));
+        if best.is_none_or(|(s, _, _, _)| score > s) {
+            best = Some((score, centre, r, side));
         }
     }
-    let Some((score, mut centre, mut radius)) = best else {
+    let Some((score, mut centre, mut radius, side)) = best else {
         return Err(NoArc::NotFound);
     };
     if score * stride < opts.min_points {
         return Err(NoArc::NotFound);
     }
-    let mut inliers = near(pts, centre, radius, RANSAC_BAND_MM);
+    let mut inliers = near(pts, centre, radius, RANSAC_BAND_MM, side);
     for _ in 0..4 {
         if inliers.len() < opts.min_points {
             return Err(NoArc::NotFound);
@@ -225,7 +234,7 @@ pub fn find_arc(pts: &[[f64; 2]], opts: &ArcOptions, seed: u64) -> Result<Arc, N
         dev.sort_by(f64::total_cmp);
         let sigma = 1.4826 * dev[dev.len() / 2];
         let band = (BAND_SIGMAS * sigma).max(MIN_BAND_MM);
-        let next = near(pts, centre, radius, band);
+        let next = near(pts, centre, radius, band, side);
         let settled = next == inliers;
         inliers = next;
         if settled {
@@ -261,6 +270,7 @@ pub fn find_arc(pts: &[[f64; 2]], opts: &ArcOptions, seed: u64) -> Result<Arc, N
         rms_mm: (ss / inliers.len() as f64).sqrt(),
         inliers,
         span_mm: span,
+        side,
     })
 }
 
@@ -294,6 +304,7 @@ mod tests {
             x += 0.03;
         }
         let arc = find_arc(&pts, &ArcOptions::default(), 1).unwrap();
+        assert_eq!(arc.side, 1.0);
         assert!((arc.centre[0] - cx).abs() < 0.01, "{:?}", arc.centre);
         assert!((arc.centre[1] - cz).abs() < 0.01, "{:?}", arc.centre);
         assert!((arc.radius - r).abs() < 0.01, "{}", arc.radius);
@@ -301,6 +312,17 @@ mod tests {
         // the arc's points (minus ~1 % spikes and the odd far noise) are kept
         assert!(arc.inliers.len() as f64 > 0.97 * on_arc as f64);
         assert!(arc.inliers.len() <= on_arc);
+        // a vendor whose z counts towards the sensor: the same arc, the other side
+        let flipped: Vec<[f64; 2]> = pts.iter().map(|p| [p[0], -p[1]]).collect();
+        let arc2 = find_arc(&flipped, &ArcOptions::default(), 1).unwrap();
+        assert_eq!(arc2.side, -1.0);
+        assert!((arc2.centre[1] + cz).abs() < 0.01 && (arc2.radius - r).abs() < 0.01);
+        assert_eq!(arc2.inliers, arc.inliers);
+        let forced = ArcOptions {
+            side: Some(1.0),
+            ..ArcOptions::default()
+        };
+        assert!(find_arc(&flipped, &forced, 1).is_err());
         // a profile of the table alone has no arc
         let table: Vec<[f64; 2]> = (0..3000)
             .map(|i| [-45.0 + 0.03 * i as f64, 340.0 + 0.01 * rng.normal()])

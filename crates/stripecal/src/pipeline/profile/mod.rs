@@ -31,7 +31,8 @@ use crate::calib::joint::profile::{
     profile_adjustment, ProfileFit, ProfileOptions, ProfileStart, ProfileViewObs,
 };
 use crate::calib::joint::{RobotMode, RobotOptions};
-use crate::calib::profile::arc::{find_arc, ArcOptions};
+use crate::calib::profile::arc::{find_arc, Arc, ArcOptions};
+use crate::model::geometry::Iso3;
 use crate::error::{Error, Result};
 use crate::model::{
     Profile, ProfileDataset, ProfileRig, ProfilerCalibration, QualityCheck, QualityFailure,
@@ -151,36 +152,62 @@ pub fn calibrate_profiles(
     };
     let mut warnings = Vec::new();
     let mut status: Vec<ProfileViewStatus> = inputs.iter().map(status_of).collect();
-    // 1. arcs
+    // 1. arcs; their side (which way z counts) is the profiler's, one for all views: a
+    // view whose best arc says otherwise is searched again on the majority's side
     let aopts = arc_options(rig);
-    let mut obs: Vec<ProfileViewObs> = Vec::new();
-    let mut arcs = Vec::new();
+    let mut found: Vec<Option<(Iso3, Arc)>> = Vec::with_capacity(inputs.len());
     for (k, inp) in inputs.iter().enumerate() {
         let a = inp
             .reading
             .base_hand(rig.robot.as_ref())
             .map_err(|e| Error::InvalidInput(format!("{}: {e}", view_name(inp))))?;
         match find_arc(&inp.profile.points, &aopts, inp.view as u64) {
-            Ok(arc) => {
-                status[k].arc_points = arc.inliers.len();
-                obs.push(ProfileViewObs {
-                    view: inp.view,
-                    a,
-                    q: match &inp.reading {
-                        RobotReading::Joints(q) => Some(q.clone()),
-                        _ => None,
-                    },
-                    points: inp.profile.points.clone(),
-                    arc: arc.inliers.clone(),
-                });
-                arcs.push(arc);
-            }
+            Ok(arc) => found.push(Some((a, arc))),
             Err(why) => {
                 let note = format!("{}: {why}; left out", view_name(inp));
                 warnings.push(note.clone());
                 status[k].note = Some(note);
+                found.push(None);
             }
         }
+    }
+    let up = found.iter().flatten().filter(|(_, arc)| arc.side > 0.0).count();
+    let side = if 2 * up >= found.iter().flatten().count() { 1.0 } else { -1.0 };
+    let forced = ArcOptions {
+        side: Some(side),
+        ..aopts
+    };
+    let mut obs: Vec<ProfileViewObs> = Vec::new();
+    let mut arcs = Vec::new();
+    for (k, (inp, f)) in inputs.iter().zip(found).enumerate() {
+        let Some((a, mut arc)) = f else { continue };
+        if arc.side != side {
+            match find_arc(&inp.profile.points, &forced, inp.view as u64) {
+                Ok(again) => arc = again,
+                Err(why) => {
+                    let note = format!(
+                        "{}: its best arc bulges away from the sensor, the other profiles' \
+                         towards it, and on their side {why}; left out",
+                        view_name(inp)
+                    );
+                    warnings.push(note.clone());
+                    status[k].note = Some(note);
+                    continue;
+                }
+            }
+        }
+        status[k].arc_points = arc.inliers.len();
+        obs.push(ProfileViewObs {
+            view: inp.view,
+            a,
+            q: match &inp.reading {
+                RobotReading::Joints(q) => Some(q.clone()),
+                _ => None,
+            },
+            points: inp.profile.points.clone(),
+            arc: arc.inliers.clone(),
+        });
+        arcs.push(arc);
     }
     // 2. consensus and the start
     let cons = consensus::consensus(&obs, &arcs, rig.diameter_mm.map(|d| 0.5 * d))?;

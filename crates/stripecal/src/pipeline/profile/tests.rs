@@ -311,3 +311,21 @@ fn coverage_probe() {
     let rms = (z.iter().map(|x| x * x).sum::<f64>() / z.len() as f64).sqrt();
     eprintln!("{inside}/{} inside 3 sigma, rms z {rms:.2}", z.len());
 }
+
+/// A vendor whose z counts towards the sensor (the contract allows it): the same
+/// profiles with z negated calibrate to the hand-eye turned half a turn about x.
+#[test]
+fn z_counting_towards_the_sensor_is_a_half_turn() {
+    let mut s = scene(15, 6, 0.01, None);
+    for inp in &mut s.inputs {
+        for p in &mut inp.profile.points {
+            p[1] = -p[1];
+        }
+    }
+    let rep = calibrate_profiles(&s.inputs, &rig(Some(80.0)), &Default::default()).unwrap();
+    let half = iso_from_rotvec(&Vector3::new(std::f64::consts::PI, 0.0, 0.0), &Vector3::zeros());
+    let e = rep.calibration.hand_sensor.inverse() * s.x * half;
+    assert!(e.rotation.angle().to_degrees() < 0.005, "{e:?}");
+    assert!(e.translation.vector.norm() < 0.01);
+    assert!(rep.views.iter().all(|v| v.used));
+}
