@@ -56,6 +56,7 @@ pub mod fit;
 mod frame;
 mod options;
 mod points;
+mod profile_points;
 mod scan;
 mod triangulate;
 pub mod uncertainty;
@@ -69,6 +70,7 @@ pub use options::{
     stripe_direction_from_plane, BadImage, ReconstructOptions, DEFAULT_MIN_RAY_PLANE_ANGLE_DEG,
 };
 pub use points::{at_frame, ScanPoints};
+pub use profile_points::{profile_scan_points, ProfileFrame};
 pub use scan::{load_scan, reconstruct_frames, reconstruct_scan};
 pub use triangulate::{laser_plane_of, triangulate, DropCounts, Triangulator};
 pub use uncertainty::{point_covariances, UncertaintyModel, UncertaintyOptions};
