@@ -46,6 +46,8 @@ pub mod profile;
 mod report;
 pub mod stripe_select;
 #[cfg(test)]
+mod measure_profiler_tests;
+#[cfg(test)]
 mod tests;
 pub mod verify;
 
