@@ -130,7 +130,10 @@ fn profiler_sphere_error_within_its_budget() {
             (0..3)
                 .map(|k| format!("{:+.5}", rep.fit.center_mm[k] - centre()[k]))
                 .collect::<Vec<_>>(),
-            m.center.iter().map(|b| format!("{:.5}", b.expanded)).collect::<Vec<_>>(),
+            m.center
+                .iter()
+                .map(|b| format!("{:.5}", b.expanded))
+                .collect::<Vec<_>>(),
         );
         d_in += usize::from(err.abs() <= m.diameter.expanded);
         d_err2 += err * err;

@@ -38,6 +38,8 @@ mod labels;
 mod laser_only;
 mod loo;
 pub mod measure;
+#[cfg(test)]
+mod measure_profiler_tests;
 mod observe;
 mod pairing;
 mod plan;
@@ -45,8 +47,6 @@ mod prior;
 pub mod profile;
 mod report;
 pub mod stripe_select;
-#[cfg(test)]
-mod measure_profiler_tests;
 #[cfg(test)]
 mod tests;
 pub mod verify;
