@@ -8,12 +8,22 @@
 //! are found one after the other: the first robust fit takes the sphere with more
 //! points, its points (within a margin of its surface) are set aside, the second fit
 //! takes the other.
+//!
+//! ## Profilers
+//!
+//! The same functions measure a line profiler's scan: a model from
+//! [`UncertaintyModel::profiler`] (or [`profiler_uncertainty_model`]) and the points of
+//! [`crate::reconstruct::profile_scan_points`]. The curved-surface stripe-bias correction
+//! is the camera's (it models how a camera's stripe extraction shifts on a curved
+//! surface); a profiler's extraction is its maker's and is not modelled, so for a
+//! profiler's model [`MeasureOptions::correct_bias`] is ignored: no correction, no
+//! systematic part, `bias: None` (`stripe_bias: null` in the JSON).
 
 use nalgebra::Vector3;
 use serde_json::{json, Value};
 
 use crate::error::{Error, Result};
-use crate::model::{Calibration, RobotReading, Scan, StripeDirection};
+use crate::model::{Calibration, ProfilerCalibration, RobotReading, Scan, StripeDirection};
 use crate::reconstruct::fit::stripe_bias::{correct_sphere_bias, StripeBiasOptions};
 use crate::reconstruct::fit::{
     fit_plane, fit_sphere, measure_plane, measure_sphere, sphere_distance, Budget, FitOptions,
@@ -28,7 +38,8 @@ pub struct MeasureOptions {
     pub uncertainty: UncertaintyOptions,
     /// The fits (trimming, robust start, the accepted diameters of a sphere).
     pub fit: FitOptions,
-    /// Correct spheres for the curved-surface stripe bias (default true).
+    /// Correct spheres for the curved-surface stripe bias (default true). Ignored for a
+    /// profiler's model (module docs, "Profilers").
     pub correct_bias: bool,
 }
 
@@ -96,6 +107,16 @@ pub fn scan_uncertainty_model(
     UncertaintyModel::new(calibration, &o)
 }
 
+/// The model of a profiler's points' uncertainty ([`UncertaintyModel::profiler`]), the
+/// robot's figures from the calibration's robot where the options leave them unset.
+pub fn profiler_uncertainty_model(
+    calibration: &ProfilerCalibration,
+    opts: &UncertaintyOptions,
+) -> Result<UncertaintyModel> {
+    let o = opts.clone().with_robot_figures(calibration.robot.as_ref());
+    UncertaintyModel::profiler(calibration, &o)
+}
+
 /// Measures the sphere in `points` (all of a scan's points, or a subset).
 pub fn measure_scan_sphere(
     model: &UncertaintyModel,
@@ -116,9 +137,10 @@ fn sphere_report(
     fit: SphereFitResult,
     opts: &MeasureOptions,
 ) -> Result<SphereReport> {
-    if opts.correct_bias {
+    // A camera's bias model: a profiler's calibration has none (module docs).
+    if let (true, Some(cal)) = (opts.correct_bias, model.calibration()) {
         let (fit, used, coords, systematic, info) =
-            correct_bias(model, readings, points, fit, &opts.fit)?;
+            correct_bias(model, cal, readings, points, fit, &opts.fit)?;
         let measurement = measure_sphere(frames, &used, &coords, &fit, &systematic)?;
         return Ok(SphereReport {
             fit,
@@ -214,12 +236,12 @@ pub fn measure_scan_plane(
 /// systematic part it leaves and what it did.
 fn correct_bias(
     model: &UncertaintyModel,
+    cal: &Calibration,
     readings: &[RobotReading],
     points: &ScanPoints,
     fit: SphereFitResult,
     opts: &FitOptions,
 ) -> Result<BiasCorrected> {
-    let cal = model.calibration();
     let plane = crate::reconstruct::laser_plane_of(cal)?;
     let base_cam = readings
         .iter()

@@ -38,6 +38,8 @@ mod labels;
 mod laser_only;
 mod loo;
 pub mod measure;
+#[cfg(test)]
+mod measure_profiler_tests;
 mod observe;
 mod pairing;
 mod plan;

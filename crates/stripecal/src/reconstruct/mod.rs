@@ -61,6 +61,7 @@ mod frame;
 mod options;
 mod points;
 mod profile;
+mod profile_points;
 mod scan;
 mod triangulate;
 pub mod uncertainty;
@@ -75,6 +76,7 @@ pub use options::{
 };
 pub use points::{at_frame, ScanPoints};
 pub use profile::{reconstruct_profile_scan, ProfileReconstructOptions, ProfileScanSummary};
+pub use profile_points::{profile_scan_points, ProfileFrame};
 pub use scan::{load_scan, reconstruct_frames, reconstruct_scan};
 pub use triangulate::{laser_plane_of, triangulate, DropCounts, Triangulator};
 pub use uncertainty::{point_covariances, UncertaintyModel, UncertaintyOptions};

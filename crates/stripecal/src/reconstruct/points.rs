@@ -13,13 +13,18 @@ pub struct ScanPoints {
     pub points_mm: Vec<[f64; 3]>,
     /// Index of the frame each point comes from (the row of the input / scan.csv).
     pub frame: Vec<u32>,
-    /// Sub-pixel stripe centre, px.
+    /// Sub-pixel stripe centre, px. For a profile scan
+    /// ([`crate::reconstruct::profile_scan_points`]) the profile point's `x` (`u_px`) and
+    /// `z` (`v_px`) in the sensor frame, mm: what addresses a point in its frame's chain
+    /// ([`crate::reconstruct::UncertaintyModel::profiler`]).
     pub u_px: Vec<f64>,
     pub v_px: Vec<f64>,
-    /// Stripe peak above the local background, gray levels of the image.
+    /// Stripe peak above the local background, gray levels of the image (zero for a
+    /// profile scan).
     pub intensity: Vec<f32>,
     /// The stripe's full width at half maximum across the line, px (what the
-    /// curved-surface bias model reads: the sheet's thickness as the camera sees it).
+    /// curved-surface bias model reads: the sheet's thickness as the camera sees it;
+    /// zero for a profile scan).
     pub width_px: Vec<f32>,
     /// Per-point covariance in the base frame, mm^2, upper triangle `xx, xy, xz, yy,
     /// yz, zz` ([`crate::reconstruct::point_covariances`]); empty unless asked for.

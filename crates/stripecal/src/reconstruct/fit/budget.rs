@@ -211,7 +211,8 @@ impl<'a> ScanFrames<'a> {
     }
 }
 
-/// One point of a fit: pixel, frame, `a_i = dr_i/dp_i` (base frame) and `J_i` (row).
+/// One point of a fit: pixel (a profiler's point: its profile `x, z`, mm), frame,
+/// `a_i = dr_i/dp_i` (base frame) and `J_i` (row).
 pub struct FitRow<'r> {
     pub u: f64,
     pub v: f64,

@@ -1,5 +1,7 @@
 //! One frame's uncertainty: its pose, `M_f`, `Sigma_f`, and per point the local
-//! Jacobian `J_c` and the 3x3 covariance ([`super`] docs).
+//! Jacobian `J_c` and the 3x3 covariance ([`super`] docs). What is the sensor's own
+//! (a camera's pixel-to-point chain, or a profiler's points given in its frame) sits in
+//! [`SensorChain`]; the rest is shared.
 
 use nalgebra::{DMatrix, Matrix3, Matrix6, SMatrix, Vector2, Vector3};
 
@@ -8,7 +10,7 @@ use crate::model::camera::{distortion_coefficient_jacobian, Camera, UndistortTra
 use crate::model::geometry::Iso3;
 use crate::vision::stripe::StripeDirection;
 
-use super::model::UncertaintyModel;
+use super::model::{Sensor, UncertaintyModel};
 
 /// Length of the local vector `eta` (camera 9, plane normal 3, plane offset 1, twist 6).
 pub const ETA: usize = 19;
@@ -16,25 +18,44 @@ pub const ETA: usize = 19;
 type Sigma = SMatrix<f64, ETA, ETA>;
 type Jac = SMatrix<f64, 3, ETA>;
 
-/// The first-order chain of one stripe point ([`super`] docs), camera frame.
+/// The first-order chain of one stripe point ([`super`] docs), camera (or profiler)
+/// frame.
 #[derive(Debug, Clone, PartialEq)]
 pub struct LocalJacobian {
-    /// The point, camera frame, mm.
+    /// The point, camera frame (a profiler's: sensor frame, `(x, 0, z)`), mm.
     pub p_cam: Vector3<f64>,
     /// The point, base frame, mm.
     pub p_base: Vector3<f64>,
-    /// `dp_cam / deta` (3 x 19).
+    /// `dp_cam / deta` (3 x 19; a profiler's: the twist columns only).
     pub j_eta: Jac,
-    /// `dp_cam / d(scan-line coordinate)`, mm per px (the stripe noise's direction).
+    /// `dp_cam / d(measured coordinate)`: mm per px along the scan line for a camera
+    /// (the stripe noise's direction); `(0, 0, 1)` (mm per mm along the sensor's z) for
+    /// a profiler.
     pub j_px: Vector3<f64>,
+}
+
+/// What of a frame's chain is the sensor's own.
+#[derive(Debug, Clone)]
+pub enum SensorChain {
+    /// A camera and its laser plane: a point from a pixel `(u, v)` through the
+    /// undistortion and the ray-plane intersection; the stripe's noise along `u`
+    /// (`along_u`) or `v`.
+    Camera {
+        camera: Camera,
+        n: Vector3<f64>,
+        d: f64,
+        along_u: bool,
+    },
+    /// A calibrated line profiler: a point is given as `(x, z)` mm in the sensor frame,
+    /// `p_s = (x, 0, z)`; its noise is along z. The maker's calibration of its camera
+    /// and laser plane is not in the budget (not ours to know): only the pose chain.
+    Profiler,
 }
 
 /// One frame of a scan: `R_base_cam`, `M_f` and `Sigma_f`.
 #[derive(Debug, Clone)]
 pub struct FrameUncertainty {
-    camera: Camera,
-    n: Vector3<f64>,
-    d: f64,
+    chain: SensorChain,
     base_cam: Iso3,
     r_bc: Matrix3<f64>,
     /// `eta` from the calibration's numbers (19 x P).
@@ -42,8 +63,8 @@ pub struct FrameUncertainty {
     sigma: Sigma,
     /// The robot's part of the twist block (6 x 6).
     robot_sigma: Matrix6<f64>,
+    /// The point's own noise's variance (px^2 camera, mm^2 profiler).
     stripe_var: f64,
-    along_u: bool,
 }
 
 impl FrameUncertainty {
@@ -54,14 +75,25 @@ impl FrameUncertainty {
         sigma: DMatrix<f64>,
         robot_sigma: Matrix6<f64>,
     ) -> Result<Self> {
-        let cal = &model.calibration;
-        let plane = crate::reconstruct::triangulate::laser_plane_of(cal)?;
-        let base_cam = base_hand * cal.hand_cam;
-        let s = model.stripe_sigma_px;
+        let chain = match &model.sensor {
+            Sensor::Camera {
+                calibration,
+                direction,
+            } => {
+                let plane = crate::reconstruct::triangulate::laser_plane_of(calibration)?;
+                SensorChain::Camera {
+                    camera: calibration.camera.clone(),
+                    n: plane.normal,
+                    d: plane.d,
+                    along_u: *direction != StripeDirection::Rows,
+                }
+            }
+            Sensor::Profiler { .. } => SensorChain::Profiler,
+        };
+        let base_cam = base_hand * model.hand_sensor();
+        let s = model.noise_sigma;
         Ok(FrameUncertainty {
-            camera: cal.camera.clone(),
-            n: plane.normal,
-            d: plane.d,
+            chain,
             r_bc: base_cam.rotation.to_rotation_matrix().into_inner(),
             base_cam,
             map,
@@ -75,11 +107,15 @@ impl FrameUncertainty {
             }),
             robot_sigma,
             stripe_var: s * s,
-            along_u: model.direction != StripeDirection::Rows,
         })
     }
 
-    /// `T_base_cam` of the frame.
+    /// The sensor's own part of the chain.
+    pub fn chain(&self) -> &SensorChain {
+        &self.chain
+    }
+
+    /// `T_base_cam` of the frame (a profiler's: `T_base_sensor`).
     pub fn base_cam(&self) -> &Iso3 {
         &self.base_cam
     }
@@ -101,7 +137,8 @@ impl FrameUncertainty {
         &self.robot_sigma
     }
 
-    /// One-sigma of the stripe centre along the scan line, px.
+    /// One-sigma of the stripe centre along the scan line, px; for a profiler the
+    /// point's one-sigma along the sensor's z, mm.
     pub fn stripe_sigma_px(&self) -> f64 {
         self.stripe_var.sqrt()
     }
@@ -111,20 +148,60 @@ impl FrameUncertainty {
         &self.r_bc
     }
 
-    /// The chain of pixel `(u, v)`; an error where the point is not triangulated (the
-    /// undistortion fails, the ray misses the plane).
+    /// The chain of pixel `(u, v)` (a profiler's: profile point `(x_mm, z_mm)`); an
+    /// error where the point is not triangulated (the undistortion fails, the ray misses
+    /// the plane; a profile point not finite).
     pub fn local(&self, u: f64, v: f64) -> Result<LocalJacobian> {
-        self.local_tracked(u, v, &mut UndistortTrack::new(&self.camera))
-            .ok_or_else(|| {
-                Error::Degenerate(format!(
+        match &self.chain {
+            SensorChain::Camera { camera, .. } => {
+                self.local_tracked(u, v, &mut UndistortTrack::new(camera))
+            }
+            SensorChain::Profiler => self.local_profile(u, v),
+        }
+        .ok_or_else(|| {
+            Error::Degenerate(match self.chain {
+                SensorChain::Camera { .. } => format!(
                     "pixel ({u:.3}, {v:.3}) gives no point (undistortion failed or the ray \
                      misses the laser plane)"
-                ))
+                ),
+                SensorChain::Profiler => {
+                    format!("profile point ({u}, {v}) mm is not finite")
+                }
             })
+        })
     }
 
+    /// A profiler's chain of the profile point `(x, z)`: `J = [0, -[p_s]x, I]`.
+    fn local_profile(&self, x: f64, z: f64) -> Option<LocalJacobian> {
+        if !(x.is_finite() && z.is_finite()) {
+            return None;
+        }
+        let p_cam = Vector3::new(x, 0.0, z);
+        let mut j = Jac::zeros();
+        j.fixed_view_mut::<3, 3>(0, 13)
+            .copy_from(&(-p_cam.cross_matrix()));
+        j.fixed_view_mut::<3, 3>(0, 16)
+            .copy_from(&Matrix3::identity());
+        let p_base = self.r_bc * p_cam + self.base_cam.translation.vector;
+        Some(LocalJacobian {
+            p_cam,
+            p_base,
+            j_eta: j,
+            j_px: Vector3::z(),
+        })
+    }
+
+    /// A camera's chain of pixel `(u, v)` (`None` for a profiler).
     fn local_tracked(&self, u: f64, v: f64, track: &mut UndistortTrack) -> Option<LocalJacobian> {
-        let c = &self.camera;
+        let SensorChain::Camera {
+            camera: c,
+            n,
+            d,
+            along_u,
+        } = &self.chain
+        else {
+            return None;
+        };
         let xd = (u - c.u0) / c.fu;
         let yd = (v - c.v0) / c.fv;
         let (xn, yn) = c.undistort_tracked(xd, yd, track)?;
@@ -132,14 +209,14 @@ impl FrameUncertainty {
         let jdi = jd.try_inverse()?;
         let dk = distortion_coefficient_jacobian(xn, yn);
         let r = Vector3::new(xn, yn, 1.0);
-        let den = self.n.dot(&r);
+        let den = n.dot(&r);
         if den.abs() < 1e-12 {
             return None;
         }
-        let s = self.d / den;
+        let s = d / den;
         let p_cam = r * s;
         // dp/d(xn, yn): the first two columns of s (I - r n^T / den).
-        let pr = (Matrix3::identity() - r * self.n.transpose() / den) * s;
+        let pr = (Matrix3::identity() - r * n.transpose() / den) * s;
         let q = pr.fixed_columns::<2>(0).into_owned();
         let mut j = Jac::zeros();
         // d(xn, yn) per camera number: Jd^-1 (d(xd, yd) - Dk dk).
@@ -163,7 +240,7 @@ impl FrameUncertainty {
             .copy_from(&(-p_cam.cross_matrix()));
         j.fixed_view_mut::<3, 3>(0, 16)
             .copy_from(&Matrix3::identity());
-        let dpx = if self.along_u {
+        let dpx = if *along_u {
             Vector2::new(1.0 / c.fu, 0.0)
         } else {
             Vector2::new(0.0, 1.0 / c.fv)
@@ -178,24 +255,45 @@ impl FrameUncertainty {
         })
     }
 
-    /// The covariance of the point of pixel `(u, v)`, base frame, mm^2, upper triangle
-    /// `xx, xy, xz, yy, yz, zz` (NaN where the pixel gives no point).
+    /// The covariance of the point of pixel `(u, v)` (a profiler's: profile point
+    /// `(x_mm, z_mm)`), base frame, mm^2, upper triangle `xx, xy, xz, yy, yz, zz` (NaN
+    /// where the pixel gives no point).
     pub fn point_covariance(&self, u: f64, v: f64) -> [f64; 6] {
-        self.point_covariance_tracked(u, v, &mut UndistortTrack::new(&self.camera))
+        match &self.chain {
+            SensorChain::Camera { camera, .. } => {
+                self.point_covariance_tracked(u, v, &mut UndistortTrack::new(camera))
+            }
+            SensorChain::Profiler => self.covariance_of(self.local_profile(u, v)),
+        }
     }
 
     /// [`Self::point_covariance`] of many pixels of the frame, written to `out` (one
     /// undistortion track: neighbours converge in a step or two).
     pub fn point_covariances(&self, uv: impl Iterator<Item = (f64, f64)>, out: &mut [[f64; 6]]) {
-        let mut track = UndistortTrack::new(&self.camera);
-        for ((u, v), o) in uv.zip(out.iter_mut()) {
-            *o = self.point_covariance_tracked(u, v, &mut track);
+        match &self.chain {
+            SensorChain::Camera { camera, .. } => {
+                let mut track = UndistortTrack::new(camera);
+                for ((u, v), o) in uv.zip(out.iter_mut()) {
+                    *o = self.point_covariance_tracked(u, v, &mut track);
+                }
+            }
+            SensorChain::Profiler => {
+                for ((x, z), o) in uv.zip(out.iter_mut()) {
+                    *o = self.covariance_of(self.local_profile(x, z));
+                }
+            }
         }
     }
 
     #[inline]
     fn point_covariance_tracked(&self, u: f64, v: f64, track: &mut UndistortTrack) -> [f64; 6] {
-        let Some(l) = self.local_tracked(u, v, track) else {
+        self.covariance_of(self.local_tracked(u, v, track))
+    }
+
+    /// `R (J Sigma_f J^T + var j j^T) R^T` of a point's chain (NaN without one).
+    #[inline]
+    fn covariance_of(&self, l: Option<LocalJacobian>) -> [f64; 6] {
+        let Some(l) = l else {
             return [f64::NAN; 6];
         };
         let js = l.j_eta * self.sigma;

@@ -50,6 +50,25 @@
 //! to first order; the Monte Carlo over calibration draws agrees within a few percent
 //! (tests).
 //!
+//! ## Profilers
+//!
+//! A line profiler ([`UncertaintyModel::profiler`]) delivers its points in its own
+//! frame, `p_s = (x, 0, z)` mm; its camera and laser plane are the maker's, so their
+//! numbers are not in the budget (the maker's residual error shows as the points'
+//! scatter). The same `eta` serves with the camera and plane entries unused:
+//! `J_s = [0 (camera 9), 0 (plane 4), -[p_s]x, I]`, and `dp_b = R_base_sensor J_s eta`
+//! with `T_base_sensor = T_base_hand(q) T_hand_sensor`. The numbers that move a point
+//! are `hand_cam.rotation_vector[k]`, `hand_cam.translation_mm[k]` (`T_hand_sensor`,
+//! written as `hand_cam`) and the DH numbers, mapped exactly as the camera's hand-eye
+//! and DH numbers above; `sphere.center_mm[k]` and `sphere.diameter_mm` (the
+//! calibration's reference sphere) move no point and are left out as `base_board.*`
+//! are. The point's own noise is along the sensor's z (the measuring direction),
+//! one-sigma `sigma_z` mm (`UncertaintyOptions::profile_sigma_mm`, default the
+//! calibration's `quality.profile_rms_mm`): `sigma_z^2 R e_z e_z^T R^T`. Robot figures
+//! add as for the camera. A profiler's point is addressed by its profile coordinates
+//! `(x_mm, z_mm)` wherever a camera's is addressed by its pixel `(u_px, v_px)`
+//! ([`ScanPoints::u_px`] / [`ScanPoints::v_px`] hold x and z for a profile scan).
+//!
 //! ## Which parts are correlated
 //!
 //! The calibration part is shared by every point of every scan made with the
@@ -61,9 +80,9 @@ mod frame;
 mod model;
 mod perturb;
 
-pub use frame::{FrameUncertainty, LocalJacobian, ETA};
+pub use frame::{FrameUncertainty, LocalJacobian, SensorChain, ETA};
 pub use model::{UncertaintyModel, UncertaintyOptions};
-pub use perturb::perturbed_calibration;
+pub use perturb::{perturbed_calibration, perturbed_profiler_calibration};
 
 use crate::error::Result;
 use crate::model::Calibration;
@@ -72,7 +91,8 @@ use crate::model::RobotReading;
 use super::ScanPoints;
 
 /// Per-point covariances (base frame, mm^2, upper triangle `xx, xy, xz, yy, yz, zz`) of
-/// reconstructed points, the frames' readings indexed by [`ScanPoints::frame`].
+/// reconstructed points, the frames' readings indexed by [`ScanPoints::frame`] (a
+/// profiler's: [`UncertaintyModel::profiler`] and [`UncertaintyModel::scan_covariances`]).
 pub fn point_covariances(
     calibration: &Calibration,
     readings: &[RobotReading],
@@ -129,5 +149,7 @@ impl UncertaintyModel {
     }
 }
 
+#[cfg(test)]
+mod profiler_tests;
 #[cfg(test)]
 pub(crate) mod tests;

@@ -7,9 +7,10 @@ use crate::calib::joint::{flange_twists, DhKind, DhParam};
 use crate::error::{Error, Result};
 use crate::model::camera::PARAM_NAMES;
 use crate::model::geometry::matrix_to_rotvec;
+use crate::model::geometry::Iso3;
 use crate::model::kinematics::Robot;
-use crate::model::Calibration;
 use crate::model::RobotReading;
+use crate::model::{Calibration, NamedCovariance, ProfilerCalibration};
 use crate::reconstruct::triangulate::laser_plane_of;
 use crate::vision::stripe::StripeDirection;
 
@@ -34,6 +35,11 @@ pub struct UncertaintyOptions {
     /// One-sigma of an encoder reading, degrees (`None`: not in the budget; needs joint
     /// readings and a robot).
     pub encoder_sigma_deg: Option<f64>,
+    /// A profiler's point noise: one-sigma along the sensor's z (the measuring
+    /// direction), mm; `None`: the calibration's `quality.profile_rms_mm` (the sphere
+    /// points' scatter about the fitted sphere). Read only by
+    /// [`UncertaintyModel::profiler`]; a camera model reads `stripe_sigma_px`.
+    pub profile_sigma_mm: Option<f64>,
 }
 
 impl Default for UncertaintyOptions {
@@ -44,6 +50,7 @@ impl Default for UncertaintyOptions {
             direction: StripeDirection::Auto,
             repeatability_mm: None,
             encoder_sigma_deg: None,
+            profile_sigma_mm: None,
         }
     }
 }
@@ -73,11 +80,25 @@ enum Target {
     Robot(DhParam),
 }
 
+/// The sensor a model is of, with its calibration.
+#[derive(Debug, Clone)]
+pub(super) enum Sensor {
+    /// A camera and a laser plane; the stripe's direction (resolved: `Rows` or `Cols`).
+    Camera {
+        calibration: Box<Calibration>,
+        direction: StripeDirection,
+    },
+    /// A calibrated line profiler ([`super`] docs, "Profilers").
+    Profiler {
+        calibration: Box<ProfilerCalibration>,
+    },
+}
+
 /// The calibration's uncertainty model: the covariance of the numbers that move a
 /// point, and how they map to each frame's local vector ([`super`] docs).
 #[derive(Debug, Clone)]
 pub struct UncertaintyModel {
-    pub(super) calibration: Calibration,
+    pub(super) sensor: Sensor,
     /// Names of the numbers (a subset of calibration.json's `covariance`).
     names: Vec<String>,
     targets: Vec<Target>,
@@ -88,8 +109,9 @@ pub struct UncertaintyModel {
     /// `R_X^T` and `t_X` (carry flange twists to the camera).
     rx_t: Matrix3<f64>,
     tx: Vector3<f64>,
-    pub(super) stripe_sigma_px: f64,
-    pub(super) direction: StripeDirection,
+    /// The point's own noise: the stripe's one-sigma along the scan line, px (camera);
+    /// along the sensor's z, mm (profiler).
+    pub(super) noise_sigma: f64,
     repeatability_mm: f64,
     encoder_sigma_deg: f64,
 }
@@ -100,19 +122,7 @@ impl UncertaintyModel {
     /// calibration has no laser plane.
     pub fn new(calibration: &Calibration, opts: &UncertaintyOptions) -> Result<Self> {
         let plane = laser_plane_of(calibration)?;
-        for (name, v) in [
-            ("stripe_sigma_px", opts.stripe_sigma_px),
-            ("repeatability_mm", opts.repeatability_mm),
-            ("encoder_sigma_deg", opts.encoder_sigma_deg),
-        ] {
-            if let Some(x) = v {
-                if !(x.is_finite() && x >= 0.0) {
-                    return Err(Error::InvalidInput(format!(
-                        "uncertainty option {name} = {x} must be finite and >= 0"
-                    )));
-                }
-            }
-        }
+        check_figures(opts, ("stripe_sigma_px", opts.stripe_sigma_px))?;
         let stripe_sigma_px = match opts.stripe_sigma_px {
             Some(s) => s,
             None => {
@@ -126,38 +136,92 @@ impl UncertaintyModel {
                 s
             }
         };
-        let (mut names, mut targets, mut idx) = (Vec::new(), Vec::new(), Vec::new());
-        let mut cov = DMatrix::zeros(0, 0);
-        if opts.calibration {
-            let named = calibration.covariance.as_ref().ok_or_else(|| {
-                Error::InvalidInput(
-                    "the calibration has no covariance (calibration.json without \
-                     \"covariance\": written before the contract asked for it); recalibrate, \
-                     or leave the calibration out of the uncertainty"
-                        .into(),
-                )
-            })?;
-            let dof = calibration.robot.as_ref().map_or(0, |r| r.dof());
-            for (i, n) in named.parameters.iter().enumerate() {
-                if let Some(t) = target_of(n, dof) {
-                    names.push(n.clone());
-                    targets.push(t);
-                    idx.push(i);
+        let dof = calibration.robot.as_ref().map_or(0, |r| r.dof());
+        let selected = select(opts.calibration, calibration.covariance.as_ref(), |n| {
+            target_of(n, dof)
+        })?;
+        // A normal is read normalised: `n' = (n + dn) / |n + dn|`, `dn' = (I - n n^T) dn`.
+        let proj = Matrix3::identity() - plane.normal * plane.normal.transpose();
+        let direction = match opts.direction {
+            StripeDirection::Auto => {
+                crate::reconstruct::stripe_direction_from_plane(&calibration.camera, plane)
+            }
+            d => d,
+        };
+        let sensor = Sensor::Camera {
+            calibration: Box::new(calibration.clone()),
+            direction,
+        };
+        Ok(Self::assemble(
+            sensor,
+            selected,
+            &calibration.hand_cam,
+            &proj,
+            stripe_sigma_px,
+            opts,
+        ))
+    }
+
+    /// The model of a line profiler's calibration ([`super`] docs, "Profilers"): the
+    /// same local vector `eta` with the camera and plane entries unused; the numbers that
+    /// move a point are `hand_cam.*` (`T_hand_sensor`) and the DH numbers (`sphere.*`
+    /// move none and are left out). The point's own noise is along the sensor's z,
+    /// one-sigma `opts.profile_sigma_mm` (default the calibration's
+    /// `quality.profile_rms_mm`); `stripe_sigma_px` and `direction` are not read. A
+    /// point is addressed by its profile coordinates `(x_mm, z_mm)` where a camera's is
+    /// `(u_px, v_px)`. Errors as [`Self::new`] (no laser plane is needed).
+    pub fn profiler(calibration: &ProfilerCalibration, opts: &UncertaintyOptions) -> Result<Self> {
+        check_figures(opts, ("profile_sigma_mm", opts.profile_sigma_mm))?;
+        let sigma_mm = match opts.profile_sigma_mm {
+            Some(s) => s,
+            None => {
+                let s = calibration.quality.profile_rms_mm;
+                if !(s.is_finite() && s >= 0.0) {
+                    return Err(Error::InvalidInput(format!(
+                        "the calibration's quality.profile_rms_mm ({s}) cannot serve as the \
+                         profile points' noise; give profile_sigma_mm"
+                    )));
                 }
+                s
             }
-            cov = DMatrix::from_fn(idx.len(), idx.len(), |r, c| named.matrix[(idx[r], idx[c])]);
-            if cov.iter().any(|x| !x.is_finite()) {
-                return Err(Error::InvalidInput(
-                    "the calibration's covariance has non-finite entries".into(),
-                ));
-            }
-        }
-        let x = &calibration.hand_cam;
+        };
+        let dof = calibration.robot.as_ref().map_or(0, |r| r.dof());
+        let selected =
+            select(
+                opts.calibration,
+                calibration.covariance.as_ref(),
+                |n| match target_of(n, dof)? {
+                    // A profiler's calibration has no camera or laser plane numbers; should a
+                    // covariance name them they move nothing here.
+                    Target::Eta(_) => None,
+                    t => Some(t),
+                },
+            )?;
+        let sensor = Sensor::Profiler {
+            calibration: Box::new(calibration.clone()),
+        };
+        Ok(Self::assemble(
+            sensor,
+            selected,
+            &calibration.hand_sensor,
+            &Matrix3::identity(),
+            sigma_mm,
+            opts,
+        ))
+    }
+
+    /// The model from the selected numbers: `M_f`'s frame-independent columns.
+    fn assemble(
+        sensor: Sensor,
+        (names, targets, cov): Selected,
+        x: &Iso3,
+        proj: &Matrix3<f64>,
+        noise_sigma: f64,
+        opts: &UncertaintyOptions,
+    ) -> Self {
         let rx = x.rotation.to_rotation_matrix().into_inner();
         let jr = right_jacobian(&matrix_to_rotvec(&rx));
         let mut m_fixed = DMatrix::zeros(ETA, names.len());
-        // A normal is read normalised: `n' = (n + dn) / |n + dn|`, `dn' = (I - n n^T) dn`.
-        let proj = Matrix3::identity() - plane.normal * plane.normal.transpose();
         for (c, t) in targets.iter().enumerate() {
             match *t {
                 Target::Eta(e) if (9..12).contains(&e) => {
@@ -179,25 +243,18 @@ impl UncertaintyModel {
                 Target::Robot(_) => {}
             }
         }
-        let direction = match opts.direction {
-            StripeDirection::Auto => {
-                crate::reconstruct::stripe_direction_from_plane(&calibration.camera, plane)
-            }
-            d => d,
-        };
-        Ok(UncertaintyModel {
-            calibration: calibration.clone(),
+        UncertaintyModel {
+            sensor,
             names,
             targets,
             cov,
             m_fixed,
             rx_t: rx.transpose(),
             tx: x.translation.vector,
-            stripe_sigma_px,
-            direction,
+            noise_sigma,
             repeatability_mm: opts.repeatability_mm.unwrap_or(0.0),
             encoder_sigma_deg: opts.encoder_sigma_deg.unwrap_or(0.0),
-        })
+        }
     }
 
     /// Names of the calibration's numbers in the model (columns of
@@ -206,14 +263,51 @@ impl UncertaintyModel {
         &self.names
     }
 
-    /// The calibration.
-    pub fn calibration(&self) -> &Calibration {
-        &self.calibration
+    /// The camera's calibration; `None` for a profiler's model
+    /// ([`Self::profiler_calibration`]).
+    pub fn calibration(&self) -> Option<&Calibration> {
+        match &self.sensor {
+            Sensor::Camera { calibration, .. } => Some(calibration),
+            Sensor::Profiler { .. } => None,
+        }
     }
 
-    /// The stripe direction (resolved: `Rows` or `Cols`).
+    /// The profiler's calibration; `None` for a camera's model.
+    pub fn profiler_calibration(&self) -> Option<&ProfilerCalibration> {
+        match &self.sensor {
+            Sensor::Profiler { calibration } => Some(calibration),
+            Sensor::Camera { .. } => None,
+        }
+    }
+
+    /// A profiler's model ([`Self::profiler`]).
+    pub fn is_profiler(&self) -> bool {
+        matches!(self.sensor, Sensor::Profiler { .. })
+    }
+
+    /// The stripe direction (resolved: `Rows` or `Cols`); `Auto` for a profiler's model
+    /// (no stripe: its points are measured along the sensor's z).
     pub fn direction(&self) -> StripeDirection {
-        self.direction
+        match &self.sensor {
+            Sensor::Camera { direction, .. } => *direction,
+            Sensor::Profiler { .. } => StripeDirection::Auto,
+        }
+    }
+
+    /// The robot's DH table of the calibration, if any.
+    fn robot(&self) -> Option<&Robot> {
+        match &self.sensor {
+            Sensor::Camera { calibration, .. } => calibration.robot.as_ref(),
+            Sensor::Profiler { calibration } => calibration.robot.as_ref(),
+        }
+    }
+
+    /// `T_hand_cam` (camera) or `T_hand_sensor` (profiler).
+    pub(super) fn hand_sensor(&self) -> &Iso3 {
+        match &self.sensor {
+            Sensor::Camera { calibration, .. } => &calibration.hand_cam,
+            Sensor::Profiler { calibration } => &calibration.hand_sensor,
+        }
     }
 
     /// Their covariance (P x P).
@@ -223,7 +317,7 @@ impl UncertaintyModel {
 
     /// The frame taken at `reading`: its pose, the map `M_f` and `Sigma_f`.
     pub fn frame(&self, reading: &RobotReading) -> Result<FrameUncertainty> {
-        let robot = self.calibration.robot.as_ref();
+        let robot = self.robot();
         let base_hand = reading.base_hand(robot)?;
         let q = match reading {
             RobotReading::Joints(q) => Some(q.as_slice()),
@@ -292,6 +386,62 @@ impl UncertaintyModel {
         let vh = Vector3::new(tw[3], tw[4], tw[5]);
         (self.rx_t * wh, self.rx_t * (wh.cross(&self.tx) + vh))
     }
+}
+
+/// The numbers of a covariance that move a point: names, targets, covariance.
+type Selected = (Vec<String>, Vec<Target>, DMatrix<f64>);
+
+/// The figures of `opts` (and `noise`, the sensor's own) are finite and >= 0.
+fn check_figures(opts: &UncertaintyOptions, noise: (&str, Option<f64>)) -> Result<()> {
+    for (name, v) in [
+        noise,
+        ("repeatability_mm", opts.repeatability_mm),
+        ("encoder_sigma_deg", opts.encoder_sigma_deg),
+    ] {
+        if let Some(x) = v {
+            if !(x.is_finite() && x >= 0.0) {
+                return Err(Error::InvalidInput(format!(
+                    "uncertainty option {name} = {x} must be finite and >= 0"
+                )));
+            }
+        }
+    }
+    Ok(())
+}
+
+/// The numbers of `named` whose `target` is some (empty when the calibration part is
+/// not asked for; an error when it is and there is no covariance).
+fn select(
+    wanted: bool,
+    named: Option<&NamedCovariance>,
+    target: impl Fn(&str) -> Option<Target>,
+) -> Result<Selected> {
+    let (mut names, mut targets, mut idx) = (Vec::new(), Vec::new(), Vec::new());
+    if !wanted {
+        return Ok((names, targets, DMatrix::zeros(0, 0)));
+    }
+    let named = named.ok_or_else(|| {
+        Error::InvalidInput(
+            "the calibration has no covariance (calibration.json without \"covariance\": \
+             written before the contract asked for it); recalibrate, or leave the calibration \
+             out of the uncertainty"
+                .into(),
+        )
+    })?;
+    for (i, n) in named.parameters.iter().enumerate() {
+        if let Some(t) = target(n) {
+            names.push(n.clone());
+            targets.push(t);
+            idx.push(i);
+        }
+    }
+    let cov = DMatrix::from_fn(idx.len(), idx.len(), |r, c| named.matrix[(idx[r], idx[c])]);
+    if cov.iter().any(|x| !x.is_finite()) {
+        return Err(Error::InvalidInput(
+            "the calibration's covariance has non-finite entries".into(),
+        ));
+    }
+    Ok((names, targets, cov))
 }
 
 /// Where the contract name `n` goes, `None` for numbers that do not move a base point.

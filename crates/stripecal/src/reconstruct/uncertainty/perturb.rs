@@ -1,4 +1,4 @@
-//! A calibration moved by deltas of its named numbers (contract names): what the finite
+//! A calibration (a camera's or a profiler's) moved by deltas of its named numbers (contract names): what the finite
 //! difference and Monte Carlo checks of the propagation draw.
 
 use nalgebra::Vector3;
@@ -7,7 +7,7 @@ use crate::calib::joint::DhParam;
 use crate::error::{Error, Result};
 use crate::model::camera::PARAM_NAMES;
 use crate::model::geometry::{iso_from_rotvec, matrix_to_rotvec, Plane};
-use crate::model::Calibration;
+use crate::model::{Calibration, ProfilerCalibration};
 
 /// `calibration` with `deltas[i]` added to the number named `names[i]` (the names of
 /// calibration.json's `covariance`): camera numbers and DH values directly; the laser
@@ -93,5 +93,54 @@ pub fn perturbed_calibration(
     }
     c.hand_cam = iso_from_rotvec(&poses[0].0, &poses[0].1);
     c.base_board = iso_from_rotvec(&poses[1].0, &poses[1].1);
+    Ok(c)
+}
+
+/// A profiler's `calibration` with `deltas[i]` added to the number named `names[i]`:
+/// `hand_cam` (= `T_hand_sensor`) rotation vector and translation component-wise, DH
+/// values directly, `sphere.center_mm[k]` and `sphere.diameter_mm` directly. An unknown
+/// name is an error.
+pub fn perturbed_profiler_calibration(
+    calibration: &ProfilerCalibration,
+    names: &[String],
+    deltas: &[f64],
+) -> Result<ProfilerCalibration> {
+    if names.len() != deltas.len() {
+        return Err(Error::InvalidInput(format!(
+            "{} names but {} deltas",
+            names.len(),
+            deltas.len()
+        )));
+    }
+    let mut c = calibration.clone();
+    let mut r = matrix_to_rotvec(&c.hand_sensor.rotation.to_rotation_matrix().into_inner());
+    let mut t = c.hand_sensor.translation.vector;
+    let index = |n: &str, prefix: &str| -> Option<usize> {
+        n.strip_prefix(prefix)?
+            .strip_suffix(']')?
+            .parse()
+            .ok()
+            .filter(|&k| k < 3)
+    };
+    let dof = c.robot.as_ref().map_or(0, |r| r.dof());
+    for (name, &delta) in names.iter().zip(deltas) {
+        let name = name.as_str();
+        if let Some(k) = index(name, "hand_cam.rotation_vector[") {
+            r[k] += delta;
+        } else if let Some(k) = index(name, "hand_cam.translation_mm[") {
+            t[k] += delta;
+        } else if let Some(k) = index(name, "sphere.center_mm[") {
+            c.sphere_center_mm[k] += delta;
+        } else if name == "sphere.diameter_mm" {
+            c.sphere_diameter_mm += delta;
+        } else if let (Some(p), Some(robot)) = (DhParam::from_name(name, dof), c.robot.as_mut()) {
+            *p.kind.get_mut(&mut robot.joints[p.joint]) += delta;
+        } else {
+            return Err(Error::InvalidInput(format!(
+                "unknown profiler calibration number {name:?}"
+            )));
+        }
+    }
+    c.hand_sensor = iso_from_rotvec(&r, &t);
     Ok(c)
 }
