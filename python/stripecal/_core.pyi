@@ -878,7 +878,7 @@ def reconstruct(
     channel: str = "gray",
 ) -> Cloud: ...
 def reconstruct_scan(
-    calibration: Calibration,
+    calibration: Union[Calibration, ProfilerCalibration],
     scan_dir: _Path,
     direction: str = "auto",
     min_ray_plane_angle_deg: float = 2.0,
@@ -892,7 +892,7 @@ def reconstruct_scan(
     channel: Optional[str] = None,
 ) -> Cloud: ...
 def measure_sphere(
-    calibration: Calibration,
+    calibration: Union[Calibration, ProfilerCalibration],
     scan_dir: _Path,
     *,
     cloud: Optional[Cloud] = None,
@@ -905,7 +905,7 @@ def measure_sphere(
     trim_sigma: float = 3.0,
 ) -> SphereMeasurement: ...
 def measure_ball_bar(
-    calibration: Calibration,
+    calibration: Union[Calibration, ProfilerCalibration],
     scan_dir: _Path,
     *,
     cloud: Optional[Cloud] = None,
@@ -918,7 +918,7 @@ def measure_ball_bar(
     trim_sigma: float = 3.0,
 ) -> BallBarMeasurement: ...
 def measure_plane(
-    calibration: Calibration,
+    calibration: Union[Calibration, ProfilerCalibration],
     scan_dir: _Path,
     *,
     cloud: Optional[Cloud] = None,

@@ -25,7 +25,7 @@ import stripecal
 import stripecal.sim
 from stripecal._progress import Progress
 from stripecal.cli_profiler import print_profiler_calibration
-from stripecal.cli_measure import add_measure, add_verify, diameter_range, sphere_lines, write_json_atomic
+from stripecal.cli_measure import add_measure, load_any_calibration, add_verify, diameter_range, sphere_lines, write_json_atomic
 from stripecal.types import QualityCheck, SimConfig, SphereMeasurement, TwinSummary
 
 
@@ -598,7 +598,7 @@ def cmd_reconstruct(args: argparse.Namespace) -> int:
     at that path is left as it was. Ctrl-C (SIGINT) stops the run between chunks of
     frames, writes nothing and exits with status 130; once the file is being written,
     Ctrl-C is ignored and the command completes."""
-    cal = stripecal.load_calibration(args.calibration)
+    cal = load_any_calibration(args.calibration)
     bar = Progress()
     t0 = time.monotonic()
     seen = {"frames": 0}

@@ -22,6 +22,19 @@ TITLES = {"probing_form": "probing error form PF", "probing_size": "probing erro
 """The characteristics' names, in table order."""
 
 
+def load_any_calibration(path: str) -> Union[stripecal.Calibration, stripecal.ProfilerCalibration]:
+    """A calibration.json of either kind: a line profiler's (``"sensor": {"kind":
+    "profiler"}``) or a camera's."""
+    try:
+        with open(path, encoding="utf-8") as f:
+            sensor = json.load(f).get("sensor")
+    except (OSError, ValueError, AttributeError):
+        sensor = None  # the reader below says what is wrong
+    if isinstance(sensor, dict) and sensor.get("kind") == "profiler":
+        return stripecal.read_profiler_calibration(path)
+    return stripecal.load_calibration(path)
+
+
 def verdict(r: Union[VerifyRow, VerifySummary]) -> str:
     """``conforms`` (|value| + U <= MPE), ``pass`` (|value| <= MPE) or ``FAIL``."""
     return "conforms" if r["conforms"] else ("pass" if r["passed"] else "FAIL")
@@ -88,7 +101,7 @@ def cmd_measure(args: argparse.Namespace) -> int:
     --encoder-sigma-deg, or the calibration robot's figures) and systematic (what the
     curved-surface stripe-bias correction of a sphere leaves). Spheres are corrected for
     that bias unless --no-bias-correction. docs/measurement.md has the maths."""
-    cal = stripecal.load_calibration(args.calibration)
+    cal = load_any_calibration(args.calibration)
     bar = Progress()
     cloud = stripecal.reconstruct_scan(cal, args.scan_dir, progress=lambda d, t, p: bar("reconstructing", d, t))
     common: Any = dict(cloud=cloud, stripe_sigma_px=args.stripe_sigma_px, repeatability_mm=args.repeatability_mm,

@@ -9,16 +9,21 @@ use std::path::PathBuf;
 use pyo3::prelude::*;
 
 use serde_json::Value;
+use stripecal::model::{ProfileScan, ProfilerCalibration, RobotReading};
 use stripecal::pipeline::measure::{
-    measure_scan_ball_bar, measure_scan_plane, measure_scan_sphere, scan_readings,
-    scan_uncertainty_model, MeasureOptions,
+    measure_scan_ball_bar, measure_scan_plane, measure_scan_sphere, profiler_uncertainty_model,
+    scan_readings, scan_uncertainty_model, MeasureOptions,
 };
 use stripecal::pipeline::verify::{verify as core_verify, VerifyOptions};
 use stripecal::reconstruct::{load_scan, reconstruct_scan, ReconstructOptions, UncertaintyOptions};
+use stripecal::reconstruct::{
+    profile_scan_points, read_profile_scan, ProfileFrame, ProfileReconstructOptions,
+};
 use stripecal::{Error, Result};
 
 use crate::convert::{json_to_py, progress_step};
 use crate::errors::{invalid_input, ResultExt};
+use crate::profile_py::PyProfilerCalibration;
 use crate::reconstruct_py::PyCloud;
 use crate::results::PyCalibration;
 
@@ -64,11 +69,20 @@ fn options(
 fn measure(
     py: Python<'_>,
     shape: Shape,
-    calibration: &Bound<'_, PyCalibration>,
+    calibration: &Bound<'_, PyAny>,
     scan_dir: PathBuf,
     cloud: Option<&Bound<'_, PyCloud>>,
     opts: MeasureOptions,
 ) -> PyResult<Py<PyAny>> {
+    if let Ok(pc) = calibration.cast::<PyProfilerCalibration>() {
+        return measure_profile_scan(py, shape, &pc.get().inner, scan_dir, cloud, opts);
+    }
+    let calibration = calibration.cast::<PyCalibration>().map_err(|_| {
+        pyo3::exceptions::PyTypeError::new_err(format!(
+            "calibration must be a Calibration or a ProfilerCalibration, got {}",
+            crate::convert::type_name(calibration)
+        ))
+    })?;
     let cal = &calibration.get().inner;
     let given = cloud.map(|c| c.get().inner.clone());
     let v: Value = py
@@ -117,12 +131,53 @@ fn measure(
 /// `robot_mm` (`repeatability_mm`, `encoder_sigma_deg`, default the calibration's
 /// robot figures), `systematic_mm`, combined, and `expanded_mm` (k = 2): the
 /// headline.
+/// [`measure`] of a line profiler's scan (a profile scan folder): its points from the
+/// profiles (or `cloud`), the budgets from the profiler's calibration.
+fn measure_profile_scan(
+    py: Python<'_>,
+    shape: Shape,
+    cal: &ProfilerCalibration,
+    scan_dir: PathBuf,
+    cloud: Option<&Bound<'_, PyCloud>>,
+    opts: MeasureOptions,
+) -> PyResult<Py<PyAny>> {
+    let given = cloud.map(|c| c.get().inner.clone());
+    let v: Value = py
+        .detach(|| -> Result<Value> {
+            let scan = ProfileScan::load(&scan_dir, cal.robot.as_ref())?;
+            let (frames, _) = read_profile_scan(&scan, &ProfileReconstructOptions::default())?;
+            let frames: Vec<ProfileFrame> = frames.into_iter().map(|(_, f)| f).collect();
+            let points = match given {
+                Some(p) => p,
+                None => profile_scan_points(&frames, cal)?,
+            };
+            if let Some(&f) = points.frame.iter().find(|&&f| f as usize >= frames.len()) {
+                return Err(Error::InvalidInput(format!(
+                    "the cloud has points of frame {f}, but the scan has {} frames: it is not this \
+                     scan's cloud",
+                    frames.len()
+                )));
+            }
+            let model = profiler_uncertainty_model(cal, &opts.uncertainty)?;
+            let readings: Vec<RobotReading> = frames.iter().map(|f| f.0.clone()).collect();
+            Ok(match shape {
+                Shape::Sphere => measure_scan_sphere(&model, &readings, &points, &opts)?.to_json(),
+                Shape::BallBar => {
+                    measure_scan_ball_bar(&model, &readings, &points, &opts)?.to_json()
+                }
+                Shape::Plane => measure_scan_plane(&model, &readings, &points, &opts)?.to_json(),
+            })
+        })
+        .py_err(py)?;
+    Ok(json_to_py(py, &v)?.unbind())
+}
+
 #[pyfunction]
 #[pyo3(signature = (calibration, scan_dir, *, cloud = None, diameter_range_mm = None, correct_bias = true, calibration_part = true, stripe_sigma_px = None, repeatability_mm = None, encoder_sigma_deg = None, trim_sigma = 3.0))]
 #[allow(clippy::too_many_arguments)]
 pub fn measure_sphere(
     py: Python<'_>,
-    calibration: &Bound<'_, PyCalibration>,
+    calibration: &Bound<'_, PyAny>,
     scan_dir: PathBuf,
     cloud: Option<&Bound<'_, PyCloud>>,
     diameter_range_mm: Option<(f64, f64)>,
@@ -154,7 +209,7 @@ pub fn measure_sphere(
 #[allow(clippy::too_many_arguments)]
 pub fn measure_ball_bar(
     py: Python<'_>,
-    calibration: &Bound<'_, PyCalibration>,
+    calibration: &Bound<'_, PyAny>,
     scan_dir: PathBuf,
     cloud: Option<&Bound<'_, PyCloud>>,
     diameter_range_mm: Option<(f64, f64)>,
@@ -184,7 +239,7 @@ pub fn measure_ball_bar(
 #[allow(clippy::too_many_arguments)]
 pub fn measure_plane(
     py: Python<'_>,
-    calibration: &Bound<'_, PyCalibration>,
+    calibration: &Bound<'_, PyAny>,
     scan_dir: PathBuf,
     cloud: Option<&Bound<'_, PyCloud>>,
     calibration_part: bool,

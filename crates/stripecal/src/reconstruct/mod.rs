@@ -75,7 +75,9 @@ pub use options::{
     stripe_direction_from_plane, BadImage, ReconstructOptions, DEFAULT_MIN_RAY_PLANE_ANGLE_DEG,
 };
 pub use points::{at_frame, ScanPoints};
-pub use profile::{reconstruct_profile_scan, ProfileReconstructOptions, ProfileScanSummary};
+pub use profile::{
+    read_profile_scan, reconstruct_profile_scan, ProfileReconstructOptions, ProfileScanSummary,
+};
 pub use profile_points::{profile_scan_points, ProfileFrame};
 pub use scan::{load_scan, reconstruct_frames, reconstruct_scan};
 pub use triangulate::{laser_plane_of, triangulate, DropCounts, Triangulator};

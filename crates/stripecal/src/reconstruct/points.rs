@@ -39,6 +39,10 @@ pub struct ScanPoints {
     /// The points are in the camera frame (a fixed-sensor scan, no poses), not the base
     /// frame: the PLY header says `comment frame cam`.
     pub camera_frame: bool,
+    /// The points of a line profiler's scan: `u_px`/`v_px` hold each point's profile
+    /// coordinates `x`, `z` (mm, sensor frame), the PLY names them `x_mm`, `z_mm` (and
+    /// has no `intensity`/`flags`), and a fixed profiler's frame is `sensor`.
+    pub profiler: bool,
 }
 
 impl ScanPoints {
@@ -123,6 +127,7 @@ impl ScanPoints {
             dropped: p.dropped,
             skipped: p.skipped.clone(),
             camera_frame: p.camera_frame,
+            profiler: p.profiler,
         }
     }
 
@@ -130,13 +135,29 @@ impl ScanPoints {
     /// `skipped frame ...` line per skipped frame (which, where and why; control
     /// characters replaced by spaces).
     pub fn ply_comments(&self) -> Vec<String> {
-        ply_comments(self.camera_frame.then_some("cam"), &self.skipped)
+        let frame = if self.profiler { "sensor" } else { "cam" };
+        ply_comments(self.camera_frame.then_some(frame), &self.skipped)
     }
 
     /// The PLY cloud: `x y z` and the properties `view` (frame index), `u`, `v`,
     /// `intensity`, `flags` (spec/DATASET.md "The point cloud"), and with per-point
     /// covariances `cov_xx cov_xy cov_xz cov_yy cov_yz cov_zz` (mm^2).
     pub fn to_cloud(&self) -> Cloud {
+        if self.profiler {
+            let mut c = Cloud {
+                points: self.points_mm.clone(),
+                properties: vec![
+                    (
+                        "view".into(),
+                        self.frame.iter().map(|&f| f as f64).collect(),
+                    ),
+                    ("x_mm".into(), self.u_px.clone()),
+                    ("z_mm".into(), self.v_px.clone()),
+                ],
+            };
+            self.push_covariance(&mut c);
+            return c;
+        }
         let mut c = Cloud {
             points: self.points_mm.clone(),
             properties: vec![
@@ -156,6 +177,12 @@ impl ScanPoints {
                 ),
             ],
         };
+        self.push_covariance(&mut c);
+        c
+    }
+
+    /// The per-point covariances as the PLY's `cov_*` properties, when there are any.
+    fn push_covariance(&self, c: &mut Cloud) {
         if self.covariance_mm2.len() == self.points_mm.len() && !self.points_mm.is_empty() {
             for (k, name) in ["cov_xx", "cov_xy", "cov_xz", "cov_yy", "cov_yz", "cov_zz"]
                 .iter()
@@ -167,7 +194,6 @@ impl ScanPoints {
                 ));
             }
         }
-        c
     }
 }
 

@@ -38,6 +38,7 @@ use crate::error::{BadFrame, Error, Result};
 use crate::io::read_profile;
 use crate::model::geometry::Iso3;
 use crate::model::{Cloud, Profile, ProfileScan, ProfilerCalibration, RobotReading};
+use crate::reconstruct::ProfileFrame;
 
 /// Options of [`reconstruct_profile_scan`].
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
@@ -107,65 +108,38 @@ fn base_sensor(calib: &ProfilerCalibration, reading: &RobotReading) -> Result<Is
     }
 }
 
-/// One frame's points (base or sensor frame) and the profile they come from.
-type FramePart = std::result::Result<(Vec<[f64; 3]>, Profile), String>;
-
-/// Reconstructs a profile scan folder's point cloud with a profiler's calibration (see
-/// the module docs). Returns the cloud (properties `view`, `x_mm`, `z_mm`) and what was
-/// done; write it with [`crate::io::write_ply_with_comments`] and
-/// [`ProfileScanSummary::ply_comments`].
-pub fn reconstruct_profile_scan(
+/// A profile scan's frames as read: each kept frame's index (its row of scan.csv after
+/// the header, from 0) with its reading and profile, and what was done (gaps, skipped
+/// frames; `points` 0). Files are read in parallel; a bad profile file stops the run or
+/// is skipped as `opts` says (module docs).
+pub fn read_profile_scan(
     scan: &ProfileScan,
-    calib: &ProfilerCalibration,
     opts: &ProfileReconstructOptions,
-) -> Result<(Cloud, ProfileScanSummary)> {
+) -> Result<(Vec<(usize, ProfileFrame)>, ProfileScanSummary)> {
     let invalid_z = opts
         .invalid_z
         .or_else(|| scan.rig.as_ref().and_then(|r| r.invalid_z));
-    let sensor_frame = scan.is_fixed();
-    let parts: Vec<Result<FramePart>> = scan
+    let parts: Vec<std::result::Result<Profile, String>> = scan
         .frames
         .par_iter()
-        .enumerate()
-        .map(|(i, f)| {
-            let t = base_sensor(calib, &f.reading).map_err(|e| at_frame(e, i, Some(f.line)))?;
+        .map(|f| {
             let path = scan.profile_path(&f.profile);
-            let profile = match read_profile(&path, invalid_z) {
-                Ok(p) => p,
-                Err(e) => return Ok(Err(bad_profile_reason(&path, e))),
-            };
-            let pts = profile
-                .points
-                .iter()
-                .map(|&[x, z]| (t * Point3::new(x, 0.0, z)).coords.into())
-                .collect();
-            Ok(Ok((pts, profile)))
+            read_profile(&path, invalid_z).map_err(|e| bad_profile_reason(&path, e))
         })
         .collect();
-
     let mut summary = ProfileScanSummary {
         frames: scan.frames.len(),
         gaps: vec![0; scan.frames.len()],
-        sensor_frame,
+        sensor_frame: scan.is_fixed(),
         ..Default::default()
     };
-    let mut cloud = Cloud {
-        points: Vec::new(),
-        properties: ["view", "x_mm", "z_mm"]
-            .iter()
-            .map(|n| (n.to_string(), Vec::new()))
-            .collect(),
-    };
+    let mut frames = Vec::with_capacity(parts.len());
     for (i, part) in parts.into_iter().enumerate() {
         let f = &scan.frames[i];
-        match part? {
-            Ok((pts, profile)) => {
+        match part {
+            Ok(profile) => {
                 summary.gaps[i] = profile.gaps;
-                cloud.points.extend_from_slice(&pts);
-                let props = &mut cloud.properties;
-                props[0].1.extend(std::iter::repeat_n(i as f64, pts.len()));
-                props[1].1.extend(profile.points.iter().map(|p| p[0]));
-                props[2].1.extend(profile.points.iter().map(|p| p[1]));
+                frames.push((i, (f.reading.clone(), profile)));
             }
             Err(reason) => {
                 let bad = BadFrame {
@@ -180,6 +154,47 @@ pub fn reconstruct_profile_scan(
                 summary.skipped.push(bad);
             }
         }
+    }
+    Ok((frames, summary))
+}
+
+/// Reconstructs a profile scan folder's point cloud with a profiler's calibration (see
+/// the module docs). Returns the cloud (properties `view`, `x_mm`, `z_mm`) and what was
+/// done; write it with [`crate::io::write_ply_with_comments`] and
+/// [`ProfileScanSummary::ply_comments`].
+pub fn reconstruct_profile_scan(
+    scan: &ProfileScan,
+    calib: &ProfilerCalibration,
+    opts: &ProfileReconstructOptions,
+) -> Result<(Cloud, ProfileScanSummary)> {
+    // every reading's pose first: a reading without one stops the run, naming its frame
+    let poses: Vec<Iso3> = scan
+        .frames
+        .iter()
+        .enumerate()
+        .map(|(i, f)| base_sensor(calib, &f.reading).map_err(|e| at_frame(e, i, Some(f.line))))
+        .collect::<Result<_>>()?;
+    let (frames, mut summary) = read_profile_scan(scan, opts)?;
+    let mut cloud = Cloud {
+        points: Vec::new(),
+        properties: ["view", "x_mm", "z_mm"]
+            .iter()
+            .map(|n| (n.to_string(), Vec::new()))
+            .collect(),
+    };
+    for (i, (_, profile)) in &frames {
+        let t = poses[*i];
+        cloud.points.extend(
+            profile
+                .points
+                .iter()
+                .map(|&[x, z]| -> [f64; 3] { (t * Point3::new(x, 0.0, z)).coords.into() }),
+        );
+        let n = profile.points.len();
+        let props = &mut cloud.properties;
+        props[0].1.extend(std::iter::repeat_n(*i as f64, n));
+        props[1].1.extend(profile.points.iter().map(|p| p[0]));
+        props[2].1.extend(profile.points.iter().map(|p| p[1]));
     }
     summary.points = cloud.points.len();
     Ok((cloud, summary))

@@ -55,6 +55,7 @@ pub fn profile_scan_points(
         width_px: Vec::with_capacity(n),
         flags: Vec::with_capacity(n),
         camera_frame,
+        profiler: true,
         ..Default::default()
     };
     for (i, (reading, profile)) in frames.iter().enumerate() {
