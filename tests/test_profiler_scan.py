@@ -62,3 +62,31 @@ def test_reconstruct_profile_scan_cli_writes_sensor_coordinates(calibrated: Tupl
     cov = cloud.covariance
     assert cov is not None and cov.shape == (len(cloud), 3, 3) and np.all(np.diagonal(cov, axis1=1, axis2=2) > 0)
     assert os.path.getsize(ply) > 0
+
+
+def test_verify_on_a_profile_scan(calibrated: Tuple[Path, stripecal.ProfilerCalibration], tmp_path: Path) -> None:
+    """`stripecal verify` with a profiler's calibration: the scan of the twin's ball as a
+    probing test against a certificate (the twin's diameter, as a certificate would give)."""
+    import json
+    import shutil
+
+    out, cal = calibrated
+    folder = tmp_path / "verify"
+    shutil.copytree(out / "scan", folder / "ball")
+    d = float(sim.profiler_truth(str(out / "scan"))["sphere"]["diameter_mm"])
+    (folder / "verify.csv").write_text("scan,artefact\nball,ball\n")
+    (folder / "artefacts.json").write_text(json.dumps({
+        "format": "stripecal/artefacts@1",
+        "spheres": [{"name": "ball", "diameter_mm": d, "form_mm": 0.0005}],
+        "ball_bars": [], "planes": [],
+        "uncertainty_k2_mm": {"diameter": 0.001, "length": 0.002, "flatness": 0.001},
+        "mpe_mm": {"probing_form": 0.05, "probing_size": 0.01, "sphere_spacing": 0.08, "flatness": 0.05}}))
+    r = stripecal.verify(cal, str(folder))
+    rows = {row["characteristic"]: row for row in r["rows"]}
+    size = rows["probing_size"]
+    # the size error is within its expanded uncertainty, and the MPE of 0.01 mm is met
+    assert abs(size["budget"]["value_mm"]) <= size["budget"]["expanded_mm"] + 1e-12, size
+    assert size["passed"] and rows["probing_form"]["passed"], r
+    cal_path = tmp_path / "cal.json"
+    cal.save(str(cal_path))
+    assert main(["verify", str(cal_path), str(folder)]) == 0

@@ -929,7 +929,7 @@ def measure_plane(
     trim_sigma: float = 3.0,
 ) -> PlaneMeasurement: ...
 def verify(
-    calibration: Calibration,
+    calibration: Union[Calibration, ProfilerCalibration],
     folder: _Path,
     *,
     artefacts: Optional[_Path] = None,

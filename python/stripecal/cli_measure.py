@@ -193,7 +193,7 @@ def cmd_verify(args: argparse.Namespace) -> int:
     error SD (ball-bar length error) and flatness measurement error F (range of a plate's
     residuals), each with its expanded uncertainty, against the MPE. Exit status 0 when
     every value is within its MPE, 3 when one is not (1: an error)."""
-    cal = stripecal.load_calibration(args.calibration)
+    cal = load_any_calibration(args.calibration)
     bar = Progress()
     r = stripecal.verify(cal, args.folder, artefacts=args.artefacts, correct_bias=not args.no_bias_correction,
                          stripe_sigma_px=args.stripe_sigma_px, repeatability_mm=args.repeatability_mm,

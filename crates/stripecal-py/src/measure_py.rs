@@ -9,12 +9,12 @@ use std::path::PathBuf;
 use pyo3::prelude::*;
 
 use serde_json::Value;
-use stripecal::model::{ProfileScan, ProfilerCalibration, RobotReading};
+use stripecal::model::{Calibration, ProfileScan, ProfilerCalibration, RobotReading};
 use stripecal::pipeline::measure::{
     measure_scan_ball_bar, measure_scan_plane, measure_scan_sphere, profiler_uncertainty_model,
     scan_readings, scan_uncertainty_model, MeasureOptions,
 };
-use stripecal::pipeline::verify::{verify as core_verify, VerifyOptions};
+use stripecal::pipeline::verify::{verify as core_verify, verify_profiler, VerifyOptions};
 use stripecal::reconstruct::{load_scan, reconstruct_scan, ReconstructOptions, UncertaintyOptions};
 use stripecal::reconstruct::{
     profile_scan_points, read_profile_scan, ProfileFrame, ProfileReconstructOptions,
@@ -273,7 +273,7 @@ pub fn measure_plane(
 #[allow(clippy::too_many_arguments)]
 pub fn verify(
     py: Python<'_>,
-    calibration: &Bound<'_, PyCalibration>,
+    calibration: &Bound<'_, PyAny>,
     folder: PathBuf,
     artefacts: Option<PathBuf>,
     correct_bias: bool,
@@ -282,7 +282,21 @@ pub fn verify(
     encoder_sigma_deg: Option<f64>,
     progress: Option<Py<PyAny>>,
 ) -> PyResult<Py<PyAny>> {
-    let cal = &calibration.get().inner;
+    let which: std::result::Result<Calibration, ProfilerCalibration> =
+        match calibration.cast::<PyProfilerCalibration>() {
+            Ok(p) => Err(p.get().inner.clone()),
+            Err(_) => Ok(calibration
+                .cast::<PyCalibration>()
+                .map_err(|_| {
+                    pyo3::exceptions::PyTypeError::new_err(format!(
+                        "calibration must be a Calibration or a ProfilerCalibration, got {}",
+                        crate::convert::type_name(calibration)
+                    ))
+                })?
+                .get()
+                .inner
+                .clone()),
+        };
     let opts = VerifyOptions {
         measure: options(
             py,
@@ -302,7 +316,11 @@ pub fn verify(
         let mut cb = |stage: &str, done: usize, total: usize| {
             progress_step(&progress, &mut cb_err, (stage, done, total))
         };
-        core_verify(cal, &folder, &opts, &mut cb).map(|r| r.to_json())
+        match &which {
+            Ok(cal) => core_verify(cal, &folder, &opts, &mut cb),
+            Err(profiler) => verify_profiler(profiler, &folder, &opts, &mut cb),
+        }
+        .map(|r| r.to_json())
     });
     if let Some(e) = cb_err {
         return Err(e);

@@ -33,13 +33,17 @@ use serde_json::{json, Value};
 use crate::error::{Error, Result};
 use crate::io::read_artefacts;
 use crate::model::artefacts::Artefacts;
-use crate::model::Calibration;
+use crate::model::{Calibration, ProfileScan, ProfilerCalibration, RobotReading};
 use crate::reconstruct::fit::Budget;
-use crate::reconstruct::{load_scan, reconstruct_scan, ReconstructOptions};
+use crate::reconstruct::{
+    load_scan, profile_scan_points, read_profile_scan, reconstruct_scan, ProfileFrame,
+    ProfileReconstructOptions, ReconstructOptions, ScanPoints, UncertaintyModel,
+};
 
 use super::measure::{
-    budget_to_json, measure_scan_ball_bar, measure_scan_plane, measure_scan_sphere, scan_readings,
-    scan_uncertainty_model, MeasureOptions, SphereReport,
+    budget_to_json, measure_scan_ball_bar, measure_scan_plane, measure_scan_sphere,
+    profiler_uncertainty_model, scan_readings, scan_uncertainty_model, MeasureOptions,
+    SphereReport,
 };
 
 /// The four characteristics.
@@ -228,6 +232,54 @@ pub fn verify(
     opts: &VerifyOptions,
     progress: &mut dyn FnMut(&str, usize, usize) -> ControlFlow<()>,
 ) -> Result<VerifyReport> {
+    let load = |path: &Path, cb: &mut dyn FnMut(usize, usize, usize) -> ControlFlow<()>| {
+        let scan = load_scan(path, calibration)?;
+        let points = reconstruct_scan(calibration, &scan, &opts.reconstruct, cb)?;
+        let model = scan_uncertainty_model(calibration, &scan, &opts.measure.uncertainty)?;
+        Ok((points, model, scan_readings(&scan)))
+    };
+    verify_scans(&load, dir, opts, progress)
+}
+
+/// [`verify`] with a line profiler's calibration: the scans are profile scans (a
+/// `profile` column in scan.csv), their points mapped with `T_hand_sensor` and measured
+/// with the profiler's point budget.
+pub fn verify_profiler(
+    calibration: &ProfilerCalibration,
+    dir: &Path,
+    opts: &VerifyOptions,
+    progress: &mut dyn FnMut(&str, usize, usize) -> ControlFlow<()>,
+) -> Result<VerifyReport> {
+    let load = |path: &Path, cb: &mut dyn FnMut(usize, usize, usize) -> ControlFlow<()>| {
+        let scan = ProfileScan::load(path, calibration.robot.as_ref())?;
+        let (frames, _) = read_profile_scan(&scan, &ProfileReconstructOptions::default())?;
+        let frames: Vec<ProfileFrame> = frames.into_iter().map(|(_, f)| f).collect();
+        let points = profile_scan_points(&frames, calibration)?;
+        let n = frames.len();
+        if cb(n, n, points.len()).is_break() {
+            return Err(Error::Cancelled);
+        }
+        let model = profiler_uncertainty_model(calibration, &opts.measure.uncertainty)?;
+        Ok((points, model, frames.into_iter().map(|f| f.0).collect()))
+    };
+    verify_scans(&load, dir, opts, progress)
+}
+
+/// What verifying needs of one scan folder: its points, the points' uncertainty model
+/// and the frames' readings (by frame index); the callback reports `(frames done, frames,
+/// points)`.
+type ScanLoader<'a> = dyn Fn(
+        &Path,
+        &mut dyn FnMut(usize, usize, usize) -> ControlFlow<()>,
+    ) -> Result<(ScanPoints, UncertaintyModel, Vec<RobotReading>)>
+    + 'a;
+
+fn verify_scans(
+    load: &ScanLoader<'_>,
+    dir: &Path,
+    opts: &VerifyOptions,
+    progress: &mut dyn FnMut(&str, usize, usize) -> ControlFlow<()>,
+) -> Result<VerifyReport> {
     let art_path = opts
         .artefacts
         .clone()
@@ -238,7 +290,6 @@ pub fn verify(
     let mut spheres = Vec::new();
     for (k, (scan_name, art)) in manifest.iter().enumerate() {
         let stage = format!("{scan_name} ({art})");
-        // Errors without a file name get the scan's; the others name their file.
         let tag = |e: Error| match e {
             Error::InvalidInput(m) => {
                 Error::InvalidInput(format!("verify: scan {scan_name} ({art}): {m}"))
@@ -248,15 +299,11 @@ pub fn verify(
             }
             e => e,
         };
-        let scan = load_scan(dir.join(scan_name), calibration).map_err(tag)?;
         let total = manifest.len();
         let mut cb = |done: usize, frames: usize, _pts: usize| {
             progress(&stage, k * frames + done, total * frames.max(1))
         };
-        let points =
-            reconstruct_scan(calibration, &scan, &opts.reconstruct, &mut cb).map_err(tag)?;
-        let model = scan_uncertainty_model(calibration, &scan, &opts.measure.uncertainty)?;
-        let readings = scan_readings(&scan);
+        let (points, model, readings) = load(&dir.join(scan_name), &mut cb).map_err(tag)?;
         let unc = artefacts.uncertainty_k2_mm;
         let mpe = |c: Characteristic| c.mpe(&artefacts);
         let row = |c: Characteristic, what: String, b: Budget| VerifyRow {
