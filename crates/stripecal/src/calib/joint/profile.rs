@@ -23,9 +23,12 @@
 //!
 //! A profile also shows the table, the stand and spikes. The adjustment starts from the
 //! points of each profile's arc ([`crate::calib::profile::arc`]) and, after each solve,
-//! takes every point of the profile within [`BAND_SIGMAS`] robust sigmas (`1.4826 MAD`
-//! of the points used, at least [`MIN_BAND_MM`]) of the sphere, until the selection
-//! settles; the rest are counted per view as rejected.
+//! takes the points of the profile near the sphere, until the selection settles; the
+//! rest are counted per view as rejected. Near: within [`BAND_SIGMAS`] robust sigmas
+//! (`1.4826 MAD`, at least [`MIN_BAND_MM`]) of the view's own median residual, the
+//! view's sigma from its own points, capped by the band of all points used (a view whose
+//! robot pose is off by a little sits off the sphere as a whole, its points still on a
+//! sphere).
 //!
 //! ## Uncertainty
 //!
@@ -341,9 +344,21 @@ fn solve(
     levenberg_marquardt(&prob, p0, lm)
 }
 
-/// The points of every view within the band of the sphere (module docs).
+/// The median of `v` (0 when empty).
+fn median(mut v: Vec<f64>) -> f64 {
+    if v.is_empty() {
+        return 0.0;
+    }
+    let mid = v.len() / 2;
+    *v.select_nth_unstable_by(mid, f64::total_cmp).1
+}
+
+/// The points of every view within the band of the sphere (module docs): the global
+/// band `5 x 1.4826 MAD` of all points used; within it, each view's points within its own
+/// band around its own median residual (a view whose robot pose is off by a little sits
+/// off the sphere as a whole: its points are still the sphere's).
 fn reselect(res: &[Vec<f64>], selected: &[Vec<usize>]) -> Vec<Vec<usize>> {
-    let mut used: Vec<f64> = res
+    let used: Vec<f64> = res
         .iter()
         .zip(selected)
         .flat_map(|(r, s)| s.iter().map(|&i| r[i].abs()))
@@ -351,11 +366,15 @@ fn reselect(res: &[Vec<f64>], selected: &[Vec<usize>]) -> Vec<Vec<usize>> {
     if used.is_empty() {
         return selected.to_vec();
     }
-    let mid = used.len() / 2;
-    let (_, med, _) = used.select_nth_unstable_by(mid, f64::total_cmp);
-    let band = (BAND_SIGMAS * 1.4826 * *med).max(MIN_BAND_MM);
+    let band = (BAND_SIGMAS * 1.4826 * median(used)).max(MIN_BAND_MM);
     res.iter()
-        .map(|r| (0..r.len()).filter(|&i| r[i].abs() < band).collect())
+        .zip(selected)
+        .map(|(r, s)| {
+            let mid = median(s.iter().map(|&i| r[i]).collect());
+            let mad = median(s.iter().map(|&i| (r[i] - mid).abs()).collect());
+            let own = (BAND_SIGMAS * 1.4826 * mad).clamp(MIN_BAND_MM, band);
+            (0..r.len()).filter(|&i| (r[i] - mid).abs() < own).collect()
+        })
         .collect()
 }
 

@@ -213,6 +213,22 @@ fn translation(
     Some((t, c, misfit))
 }
 
+/// The rotation-constrained solve for given sides (no side search): the start of
+/// `views` at `radius` with `sides`; `None` when the poses do not determine it.
+pub fn with_sides(views: &[CircleView], radius: f64, sides: &[f64]) -> Option<Start> {
+    constrained(views, radius, sides)
+}
+
+impl Start {
+    /// `|A X p - c|` of a view (its circle at this start's radius, on `side`), mm.
+    pub fn misfit_of(&self, view: &CircleView, side: f64) -> f64 {
+        let p = centres(std::slice::from_ref(view), self.radius, &[side])[0];
+        (view.a * self.hand_sensor * nalgebra::Point3::from(p)
+            - nalgebra::Point3::from(self.centre))
+        .norm()
+    }
+}
+
 /// The rotation-constrained solve for given sides.
 fn constrained(views: &[CircleView], radius: f64, sides: &[f64]) -> Option<Start> {
     let p = centres(views, radius, sides);

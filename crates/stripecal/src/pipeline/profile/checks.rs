@@ -9,8 +9,11 @@
 //! plane in every view), a proper rigid motion maps the mirrored centres onto the true
 //! ones and a mirrored hand-eye fits exactly as well. So the adjustment is run again from
 //! the mirrored start over the same points, and the two costs compared:
-//! `dchi2 = (SSR_mirror - SSR_chosen) / s^2` (`s^2` the chosen fit's variance factor).
-//! Below [`MIRROR_CHI2`] (a 5-sigma chi-square(1) margin) the data cannot decide: the
+//! `dchi2 = (SSR_mirror - SSR_chosen) / (k s^2)` (`s^2` the chosen fit's variance factor,
+//! `k` its view-clustered factor). The mirror starts from the closed form with every side
+//! flipped and from the chosen solution moved by the proper motion that best maps the
+//! mirrored centres onto the chosen ones (Kabsch); the better is kept. Below
+//! [`MIRROR_CHI2`] the data cannot decide: the
 //! calibration fails and names the plane the centres lie in. A mirrored start whose
 //! adjustment flips the sides back (the sides of the two solutions agree, weighted by
 //! `|y_i|`) found no mirror minimum: `dchi2` is then infinite. For speed both solves use
@@ -26,12 +29,17 @@ use crate::calib::profile::start::MIN_VIEWS;
 use crate::error::Result;
 use crate::model::QualityCheck;
 
-/// The mirror must fit worse by this many variances (chi-square(1) at 5 sigma).
-pub const MIRROR_CHI2: f64 = 25.0;
+/// The mirror must fit worse by this many variances. Under a true ambiguity the two
+/// fits are equally valid models and differ only by what each adjusts to the noise (the
+/// fitted centres are never exactly coplanar): a chi-square of about as many degrees of
+/// freedom as unknowns (10); 60 is its 5-sigma quantile.
+pub const MIRROR_CHI2: f64 = 60.0;
 /// Points the mirror test solves with at most.
 pub const MIRROR_POINTS: usize = 6000;
 /// A view whose fit keeps less than this share of its arc's points does not fit.
 pub const MIN_KEPT_SHARE: f64 = 0.5;
+/// ... or whose sphere points' RMS exceeds this many times the views' median.
+pub const POOR_RMS_FACTOR: f64 = 10.0;
 /// The declared diameter is contradicted beyond 3 sigma and this share of it.
 pub const DIAMETER_TOLERANCE: f64 = 0.002;
 
@@ -61,10 +69,12 @@ impl MirrorTest {
         .into_iter()
         .min_by(|a, b| a.1.total_cmp(&b.1))
         .unwrap_or(("", 0.0));
-        if n < 0.5 * s {
-            format!("one tilted plane (spread across it {n:.3} mm)")
-        } else {
+        // an axis whose spread is (nearly) as small as the least across any plane is
+        // the one the poses held; otherwise the centres lie in a tilted plane
+        if s <= (3.0 * n).max(0.5) {
             format!("{what}: spread {s:.3} mm")
+        } else {
+            format!("one tilted plane (spread across it {n:.3} mm)")
         }
     }
 
@@ -157,8 +167,10 @@ fn kept_only(popts: &ProfileOptions) -> ProfileOptions {
 /// The views kept, and `(views.csv row, note)` of those left out.
 type Kept = (Vec<ProfileViewObs>, Vec<(usize, String)>);
 
-/// Views whose fit keeps less than [`MIN_KEPT_SHARE`] of their arc's points, worst
-/// first, left out and the adjustment re-run, while more than [`MIN_VIEWS`] remain.
+/// Views whose fit keeps less than [`MIN_KEPT_SHARE`] of their arc's points, or whose
+/// sphere points lie [`POOR_RMS_FACTOR`] times farther from the sphere than the views'
+/// median, worst first, left out and the adjustment re-run, while more than
+/// [`MIN_VIEWS`] remain.
 pub(super) fn poor_views(
     mut obs: Vec<ProfileViewObs>,
     fit: &mut ProfileFit,
@@ -167,30 +179,55 @@ pub(super) fn poor_views(
 ) -> Result<Kept> {
     let mut left = Vec::new();
     loop {
-        let share: Vec<f64> = obs
+        let mut rms = fit.view_rms_mm.clone();
+        rms.sort_by(f64::total_cmp);
+        let med = rms.get(rms.len() / 2).copied().unwrap_or(0.0).max(1e-300);
+        // how far each view is beyond either limit (> 1: beyond)
+        let severity: Vec<(f64, String)> = obs
             .iter()
             .zip(&fit.selected)
-            .map(|(o, s)| s.len() as f64 / o.arc.len().max(1) as f64)
+            .zip(&fit.view_rms_mm)
+            .map(|((o, s), r)| {
+                let share = s.len() as f64 / o.arc.len().max(1) as f64;
+                let by_share = MIN_KEPT_SHARE / share.max(1e-300);
+                let by_rms = r / (POOR_RMS_FACTOR * med);
+                if by_share >= by_rms {
+                    (
+                        by_share,
+                        format!(
+                            "only {:.0} % of its arc's points lie on the sphere its robot pose \
+                             predicts",
+                            100.0 * share
+                        ),
+                    )
+                } else {
+                    (
+                        by_rms,
+                        format!(
+                            "its points lie {r:.4} mm (RMS) from the sphere its robot pose \
+                             predicts, the other views' {med:.4} mm (median)"
+                        ),
+                    )
+                }
+            })
             .collect();
-        let Some((k, worst)) = share
-            .iter()
-            .copied()
+        let Some((k, (worst, why))) = severity
+            .into_iter()
             .enumerate()
-            .min_by(|a, b| a.1.total_cmp(&b.1))
+            .max_by(|a, b| a.1 .0.total_cmp(&b.1 .0))
         else {
             break;
         };
-        if worst >= MIN_KEPT_SHARE || obs.len() <= MIN_VIEWS {
+        if worst <= 1.0 || obs.len() <= MIN_VIEWS {
             break;
         }
         let o = obs.remove(k);
         left.push((
             o.view,
             format!(
-                "view {}: only {:.0} % of its arc's points lie on the sphere its robot pose \
-                 predicts (its profile does not fit); left out",
-                o.view,
-                100.0 * worst
+                "view {}: {why} (its profile does not fit: a pose paired with the wrong \
+                 profile?); left out",
+                o.view
             ),
         ));
         *fit = profile_adjustment(&obs, start, popts)?;
@@ -204,6 +241,31 @@ pub(super) fn centres_in_sensor(fit: &ProfileFit) -> Vec<Vector3<f64>> {
         .iter()
         .map(|a| ((a * fit.hand_sensor).inverse() * Point3::from(fit.centre)).coords)
         .collect()
+}
+
+/// The proper rigid motion `F` (sensor frame) that best maps the mirrored centres `D p_i`
+/// (`D = diag(1, -1, 1)`: every side flipped) onto `p_i` (Kabsch, determinant +1): `X F`
+/// is the mirrored hand-eye.
+fn mirror_motion(p: &[Vector3<f64>]) -> crate::model::geometry::Iso3 {
+    let q: Vec<Vector3<f64>> = p.iter().map(|v| Vector3::new(v.x, -v.y, v.z)).collect();
+    let n = p.len().max(1) as f64;
+    let (mp, mq) = (
+        p.iter().sum::<Vector3<f64>>() / n,
+        q.iter().sum::<Vector3<f64>>() / n,
+    );
+    let h: Matrix3<f64> = q
+        .iter()
+        .zip(p)
+        .map(|(a, b)| (a - mq) * (b - mp).transpose())
+        .sum();
+    let svd = h.svd(true, true);
+    let (u, vt) = match (svd.u, svd.v_t) {
+        (Some(u), Some(vt)) => (u, vt),
+        _ => return crate::model::geometry::Iso3::identity(),
+    };
+    let d = (vt.transpose() * u.transpose()).determinant().signum();
+    let r = vt.transpose() * Matrix3::from_diagonal(&Vector3::new(1.0, 1.0, d)) * u.transpose();
+    crate::model::geometry::iso_from_parts(&r, &(mp - r * mq))
 }
 
 /// How far two solutions put the sphere on the same sides of the profile planes:
@@ -253,15 +315,25 @@ pub(super) fn mirror(
     let o = kept_only(popts);
     let chosen = profile_adjustment(&sub, &start_at(fit, mirror_start.diameter_free), &o)?;
     let centres = centres_in_sensor(fit);
-    let ssr_m = match profile_adjustment(&sub, mirror_start, &o) {
-        // The mirrored start may fall back to the chosen solution (the sides flip back):
-        // then there is no mirror minimum at all.
-        Ok(m) if side_agreement(&centres, &centres_in_sensor(&m)) < 0.0 => m.ssr,
-        Ok(_) => f64::INFINITY,
-        // a mirror that cannot even be solved does not fit
-        Err(_) => f64::INFINITY,
+    // Two starts of the mirror: the closed form with every side flipped, and the chosen
+    // solution moved by the proper motion that best maps the mirrored centres onto the
+    // chosen ones (exact when they are coplanar: then the mirror fits exactly as well).
+    let kabsch = ProfileStart {
+        hand_sensor: fit.hand_sensor * mirror_motion(&centres),
+        ..start_at(fit, mirror_start.diameter_free)
     };
-    let s2 = (fit.sigma_mm * fit.sigma_mm).max(1e-300);
+    let ssr_m = [mirror_start, &kabsch]
+        .into_iter()
+        .filter_map(|st| match profile_adjustment(&sub, st, &o) {
+            // A start whose adjustment flips the sides back (to the chosen solution)
+            // found no mirror minimum; one that cannot be solved does not fit.
+            Ok(m) if side_agreement(&centres, &centres_in_sensor(&m)) < 0.0 => Some(m.ssr),
+            _ => None,
+        })
+        .fold(f64::INFINITY, f64::min);
+    // the residuals' variance, with the views' shared pose errors (the view-clustered
+    // factor): a chi-square in units of what the data can tell apart
+    let s2 = (fit.sigma_mm * fit.sigma_mm * fit.view_variance_factor).max(1e-300);
     let delta = (ssr_m - chosen.ssr) / s2 * step as f64;
     Ok(MirrorTest {
         ssr_chosen_mm2: chosen.ssr * step as f64,

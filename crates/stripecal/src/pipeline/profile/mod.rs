@@ -32,8 +32,8 @@ use crate::calib::joint::profile::{
 };
 use crate::calib::joint::{RobotMode, RobotOptions};
 use crate::calib::profile::arc::{find_arc, Arc, ArcOptions};
-use crate::model::geometry::Iso3;
 use crate::error::{Error, Result};
+use crate::model::geometry::Iso3;
 use crate::model::{
     Profile, ProfileDataset, ProfileRig, ProfilerCalibration, QualityCheck, QualityFailure,
     RobotReading,
@@ -171,8 +171,16 @@ pub fn calibrate_profiles(
             }
         }
     }
-    let up = found.iter().flatten().filter(|(_, arc)| arc.side > 0.0).count();
-    let side = if 2 * up >= found.iter().flatten().count() { 1.0 } else { -1.0 };
+    let up = found
+        .iter()
+        .flatten()
+        .filter(|(_, arc)| arc.side > 0.0)
+        .count();
+    let side = if 2 * up >= found.iter().flatten().count() {
+        1.0
+    } else {
+        -1.0
+    };
     let forced = ArcOptions {
         side: Some(side),
         ..aopts
