@@ -97,6 +97,7 @@ from stripecal.calib import (
     fit_laser_plane,
     plan_poses,
     ProfilerCalibration,
+    profiler_start,
     solve_axzb,
     solve_axzb_full,
 )
@@ -172,6 +173,7 @@ __all__ = [
     "Profile",
     "ProfileDataset",
     "ProfilerCalibration",
+    "profiler_start",
     "pose_to_matrix",
     "read_ply",
     "read_profile",

@@ -33,6 +33,7 @@ from stripecal.types import (
     PlyCloud,
     ProfilerExtraInput,
     ProfilerQuality,
+    ProfilerStart,
     ProfilerUncertainty,
     ProfilerUncertaintyInput,
     PosePlan,
@@ -111,6 +112,7 @@ __all__ = [
     "measure_sphere",
     "nearest_rotation",
     "plan_poses",
+    "profiler_start",
     "pose_to_matrix",
     "read_ply",
     "reconstruct",
@@ -794,6 +796,7 @@ def calibrate(
     robot: str = "fixed",
     board_stripe_bias: bool = True,
 ) -> Union[Calibration, ProfilerCalibration]: ...
+def profiler_start(dataset: Union[ProfileDataset, _Path]) -> ProfilerStart: ...
 def plan_poses(
     rig: Union[_Path, Rig, Dataset],
     nominal: Union[_Path, Calibration, Truth],

@@ -12,7 +12,9 @@ robot-world ``Z = T_base_board``.
   cylinder with its sigma, a :class:`~stripecal.types.Flatness`; docs/flatness.md).
 - :class:`ProfilerCalibration`: a calibrated line profiler's result (``T_hand_sensor``,
   the reference sphere, the robot; calibration.json with ``"sensor": {"kind":
-  "profiler"}``, read and written by ``stripecal.io``).
+  "profiler"}``, read and written by ``stripecal.io``); ``profiler_start`` (a profile
+  dataset -> the closed-form start and the arcs' points its adjustment starts from, to
+  start another solver from the same place).
 - The stages on their own: ``calibrate_camera``, ``fit_laser_plane``, ``solve_axzb`` /
   ``solve_axzb_full`` (``A_i X = Z B_i``).
 
@@ -27,6 +29,7 @@ from stripecal._core import board_flatness as board_flatness
 from stripecal._core import fit_laser_plane as fit_laser_plane
 from stripecal._core import plan_poses as plan_poses
 from stripecal._core import ProfilerCalibration as ProfilerCalibration
+from stripecal._core import profiler_start as profiler_start
 from stripecal._core import solve_axzb as solve_axzb
 from stripecal._core import solve_axzb_full as solve_axzb_full
 
@@ -38,6 +41,7 @@ __all__ = [
     "fit_laser_plane",
     "plan_poses",
     "ProfilerCalibration",
+    "profiler_start",
     "solve_axzb",
     "solve_axzb_full",
 ]

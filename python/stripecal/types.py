@@ -73,6 +73,7 @@ __all__ = [
     "ProfilerStand",
     "ProfilerSummary",
     "ProfilerTruth",
+    "ProfilerStart",
     "ProfilerTruthView",
     "ProfilerViewCounts",
     "QualityCheck",
@@ -905,6 +906,28 @@ class ProfilerRobot(TypedDict):
 
     name: str
     joints: List[TwinDhRow]
+
+
+class ProfilerStart(TypedDict):
+    """What ``stripecal.profiler_start`` returns: the first two steps of a profiler's
+    calibration (the arcs, the consensus and its closed-form start)."""
+
+    views: List[int]
+    """The views.csv rows kept (0-based)."""
+    flanges: F64
+    """(N, 4, 4): ``T_base_hand`` of their readings, mm."""
+    points: List[F64]
+    """Per kept view (M_i, 2): its arc's points ``x_mm, z_mm`` in the profiler frame."""
+    hand_sensor: F64
+    """(4, 4): the closed-form start's ``T_hand_sensor``."""
+    centre_mm: F64
+    """(3,): the start's sphere centre, base frame."""
+    diameter_mm: float
+    """The declared diameter, or the start's when not declared."""
+    diameter_free: bool
+    """rig.json's ``diameter_mm`` is null (the adjustment estimates it)."""
+    warnings: List[str]
+    """The views left out, named, and why."""
 
 
 class ProfilerTruthView(TypedDict):

@@ -271,7 +271,7 @@ pub fn calibrate(
             return Err(crate::errors::invalid_input(
                 py,
                 format!(
-                    "{name} is an option of a camera's calibration; this dataset is a line                      profiler's (rig.json sensor.kind = \"profiler\")"
+                    "{name} is an option of a camera's calibration; this dataset is a line profiler's (rig.json sensor.kind = \"profiler\")"
                 ),
             ));
         }

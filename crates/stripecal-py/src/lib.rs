@@ -18,6 +18,7 @@ mod measure_py;
 mod plan_py;
 mod poses;
 mod profile_py;
+mod profile_start_py;
 mod reconstruct_py;
 mod results;
 mod rig;
@@ -76,6 +77,7 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(profile_py::load_profile_dataset, m)?)?;
     m.add_function(wrap_pyfunction!(profile_py::read_profiler_calibration, m)?)?;
     m.add_function(wrap_pyfunction!(profile_py::write_profiler_calibration, m)?)?;
+    m.add_function(wrap_pyfunction!(profile_start_py::profiler_start, m)?)?;
     m.add_function(wrap_pyfunction!(poses::pose_to_matrix, m)?)?;
     m.add_function(wrap_pyfunction!(poses::matrix_to_pose, m)?)?;
 

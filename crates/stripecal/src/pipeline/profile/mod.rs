@@ -23,17 +23,15 @@
 mod checks;
 mod consensus;
 mod loo;
+mod prepare;
 mod record;
 
 use nalgebra::Vector3;
 
-use crate::calib::joint::profile::{
-    profile_adjustment, ProfileFit, ProfileOptions, ProfileStart, ProfileViewObs,
-};
+use crate::calib::joint::profile::{profile_adjustment, ProfileFit, ProfileOptions};
 use crate::calib::joint::{RobotMode, RobotOptions};
-use crate::calib::profile::arc::{find_arc, Arc, ArcOptions};
+use crate::calib::profile::arc::ArcOptions;
 use crate::error::{Error, Result};
-use crate::model::geometry::Iso3;
 use crate::model::{
     Profile, ProfileDataset, ProfileRig, ProfilerCalibration, QualityCheck, QualityFailure,
     RobotReading,
@@ -41,6 +39,7 @@ use crate::model::{
 
 pub use checks::{DiameterCheck, MirrorTest};
 pub use loo::{ProfileLoo, ProfileLooView};
+pub use prepare::{prepare, Prepared};
 
 /// One profile of the dataset, read.
 #[derive(Debug, Clone, PartialEq)]
@@ -128,16 +127,7 @@ pub fn calibrate_profiles(
     rig: &ProfileRig,
     opts: &ProfileCalibrateOptions,
 ) -> Result<ProfileReport> {
-    if inputs.is_empty() {
-        return Err(Error::Degenerate("no profiles to calibrate from".into()));
-    }
-    if inputs.iter().any(|i| i.reading == RobotReading::Fixed) {
-        return Err(Error::InvalidInput(
-            "a profiler is calibrated from robot poses: views.csv needs joint readings or \
-             flange-pose columns beside the profile column"
-                .into(),
-        ));
-    }
+    prepare::check_inputs(inputs)?;
     let robot = match opts.robot {
         RobotMode::Fixed => None,
         mode => Some(RobotOptions {
@@ -152,96 +142,16 @@ pub fn calibrate_profiles(
     };
     let mut warnings = Vec::new();
     let mut status: Vec<ProfileViewStatus> = inputs.iter().map(status_of).collect();
-    // 1. arcs; their side (which way z counts) is the profiler's, one for all views: a
-    // view whose best arc says otherwise is searched again on the majority's side
-    let aopts = arc_options(rig);
-    let mut found: Vec<Option<(Iso3, Arc)>> = Vec::with_capacity(inputs.len());
-    for (k, inp) in inputs.iter().enumerate() {
-        let a = inp
-            .reading
-            .base_hand(rig.robot.as_ref())
-            .map_err(|e| Error::InvalidInput(format!("{}: {e}", view_name(inp))))?;
-        match find_arc(&inp.profile.points, &aopts, inp.view as u64) {
-            Ok(arc) => found.push(Some((a, arc))),
-            Err(why) => {
-                let note = format!("{}: {why}; left out", view_name(inp));
-                warnings.push(note.clone());
-                status[k].note = Some(note);
-                found.push(None);
-            }
-        }
-    }
-    let up = found
-        .iter()
-        .flatten()
-        .filter(|(_, arc)| arc.side > 0.0)
-        .count();
-    let side = if 2 * up >= found.iter().flatten().count() {
-        1.0
-    } else {
-        -1.0
-    };
-    let forced = ArcOptions {
-        side: Some(side),
-        ..aopts
-    };
-    let mut obs: Vec<ProfileViewObs> = Vec::new();
-    let mut arcs = Vec::new();
-    for (k, (inp, f)) in inputs.iter().zip(found).enumerate() {
-        let Some((a, mut arc)) = f else { continue };
-        if arc.side != side {
-            match find_arc(&inp.profile.points, &forced, inp.view as u64) {
-                Ok(again) => arc = again,
-                Err(why) => {
-                    let note = format!(
-                        "{}: its best arc bulges away from the sensor, the other profiles' \
-                         towards it, and on their side {why}; left out",
-                        view_name(inp)
-                    );
-                    warnings.push(note.clone());
-                    status[k].note = Some(note);
-                    continue;
-                }
-            }
-        }
-        status[k].arc_points = arc.inliers.len();
-        obs.push(ProfileViewObs {
-            view: inp.view,
-            a,
-            q: match &inp.reading {
-                RobotReading::Joints(q) => Some(q.clone()),
-                _ => None,
-            },
-            points: inp.profile.points.clone(),
-            arc: arc.inliers.clone(),
-        });
-        arcs.push(arc);
-    }
-    // 2. consensus and the start
-    let cons = consensus::consensus(&obs, &arcs, rig.diameter_mm.map(|d| 0.5 * d))?;
-    for (row, note) in &cons.left_out {
-        if let Some(s) = status.iter_mut().find(|s| s.view == *row) {
-            s.note = Some(note.clone());
-        }
-        warnings.push(note.clone());
-    }
-    let obs: Vec<ProfileViewObs> = obs
-        .into_iter()
-        .filter(|o| !cons.left_out.iter().any(|(r, _)| *r == o.view))
-        .collect();
+    // 1. arcs, 2. consensus and the start
+    let (obs, starts) = prepare::arcs_and_consensus(inputs, rig, &mut status, &mut warnings)?;
     let popts = ProfileOptions {
         robot: robot.clone(),
         ..ProfileOptions::default()
     };
-    let start_of = |s: &crate::calib::profile::start::Start| ProfileStart {
-        hand_sensor: s.hand_sensor,
-        centre: s.centre,
-        diameter: rig.diameter_mm.unwrap_or(2.0 * s.radius),
-        diameter_free: rig.diameter_mm.is_none(),
-    };
+    let start_of = |s| prepare::start_of(rig, s);
     // 3. the adjustment, its views judged
-    let mut fit = profile_adjustment(&obs, &start_of(&cons.starts.chosen), &popts)?;
-    let (obs, left) = checks::poor_views(obs, &mut fit, &start_of(&cons.starts.chosen), &popts)?;
+    let mut fit = profile_adjustment(&obs, &start_of(&starts.chosen), &popts)?;
+    let (obs, left) = checks::poor_views(obs, &mut fit, &start_of(&starts.chosen), &popts)?;
     for (row, note) in left {
         if let Some(s) = status.iter_mut().find(|s| s.view == row) {
             s.note = Some(note.clone());
@@ -249,7 +159,7 @@ pub fn calibrate_profiles(
         warnings.push(note);
     }
     // 4. the mirror
-    let mirror = checks::mirror(&obs, &fit, &start_of(&cons.starts.mirror), &popts)?;
+    let mirror = checks::mirror(&obs, &fit, &start_of(&starts.mirror), &popts)?;
     // 5. gates and checks
     let mut checks_out: Vec<QualityCheck> = vec![
         checks::views_check(&status, obs.len()),
@@ -316,9 +226,14 @@ pub fn calibrate_profile_dataset_loaded(
     ds: &ProfileDataset,
     opts: &ProfileCalibrateOptions,
 ) -> Result<ProfileReport> {
+    calibrate_profiles(&profile_inputs(ds)?, &ds.rig, opts)
+}
+
+/// A loaded profile dataset's profiles, read in parallel, with their readings (a
+/// malformed file is an error naming it and the line).
+pub fn profile_inputs(ds: &ProfileDataset) -> Result<Vec<ProfileInput>> {
     use rayon::prelude::*;
-    let inputs = ds
-        .views
+    ds.views
         .par_iter()
         .enumerate()
         .map(|(i, v)| {
@@ -330,8 +245,7 @@ pub fn calibrate_profile_dataset_loaded(
                 reading: v.reading.clone(),
             })
         })
-        .collect::<Result<Vec<_>>>()?;
-    calibrate_profiles(&inputs, &ds.rig, opts)
+        .collect()
 }
 
 /// `view 3 (views.csv line 5, profiles/p3.csv)`.

@@ -4,6 +4,8 @@
 use nalgebra::{Point3, Vector3};
 
 use super::*;
+use crate::calib::joint::profile::ProfileViewObs;
+use crate::calib::profile::arc::find_arc;
 use crate::model::geometry::{iso_from_parts, iso_from_rotvec, rotvec_to_matrix, Iso3};
 use crate::numerics::rng::SplitMix64;
 
