@@ -132,17 +132,13 @@ def test_a_declared_diameter_1mm_off_is_contradicted(
 # ---------------------------------------------------------------------------- (c)
 
 
-# Swapping (2, 9), (2, 8), (0, 1) or (5, 6) of seed 4 is NOT found by the core: the
-# calibration passes every gate with the hand-eye 6-46 deg / 25-158 mm off and a profile
-# RMS of 3.7-6.4 mm (the noise is 0.01 mm); the leave-one-out marks the two views as
-# disagreeing but no gate fails. (7, 9) and (3, 11) are found. Reported with issue 18.
-SWAP_MISSED = "core defect: the consensus keeps both swapped views and no gate fails (hand-eye 6.1 deg / 25 mm off for (2, 9))"
+# Pairs of seed 4's views swapped: each pair is found whatever the two poses (the
+# consensus leaves out the view whose removal leaves the others most consistent).
 
 
 @pytest.mark.parametrize(
     "i, j",
-    [(7, 9), (3, 11), pytest.param(2, 9, marks=pytest.mark.xfail(strict=True, reason=SWAP_MISSED)),
-     pytest.param(0, 1, marks=pytest.mark.xfail(strict=True, reason=SWAP_MISSED))],
+    [(7, 9), (3, 11), (2, 9), (0, 1), (2, 8), (5, 6)],
 )
 def test_two_swapped_poses_are_both_named_and_left_out(
     twins: Dict[str, Path], tmp_path: Path, capsys: pytest.CaptureFixture[str], i: int, j: int
@@ -169,13 +165,7 @@ def test_two_swapped_poses_are_both_named_and_left_out(
 
 # ---------------------------------------------------------------------------- (d)
 
-
 MODES = ["same_standoff", "same_place", "same_offset"]
-# The mirror gate's message names "one tilted plane (spread across it 0.000 mm)" for all
-# three: MirrorTest::plane prefers the tilted plane whenever its spread is below half the
-# smallest axis spread, and for an exact axis plane both are noise (e.g. same_standoff:
-# z 0.0002 mm, across 0.0001 mm). Reported with issue 18.
-PLANE_UNNAMED = "core defect: MirrorTest::plane names 'one tilted plane' when the centres share a sensor axis coordinate"
 
 
 @pytest.mark.parametrize("mode", MODES)
@@ -197,7 +187,6 @@ def test_centres_in_one_plane_fail_the_mirror_check(
     assert spread[held] < 0.01 and min(v for k, v in spread.items() if k in "xyz" and k != held) > 5.0, spread
 
 
-@pytest.mark.xfail(strict=True, reason=PLANE_UNNAMED)
 @pytest.mark.parametrize(
     "mode, plane",
     [("same_standoff", "the same stand-off"), ("same_place", "the same place along the line"),
