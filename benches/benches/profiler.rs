@@ -12,7 +12,7 @@
 use criterion::{criterion_group, criterion_main, Criterion};
 use std::hint::black_box;
 
-use stripecal::model::{Profile, ProfileRig, RobotReading};
+use stripecal::model::ProfileRig;
 use stripecal::pipeline::profile::{calibrate_profiles, ProfileCalibrateOptions, ProfileInput};
 use stripecal_sim::{SimConfig, Twin};
 
@@ -22,36 +22,7 @@ fn inputs() -> (Vec<ProfileInput>, ProfileRig) {
         .with_overrides(&serde_json::json!({"profiler": {"line_length_mm": 75.0, "views": 15}}))
         .unwrap();
     cfg.seed = 1;
-    let twin = Twin::new(cfg).unwrap();
-    let views = twin.profiler_views().unwrap();
-    let inputs: Vec<ProfileInput> = views
-        .iter()
-        .enumerate()
-        .map(|(i, v)| {
-            let samples = twin.profiler_profile(v, Some(i as u64));
-            let points: Vec<[f64; 2]> = samples
-                .iter()
-                .filter_map(|s| s.z_mm.map(|z| [s.x_mm, z]))
-                .collect();
-            ProfileInput {
-                view: i,
-                line: i + 2,
-                file: format!("profiles/view_{i:03}.csv"),
-                profile: Profile {
-                    gaps: samples.len() - points.len(),
-                    points,
-                },
-                reading: RobotReading::Joints(v.q_deg.clone()),
-            }
-        })
-        .collect();
-    let cfg = &twin.cfg;
-    let rig = ProfileRig {
-        robot: Some(cfg.robot_nominal().unwrap()),
-        invalid_z: cfg.profiler.invalid_z,
-        diameter_mm: cfg.profiler.declared_diameter(),
-    };
-    (inputs, rig)
+    Twin::new(cfg).unwrap().profiler_inputs().unwrap()
 }
 
 fn bench_profiler(c: &mut Criterion) {

@@ -65,6 +65,21 @@ fn options(
     Ok(o)
 }
 
+/// The measurement of `shape` in a scan's points, as JSON.
+fn measure_shape(
+    shape: Shape,
+    model: &stripecal::reconstruct::UncertaintyModel,
+    readings: &[RobotReading],
+    points: &stripecal::reconstruct::ScanPoints,
+    opts: &MeasureOptions,
+) -> Result<Value> {
+    Ok(match shape {
+        Shape::Sphere => measure_scan_sphere(model, readings, points, opts)?.to_json(),
+        Shape::BallBar => measure_scan_ball_bar(model, readings, points, opts)?.to_json(),
+        Shape::Plane => measure_scan_plane(model, readings, points, opts)?.to_json(),
+    })
+}
+
 #[allow(clippy::too_many_arguments)]
 fn measure(
     py: Python<'_>,
@@ -110,13 +125,7 @@ fn measure(
             }
             let model = scan_uncertainty_model(cal, &scan, &opts.uncertainty)?;
             let readings = scan_readings(&scan);
-            Ok(match shape {
-                Shape::Sphere => measure_scan_sphere(&model, &readings, &points, &opts)?.to_json(),
-                Shape::BallBar => {
-                    measure_scan_ball_bar(&model, &readings, &points, &opts)?.to_json()
-                }
-                Shape::Plane => measure_scan_plane(&model, &readings, &points, &opts)?.to_json(),
-            })
+            measure_shape(shape, &model, &readings, &points, &opts)
         })
         .py_err(py)?;
     Ok(json_to_py(py, &v)?.unbind())
@@ -160,13 +169,7 @@ fn measure_profile_scan(
             }
             let model = profiler_uncertainty_model(cal, &opts.uncertainty)?;
             let readings: Vec<RobotReading> = frames.iter().map(|f| f.0.clone()).collect();
-            Ok(match shape {
-                Shape::Sphere => measure_scan_sphere(&model, &readings, &points, &opts)?.to_json(),
-                Shape::BallBar => {
-                    measure_scan_ball_bar(&model, &readings, &points, &opts)?.to_json()
-                }
-                Shape::Plane => measure_scan_plane(&model, &readings, &points, &opts)?.to_json(),
-            })
+            measure_shape(shape, &model, &readings, &points, &opts)
         })
         .py_err(py)?;
     Ok(json_to_py(py, &v)?.unbind())

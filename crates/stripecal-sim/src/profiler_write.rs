@@ -365,6 +365,52 @@ impl Twin {
     }
 }
 
+impl Twin {
+    /// The calibration views as the profiler calibration reads them, in memory (no
+    /// files): each view's profile (gaps skipped and counted, as a reader would) with its
+    /// joint readings, and the rig (the NOMINAL robot, the declared diameter) — for tests
+    /// and benchmarks that skip the files.
+    pub fn profiler_inputs(
+        &self,
+    ) -> Result<
+        (
+            Vec<stripecal::pipeline::profile::ProfileInput>,
+            stripecal::model::ProfileRig,
+        ),
+        SimError,
+    > {
+        use stripecal::model::{Profile, RobotReading};
+        let inputs = self
+            .profiler_views()?
+            .iter()
+            .enumerate()
+            .map(|(i, v)| {
+                let samples = self.profiler_profile(v, Some(i as u64));
+                let points: Vec<[f64; 2]> = samples
+                    .iter()
+                    .filter_map(|s| s.z_mm.map(|z| [s.x_mm, z]))
+                    .collect();
+                stripecal::pipeline::profile::ProfileInput {
+                    view: i,
+                    line: i + 2,
+                    file: format!("profiles/view_{i:03}.csv"),
+                    profile: Profile {
+                        gaps: samples.len() - points.len(),
+                        points,
+                    },
+                    reading: RobotReading::Joints(v.q_deg.clone()),
+                }
+            })
+            .collect();
+        let rig = stripecal::model::ProfileRig {
+            robot: Some(self.cfg.robot_nominal()?),
+            invalid_z: self.cfg.profiler.invalid_z,
+            diameter_mm: self.cfg.profiler.declared_diameter(),
+        };
+        Ok((inputs, rig))
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -7,7 +7,7 @@ use nalgebra::{Point3, Vector3};
 use serde_json::json;
 
 use stripecal::calib::joint::RobotMode;
-use stripecal::model::{Profile, ProfileRig, RobotReading};
+use stripecal::model::{ProfileRig, RobotReading};
 use stripecal::pipeline::profile::{
     calibrate_profiles, ProfileCalibrateOptions, ProfileInput, ProfileReport,
 };
@@ -20,34 +20,7 @@ fn twin(seed: u64, overrides: serde_json::Value) -> (Twin, Vec<ProfileInput>, Pr
         .unwrap();
     cfg.seed = seed;
     let twin = Twin::new(cfg).unwrap();
-    let views = twin.profiler_views().unwrap();
-    let inputs = views
-        .iter()
-        .enumerate()
-        .map(|(i, v)| {
-            let samples = twin.profiler_profile(v, Some(i as u64));
-            let points: Vec<[f64; 2]> = samples
-                .iter()
-                .filter_map(|s| s.z_mm.map(|z| [s.x_mm, z]))
-                .collect();
-            ProfileInput {
-                view: i,
-                line: i + 2,
-                file: format!("profiles/view_{i:03}.csv"),
-                profile: Profile {
-                    gaps: samples.len() - points.len(),
-                    points,
-                },
-                reading: RobotReading::Joints(v.q_deg.clone()),
-            }
-        })
-        .collect();
-    let cfg = &twin.cfg;
-    let rig = ProfileRig {
-        robot: Some(cfg.robot_nominal().unwrap()),
-        invalid_z: cfg.profiler.invalid_z,
-        diameter_mm: cfg.profiler.declared_diameter(),
-    };
+    let (inputs, rig) = twin.profiler_inputs().unwrap();
     (twin, inputs, rig)
 }
 

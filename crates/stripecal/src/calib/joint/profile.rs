@@ -149,6 +149,25 @@ struct Terms {
     a: Vec<Iso3>,
 }
 
+impl Terms {
+    /// The points `selected` (per view, indices into its points) of `views`, their
+    /// flange poses `a`.
+    fn of(views: &[ProfileViewObs], selected: &[Vec<usize>], a: &[Iso3]) -> Terms {
+        Terms {
+            points: views
+                .iter()
+                .zip(selected)
+                .enumerate()
+                .flat_map(|(v, (o, sel))| {
+                    sel.iter()
+                        .map(move |&i| (v, o.points[i][0], o.points[i][1]))
+                })
+                .collect(),
+            a: a.to_vec(),
+        }
+    }
+}
+
 struct ProfileProblem<'a> {
     layout: &'a ParamLayout,
     terms: &'a Terms,
@@ -318,18 +337,7 @@ fn solve(
     selected: &[Vec<usize>],
     lm: &LmOptions,
 ) -> Result<crate::numerics::lm::LmResult> {
-    let terms = Terms {
-        points: views
-            .iter()
-            .zip(selected)
-            .enumerate()
-            .flat_map(|(v, (o, sel))| {
-                sel.iter()
-                    .map(move |&i| (v, o.points[i][0], o.points[i][1]))
-            })
-            .collect(),
-        a: a.to_vec(),
-    };
+    let terms = Terms::of(views, selected, a);
     if terms.points.len() <= layout.num_params() {
         return Err(Error::Degenerate(format!(
             "{} sphere points for {} unknowns",
@@ -397,18 +405,7 @@ fn view_variance_factor(
         return Ok(1.0);
     };
     // the layout's flanges come from its robot block: rows at the fit's poses
-    let terms = Terms {
-        points: views
-            .iter()
-            .zip(selected)
-            .enumerate()
-            .flat_map(|(v, (o, sel))| {
-                sel.iter()
-                    .map(move |&i| (v, o.points[i][0], o.points[i][1]))
-            })
-            .collect(),
-        a: flanges.to_vec(),
-    };
+    let terms = Terms::of(views, selected, flanges);
     let prob = ProfileProblem {
         layout,
         terms: &terms,
@@ -525,18 +522,7 @@ pub fn profile_adjustment(
                 readings: readings.clone(),
             };
             let lc = ParamLayout::profiler(&cur.0, true, cur.1, &ids, Some(block));
-            let terms = Terms {
-                points: views
-                    .iter()
-                    .zip(&selected)
-                    .enumerate()
-                    .flat_map(|(v, (o, sel))| {
-                        sel.iter()
-                            .map(move |&i| (v, o.points[i][0], o.points[i][1]))
-                    })
-                    .collect(),
-                a: a.clone(),
-            };
+            let terms = Terms::of(views, &selected, &a);
             let prob = ProfileProblem {
                 layout: &lc,
                 terms: &terms,
