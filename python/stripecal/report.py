@@ -27,7 +27,7 @@ import numpy as np
 import numpy.typing as npt
 
 import stripecal
-from stripecal.types import CameraSigma, PlaneSigma, PoseSigma
+from stripecal.types import CalibrationQuality, CameraSigma, PlaneSigma, PoseSigma, ProfilerQuality
 
 _Path = Union[str, "os.PathLike[str]"]
 F64 = npt.NDArray[np.float64]
@@ -283,7 +283,7 @@ img{{max-width:100%}} figure{{margin:1em 0}}</style></head><body>
 <p>method <b>{html.escape(str(e.get('method', '?')))}</b>, camera model {html.escape(cal.camera.distortion_model)},
 {q['views_used']} views used. Residual RMS: circles <b>{q['circle_rms_px']:.4f} px</b>,
 stripe <b>{q['stripe_rms_px']:.4f} px</b> ({float(e.get('stripe_rms_mm') or float('nan')):.4f} mm){'' if cal.laser_plane is not None else ' (laser plane not estimated: no laser images)'}.</p>
-{_checks_html(cal)}
+{checks_html(cal.quality)}
 {('<h2>Warnings</h2><ul>' + warn + '</ul>') if warn else ''}
 <h2>Parameters</h2>
 <table><tr><th>parameter</th><th>value</th><th>1 sigma</th><th>true</th><th>error</th></tr>{''.join(tr)}</table>
@@ -307,9 +307,9 @@ def write_html(out: Path, doc: str) -> Path:
     return path
 
 
-def _checks_html(cal: stripecal.Calibration) -> str:
-    """The quality gates' verdicts, and a banner when a failed calibration was kept."""
-    q = cal.quality
+def checks_html(q: Union[CalibrationQuality, ProfilerQuality]) -> str:
+    """The quality gates' verdicts of a calibration's ``quality`` (a camera's or a line
+    profiler's), and a banner when a failed calibration was kept."""
     checks = q.get("checks", [])
     if not checks:
         return ""

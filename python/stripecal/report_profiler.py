@@ -22,7 +22,7 @@ from typing import Any, List, Mapping, Optional, Union
 
 import stripecal
 from stripecal.cli_profiler import parameter_rows
-from stripecal.report import _pyplot, _save, write_html
+from stripecal.report import _pyplot, _save, checks_html, write_html
 
 _Path = Union[str, "os.PathLike[str]"]
 
@@ -103,15 +103,6 @@ def write_profiler_report(out_dir: _Path, calibration: stripecal.ProfilerCalibra
         vr.append(f"<tr{bad}><td>{v.get('view')}</td><td>{'yes' if v.get('used') else 'no'}</td><td>{v.get('points')}</td>"
                   f"<td>{v.get('gaps')}</td><td>{v.get('sphere_points')}</td><td>{v.get('rejected')}</td>"
                   f"<td>{'' if rms is None else f'{rms:.4f}'}</td><td style=\"text-align:left\">{html.escape(str(v.get('note') or ''))}</td></tr>")
-    rows = []
-    for c in q.get("checks", []):
-        style = "" if c["passed"] else ' style="color:#b00"'
-        rows.append(f"<tr{style}><td>{html.escape(c['name'])}</td><td>{'passed' if c['passed'] else 'FAILED'}</td>"
-                    f"<td style=\"text-align:left\">{html.escape(c['message'])}</td></tr>")
-    checks = "".join(rows)
-    banner = ('<p style="color:#fff;background:#b00;padding:0.5em"><b>ACCEPTED POOR</b>: this calibration failed '
-              "a quality check and was kept with --accept-poor. Do not use it to accept or reject parts.</p>"
-              if q.get("accepted_poor") else "")
     warnings = e.get("warnings")
     warn = "".join(f"<li>{html.escape(str(w))}</li>" for w in (warnings if isinstance(warnings, list) else []))
     m = _map(e.get("mirror"))
@@ -135,7 +126,7 @@ img{{max-width:100%}} figure{{margin:1em 0}}</style></head><body>
 <h1>{html.escape(title)}</h1>
 <p>{q['views_used']} profiles used; profile RMS <b>{q['profile_rms_mm']:.4f} mm</b>.</p>
 <ul>{''.join(f'<li>{html.escape(x)}</li>' for x in facts)}</ul>
-<h2>Quality checks</h2>{banner}<table><tr><th>check</th><th>verdict</th><th>figures</th></tr>{checks}</table>
+{checks_html(q)}
 {('<h2>Warnings</h2><ul>' + warn + '</ul>') if warn else ''}
 <h2>Parameters</h2>
 <table><tr><th>parameter</th><th>value</th><th>1 sigma</th></tr>{prm}</table>

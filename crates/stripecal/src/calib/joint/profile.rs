@@ -181,7 +181,28 @@ struct ViewState {
     twists: Vec<[f64; 6]>,
 }
 
+/// What every point shares at a parameter vector: `X`'s rotation and translation, the
+/// sphere's centre and radius, every view's flange pose.
+struct State {
+    rx: Matrix3<f64>,
+    tx: Vector3<f64>,
+    c: Vector3<f64>,
+    rho: f64,
+    views: Vec<ViewState>,
+}
+
 impl ProfileProblem<'_> {
+    fn state(&self, p: &[f64]) -> State {
+        let x = self.layout.transform(p, Block::HandCam);
+        State {
+            rx: x.rotation.to_rotation_matrix().into_inner(),
+            tx: x.translation.vector,
+            c: self.layout.sphere_centre(p),
+            rho: 0.5 * self.layout.sphere_diameter(p),
+            views: self.views(p),
+        }
+    }
+
     fn views(&self, p: &[f64]) -> Vec<ViewState> {
         let (flanges, twists) = match &self.layout.robot {
             Some(rb) => {
@@ -210,14 +231,13 @@ impl LeastSquares for ProfileProblem<'_> {
         self.terms.points.len()
     }
     fn residuals(&self, p: &[f64], r: &mut [f64]) -> Result<()> {
-        let x = self.layout.transform(p, Block::HandCam);
-        let (rx, tx) = (
-            x.rotation.to_rotation_matrix().into_inner(),
-            x.translation.vector,
-        );
-        let c = self.layout.sphere_centre(p);
-        let rho = 0.5 * self.layout.sphere_diameter(p);
-        let views = self.views(p);
+        let State {
+            rx,
+            tx,
+            c,
+            rho,
+            views,
+        } = self.state(p);
         r.par_iter_mut()
             .zip(self.terms.points.par_iter())
             .for_each(|(out, &(v, px, pz))| {
@@ -245,14 +265,13 @@ impl LeastSquares for ProfileProblem<'_> {
         rows: &mut JacobianRows,
     ) -> Result<()> {
         let n = self.layout.num_params();
-        let x = self.layout.transform(p, Block::HandCam);
-        let (rx, tx) = (
-            x.rotation.to_rotation_matrix().into_inner(),
-            x.translation.vector,
-        );
-        let c = self.layout.sphere_centre(p);
-        let rho = 0.5 * self.layout.sphere_diameter(p);
-        let views = self.views(p);
+        let State {
+            rx,
+            tx,
+            c,
+            rho,
+            views,
+        } = self.state(p);
         let cx = self.layout.column(self.layout.slots(Block::HandCam).start);
         let cc = self.layout.slotless_columns(Block::SphereCentre);
         let cd = self.layout.slotless_columns(Block::SphereDiameter);

@@ -35,7 +35,7 @@
 use nalgebra::{DMatrix, DVector, Matrix3, SymmetricEigen, Vector3};
 
 use crate::error::{Error, Result};
-use crate::model::geometry::{iso_from_parts, Iso3};
+use crate::model::geometry::{iso_from_parts, nearest_rotation, Iso3};
 
 /// Views whose sides are chosen by trying every combination.
 pub const SIDE_SUBSET: usize = 8;
@@ -170,14 +170,6 @@ fn rotation_from(m: &Matrix3<f64>, p: &[Vector3<f64>]) -> Matrix3<f64> {
     let w = u.cross(&v) / (u.norm() * v.norm()).max(1e-300).sqrt();
     let rq = nearest_rotation(&Matrix3::from_columns(&[u, v, w]));
     rq * q.transpose()
-}
-
-/// The rotation nearest `m` (SVD, the determinant forced to +1).
-fn nearest_rotation(m: &Matrix3<f64>) -> Matrix3<f64> {
-    let svd = m.svd(true, true);
-    let (u, vt) = (svd.u.unwrap(), svd.v_t.unwrap());
-    let d = (u * vt).determinant().signum();
-    u * Matrix3::from_diagonal(&Vector3::new(1.0, 1.0, d)) * vt
 }
 
 /// `t`, `c` with `R` held, and every view's misfit.

@@ -22,6 +22,8 @@
 
 use nalgebra::{Matrix3, Point3, SymmetricEigen, Vector3};
 
+use crate::model::geometry::nearest_rotation;
+
 use crate::calib::joint::profile::{
     profile_adjustment, ProfileFit, ProfileOptions, ProfileStart, ProfileViewObs,
 };
@@ -132,7 +134,7 @@ impl DiameterCheck {
 }
 
 /// The start at a fit's values.
-fn start_at(fit: &ProfileFit, diameter_free: bool) -> ProfileStart {
+pub(super) fn start_at(fit: &ProfileFit, diameter_free: bool) -> ProfileStart {
     ProfileStart {
         hand_sensor: fit.hand_sensor,
         centre: fit.centre,
@@ -143,7 +145,7 @@ fn start_at(fit: &ProfileFit, diameter_free: bool) -> ProfileStart {
 
 /// The views with the fit's selection as their points to keep, every `step`-th, their
 /// flange poses the fit's (the robot held at the refined one).
-fn held(obs: &[ProfileViewObs], fit: &ProfileFit, step: usize) -> Vec<ProfileViewObs> {
+pub(super) fn held(obs: &[ProfileViewObs], fit: &ProfileFit, step: usize) -> Vec<ProfileViewObs> {
     obs.iter()
         .zip(&fit.selected)
         .zip(&fit.flanges)
@@ -156,7 +158,8 @@ fn held(obs: &[ProfileViewObs], fit: &ProfileFit, step: usize) -> Vec<ProfileVie
         .collect()
 }
 
-fn kept_only(popts: &ProfileOptions) -> ProfileOptions {
+/// The options of a solve over fixed points with the robot held (its poses the fit's).
+pub(super) fn kept_only(popts: &ProfileOptions) -> ProfileOptions {
     ProfileOptions {
         robot: None,
         keep_selection: true,
@@ -258,13 +261,8 @@ fn mirror_motion(p: &[Vector3<f64>]) -> crate::model::geometry::Iso3 {
         .zip(p)
         .map(|(a, b)| (a - mq) * (b - mp).transpose())
         .sum();
-    let svd = h.svd(true, true);
-    let (u, vt) = match (svd.u, svd.v_t) {
-        (Some(u), Some(vt)) => (u, vt),
-        _ => return crate::model::geometry::Iso3::identity(),
-    };
-    let d = (vt.transpose() * u.transpose()).determinant().signum();
-    let r = vt.transpose() * Matrix3::from_diagonal(&Vector3::new(1.0, 1.0, d)) * u.transpose();
+    // Kabsch: with H = U S V^T, R = V diag(1, 1, det) U^T, the rotation nearest H^T
+    let r = nearest_rotation(&h.transpose());
     crate::model::geometry::iso_from_parts(&r, &(mp - r * mq))
 }
 

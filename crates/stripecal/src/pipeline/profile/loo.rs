@@ -8,8 +8,9 @@
 use nalgebra::Point3;
 use rayon::prelude::*;
 
+use super::checks::{held, kept_only, start_at};
 use crate::calib::joint::profile::{
-    profile_adjustment, ProfileFit, ProfileOptions, ProfileStart, ProfileViewObs,
+    profile_adjustment, ProfileFit, ProfileOptions, ProfileViewObs,
 };
 use crate::error::Result;
 
@@ -62,28 +63,9 @@ pub(super) fn leave_one_out(
     fit: &ProfileFit,
     popts: &ProfileOptions,
 ) -> Result<ProfileLoo> {
-    let o = ProfileOptions {
-        robot: None,
-        keep_selection: true,
-        ..popts.clone()
-    };
-    let start = ProfileStart {
-        hand_sensor: fit.hand_sensor,
-        centre: fit.centre,
-        diameter: fit.diameter,
-        diameter_free: fit.covariance.index("sphere.diameter_mm").is_some(),
-    };
-    let held: Vec<ProfileViewObs> = obs
-        .iter()
-        .zip(&fit.selected)
-        .zip(&fit.flanges)
-        .map(|((v, s), a)| ProfileViewObs {
-            a: *a,
-            arc: s.clone(),
-            q: None,
-            ..v.clone()
-        })
-        .collect();
+    let o = kept_only(popts);
+    let start = start_at(fit, fit.covariance.index("sphere.diameter_mm").is_some());
+    let held = held(obs, fit, 1);
     let mut views: Vec<ProfileLooView> = (0..held.len())
         .into_par_iter()
         .map(|k| -> Result<ProfileLooView> {

@@ -148,10 +148,10 @@ pub fn calibrate_profiles(
         robot: robot.clone(),
         ..ProfileOptions::default()
     };
-    let start_of = |s| prepare::start_of(rig, s);
+    let start = prepare::start_of(rig, &starts.chosen);
     // 3. the adjustment, its views judged
-    let mut fit = profile_adjustment(&obs, &start_of(&starts.chosen), &popts)?;
-    let (obs, left) = checks::poor_views(obs, &mut fit, &start_of(&starts.chosen), &popts)?;
+    let mut fit = profile_adjustment(&obs, &start, &popts)?;
+    let (obs, left) = checks::poor_views(obs, &mut fit, &start, &popts)?;
     for (row, note) in left {
         if let Some(s) = status.iter_mut().find(|s| s.view == row) {
             s.note = Some(note.clone());
@@ -159,9 +159,9 @@ pub fn calibrate_profiles(
         warnings.push(note);
     }
     // 4. the mirror
-    let mirror = checks::mirror(&obs, &fit, &start_of(&starts.mirror), &popts)?;
+    let mirror = checks::mirror(&obs, &fit, &prepare::start_of(rig, &starts.mirror), &popts)?;
     // 5. gates and checks
-    let mut checks_out: Vec<QualityCheck> = vec![
+    let checks_out: Vec<QualityCheck> = vec![
         checks::views_check(&status, obs.len()),
         mirror.check(),
         checks::determined(&fit),
@@ -174,7 +174,6 @@ pub fn calibrate_profiles(
     if let Some(dc) = diameter_check.as_ref().filter(|d| d.disagrees) {
         warnings.push(dc.message());
     }
-    checks_out.retain(|c| !c.message.is_empty());
     // 6. leave-one-out
     let leave_one_out = if opts.leave_one_out && obs.len() > crate::calib::profile::start::MIN_VIEWS
     {

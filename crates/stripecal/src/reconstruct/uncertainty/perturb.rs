@@ -9,6 +9,18 @@ use crate::model::camera::PARAM_NAMES;
 use crate::model::geometry::{iso_from_rotvec, matrix_to_rotvec, Plane};
 use crate::model::{Calibration, ProfilerCalibration};
 
+/// One delta per name.
+fn same_length(names: &[String], deltas: &[f64]) -> Result<()> {
+    if names.len() != deltas.len() {
+        return Err(Error::InvalidInput(format!(
+            "{} names but {} deltas",
+            names.len(),
+            deltas.len()
+        )));
+    }
+    Ok(())
+}
+
 /// `calibration` with `deltas[i]` added to the number named `names[i]` (the names of
 /// calibration.json's `covariance`): camera numbers and DH values directly; the laser
 /// plane's normal component-wise, then renormalised (its offset directly); `hand_cam` /
@@ -19,13 +31,7 @@ pub fn perturbed_calibration(
     names: &[String],
     deltas: &[f64],
 ) -> Result<Calibration> {
-    if names.len() != deltas.len() {
-        return Err(Error::InvalidInput(format!(
-            "{} names but {} deltas",
-            names.len(),
-            deltas.len()
-        )));
-    }
+    same_length(names, deltas)?;
     let mut c = calibration.clone();
     let mut cam = c.camera.params();
     let (mut n, mut d) = match &c.laser_plane {
@@ -105,13 +111,7 @@ pub fn perturbed_profiler_calibration(
     names: &[String],
     deltas: &[f64],
 ) -> Result<ProfilerCalibration> {
-    if names.len() != deltas.len() {
-        return Err(Error::InvalidInput(format!(
-            "{} names but {} deltas",
-            names.len(),
-            deltas.len()
-        )));
-    }
+    same_length(names, deltas)?;
     let mut c = calibration.clone();
     let mut r = matrix_to_rotvec(&c.hand_sensor.rotation.to_rotation_matrix().into_inner());
     let mut t = c.hand_sensor.translation.vector;
