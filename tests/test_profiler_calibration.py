@@ -281,6 +281,39 @@ def test_profiler_start_is_the_calibrations_start(twins: Dict[str, Path]) -> Non
         assert np.sqrt(np.mean(dist**2)) < 0.05
 
 
+def test_profiler_adjust_from_the_start_reaches_the_truth(twins: Dict[str, Path]) -> None:
+    """The adjustment alone (the scipy comparison's stripecal side) from the closed-form
+    start over the arcs' points: the hand-eye within item 1's bounds, its 3-sigma
+    covering the truth's translation, every point it keeps on the true sphere."""
+    s = stripecal.profiler_start(twins["base"])
+    truth = sim.profiler_truth(twins["base"])
+    fit = stripecal.profiler_adjust(s)
+    deg, mm = _hand_eye_errors(fit["hand_sensor"], truth["hand_cam"])
+    assert deg < 0.005 and mm < 0.01, (deg, mm)
+    assert fit["converged"] and fit["iterations"] >= 1
+    assert abs(fit["diameter_mm"] - 80.0) == 0.0  # declared: not estimated
+    assert "sphere.diameter_mm" not in fit["sigma"]
+    t_err = fit["hand_sensor"][:3, 3] - np.asarray(truth["hand_cam"]["translation_mm"])
+    for k in range(3):
+        assert abs(t_err[k]) < 3.0 * fit["sigma"][f"hand_cam.translation_mm[{k}]"] + 1e-9
+    n_arc = sum(len(p) for p in s["points"])
+    assert 0.95 * n_arc < fit["points_used"] <= n_arc
+    assert 0.005 < fit["rms_mm"] < 0.02  # the twin's 0.01 mm noise
+
+
+def test_profiler_adjust_refuses_a_malformed_start(twins: Dict[str, Path]) -> None:
+    s = dict(stripecal.profiler_start(twins["base"]))
+    missing = {k: v for k, v in s.items() if k != "centre_mm"}
+    with pytest.raises(stripecal.InvalidInputError, match="centre_mm"):
+        stripecal.profiler_adjust(missing)  # type: ignore[arg-type]
+    short = dict(s, points=s["points"][:-1])
+    with pytest.raises(stripecal.InvalidInputError, match="one per view"):
+        stripecal.profiler_adjust(short)  # type: ignore[arg-type]
+    bad = dict(s, points=[np.zeros((5, 3))] + list(s["points"][1:]))
+    with pytest.raises(stripecal.InvalidInputError, match=r"points\[0\]"):
+        stripecal.profiler_adjust(bad)  # type: ignore[arg-type]
+
+
 # ---------------------------------------------------------------------------- (h)
 
 

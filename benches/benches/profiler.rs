@@ -12,8 +12,11 @@
 use criterion::{criterion_group, criterion_main, Criterion};
 use std::hint::black_box;
 
+use stripecal::calib::joint::profile::{profile_adjustment, ProfileOptions};
 use stripecal::model::ProfileRig;
-use stripecal::pipeline::profile::{calibrate_profiles, ProfileCalibrateOptions, ProfileInput};
+use stripecal::pipeline::profile::{
+    calibrate_profiles, prepare, ProfileCalibrateOptions, ProfileInput,
+};
 use stripecal_sim::{SimConfig, Twin};
 
 /// The twin's 15 profiles as the calibration's inputs, and its rig.
@@ -48,6 +51,29 @@ fn bench_profiler(c: &mut Criterion) {
             pool.install(|| {
                 let rep = calibrate_profiles(black_box(&inputs), &rig, &opts).unwrap();
                 black_box(rep.calibration.sphere_diameter_mm)
+            })
+        })
+    });
+    // The adjustment alone (step 3: the solve from the closed-form start, its point
+    // re-selection, the covariance), over the arcs' points: the problem scipy is given in
+    // scripts/bench_profiler_scipy.py.
+    let prep = prepare(&inputs, &rig).unwrap();
+    let views: Vec<_> = prep
+        .views
+        .iter()
+        .map(|v| {
+            let mut v = v.clone();
+            v.points = v.arc.iter().map(|&i| v.points[i]).collect();
+            v.arc = (0..v.points.len()).collect();
+            v
+        })
+        .collect();
+    let popts = ProfileOptions::default();
+    g.bench_function("adjustment_from_start_15x2500_one_core", |b| {
+        b.iter(|| {
+            pool.install(|| {
+                let fit = profile_adjustment(black_box(&views), &prep.start, &popts).unwrap();
+                black_box(fit.diameter)
             })
         })
     });

@@ -33,6 +33,7 @@ from stripecal.types import (
     PlyCloud,
     ProfilerExtraInput,
     ProfilerQuality,
+    ProfilerAdjustment,
     ProfilerStart,
     ProfilerUncertainty,
     ProfilerUncertaintyInput,
@@ -112,6 +113,7 @@ __all__ = [
     "measure_sphere",
     "nearest_rotation",
     "plan_poses",
+    "profiler_adjust",
     "profiler_start",
     "pose_to_matrix",
     "read_ply",
@@ -797,6 +799,7 @@ def calibrate(
     board_stripe_bias: bool = True,
 ) -> Union[Calibration, ProfilerCalibration]: ...
 def profiler_start(dataset: Union[ProfileDataset, _Path]) -> ProfilerStart: ...
+def profiler_adjust(start: ProfilerStart) -> ProfilerAdjustment: ...
 def plan_poses(
     rig: Union[_Path, Rig, Dataset],
     nominal: Union[_Path, Calibration, Truth],

@@ -14,7 +14,8 @@ robot-world ``Z = T_base_board``.
   the reference sphere, the robot; calibration.json with ``"sensor": {"kind":
   "profiler"}``, read and written by ``stripecal.io``); ``profiler_start`` (a profile
   dataset -> the closed-form start and the arcs' points its adjustment starts from, to
-  start another solver from the same place).
+  start another solver from the same place); ``profiler_adjust`` (such a start -> the
+  one-stage adjustment alone, without the calibration's checks).
 - The stages on their own: ``calibrate_camera``, ``fit_laser_plane``, ``solve_axzb`` /
   ``solve_axzb_full`` (``A_i X = Z B_i``).
 
@@ -29,6 +30,7 @@ from stripecal._core import board_flatness as board_flatness
 from stripecal._core import fit_laser_plane as fit_laser_plane
 from stripecal._core import plan_poses as plan_poses
 from stripecal._core import ProfilerCalibration as ProfilerCalibration
+from stripecal._core import profiler_adjust as profiler_adjust
 from stripecal._core import profiler_start as profiler_start
 from stripecal._core import solve_axzb as solve_axzb
 from stripecal._core import solve_axzb_full as solve_axzb_full
@@ -41,6 +43,7 @@ __all__ = [
     "fit_laser_plane",
     "plan_poses",
     "ProfilerCalibration",
+    "profiler_adjust",
     "profiler_start",
     "solve_axzb",
     "solve_axzb_full",

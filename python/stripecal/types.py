@@ -73,6 +73,7 @@ __all__ = [
     "ProfilerStand",
     "ProfilerSummary",
     "ProfilerTruth",
+    "ProfilerAdjustment",
     "ProfilerStart",
     "ProfilerTruthView",
     "ProfilerViewCounts",
@@ -928,6 +929,28 @@ class ProfilerStart(TypedDict):
     """rig.json's ``diameter_mm`` is null (the adjustment estimates it)."""
     warnings: List[str]
     """The views left out, named, and why."""
+
+
+class ProfilerAdjustment(TypedDict):
+    """What ``stripecal.profiler_adjust`` returns: the one-stage adjustment alone (step 3
+    of a profiler's calibration, without its checks) from a ``ProfilerStart``."""
+
+    hand_sensor: F64
+    """(4, 4): ``T_hand_sensor``, mm."""
+    centre_mm: F64
+    """(3,): the sphere's centre, base frame."""
+    diameter_mm: float
+    """The sphere's diameter (the start's when not free)."""
+    rms_mm: float
+    """RMS distance of the points used from the sphere."""
+    points_used: int
+    """The points on the sphere after the re-selection."""
+    iterations: int
+    converged: bool
+    view_variance_factor: float
+    """The view-clustered variance factor the sigmas carry (>= 1)."""
+    sigma: Dict[str, float]
+    """One-sigma per estimated number, the calibration file's names."""
 
 
 class ProfilerTruthView(TypedDict):

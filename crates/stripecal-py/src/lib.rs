@@ -78,6 +78,7 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(profile_py::read_profiler_calibration, m)?)?;
     m.add_function(wrap_pyfunction!(profile_py::write_profiler_calibration, m)?)?;
     m.add_function(wrap_pyfunction!(profile_start_py::profiler_start, m)?)?;
+    m.add_function(wrap_pyfunction!(profile_start_py::profiler_adjust, m)?)?;
     m.add_function(wrap_pyfunction!(poses::pose_to_matrix, m)?)?;
     m.add_function(wrap_pyfunction!(poses::matrix_to_pose, m)?)?;
 

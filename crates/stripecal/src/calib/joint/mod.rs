@@ -63,6 +63,8 @@
 //! - `robot_noise.rs`: the per-view robot-pose correction, its prior rows, floors and
 //!   per-view test;
 //! - `bench.rs`: the bench (no robot): each view's board pose a free per-view block;
+//! - `profile.rs`, `profile_problem.rs`: a line profiler's adjustment (the sphere's
+//!   blocks) and its problem (rows, normal equations formed without the Jacobian);
 //! - `covariance.rs`: sigmas of the estimated numbers;
 //! - `report.rs`: per-view figures;
 //! - here: the public API and the solve schedule.
@@ -73,6 +75,7 @@ mod covariance;
 mod layout;
 mod predict;
 pub mod profile;
+mod profile_problem;
 mod report;
 mod residuals;
 mod robot;

@@ -6,29 +6,29 @@
 //! ## Residuals
 //!
 //! A profile point `p = (x, 0, z)` of view i is at `P = A_i (R_X p + t_X)` in the base
-//! frame; its residual is its distance from the sphere, `e = |P - c| - D / 2` (mm). With
-//! `u = (P - c) / |P - c|`, `u_f = R_Ai^T u` (flange frame) and `q = R_X p + t_X`:
-//!
-//! ```text
-//! de/dw_X = p x (R_X^T u_f)      (X's increment R_X Exp(w))
-//! de/dt_X = u_f
-//! de/dc   = -u,   de/dD = -1/2
-//! de/dk   = w_k . (q x u_f) + v_k . u_f   (DH correction k: the flange's own
-//!                                          perturbation (w_k, v_k), super::robot)
-//! ```
-//!
-//! checked against central differences in the tests.
+//! frame; its residual is its distance from the sphere, `e = |P - c| - D / 2` (mm). The
+//! problem, its Jacobian rows and its normal equations (formed view by view without
+//! storing the Jacobian): [`super::profile_problem`].
 //!
 //! ## Points on the sphere
 //!
 //! A profile also shows the table, the stand and spikes. The adjustment starts from the
-//! points of each profile's arc ([`crate::calib::profile::arc`]) and, after each solve,
+//! points of each profile's arc ([`crate::calib::profile::arc`]) (from the closed-form
+//! start over every k-th of them only, at most [`COARSE_POINTS`]: a minimum within
+//! about a sigma of the full one for a fraction of the work) and, after each solve,
 //! takes the points of the profile near the sphere, until the selection settles; the
 //! rest are counted per view as rejected. Near: within [`BAND_SIGMAS`] robust sigmas
 //! (`1.4826 MAD`, at least [`MIN_BAND_MM`]) of the view's own median residual, the
 //! view's sigma from its own points, capped by the band of all points used (a view whose
 //! robot pose is off by a little sits off the sphere as a whole, its points still on a
 //! sphere).
+//!
+//! ## Stopping
+//!
+//! A solve stops when the next step promises less than `1e-6 / m` of the cost (`m`
+//! points): a step of `a` sigmas lowers the cost `m s^2 / 2` by about `a^2 s^2 / 2`, so
+//! the solve stops within a thousandth of a sigma of the minimum, and a solve after a
+//! re-selection that moved the minimum by less than that takes no step at all.
 //!
 //! ## Uncertainty
 //!
@@ -45,24 +45,24 @@
 //! residuals are independent noise, large when the views' poses are off). One factor
 //! keeps the i.i.d. covariance's correlations.
 
-use nalgebra::{Matrix3, Vector3};
-use rayon::prelude::*;
+use nalgebra::Vector3;
 
 use super::covariance::named_covariance;
 use super::layout::{Block, ParamLayout, SphereStart};
+use super::profile_problem::{all_residuals, ProfileProblem, Terms};
 use super::robot::{candidates, RobotBlock, RobotMode};
 use super::robot_select::{information, select};
 use super::robot_solve::{report, RobotOptions, RobotOutcome};
 use crate::error::{Error, Result};
 use crate::model::geometry::Iso3;
 use crate::model::{NamedCovariance, RobotCalibration};
-use crate::numerics::lm::{
-    dense_jacobian_from_rows, levenberg_marquardt, JacobianRows, LeastSquares, LmOptions,
-    StopReason,
-};
+use crate::numerics::lm::{levenberg_marquardt, LmOptions, StopReason};
 
 pub use crate::calib::profile::arc::{BAND_SIGMAS, MIN_BAND_MM};
 
+/// Points of the first solve from the closed-form start at most (every k-th of the
+/// arcs'; module docs).
+const COARSE_POINTS: usize = 6000;
 /// Rounds of the point selection at most.
 const SELECTION_ROUNDS: usize = 5;
 /// Rounds of `auto`'s robot selection at most.
@@ -142,212 +142,19 @@ impl ProfileFit {
     }
 }
 
-/// The residual rows of the points used.
-struct Terms {
-    /// `(view index, x, z)` per point.
-    points: Vec<(usize, f64, f64)>,
-    a: Vec<Iso3>,
+/// The relative cost decrease a step must promise for a solve over `m` points to go
+/// on (module docs, "Stopping"): a step of `a` sigmas along any direction lowers the
+/// cost `m s^2 / 2` by about `a^2 s^2 / 2`, so `1e-6 / m` stops a thousandth of a sigma
+/// from the minimum.
+fn stop_ftol(m: usize, lm: &LmOptions) -> f64 {
+    lm.ftol.max(1e-6 / m.max(1) as f64)
 }
 
-impl Terms {
-    /// The points `selected` (per view, indices into its points) of `views`, their
-    /// flange poses `a`.
-    fn of(views: &[ProfileViewObs], selected: &[Vec<usize>], a: &[Iso3]) -> Terms {
-        Terms {
-            points: views
-                .iter()
-                .zip(selected)
-                .enumerate()
-                .flat_map(|(v, (o, sel))| {
-                    sel.iter()
-                        .map(move |&i| (v, o.points[i][0], o.points[i][1]))
-                })
-                .collect(),
-            a: a.to_vec(),
-        }
-    }
-}
+/// The per-view gradients `g_v` at a solve's result (the variance factor's).
+type ViewGradients = Option<Vec<nalgebra::DVector<f64>>>;
 
-struct ProfileProblem<'a> {
-    layout: &'a ParamLayout,
-    terms: &'a Terms,
-}
-
-/// What every point of a view shares at a parameter vector.
-struct ViewState {
-    ra: Matrix3<f64>,
-    ta: Vector3<f64>,
-    /// The flange perturbation per DH correction.
-    twists: Vec<[f64; 6]>,
-}
-
-/// What every point shares at a parameter vector: `X`'s rotation and translation, the
-/// sphere's centre and radius, every view's flange pose.
-struct State {
-    rx: Matrix3<f64>,
-    tx: Vector3<f64>,
-    c: Vector3<f64>,
-    rho: f64,
-    views: Vec<ViewState>,
-}
-
-impl ProfileProblem<'_> {
-    fn state(&self, p: &[f64]) -> State {
-        let x = self.layout.transform(p, Block::HandCam);
-        State {
-            rx: x.rotation.to_rotation_matrix().into_inner(),
-            tx: x.translation.vector,
-            c: self.layout.sphere_centre(p),
-            rho: 0.5 * self.layout.sphere_diameter(p),
-            views: self.views(p),
-        }
-    }
-
-    fn views(&self, p: &[f64]) -> Vec<ViewState> {
-        let (flanges, twists) = match &self.layout.robot {
-            Some(rb) => {
-                let v = &p[self.layout.robot_columns()];
-                (rb.flanges(v), rb.flange_jacobians(v, &[]))
-            }
-            None => (self.terms.a.clone(), vec![Vec::new(); self.terms.a.len()]),
-        };
-        flanges
-            .iter()
-            .zip(twists)
-            .map(|(a, twists)| ViewState {
-                ra: a.rotation.to_rotation_matrix().into_inner(),
-                ta: a.translation.vector,
-                twists,
-            })
-            .collect()
-    }
-}
-
-impl LeastSquares for ProfileProblem<'_> {
-    fn num_params(&self) -> usize {
-        self.layout.num_params()
-    }
-    fn num_residuals(&self) -> usize {
-        self.terms.points.len()
-    }
-    fn residuals(&self, p: &[f64], r: &mut [f64]) -> Result<()> {
-        let State {
-            rx,
-            tx,
-            c,
-            rho,
-            views,
-        } = self.state(p);
-        r.par_iter_mut()
-            .zip(self.terms.points.par_iter())
-            .for_each(|(out, &(v, px, pz))| {
-                let s = &views[v];
-                let q = rx * Vector3::new(px, 0.0, pz) + tx;
-                *out = (s.ra * q + s.ta - c).norm() - rho;
-            });
-        Ok(())
-    }
-    fn residuals_and_jacobian(
-        &self,
-        p: &[f64],
-        r: &mut [f64],
-        jac: faer::MatMut<'_, f64>,
-    ) -> Result<()> {
-        dense_jacobian_from_rows(self, p, r, jac)
-    }
-    fn jacobian_row_width(&self) -> Option<usize> {
-        Some(self.layout.num_params())
-    }
-    fn residuals_and_jacobian_rows(
-        &self,
-        p: &[f64],
-        r: &mut [f64],
-        rows: &mut JacobianRows,
-    ) -> Result<()> {
-        let n = self.layout.num_params();
-        let State {
-            rx,
-            tx,
-            c,
-            rho,
-            views,
-        } = self.state(p);
-        let cx = self.layout.column(self.layout.slots(Block::HandCam).start);
-        let cc = self.layout.slotless_columns(Block::SphereCentre);
-        let cd = self.layout.slotless_columns(Block::SphereDiameter);
-        let cr = self.layout.robot_columns();
-        let (_, vals) = rows.parts_mut();
-        r.par_iter_mut()
-            .zip(vals.par_chunks_mut(n))
-            .zip(self.terms.points.par_iter())
-            .for_each(|((out, row), &(v, px, pz))| {
-                let s = &views[v];
-                let pp = Vector3::new(px, 0.0, pz);
-                let q = rx * pp + tx;
-                let d = s.ra * q + s.ta - c;
-                let len = d.norm().max(1e-300);
-                *out = len - rho;
-                let u = d / len;
-                let uf = s.ra.transpose() * u;
-                if let Some(c0) = cx {
-                    let gw = pp.cross(&(rx.transpose() * uf));
-                    row[c0..c0 + 3].copy_from_slice(gw.as_slice());
-                    row[c0 + 3..c0 + 6].copy_from_slice(uf.as_slice());
-                }
-                for (k, col) in cc.clone().enumerate() {
-                    row[col] = -u[k];
-                }
-                for col in cd.clone() {
-                    row[col] = -0.5;
-                }
-                let qu = q.cross(&uf);
-                for (col, t) in cr.clone().zip(&s.twists) {
-                    row[col] = t[0] * qu.x
-                        + t[1] * qu.y
-                        + t[2] * qu.z
-                        + t[3] * uf.x
-                        + t[4] * uf.y
-                        + t[5] * uf.z;
-                }
-            });
-        Ok(())
-    }
-    fn retract(&self, p: &[f64], dp: &[f64], out: &mut [f64]) {
-        self.layout.retract(p, dp, out);
-    }
-}
-
-/// Every point's distance from the sphere of `p` (per view, all its points).
-fn all_residuals(
-    layout: &ParamLayout,
-    p: &[f64],
-    views: &[ProfileViewObs],
-    a: &[Iso3],
-) -> Result<Vec<Vec<f64>>> {
-    let terms = Terms {
-        points: views
-            .iter()
-            .enumerate()
-            .flat_map(|(v, o)| o.points.iter().map(move |q| (v, q[0], q[1])))
-            .collect(),
-        a: a.to_vec(),
-    };
-    let prob = ProfileProblem {
-        layout,
-        terms: &terms,
-    };
-    let mut r = vec![0.0; terms.points.len()];
-    prob.residuals(p, &mut r)?;
-    let mut out = Vec::with_capacity(views.len());
-    let mut k = 0;
-    for o in views {
-        out.push(r[k..k + o.points.len()].to_vec());
-        k += o.points.len();
-    }
-    Ok(out)
-}
-
-/// One solve over the points `selected`; the parameters and the LM result.
+/// One solve over the points `selected`: the LM result, and the per-view gradients at
+/// its parameters when the solver formed its last normal equations there.
 fn solve(
     layout: &ParamLayout,
     p0: &[f64],
@@ -355,20 +162,23 @@ fn solve(
     a: &[Iso3],
     selected: &[Vec<usize>],
     lm: &LmOptions,
-) -> Result<crate::numerics::lm::LmResult> {
+) -> Result<(crate::numerics::lm::LmResult, ViewGradients)> {
     let terms = Terms::of(views, selected, a);
-    if terms.points.len() <= layout.num_params() {
+    if terms.len() <= layout.num_params() {
         return Err(Error::Degenerate(format!(
             "{} sphere points for {} unknowns",
-            terms.points.len(),
+            terms.len(),
             layout.num_params()
         )));
     }
-    let prob = ProfileProblem {
-        layout,
-        terms: &terms,
+    let prob = ProfileProblem::new(layout, &terms);
+    let lm = LmOptions {
+        ftol: stop_ftol(terms.len(), lm),
+        ..lm.clone()
     };
-    levenberg_marquardt(&prob, p0, lm)
+    let res = levenberg_marquardt(&prob, p0, &lm)?;
+    let gradients = prob.view_gradients_at(&res.params);
+    Ok((res, gradients))
 }
 
 /// The median of `v` (0 when empty).
@@ -414,6 +224,7 @@ fn view_variance_factor(
     flanges: &[Iso3],
     selected: &[Vec<usize>],
     res: &crate::numerics::lm::LmResult,
+    gradients: ViewGradients,
 ) -> Result<f64> {
     let n = layout.num_params();
     let g = views.len();
@@ -423,33 +234,23 @@ fn view_variance_factor(
     let Some(ninv) = res.jtj.clone().try_inverse() else {
         return Ok(1.0);
     };
-    // the layout's flanges come from its robot block: rows at the fit's poses
-    let terms = Terms::of(views, selected, flanges);
-    let prob = ProfileProblem {
-        layout,
-        terms: &terms,
+    let gradients = match gradients {
+        Some(g) => g,
+        None => {
+            // the layout's flanges come from its robot block: the fit's poses
+            let terms = Terms::of(views, selected, flanges);
+            let mut r = vec![0.0; terms.len()];
+            ProfileProblem::new(layout, &terms)
+                .view_normals(p, &mut r)
+                .into_iter()
+                .map(|v| v.g)
+                .collect()
+        }
     };
-    let m = terms.points.len();
-    let mut r = vec![0.0; m];
-    let mut rows = JacobianRows::new(m, n, n);
-    prob.residuals_and_jacobian_rows(p, &mut r, &mut rows)?;
     let mut b = nalgebra::DMatrix::<f64>::zeros(n, n);
-    let mut gv = nalgebra::DVector::<f64>::zeros(n);
-    let mut cur = usize::MAX;
-    for (i, &(v, _, _)) in terms.points.iter().enumerate() {
-        if v != cur {
-            if cur != usize::MAX {
-                b += &gv * gv.transpose();
-            }
-            gv.fill(0.0);
-            cur = v;
-        }
-        let (_, vals) = rows.row(i);
-        for (k, x) in vals.iter().enumerate() {
-            gv[k] += x * r[i];
-        }
+    for gv in &gradients {
+        b += gv * gv.transpose();
     }
-    b += &gv * gv.transpose();
     let robust = &ninv * b * &ninv * (g as f64 / (g - 1) as f64);
     let mut ratios: Vec<f64> = (0..n)
         .filter_map(|k| {
@@ -486,18 +287,40 @@ pub fn profile_adjustment(
     } else {
         SELECTION_ROUNDS
     };
-    let mut res = solve(&layout, &p, views, &a, &selected, &opts.lm)?;
+    // a solve after a re-selection starts at the last minimum: Gauss-Newton's step
+    let warm = LmOptions {
+        initial_lambda: 1e-9,
+        ..opts.lm.clone()
+    };
+    // From the closed-form start, first over every k-th point (module docs, "Points on
+    // the sphere"): its minimum is within a sigma or so of the full one.
+    let total: usize = selected.iter().map(|s| s.len()).sum();
+    let stride = total.div_ceil(COARSE_POINTS);
+    let (mut res, mut grads) = if !opts.keep_selection && stride > 1 {
+        let coarse: Vec<Vec<usize>> = selected
+            .iter()
+            .map(|s| s.iter().step_by(stride).copied().collect())
+            .collect();
+        let (r0, _) = solve(&layout, &p, views, &a, &coarse, &opts.lm)?;
+        iterations += r0.iterations;
+        p = r0.params;
+        selected = reselect(&all_residuals(&layout, &p, views, &a), &coarse);
+        solve(&layout, &p, views, &a, &selected, &warm)?
+    } else {
+        solve(&layout, &p, views, &a, &selected, &opts.lm)?
+    };
     for round in 0..rounds {
         if round > 0 {
-            res = solve(&layout, &p, views, &a, &selected, &opts.lm)?;
+            (res, grads) = solve(&layout, &p, views, &a, &selected, &warm)?;
         }
         iterations += res.iterations;
         p.clone_from(&res.params);
         if opts.keep_selection {
             break;
         }
-        let next = reselect(&all_residuals(&layout, &p, views, &a)?, &selected);
-        if next == selected {
+        let next = reselect(&all_residuals(&layout, &p, views, &a), &selected);
+        // the selection the last solve used stays with its result
+        if next == selected || round + 1 == rounds {
             break;
         }
         selected = next;
@@ -542,10 +365,7 @@ pub fn profile_adjustment(
             };
             let lc = ParamLayout::profiler(&cur.0, true, cur.1, &ids, Some(block));
             let terms = Terms::of(views, &selected, &a);
-            let prob = ProfileProblem {
-                layout: &lc,
-                terms: &terms,
-            };
+            let prob = ProfileProblem::new(&lc, &terms);
             let info = information(&prob, &lc.encode())?;
             let sel = select(&info, &lc, &cands, ro.mode, &chosen)?;
             let added = sel.chosen.len() > chosen.len();
@@ -558,12 +378,12 @@ pub fn profile_adjustment(
             };
             let lk = ParamLayout::profiler(&cur.0, true, cur.1, &ids, Some(block.clone()));
             let pk = lk.encode();
-            let r = solve(&lk, &pk, views, &a, &selected, &opts.lm)?;
+            let (r, _) = solve(&lk, &pk, views, &a, &selected, &opts.lm)?;
             iterations += r.iterations;
             cur = (lk.transform(&r.params, Block::HandCam), sp(&r.params, &lk));
             if !opts.keep_selection {
                 let flanges = block.flanges(&r.params[lk.robot_columns()]);
-                selected = reselect(&all_residuals(&lk, &r.params, views, &flanges)?, &selected);
+                selected = reselect(&all_residuals(&lk, &r.params, views, &flanges), &selected);
             }
             let done = !added || rounds == 1;
             if !done {
@@ -571,7 +391,7 @@ pub fn profile_adjustment(
             } else {
                 layout = lk;
                 p = r.params;
-                res = solve(&layout, &p, views, &a, &selected, &opts.lm)?;
+                (res, grads) = solve(&layout, &p, views, &a, &selected, &warm)?;
                 iterations += res.iterations;
                 p.clone_from(&res.params);
                 break;
@@ -592,7 +412,8 @@ pub fn profile_adjustment(
         Some(rb) => rb.flanges(&p[layout.robot_columns()]),
         None => a.clone(),
     };
-    let view_factor = view_variance_factor(&layout, &p, views, &flanges_now, &selected, &res)?;
+    let view_factor =
+        view_variance_factor(&layout, &p, views, &flanges_now, &selected, &res, grads)?;
     let covariance = named_covariance(&layout, &p, &s, &(&res.covariance * view_factor), 1.0);
     let robot = outcome
         .as_ref()
@@ -601,13 +422,14 @@ pub fn profile_adjustment(
         Some(rb) => rb.flanges(&p[layout.robot_columns()]),
         None => a.clone(),
     };
-    let all = all_residuals(&layout, &p, views, &flanges)?;
-    let view_rms_mm = all
+    // the last solve's residuals are the selected points', view after view
+    let mut k = 0;
+    let view_rms_mm = selected
         .iter()
-        .zip(&selected)
-        .map(|(r, s)| {
-            let ss: f64 = s.iter().map(|&i| r[i] * r[i]).sum();
-            (ss / s.len().max(1) as f64).sqrt()
+        .map(|s| {
+            let r = &res.residuals[k..k + s.len()];
+            k += s.len();
+            (r.iter().map(|x| x * x).sum::<f64>() / s.len().max(1) as f64).sqrt()
         })
         .collect();
     let converged = !matches!(res.reason, StopReason::MaxIterations);
@@ -629,12 +451,14 @@ pub fn profile_adjustment(
 }
 
 #[cfg(test)]
-mod tests {
+pub(super) mod tests {
     use super::*;
     use crate::model::geometry::iso_from_rotvec;
     use crate::model::kinematics::Robot;
 
-    fn scene(robot: Option<&Robot>) -> (Vec<ProfileViewObs>, Iso3, Vector3<f64>, f64) {
+    pub(in crate::calib::joint) fn scene(
+        robot: Option<&Robot>,
+    ) -> (Vec<ProfileViewObs>, Iso3, Vector3<f64>, f64) {
         let x = iso_from_rotvec(
             &Vector3::new(0.2, -2.9, 0.3),
             &Vector3::new(8.0, -4.0, 90.0),
@@ -691,66 +515,6 @@ mod tests {
             });
         }
         (views, x, c, 2.0 * radius)
-    }
-
-    /// The analytic Jacobian rows against central differences, with X, the centre, the
-    /// diameter and DH corrections free.
-    #[test]
-    fn jacobian_matches_central_differences() {
-        let robot = Robot::hp3();
-        let (views, x, c, d) = scene(Some(&robot));
-        let ids: Vec<usize> = (0..views.len()).collect();
-        let block = RobotBlock {
-            reference: robot.clone(),
-            params: candidates(&robot, RobotMode::Full),
-            readings: views.iter().map(|v| v.q.clone().unwrap()).collect(),
-        };
-        let sphere = SphereStart {
-            centre: c + Vector3::new(0.3, -0.2, 0.1),
-            diameter: d + 0.1,
-            diameter_free: true,
-        };
-        let layout = ParamLayout::profiler(&x, true, sphere, &ids, Some(block));
-        let terms = Terms {
-            points: views
-                .iter()
-                .enumerate()
-                .flat_map(|(v, o)| o.points.iter().step_by(37).map(move |q| (v, q[0], q[1])))
-                .collect(),
-            a: views.iter().map(|v| v.a).collect(),
-        };
-        let prob = ProfileProblem {
-            layout: &layout,
-            terms: &terms,
-        };
-        let mut p = layout.encode();
-        for (k, v) in p.iter_mut().enumerate() {
-            *v += 1e-3 * ((k as f64) * 0.37).sin();
-        }
-        let (m, n) = (prob.num_residuals(), prob.num_params());
-        let mut r = vec![0.0; m];
-        let mut rows = JacobianRows::new(m, n, n);
-        prob.residuals_and_jacobian_rows(&p, &mut r, &mut rows)
-            .unwrap();
-        let h = 1e-6;
-        let mut worst: f64 = 0.0;
-        for j in 0..n {
-            let mut dp = vec![0.0; n];
-            dp[j] = h;
-            let (mut pp, mut pm) = (vec![0.0; n], vec![0.0; n]);
-            prob.retract(&p, &dp, &mut pp);
-            dp[j] = -h;
-            prob.retract(&p, &dp, &mut pm);
-            let (mut rp, mut rm) = (vec![0.0; m], vec![0.0; m]);
-            prob.residuals(&pp, &mut rp).unwrap();
-            prob.residuals(&pm, &mut rm).unwrap();
-            for i in 0..m {
-                let fd = (rp[i] - rm[i]) / (2.0 * h);
-                let an = rows.row(i).1[j];
-                worst = worst.max((fd - an).abs() / (1.0 + an.abs()));
-            }
-        }
-        assert!(worst < 1e-5, "worst relative difference {worst:e}");
     }
 
     /// From a perturbed start the exact profiles give back X, the centre and the

@@ -9,7 +9,9 @@
 //! [`LeastSquares::retract`] and a re-weighting [`LeastSquares::reweight`]) and call
 //! [`levenberg_marquardt`]. The Jacobian storage is allocated once; `J^T J` is formed by
 //! faer's matrix product (dense matrix or dense rows) or by per-row outer products summed
-//! over runs of rows with the same columns (sparse rows); the damped `n x n` system is
+//! over runs of rows with the same columns (sparse rows), or by the problem itself
+//! ([`LeastSquares::has_normal_equations`]: no Jacobian stored, for many residuals over
+//! few parameters, without Huber weights or re-weighting); the damped `n x n` system is
 //! solved by Cholesky.
 //!
 //! ## Algorithm
@@ -369,6 +371,69 @@ mod tests {
                     );
                     assert!((a.sigma[k] - b.sigma[k]).abs() < 1e-9 * a.sigma[k].max(1e-9) + 1e-12);
                 }
+            }
+        }
+    }
+
+    /// [`Expo`] forming its own normal equations (and no Jacobian rows).
+    struct ExpoNormals(Expo);
+
+    impl LeastSquares for ExpoNormals {
+        fn num_params(&self) -> usize {
+            self.0.num_params()
+        }
+        fn num_residuals(&self) -> usize {
+            self.0.num_residuals()
+        }
+        fn residuals(&self, p: &[f64], r: &mut [f64]) -> Result<()> {
+            self.0.residuals(p, r)
+        }
+        fn residuals_and_jacobian(
+            &self,
+            p: &[f64],
+            r: &mut [f64],
+            jac: MatMut<'_, f64>,
+        ) -> Result<()> {
+            self.0.residuals_and_jacobian(p, r, jac)
+        }
+        fn has_normal_equations(&self) -> bool {
+            true
+        }
+        fn residuals_and_normal_equations(
+            &self,
+            p: &[f64],
+            r: &mut [f64],
+        ) -> Result<(nalgebra::DMatrix<f64>, nalgebra::DVector<f64>)> {
+            let (m, n) = (self.num_residuals(), self.num_params());
+            let mut jac = faer::Mat::<f64>::zeros(m, n);
+            self.0.residuals_and_jacobian(p, r, jac.as_mut())?;
+            let j = nalgebra::DMatrix::from_fn(m, n, |i, k| jac[(i, k)]);
+            let rv = nalgebra::DVector::from_column_slice(r);
+            Ok((j.transpose() * &j, j.transpose() * rv))
+        }
+    }
+
+    /// A problem that forms its own normal equations solves as the Jacobian does (the
+    /// same parameters and sigmas); with a Huber threshold the solver uses its Jacobian.
+    #[test]
+    fn own_normal_equations_solve_like_the_jacobian() {
+        let (x, y) = data(true);
+        for huber in [None, Some(0.003)] {
+            let opts = LmOptions {
+                huber,
+                ..Default::default()
+            };
+            let expo = || Expo {
+                x: x.clone(),
+                y: y.clone(),
+                dup: false,
+            };
+            let a = levenberg_marquardt(&expo(), &[1.0, -0.1, 0.0], &opts).unwrap();
+            let b = levenberg_marquardt(&ExpoNormals(expo()), &[1.0, -0.1, 0.0], &opts).unwrap();
+            assert_eq!(a.iterations, b.iterations, "{huber:?}");
+            for k in 0..3 {
+                assert!((a.params[k] - b.params[k]).abs() < 1e-10, "{huber:?}");
+                assert!((a.sigma[k] - b.sigma[k]).abs() < 1e-9 * a.sigma[k]);
             }
         }
     }

@@ -49,6 +49,10 @@ pub(super) struct Work {
     runs: Vec<(usize, usize)>,
     /// The leverages' product buffer.
     lev_buf: Mat<f64>,
+    /// The problem's own normal equations at the last evaluation (no Jacobian stored;
+    /// [`LeastSquares::has_normal_equations`]).
+    fused: Option<(DMatrix<f64>, DVector<f64>)>,
+    fused_mode: bool,
 }
 
 impl Work {
@@ -57,6 +61,8 @@ impl Work {
             m,
             n,
             rows: row_width.map(|w| JacobianRows::new(m, w, n)),
+            fused: None,
+            fused_mode: false,
             jac: if row_width.is_some() {
                 Mat::zeros(0, 0)
             } else {
@@ -69,13 +75,31 @@ impl Work {
         }
     }
 
-    /// Residuals and Jacobian at `p`.
+    /// The storage of a problem that forms its own normal equations (nothing of size
+    /// `m x n`).
+    pub(super) fn fused(m: usize, n: usize) -> Self {
+        Work {
+            rows: None,
+            jac: Mat::zeros(0, 0),
+            fused_mode: true,
+            ..Work::new(m, n, Some(n))
+        }
+    }
+
+    /// Residuals and Jacobian (or the problem's normal equations) at `p`.
     pub(super) fn evaluate<P: LeastSquares + ?Sized>(
         &mut self,
         problem: &P,
         p: &[f64],
         r: &mut [f64],
     ) -> Result<()> {
+        if self.fused_mode {
+            self.fused = Some(problem.residuals_and_normal_equations(p, r)?);
+            if r.iter().any(|x| !x.is_finite()) {
+                return Err(Error::Degenerate("residuals are not finite".into()));
+            }
+            return Ok(());
+        }
         match &mut self.rows {
             Some(rows) => {
                 rows.clear();
@@ -100,6 +124,9 @@ impl Work {
         for (ri, fi) in r.iter_mut().zip(f) {
             *ri *= fi;
         }
+        // The problem's own normal equations cannot be re-weighted here: none then,
+        // and `normal_equations` says why.
+        self.fused = None;
         match &mut self.rows {
             Some(rows) => {
                 let w = rows.width;
@@ -124,6 +151,19 @@ impl Work {
         huber: Option<f64>,
     ) -> Result<(DMatrix<f64>, DVector<f64>)> {
         let (m, n) = (self.m, self.n);
+        if self.fused_mode {
+            let (jtj, g) = self.fused.clone().ok_or_else(|| {
+                Error::InvalidInput(
+                    "a problem that forms its own normal equations cannot re-weight its \
+                     residuals"
+                        .into(),
+                )
+            })?;
+            if jtj.iter().any(|x| !x.is_finite()) || g.iter().any(|x| !x.is_finite()) {
+                return Err(Error::Degenerate("Jacobian is not finite".into()));
+            }
+            return Ok((jtj, g));
+        }
         let mut g = DVector::<f64>::zeros(n);
         let mut jtj = DMatrix::<f64>::zeros(n, n);
         // sqrt(W) r
@@ -253,6 +293,9 @@ impl Work {
         huber: Option<f64>,
         wanted: &[Range<usize>],
     ) -> Option<Vec<f64>> {
+        if self.fused_mode {
+            return None;
+        }
         let (jtj, _) = self.normal_equations(r, huber).ok()?;
         let n = self.n;
         let d: Vec<f64> = (0..n)

@@ -53,6 +53,25 @@ pub trait LeastSquares {
     fn jacobian_row_width(&self) -> Option<usize> {
         None
     }
+    /// `true` when the problem accumulates its normal equations itself
+    /// ([`LeastSquares::residuals_and_normal_equations`]): for many residuals over few
+    /// parameters the solver then never stores the Jacobian. Such a problem must not
+    /// re-weight ([`LeastSquares::reweight`] gets no leverages), and with a Huber
+    /// threshold the solver uses the Jacobian instead. Default: `false`.
+    fn has_normal_equations(&self) -> bool {
+        false
+    }
+    /// Residuals into `r` and `(J^T J, J^T r)` at `p` (unweighted). Only called when
+    /// [`LeastSquares::has_normal_equations`] is `true`.
+    fn residuals_and_normal_equations(
+        &self,
+        _p: &[f64],
+        _r: &mut [f64],
+    ) -> Result<(nalgebra::DMatrix<f64>, nalgebra::DVector<f64>)> {
+        Err(Error::InvalidInput(
+            "this least-squares problem has no normal equations of its own".into(),
+        ))
+    }
     /// Residuals into `r` and the Jacobian by rows into `rows` (zero-filled on entry;
     /// see [`JacobianRows`]). Only called when [`LeastSquares::jacobian_row_width`] is
     /// `Some`.

@@ -189,7 +189,11 @@ impl<'a, P: LeastSquares + ?Sized> Solver<'a, P> {
         let m = problem.num_residuals();
         let p = p0.to_vec();
         let mut r = vec![0.0; m];
-        let mut work = Work::new(m, n, problem.jacobian_row_width());
+        let mut work = if problem.has_normal_equations() && opts.huber.is_none() {
+            Work::fused(m, n)
+        } else {
+            Work::new(m, n, problem.jacobian_row_width())
+        };
         work.evaluate(problem, &p, &mut r)?;
         if let Some(f) = problem.reweight(&r, &mut |rows| work.leverages(&r, opts.huber, rows)) {
             work.rescale(&f, &mut r);
