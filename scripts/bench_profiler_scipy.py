@@ -48,15 +48,6 @@ from stripecal import sim  # noqa: E402
 NOISE_MM = 0.01
 
 
-def rodrigues(rv: np.ndarray) -> np.ndarray:
-    a = float(np.linalg.norm(rv))
-    if a < 1e-15:
-        return np.eye(3)
-    k = rv / a
-    kx = np.array([[0.0, -k[2], k[1]], [k[2], 0.0, -k[0]], [-k[1], k[0], 0.0]])
-    return np.eye(3) + math.sin(a) * kx + (1.0 - math.cos(a)) * (kx @ kx)
-
-
 def residual_function(start: Dict[str, Any]) -> Tuple[Callable[[np.ndarray], np.ndarray], np.ndarray]:
     """The residuals and the start vector ``[rv_X, t_X, c]``."""
     ra = [np.asarray(a)[:3, :3] for a in start["flanges"]]
@@ -66,7 +57,7 @@ def residual_function(start: Dict[str, Any]) -> Tuple[Callable[[np.ndarray], np.
     m = sum(len(p) for p in pts)
 
     def fun(x: np.ndarray) -> np.ndarray:
-        rx = rodrigues(x[:3])
+        rx = stripecal.rotvec_to_matrix(x[:3])
         tx, c = x[3:6], x[6:9]
         out = np.empty(m)
         k = 0
@@ -85,7 +76,7 @@ def residual_function(start: Dict[str, Any]) -> Tuple[Callable[[np.ndarray], np.
 
 def hand_eye_error(h: np.ndarray, truth: Dict[str, Any]) -> Tuple[float, float]:
     t = np.eye(4)
-    t[:3, :3] = rodrigues(np.asarray(truth["rotation_vector"], dtype=float))
+    t[:3, :3] = stripecal.rotvec_to_matrix(np.asarray(truth["rotation_vector"], dtype=float))
     t[:3, 3] = truth["translation_mm"]
     e = np.linalg.inv(h) @ t
     return math.degrees(math.acos(min(1.0, max(-1.0, (np.trace(e[:3, :3]) - 1) / 2)))), float(np.linalg.norm(e[:3, 3]))
@@ -117,8 +108,12 @@ def main() -> int:
     start = stripecal.profiler_start(calib)
     fun, x0 = residual_function(start)
     npts = sum(len(p) for p in start["points"])
-    ds = stripecal.load_profile_dataset(calib)
-    all_pts = sum(len(ds.profile(i)) for i in range(len(ds.profiles)))
+
+    def run_read() -> int:
+        d = stripecal.load_profile_dataset(calib)
+        return sum(len(d.profile(i)) for i in range(len(d.profiles)))
+
+    all_pts = run_read()
 
     def run_stripecal() -> stripecal.ProfilerCalibration:
         cal = stripecal.calibrate(calib, leave_one_out=False)
@@ -131,10 +126,6 @@ def main() -> int:
     def run_scipy() -> Any:
         return least_squares(fun, x0, jac="2-point", loss="soft_l1", f_scale=3.0 * NOISE_MM)
 
-    def run_read() -> int:
-        d = stripecal.load_profile_dataset(calib)
-        return sum(len(d.profile(i)) for i in range(len(d.profiles)))
-
     t_sc, _ = median_time(run_stripecal, a.repeat)
     t_rd, _ = median_time(run_read, a.repeat)
     t_ad, _ = median_time(run_adjust, a.repeat)
@@ -143,7 +134,7 @@ def main() -> int:
     adj = run_adjust()
     sol = run_scipy()
     hs = np.eye(4)
-    hs[:3, :3] = rodrigues(sol.x[:3])
+    hs[:3, :3] = stripecal.rotvec_to_matrix(sol.x[:3])
     hs[:3, 3] = sol.x[3:6]
     e_sc = hand_eye_error(np.asarray(cal.hand_sensor), truth["hand_cam"])
     e_sp = hand_eye_error(hs, truth["hand_cam"])

@@ -24,6 +24,12 @@ def _map(x: object) -> Mapping[str, object]:
     return x if isinstance(x, dict) else {}
 
 
+def mirror_text(m: Mapping[str, object]) -> str:
+    """The mirror test's sentence from calibration.json's ``mirror`` record."""
+    d = _num(m.get("delta_chi2"))
+    return f"mirror test: the mirrored hand-eye fits worse by chi2 {'inf (no mirror minimum)' if d is None else f'{d:.4g}'}"
+
+
 def parameter_rows(cal: stripecal.ProfilerCalibration) -> List[tuple[str, float, Optional[float]]]:
     """``(name, value, one-sigma)`` of the profiler's numbers: ``T_hand_sensor`` as
     rotation vector (rad) and translation (mm), the sphere's centre and diameter (mm)."""
@@ -73,11 +79,9 @@ def print_profiler_calibration(cal: stripecal.ProfilerCalibration) -> None:
                   f"  {'' if side is None else ('+' if side > 0 else '-'):>4}  {v.get('note') or ''}")
     m = _map(e.get("mirror"))
     if m:
-        d = _num(m.get("delta_chi2"))
         sp = _map(m.get("centre_spread_mm"))
         spread = ", ".join(f"{a} {_num(sp.get(a)):.2f}" for a in ("x", "y", "z", "across_plane") if _num(sp.get(a)) is not None)
-        print(f"\n  mirror test: the mirrored hand-eye fits worse by chi2 {'inf (no mirror minimum)' if d is None else f'{d:.4g}'}"
-              f"; sphere centres in the sensor frame spread (mm): {spread}")
+        print(f"\n  {mirror_text(m)}; sphere centres in the sensor frame spread (mm): {spread}")
     dc = _map(e.get("diameter_check"))
     if dc:
         dflag = "  DISAGREES with rig.json" if dc.get("disagrees") else ""

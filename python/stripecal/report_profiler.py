@@ -21,23 +21,15 @@ from pathlib import Path
 from typing import Any, List, Mapping, Optional, Union
 
 import stripecal
-from stripecal.cli_profiler import parameter_rows
+from stripecal.cli_profiler import _list, _map, _num, mirror_text, parameter_rows
 from stripecal.report import _pyplot, _save, checks_html, write_html
 
 _Path = Union[str, "os.PathLike[str]"]
 
 
-def _map(x: object) -> Mapping[str, object]:
-    return x if isinstance(x, dict) else {}
-
-
 def _views(cal: stripecal.ProfilerCalibration) -> List[Mapping[str, object]]:
     v = cal.extra.get("views")
-    return [_map(x) for x in v] if isinstance(v, list) else []
-
-
-def _f(x: object) -> Optional[float]:
-    return float(x) if isinstance(x, (int, float)) and not isinstance(x, bool) else None
+    return [_map(x) for x in _list(v)]
 
 
 def _rms_figure(plt: Any, cal: stripecal.ProfilerCalibration, out: Path) -> Optional[str]:
@@ -45,12 +37,11 @@ def _rms_figure(plt: Any, cal: stripecal.ProfilerCalibration, out: Path) -> Opti
     if not views:
         return None
     loo_views = _map(cal.extra.get("leave_one_out")).get("views")
-    loo = {int(str(_map(x).get("view"))): _f(_map(x).get("rms_mm"))
-           for x in (loo_views if isinstance(loo_views, list) else [])}
+    loo = {int(str(_map(x).get("view"))): _num(_map(x).get("rms_mm")) for x in _list(loo_views)}
     ids = [int(str(v.get("view"))) for v in views]
     fig, ax = plt.subplots(figsize=(8, 3.2))
     xs = range(len(ids))
-    ax.bar([x - 0.2 for x in xs], [_f(v.get("rms_mm")) or 0.0 for v in views], 0.4, label="in the fit")
+    ax.bar([x - 0.2 for x in xs], [_num(v.get("rms_mm")) or 0.0 for v in views], 0.4, label="in the fit")
     if loo:
         ax.bar([x + 0.2 for x in xs], [loo.get(i) or 0.0 for i in ids], 0.4, label="held out")
     ax.set_xticks(list(xs))
@@ -62,18 +53,20 @@ def _rms_figure(plt: Any, cal: stripecal.ProfilerCalibration, out: Path) -> Opti
 
 
 def _centres_figure(plt: Any, cal: stripecal.ProfilerCalibration, out: Path) -> Optional[str]:
-    pts = []
+    pts = []  # (centre, side): the side recorded (+1 / -1; y >= 0 for a view without one)
     for v in _views(cal):
         c = v.get("centre_in_sensor_mm")
         if v.get("used") and isinstance(c, list) and len(c) == 3:
-            pts.append([float(c[0]), float(c[1]), float(c[2])])
+            p = [float(c[0]), float(c[1]), float(c[2])]
+            s = _num(v.get("side"))
+            pts.append((p, (p[1] >= 0) if s is None else (s > 0)))
     if not pts:
         return None
     fig, axs = plt.subplots(1, 2, figsize=(9, 3.6))
     for ax, (i, j, a, b) in zip(axs, [(0, 2, "x (along the line)", "z (stand-off)"),
                                        (0, 1, "x (along the line)", "y (offset from the laser plane)")]):
         for side, colour in ((1, "tab:blue"), (-1, "tab:red")):
-            sel = [p for p in pts if (p[1] >= 0) == (side > 0)]
+            sel = [p for p, up in pts if up == (side > 0)]
             if sel:
                 ax.scatter([p[i] for p in sel], [p[j] for p in sel], c=colour, s=18,
                            label="y > 0" if side > 0 else "y < 0")
@@ -99,24 +92,23 @@ def write_profiler_report(out_dir: _Path, calibration: stripecal.ProfilerCalibra
     vr = []
     for v in _views(cal):
         bad = ' style="color:#b00"' if not v.get("used") else ""
-        rms = _f(v.get("rms_mm"))
+        rms = _num(v.get("rms_mm"))
         vr.append(f"<tr{bad}><td>{v.get('view')}</td><td>{'yes' if v.get('used') else 'no'}</td><td>{v.get('points')}</td>"
                   f"<td>{v.get('gaps')}</td><td>{v.get('sphere_points')}</td><td>{v.get('rejected')}</td>"
                   f"<td>{'' if rms is None else f'{rms:.4f}'}</td><td style=\"text-align:left\">{html.escape(str(v.get('note') or ''))}</td></tr>")
     warnings = e.get("warnings")
-    warn = "".join(f"<li>{html.escape(str(w))}</li>" for w in (warnings if isinstance(warnings, list) else []))
+    warn = "".join(f"<li>{html.escape(str(w))}</li>" for w in _list(warnings))
     m = _map(e.get("mirror"))
     dc = _map(e.get("diameter_check"))
     loo = _map(e.get("leave_one_out"))
     facts = []
     if m:
-        d = _f(m.get("delta_chi2"))
-        facts.append(f"mirror test: the mirrored hand-eye fits worse by chi2 {'inf (no mirror minimum)' if d is None else f'{d:.4g}'}")
+        facts.append(mirror_text(m))
     if dc:
-        facts.append(f"diameter check: declared {_f(dc.get('declared_mm'))} mm, the profiles say {_f(dc.get('estimate_mm'))} "
-                     f"+- {_f(dc.get('sigma_mm'))} mm{' (DISAGREES)' if dc.get('disagrees') else ''}")
+        facts.append(f"diameter check: declared {_num(dc.get('declared_mm'))} mm, the profiles say {_num(dc.get('estimate_mm'))} "
+                     f"+- {_num(dc.get('sigma_mm'))} mm{' (DISAGREES)' if dc.get('disagrees') else ''}")
     if loo:
-        facts.append(f"leave-one-view-out: median held-out profile RMS {_f(loo.get('median_rms_mm'))} mm")
+        facts.append(f"leave-one-view-out: median held-out profile RMS {_num(loo.get('median_rms_mm'))} mm")
     imgs = "".join(f'<figure><img src="{f}" alt="{f}"><figcaption>{f}</figcaption></figure>' for f in figures)
     doc = f"""<!DOCTYPE html>
 <html><head><meta charset="utf-8"><title>{html.escape(title)}</title>

@@ -104,6 +104,15 @@ pub fn type_name(obj: &Bound<'_, PyAny>) -> String {
         .unwrap_or_else(|_| "?".into())
 }
 
+/// The TypeError of a `calibration` argument that is neither a Calibration nor a
+/// ProfilerCalibration.
+pub fn not_a_calibration(obj: &Bound<'_, PyAny>) -> PyErr {
+    PyTypeError::new_err(format!(
+        "calibration must be a Calibration or a ProfilerCalibration, got {}",
+        type_name(obj)
+    ))
+}
+
 /// A numpy array of shape `shape` (row-major data).
 pub fn nd<'py, T: Element>(
     py: Python<'py>,

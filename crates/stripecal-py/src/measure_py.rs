@@ -9,16 +9,16 @@ use std::path::PathBuf;
 use pyo3::prelude::*;
 
 use serde_json::Value;
-use stripecal::model::{Calibration, ProfileScan, ProfilerCalibration, RobotReading};
+use stripecal::model::{Calibration, ProfilerCalibration, RobotReading};
 use stripecal::pipeline::measure::{
     measure_scan_ball_bar, measure_scan_plane, measure_scan_sphere, profiler_uncertainty_model,
     scan_readings, scan_uncertainty_model, MeasureOptions,
 };
 use stripecal::pipeline::verify::{verify as core_verify, verify_profiler, VerifyOptions};
-use stripecal::reconstruct::{load_scan, reconstruct_scan, ReconstructOptions, UncertaintyOptions};
 use stripecal::reconstruct::{
-    profile_scan_points, read_profile_scan, ProfileFrame, ProfileReconstructOptions,
+    load_profile_frames, profile_scan_points, ProfileReconstructOptions, ScanPoints,
 };
+use stripecal::reconstruct::{load_scan, reconstruct_scan, ReconstructOptions, UncertaintyOptions};
 use stripecal::{Error, Result};
 
 use crate::convert::{json_to_py, progress_step};
@@ -70,7 +70,7 @@ fn measure_shape(
     shape: Shape,
     model: &stripecal::reconstruct::UncertaintyModel,
     readings: &[RobotReading],
-    points: &stripecal::reconstruct::ScanPoints,
+    points: &ScanPoints,
     opts: &MeasureOptions,
 ) -> Result<Value> {
     Ok(match shape {
@@ -92,12 +92,9 @@ fn measure(
     if let Ok(pc) = calibration.cast::<PyProfilerCalibration>() {
         return measure_profile_scan(py, shape, &pc.get().inner, scan_dir, cloud, opts);
     }
-    let calibration = calibration.cast::<PyCalibration>().map_err(|_| {
-        pyo3::exceptions::PyTypeError::new_err(format!(
-            "calibration must be a Calibration or a ProfilerCalibration, got {}",
-            crate::convert::type_name(calibration)
-        ))
-    })?;
+    let calibration = calibration
+        .cast::<PyCalibration>()
+        .map_err(|_| crate::convert::not_a_calibration(calibration))?;
     let cal = &calibration.get().inner;
     let given = cloud.map(|c| c.get().inner.clone());
     let v: Value = py
@@ -112,23 +109,25 @@ fn measure(
                     &mut |_, _, _| ControlFlow::Continue(()),
                 )?,
             };
-            if let Some(&f) = points
-                .frame
-                .iter()
-                .find(|&&f| f as usize >= scan.frames.len())
-            {
-                return Err(Error::InvalidInput(format!(
-                    "the cloud has points of frame {f}, but the scan has {} frames: it is not this \
-                     scan's cloud",
-                    scan.frames.len()
-                )));
-            }
+            check_cloud_frames(&points, scan.frames.len())?;
             let model = scan_uncertainty_model(cal, &scan, &opts.uncertainty)?;
             let readings = scan_readings(&scan);
             measure_shape(shape, &model, &readings, &points, &opts)
         })
         .py_err(py)?;
     Ok(json_to_py(py, &v)?.unbind())
+}
+
+/// An error if `points` has a point of a frame the scan (of `frames` frames) lacks: it is
+/// another scan's cloud.
+fn check_cloud_frames(points: &ScanPoints, frames: usize) -> Result<()> {
+    if let Some(&f) = points.frame.iter().find(|&&f| f as usize >= frames) {
+        return Err(Error::InvalidInput(format!(
+            "the cloud has points of frame {f}, but the scan has {frames} frames: it is not this \
+             scan's cloud"
+        )));
+    }
+    Ok(())
 }
 
 /// Measures the sphere in a scan (reconstructed here, or `cloud`, the scan's
@@ -153,20 +152,16 @@ fn measure_profile_scan(
     let given = cloud.map(|c| c.get().inner.clone());
     let v: Value = py
         .detach(|| -> Result<Value> {
-            let scan = ProfileScan::load(&scan_dir, cal.robot.as_ref())?;
-            let (frames, _) = read_profile_scan(&scan, &ProfileReconstructOptions::default())?;
-            let frames: Vec<ProfileFrame> = frames.into_iter().map(|(_, f)| f).collect();
+            let (frames, _) = load_profile_frames(
+                &scan_dir,
+                cal.robot.as_ref(),
+                &ProfileReconstructOptions::default(),
+            )?;
             let points = match given {
                 Some(p) => p,
                 None => profile_scan_points(&frames, cal)?,
             };
-            if let Some(&f) = points.frame.iter().find(|&&f| f as usize >= frames.len()) {
-                return Err(Error::InvalidInput(format!(
-                    "the cloud has points of frame {f}, but the scan has {} frames: it is not this \
-                     scan's cloud",
-                    frames.len()
-                )));
-            }
+            check_cloud_frames(&points, frames.len())?;
             let model = profiler_uncertainty_model(cal, &opts.uncertainty)?;
             let readings: Vec<RobotReading> = frames.iter().map(|f| f.0.clone()).collect();
             measure_shape(shape, &model, &readings, &points, &opts)
@@ -290,12 +285,7 @@ pub fn verify(
             Ok(p) => Err(p.get().inner.clone()),
             Err(_) => Ok(calibration
                 .cast::<PyCalibration>()
-                .map_err(|_| {
-                    pyo3::exceptions::PyTypeError::new_err(format!(
-                        "calibration must be a Calibration or a ProfilerCalibration, got {}",
-                        crate::convert::type_name(calibration)
-                    ))
-                })?
+                .map_err(|_| crate::convert::not_a_calibration(calibration))?
                 .get()
                 .inner
                 .clone()),

@@ -356,51 +356,34 @@ pub fn reconstruct_scan(
         // A line profiler's scan: points from the profiles (no stripe options apply).
         let cal = &pc.get().inner;
         let on_bad = BadImage::from_name(on_bad_image).py_err(py)?;
-        let result = py.detach(|| -> stripecal::Result<ScanPoints> {
-            let scan = stripecal::model::ProfileScan::load(&scan_dir, cal.robot.as_ref())?;
+        let result = py.detach(|| -> stripecal::Result<(ScanPoints, usize)> {
             let ropts = stripecal::reconstruct::ProfileReconstructOptions {
                 on_bad_frame: on_bad,
                 ..Default::default()
             };
-            let (frames, summary) = stripecal::reconstruct::read_profile_scan(&scan, &ropts)?;
             // the cloud's frame numbers are scan.csv's rows: skipped frames keep their
             // places as empty profiles
-            let mut all: Vec<stripecal::reconstruct::ProfileFrame> = scan
-                .frames
-                .iter()
-                .map(|f| (f.reading.clone(), Default::default()))
-                .collect();
-            for (i, f) in frames {
-                all[i] = f;
-            }
+            let (all, summary) =
+                stripecal::reconstruct::load_profile_frames(&scan_dir, cal.robot.as_ref(), &ropts)?;
             let mut points = stripecal::reconstruct::profile_scan_points(&all, cal)?;
             points.skipped = summary.skipped;
             if covariance {
-                let o = UncertaintyOptions {
-                    repeatability_mm,
-                    encoder_sigma_deg,
-                    ..Default::default()
-                };
-                let model = stripecal::pipeline::measure::profiler_uncertainty_model(cal, &o)?;
+                let model = stripecal::pipeline::measure::profiler_uncertainty_model(cal, &unc)?;
                 let readings: Vec<_> = all.iter().map(|f| f.0.clone()).collect();
                 points.covariance_mm2 = model.scan_covariances(&readings, &points)?;
             }
-            Ok(points)
+            Ok((points, all.len()))
         });
-        let inner = result.py_err(py)?;
+        let (inner, n) = result.py_err(py)?;
         if let Some(cb) = &progress {
-            let n = scan_frames_hint(&inner);
             cb.call1(py, (n, n, inner.len()))?;
         }
         py.check_signals()?;
         return Ok(PyCloud { inner });
     }
-    let calibration = calibration.cast::<PyCalibration>().map_err(|_| {
-        pyo3::exceptions::PyTypeError::new_err(format!(
-            "calibration must be a Calibration or a ProfilerCalibration, got {}",
-            crate::convert::type_name(calibration)
-        ))
-    })?;
+    let calibration = calibration
+        .cast::<PyCalibration>()
+        .map_err(|_| crate::convert::not_a_calibration(calibration))?;
     let mut opts = options(py, direction, min_ray_plane_angle_deg, drop_flags)?;
     opts.on_bad_image = BadImage::from_name(on_bad_image).py_err(py)?;
     opts.channel = channel
@@ -429,11 +412,6 @@ pub fn reconstruct_scan(
     // A signal that arrived after the last check is not lost: nothing is returned.
     py.check_signals()?;
     Ok(PyCloud { inner })
-}
-
-/// The number of frames a cloud's points come from (its largest frame index + 1).
-fn scan_frames_hint(p: &ScanPoints) -> usize {
-    p.frame.iter().max().map_or(0, |&f| f as usize + 1)
 }
 
 fn points_from_py(py: Python<'_>, points: &Bound<'_, PyAny>) -> PyResult<Vec<[f64; 3]>> {

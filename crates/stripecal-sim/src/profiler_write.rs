@@ -385,7 +385,7 @@ impl Twin {
             .iter()
             .enumerate()
             .map(|(i, v)| {
-                let samples = self.profiler_profile(v, Some(i as u64));
+                let samples = self.profiler_profile(v, Some(VIEW_STREAM.wrapping_add(i as u64)));
                 let points: Vec<[f64; 2]> = samples
                     .iter()
                     .filter_map(|s| s.z_mm.map(|z| [s.x_mm, z]))

@@ -187,6 +187,16 @@ fn check_common(
             )));
         }
     }
+    check_poses_and_robot(what, &poses, robot)
+}
+
+/// The poses are finite and the robot valid (a writer's check; errors `what: ...`).
+pub(super) fn check_poses_and_robot(
+    what: &str,
+    poses: &[(&str, &Iso3)],
+    robot: Option<&Robot>,
+) -> Result<()> {
+    let bad = |m: String| Error::InvalidInput(format!("{what}: {m}"));
     for (name, t) in poses {
         let finite = t.translation.vector.iter().all(|x| x.is_finite())
             && t.rotation.coords.iter().all(|x| x.is_finite());

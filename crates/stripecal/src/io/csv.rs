@@ -54,6 +54,9 @@ fn reject_quotes(path: &Path, line_no: usize, line: &str) -> Result<()> {
     Ok(())
 }
 
+/// The image columns of a camera dataset's tables (refused in a profile table).
+const IMAGE_COLUMNS: [&str; 3] = ["board_image", "laser_image", "image"];
+
 fn parse_header(
     path: &Path,
     header: &str,
@@ -73,6 +76,21 @@ fn parse_header(
              folder as a profile dataset or scan: ProfileDataset::load, ProfileScan::load); a \
              camera's header is {expected}"
         )));
+    }
+    if names == ["profile"] {
+        let images: Vec<&str> = fields
+            .iter()
+            .copied()
+            .filter(|f| IMAGE_COLUMNS.contains(f))
+            .collect();
+        if !images.is_empty() {
+            return Err(at(format!(
+                "column {} names images, but this is a profile dataset (rig.json sensor.kind = \
+                 \"profiler\"): its table has a `profile` column (a profile file) and the \
+                 joint or pose columns, e.g. `profile,q1,...,qN`",
+                images.join(", ")
+            )));
+        }
     }
     for (i, name) in names.iter().enumerate() {
         match fields.get(i) {

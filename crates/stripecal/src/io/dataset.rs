@@ -23,12 +23,11 @@ impl Dataset {
             ));
         }
         check_joints_have_robot(&views_path, rig.robot.as_ref(), &views[0].reading)?;
-        for v in &views {
-            check_file_exists(&root, &views_path, v.line, "image", &v.board_image)?;
-            if let Some(l) = &v.laser_image {
-                check_file_exists(&root, &views_path, v.line, "image", l)?;
-            }
-        }
+        let names = views.iter().flat_map(|v| {
+            std::iter::once((v.line, v.board_image.as_path()))
+                .chain(v.laser_image.as_deref().map(|l| (v.line, l)))
+        });
+        check_files_exist(&root, "views.csv", "image", names)?;
         Ok(Dataset { root, rig, views })
     }
 
@@ -96,13 +95,7 @@ pub(super) fn check_files_exist<'a>(
 
 /// Checks that the file `rel` (an `image`, a `profile`) named on `line` of `csv` exists
 /// under `root`.
-pub(super) fn check_file_exists(
-    root: &Path,
-    csv: &Path,
-    line: usize,
-    what: &str,
-    rel: &Path,
-) -> Result<()> {
+fn check_file_exists(root: &Path, csv: &Path, line: usize, what: &str, rel: &Path) -> Result<()> {
     let p = root.join(rel);
     if !p.is_file() {
         return Err(Error::format(

@@ -28,8 +28,6 @@ use crate::model::{ProfileDataset, ProfileScan, ProfileView, RobotReading, Senso
 
 /// The file column of a profile table.
 const PROFILE_COLUMNS: [&str; 1] = ["profile"];
-/// The image columns of a camera dataset's tables.
-const IMAGE_COLUMNS: [&str; 3] = ["board_image", "laser_image", "image"];
 
 /// The trimmed fields of a CSV text's first line.
 fn header_fields(text: &str) -> Vec<&str> {
@@ -41,24 +39,6 @@ fn header_fields(text: &str) -> Vec<&str> {
 /// Reads a profile table (views.csv or scan.csv): header `profile,` + pose columns.
 fn read_profile_table(path: &Path, robot: Option<&Robot>) -> Result<Vec<ProfileView>> {
     let text = read_text(path)?;
-    let header = header_fields(&text);
-    let images: Vec<&str> = header
-        .iter()
-        .copied()
-        .filter(|f| IMAGE_COLUMNS.contains(f))
-        .collect();
-    if !images.is_empty() {
-        return Err(Error::format(
-            path,
-            "line 1",
-            format!(
-                "column {} names images, but this is a profile dataset (rig.json sensor.kind = \
-                 \"profiler\"): its table has a `profile` column (a profile file) and the \
-                 joint or pose columns, e.g. `profile,q1,...,qN`",
-                images.join(", ")
-            ),
-        ));
-    }
     let rows = parse_table(path, &text, &PROFILE_COLUMNS, robot)?;
     Ok(rows
         .into_iter()

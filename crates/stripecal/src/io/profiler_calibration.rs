@@ -28,10 +28,11 @@ use serde_json::{Map, Value};
 
 use super::atomic::{read_text, write_atomic};
 use super::calibration::{
-    check_covariance, covariance_from, covariance_value, quality_checks_from, quality_checks_value,
-    sphere_from, sphere_is_valid, sphere_value, CALIBRATION_FORMAT,
+    check_covariance, check_poses_and_robot, covariance_from, covariance_value,
+    quality_checks_from, quality_checks_value, sphere_from, sphere_is_valid, sphere_value,
+    CALIBRATION_FORMAT,
 };
-use super::json::{append_extra, invalid_message, num, parse, pose_value, to_pretty, Obj};
+use super::json::{append_extra, num, parse, pose_value, to_pretty, Obj};
 use super::rig::{robot_from, robot_value};
 use super::sensor::sensor_kind_of;
 use crate::error::{Error, Result};
@@ -152,12 +153,11 @@ pub fn read_profiler_calibration(p: impl AsRef<Path>) -> Result<ProfilerCalibrat
 /// non-negative RMS, a valid robot and covariance, no camera keys in `extra`.
 pub fn write_profiler_calibration(p: impl AsRef<Path>, c: &ProfilerCalibration) -> Result<()> {
     let bad = |m: String| Error::InvalidInput(format!("profiler calibration: {m}"));
-    let t = &c.hand_sensor;
-    let finite = t.translation.vector.iter().all(|x| x.is_finite())
-        && t.rotation.coords.iter().all(|x| x.is_finite());
-    if !finite {
-        return Err(bad("hand_sensor has non-finite values".into()));
-    }
+    check_poses_and_robot(
+        "profiler calibration",
+        &[("hand_sensor", &c.hand_sensor)],
+        c.robot.as_ref(),
+    )?;
     if !sphere_is_valid(&sphere_of(c)) {
         return Err(bad(format!(
             "sphere centre {:?} / diameter {} must be finite (diameter > 0)",
@@ -169,9 +169,6 @@ pub fn write_profiler_calibration(p: impl AsRef<Path>, c: &ProfilerCalibration) 
         return Err(bad(format!(
             "quality profile_rms_mm {rms} must be finite and non-negative"
         )));
-    }
-    if let Some(r) = &c.robot {
-        r.validate().map_err(|e| bad(invalid_message(e)))?;
     }
     if let Some(cov) = &c.covariance {
         check_covariance(cov).map_err(|m| bad(format!("covariance: {m}")))?;

@@ -33,10 +33,10 @@ use serde_json::{json, Value};
 use crate::error::{Error, Result};
 use crate::io::read_artefacts;
 use crate::model::artefacts::Artefacts;
-use crate::model::{Calibration, ProfileScan, ProfilerCalibration, RobotReading};
+use crate::model::{Calibration, ProfilerCalibration, RobotReading};
 use crate::reconstruct::fit::Budget;
 use crate::reconstruct::{
-    load_scan, profile_scan_points, read_profile_scan, reconstruct_scan, ProfileFrame,
+    load_profile_frames, load_scan, profile_scan_points, reconstruct_scan,
     ProfileReconstructOptions, ReconstructOptions, ScanPoints, UncertaintyModel,
 };
 
@@ -235,7 +235,7 @@ pub fn verify(
     let load = |path: &Path, cb: &mut dyn FnMut(usize, usize, usize) -> ControlFlow<()>| {
         let scan = load_scan(path, calibration)?;
         let points = reconstruct_scan(calibration, &scan, &opts.reconstruct, cb)?;
-        let model = scan_uncertainty_model(calibration, &scan, &opts.measure.uncertainty)?;
+        let model = scan_uncertainty_model(calibration, &scan, &opts.measure.uncertainty);
         Ok((points, model, scan_readings(&scan)))
     };
     verify_scans(&load, dir, opts, progress)
@@ -250,28 +250,35 @@ pub fn verify_profiler(
     opts: &VerifyOptions,
     progress: &mut dyn FnMut(&str, usize, usize) -> ControlFlow<()>,
 ) -> Result<VerifyReport> {
+    let model = profiler_uncertainty_model(calibration, &opts.measure.uncertainty)?;
     let load = |path: &Path, cb: &mut dyn FnMut(usize, usize, usize) -> ControlFlow<()>| {
-        let scan = ProfileScan::load(path, calibration.robot.as_ref())?;
-        let (frames, _) = read_profile_scan(&scan, &ProfileReconstructOptions::default())?;
-        let frames: Vec<ProfileFrame> = frames.into_iter().map(|(_, f)| f).collect();
+        let (frames, _) = load_profile_frames(
+            path,
+            calibration.robot.as_ref(),
+            &ProfileReconstructOptions::default(),
+        )?;
         let points = profile_scan_points(&frames, calibration)?;
         let n = frames.len();
         if cb(n, n, points.len()).is_break() {
             return Err(Error::Cancelled);
         }
-        let model = profiler_uncertainty_model(calibration, &opts.measure.uncertainty)?;
-        Ok((points, model, frames.into_iter().map(|f| f.0).collect()))
+        Ok((
+            points,
+            Ok(model.clone()),
+            frames.into_iter().map(|f| f.0).collect(),
+        ))
     };
     verify_scans(&load, dir, opts, progress)
 }
 
 /// What verifying needs of one scan folder: its points, the points' uncertainty model
 /// and the frames' readings (by frame index); the callback reports `(frames done, frames,
-/// points)`.
+/// points)`. The model is a result of its own: its error is raised as it is, without the
+/// scan's tag.
 type ScanLoader<'a> = dyn Fn(
         &Path,
         &mut dyn FnMut(usize, usize, usize) -> ControlFlow<()>,
-    ) -> Result<(ScanPoints, UncertaintyModel, Vec<RobotReading>)>
+    ) -> Result<(ScanPoints, Result<UncertaintyModel>, Vec<RobotReading>)>
     + 'a;
 
 fn verify_scans(
@@ -290,6 +297,7 @@ fn verify_scans(
     let mut spheres = Vec::new();
     for (k, (scan_name, art)) in manifest.iter().enumerate() {
         let stage = format!("{scan_name} ({art})");
+        // Errors without a file name get the scan's; the others name their file.
         let tag = |e: Error| match e {
             Error::InvalidInput(m) => {
                 Error::InvalidInput(format!("verify: scan {scan_name} ({art}): {m}"))
@@ -304,6 +312,7 @@ fn verify_scans(
             progress(&stage, k * frames + done, total * frames.max(1))
         };
         let (points, model, readings) = load(&dir.join(scan_name), &mut cb).map_err(tag)?;
+        let model = model?;
         let unc = artefacts.uncertainty_k2_mm;
         let mpe = |c: Characteristic| c.mpe(&artefacts);
         let row = |c: Characteristic, what: String, b: Budget| VerifyRow {

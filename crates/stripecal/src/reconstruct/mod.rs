@@ -76,7 +76,8 @@ pub use options::{
 };
 pub use points::{at_frame, ScanPoints};
 pub use profile::{
-    read_profile_scan, reconstruct_profile_scan, ProfileReconstructOptions, ProfileScanSummary,
+    load_profile_frames, read_profile_scan, reconstruct_profile_scan, ProfileReconstructOptions,
+    ProfileScanSummary,
 };
 pub use profile_points::{profile_scan_points, ProfileFrame};
 pub use scan::{load_scan, reconstruct_frames, reconstruct_scan};

@@ -37,6 +37,7 @@ use super::{at_frame, BadImage};
 use crate::error::{BadFrame, Error, Result};
 use crate::io::read_profile;
 use crate::model::geometry::Iso3;
+use crate::model::kinematics::Robot;
 use crate::model::{Cloud, Profile, ProfileScan, ProfilerCalibration, RobotReading};
 use crate::reconstruct::ProfileFrame;
 
@@ -155,6 +156,31 @@ pub fn read_profile_scan(
             }
         }
     }
+    Ok((frames, summary))
+}
+
+/// A profile scan folder's frames ([`ProfileScan::load`], [`read_profile_scan`]), one
+/// per row of scan.csv: a frame skipped as `opts` says keeps its place with its reading
+/// and an empty profile, so the frame numbers of
+/// [`profile_scan_points`](super::profile_scan_points) are scan.csv's rows; and what was
+/// done.
+pub fn load_profile_frames(
+    dir: &Path,
+    robot: Option<&Robot>,
+    opts: &ProfileReconstructOptions,
+) -> Result<(Vec<ProfileFrame>, ProfileScanSummary)> {
+    let scan = ProfileScan::load(dir, robot)?;
+    let (read, summary) = read_profile_scan(&scan, opts)?;
+    let mut read = read.into_iter().peekable();
+    let frames = scan
+        .frames
+        .iter()
+        .enumerate()
+        .map(|(i, f)| match read.next_if(|(k, _)| *k == i) {
+            Some((_, frame)) => frame,
+            None => (f.reading.clone(), Profile::default()),
+        })
+        .collect();
     Ok((frames, summary))
 }
 

@@ -45,7 +45,7 @@
 //! residuals are independent noise, large when the views' poses are off). One factor
 //! keeps the i.i.d. covariance's correlations.
 
-use nalgebra::Vector3;
+use nalgebra::{DVector, Vector3};
 
 use super::covariance::named_covariance;
 use super::layout::{Block, ParamLayout, SphereStart};
@@ -56,7 +56,7 @@ use super::robot_solve::{report, RobotOptions, RobotOutcome};
 use crate::error::{Error, Result};
 use crate::model::geometry::Iso3;
 use crate::model::{NamedCovariance, RobotCalibration};
-use crate::numerics::lm::{levenberg_marquardt, LmOptions, StopReason};
+use crate::numerics::lm::{levenberg_marquardt, LmOptions, LmResult, StopReason};
 
 pub use crate::calib::profile::arc::{BAND_SIGMAS, MIN_BAND_MM};
 
@@ -150,11 +150,9 @@ fn stop_ftol(m: usize, lm: &LmOptions) -> f64 {
     lm.ftol.max(1e-6 / m.max(1) as f64)
 }
 
-/// The per-view gradients `g_v` at a solve's result (the variance factor's).
-type ViewGradients = Option<Vec<nalgebra::DVector<f64>>>;
-
-/// One solve over the points `selected`: the LM result, and the per-view gradients at
-/// its parameters when the solver formed its last normal equations there.
+/// One solve over the points `selected`: the LM result and the per-view gradients
+/// `g_v = J_v^T r_v` at its parameters (the variance factor's; from the solver's last
+/// normal equations, which it formed there).
 fn solve(
     layout: &ParamLayout,
     p0: &[f64],
@@ -162,7 +160,7 @@ fn solve(
     a: &[Iso3],
     selected: &[Vec<usize>],
     lm: &LmOptions,
-) -> Result<(crate::numerics::lm::LmResult, ViewGradients)> {
+) -> Result<(LmResult, Vec<DVector<f64>>)> {
     let terms = Terms::of(views, selected, a);
     if terms.len() <= layout.num_params() {
         return Err(Error::Degenerate(format!(
@@ -177,17 +175,19 @@ fn solve(
         ..lm.clone()
     };
     let res = levenberg_marquardt(&prob, p0, &lm)?;
-    let gradients = prob.view_gradients_at(&res.params);
+    let gradients = prob.view_gradients_at(&res.params).unwrap_or_else(|| {
+        let mut r = vec![0.0; terms.len()];
+        prob.view_normals(&res.params, &mut r)
+            .into_iter()
+            .map(|v| v.g)
+            .collect()
+    });
     Ok((res, gradients))
 }
 
-/// The median of `v` (0 when empty).
+/// The median of `v` ([`crate::numerics::robust::median`]; 0 when empty).
 fn median(mut v: Vec<f64>) -> f64 {
-    if v.is_empty() {
-        return 0.0;
-    }
-    let mid = v.len() / 2;
-    *v.select_nth_unstable_by(mid, f64::total_cmp).1
+    crate::numerics::robust::median(&mut v).unwrap_or(0.0)
 }
 
 /// The points of every view within the band of the sphere (module docs): the global
@@ -217,38 +217,17 @@ fn reselect(res: &[Vec<f64>], selected: &[Vec<usize>]) -> Vec<Vec<usize>> {
 
 /// The view-clustered variance factor (module docs): the median over the parameters of
 /// the cluster-robust variance (views as clusters) over the i.i.d. one, at least 1.
-fn view_variance_factor(
-    layout: &ParamLayout,
-    p: &[f64],
-    views: &[ProfileViewObs],
-    flanges: &[Iso3],
-    selected: &[Vec<usize>],
-    res: &crate::numerics::lm::LmResult,
-    gradients: ViewGradients,
-) -> Result<f64> {
-    let n = layout.num_params();
-    let g = views.len();
+fn view_variance_factor(res: &LmResult, gradients: &[DVector<f64>]) -> f64 {
+    let n = res.jtj.nrows();
+    let g = gradients.len();
     if g < 3 {
-        return Ok(1.0);
+        return 1.0;
     }
     let Some(ninv) = res.jtj.clone().try_inverse() else {
-        return Ok(1.0);
-    };
-    let gradients = match gradients {
-        Some(g) => g,
-        None => {
-            // the layout's flanges come from its robot block: the fit's poses
-            let terms = Terms::of(views, selected, flanges);
-            let mut r = vec![0.0; terms.len()];
-            ProfileProblem::new(layout, &terms)
-                .view_normals(p, &mut r)
-                .into_iter()
-                .map(|v| v.g)
-                .collect()
-        }
+        return 1.0;
     };
     let mut b = nalgebra::DMatrix::<f64>::zeros(n, n);
-    for gv in &gradients {
+    for gv in gradients {
         b += gv * gv.transpose();
     }
     let robust = &ninv * b * &ninv * (g as f64 / (g - 1) as f64);
@@ -259,10 +238,10 @@ fn view_variance_factor(
         })
         .collect();
     if ratios.is_empty() {
-        return Ok(1.0);
+        return 1.0;
     }
     ratios.sort_by(f64::total_cmp);
-    Ok(ratios[ratios.len() / 2].max(1.0))
+    ratios[ratios.len() / 2].max(1.0)
 }
 
 /// The profiler's adjustment (module docs) of `views` from `start`.
@@ -408,12 +387,7 @@ pub fn profile_adjustment(
         });
     }
     let s = layout.decode(&p);
-    let flanges_now = match &layout.robot {
-        Some(rb) => rb.flanges(&p[layout.robot_columns()]),
-        None => a.clone(),
-    };
-    let view_factor =
-        view_variance_factor(&layout, &p, views, &flanges_now, &selected, &res, grads)?;
+    let view_factor = view_variance_factor(&res, &grads);
     let covariance = named_covariance(&layout, &p, &s, &(&res.covariance * view_factor), 1.0);
     let robot = outcome
         .as_ref()

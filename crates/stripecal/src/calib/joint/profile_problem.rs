@@ -4,24 +4,29 @@
 //!
 //! ## Residuals and rows
 //!
-//! A profile point `p = (x, 0, z)` of view i is at `P = A_i (R_X p + t_X)`; with
-//! `M = R_Ai R_X` and `t = R_Ai t_X + t_Ai - c`, `d = P - c = x m_0 + z m_2 + t` (`m_k`
-//! the columns of `M`), `e = |d| - D / 2`, `u = d / |d|`, `u_f = R_Ai^T u`:
+//! A profile point `p = (x, 0, z)` of view i is at `P = A_i (R_X p + t_X)`. In the
+//! flange frame, `d = R_Ai^T (P - c) = x r_0 + z r_2 + t_f` (`r_k` the columns of `R_X`,
+//! `t_f = t_X + R_Ai^T (t_Ai - c)`); `e = |d| - D / 2`, `u_f = d / |d|`, `u = R_Ai u_f`:
 //!
 //! ```text
-//! de/dw_X = p x (M^T u)          (X's increment R_X Exp(w); M^T u = R_X^T u_f)
+//! de/dw_X = p x (R_X^T u_f)      (X's increment R_X Exp(w))
 //! de/dt_X = u_f
 //! de/dc   = -u,   de/dD = -1/2
 //! de/dk   = w_k . (q x u_f) + v_k . u_f   (DH correction k, q = R_X p + t_X)
 //! ```
 //!
+//! Every term is linear in the point's features `f = (u_f, x u_f, z u_f, 1)`
+//! (`p x a = x e_0 x a + z e_2 x a`, `q x u_f = x r_0 x u_f + z r_2 x u_f + t_X x u_f`):
+//! a row is `B_v f` with one `n x 10` map `B_v` per view ([`feature_map`]).
+//!
 //! ## Normal equations
 //!
-//! A profile has thousands of points and the adjustment a handful of numbers: `J^T J`
-//! and `J^T r` are accumulated view by view, [`LANES`] points at a time (the rows of a
-//! block of points are columns of `LANES` numbers, so the products vectorise), and
-//! the Jacobian is never stored. The per-view gradients `g_v = J_v^T r_v` are the
-//! view-clustered variance factor's. Checked against the rows in the tests.
+//! A profile has thousands of points and the adjustment a handful of numbers: a view's
+//! `J_v^T J_v = B_v G_v B_v^T` and `J_v^T r_v = B_v G_v[.., e]`, with `G_v` the Gram
+//! matrix of the features and the residual (`11 x 11`, faer's product over blocks of
+//! [`BLOCK`] points), so the Jacobian is never stored. The per-view gradients
+//! `g_v = J_v^T r_v` are the view-clustered variance factor's. Checked against the rows
+//! in the tests, the rows against central differences.
 
 use std::ops::Range;
 
@@ -83,27 +88,43 @@ fn per_view<'a, T>(mut r: &'a mut [T], ranges: &[Range<usize>], width: usize) ->
     out
 }
 
-/// What every point of a view shares at a parameter vector (module docs).
+/// What every point of a view shares at a parameter vector (module docs), in the
+/// flange frame: `R_A^T (P - c) = x r_0 + z r_2 + t_f` (`r_k` the columns of `R_X`).
 struct ViewState {
-    m0: Vector3<f64>,
-    m2: Vector3<f64>,
-    t: Vector3<f64>,
-    /// `R_A^T` (a unit vector to the flange frame) and `M^T` (to the sensor frame).
+    /// `t_f = t_X + R_A^T (t_A - c)`.
+    tf: Vector3<f64>,
+    /// `R_A^T`.
     rat: Matrix3<f64>,
-    mt: Matrix3<f64>,
     /// The flange perturbation per DH correction.
     twists: Vec<[f64; 6]>,
 }
 
-impl ViewState {
-    /// `|P - c|` of the point `(x, 0, z)`.
-    #[inline]
-    fn distance(&self, x: f64, z: f64) -> f64 {
-        let d0 = x * self.m0.x + z * self.m2.x + self.t.x;
-        let d1 = x * self.m0.y + z * self.m2.y + self.t.y;
-        let d2 = x * self.m0.z + z * self.m2.z + self.t.z;
-        (d0 * d0 + d1 * d1 + d2 * d2).sqrt()
-    }
+/// A point's residual `e = |d| - rho` and its features `f = (u_f, x u_f, z u_f, 1)`
+/// (module docs), `d = x r_0 + z r_2 + t_f`, `u_f = d / |d|`.
+#[inline(always)]
+fn point_features(x: f64, z: f64, st: &State, tf: &Vector3<f64>) -> (f64, [f64; F - 1]) {
+    let (r0, r2) = (&st.rx0, &st.rx2);
+    let d0 = x * r0.x + z * r2.x + tf.x;
+    let d1 = x * r0.y + z * r2.y + tf.y;
+    let d2 = x * r0.z + z * r2.z + tf.z;
+    let nd = (d0 * d0 + d1 * d1 + d2 * d2).sqrt().max(1e-300);
+    let inv = 1.0 / nd;
+    let (u0, u1, u2) = (d0 * inv, d1 * inv, d2 * inv);
+    (
+        nd - st.rho,
+        [
+            u0,
+            u1,
+            u2,
+            x * u0,
+            x * u1,
+            x * u2,
+            z * u0,
+            z * u1,
+            z * u2,
+            1.0,
+        ],
+    )
 }
 
 /// What every point shares at a parameter vector: `X`'s rotation columns 0 and 2 and
@@ -116,6 +137,15 @@ struct State {
     tx: Vector3<f64>,
     rho: f64,
     views: Vec<ViewState>,
+}
+
+impl State {
+    /// The residual `|P - c| - rho` of the point `(x, 0, z)` of view `s`.
+    #[inline]
+    fn distance(&self, x: f64, z: f64, s: &ViewState) -> f64 {
+        let d = x * self.rx0 + z * self.rx2 + s.tf;
+        (d.x * d.x + d.y * d.y + d.z * d.z).sqrt() - self.rho
+    }
 }
 
 /// The Jacobian's columns of the blocks.
@@ -186,14 +216,10 @@ impl ProfileProblem<'_> {
             .iter()
             .zip(twists)
             .map(|(a, twists)| {
-                let ra = a.rotation.to_rotation_matrix().into_inner();
-                let m = ra * rx;
+                let rat = a.rotation.to_rotation_matrix().into_inner().transpose();
                 ViewState {
-                    m0: m.column(0).into_owned(),
-                    m2: m.column(2).into_owned(),
-                    t: ra * tx + a.translation.vector - c,
-                    rat: ra.transpose(),
-                    mt: m.transpose(),
+                    tf: tx + rat * (a.translation.vector - c),
+                    rat,
                     twists,
                 }
             })
@@ -248,11 +274,8 @@ fn skew(a: &Vector3<f64>) -> Matrix3<f64> {
 fn feature_map(s: &ViewState, st: &State, cols: &Columns, n: usize) -> DMatrix<f64> {
     let mut b = DMatrix::<f64>::zeros(n, F - 1);
     let set = |b: &mut DMatrix<f64>, r0: usize, c0: usize, m: &Matrix3<f64>| {
-        for i in 0..3 {
-            for j in 0..3 {
-                b[(r0 + i, c0 + j)] += m[(i, j)];
-            }
-        }
+        let mut v = b.fixed_view_mut::<3, 3>(r0, c0);
+        v += m;
     };
     if let Some(c0) = cols.x {
         // p x (R_X^T u_f) = x [e0]_x R_X^T u_f + z [e2]_x R_X^T u_f
@@ -300,9 +323,6 @@ fn view_block(
     n: usize,
     out: &mut [f64],
 ) -> ViewNormals {
-    // d in the flange frame: R_A^T d = x rx0 + z rx2 + R_A^T t
-    let tf = s.rat * s.t;
-    let (r0, r2) = (st.rx0, st.rx2);
     // the features row after row (F rows of BLOCK), so that the loop vectorises
     let mut buf = vec![0.0; F * BLOCK];
     let mut gram = faer::Mat::<f64>::zeros(F, F);
@@ -311,29 +331,22 @@ fn view_block(
         let (xs, zs) = (&xs[k0..k0 + len], &zs[k0..k0 + len]);
         let o = &mut out[k0..k0 + len];
         let mut rows = buf.chunks_exact_mut(BLOCK);
-        let mut next = || &mut rows.next().expect("F rows")[..len];
+        let mut next = || &mut rows.next().expect("F rows of BLOCK")[..len];
         let (f0, f1, f2, f3, f4) = (next(), next(), next(), next(), next());
         let (f5, f6, f7, f8, f9, f10) = (next(), next(), next(), next(), next(), next());
         for i in 0..len {
-            let (x, z) = (xs[i], zs[i]);
-            let d0 = x * r0.x + z * r2.x + tf.x;
-            let d1 = x * r0.y + z * r2.y + tf.y;
-            let d2 = x * r0.z + z * r2.z + tf.z;
-            let nd = (d0 * d0 + d1 * d1 + d2 * d2).sqrt().max(1e-300);
-            let e = nd - st.rho;
+            let (e, f) = point_features(xs[i], zs[i], st, &s.tf);
             o[i] = e;
-            let inv = 1.0 / nd;
-            let (u0, u1, u2) = (d0 * inv, d1 * inv, d2 * inv);
-            f0[i] = u0;
-            f1[i] = u1;
-            f2[i] = u2;
-            f3[i] = x * u0;
-            f4[i] = x * u1;
-            f5[i] = x * u2;
-            f6[i] = z * u0;
-            f7[i] = z * u1;
-            f8[i] = z * u2;
-            f9[i] = 1.0;
+            f0[i] = f[0];
+            f1[i] = f[1];
+            f2[i] = f[2];
+            f3[i] = f[3];
+            f4[i] = f[4];
+            f5[i] = f[5];
+            f6[i] = f[6];
+            f7[i] = f[7];
+            f8[i] = f[8];
+            f9[i] = f[9];
             f10[i] = e;
         }
         // row k of the features: buf[k * BLOCK..][..len]
@@ -372,7 +385,7 @@ impl LeastSquares for ProfileProblem<'_> {
             .zip(st.views.par_iter())
             .for_each(|((out, g), s)| {
                 for ((o, &x), &z) in out.iter_mut().zip(&t.xs[g.clone()]).zip(&t.zs[g.clone()]) {
-                    *o = s.distance(x, z) - st.rho;
+                    *o = st.distance(x, z, s);
                 }
             });
         Ok(())
@@ -405,43 +418,18 @@ impl LeastSquares for ProfileProblem<'_> {
             .zip(t.ranges.par_iter())
             .zip(st.views.par_iter())
             .for_each(|(((out, rows), g), s)| {
+                // a row is B f (module docs)
+                let b = feature_map(s, &st, &cols, n);
                 let it = out
                     .iter_mut()
                     .zip(rows.chunks_exact_mut(n))
                     .zip(&t.xs[g.clone()])
                     .zip(&t.zs[g.clone()]);
                 for (((o, row), &x), &z) in it {
-                    let d = x * s.m0 + z * s.m2 + s.t;
-                    let len = d.norm().max(1e-300);
-                    *o = len - st.rho;
-                    let u = d / len;
-                    let uf = s.rat * u;
-                    if let Some(c0) = cols.x {
-                        // p x (R_X^T u_f), p = (x, 0, z), R_X^T u_f = M^T u
-                        let w = s.mt * u;
-                        row[c0] = -z * w.y;
-                        row[c0 + 1] = z * w.x - x * w.z;
-                        row[c0 + 2] = x * w.y;
-                        row[c0 + 3..c0 + 6].copy_from_slice(uf.as_slice());
-                    }
-                    for (k, col) in cols.centre.clone().enumerate() {
-                        row[col] = -u[k];
-                    }
-                    for col in cols.diameter.clone() {
-                        row[col] = -0.5;
-                    }
-                    if !s.twists.is_empty() {
-                        let q = x * st.rx0 + z * st.rx2 + st.tx;
-                        let qu = q.cross(&uf);
-                        for (col, tw) in cols.robot.clone().zip(&s.twists) {
-                            row[col] = tw[0] * qu.x
-                                + tw[1] * qu.y
-                                + tw[2] * qu.z
-                                + tw[3] * uf.x
-                                + tw[4] * uf.y
-                                + tw[5] * uf.z;
-                        }
-                    }
+                    let (e, f) = point_features(x, z, &st, &s.tf);
+                    *o = e;
+                    let j = &b * DVector::from_column_slice(&f);
+                    row.copy_from_slice(j.as_slice());
                 }
             });
         Ok(())
@@ -498,7 +486,7 @@ pub(super) fn all_residuals(
         .map(|(o, s)| {
             o.points
                 .iter()
-                .map(|q| s.distance(q[0], q[1]) - st.rho)
+                .map(|q| st.distance(q[0], q[1], s))
                 .collect()
         })
         .collect()
@@ -548,29 +536,14 @@ mod tests {
     fn jacobian_matches_central_differences() {
         let (layout, terms, p) = problem_parts();
         let prob = ProfileProblem::new(&layout, &terms);
-        let (m, n) = (prob.num_residuals(), prob.num_params());
-        let mut r = vec![0.0; m];
-        let mut rows = JacobianRows::new(m, n, n);
-        prob.residuals_and_jacobian_rows(&p, &mut r, &mut rows)
-            .unwrap();
-        let h = 1e-6;
-        let mut worst: f64 = 0.0;
-        for j in 0..n {
-            let mut dp = vec![0.0; n];
-            dp[j] = h;
-            let (mut pp, mut pm) = (vec![0.0; n], vec![0.0; n]);
-            prob.retract(&p, &dp, &mut pp);
-            dp[j] = -h;
-            prob.retract(&p, &dp, &mut pm);
-            let (mut rp, mut rm) = (vec![0.0; m], vec![0.0; m]);
-            prob.residuals(&pp, &mut rp).unwrap();
-            prob.residuals(&pm, &mut rm).unwrap();
-            for i in 0..m {
-                let fd = (rp[i] - rm[i]) / (2.0 * h);
-                let an = rows.row(i).1[j];
-                worst = worst.max((fd - an).abs() / (1.0 + an.abs()));
-            }
-        }
+        let worst = crate::numerics::lm::assert_jacobian_matches_fd(
+            &prob,
+            &p,
+            |_| 1e-6,
+            1e-12,
+            1e-5,
+            "profiler rows",
+        );
         assert!(worst < 1e-5, "worst relative difference {worst:e}");
     }
 

@@ -156,7 +156,7 @@ fn refine(pts: &[[f64; 2]], idx: &[usize], centre: [f64; 2], radius: f64) -> ([f
     (c, r)
 }
 
-/// `N x = g` for a 3 x 3 symmetric positive definite `N` (Cramer); `None` if singular.
+/// `N x = g` for a 3 x 3 symmetric positive definite `N` (LU); `None` if singular.
 fn solve3(n: &[[f64; 3]; 3], g: &[f64; 3]) -> Option<[f64; 3]> {
     let m = nalgebra::Matrix3::from_fn(|i, j| n[i][j]);
     let x = m.lu().solve(&nalgebra::Vector3::new(g[0], g[1], g[2]))?;

@@ -32,13 +32,9 @@ pub(super) struct Consensus {
     pub left_out: Vec<(usize, String)>,
 }
 
+/// The median of `v` ([`crate::numerics::robust::median`]; 0 when empty).
 fn median(v: &[f64]) -> f64 {
-    let mut s = v.to_vec();
-    s.sort_by(f64::total_cmp);
-    if s.is_empty() {
-        return 0.0;
-    }
-    s[s.len() / 2]
+    crate::numerics::robust::median(&mut v.to_vec()).unwrap_or(0.0)
 }
 
 /// The consensus (module docs) of `obs` (with their arcs `arcs`); `radius` the declared

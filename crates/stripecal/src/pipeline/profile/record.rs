@@ -11,12 +11,9 @@ use crate::calib::joint::profile::{ProfileFit, ProfileViewObs};
 use crate::io::{robot_calibration_extra, robot_uncertainty, warnings_to_json};
 use crate::model::{ProfileRig, ProfilerCalibration, ProfilerQuality, QualityCheck};
 
+/// A number, `null` when not finite (`Value::from` does that).
 fn num(x: f64) -> Value {
-    if x.is_finite() {
-        json!(x)
-    } else {
-        Value::Null
-    }
+    Value::from(x)
 }
 
 /// Fills each view's figures from the fit (`obs` the views used, in the fit's order).

@@ -21,6 +21,11 @@ fn same_length(names: &[String], deltas: &[f64]) -> Result<()> {
     Ok(())
 }
 
+/// The `k` of a name `{prefix}{k}]` (`prefix` ends with `[`).
+fn index(name: &str, prefix: &str) -> Option<usize> {
+    name.strip_prefix(prefix)?.strip_suffix(']')?.parse().ok()
+}
+
 /// `calibration` with `deltas[i]` added to the number named `names[i]` (the names of
 /// calibration.json's `covariance`): camera numbers and DH values directly; the laser
 /// plane's normal component-wise, then renormalised (its offset directly); `hand_cam` /
@@ -48,9 +53,6 @@ pub fn perturbed_calibration(
             c.base_board.translation.vector,
         ),
     ];
-    let index = |n: &str, prefix: &str| -> Option<usize> {
-        n.strip_prefix(prefix)?.strip_suffix(']')?.parse().ok()
-    };
     let dof = c.robot.as_ref().map_or(0, |r| r.dof());
     for (name, &delta) in names.iter().zip(deltas) {
         let name = name.as_str();
@@ -115,21 +117,14 @@ pub fn perturbed_profiler_calibration(
     let mut c = calibration.clone();
     let mut r = matrix_to_rotvec(&c.hand_sensor.rotation.to_rotation_matrix().into_inner());
     let mut t = c.hand_sensor.translation.vector;
-    let index = |n: &str, prefix: &str| -> Option<usize> {
-        n.strip_prefix(prefix)?
-            .strip_suffix(']')?
-            .parse()
-            .ok()
-            .filter(|&k| k < 3)
-    };
     let dof = c.robot.as_ref().map_or(0, |r| r.dof());
     for (name, &delta) in names.iter().zip(deltas) {
         let name = name.as_str();
-        if let Some(k) = index(name, "hand_cam.rotation_vector[") {
+        if let Some(k) = index(name, "hand_cam.rotation_vector[").filter(|&k| k < 3) {
             r[k] += delta;
-        } else if let Some(k) = index(name, "hand_cam.translation_mm[") {
+        } else if let Some(k) = index(name, "hand_cam.translation_mm[").filter(|&k| k < 3) {
             t[k] += delta;
-        } else if let Some(k) = index(name, "sphere.center_mm[") {
+        } else if let Some(k) = index(name, "sphere.center_mm[").filter(|&k| k < 3) {
             c.sphere_center_mm[k] += delta;
         } else if name == "sphere.diameter_mm" {
             c.sphere_diameter_mm += delta;
