@@ -4,6 +4,7 @@
 //! Transforms are `(N, 4, 4)` homogeneous float arrays (rigid to 1e-6); the GIL is
 //! released while the core computes.
 
+use crate::pool::Detach;
 use nalgebra::Matrix4;
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyList, PySequence};
@@ -64,7 +65,7 @@ fn solve(
     let a = isos_from_py(a, "A")?;
     let b = isos_from_py(b, "B")?;
     let opts = AxzbOptions { refine };
-    py.detach(|| solve_axzb_with(&a, &b, &opts)).py_err(py)
+    py.detach_pool(|| solve_axzb_with(&a, &b, &opts)).py_err(py)
 }
 
 /// Solves `A_i X = Z B_i` for `X = T_hand_cam` and `Z = T_base_board` from
@@ -165,7 +166,7 @@ pub fn fit_laser_plane<'py>(
     }
     let cam = camera.inner.clone();
     let fit = py
-        .detach(|| core_fit_laser_plane(&views, &cam))
+        .detach_pool(|| core_fit_laser_plane(&views, &cam))
         .py_err(py)?;
     let d = PyDict::new(py);
     let nrm = fit.plane.normal;
@@ -280,7 +281,7 @@ pub fn calibrate(
             leave_one_out,
             accept_poor,
         };
-        let result = py.detach(|| calibrate_profile_dataset_loaded(&ds, &opts));
+        let result = py.detach_pool(|| calibrate_profile_dataset_loaded(&ds, &opts));
         py.check_signals()?;
         return match result {
             Ok(rep) => Ok(Py::new(
@@ -305,7 +306,7 @@ pub fn calibrate(
                     crate::convert::type_name(c)
                 ))
             })?;
-            py.detach(|| stripecal::io::read_calibration(&path))
+            py.detach_pool(|| stripecal::io::read_calibration(&path))
                 .py_err(py)?
         }),
     };
@@ -345,7 +346,7 @@ pub fn calibrate(
     };
     let result = if let Ok(ds) = dataset.cast::<PyDataset>() {
         let ds = &ds.get().inner;
-        py.detach(|| calibrate_dataset_loaded(ds, &opts))
+        py.detach_pool(|| calibrate_dataset_loaded(ds, &opts))
     } else {
         let path: PathBuf = dataset.extract().map_err(|_| {
             pyo3::exceptions::PyTypeError::new_err(format!(
@@ -353,7 +354,7 @@ pub fn calibrate(
                 crate::convert::type_name(dataset)
             ))
         })?;
-        py.detach(|| calibrate_dataset(&path, &opts))
+        py.detach_pool(|| calibrate_dataset(&path, &opts))
     };
     // A Ctrl-C while the core ran (the GIL released, Python could not act on it): the
     // result is dropped and KeyboardInterrupt raised, so no caller goes on to write it.
@@ -384,10 +385,12 @@ fn profile_dataset(py: Python<'_>, dataset: &Bound<'_, PyAny>) -> PyResult<Optio
         return Ok(None);
     };
     // (without a rig.json the camera's loader says what is missing)
-    if !path.join("rig.json").is_file() || !py.detach(|| is_profile_dataset(&path)).py_err(py)? {
+    if !path.join("rig.json").is_file()
+        || !py.detach_pool(|| is_profile_dataset(&path)).py_err(py)?
+    {
         return Ok(None);
     }
-    py.detach(|| ProfileDataset::load(&path))
+    py.detach_pool(|| ProfileDataset::load(&path))
         .py_err(py)
         .map(Some)
 }
@@ -504,7 +507,7 @@ pub fn calibrate_camera<'py>(
         ..Default::default()
     };
     let r = py
-        .detach(|| core_calibrate_camera(&obs, &b, width, height, model, &opts))
+        .detach_pool(|| core_calibrate_camera(&obs, &b, width, height, model, &opts))
         .py_err(py)?;
     let d = PyDict::new(py);
     d.set_item("camera", PyCamera::new_py(r.camera.clone()))?;

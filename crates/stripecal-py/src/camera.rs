@@ -1,5 +1,6 @@
 //! `stripecal.Camera`.
 
+use crate::pool::Detach;
 use nalgebra::{Vector2, Vector3};
 use pyo3::prelude::*;
 use stripecal::model::camera::{Camera, DistortionModel};
@@ -29,7 +30,7 @@ fn per_row<const K: usize, T: Send>(
     name: &str,
     f: impl Fn(&[f64; K]) -> stripecal::Result<T> + Send + Sync,
 ) -> PyResult<Vec<T>> {
-    let out: Result<Vec<T>, (usize, Error)> = py.detach(|| {
+    let out: Result<Vec<T>, (usize, Error)> = py.detach_pool(|| {
         rows.iter()
             .enumerate()
             .map(|(i, r)| f(r).map_err(|e| (i, e)))

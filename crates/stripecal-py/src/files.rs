@@ -1,6 +1,7 @@
 //! Module-level file functions: rig, dataset, scan, calibration, truth, sphere fit, PLY,
 //! images.
 
+use crate::pool::Detach;
 use std::path::PathBuf;
 
 use numpy::{PyArray2, PyArrayDescrMethods, PyArrayMethods, PyUntypedArray, PyUntypedArrayMethods};
@@ -24,7 +25,7 @@ use crate::robot::PyRobot;
 /// Reads rig.json.
 #[pyfunction]
 pub fn load_rig(py: Python<'_>, path: PathBuf) -> PyResult<PyRig> {
-    let inner = py.detach(|| read_rig(&path)).py_err(py)?;
+    let inner = py.detach_pool(|| read_rig(&path)).py_err(py)?;
     Ok(PyRig { inner })
 }
 
@@ -32,14 +33,14 @@ pub fn load_rig(py: Python<'_>, path: PathBuf) -> PyResult<PyRig> {
 #[pyfunction]
 pub fn save_rig(py: Python<'_>, path: PathBuf, rig: &Bound<'_, PyRig>) -> PyResult<()> {
     let r = &rig.get().inner;
-    py.detach(|| write_rig(&path, r)).py_err(py)
+    py.detach_pool(|| write_rig(&path, r)).py_err(py)
 }
 
 /// Loads a calibration dataset folder (rig.json + views.csv, checking that every image
 /// exists). Never reads truth.json.
 #[pyfunction]
 pub fn load_dataset(py: Python<'_>, path: PathBuf) -> PyResult<PyDataset> {
-    let inner = py.detach(|| Dataset::load(&path)).py_err(py)?;
+    let inner = py.detach_pool(|| Dataset::load(&path)).py_err(py)?;
     Ok(PyDataset { inner })
 }
 
@@ -53,14 +54,16 @@ pub fn load_scan(
     robot: Option<&Bound<'_, PyRobot>>,
 ) -> PyResult<PyScan> {
     let robot = robot.map(|r| r.get().inner.clone());
-    let inner = py.detach(|| Scan::load(&path, robot.as_ref())).py_err(py)?;
+    let inner = py
+        .detach_pool(|| Scan::load(&path, robot.as_ref()))
+        .py_err(py)?;
     Ok(PyScan { inner })
 }
 
 /// Reads calibration.json.
 #[pyfunction]
 pub fn load_calibration(py: Python<'_>, path: PathBuf) -> PyResult<PyCalibration> {
-    let inner = py.detach(|| read_calibration(&path)).py_err(py)?;
+    let inner = py.detach_pool(|| read_calibration(&path)).py_err(py)?;
     Ok(PyCalibration::from_inner(inner))
 }
 
@@ -72,13 +75,13 @@ pub fn save_calibration(
     calibration: &Bound<'_, PyCalibration>,
 ) -> PyResult<()> {
     let c = &calibration.get().inner;
-    py.detach(|| write_calibration(&path, c)).py_err(py)
+    py.detach_pool(|| write_calibration(&path, c)).py_err(py)
 }
 
 /// Reads truth.json.
 #[pyfunction]
 pub fn load_truth(py: Python<'_>, path: PathBuf) -> PyResult<PyTruth> {
-    let inner = py.detach(|| read_truth(&path)).py_err(py)?;
+    let inner = py.detach_pool(|| read_truth(&path)).py_err(py)?;
     Ok(PyTruth { inner })
 }
 
@@ -86,13 +89,13 @@ pub fn load_truth(py: Python<'_>, path: PathBuf) -> PyResult<PyTruth> {
 #[pyfunction]
 pub fn save_truth(py: Python<'_>, path: PathBuf, truth: &Bound<'_, PyTruth>) -> PyResult<()> {
     let t = &truth.get().inner;
-    py.detach(|| write_truth(&path, t)).py_err(py)
+    py.detach_pool(|| write_truth(&path, t)).py_err(py)
 }
 
 /// Reads a sphere fit JSON file.
 #[pyfunction]
 pub fn load_sphere_fit(py: Python<'_>, path: PathBuf) -> PyResult<PySphereFit> {
-    let inner = py.detach(|| read_sphere_fit(&path)).py_err(py)?;
+    let inner = py.detach_pool(|| read_sphere_fit(&path)).py_err(py)?;
     Ok(PySphereFit { inner })
 }
 
@@ -104,13 +107,13 @@ pub fn save_sphere_fit(
     fit: &Bound<'_, PySphereFit>,
 ) -> PyResult<()> {
     let s = &fit.get().inner;
-    py.detach(|| write_sphere_fit(&path, s)).py_err(py)
+    py.detach_pool(|| write_sphere_fit(&path, s)).py_err(py)
 }
 
 /// Reads a PLY point cloud: `{"points": (N, 3) float64, "properties": {name: (N,) float64}}`.
 #[pyfunction(name = "read_ply")]
 pub fn read_ply_py<'py>(py: Python<'py>, path: PathBuf) -> PyResult<Bound<'py, PyDict>> {
-    let cloud = py.detach(|| read_ply(&path)).py_err(py)?;
+    let cloud = py.detach_pool(|| read_ply(&path)).py_err(py)?;
     let n = cloud.points.len();
     let d = PyDict::new(py);
     d.set_item(
@@ -181,7 +184,7 @@ pub fn write_ply_py(
     } else {
         PlyFormat::Ascii
     };
-    py.detach(|| core_write_ply(&path, &cloud, format))
+    py.detach_pool(|| core_write_ply(&path, &cloud, format))
         .py_err(py)
 }
 
@@ -196,7 +199,7 @@ pub fn load_image<'py>(
     colour: bool,
 ) -> PyResult<Bound<'py, PyAny>> {
     let img = py
-        .detach(|| {
+        .detach_pool(|| {
             stripecal::io::load_image(&path).map(|i| {
                 if colour {
                     i
@@ -256,5 +259,5 @@ pub fn save_image(py: Python<'_>, path: PathBuf, image: &Bound<'_, PyAny>) -> Py
             "image must have dtype uint8 or uint16, got {dt}"
         )));
     };
-    py.detach(|| save_gray_png(&path, &img)).py_err(py)
+    py.detach_pool(|| save_gray_png(&path, &img)).py_err(py)
 }

@@ -1,6 +1,7 @@
 //! Binding of the board flatness figure (`stripecal::calib::flatness`): converts and
 //! calls, nothing more.
 
+use crate::pool::Detach;
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 
@@ -70,7 +71,7 @@ pub fn board_flatness<'py>(
     let cam = camera.inner.clone();
     let board = b.clone();
     let f = py
-        .detach(|| view_flatness(&cam, &board, &circles, &pose, &FlatnessOptions { sigma_px }))
+        .detach_pool(|| view_flatness(&cam, &board, &circles, &pose, &FlatnessOptions { sigma_px }))
         .map_err(|e| map_err(py, e))?;
     let d = PyDict::new(py);
     d.set_item("sag_mm", f.sag_mm)?;

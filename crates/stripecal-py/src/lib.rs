@@ -16,6 +16,7 @@ mod geometry;
 mod imageview;
 mod measure_py;
 mod plan_py;
+mod pool;
 mod poses;
 mod profile_py;
 mod profile_start_py;

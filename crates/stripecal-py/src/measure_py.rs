@@ -3,6 +3,7 @@
 //! 2634-2 acceptance test. Conversions only (the core's JSON records as dicts); the GIL
 //! is released while Rust works.
 
+use crate::pool::Detach;
 use std::ops::ControlFlow;
 use std::path::PathBuf;
 
@@ -98,7 +99,7 @@ fn measure(
     let cal = &calibration.get().inner;
     let given = cloud.map(|c| c.get().inner.clone());
     let v: Value = py
-        .detach(|| -> Result<Value> {
+        .detach_pool(|| -> Result<Value> {
             let scan = load_scan(&scan_dir, cal)?;
             let points = match given {
                 Some(p) => p,
@@ -151,7 +152,7 @@ fn measure_profile_scan(
 ) -> PyResult<Py<PyAny>> {
     let given = cloud.map(|c| c.get().inner.clone());
     let v: Value = py
-        .detach(|| -> Result<Value> {
+        .detach_pool(|| -> Result<Value> {
             let (frames, _) = load_profile_frames(
                 &scan_dir,
                 cal.robot.as_ref(),
@@ -305,6 +306,8 @@ pub fn verify(
         artefacts,
     };
     let mut cb_err: Option<PyErr> = None;
+    // on this thread (not the pool's): the callback checks for signals, which Python
+    // delivers to its main thread only
     let result = py.detach(|| {
         let mut cb = |stage: &str, done: usize, total: usize| {
             progress_step(&progress, &mut cb_err, (stage, done, total))

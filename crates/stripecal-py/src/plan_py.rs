@@ -2,6 +2,7 @@
 //! poses, before any image is taken (conversion only; the core's
 //! `stripecal::pipeline::plan_poses`).
 
+use crate::pool::Detach;
 use std::path::PathBuf;
 
 use pyo3::prelude::*;
@@ -30,7 +31,7 @@ fn rig_of(py: Python<'_>, obj: &Bound<'_, PyAny>) -> PyResult<Rig> {
             type_name(obj)
         ))
     })?;
-    py.detach(|| read_plan_rig(&path)).py_err(py)
+    py.detach_pool(|| read_plan_rig(&path)).py_err(py)
 }
 
 fn nominal_of(py: Python<'_>, obj: &Bound<'_, PyAny>) -> PyResult<Calibration> {
@@ -47,7 +48,7 @@ fn nominal_of(py: Python<'_>, obj: &Bound<'_, PyAny>) -> PyResult<Calibration> {
             type_name(obj)
         ))
     })?;
-    py.detach(|| read_nominal(&path)).py_err(py)
+    py.detach_pool(|| read_nominal(&path)).py_err(py)
 }
 
 /// The predicted one-sigma of every calibration parameter, and of a point on the laser
@@ -99,7 +100,7 @@ pub fn plan_poses<'py>(
         ..PlanOptions::default()
     };
     let plan = py
-        .detach(|| core_plan_poses(&rig, &nominal, &q, &opts))
+        .detach_pool(|| core_plan_poses(&rig, &nominal, &q, &opts))
         .py_err(py)?;
     let v = serde_json::to_value(&plan)
         .map_err(|e| invalid_input(py, format!("the plan cannot be converted: {e}")))?;

@@ -2,6 +2,7 @@
 //! `stripecal.ProfileDataset` (`load_profile_dataset`), `stripecal.ProfilerCalibration`
 //! (`read_profiler_calibration`, `write_profiler_calibration`).
 
+use crate::pool::Detach;
 use std::path::{Path, PathBuf};
 
 use pyo3::prelude::*;
@@ -66,7 +67,9 @@ pub fn read_profile_py(
     path: PathBuf,
     invalid_z: Option<f64>,
 ) -> PyResult<PyProfile> {
-    let inner = py.detach(|| read_profile(&path, invalid_z)).py_err(py)?;
+    let inner = py
+        .detach_pool(|| read_profile(&path, invalid_z))
+        .py_err(py)?;
     Ok(PyProfile { inner })
 }
 
@@ -152,7 +155,7 @@ impl PyProfileDataset {
         };
         let path = d.profile_path(&v.profile);
         let inner = py
-            .detach(|| read_profile(&path, d.rig.invalid_z))
+            .detach_pool(|| read_profile(&path, d.rig.invalid_z))
             .py_err(py)?;
         Ok(PyProfile { inner })
     }
@@ -174,7 +177,7 @@ impl PyProfileDataset {
 /// column, checking that every profile file exists). Never reads truth.json.
 #[pyfunction]
 pub fn load_profile_dataset(py: Python<'_>, path: PathBuf) -> PyResult<PyProfileDataset> {
-    let inner = py.detach(|| ProfileDataset::load(&path)).py_err(py)?;
+    let inner = py.detach_pool(|| ProfileDataset::load(&path)).py_err(py)?;
     Ok(PyProfileDataset { inner })
 }
 
@@ -293,7 +296,7 @@ impl PyProfilerCalibration {
     /// Writes calibration.json (atomically).
     fn save(&self, py: Python<'_>, path: PathBuf) -> PyResult<()> {
         let c = &self.inner;
-        py.detach(|| core_write_profiler_calibration(&path, c))
+        py.detach_pool(|| core_write_profiler_calibration(&path, c))
             .py_err(py)
     }
 
@@ -325,7 +328,7 @@ impl PyProfilerCalibration {
 #[pyfunction]
 pub fn read_profiler_calibration(py: Python<'_>, path: PathBuf) -> PyResult<PyProfilerCalibration> {
     let inner = py
-        .detach(|| core_read_profiler_calibration(&path))
+        .detach_pool(|| core_read_profiler_calibration(&path))
         .py_err(py)?;
     Ok(PyProfilerCalibration { inner })
 }
@@ -338,6 +341,6 @@ pub fn write_profiler_calibration(
     calibration: &Bound<'_, PyProfilerCalibration>,
 ) -> PyResult<()> {
     let c = &calibration.get().inner;
-    py.detach(|| core_write_profiler_calibration(&path, c))
+    py.detach_pool(|| core_write_profiler_calibration(&path, c))
         .py_err(py)
 }

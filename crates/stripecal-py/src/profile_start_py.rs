@@ -5,6 +5,7 @@
 //! `stripecal.profiler_adjust`: step 3 alone (the one-stage adjustment from such a
 //! start over its points, `stripecal::calib::joint::profile::profile_adjustment`).
 
+use crate::pool::Detach;
 use std::path::PathBuf;
 
 use pyo3::prelude::*;
@@ -36,9 +37,9 @@ pub fn profiler_start<'py>(
         d.get().inner.clone()
     } else {
         let path: PathBuf = dataset.extract()?;
-        py.detach(|| ProfileDataset::load(&path)).py_err(py)?
+        py.detach_pool(|| ProfileDataset::load(&path)).py_err(py)?
     };
-    let result = py.detach(|| prepare(&profile_inputs(&ds)?, &ds.rig));
+    let result = py.detach_pool(|| prepare(&profile_inputs(&ds)?, &ds.rig));
     let p = match result {
         Ok(p) => p,
         Err(stripecal::Error::Quality(f)) => return Err(quality_error(py, &f, None)),
@@ -120,7 +121,7 @@ pub fn profiler_adjust<'py>(
         diameter_free: item(start, "diameter_free")?.extract()?,
     };
     let fit = py
-        .detach(|| profile_adjustment(&views, &st, &ProfileOptions::default()))
+        .detach_pool(|| profile_adjustment(&views, &st, &ProfileOptions::default()))
         .py_err(py)?;
     let out = PyDict::new(py);
     out.set_item("hand_sensor", iso_to_py(py, &fit.hand_sensor)?)?;

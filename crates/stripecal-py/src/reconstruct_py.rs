@@ -3,6 +3,7 @@
 //! `stripecal.PlaneFit`: stripe images + joints -> points in the robot base frame, and
 //! measurements in them. Conversions only; the GIL is released while Rust works.
 
+use crate::pool::Detach;
 use std::path::PathBuf;
 
 use nalgebra::Vector3;
@@ -150,8 +151,10 @@ impl PyCloud {
             PlyFormat::BinaryLittleEndian
         };
         let inner = &self.inner;
-        py.detach(|| write_ply_with_comments(&path, &inner.to_cloud(), f, &inner.ply_comments()))
-            .py_err(py)
+        py.detach_pool(|| {
+            write_ply_with_comments(&path, &inner.to_cloud(), f, &inner.ply_comments())
+        })
+        .py_err(py)
     }
 
     fn __len__(&self) -> usize {
@@ -277,7 +280,7 @@ pub fn reconstruct(
         .collect();
     let cal = &calibration.get().inner;
     let sp = py
-        .detach(|| -> stripecal::Result<ScanPoints> {
+        .detach_pool(|| -> stripecal::Result<ScanPoints> {
             let channel = if channel == StripeChannel::Auto {
                 let scores = colour::auto_sample(imgs.len())
                     .into_iter()
@@ -356,7 +359,7 @@ pub fn reconstruct_scan(
         // A line profiler's scan: points from the profiles (no stripe options apply).
         let cal = &pc.get().inner;
         let on_bad = BadImage::from_name(on_bad_image).py_err(py)?;
-        let result = py.detach(|| -> stripecal::Result<(ScanPoints, usize)> {
+        let result = py.detach_pool(|| -> stripecal::Result<(ScanPoints, usize)> {
             let ropts = stripecal::reconstruct::ProfileReconstructOptions {
                 on_bad_frame: on_bad,
                 ..Default::default()
@@ -393,6 +396,8 @@ pub fn reconstruct_scan(
     // The first error of the callback (an exception of `progress`, or the pending
     // KeyboardInterrupt of a signal); it stops the run and is what is raised.
     let mut cb_err: Option<PyErr> = None;
+    // on this thread (not the pool's): the callback checks for signals, which Python
+    // delivers to its main thread only
     let result = py.detach(|| {
         let scan = core::load_scan(&scan_dir, cal)?;
         let mut cb = |done: usize, total: usize, points: usize| {
@@ -448,7 +453,9 @@ pub fn triangulate<'py>(
     let uv: Vec<[f64; 2]> = a.rows().into_iter().map(|r| [r[0], r[1]]).collect();
     let t = py_to_iso(base_hand, "base_hand")?;
     let cal = &calibration.get().inner;
-    let (pts, idx) = py.detach(|| core::triangulate(cal, &t, &uv)).py_err(py)?;
+    let (pts, idx) = py
+        .detach_pool(|| core::triangulate(cal, &t, &uv))
+        .py_err(py)?;
     Ok((
         nd(py, &[pts.len(), 3], pts.iter().flatten().copied().collect())?,
         nd(py, &[idx.len()], idx.iter().map(|&i| i as i64).collect())?,
@@ -487,7 +494,7 @@ pub fn fit_sphere(
 ) -> PyResult<PySphereFit> {
     let pts = points_from_py(py, points)?;
     let o = fit_options(py, trim_sigma, diameter_range_mm)?;
-    let f = py.detach(|| core::fit_sphere(&pts, &o)).py_err(py)?;
+    let f = py.detach_pool(|| core::fit_sphere(&pts, &o)).py_err(py)?;
     Ok(PySphereFit {
         inner: f.to_sphere_fit(),
     })
@@ -584,6 +591,6 @@ pub fn fit_plane(
 ) -> PyResult<PyPlaneFit> {
     let pts = points_from_py(py, points)?;
     let o = fit_options(py, trim_sigma, None)?;
-    let f = py.detach(|| core::fit_plane(&pts, &o)).py_err(py)?;
+    let f = py.detach_pool(|| core::fit_plane(&pts, &o)).py_err(py)?;
     Ok(PyPlaneFit { inner: f })
 }

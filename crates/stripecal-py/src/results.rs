@@ -1,5 +1,6 @@
 //! `stripecal.Calibration`, `stripecal.Truth`, `stripecal.SphereFit`.
 
+use crate::pool::Detach;
 use std::path::{Path, PathBuf};
 
 use nalgebra::Vector3;
@@ -342,7 +343,7 @@ impl PyCalibration {
     /// Writes calibration.json (atomically).
     fn save(&self, py: Python<'_>, path: PathBuf) -> PyResult<()> {
         let c = &self.inner;
-        py.detach(|| write_calibration(&path, c)).py_err(py)
+        py.detach_pool(|| write_calibration(&path, c)).py_err(py)
     }
 
     /// The calibration.json text.
@@ -497,7 +498,7 @@ impl PyTruth {
     /// Writes truth.json (atomically).
     fn save(&self, py: Python<'_>, path: PathBuf) -> PyResult<()> {
         let t = &self.inner;
-        py.detach(|| write_truth(&path, t)).py_err(py)
+        py.detach_pool(|| write_truth(&path, t)).py_err(py)
     }
 
     /// The truth.json text.
@@ -623,7 +624,7 @@ impl PySphereFit {
     /// Writes the sphere fit JSON (atomically).
     fn save(&self, py: Python<'_>, path: PathBuf) -> PyResult<()> {
         let s = &self.inner;
-        py.detach(|| write_sphere_fit(&path, s)).py_err(py)
+        py.detach_pool(|| write_sphere_fit(&path, s)).py_err(py)
     }
 
     fn __repr__(&self) -> String {

@@ -1,5 +1,6 @@
 //! `stripecal.Rig`, `stripecal.Dataset`, `stripecal.Scan`.
 
+use crate::pool::Detach;
 use std::path::{Path, PathBuf};
 
 use pyo3::prelude::*;
@@ -101,7 +102,7 @@ impl PyRig {
     /// Writes rig.json (atomically).
     fn save(&self, py: Python<'_>, path: PathBuf) -> PyResult<()> {
         let rig = &self.inner;
-        py.detach(|| write_rig(&path, rig)).py_err(py)
+        py.detach_pool(|| write_rig(&path, rig)).py_err(py)
     }
 
     /// The rig.json text.

@@ -1,5 +1,6 @@
 //! `stripecal.Robot`.
 
+use crate::pool::Detach;
 use pyo3::prelude::*;
 use stripecal::model::kinematics::{DhJoint, IkOptions, Robot};
 use stripecal::Error;
@@ -140,7 +141,7 @@ impl PyRobot {
     fn forward<'py>(&self, py: Python<'py>, q: &Bound<'py, PyAny>) -> PyResult<Bound<'py, PyAny>> {
         let (qs, single) = self.readings(py, q)?;
         let robot = &self.inner;
-        let ts: Result<Vec<_>, (usize, Error)> = py.detach(|| {
+        let ts: Result<Vec<_>, (usize, Error)> = py.detach_pool(|| {
             qs.iter()
                 .enumerate()
                 .map(|(i, q)| robot.forward(q).map_err(|e| (i, e)))
@@ -195,7 +196,7 @@ impl PyRobot {
         }
         let robot = &self.inner;
         let q = py
-            .detach(|| robot.inverse(&target, &q0s[0], &IkOptions::default()))
+            .detach_pool(|| robot.inverse(&target, &q0s[0], &IkOptions::default()))
             .py_err(py)?;
         nd(py, &[q.len()], q)
     }

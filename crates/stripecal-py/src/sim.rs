@@ -1,6 +1,7 @@
 //! Bindings of the digital twin (`stripecal-sim`): configurations as JSON text (the
 //! Python side turns them into dicts), a `Twin` class, images as numpy arrays.
 
+use crate::pool::Detach;
 use std::path::PathBuf;
 
 use pyo3::exceptions::PyValueError;
@@ -227,7 +228,9 @@ impl PyTwin {
         let v = parse_json(py, config_json, "config")?;
         let cfg: SimConfig = serde_json::from_value(v)
             .map_err(|e| invalid_input(py, format!("invalid twin configuration: {e}")))?;
-        let inner = py.detach(|| Twin::new(cfg)).map_err(|e| sim_err(py, e))?;
+        let inner = py
+            .detach_pool(|| Twin::new(cfg))
+            .map_err(|e| sim_err(py, e))?;
         Ok(PyTwin { inner })
     }
 
@@ -298,7 +301,7 @@ impl PyTwin {
     /// Calibration poses: a list of dicts `{q_deg, standoff_mm, tilt_deg, stripe_chord_mm}`.
     fn calibration_poses<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyList>> {
         let poses = py
-            .detach(|| self.inner.calibration_poses())
+            .detach_pool(|| self.inner.calibration_poses())
             .map_err(|e| sim_err(py, e))?;
         let out = PyList::empty(py);
         for p in poses {
@@ -317,7 +320,7 @@ impl PyTwin {
     /// floor_normal ((3,) or None), floor_d_mm (or None)}`.
     fn bench_views<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyList>> {
         let views = py
-            .detach(|| self.inner.bench_views())
+            .detach_pool(|| self.inner.bench_views())
             .map_err(|e| sim_err(py, e))?;
         let axis = self.inner.cfg.bench.bow.axis_deg;
         let out = PyList::empty(py);
@@ -344,7 +347,7 @@ impl PyTwin {
     /// Encoder readings of the scan sweep, (N, J).
     fn scan_poses<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
         let qs = py
-            .detach(|| self.inner.scan_poses())
+            .detach_pool(|| self.inner.scan_poses())
             .map_err(|e| sim_err(py, e))?;
         let dof = self.inner.robot_true.dof();
         nd(py, &[qs.len(), dof], qs.into_iter().flatten().collect())
@@ -353,7 +356,7 @@ impl PyTwin {
     /// Encoder readings of the bare-table sweep (`scan.table`), (N, J); (0, J) without.
     fn table_scan_poses<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
         let qs = py
-            .detach(|| self.inner.table_scan_poses())
+            .detach_pool(|| self.inner.table_scan_poses())
             .map_err(|e| sim_err(py, e))?;
         let dof = self.inner.robot_true.dof();
         nd(py, &[qs.len(), dof], qs.into_iter().flatten().collect())
@@ -365,7 +368,7 @@ impl PyTwin {
     /// base frame; None for bars).
     fn verify_scans<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyList>> {
         let scans = py
-            .detach(|| self.inner.verify_scans())
+            .detach_pool(|| self.inner.verify_scans())
             .map_err(|e| sim_err(py, e))?;
         let dof = self.inner.robot_true.dof();
         let out = PyList::empty(py);
@@ -402,7 +405,7 @@ impl PyTwin {
     ) -> PyResult<Bound<'py, PyDict>> {
         let q = joints(py, q, self.inner.robot_true.dof())?;
         let r = py
-            .detach(|| self.inner.render_view(&q, index))
+            .detach_pool(|| self.inner.render_view(&q, index))
             .map_err(|e| sim_err(py, e))?;
         render_to_py(py, &r)
     }
@@ -417,7 +420,7 @@ impl PyTwin {
     ) -> PyResult<Bound<'py, PyDict>> {
         let q = joints(py, q, self.inner.robot_true.dof())?;
         let r = py
-            .detach(|| self.inner.render_scan_frame(&q, index))
+            .detach_pool(|| self.inner.render_scan_frame(&q, index))
             .map_err(|e| sim_err(py, e))?;
         render_to_py(py, &r)
     }
@@ -432,6 +435,7 @@ impl PyTwin {
         progress: Option<Py<PyAny>>,
     ) -> PyResult<Bound<'py, PyDict>> {
         let mut cb_err: Option<PyErr> = None;
+        // on this thread (not the pool's), as every call with a progress callback
         let result = py.detach(|| {
             let mut cb = |stage: &str, done: usize, total: usize| {
                 if let (Some(f), None) = (&progress, &cb_err) {

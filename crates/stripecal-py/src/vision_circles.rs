@@ -6,6 +6,7 @@
 //! `InvalidInputError`. A grid that cannot be found or indexed without guessing is a
 //! `DetectionError` saying what was found.
 
+use crate::pool::Detach;
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyList};
 
@@ -31,7 +32,7 @@ fn run(
         ..Default::default()
     };
     let board = board.inner.clone();
-    py.detach(|| core::detect_circles(img.view()?, &board, &opts))
+    py.detach_pool(|| core::detect_circles(img.view()?, &board, &opts))
         .py_err(py)
 }
 

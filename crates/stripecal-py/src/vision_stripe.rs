@@ -5,6 +5,7 @@
 //! colour ones (copied, then the GIL is released); other dtypes are a `TypeError`, other
 //! shapes or empty arrays an `InvalidInputError`.
 
+use crate::pool::Detach;
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 
@@ -209,7 +210,7 @@ pub fn extract_stripe(
         ));
     }
     let signal = py
-        .detach(|| core::stripe_signal(&any, channel, &opts).map(|s| s.into_owned()))
+        .detach_pool(|| core::stripe_signal(&any, channel, &opts).map(|s| s.into_owned()))
         .py_err(py)?;
     // the image's own gray: the board's appearance in single-image views
     let img: AnyGray = match &any {
@@ -243,7 +244,7 @@ pub fn extract_stripe(
     };
     let single = matches!(board, Some(None)) || (bv.is_some() && board_equals(&board, &img));
     let stripe = py
-        .detach(|| -> stripecal::Result<Stripe> {
+        .detach_pool(|| -> stripecal::Result<Stripe> {
             let mut s = core::extract_stripe(sv, &opts)?;
             let eo = EdgeOptions {
                 single_image: single,
@@ -375,6 +376,8 @@ pub fn fit_line(py: Python<'_>, points: &Bound<'_, PyAny>, inlier_px: f64) -> Py
         inlier_px,
         ..core::LineFitOptions::default()
     };
-    let fit = py.detach(|| core::fit_line_with(&pts, &opts)).py_err(py)?;
+    let fit = py
+        .detach_pool(|| core::fit_line_with(&pts, &opts))
+        .py_err(py)?;
     Ok(PyLineFit { inner: fit })
 }

@@ -2,6 +2,7 @@
 //! grid with any number of markers, asymmetric circle grid, chessboard) in a gray or
 //! colour image, as typed arrays.
 
+use crate::pool::Detach;
 use pyo3::prelude::*;
 
 use stripecal::model::board::Symmetry;
@@ -202,7 +203,7 @@ pub fn detect_target(
     opts.circles.drop_stripe_crossed = drop_stripe_crossed;
     let board = board.inner.clone();
     let inner = py
-        .detach(|| core::detect_target(img.view()?, &board, &opts))
+        .detach_pool(|| core::detect_target(img.view()?, &board, &opts))
         .py_err(py)?;
     Ok(PyTargetDetection { inner, board })
 }

@@ -76,6 +76,7 @@ mod layout;
 mod predict;
 pub mod profile;
 mod profile_problem;
+mod profile_rounds;
 mod report;
 mod residuals;
 mod robot;

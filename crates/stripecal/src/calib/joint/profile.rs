@@ -15,9 +15,14 @@
 //! A profile also shows the table, the stand and spikes. The adjustment starts from the
 //! points of each profile's arc ([`crate::calib::profile::arc`]) (from the closed-form
 //! start over every k-th of them only, at most [`COARSE_POINTS`]: a minimum within
-//! about a sigma of the full one for a fraction of the work) and, after each solve,
+//! about two sigmas of the full one for a fraction of the work) and, after each step,
 //! takes the points of the profile near the sphere, until the selection settles; the
-//! rest are counted per view as rejected. Near: within [`BAND_SIGMAS`] robust sigmas
+//! rest are counted per view as rejected. From that first minimum the selection
+//! settles over ONE linearisation of the problem (normal equations formed once, a
+//! Gauss-Newton step per re-selection, the points that join or leave added to them;
+//! [`super::profile_rounds`], with its test of the quadratic model), or, when that test
+//! fails, by iterated solves. A refit over kept points from near its minimum (the
+//! checks', the leave-one-out's) takes one such step the same way. Near: within [`BAND_SIGMAS`] robust sigmas
 //! (`1.4826 MAD`, at least [`MIN_BAND_MM`]) of the view's own median residual, the
 //! view's sigma from its own points, capped by the band of all points used (a view whose
 //! robot pose is off by a little sits off the sphere as a whole, its points still on a
@@ -25,10 +30,11 @@
 //!
 //! ## Stopping
 //!
-//! A solve stops when the next step promises less than `1e-6 / m` of the cost (`m`
+//! A solve stops when the next step promises less than `1e-5 / m` of the cost (`m`
 //! points): a step of `a` sigmas lowers the cost `m s^2 / 2` by about `a^2 s^2 / 2`, so
-//! the solve stops within a thousandth of a sigma of the minimum, and a solve after a
-//! re-selection that moved the minimum by less than that takes no step at all.
+//! the solve stops within 0.003 sigma of the minimum, and a solve after a
+//! re-selection that moved the minimum by less than that takes no step at all. The
+//! rounds over one linearisation hold to the same tolerance (their module docs).
 //!
 //! ## Uncertainty
 //!
@@ -50,6 +56,7 @@ use nalgebra::{DVector, Vector3};
 use super::covariance::named_covariance;
 use super::layout::{Block, ParamLayout, SphereStart};
 use super::profile_problem::{all_residuals, ProfileProblem, Terms};
+use super::profile_rounds::settle;
 use super::robot::{candidates, RobotBlock, RobotMode};
 use super::robot_select::{information, select};
 use super::robot_solve::{report, RobotOptions, RobotOutcome};
@@ -62,7 +69,7 @@ pub use crate::calib::profile::arc::{BAND_SIGMAS, MIN_BAND_MM};
 
 /// Points of the first solve from the closed-form start at most (every k-th of the
 /// arcs'; module docs).
-const COARSE_POINTS: usize = 6000;
+const COARSE_POINTS: usize = 3000;
 /// Rounds of the point selection at most.
 const SELECTION_ROUNDS: usize = 5;
 /// Rounds of `auto`'s robot selection at most.
@@ -144,10 +151,10 @@ impl ProfileFit {
 
 /// The relative cost decrease a step must promise for a solve over `m` points to go
 /// on (module docs, "Stopping"): a step of `a` sigmas along any direction lowers the
-/// cost `m s^2 / 2` by about `a^2 s^2 / 2`, so `1e-6 / m` stops a thousandth of a sigma
-/// from the minimum.
-fn stop_ftol(m: usize, lm: &LmOptions) -> f64 {
-    lm.ftol.max(1e-6 / m.max(1) as f64)
+/// cost `m s^2 / 2` by about `a^2 s^2 / 2`, so `1e-5 / m` stops within 0.003 sigma
+/// (`sqrt(1e-5)`) of the minimum.
+pub(super) fn stop_ftol(m: usize, lm: &LmOptions) -> f64 {
+    lm.ftol.max(1e-5 / m.max(1) as f64)
 }
 
 /// One solve over the points `selected`: the LM result and the per-view gradients
@@ -194,7 +201,7 @@ fn median(mut v: Vec<f64>) -> f64 {
 /// band `5 x 1.4826 MAD` of all points used; within it, each view's points within its own
 /// band around its own median residual (a view whose robot pose is off by a little sits
 /// off the sphere as a whole: its points are still the sphere's).
-fn reselect(res: &[Vec<f64>], selected: &[Vec<usize>]) -> Vec<Vec<usize>> {
+pub(super) fn reselect(res: &[Vec<f64>], selected: &[Vec<usize>]) -> Vec<Vec<usize>> {
     let used: Vec<f64> = res
         .iter()
         .zip(selected)
@@ -250,6 +257,17 @@ pub fn profile_adjustment(
     start: &ProfileStart,
     opts: &ProfileOptions,
 ) -> Result<ProfileFit> {
+    adjust(views, start, opts, true)
+}
+
+/// [`profile_adjustment`]; `rounds`: settle the selection over one linearisation
+/// (`profile_rounds`) when it holds, else (and always when `false`) iterate the solves.
+pub(super) fn adjust(
+    views: &[ProfileViewObs],
+    start: &ProfileStart,
+    opts: &ProfileOptions,
+    rounds: bool,
+) -> Result<ProfileFit> {
     let ids: Vec<usize> = views.iter().map(|v| v.view).collect();
     let a: Vec<Iso3> = views.iter().map(|v| v.a).collect();
     let sphere = SphereStart {
@@ -261,6 +279,7 @@ pub fn profile_adjustment(
     let mut p = layout.encode();
     let mut selected: Vec<Vec<usize>> = views.iter().map(|v| v.arc.clone()).collect();
     let mut iterations = 0;
+    let settle_rounds = rounds;
     let rounds = if opts.keep_selection {
         1
     } else {
@@ -272,10 +291,13 @@ pub fn profile_adjustment(
         ..opts.lm.clone()
     };
     // From the closed-form start, first over every k-th point (module docs, "Points on
-    // the sphere"): its minimum is within a sigma or so of the full one.
+    // the sphere"): its minimum is within a sigma or so of the full one, where the
+    // selection settles over one linearisation (`profile_rounds`).
     let total: usize = selected.iter().map(|s| s.len()).sum();
     let stride = total.div_ceil(COARSE_POINTS);
-    let (mut res, mut grads) = if !opts.keep_selection && stride > 1 {
+    let mut settled = None;
+    let mut first = &opts.lm;
+    if !opts.keep_selection && stride > 1 {
         let coarse: Vec<Vec<usize>> = selected
             .iter()
             .map(|s| s.iter().step_by(stride).copied().collect())
@@ -284,26 +306,42 @@ pub fn profile_adjustment(
         iterations += r0.iterations;
         p = r0.params;
         selected = reselect(&all_residuals(&layout, &p, views, &a), &coarse);
-        solve(&layout, &p, views, &a, &selected, &warm)?
-    } else {
-        solve(&layout, &p, views, &a, &selected, &opts.lm)?
-    };
-    for round in 0..rounds {
-        if round > 0 {
-            (res, grads) = solve(&layout, &p, views, &a, &selected, &warm)?;
+        if settle_rounds {
+            settled = settle(&layout, &p, views, &a, &selected, rounds, &opts.lm)?;
         }
-        iterations += res.iterations;
-        p.clone_from(&res.params);
-        if opts.keep_selection {
-            break;
-        }
-        let next = reselect(&all_residuals(&layout, &p, views, &a), &selected);
-        // the selection the last solve used stays with its result
-        if next == selected || round + 1 == rounds {
-            break;
-        }
-        selected = next;
+        first = &warm;
+    } else if opts.keep_selection && settle_rounds {
+        // a refit from near its minimum (the checks'): one step over one linearisation
+        settled = settle(&layout, &p, views, &a, &selected, 0, &opts.lm)?;
     }
+    let (mut res, mut grads) = match settled {
+        Some(s) => {
+            iterations += s.rounds;
+            selected = s.selected;
+            p.clone_from(&s.result.params);
+            (s.result, s.gradients)
+        }
+        None => {
+            let (mut res, mut grads) = solve(&layout, &p, views, &a, &selected, first)?;
+            for round in 0..rounds {
+                if round > 0 {
+                    (res, grads) = solve(&layout, &p, views, &a, &selected, &warm)?;
+                }
+                iterations += res.iterations;
+                p.clone_from(&res.params);
+                if opts.keep_selection {
+                    break;
+                }
+                let next = reselect(&all_residuals(&layout, &p, views, &a), &selected);
+                // the selection the last solve used stays with its result
+                if next == selected || round + 1 == rounds {
+                    break;
+                }
+                selected = next;
+            }
+            (res, grads)
+        }
+    };
     // The robot's DH corrections.
     let mut outcome: Option<RobotOutcome> = None;
     if let Some(ro) = opts.robot.as_ref().filter(|r| r.mode != RobotMode::Fixed) {

@@ -53,22 +53,26 @@ impl Terms {
     /// The points `selected` (per view, indices into its points) of `views`, their
     /// flange poses `a`.
     pub fn of(views: &[ProfileViewObs], selected: &[Vec<usize>], a: &[Iso3]) -> Terms {
-        let m: usize = selected.iter().map(|s| s.len()).sum();
-        let (mut xs, mut zs) = (Vec::with_capacity(m), Vec::with_capacity(m));
-        let mut ranges = Vec::with_capacity(views.len());
-        for (o, sel) in views.iter().zip(selected) {
-            let k = xs.len();
-            for &i in sel {
-                xs.push(o.points[i][0]);
-                zs.push(o.points[i][1]);
-            }
-            ranges.push(k..xs.len());
-        }
-        Terms {
-            xs,
-            zs,
-            ranges,
+        let mut t = Terms {
+            xs: Vec::new(),
+            zs: Vec::new(),
+            ranges: Vec::with_capacity(views.len()),
             a: a.to_vec(),
+        };
+        t.select(views, selected);
+        t
+    }
+
+    /// The points `selected` of `views` in place of the present ones (the buffers kept).
+    pub fn select(&mut self, views: &[ProfileViewObs], selected: &[Vec<usize>]) {
+        self.xs.clear();
+        self.zs.clear();
+        self.ranges.clear();
+        for (o, sel) in views.iter().zip(selected) {
+            let k = self.xs.len();
+            self.xs.extend(sel.iter().map(|&i| o.points[i][0]));
+            self.zs.extend(sel.iter().map(|&i| o.points[i][1]));
+            self.ranges.push(k..self.xs.len());
         }
     }
 
@@ -243,9 +247,13 @@ impl ProfileProblem<'_> {
         }
     }
 
-    /// Every view's normal equations at `p`, its residuals into `r` (module docs).
-    pub fn view_normals(&self, p: &[f64], r: &mut [f64]) -> Vec<ViewNormals> {
-        let n = self.layout.num_params();
+    /// `f(xs, zs, view state, state, columns, residuals out)` of every view at `p` (in
+    /// parallel), the residuals into `r`.
+    fn map_views<T, F>(&self, p: &[f64], r: &mut [f64], f: F) -> Vec<T>
+    where
+        T: Send,
+        F: Fn(&[f64], &[f64], &ViewState, &State, &Columns, &mut [f64]) -> T + Sync,
+    {
         let st = self.state(p, true);
         let cols = self.columns();
         let t = self.terms;
@@ -253,8 +261,49 @@ impl ProfileProblem<'_> {
             .into_par_iter()
             .zip(t.ranges.par_iter())
             .zip(st.views.par_iter())
-            .map(|((out, g), s)| {
-                view_block(&t.xs[g.clone()], &t.zs[g.clone()], s, &st, &cols, n, out)
+            .map(|((out, g), s)| f(&t.xs[g.clone()], &t.zs[g.clone()], s, &st, &cols, out))
+            .collect()
+    }
+
+    /// Every view's normal equations at `p`, its residuals into `r` (module docs).
+    pub fn view_normals(&self, p: &[f64], r: &mut [f64]) -> Vec<ViewNormals> {
+        let n = self.layout.num_params();
+        self.map_views(p, r, |xs, zs, s, st, cols, out| {
+            view_block(xs, zs, s, st, cols, n, out)
+        })
+    }
+
+    /// Every view's gradient `g_v = J_v^T r_v` and half its sum of squares at `p`, the
+    /// residuals into `r`: the normal equations' work without the Gram matrix
+    /// (`g_v = B_v sum_i f_i e_i`; the stopping test of [`super::profile_rounds`]).
+    pub fn view_gradients(&self, p: &[f64], r: &mut [f64]) -> Vec<(DVector<f64>, f64)> {
+        let n = self.layout.num_params();
+        self.map_views(p, r, |xs, zs, s, st, cols, out| {
+            let fe = features_by_blocks(xs, zs, s, st, out, 1);
+            let b = feature_map(s, st, cols, n);
+            let grad = b * DVector::from_fn(F - 1, |i, _| fe[(i, 0)]);
+            (grad, 0.5 * fe[(F - 1, 0)])
+        })
+    }
+
+    /// The residuals and Jacobian rows at `p` of single points `(view, x, z)` (`view` an
+    /// index into the terms' views): the updates of the normal equations when a few
+    /// points join or leave the selection ([`super::profile_rounds`]).
+    pub fn point_rows(&self, p: &[f64], points: &[(usize, f64, f64)]) -> Vec<(f64, DVector<f64>)> {
+        if points.is_empty() {
+            return Vec::new();
+        }
+        let n = self.layout.num_params();
+        let st = self.state(p, true);
+        let cols = self.columns();
+        let mut maps: Vec<Option<DMatrix<f64>>> = vec![None; st.views.len()];
+        points
+            .iter()
+            .map(|&(v, x, z)| {
+                let s = &st.views[v];
+                let b = maps[v].get_or_insert_with(|| feature_map(s, &st, &cols, n));
+                let (e, f) = point_features(x, z, &st, &s.tf);
+                (e, &*b * DVector::from_column_slice(&f))
             })
             .collect()
     }
@@ -263,7 +312,7 @@ impl ProfileProblem<'_> {
 /// Features per point: `u_f`, `x u_f`, `z u_f`, 1, and the residual (module docs).
 const F: usize = 11;
 /// Points per block of the Gram product.
-const BLOCK: usize = 512;
+const BLOCK: usize = 128;
 
 /// `[a]_x`, the cross-product matrix (`[a]_x b = a x b`).
 fn skew(a: &Vector3<f64>) -> Matrix3<f64> {
@@ -312,25 +361,26 @@ fn feature_map(s: &ViewState, st: &State, cols: &Columns, n: usize) -> DMatrix<f
     b
 }
 
-/// One view's residuals into `out` and its normal equations: the Gram matrix of the
-/// points' features (with the residual) by blocks of [`BLOCK`] points, then `B G B^T`.
-fn view_block(
+/// One view's residuals into `out` and the products of its points' features with the
+/// residual (`F x 1`: `sum f_i e_i`, `sum e_i^2` last; `cols` 1) or with themselves
+/// (`F x F`, the Gram matrix; `cols` F), by blocks of [`BLOCK`] points.
+fn features_by_blocks(
     xs: &[f64],
     zs: &[f64],
     s: &ViewState,
     st: &State,
-    cols: &Columns,
-    n: usize,
     out: &mut [f64],
-) -> ViewNormals {
+    cols: usize,
+) -> faer::Mat<f64> {
     // the features row after row (F rows of BLOCK), so that the loop vectorises
-    let mut buf = vec![0.0; F * BLOCK];
-    let mut gram = faer::Mat::<f64>::zeros(F, F);
+    let mut buf = vec![0.0; F * BLOCK.min(xs.len().max(1))];
+    let stride = buf.len() / F;
+    let mut prod = faer::Mat::<f64>::zeros(F, cols);
     for k0 in (0..xs.len()).step_by(BLOCK) {
         let len = BLOCK.min(xs.len() - k0);
         let (xs, zs) = (&xs[k0..k0 + len], &zs[k0..k0 + len]);
         let o = &mut out[k0..k0 + len];
-        let mut rows = buf.chunks_exact_mut(BLOCK);
+        let mut rows = buf.chunks_exact_mut(stride);
         let mut next = || &mut rows.next().expect("F rows of BLOCK")[..len];
         let (f0, f1, f2, f3, f4) = (next(), next(), next(), next(), next());
         let (f5, f6, f7, f8, f9, f10) = (next(), next(), next(), next(), next(), next());
@@ -349,17 +399,37 @@ fn view_block(
             f9[i] = f[9];
             f10[i] = e;
         }
-        // row k of the features: buf[k * BLOCK..][..len]
-        let fm = faer::MatRef::from_row_major_slice_with_stride(&buf, F, len, BLOCK);
+        // row k of the features: buf[k * stride..][..len]
+        let fm = faer::MatRef::from_row_major_slice_with_stride(&buf, F, len, stride);
+        let rhs = if cols == F {
+            fm.transpose()
+        } else {
+            fm.subrows(F - 1, 1).transpose()
+        };
         faer::linalg::matmul::matmul(
-            gram.as_mut(),
+            prod.as_mut(),
             faer::Accum::Add,
             fm,
-            fm.transpose(),
+            rhs,
             1.0,
             faer::Par::Seq,
         );
     }
+    prod
+}
+
+/// One view's residuals into `out` and its normal equations: the Gram matrix of the
+/// points' features (with the residual, [`features_by_blocks`]), then `B G B^T`.
+fn view_block(
+    xs: &[f64],
+    zs: &[f64],
+    s: &ViewState,
+    st: &State,
+    cols: &Columns,
+    n: usize,
+    out: &mut [f64],
+) -> ViewNormals {
+    let gram = features_by_blocks(xs, zs, s, st, out, F);
     let b = feature_map(s, st, cols, n);
     let g10 = DMatrix::<f64>::from_fn(F - 1, F - 1, |i, j| gram[(i, j)]);
     let fe = DVector::<f64>::from_fn(F - 1, |i, _| gram[(i, F - 1)]);

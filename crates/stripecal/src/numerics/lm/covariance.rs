@@ -76,3 +76,17 @@ fn spd_inverse(a: &DMatrix<f64>) -> Option<DMatrix<f64>> {
     let inv = m.llt(faer::Side::Lower).ok()?.inverse();
     Some(DMatrix::from_fn(n, n, |i, j| inv[(i, j)]))
 }
+
+/// The standard deviations on `cov`'s diagonal (NaN where a variance is not finite).
+pub fn sigmas(cov: &DMatrix<f64>) -> Vec<f64> {
+    (0..cov.nrows())
+        .map(|i| {
+            let v = cov[(i, i)];
+            if v.is_finite() {
+                v.max(0.0).sqrt()
+            } else {
+                f64::NAN
+            }
+        })
+        .collect()
+}

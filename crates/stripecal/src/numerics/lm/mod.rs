@@ -51,7 +51,7 @@ mod normal;
 mod problem;
 mod solver;
 
-pub use covariance::covariance;
+pub use covariance::{covariance, sigmas};
 pub use problem::{dense_jacobian_from_rows, JacobianRows, LeastSquares, Leverages};
 pub use solver::{levenberg_marquardt, LmOptions, LmResult, StopReason};
 

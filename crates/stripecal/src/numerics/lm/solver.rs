@@ -4,7 +4,7 @@
 use faer::linalg::solvers::Solve;
 use nalgebra::{DMatrix, DVector};
 
-use super::covariance::covariance;
+use super::covariance::{covariance, sigmas};
 use super::normal::{cost_of, Work, WEIGHT_TOL};
 use super::problem::LeastSquares;
 use crate::error::{Error, Result};
@@ -379,16 +379,7 @@ impl<'a, P: LeastSquares + ?Sized> Solver<'a, P> {
         let ssr: f64 = r.iter().map(|x| x * x).sum();
         let sigma2 = if m > n { ssr / (m - n) as f64 } else { 0.0 };
         let (covariance, unobservable) = covariance(&self.jtj, sigma2, self.opts.rank_tol);
-        let sigma = (0..n)
-            .map(|i| {
-                let v = covariance[(i, i)];
-                if v.is_finite() {
-                    v.max(0.0).sqrt()
-                } else {
-                    f64::NAN
-                }
-            })
-            .collect();
+        let sigma = sigmas(&covariance);
         LmResult {
             params: self.p,
             residuals: r,
