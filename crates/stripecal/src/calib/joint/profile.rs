@@ -260,13 +260,14 @@ pub fn profile_adjustment(
     adjust(views, start, opts, true)
 }
 
-/// [`profile_adjustment`]; `rounds`: settle the selection over one linearisation
-/// (`profile_rounds`) when it holds, else (and always when `false`) iterate the solves.
+/// [`profile_adjustment`]; `settle_first`: settle the selection over one set of normal
+/// equations (`profile_rounds`) when that holds, else (and always when `false`) iterate
+/// the solves.
 pub(super) fn adjust(
     views: &[ProfileViewObs],
     start: &ProfileStart,
     opts: &ProfileOptions,
-    rounds: bool,
+    settle_first: bool,
 ) -> Result<ProfileFit> {
     let ids: Vec<usize> = views.iter().map(|v| v.view).collect();
     let a: Vec<Iso3> = views.iter().map(|v| v.a).collect();
@@ -279,7 +280,6 @@ pub(super) fn adjust(
     let mut p = layout.encode();
     let mut selected: Vec<Vec<usize>> = views.iter().map(|v| v.arc.clone()).collect();
     let mut iterations = 0;
-    let settle_rounds = rounds;
     let rounds = if opts.keep_selection {
         1
     } else {
@@ -291,8 +291,8 @@ pub(super) fn adjust(
         ..opts.lm.clone()
     };
     // From the closed-form start, first over every k-th point (module docs, "Points on
-    // the sphere"): its minimum is within a sigma or so of the full one, where the
-    // selection settles over one linearisation (`profile_rounds`).
+    // the sphere"): its minimum is within a few sigmas of the full one, where the
+    // selection settles over one set of normal equations (`profile_rounds`).
     let total: usize = selected.iter().map(|s| s.len()).sum();
     let stride = total.div_ceil(COARSE_POINTS);
     let mut settled = None;
@@ -306,12 +306,12 @@ pub(super) fn adjust(
         iterations += r0.iterations;
         p = r0.params;
         selected = reselect(&all_residuals(&layout, &p, views, &a), &coarse);
-        if settle_rounds {
+        if settle_first {
             settled = settle(&layout, &p, views, &a, &selected, rounds, &opts.lm)?;
         }
         first = &warm;
-    } else if opts.keep_selection && settle_rounds {
-        // a refit from near its minimum (the checks'): one step over one linearisation
+    } else if opts.keep_selection && settle_first {
+        // a refit from near its minimum (the checks'), its selection kept
         settled = settle(&layout, &p, views, &a, &selected, 0, &opts.lm)?;
     }
     let (mut res, mut grads) = match settled {

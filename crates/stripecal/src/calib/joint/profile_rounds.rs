@@ -183,7 +183,8 @@ pub(super) fn settle(
             let next = reselect(&res, &sel);
             if next != sel {
                 reselected += 1;
-                update(layout, &p, views, a, &sel, &next, &mut nv, &mut gc);
+                let prob = ProfileProblem::new(layout, &terms);
+                update(&prob, &p, views, &sel, &next, &mut nv, &mut gc);
                 sel = next;
                 terms.select(views, &sel);
             }
@@ -199,13 +200,11 @@ pub(super) fn settle(
 }
 
 /// The selection `sel` becomes `next`: the points that joined or left change `N_v`,
-/// `g_v` and the half sums of squares by their rows at `p`.
-#[allow(clippy::too_many_arguments)]
+/// `g_v` and the half sums of squares by their rows at `p` (`prob`'s flange poses).
 fn update(
-    layout: &ParamLayout,
+    prob: &ProfileProblem,
     p: &[f64],
     views: &[ProfileViewObs],
-    a: &[Iso3],
     sel: &[Vec<usize>],
     next: &[Vec<usize>],
     nv: &mut [DMatrix<f64>],
@@ -227,8 +226,7 @@ fn update(
             signs.push(f64::from(k));
         }
     }
-    let flanges_only = Terms::of(&[], &[], a);
-    let rows = ProfileProblem::new(layout, &flanges_only).point_rows(p, &changes);
+    let rows = prob.point_rows(p, &changes);
     for ((&(v, _, _), sign), (e, row)) in changes.iter().zip(&signs).zip(rows) {
         nv[v].ger(*sign, &row, &row, 1.0);
         gc[v].0.axpy(sign * e, &row, 1.0);
