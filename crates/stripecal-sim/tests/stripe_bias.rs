@@ -197,7 +197,9 @@ fn diagnose(
     eprintln!("  {none} points not modelled");
 }
 
-/// hp3-paper, every 3rd frame of the scan: the known bias, corrected within 0.002 mm,
+/// hp3-paper, every 3rd frame of the scan: the known bias, corrected within 0.002 mm
+/// (0.0005 mm with the points seen at grazing angles left out; with them the full scan
+/// keeps +0.0010 mm),
 /// the centre within 0.002 mm of the truth, the sheet sigma within 15 %.
 #[test]
 fn ball_bias_is_corrected_on_the_paper_rig() {
@@ -210,7 +212,7 @@ fn ball_bias_is_corrected_on_the_paper_rig() {
         r.d0
     );
     assert!(
-        r.d1().abs() < 0.002,
+        r.d1().abs() < 0.0005,
         "corrected diameter error {:+.4} mm",
         r.d1()
     );

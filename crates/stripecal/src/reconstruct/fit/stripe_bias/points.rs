@@ -129,7 +129,7 @@ pub fn predicted_bias_px(
     let emitter = opts
         .emitter_cam_mm
         .map_or(plane.normal * plane.d, Vector3::from);
-    let rig = Rig::new(
+    let mut rig = Rig::new(
         camera,
         plane,
         emitter,
@@ -137,6 +137,7 @@ pub fn predicted_bias_px(
         &stripe,
         opts.max_incidence_deg,
     );
+    rig.min_cos_view = super::view_cos(opts.max_view_deg)?;
     let cam_base: Vec<Iso3> = base_cam.iter().map(|t| t.inverse()).collect();
     let geo = (0..points.len())
         .map(|i| point_geo(points, &cam_base, rig.along, i))

@@ -24,6 +24,9 @@ pub(crate) struct Rig<'a> {
     /// Points whose `t = 0` incidence from the emitter has a smaller cosine are not
     /// modelled.
     pub min_cos: f64,
+    /// Points seen by the camera at a smaller cosine between the surface normal and the
+    /// line of sight (`t = 0`) are not modelled (sphere only; 0: all that face it).
+    pub min_cos_view: f64,
     /// In-plane basis.
     pub e1: Vector3<f64>,
     pub e2: Vector3<f64>,
@@ -52,6 +55,7 @@ impl<'a> Rig<'a> {
             },
             stripe,
             min_cos: max_incidence_deg.to_radians().cos(),
+            min_cos_view: 0.0,
             e1,
             e2,
         }
@@ -246,7 +250,10 @@ pub(crate) fn point_profile(
         return false;
     };
     let to_e = rig.emitter - s0.p;
-    if shading(rig, c, r, &s0.p) <= 0.0 || (s0.p - c).dot(&to_e) < rig.min_cos * r * to_e.norm() {
+    if shading(rig, c, r, &s0.p) <= 0.0
+        || (s0.p - c).dot(&to_e) < rig.min_cos * r * to_e.norm()
+        || (c - s0.p).dot(&s0.p) < rig.min_cos_view * r * s0.p.norm()
+    {
         return false;
     }
     out.a0 = s0.a;

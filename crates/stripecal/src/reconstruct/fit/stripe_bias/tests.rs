@@ -251,3 +251,24 @@ fn synthetic_scan_bias_is_outward_and_corrected() {
     let share = neglected_share() * res.diameter_change_mm.abs();
     assert!(sys >= share && sys < share + 2e-4, "{sys} vs {share}");
 }
+
+#[test]
+fn grazing_view_points_are_left_out_and_the_limit_is_checked() {
+    let (sp, poses, _) = synthetic_scan(22.43, 0.12, 0.7);
+    let cam = camera([0.0; 5]);
+    let count = |deg: f64| {
+        let o = StripeBiasOptions {
+            max_view_deg: deg,
+            ..Default::default()
+        };
+        correct_sphere_bias(&sp, &poses, &cam, &plane(), &o)
+            .map(|r| r.modelled.iter().filter(|&&m| m).count())
+    };
+    let (all, default) = (count(90.0).unwrap(), count(75.0).unwrap());
+    assert!(all > default && default > all / 2, "{all} {default}");
+    // A limit that leaves most points out is refused, not fitted on the few.
+    assert!(matches!(count(45.0), Err(Error::Degenerate(_))));
+    for bad in [-1.0, 90.5, f64::NAN] {
+        assert!(matches!(count(bad), Err(Error::InvalidInput(_))), "{bad}");
+    }
+}
