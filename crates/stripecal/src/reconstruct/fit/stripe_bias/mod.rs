@@ -173,14 +173,34 @@ pub const NEGLECTED_FRACTION: f64 = 0.25;
 pub fn neglected_share() -> f64 {
     NEGLECTED_FRACTION / 3f64.sqrt()
 }
-/// The cosine of the largest view angle `deg` (checked: within 0..=90).
-fn view_cos(deg: f64) -> Result<f64> {
+/// The sphere model's rig for `opts`: the emitter given or `n d`, the incidence and
+/// view limits (`max_view_deg` checked: within 0..=90); `stripe` with its direction
+/// resolved.
+fn sphere_rig<'a>(
+    camera: &'a Camera,
+    plane: &Plane,
+    stripe: &'a StripeOptions,
+    opts: &StripeBiasOptions,
+) -> Result<Rig<'a>> {
+    let deg = opts.max_view_deg;
     if !(0.0..=90.0).contains(&deg) {
         return Err(Error::InvalidInput(format!(
             "max_view_deg = {deg} must be within 0..=90"
         )));
     }
-    Ok(deg.to_radians().cos().max(0.0))
+    let emitter = opts
+        .emitter_cam_mm
+        .map_or(plane.normal * plane.d, Vector3::from);
+    let mut rig = Rig::new(
+        camera,
+        plane,
+        emitter,
+        stripe.direction,
+        stripe,
+        opts.max_incidence_deg,
+    );
+    rig.min_cos_view = deg.to_radians().cos().max(0.0);
+    Ok(rig)
 }
 
 /// Largest number of correct-and-refit rounds.
@@ -288,25 +308,13 @@ pub fn correct_sphere_bias(
     if stripe.direction == StripeDirection::Auto {
         stripe.direction = stripe_direction_from_plane(camera, plane);
     }
-    let emitter = match opts.emitter_cam_mm {
-        Some(e) => Vector3::from(e),
-        None => plane.normal * plane.d,
-    };
     if !(opts.emitter_range_mm.is_finite() && opts.emitter_range_mm >= 0.0) {
         return Err(Error::InvalidInput(format!(
             "emitter_range_mm = {} must be finite and >= 0",
             opts.emitter_range_mm
         )));
     }
-    let mut rig = Rig::new(
-        camera,
-        plane,
-        emitter,
-        stripe.direction,
-        &stripe,
-        opts.max_incidence_deg,
-    );
-    rig.min_cos_view = view_cos(opts.max_view_deg)?;
+    let mut rig = sphere_rig(camera, plane, &stripe, opts)?;
     let tri = Triangulator::new(camera, plane, &Iso3::identity(), 0.0)?;
     let cam_base: Vec<Iso3> = base_cam.iter().map(|t| t.inverse()).collect();
     let geo = (0..n)

@@ -126,18 +126,7 @@ pub fn predicted_bias_px(
     if stripe.direction == StripeDirection::Auto {
         stripe.direction = stripe_direction_from_plane(camera, plane);
     }
-    let emitter = opts
-        .emitter_cam_mm
-        .map_or(plane.normal * plane.d, Vector3::from);
-    let mut rig = Rig::new(
-        camera,
-        plane,
-        emitter,
-        stripe.direction,
-        &stripe,
-        opts.max_incidence_deg,
-    );
-    rig.min_cos_view = super::view_cos(opts.max_view_deg)?;
+    let rig = super::sphere_rig(camera, plane, &stripe, opts)?;
     let cam_base: Vec<Iso3> = base_cam.iter().map(|t| t.inverse()).collect();
     let geo = (0..points.len())
         .map(|i| point_geo(points, &cam_base, rig.along, i))
