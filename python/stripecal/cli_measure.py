@@ -62,6 +62,9 @@ def sphere_lines(m: SphereMeasurement, title: str) -> List[str]:
     if bias is not None:
         lines.append(f"  stripe bias corrected: diameter {bias['diameter_change_mm']:+.5f} mm "
                      f"(sheet sigma {bias['sheet_sigma_mm']:.3f} mm from the stripe's width)")
+        if bias["points_saturated"]:
+            lines.append(f"  {bias['points_saturated']} saturated stripe points left out of the "
+                         "corrected fit (the bias model has no clipping)")
     lines.append(f"  {m['points']} points used, {m['outliers']} trimmed, RMS {m['rms_mm']:.5f} mm")
     return lines
 

@@ -1183,6 +1183,9 @@ class StripeBiasInfo(TypedDict):
     """The laser sheet's Gaussian sigma estimated from the stripe's width, mm."""
     diameter_change_mm: float
     """Diameter after minus before the correction, mm."""
+    points_saturated: int
+    """The sphere's points left out of the corrected fit: their stripe holds a saturated
+    pixel, and the model has no clipping."""
 
 
 class SphereMeasurement(TypedDict):

@@ -60,6 +60,9 @@ pub struct BiasInfo {
     pub sheet_sigma_mm: f64,
     /// Diameter after minus before the correction, mm.
     pub diameter_change_mm: f64,
+    /// The sphere's points left out of the corrected fit because their stripe is
+    /// saturated (the model has no clipping).
+    pub points_saturated: usize,
 }
 
 /// A measured sphere: the final fit and its budgets.
@@ -287,6 +290,7 @@ fn correct_bias(
     let info = BiasInfo {
         sheet_sigma_mm: c.sheet.sheet_sigma_mm,
         diameter_change_mm: c.diameter_change_mm,
+        points_saturated: c.saturated,
     };
     Ok((c.fit, kept, coords, systematic, info))
 }
@@ -313,12 +317,14 @@ pub fn budget_to_json(b: &Budget) -> Value {
 impl SphereReport {
     /// The spec's sphere-fit record of the final fit plus `uncertainty` (the budgets of
     /// `diameter`, `center` [x, y, z] and `form`) and `stripe_bias`
-    /// (`sheet_sigma_mm`, `diameter_change_mm`; null without the correction).
+    /// (`sheet_sigma_mm`, `diameter_change_mm`, `points_saturated`; null without the
+    /// correction).
     pub fn to_json(&self) -> Value {
         let m = &self.measurement;
         let bias = match &self.bias {
             Some(b) => json!({"sheet_sigma_mm": b.sheet_sigma_mm,
-                              "diameter_change_mm": b.diameter_change_mm}),
+                              "diameter_change_mm": b.diameter_change_mm,
+                              "points_saturated": b.points_saturated}),
             None => Value::Null,
         };
         let c = self.fit.center_mm;

@@ -93,6 +93,23 @@
 //! the fitted diameter by +1 um and the centre along the cap's axis by -0.6 um. With
 //! them left out, the corrected diameter is within 0.1 um of the truth on three seeds.
 //!
+//! ## Saturated points
+//!
+//! A stripe whose profile holds a pixel at full scale ([`FLAG_SATURATED`]) is clipped:
+//! its top is flat and its centroid and width are not what the model predicts (the model
+//! has no clipping, and the stripe's true peak is not known there). Such points are not
+//! modelled: left out of the sheet-sigma fit, the emitter fit and the corrected fit
+//! ([`SphereBiasCorrection::saturated`] counts them; the emitter fit always skipped
+//! them). On the twin with the emitter moved 25 mm within the plane, 70 % of the ball's
+//! points saturate. Modelled as if unclipped (true calibration, sigmas and emitter,
+//! every third frame) they left +0.0027 mm of the +0.0100 mm diameter bias and 0.0019 mm
+//! of the centre's, and the clipped widths pushed the sheet sigma's estimate to 0.141 mm
+//! (truth 0.120); without them the full scan's corrected diameter is within 0.0001 mm and
+//! its centre within 0.0002 mm (sigmas and emitter estimated: 0.1205 mm). The correction is refused when fewer than 10 points are not
+//! saturated, or when the model holds for fewer than half of those that are not.
+//!
+//! [`FLAG_SATURATED`]: crate::vision::stripe::FLAG_SATURATED
+//!
 //! ## The systematic uncertainty reported
 //!
 //! Root sum of squares of, for the diameter and each centre coordinate:
@@ -104,18 +121,22 @@
 //!   [`super::sheet_sigma`]) propagated by recomputing the correction at
 //!   `sigma +- u(sigma)` (half the difference);
 //! - the model's residual error: what remains after the correction is taken to lie within
-//!   `+-`[`NEGLECTED_FRACTION`] (25 %) of the correction, uniformly (a GUM type B
-//!   evaluation: standard uncertainty `0.25 |correction| / sqrt 3`, 14 %). This is an
-//!   empirical bound, the largest remainder seen on the twin, with the true calibration:
-//!   nine scans (hp3-paper seeds 1-3; sheet sigma 0.2 mm; a 25.4 mm ball; the hp3-wide
-//!   rig; noise 0 and 2 gray levels; PSF 1 px) leave 0-10 % of the diameter's correction
-//!   (+0.0007 mm at most, the wide rig) and 3-8 % of the centre's; with the emitter moved
-//!   25 mm within the plane (estimated from the brightness) the centre keeps 23 % of its
-//!   correction (0.0018 of 0.0078 mm: the corrected points near the middle of the seen
-//!   cap lie 1-2 um inside the sphere) and the diameter 6 %. Before the grazing points
-//!   were left out the nine scans left 9-61 % of the diameter's correction. The twin's
-//!   sheet is Gaussian and its ball Lambertian, as the model assumes; a real sheet or
-//!   surface that is not can leave more than the twin can show (see the assumptions).
+//!   `+-`[`NEGLECTED_FRACTION`] (12 %) of the correction, uniformly (a GUM type B
+//!   evaluation: standard uncertainty `0.12 |correction| / sqrt 3`, 6.9 %). This is an
+//!   empirical bound, the largest remainder seen on the twin, with the true calibration
+//!   and noise 1 unless said: ten scans (hp3-paper seeds 1-3; sheet sigma 0.2 mm; a
+//!   25.4 mm ball; the hp3-wide rig; noise 0 and 2 gray levels; PSF 1 px; the emitter
+//!   moved 25 mm within the plane, estimated from the brightness) leave 0.2-7.8 % of the
+//!   diameter's correction (+0.0007 mm at most, the wide rig) and 1.2-10.1 % of the
+//!   correction of each centre coordinate that the correction moves (x and z; the
+//!   largest, 10.1 %, is z on the 25.4 mm ball, 0.00026 of 0.0026 mm). The larger
+//!   remainders come with the image noise (the wide rig leaves 4 % noise-free, 7.8 % at
+//!   noise 1: the windowed centroid's noise bias on weak profiles seen obliquely, which
+//!   the noise-free model does not contain). Before the grazing and the saturated points
+//!   were left out the same scans left 9-61 % of the diameter's correction, and the
+//!   moved emitter 23 % of the centre's. The twin's sheet is Gaussian and its ball
+//!   Lambertian, as the model assumes; a real sheet or surface that is not can leave more
+//!   than the twin can show (see the assumptions).
 //!
 //! The sensitivity terms are computed on a subsample of at most [`SENSITIVITY_POINTS`]
 //! points, as differences from the nominal model on the same subsample and points.
@@ -132,8 +153,8 @@
 //!   non-linearity makes noise bias it a little), sensor non-linearity. The pixel-locking
 //!   of the centroid is modelled (the point's actual pixel phase), so it is corrected too.
 //! - Points where the model fails (the scan line misses the section circle, the
-//!   synthetic profile is rejected by the extractor's own tests, incidence beyond the
-//!   limit) are left out of the corrected fit ([`SphereBiasCorrection::modelled`]).
+//!   synthetic profile is rejected by the extractor's own tests, incidence or view angle
+//!   beyond its limit, a saturated stripe) are left out of the corrected fit ([`SphereBiasCorrection::modelled`]).
 
 mod plane;
 mod points;
@@ -166,7 +187,7 @@ pub const HALF_SAMPLES: usize = 10;
 pub const SENSITIVITY_POINTS: usize = 4000;
 /// The neglected terms (module docs): the half width of their uniform distribution, as
 /// a fraction of the correction.
-pub const NEGLECTED_FRACTION: f64 = 0.25;
+pub const NEGLECTED_FRACTION: f64 = 0.12;
 
 /// The standard uncertainty of the neglected terms per unit correction (uniform over
 /// `+-NEGLECTED_FRACTION`).
@@ -201,6 +222,17 @@ fn sphere_rig<'a>(
     );
     rig.min_cos_view = deg.to_radians().cos().max(0.0);
     Ok(rig)
+}
+
+/// What an error adds when points were left out as saturated.
+fn saturated_hint(saturated: usize) -> String {
+    if saturated == 0 {
+        return String::new();
+    }
+    format!(
+        " ({saturated} points left out as saturated: the model has no clipping; lower the \
+         laser power or the exposure)"
+    )
 }
 
 /// Largest number of correct-and-refit rounds.
@@ -263,6 +295,9 @@ pub struct SphereBiasCorrection {
     pub corrections_mm: Vec<[f64; 3]>,
     /// Per input point: the model gave a correction (the others are left out of `fit`).
     pub modelled: Vec<bool>,
+    /// Input points left out because their stripe profile holds a saturated pixel
+    /// ([`crate::vision::stripe::FLAG_SATURATED`]; module docs).
+    pub saturated: usize,
     /// The sheet and PSF sigmas used (estimated or given).
     pub sheet: SheetSigmaEstimate,
     /// The emitter position used (camera frame, mm).
@@ -289,7 +324,8 @@ pub struct SphereBiasCorrection {
 /// pixels and frames; `base_cam[f]`: `T_base_cam` of frame `f` (`T_base_hand(reading) *
 /// T_hand_cam`); `camera` and `plane`: the calibration the points were triangulated
 /// with. Errors: too few points, frames without a pose, a sheet thickness that cannot
-/// be estimated ([`super::sheet_sigma`]), a model that fails on most points.
+/// be estimated ([`super::sheet_sigma`]), a model that fails on most points, fewer than 10
+/// points that are not saturated.
 pub fn correct_sphere_bias(
     points: &ScanPoints,
     base_cam: &[Iso3],
@@ -320,6 +356,14 @@ pub fn correct_sphere_bias(
     let geo = (0..n)
         .map(|i| point_geo(points, &cam_base, rig.along, i))
         .collect::<Result<Vec<_>>>()?;
+    let saturated = geo.iter().filter(|(g, _)| g.saturated).count();
+    if n - saturated < 10 {
+        return Err(Error::Degenerate(format!(
+            "stripe bias: {} of {n} points are not saturated{}",
+            n - saturated,
+            saturated_hint(saturated)
+        )));
+    }
     let uncorrected = fit_sphere(&points.points_mm, &opts.fit)?;
     // Refits of the corrected points: the same point set every round (the caller's
     // points, less the unmodelled), no trimming, started from the algebraic fit.
@@ -348,7 +392,11 @@ pub fn correct_sphere_bias(
             sphere0,
             opts.sheet_sigma_mm,
             opts.psf_sigma_px,
-        )?;
+        )
+        .map_err(|e| match e {
+            Error::Degenerate(m) => Error::Degenerate(format!("{m}{}", saturated_hint(saturated))),
+            other => other,
+        })?;
         pass += 1;
         if !estimate_e || pass > 2 {
             break;
@@ -383,9 +431,10 @@ pub fn correct_sphere_bias(
             psf,
         );
         let good = corr.iter().filter(|c| c.is_some()).count();
-        if good < n / 2 || good < 10 {
+        if good < (n - saturated) / 2 || good < 10 {
             return Err(Error::Degenerate(format!(
-                "stripe bias: the model holds for {good} of {n} points only"
+                "stripe bias: the model holds for {good} of {n} points only{}",
+                saturated_hint(saturated)
             )));
         }
         fit = fit_sphere(&corrected_points(points, &all, &corr), &refit_opts)?;
@@ -494,6 +543,7 @@ pub fn correct_sphere_bias(
         uncorrected,
         corrections_mm,
         modelled,
+        saturated,
         sheet,
         emitter_cam_mm: emitter,
         emitter_estimate,

@@ -10,16 +10,20 @@ use crate::model::geometry::{Iso3, Plane};
 use crate::model::StripeDirection;
 use crate::reconstruct::triangulate::Triangulator;
 use crate::reconstruct::{stripe_direction_from_plane, ScanPoints};
+use crate::vision::stripe::FLAG_SATURATED;
 
 use super::profile::{extractor_response, point_profile, PointProfile, Rig};
 use super::StripeBiasOptions;
 
-/// the camera frame, the scan line and the measured along-line coordinate.
-/// Everything per point the correction needs: the camera-frame point, the sphere in
+/// Everything per point the correction needs: the camera-frame point, the scan line,
+/// the measured along-line coordinate, and whether its stripe profile holds a saturated
+/// pixel ([`FLAG_SATURATED`]: clipped at full scale, which the model does not contain,
+/// so the point is not modelled).
 pub(crate) struct PointGeo {
     pub p_cam: Vector3<f64>,
     pub line: f64,
     pub a_meas: f64,
+    pub saturated: bool,
 }
 
 pub(crate) fn point_geo(
@@ -42,6 +46,10 @@ pub(crate) fn point_geo(
             p_cam,
             line: uv[1 - along],
             a_meas: uv[along],
+            saturated: points
+                .flags
+                .get(i)
+                .is_some_and(|&b| b & FLAG_SATURATED != 0),
         },
         f,
     ))
@@ -65,6 +73,9 @@ pub(crate) fn corrections(
             || (PointProfile::default(), Vec::new()),
             |(prof, buf), &i| {
                 let (g, f) = &geo[i];
+                if g.saturated {
+                    return None;
+                }
                 let t = &cam_base[*f];
                 let c = (t * nalgebra::Point3::from(*sphere.0)).coords;
                 if !point_profile(rig, &c, sphere.1, g.line, &g.p_cam, sigma, psf, prof) {
@@ -136,6 +147,9 @@ pub fn predicted_bias_px(
         .map_init(
             || (PointProfile::default(), Vec::new()),
             |(prof, buf), (g, f)| {
+                if g.saturated {
+                    return None;
+                }
                 let c = (cam_base[*f] * nalgebra::Point3::from(*sphere.0)).coords;
                 if !point_profile(
                     &rig,

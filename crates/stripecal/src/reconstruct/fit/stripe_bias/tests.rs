@@ -4,6 +4,7 @@ use super::profile::*;
 use super::*;
 use crate::reconstruct::triangulate::tests::camera;
 use crate::vision::stripe::profile_centre;
+use crate::vision::stripe::FLAG_SATURATED;
 
 fn plane() -> Plane {
     Plane::new(Vector3::new(0.629, -0.0492, 0.7759), 80.0).unwrap()
@@ -270,5 +271,41 @@ fn grazing_view_points_are_left_out_and_the_limit_is_checked() {
     assert!(matches!(count(45.0), Err(Error::Degenerate(_))));
     for bad in [-1.0, 90.5, f64::NAN] {
         assert!(matches!(count(bad), Err(Error::InvalidInput(_))), "{bad}");
+    }
+}
+
+#[test]
+fn saturated_points_are_left_out_and_counted() {
+    let (r, s, b) = (22.43, 0.12, 0.7);
+    let (mut sp, poses, c) = synthetic_scan(r, s, b);
+    let cam = camera([0.0; 5]);
+    let n = sp.len();
+    // Every third point clipped (the synthetic profiles are not: the flag alone must
+    // keep them out).
+    for i in (0..n).step_by(3) {
+        sp.flags[i] = FLAG_SATURATED;
+    }
+    let res = correct_sphere_bias(&sp, &poses, &cam, &plane(), &Default::default()).unwrap();
+    assert_eq!(res.saturated, n.div_ceil(3));
+    for i in (0..n).step_by(3) {
+        assert!(!res.modelled[i], "saturated point {i} modelled");
+        assert_eq!(res.corrections_mm[i], [0.0; 3]);
+    }
+    assert!(res.modelled.iter().filter(|&&m| m).count() > n / 2);
+    let d1 = res.fit.diameter_mm - 2.0 * r;
+    assert!(d1.abs() < 2e-4, "corrected diameter error {d1}");
+    assert!((res.fit.center_mm - c).norm() < 2e-4);
+    assert!(
+        (res.sheet.sheet_sigma_mm / s - 1.0).abs() < 0.03,
+        "{:?}",
+        res.sheet
+    );
+    // Nearly everything saturated: refused, and the error says why.
+    for f in sp.flags.iter_mut().skip(5) {
+        *f = FLAG_SATURATED;
+    }
+    match correct_sphere_bias(&sp, &poses, &cam, &plane(), &Default::default()) {
+        Err(Error::Degenerate(m)) => assert!(m.contains("saturated"), "{m}"),
+        other => panic!("expected Degenerate, got {other:?}"),
     }
 }
