@@ -60,6 +60,30 @@ pub struct ViewObs {
     pub stripe_shape: Option<StripeShape>,
 }
 
+impl StripeShape {
+    /// The points where `keep` holds (`keep` index-aligned with the points).
+    pub fn subset(&self, keep: &[bool]) -> StripeShape {
+        let pick = |v: &[f64]| -> Vec<f64> {
+            v.iter()
+                .zip(keep)
+                .filter(|(_, k)| **k)
+                .map(|(x, _)| *x)
+                .collect()
+        };
+        StripeShape {
+            direction: self.direction,
+            width_px: pick(&self.width_px),
+            saturated: self
+                .saturated
+                .iter()
+                .zip(keep)
+                .filter(|(_, k)| **k)
+                .map(|(x, _)| *x)
+                .collect(),
+        }
+    }
+}
+
 /// The extraction behind a view's stripe points ([`ViewObs::stripe_shape`]).
 #[derive(Debug, Clone, PartialEq)]
 pub struct StripeShape {
@@ -67,4 +91,7 @@ pub struct StripeShape {
     pub direction: crate::model::StripeDirection,
     /// The stripe's width (FWHM along the scan line) at each point, px.
     pub width_px: Vec<f64>,
+    /// Each point's profile holds a saturated pixel (clipped: its width and skew are not
+    /// the bias model's).
+    pub saturated: Vec<bool>,
 }

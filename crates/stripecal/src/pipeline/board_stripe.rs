@@ -30,6 +30,11 @@
 //!    counted);
 //! 3. the adjustment is run again from its own solution on the corrected points.
 //!
+//! Points whose profile holds a saturated pixel are clipped, so neither their width nor
+//! their skew is the model's: they are kept as measured, left out of steps 1 and 2 and
+//! counted (a clipped profile on a plane stays nearly symmetric; the sphere's correction
+//! leaves its saturated points out of the fit instead, where the clipped skew is large).
+//!
 //! The emitter is not in a calibration: it is assumed at the plane's point nearest the
 //! camera centre, `n d`.
 //!
@@ -38,8 +43,8 @@
 //! The correction moves the calibration's numbers by `D` (corrected minus uncorrected).
 //! What the model leaves is a systematic error shared by all views, so it is added to the
 //! covariance as `u^2 D D^T` (rank one, the same direction as the correction), with `u`
-//! the root sum of squares of: the neglected terms, taken as uniform within +-25 % of the
-//! correction (`0.14`, the sphere's bound; on the twin the correction leaves ~5 % of
+//! the root sum of squares of: the neglected terms, taken as uniform within +-12 % of the
+//! correction (`0.069`, the sphere's bound; on the twin the correction leaves ~5 % of
 //! the hand-eye's bias, noise-free); the emitter, the largest relative change of
 //! the predicted biases when it moves by +-[`EMITTER_RANGE_MM`] along the plane's two
 //! in-plane axes, as the half width of a uniform distribution (`/ sqrt 3`). The
@@ -50,7 +55,7 @@ use nalgebra::{Matrix2, Vector2, Vector3};
 use rayon::prelude::*;
 
 use crate::calib::laser_plane::backproject_to_board;
-use crate::calib::{StripeShape, ViewObs};
+use crate::calib::ViewObs;
 use crate::model::camera::Camera;
 use crate::model::geometry::{Iso3, Plane};
 use crate::model::StripeDirection;
@@ -80,6 +85,8 @@ pub struct BoardStripeCorrection {
     /// Points corrected, and left out.
     pub corrected: usize,
     pub dropped: usize,
+    /// Saturated points: kept as measured, neither corrected nor in the width fit.
+    pub saturated: usize,
     /// Mean and RMS of the predicted bias, px along the scan line.
     pub mean_px: f64,
     pub rms_px: f64,
@@ -95,6 +102,7 @@ struct Pt {
     line: f64,
     a: f64,
     width: f64,
+    saturated: bool,
 }
 
 /// The correction (module docs): the views with their stripe points moved by the
@@ -151,10 +159,11 @@ pub fn correct_board_stripes(
         let Some(shape) = v.stripe_shape.as_ref() else {
             continue;
         };
-        if shape.width_px.len() != v.stripe.len() {
+        if shape.width_px.len() != v.stripe.len() || shape.saturated.len() != v.stripe.len() {
             continue;
         }
-        for (k, (uv, w)) in v.stripe.iter().zip(&shape.width_px).enumerate() {
+        let each = v.stripe.iter().zip(&shape.width_px).zip(&shape.saturated);
+        for (k, ((uv, w), sat)) in each.enumerate() {
             let Ok(p) = backproject_to_board(camera, cb, uv) else {
                 continue;
             };
@@ -165,6 +174,7 @@ pub fn correct_board_stripes(
                 line: uv[1 - along],
                 a: uv[along],
                 width: *w,
+                saturated: *sat,
             });
         }
     }
@@ -173,8 +183,12 @@ pub fn correct_board_stripes(
     }
     let surfaces = surfaces_of(&rig);
     // 1. Sheet and PSF sigmas from the widths (g and the slope do not depend on them).
-    let step = pts.len().div_ceil(WIDTH_POINTS).max(1);
-    let sub: Vec<&Pt> = pts.iter().step_by(step).collect();
+    let clear: Vec<&Pt> = pts.iter().filter(|q| !q.saturated).collect();
+    if clear.len() < MIN_POINTS {
+        return None;
+    }
+    let step = clear.len().div_ceil(WIDTH_POINTS).max(1);
+    let sub: Vec<&Pt> = clear.iter().step_by(step).copied().collect();
     let geo: Vec<Option<(f64, f64)>> = sub
         .iter()
         .map(|q| board_point_scale(&rig, surfaces[q.view].as_ref()?, q.line, &q.p))
@@ -221,12 +235,11 @@ pub fn correct_board_stripes(
             )
             .collect()
     };
-    let all: Vec<&Pt> = pts.iter().collect();
-    let delta = deltas(&rig, &all);
+    let delta = deltas(&rig, &clear);
     // The emitter's part of the remainder, relative to the correction.
     let (e1, e2) = (rig.e1, rig.e2);
-    let step = pts.len().div_ceil(EMITTER_POINTS).max(1);
-    let sub: Vec<&Pt> = pts.iter().step_by(step).collect();
+    let step = clear.len().div_ceil(EMITTER_POINTS).max(1);
+    let sub: Vec<&Pt> = clear.iter().step_by(step).copied().collect();
     let nominal_sub = deltas(&rig, &sub);
     let rms = |v: &[f64]| (v.iter().map(|x| x * x).sum::<f64>() / v.len().max(1) as f64).sqrt();
     let mut rel_emitter = 0.0f64;
@@ -251,7 +264,7 @@ pub fn correct_board_stripes(
     let mut out: Vec<ViewObs> = views.to_vec();
     let mut keep: Vec<Vec<bool>> = views.iter().map(|v| vec![true; v.stripe.len()]).collect();
     let (mut corrected, mut dropped, mut sum, mut sum2) = (0usize, 0usize, 0.0, 0.0);
-    for (q, d) in pts.iter().zip(&delta) {
+    for (q, d) in clear.iter().zip(&delta) {
         match d {
             Some(d) => {
                 out[q.view].stripe[q.idx][along] = q.a - d;
@@ -280,16 +293,7 @@ pub fn correct_board_stripes(
             .map(|(p, _)| *p)
             .collect();
         if let Some(sh) = v.stripe_shape.as_mut() {
-            *sh = StripeShape {
-                direction: sh.direction,
-                width_px: sh
-                    .width_px
-                    .iter()
-                    .zip(k)
-                    .filter(|(_, k)| **k)
-                    .map(|(w, _)| *w)
-                    .collect(),
-            };
+            *sh = sh.subset(k);
         }
     }
     let nc = corrected as f64;
@@ -298,6 +302,7 @@ pub fn correct_board_stripes(
         psf_sigma_px: psf,
         corrected,
         dropped,
+        saturated: pts.len() - clear.len(),
         mean_px: sum / nc,
         rms_px: (sum2 / nc).sqrt(),
         share,

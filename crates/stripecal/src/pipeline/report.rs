@@ -223,6 +223,7 @@ fn board_stripe_extra(c: &super::board_stripe::BoardStripeCorrection) -> serde_j
         "psf_sigma_px": c.psf_sigma_px,
         "points_corrected": c.corrected,
         "points_left_out": c.dropped,
+        "points_saturated": c.saturated,
         "mean_px": c.mean_px,
         "rms_px": c.rms_px,
         "systematic_share": c.share,

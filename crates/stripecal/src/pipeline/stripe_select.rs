@@ -56,7 +56,7 @@ use nalgebra::Vector3;
 use super::labels::Labelled;
 use super::ViewStatus;
 use crate::calib::laser_plane::{backproject_to_board, MIN_POINTS_PER_VIEW};
-use crate::calib::{StripeShape, ViewObs};
+use crate::calib::ViewObs;
 use crate::error::{Error, Result};
 use crate::model::camera::Camera;
 use crate::model::geometry::{Iso3, Plane};
@@ -156,17 +156,8 @@ pub(super) fn select_stripes(
         let stripe_shape = v
             .stripe_shape
             .as_ref()
-            .filter(|sh| sh.width_px.len() == keep.len())
-            .map(|sh| StripeShape {
-                direction: sh.direction,
-                width_px: sh
-                    .width_px
-                    .iter()
-                    .zip(keep)
-                    .filter(|(_, k)| **k)
-                    .map(|(w, _)| *w)
-                    .collect(),
-            });
+            .filter(|sh| sh.width_px.len() == keep.len() && sh.saturated.len() == keep.len())
+            .map(|sh| sh.subset(keep));
         obs.push(ViewObs {
             stripe,
             stripe_shape,
