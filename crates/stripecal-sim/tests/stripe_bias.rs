@@ -276,7 +276,11 @@ fn moved_emitter_is_estimated_from_the_brightness() {
     // The moved emitter lights the ball brighter: most of its stripe points saturate.
     // Modelled as if unclipped they left ~0.002 mm in the centre; they are left out.
     let c = &r.corr;
-    assert!(c.saturated > c.modelled.len() / 2, "{} saturated", c.saturated);
+    assert!(
+        c.saturated > c.modelled.len() / 2,
+        "{} saturated",
+        c.saturated
+    );
     let truth_c = c.uncorrected.center_mm - r.c0;
     let dc = (c.fit.center_mm - truth_c).norm();
     assert!(dc < 0.001, "corrected centre error {dc:.4} mm");

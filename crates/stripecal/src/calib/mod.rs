@@ -60,26 +60,22 @@ pub struct ViewObs {
     pub stripe_shape: Option<StripeShape>,
 }
 
+/// The items of `v` where `keep` holds (index-aligned).
+pub(crate) fn kept<T: Copy>(v: &[T], keep: &[bool]) -> Vec<T> {
+    v.iter()
+        .zip(keep)
+        .filter(|(_, k)| **k)
+        .map(|(x, _)| *x)
+        .collect()
+}
+
 impl StripeShape {
     /// The points where `keep` holds (`keep` index-aligned with the points).
     pub fn subset(&self, keep: &[bool]) -> StripeShape {
-        let pick = |v: &[f64]| -> Vec<f64> {
-            v.iter()
-                .zip(keep)
-                .filter(|(_, k)| **k)
-                .map(|(x, _)| *x)
-                .collect()
-        };
         StripeShape {
             direction: self.direction,
-            width_px: pick(&self.width_px),
-            saturated: self
-                .saturated
-                .iter()
-                .zip(keep)
-                .filter(|(_, k)| **k)
-                .map(|(x, _)| *x)
-                .collect(),
+            width_px: kept(&self.width_px, keep),
+            saturated: kept(&self.saturated, keep),
         }
     }
 }

@@ -55,7 +55,7 @@ use nalgebra::{Matrix2, Vector2, Vector3};
 use rayon::prelude::*;
 
 use crate::calib::laser_plane::backproject_to_board;
-use crate::calib::ViewObs;
+use crate::calib::{kept, ViewObs};
 use crate::model::camera::Camera;
 use crate::model::geometry::{Iso3, Plane};
 use crate::model::StripeDirection;
@@ -178,15 +178,13 @@ pub fn correct_board_stripes(
             });
         }
     }
-    if pts.len() < MIN_POINTS {
-        return None;
-    }
-    let surfaces = surfaces_of(&rig);
-    // 1. Sheet and PSF sigmas from the widths (g and the slope do not depend on them).
+    // Saturated points are kept as measured and not modelled (module docs).
     let clear: Vec<&Pt> = pts.iter().filter(|q| !q.saturated).collect();
     if clear.len() < MIN_POINTS {
         return None;
     }
+    let surfaces = surfaces_of(&rig);
+    // 1. Sheet and PSF sigmas from the widths (g and the slope do not depend on them).
     let step = clear.len().div_ceil(WIDTH_POINTS).max(1);
     let sub: Vec<&Pt> = clear.iter().step_by(step).copied().collect();
     let geo: Vec<Option<(f64, f64)>> = sub
@@ -285,13 +283,7 @@ pub fn correct_board_stripes(
         if k.iter().all(|x| *x) {
             continue;
         }
-        v.stripe = v
-            .stripe
-            .iter()
-            .zip(k)
-            .filter(|(_, k)| **k)
-            .map(|(p, _)| *p)
-            .collect();
+        v.stripe = kept(&v.stripe, k);
         if let Some(sh) = v.stripe_shape.as_mut() {
             *sh = sh.subset(k);
         }

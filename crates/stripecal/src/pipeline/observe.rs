@@ -17,7 +17,6 @@ use crate::model::{Dataset, RobotReading, StripeChannel, View};
 use crate::vision::stripe::colour::{auto_sample, channel_scores, choose_channel};
 use crate::vision::stripe::{
     extract_stripe, flag_reflectance_edges, stripe_signal_of_file, EdgeOptions, StripeOptions,
-    FLAG_SATURATED,
 };
 use crate::vision::target::detect_target;
 
@@ -233,7 +232,7 @@ fn observe_view(
                 shape = Some(StripeShape {
                     direction: s.direction,
                     width_px: kept.iter().map(|p| f64::from(p.width_px)).collect(),
-                    saturated: kept.iter().map(|p| p.flags & FLAG_SATURATED != 0).collect(),
+                    saturated: kept.iter().map(|p| p.saturated()).collect(),
                 });
             }
             Err(Error::Detection(_)) => {}

@@ -56,7 +56,7 @@ use nalgebra::Vector3;
 use super::labels::Labelled;
 use super::ViewStatus;
 use crate::calib::laser_plane::{backproject_to_board, MIN_POINTS_PER_VIEW};
-use crate::calib::ViewObs;
+use crate::calib::{kept, ViewObs};
 use crate::error::{Error, Result};
 use crate::model::camera::Camera;
 use crate::model::geometry::{Iso3, Plane};
@@ -142,13 +142,7 @@ pub(super) fn select_stripes(
     let mut obs = Vec::with_capacity(views.len());
     let mut poses = Vec::with_capacity(views.len());
     for (((v, cb), keep), off) in views.iter().zip(&sel.keep).zip(&sel.off_plane) {
-        let stripe = v
-            .stripe
-            .iter()
-            .zip(keep)
-            .filter(|(_, k)| **k)
-            .map(|(p, _)| *p)
-            .collect();
+        let stripe = kept(&v.stripe, keep);
         if let Some(s) = status.iter_mut().find(|s| s.view == v.view) {
             s.stripe_off_plane = *off;
         }

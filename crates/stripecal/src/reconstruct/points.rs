@@ -3,6 +3,7 @@
 
 use crate::error::{BadFrame, Error};
 use crate::model::Cloud;
+use crate::vision::stripe::FLAG_SATURATED;
 
 use super::DropCounts;
 
@@ -46,6 +47,12 @@ pub struct ScanPoints {
 }
 
 impl ScanPoints {
+    /// Point `i`'s stripe holds a saturated pixel ([`FLAG_SATURATED`]; `false` without
+    /// flags).
+    pub fn saturated(&self, i: usize) -> bool {
+        self.flags.get(i).is_some_and(|&b| b & FLAG_SATURATED != 0)
+    }
+
     /// Number of points.
     pub fn len(&self) -> usize {
         self.points_mm.len()

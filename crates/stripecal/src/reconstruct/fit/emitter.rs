@@ -23,7 +23,6 @@ use rayon::prelude::*;
 
 use crate::model::geometry::Iso3;
 use crate::reconstruct::ScanPoints;
-use crate::vision::stripe::FLAG_SATURATED;
 
 use super::stripe_bias::{extractor_response, point_profile, PointProfile, Rig};
 
@@ -82,7 +81,7 @@ pub(super) fn estimate_emitter(
     let mut obs = Vec::new();
     for i in (0..n).step_by(step) {
         let li = (points.intensity[i] as f64).ln();
-        if points.flags[i] & FLAG_SATURATED != 0 || !li.is_finite() {
+        if points.saturated(i) || !li.is_finite() {
             continue;
         }
         let (p, line, f) = geo[i];

@@ -38,7 +38,6 @@ use rayon::prelude::*;
 use crate::error::{Error, Result};
 use crate::model::geometry::Iso3;
 use crate::reconstruct::ScanPoints;
-use crate::vision::stripe::FLAG_SATURATED;
 
 use super::stripe_bias::{extractor_response, point_profile, PointProfile, Rig};
 
@@ -144,11 +143,7 @@ pub(super) fn estimate_sheet_sigma(
         let w = points.width_px[i] as f64;
         let (p, line, f) = geo[i];
         // A saturated profile is clipped: its width is not the model's.
-        let saturated = points
-            .flags
-            .get(i)
-            .is_some_and(|&b| b & FLAG_SATURATED != 0);
-        if saturated || !(w.is_finite() && w > 0.0) {
+        if points.saturated(i) || !(w.is_finite() && w > 0.0) {
             continue;
         }
         let c = (cam_base[f] * nalgebra::Point3::from(*sphere.0)).coords;

@@ -272,6 +272,11 @@ impl StripePoint {
         self.flags & (FLAG_EDGE | FLAG_UNEVEN_BACKGROUND) != 0
     }
 
+    /// The point's support holds a pixel at full scale ([`FLAG_SATURATED`]).
+    pub fn saturated(&self) -> bool {
+        self.flags & FLAG_SATURATED != 0
+    }
+
     /// No flag warns of a biased centre (none of [`FLAG_BIASED`]; low-signal and saturated
     /// points are noisier, not biased, and count as trusted).
     pub fn trusted(&self) -> bool {

@@ -235,6 +235,9 @@ fn saturated_hint(saturated: usize) -> String {
     )
 }
 
+/// Fewest modelled points the corrected fit is made on.
+const MIN_MODELLED: usize = 10;
+
 /// Largest number of correct-and-refit rounds.
 const MAX_ROUNDS: usize = 8;
 
@@ -357,7 +360,7 @@ pub fn correct_sphere_bias(
         .map(|i| point_geo(points, &cam_base, rig.along, i))
         .collect::<Result<Vec<_>>>()?;
     let saturated = geo.iter().filter(|(g, _)| g.saturated).count();
-    if n - saturated < 10 {
+    if n - saturated < MIN_MODELLED {
         return Err(Error::Degenerate(format!(
             "stripe bias: {} of {n} points are not saturated{}",
             n - saturated,
@@ -431,7 +434,7 @@ pub fn correct_sphere_bias(
             psf,
         );
         let good = corr.iter().filter(|c| c.is_some()).count();
-        if good < (n - saturated) / 2 || good < 10 {
+        if good < (n - saturated) / 2 || good < MIN_MODELLED {
             return Err(Error::Degenerate(format!(
                 "stripe bias: the model holds for {good} of {n} points only{}",
                 saturated_hint(saturated)

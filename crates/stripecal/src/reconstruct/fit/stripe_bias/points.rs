@@ -10,14 +10,13 @@ use crate::model::geometry::{Iso3, Plane};
 use crate::model::StripeDirection;
 use crate::reconstruct::triangulate::Triangulator;
 use crate::reconstruct::{stripe_direction_from_plane, ScanPoints};
-use crate::vision::stripe::FLAG_SATURATED;
 
 use super::profile::{extractor_response, point_profile, PointProfile, Rig};
 use super::StripeBiasOptions;
 
 /// Everything per point the correction needs: the camera-frame point, the scan line,
 /// the measured along-line coordinate, and whether its stripe profile holds a saturated
-/// pixel ([`FLAG_SATURATED`]: clipped at full scale, which the model does not contain,
+/// pixel ([`ScanPoints::saturated`]: clipped at full scale, which the model does not contain,
 /// so the point is not modelled).
 pub(crate) struct PointGeo {
     pub p_cam: Vector3<f64>,
@@ -46,10 +45,7 @@ pub(crate) fn point_geo(
             p_cam,
             line: uv[1 - along],
             a_meas: uv[along],
-            saturated: points
-                .flags
-                .get(i)
-                .is_some_and(|&b| b & FLAG_SATURATED != 0),
+            saturated: points.saturated(i),
         },
         f,
     ))
