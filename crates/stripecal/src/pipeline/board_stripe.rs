@@ -43,8 +43,8 @@
 //! The correction moves the calibration's numbers by `D` (corrected minus uncorrected).
 //! What the model leaves is a systematic error shared by all views, so it is added to the
 //! covariance as `u^2 D D^T` (rank one, the same direction as the correction), with `u`
-//! the root sum of squares of: the neglected terms, taken as uniform within +-12 % of the
-//! correction (`0.069`, the sphere's bound; on the twin the correction leaves ~5 % of
+//! the root sum of squares of: the neglected terms, taken as uniform within +-10 % of the
+//! correction (`0.058`, the sphere's bound; on the twin the correction leaves ~5 % of
 //! the hand-eye's bias, noise-free); the emitter, the largest relative change of
 //! the predicted biases when it moves by +-[`EMITTER_RANGE_MM`] along the plane's two
 //! in-plane axes, as the half width of a uniform distribution (`/ sqrt 3`). The

@@ -27,6 +27,10 @@ pub(crate) struct Rig<'a> {
     /// Points seen by the camera at a smaller cosine between the surface normal and the
     /// line of sight (`t = 0`) are not modelled (sphere only; 0: all that face it).
     pub min_cos_view: f64,
+    /// Points whose extractor support (window and flanks, for the modelled width), plus
+    /// this many pixels, reaches the sphere's outline on their scan line are not modelled
+    /// (sphere only; `None`: no such test).
+    pub outline_margin_px: Option<f64>,
     /// In-plane basis.
     pub e1: Vector3<f64>,
     pub e2: Vector3<f64>,
@@ -56,6 +60,7 @@ impl<'a> Rig<'a> {
             stripe,
             min_cos: max_incidence_deg.to_radians().cos(),
             min_cos_view: 0.0,
+            outline_margin_px: None,
             e1,
             e2,
         }
@@ -198,6 +203,38 @@ pub(crate) struct PointProfile {
     lines: Vec<(f64, f64)>,
 }
 
+/// How far from its centre the extractor reads a stripe of width `width` px along the
+/// scan line: the centroid window (`window_fwhm` widths, at least 1.5 px), the pixel of
+/// slack and the half pixel of rounding beyond it, and the background flanks.
+pub(crate) fn support_px(stripe: &StripeOptions, width: f64) -> f64 {
+    (stripe.window_fwhm as f64 * width).max(1.5) + 1.5 + stripe.flank_px as f64
+}
+
+/// Are the pixels `reach` px either side of `a` on scan line `line` still on the image of
+/// the sphere `(c, r)` (camera frame)? The sphere's outline is convex, so the two ends
+/// decide for the whole stretch. `false` where a pixel cannot be unprojected.
+pub(crate) fn clear_of_outline(
+    rig: &Rig<'_>,
+    c: &Vector3<f64>,
+    r: f64,
+    line: f64,
+    a: f64,
+    reach: f64,
+) -> bool {
+    [-reach, reach].iter().all(|&x| {
+        let mut uv = nalgebra::Vector2::zeros();
+        uv[rig.along] = a + x;
+        uv[1 - rig.along] = line;
+        match rig.camera.unproject(&uv) {
+            Ok(ray) => {
+                let d = ray.normalize();
+                d.dot(c) > 0.0 && (c - d * d.dot(c)).norm() < r
+            }
+            Err(_) => false,
+        }
+    })
+}
+
 /// Is point `p` of the sphere `(c, r)` seen by the camera and lit by the emitter, and
 /// its shading `cos(incidence) / r_emitter`.
 #[inline]
@@ -255,6 +292,19 @@ pub(crate) fn point_profile(
         || (c - s0.p).dot(&s0.p) < rig.min_cos_view * r * s0.p.norm()
     {
         return false;
+    }
+    if let Some(margin) = rig.outline_margin_px {
+        let width = 2.3548 * ((s0.da_dt * sigma).powi(2) + psf * psf + 1.0 / 12.0).sqrt();
+        if !clear_of_outline(
+            rig,
+            c,
+            r,
+            line,
+            s0.a,
+            support_px(rig.stripe, width) + margin,
+        ) {
+            return false;
+        }
     }
     out.a0 = s0.a;
     out.g = s0.da_dt.abs();

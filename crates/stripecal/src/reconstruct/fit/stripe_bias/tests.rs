@@ -275,11 +275,74 @@ fn grazing_view_points_are_left_out_and_the_limit_is_checked() {
 }
 
 #[test]
+fn the_outline_test_finds_the_sphere_image_edge() {
+    // A sphere on the optical axis: its image is a disc about the principal point of
+    // radius f tan(asin(r / z)) (no distortion).
+    let cam = camera([0.0; 5]);
+    let pl = plane();
+    let so = StripeOptions::default();
+    let rig = Rig::new(
+        &cam,
+        &pl,
+        pl.normal * pl.d,
+        StripeDirection::Cols,
+        &so,
+        75.0,
+    );
+    let (r, z) = (20.0f64, 400.0f64);
+    let c = Vector3::new(0.0, 0.0, z);
+    let radius_px = cam.fu * (r / z).asin().tan();
+    let (u0, v0) = (cam.u0, cam.v0);
+    let clear = |a: f64, reach: f64| clear_of_outline(&rig, &c, r, v0, a, reach);
+    assert!(clear(u0, radius_px - 0.05));
+    assert!(!clear(u0, radius_px + 0.05));
+    // Off centre, the nearer edge decides.
+    assert!(clear(u0 + 10.0, radius_px - 10.05));
+    assert!(!clear(u0 + 10.0, radius_px - 9.95));
+    // The support grows with the width and the flanks.
+    assert_eq!(support_px(&so, 1.0), 1.5 + 1.5 + so.flank_px as f64);
+    assert!(
+        (support_px(&so, 4.0) - (4.0 * so.window_fwhm as f64 + 1.5 + so.flank_px as f64)).abs()
+            < 1e-12
+    );
+}
+
+#[test]
+fn points_near_the_outline_are_left_out_and_the_margin_is_checked() {
+    let (sp, poses, _) = synthetic_scan(22.43, 0.12, 0.7);
+    let cam = camera([0.0; 5]);
+    let count = |margin: f64| {
+        let o = StripeBiasOptions {
+            outline_margin_px: margin,
+            max_view_deg: 90.0,
+            ..Default::default()
+        };
+        correct_sphere_bias(&sp, &poses, &cam, &plane(), &o)
+            .map(|r| r.modelled.iter().filter(|&&m| m).count())
+    };
+    let (near, default, far) = (
+        count(0.0).unwrap(),
+        count(OUTLINE_MARGIN_PX).unwrap(),
+        count(2.0 * OUTLINE_MARGIN_PX).unwrap(),
+    );
+    assert!(
+        near > default && default > far && far > near / 2,
+        "{near} {default} {far}"
+    );
+    // A margin that leaves most points out is refused, not fitted on the few.
+    assert!(matches!(count(1000.0), Err(Error::Degenerate(_))));
+    for bad in [-1.0, f64::INFINITY, f64::NAN] {
+        assert!(matches!(count(bad), Err(Error::InvalidInput(_))), "{bad}");
+    }
+}
+
+#[test]
 fn saturated_points_are_left_out_and_counted() {
     let (r, s, b) = (22.43, 0.12, 0.7);
     let (mut sp, poses, c) = synthetic_scan(r, s, b);
     let cam = camera([0.0; 5]);
     let n = sp.len();
+    let unclipped = sp.clone();
     // Every third point clipped (the synthetic profiles are not: the flag alone must
     // keep them out).
     for i in (0..n).step_by(3) {
@@ -291,7 +354,13 @@ fn saturated_points_are_left_out_and_counted() {
         assert!(!res.modelled[i], "saturated point {i} modelled");
         assert_eq!(res.corrections_mm[i], [0.0; 3]);
     }
-    assert!(res.modelled.iter().filter(|&&m| m).count() > n / 2);
+    // The others are modelled as without the flags (the same limits leave the same out).
+    let unflagged = correct_sphere_bias(&unclipped, &poses, &cam, &plane(), &Default::default())
+        .unwrap()
+        .modelled;
+    for i in 0..n {
+        assert_eq!(res.modelled[i], i % 3 != 0 && unflagged[i], "point {i}");
+    }
     let d1 = res.fit.diameter_mm - 2.0 * r;
     assert!(d1.abs() < 2e-4, "corrected diameter error {d1}");
     assert!((res.fit.center_mm - c).norm() < 2e-4);
