@@ -60,3 +60,56 @@ fn the_board_stripe_correction_removes_the_hand_eye_bias() {
     );
     assert_eq!(x1["points_left_out"].as_u64(), Some(0));
 }
+
+/// The emitter is in no calibration file: the correction assumes it at the plane's point
+/// nearest the camera centre and widens the covariance by the calibration's change for
+/// the emitter at either end of +-30 mm along the plane's two axes. With the twin's
+/// emitter moved 25 mm within the plane (noise-free images), the correction made with
+/// the wrong emitter leaves an error (hand-eye x: -0.64 um, where the emitter at `n d`
+/// leaves -0.06 um) that the widened sigmas cover within 2 sigma on every number of the
+/// hand-eye translation and the plane's offset.
+#[test]
+fn the_emitter_part_covers_a_moved_emitter() {
+    let cfg_of = |emitter: Option<[f64; 3]>| {
+        let mut over = serde_json::json!({
+            "seed": 1, "poses": {"count": 5}, "scan": {"max_frames": 1},
+            "imaging": {"noise_gray": 0.0, "psf_sigma_px": 0.7}
+        });
+        if let Some(e) = emitter {
+            over["imaging"]["laser_emitter_mm"] = serde_json::json!(e);
+        }
+        SimConfig::hp3_paper().with_overrides(&over).unwrap()
+    };
+    let nominal = Twin::new(cfg_of(None)).unwrap();
+    let n = nominal.laser_plane.normal;
+    let w = n.cross(&(nalgebra::Vector3::y() - n * n.y).normalize());
+    let e = nominal.emitter + w * 25.0;
+    let run = |twin: &Twin| {
+        let dir = tempfile::tempdir().unwrap();
+        twin.write(dir.path(), &mut |_, _, _| {}).unwrap();
+        let rep =
+            calibrate_dataset(dir.path().join("calib"), &CalibrateOptions::default()).unwrap();
+        let c = rep.calibration;
+        let plane = c.laser_plane.unwrap();
+        let err_t = c.hand_cam.translation.vector - twin.hand_cam.translation.vector;
+        let err_d = plane.d - twin.laser_plane.d;
+        let s = rep.adjustment.sigma;
+        (err_t, err_d, s.hand_cam.translation_mm, s.plane_d_mm)
+    };
+    let (_, _, s0, sd0) = run(&nominal);
+    let moved = Twin::new(cfg_of(Some([e.x, e.y, e.z]))).unwrap();
+    let (et, ed, st, sd) = run(&moved);
+    eprintln!(
+        "emitter moved 25 mm: hand-eye t error {:.3?} um (sigma {:.3?}, at n d {:.3?}); plane d error {:.3} um (sigma {:.3}, at n d {:.3})",
+        et * 1e3, st * 1e3, s0 * 1e3, ed * 1e3, sd * 1e3, sd0 * 1e3
+    );
+    for k in 0..3 {
+        assert!(
+            et[k].abs() < 2.0 * st[k],
+            "axis {k}: {} vs sigma {}",
+            et[k],
+            st[k]
+        );
+    }
+    assert!(ed.abs() < 2.0 * sd, "plane d: {ed} vs sigma {sd}");
+}

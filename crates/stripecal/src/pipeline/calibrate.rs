@@ -179,6 +179,14 @@ pub(super) fn calibrate_unjudged(
 /// run again from its own solution on the corrected points, its covariance widened by
 /// what the correction leaves; the input as it is when the correction is off or cannot
 /// be made (the paper's method, no widths, a sheet the widths do not determine).
+///
+/// What the correction leaves (the module docs of [`super::board_stripe`]): the model's
+/// neglected terms, `u^2 D D^T` along the change `D` the correction made; the emitter,
+/// whose position the calibration does not know, uniform within the assumed range along
+/// each of the plane's two axes: the adjustment run again with the biases predicted for
+/// the emitter at each end of a range, `d_+` and `d_-` its changes, each axis adding
+/// `(d_+ d_+^T + d_- d_-^T) / 6` (a uniform distribution's variance, `a^2 / 3`, read at
+/// both ends).
 fn correct_stripes(
     adj: JointResult,
     used_obs: Vec<ViewObs>,
@@ -193,20 +201,29 @@ fn correct_stripes(
     else {
         return Ok((adj, used_obs, None));
     };
-    let Some((views, corr)) =
+    let Some(corr) =
         correct_board_stripes(&used_obs, used_poses, &adj.camera, &plane, &opts.stripe)
     else {
         return Ok((adj, used_obs, None));
     };
-    let start = JointStart {
-        camera: adj.camera.clone(),
-        plane: adj.plane,
-        hand_cam: adj.hand_cam,
-        base_board: adj.base_board,
+    let start_of = |r: &JointResult| JointStart {
+        camera: r.camera.clone(),
+        plane: r.plane,
+        hand_cam: r.hand_cam,
+        base_board: r.base_board,
     };
-    let mut again = joint_adjustment(&views, board, &start, jopts)?;
-    again.add_correction_uncertainty(&adj, corr.share);
-    Ok((again, views, Some(corr)))
+    let mut again = joint_adjustment(&corr.corrected, board, &start_of(&adj), jopts)?;
+    let mut terms = vec![(
+        again.named_difference(&adj),
+        corr.summary.neglected_share.powi(2),
+    )];
+    let from = start_of(&again);
+    for views in &corr.emitter_moved {
+        let alt = joint_adjustment(views, board, &from, jopts)?;
+        terms.push((alt.named_difference(&again), 1.0 / 6.0));
+    }
+    again.add_systematic_terms(&terms);
+    Ok((again, corr.corrected, Some(corr.summary)))
 }
 
 /// The laser plane's first estimate from the views' stripe points (`None` when no view

@@ -226,6 +226,7 @@ fn board_stripe_extra(c: &super::board_stripe::BoardStripeCorrection) -> serde_j
         "points_saturated": c.saturated,
         "mean_px": c.mean_px,
         "rms_px": c.rms_px,
-        "systematic_share": c.share,
+        "neglected_share": c.neglected_share,
+        "emitter_range_mm": c.emitter_range_mm,
     })
 }

@@ -143,27 +143,36 @@ fn named_value(r: &super::JointResult, name: &str) -> Option<f64> {
 }
 
 impl super::JointResult {
-    /// Adds a systematic error shared by all observations to the covariance of the
-    /// calibration's numbers: `u^2 D D^T`, `D` this result's numbers minus `before`'s
-    /// (the change a correction of the observations made; `u` its standard uncertainty
-    /// per unit correction). The DH corrections' rows are left as they are. The
-    /// one-sigmas follow.
-    pub fn add_correction_uncertainty(&mut self, before: &super::JointResult, u: f64) {
+    /// This result's numbers minus `other`'s, under the named covariance's names (0 for
+    /// the DH corrections, which [`named_value`] does not read, and for a rotation
+    /// vector that jumped to its other form near a half turn).
+    pub fn named_difference(&self, other: &super::JointResult) -> nalgebra::DVector<f64> {
         let names = &self.named_covariance.parameters;
-        let d: Vec<f64> = names
-            .iter()
-            .map(|n| match (named_value(self, n), named_value(before, n)) {
-                // (a rotation vector near a half turn may jump to its other form)
-                (Some(a), Some(b))
-                    if ((a - b).abs() < 0.01 || !n.contains("rotation")) && (a - b).is_finite() =>
-                {
-                    a - b
-                }
-                _ => 0.0,
-            })
-            .collect();
-        let d = nalgebra::DVector::from_vec(d);
-        self.named_covariance.matrix += &d * d.transpose() * (u * u);
+        nalgebra::DVector::from_iterator(
+            names.len(),
+            names
+                .iter()
+                .map(|n| match (named_value(self, n), named_value(other, n)) {
+                    (Some(a), Some(b))
+                        if ((a - b).abs() < 0.01 || !n.contains("rotation"))
+                            && (a - b).is_finite() =>
+                    {
+                        a - b
+                    }
+                    _ => 0.0,
+                }),
+        )
+    }
+
+    /// Adds systematic errors shared by all observations to the covariance of the
+    /// calibration's numbers: `sum_k w_k d_k d_k^T`, each `d_k` a change of the numbers
+    /// ([`Self::named_difference`]) and `w_k` its variance per unit (e.g. `u^2` for a
+    /// correction `D` whose remainder has the standard uncertainty `u` per unit
+    /// correction). The one-sigmas follow.
+    pub fn add_systematic_terms(&mut self, terms: &[(nalgebra::DVector<f64>, f64)]) {
+        for (d, w) in terms {
+            self.named_covariance.matrix += d * d.transpose() * *w;
+        }
         self.sigma = joint_sigma(&self.named_covariance);
     }
 }
