@@ -4,8 +4,11 @@
 //!
 //! ## The parts
 //!
-//! - **random**: the fit's own scatter, `sigma^2 (J^T J)^-1` with `sigma^2` from the
-//!   residuals (the stripe's noise and whatever else scatters point to point);
+//! - **random**: the fit's own scatter from its residuals (the stripe's noise and
+//!   whatever else scatters point to point), heteroscedasticity-consistent:
+//!   `m / (m - p) N^-1 (sum_i J_i^T r_i^2 J_i) N^-1` rather than one variance for all
+//!   points, `sigma^2 N^-1`, because a scan's weak and oblique profiles scatter more and
+//!   decide the shape's size and tilt (`measure.rs`, `sandwich`);
 //! - **calibration**: the calibration's covariance `C` carried through every point
 //!   ([`crate::reconstruct::uncertainty`]): shared by all points of all scans measured
 //!   with the calibration, it does not average out; `g^T C g` with `g` the quantity's

@@ -358,8 +358,8 @@ fn saturated_points_are_left_out_and_counted() {
     let unflagged = correct_sphere_bias(&unclipped, &poses, &cam, &plane(), &Default::default())
         .unwrap()
         .modelled;
-    for i in 0..n {
-        assert_eq!(res.modelled[i], i % 3 != 0 && unflagged[i], "point {i}");
+    for (i, (m, u)) in res.modelled.iter().zip(&unflagged).enumerate() {
+        assert_eq!(*m, i % 3 != 0 && *u, "point {i}");
     }
     let d1 = res.fit.diameter_mm - 2.0 * r;
     assert!(d1.abs() < 2e-4, "corrected diameter error {d1}");
