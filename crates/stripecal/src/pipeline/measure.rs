@@ -26,8 +26,9 @@ use crate::error::{Error, Result};
 use crate::model::{Calibration, ProfilerCalibration, RobotReading, Scan, StripeDirection};
 use crate::reconstruct::fit::stripe_bias::{correct_sphere_bias, StripeBiasOptions};
 use crate::reconstruct::fit::{
-    fit_plane, fit_sphere, measure_plane, measure_sphere, sphere_distance, Budget, FitOptions,
-    PlaneFit, PlaneMeasurement, ScanFrames, SphereFitResult, SphereMeasurement, SphereSystematic,
+    assumed_emitter_source, fit_plane, fit_sphere, measure_plane, measure_sphere, new_source_id,
+    sphere_distance, Budget, FitOptions, PlaneFit, PlaneMeasurement, ScanFrames, SphereFitResult,
+    SphereMeasurement, SphereSystematic, SystematicKind, SystematicSource, MODEL_SOURCE,
 };
 use crate::reconstruct::{ScanPoints, UncertaintyModel, UncertaintyOptions};
 
@@ -278,14 +279,23 @@ fn correct_bias(
             [p[0] - d[0], p[1] - d[1], p[2] - d[2]]
         })
         .collect();
-    // Signed as the correction moved each quantity (the model's error is a fraction of
-    // its correction, the same fraction for every sphere).
-    let signed = |u: f64, change: f64| if change < 0.0 { -u } else { u };
+    // Each part a unit source shared as its cause is ([`SystematicKind`]): the model's
+    // error and an assumed emitter with every sphere, this scan's estimates with none.
+    let own = new_source_id();
     let systematic = SphereSystematic {
-        center_mm: std::array::from_fn(|k| {
-            signed(c.center_systematic_mm[k], c.center_change_mm[k])
-        }),
-        diameter_mm: signed(c.diameter_systematic_mm, c.diameter_change_mm),
+        parts: c
+            .systematic_parts
+            .iter()
+            .map(|p| SystematicSource {
+                source: match p.kind {
+                    SystematicKind::Model => MODEL_SOURCE,
+                    SystematicKind::AssumedEmitter(k) => assumed_emitter_source(k),
+                    SystematicKind::Estimate(k) => (own, 3, k),
+                },
+                center_mm: p.center_mm.into(),
+                diameter_mm: p.diameter_mm,
+            })
+            .collect(),
     };
     let info = BiasInfo {
         sheet_sigma_mm: c.sheet.sheet_sigma_mm,

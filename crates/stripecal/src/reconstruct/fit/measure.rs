@@ -5,11 +5,13 @@
 //! A measurement is made from a fit of a scan's points (their pixels and frames tell
 //! the calibration and robot parts) and the coordinates the fit used (the
 //! reconstructed points, or the points after a bias correction). `systematic` adds the
-//! documented systematic standard uncertainty a model leaves (the curved-surface
-//! stripe-bias correction's remainder) as the coefficients of ONE unit source shared by
-//! every sphere measured with the model ([`SphereSystematic`]): the model's relative
-//! error is the same for all of them, so its effect on a ball bar's length (two
-//! spheres corrected alike) largely cancels, as it does in reality.
+//! documented systematic standard uncertainties a model leaves (the curved-surface
+//! stripe-bias correction's parts) as the coefficients of unit sources
+//! ([`SphereSystematic`]), each shared as its cause is: the model's relative error
+//! ([`MODEL_SOURCE`]) and an assumed emitter's position ([`assumed_emitter_source`])
+//! by every sphere, so their effect on a ball bar's length (two spheres corrected alike)
+//! largely cancels, as it does in reality; what a scan estimates from its own stripe
+//! (emitter, sheet and PSF sigmas) by nothing else, so two spheres' parts add.
 
 use nalgebra::{DMatrix, Matrix3, Matrix4, Vector3};
 
@@ -34,12 +36,19 @@ pub struct SphereMeasurement {
     pub diameter_form: LinearForm,
 }
 
-/// Systematic standard uncertainties a model leaves on a sphere fit, mm, SIGNED: the
-/// coefficients of the model's one shared unit source ([`MODEL_SOURCE`]); a sign says in
-/// which direction the quantity moves when the model errs one way (for a correction
-/// whose error is a fraction of it: the sign of the correction).
-#[derive(Debug, Clone, Copy, Default, PartialEq)]
+/// Systematic standard uncertainties a model leaves on a sphere fit, mm, SIGNED: per
+/// unit source, its coefficients; a sign says in which direction the quantity moves when
+/// the source errs one way (for a correction whose error is a fraction of it: the sign
+/// of the correction). Sources shared by several spheres are the same key in each.
+#[derive(Debug, Clone, Default, PartialEq)]
 pub struct SphereSystematic {
+    pub parts: Vec<SystematicSource>,
+}
+
+/// One unit source's coefficients on a sphere's centre and diameter, mm.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SystematicSource {
+    pub source: super::budget::Source,
     pub center_mm: [f64; 3],
     pub diameter_mm: f64,
 }
@@ -47,6 +56,12 @@ pub struct SphereSystematic {
 /// The unit source of the stripe-bias model's error, shared by every sphere (owner 0:
 /// [`super::budget::new_source_id`] never gives it).
 pub const MODEL_SOURCE: super::budget::Source = (0, 1, 0);
+
+/// The unit source of an assumed emitter's position along in-plane axis `k`, shared by
+/// every sphere (owner 0).
+pub fn assumed_emitter_source(k: u32) -> super::budget::Source {
+    (0, 2, k)
+}
 
 /// The budgets of a sphere fit of `points` (the fit's inlier mask selects them; `coords`
 /// are the coordinates it used, one per point).
@@ -92,15 +107,17 @@ pub fn measure_sphere(
     let s2 = res.iter().map(|x| x * x).sum::<f64>() / (idx.len() - 4) as f64;
     let random = sandwich(&sens.ninv, normals.iter().map(|x| &x.1[..]).zip(&res));
     add_random(&mut sens.params, &random, id);
-    let sys = [
-        systematic.center_mm[0],
-        systematic.center_mm[1],
-        systematic.center_mm[2],
-        0.5 * systematic.diameter_mm,
-    ];
-    for (p, s) in sens.params.iter_mut().zip(sys) {
-        if s != 0.0 {
-            p.systematic.insert(MODEL_SOURCE, s);
+    for part in &systematic.parts {
+        let sys = [
+            part.center_mm[0],
+            part.center_mm[1],
+            part.center_mm[2],
+            0.5 * part.diameter_mm,
+        ];
+        for (p, s) in sens.params.iter_mut().zip(sys) {
+            if s != 0.0 {
+                *p.systematic.entry(part.source).or_insert(0.0) += s;
+            }
         }
     }
     // Probing form: the range of the radial residuals.

@@ -336,3 +336,55 @@ fn random_part_matches_monte_carlo_with_unequal_noise() {
         "the premise: s^2 N^-1 {iid:.3e} vs Monte Carlo {mc:.3e}"
     );
 }
+
+/// A ball bar's length: the model's shared part cancels when both spheres are corrected
+/// alike, each scan's own estimates add (independent sources), an assumed emitter's
+/// shared part cancels too.
+#[test]
+fn shared_systematic_parts_cancel_in_a_distance_and_own_ones_add() {
+    let cal = calibration();
+    let (pts, _) = scan(&cal, false);
+    let rd = readings();
+    let model = UncertaintyModel::new(&cal, &UncertaintyOptions::default()).unwrap();
+    let mut frames = ScanFrames::new(&model, &rd);
+    let fit = fit_sphere(&pts.points_mm, &exact_fit()).unwrap();
+    let part = |source, c: [f64; 3], d| SystematicSource {
+        source,
+        center_mm: c,
+        diameter_mm: d,
+    };
+    let sphere = |own: u64, frames: &mut ScanFrames<'_>| {
+        let sys = SphereSystematic {
+            parts: vec![
+                part(MODEL_SOURCE, [4e-4, -1e-4, 2e-4], 5e-4),
+                part(assumed_emitter_source(1), [1e-4, 0.0, 0.0], 0.0),
+                part((own, 3, 0), [3e-4, 0.0, -1e-4], 2e-4),
+            ],
+        };
+        measure_sphere(frames, &pts, &pts.points_mm, &fit, &sys).unwrap()
+    };
+    let a = sphere(new_source_id(), &mut frames);
+    let mut b = sphere(new_source_id(), &mut frames);
+    // Each sphere alone: all three parts in quadrature.
+    let want = (4e-4f64.powi(2) + 1e-4f64.powi(2) + 3e-4f64.powi(2)).sqrt();
+    assert!(
+        (a.center[0].systematic - want).abs() < 1e-12,
+        "{:?}",
+        a.center[0]
+    );
+    let dia = (5e-4f64.powi(2) + 2e-4f64.powi(2)).sqrt();
+    assert!(
+        (a.diameter.systematic - dia).abs() < 1e-12,
+        "{:?}",
+        a.diameter
+    );
+    // The second sphere 100 mm along x: the length's direction is x.
+    b.center[0].value += 100.0;
+    let (len, _) = sphere_distance(&a, &b, model.covariance());
+    assert!((len.value - 100.0).abs() < 1e-9);
+    // Shared parts cancel; the two own x parts (3e-4 each) add in quadrature.
+    let own = 3e-4 * 2f64.sqrt();
+    assert!((len.systematic - own).abs() < 1e-12, "{len:?}");
+    // The calibration part cancels too (same points, same calibration).
+    assert!(len.calibration < 1e-12, "{len:?}");
+}

@@ -52,17 +52,18 @@ mod trim;
 
 use crate::error::{Error, Result};
 
-pub use budget::{Budget, LinearForm, ScanFrames};
+pub use budget::{new_source_id, Budget, LinearForm, ScanFrames};
 pub use emitter::EmitterEstimate;
 pub use measure::{
-    measure_plane, measure_sphere, sphere_distance, PlaneMeasurement, SphereMeasurement,
-    SphereSystematic,
+    assumed_emitter_source, measure_plane, measure_sphere, sphere_distance, PlaneMeasurement,
+    SphereMeasurement, SphereSystematic, SystematicSource, MODEL_SOURCE,
 };
 pub use plane::{fit_plane, PlaneFit};
 pub use sheet_sigma::SheetSigmaEstimate;
 pub use sphere::{fit_sphere, SphereFitResult};
 pub use stripe_bias::{
     correct_sphere_bias, predicted_bias_px, SphereBiasCorrection, StripeBiasOptions,
+    SystematicKind, SystematicPart,
 };
 
 /// Options of the fits.

@@ -130,11 +130,13 @@
 //!
 //! ## The systematic uncertainty reported
 //!
-//! Root sum of squares of, for the diameter and each centre coordinate:
-//! - the emitter: estimated, half the change between `+-1` standard uncertainty of its
-//!   two in-plane coordinates, in quadrature; assumed, the largest change for
-//!   `+-emitter_range_mm` (default 30 mm) along the two in-plane axes as the half width
-//!   of a uniform distribution (`/ sqrt 3`);
+//! Root sum of squares of, for the diameter and each centre coordinate (each part kept
+//! signed, with what it is shared with, in [`SphereBiasCorrection::systematic_parts`]:
+//! [`systematic`]):
+//! - the emitter: estimated, half the change between `+-1` standard uncertainty of each
+//!   of its two in-plane coordinates; assumed, per in-plane axis the larger change at the
+//!   two ends of `+-emitter_range_mm` (default 30 mm) as the half width of a uniform
+//!   distribution (`/ sqrt 3`);
 //! - the sheet sigma's and the PSF sigma's standard uncertainties (from their fit,
 //!   [`super::sheet_sigma`]) propagated by recomputing the correction at
 //!   `sigma +- u(sigma)` (half the difference);
@@ -181,6 +183,7 @@
 mod plane;
 mod points;
 mod profile;
+mod systematic;
 
 use nalgebra::Vector3;
 
@@ -200,6 +203,8 @@ pub(crate) use plane::{board_point_profile, board_point_scale, Board as BoardSur
 pub use points::predicted_bias_px;
 use points::{corrected_points, corrections, point_geo};
 pub(crate) use profile::{extractor_response, plane_basis, point_profile, PointProfile, Rig};
+use systematic::{assumed_emitter_part, estimate_part, model_part, rss};
+pub use systematic::{SystematicKind, SystematicPart};
 
 /// Sheet offsets sampled on each side of the plane, at least (`2 M + 1` samples over
 /// `+-4 sigma`; more where they would lie more than half the pixel kernel's sigma apart
@@ -353,6 +358,9 @@ pub struct SphereBiasCorrection {
     pub center_systematic_mm: Vector3<f64>,
     /// Its parts `[emitter, sheet and PSF sigmas, neglected terms]` for the diameter.
     pub diameter_systematic_parts_mm: [f64; 3],
+    /// The systematic parts one by one, signed, with what each is shared with
+    /// ([`systematic`]); the three figures above are their root sums of squares.
+    pub systematic_parts: Vec<SystematicPart>,
     /// Correct-and-refit rounds made.
     pub rounds: usize,
 }
@@ -516,65 +524,68 @@ pub fn correct_sphere_bias(
         let fb = fit_sphere(&pb, &refit_opts).ok()?;
         Some((fb.diameter_mm - fa.diameter_mm, fb.center_mm - fa.center_mm))
     };
-    // Emitter. Assumed: +-range along e1 and e2, the largest change as a uniform half
-    // width. Estimated: half the change between +-1 standard uncertainty along each axis,
-    // in quadrature.
-    let mut em = (0.0f64, Vector3::<f64>::zeros());
+    // The systematic parts, signed, one per source ([`systematic`]).
+    let mut parts = Vec::new();
+    let axes = [rig.e1, rig.e2];
     match &emitter_estimate {
+        // Assumed: the two ends of +-range along each axis.
         None => {
-            for dir in [rig.e1, rig.e2] {
-                for s in [-1.0, 1.0] {
+            for (k, dir) in axes.iter().enumerate() {
+                let at = |s: f64| {
                     let mut r2 = rig.clone();
                     r2.emitter = emitter + dir * (s * opts.emitter_range_mm);
-                    if let Some((dd, dc)) = compare(&corr_sub(&r2, sigma, psf)) {
-                        em.0 = em.0.max(dd.abs());
-                        em.1 = em.1.sup(&dc.abs());
-                    }
-                }
+                    compare(&corr_sub(&r2, sigma, psf))
+                };
+                parts.extend(assumed_emitter_part(k as u32, at(1.0), at(-1.0)));
             }
-            em = (em.0 / 3f64.sqrt(), em.1 / 3f64.sqrt());
         }
+        // Estimated: +-1 standard uncertainty along each axis.
         Some(e) => {
-            for (dir, sd) in [(rig.e1, e.sd_mm[0]), (rig.e2, e.sd_mm[1])] {
-                let mut ra = rig.clone();
-                ra.emitter = emitter + dir * sd;
-                let mut rb = rig.clone();
-                rb.emitter = emitter - dir * sd;
-                let a = compare(&corr_sub(&ra, sigma, psf));
-                let b = compare(&corr_sub(&rb, sigma, psf));
-                if let (Some(a), Some(b)) = (a, b) {
-                    let dd = 0.5 * (a.0 - b.0).abs();
-                    let dc = 0.5 * (a.1 - b.1).abs();
-                    em.0 = (em.0 * em.0 + dd * dd).sqrt();
-                    em.1 = (em.1.component_mul(&em.1) + dc.component_mul(&dc)).map(f64::sqrt);
-                }
+            for (k, (dir, sd)) in axes.iter().zip(e.sd_mm).enumerate() {
+                let at = |s: f64| {
+                    let mut r2 = rig.clone();
+                    r2.emitter = emitter + dir * (s * sd);
+                    compare(&corr_sub(&r2, sigma, psf))
+                };
+                parts.extend(estimate_part(k as u32, at(1.0), at(-1.0)));
             }
         }
     }
-    // Sheet and PSF sigmas: half the change between +-u, in quadrature.
-    let mut sg = (0.0f64, Vector3::<f64>::zeros());
-    for (ds, dp) in [(sheet.sheet_sigma_sd_mm, 0.0), (0.0, sheet.psf_sigma_sd_px)] {
+    // Sheet and PSF sigmas: +-1 standard uncertainty each.
+    for (k, (ds, dp)) in [(sheet.sheet_sigma_sd_mm, 0.0), (0.0, sheet.psf_sigma_sd_px)]
+        .into_iter()
+        .enumerate()
+    {
         if ds == 0.0 && dp == 0.0 {
             continue;
         }
         let a = compare(&corr_sub(&rig, sigma + ds, psf + dp));
         let b = compare(&corr_sub(&rig, (sigma - ds).max(1e-6), (psf - dp).max(0.0)));
-        if let (Some(a), Some(b)) = (a, b) {
-            let dd = 0.5 * (a.0 - b.0).abs();
-            let dc = 0.5 * (a.1 - b.1).abs();
-            sg.0 = (sg.0 * sg.0 + dd * dd).sqrt();
-            sg.1 = (sg.1.component_mul(&sg.1) + dc.component_mul(&dc)).map(f64::sqrt);
-        }
+        parts.extend(estimate_part(2 + k as u32, a, b));
     }
     let diameter_change_mm = fit.diameter_mm - uncorrected.diameter_mm;
     let center_change_mm = fit.center_mm - uncorrected.center_mm;
-    let neg = (
-        neglected_share() * diameter_change_mm.abs(),
-        center_change_mm.abs() * neglected_share(),
-    );
-    let rss3 = |a: f64, b: f64, c: f64| (a * a + b * b + c * c).sqrt();
-    let diameter_systematic_mm = rss3(em.0, sg.0, neg.0);
-    let center_systematic_mm = Vector3::from_fn(|k, _| rss3(em.1[k], sg.1[k], neg.1[k]));
+    parts.push(model_part(
+        neglected_share(),
+        diameter_change_mm,
+        &center_change_mm,
+    ));
+    let is_emitter = |k: &SystematicKind| {
+        matches!(
+            k,
+            SystematicKind::AssumedEmitter(_) | SystematicKind::Estimate(0 | 1)
+        )
+    };
+    let is_sigma = |k: &SystematicKind| matches!(k, SystematicKind::Estimate(2 | 3));
+    let diameter = |p: &SystematicPart| p.diameter_mm;
+    let diameter_systematic_mm = rss(&parts, |_| true, diameter);
+    let center_systematic_mm =
+        Vector3::from_fn(|k, _| rss(&parts, |_| true, |p: &SystematicPart| p.center_mm[k]));
+    let diameter_systematic_parts_mm = [
+        rss(&parts, is_emitter, diameter),
+        rss(&parts, is_sigma, diameter),
+        rss(&parts, |k| *k == SystematicKind::Model, diameter),
+    ];
     let modelled: Vec<bool> = corr.iter().map(|c| c.is_some()).collect();
     let corrections_mm = corr.iter().map(|c| c.unwrap_or([0.0; 3])).collect();
     Ok(SphereBiasCorrection {
@@ -590,7 +601,8 @@ pub fn correct_sphere_bias(
         center_change_mm,
         diameter_systematic_mm,
         center_systematic_mm,
-        diameter_systematic_parts_mm: [em.0, sg.0, neg.0],
+        diameter_systematic_parts_mm,
+        systematic_parts: parts,
         rounds,
     })
 }

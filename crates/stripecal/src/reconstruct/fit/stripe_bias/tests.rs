@@ -251,6 +251,48 @@ fn synthetic_scan_bias_is_outward_and_corrected() {
     let sys = res.diameter_systematic_mm;
     let share = neglected_share() * res.diameter_change_mm.abs();
     assert!(sys >= share && sys < share + 2e-4, "{sys} vs {share}");
+    // Its parts: the model's (signed as the correction), the estimated emitter's two
+    // axes and the two sigmas, each the scan's own; their root sum of squares is it.
+    let kinds: Vec<SystematicKind> = res.systematic_parts.iter().map(|p| p.kind).collect();
+    for k in [0, 1, 2, 3] {
+        assert!(kinds.contains(&SystematicKind::Estimate(k)), "{kinds:?}");
+    }
+    let model: Vec<_> = res
+        .systematic_parts
+        .iter()
+        .filter(|p| p.kind == SystematicKind::Model)
+        .collect();
+    assert_eq!(model.len(), 1);
+    assert_eq!(
+        model[0].diameter_mm.signum(),
+        res.diameter_change_mm.signum()
+    );
+    let rss = |q: &dyn Fn(&SystematicPart) -> f64| {
+        res.systematic_parts
+            .iter()
+            .map(|p| q(p).powi(2))
+            .sum::<f64>()
+            .sqrt()
+    };
+    assert!((rss(&|p| p.diameter_mm) - sys).abs() < 1e-15);
+    for k in 0..3 {
+        let c = rss(&|p| p.center_mm[k]);
+        assert!((c - res.center_systematic_mm[k]).abs() < 1e-15);
+    }
+    // With the emitter assumed: one shared part per in-plane axis instead.
+    let o = StripeBiasOptions {
+        estimate_emitter: false,
+        ..Default::default()
+    };
+    let assumed = correct_sphere_bias(&sp, &poses, &cam, &plane(), &o).unwrap();
+    let kinds: Vec<SystematicKind> = assumed.systematic_parts.iter().map(|p| p.kind).collect();
+    for k in [0, 1] {
+        assert!(
+            kinds.contains(&SystematicKind::AssumedEmitter(k)),
+            "{kinds:?}"
+        );
+        assert!(!kinds.contains(&SystematicKind::Estimate(k)), "{kinds:?}");
+    }
 }
 
 #[test]
