@@ -70,6 +70,43 @@ def test_ball_budget_covers_the_truth(rig: Any) -> None:
     assert nocal["uncertainty"]["diameter"]["random_mm"] == pytest.approx(u["diameter"]["random_mm"], rel=1e-9)
 
 
+def test_the_emitter_estimate_is_carried_into_the_calibration(rig: Any, tmp_path: Path) -> None:
+    """The sphere's emitter estimate replaces the calibration's assumed emitter range
+    (docs/measurement.md, "The emitter carried into the calibration")."""
+    root, cal, truth = rig
+    d0 = float(truth.sphere["diameter_mm"])
+    rng = (0.8 * d0, 1.2 * d0)
+    m = stripecal.measure_sphere(cal, root / "scan", diameter_range_mm=rng)
+    ce = m["calibration_emitter"]
+    assert ce is not None and ce["applied"] and ce["reason"] is None, ce
+    # The twin's emitter is where the calibration assumes it (n d): the estimate lands
+    # near it, and no estimate counts for better than the 5 mm floor.
+    assert max(abs(x) for x in ce["offset_mm"]) < 3.0, ce
+    assert min(ce["sd_mm"]) >= 5.0
+    # The same calibration without the board correction's response: nothing carried,
+    # the +-30 mm range stays in the calibration part.
+    cal.save(tmp_path / "cal.json")
+    j = json.loads((tmp_path / "cal.json").read_text())
+    del j["board_stripe_bias"]["emitter_response"]
+    (tmp_path / "plain.json").write_text(json.dumps(j))
+    plain = stripecal.measure_sphere(stripecal.load_calibration(tmp_path / "plain.json"), root / "scan",
+                                     diameter_range_mm=rng)
+    assert plain["calibration_emitter"] is None
+    part = lambda r, k: r["uncertainty"]["center"][k]["calibration_mm"]  # noqa: E731
+    for k in range(3):
+        assert part(m, k) <= part(plain, k) * (1 + 1e-9), k
+    # The range term is most of centre z's calibration part on this rig.
+    assert part(m, 2) < 0.95 * part(plain, 2), (part(m, 2), part(plain, 2))
+    # The values move by the calibration's response at the estimate: near n d, a small
+    # fraction of a micrometre.
+    assert abs(m["diameter_mm"] - plain["diameter_mm"]) < 2e-4
+    assert np.max(np.abs(np.asarray(m["center_mm"]) - plain["center_mm"])) < 3e-4
+    # Left out with the calibration part, and said why.
+    nocal = stripecal.measure_sphere(cal, root / "scan", diameter_range_mm=rng, calibration_part=False)
+    assert nocal["calibration_emitter"] is not None and not nocal["calibration_emitter"]["applied"]
+    assert "calibration" in nocal["calibration_emitter"]["reason"]
+
+
 def test_point_covariance_stripe_part_and_robot_figures(rig: Any) -> None:
     root, cal, _ = rig
     base = stripecal.reconstruct_scan(cal, root / "scan", covariance=True, stripe_sigma_px=0.0)

@@ -65,6 +65,14 @@ def sphere_lines(m: SphereMeasurement, title: str) -> List[str]:
         if bias["points_saturated"]:
             lines.append(f"  {bias['points_saturated']} saturated stripe points left out of the "
                          "corrected fit (the bias model has no clipping)")
+    carried = m["calibration_emitter"]
+    if carried is not None:
+        x, sd = carried["offset_mm"], carried["sd_mm"]
+        where = f"emitter {x[0]:+.1f} +- {sd[0]:.1f}, {x[1]:+.1f} +- {sd[1]:.1f} mm from the calibration's"
+        if carried["applied"]:
+            lines.append(f"  calibration moved to the {where} (its emitter range replaced)")
+        else:
+            lines.append(f"  calibration kept as it is ({where}): {carried['reason']}")
     lines.append(f"  {m['points']} points used, {m['outliers']} trimmed, RMS {m['rms_mm']:.5f} mm")
     return lines
 

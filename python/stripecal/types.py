@@ -1188,6 +1188,23 @@ class StripeBiasInfo(TypedDict):
     pixel, and the model has no clipping."""
 
 
+class CalibrationEmitter(TypedDict):
+    """The emitter estimated on the sphere(s), carried into the calibration's board
+    stripe-bias correction (docs/measurement.md): the calibration's numbers move to
+    the estimate and its emitter range is replaced by the estimate's uncertainty."""
+
+    offset_mm: List[float]
+    """The estimate's offsets from the calibration's assumed emitter along the laser
+    plane's two in-plane axes, mm."""
+    sd_mm: List[float]
+    """Their standard uncertainties as used (at least 5 mm), mm."""
+    applied: bool
+    """Whether the calibration was moved (``False``: see ``reason``)."""
+    reason: Optional[str]
+    """Why it was not applied (outside the calibration's range, another covariance, the
+    calibration part left out); ``None`` when applied."""
+
+
 class SphereMeasurement(TypedDict):
     """A sphere measured with budgets (``measure_sphere``): the sphere-fit record of
     spec/DATASET.md plus ``uncertainty`` and ``stripe_bias``."""
@@ -1206,6 +1223,9 @@ class SphereMeasurement(TypedDict):
     """The budgets."""
     stripe_bias: Optional[StripeBiasInfo]
     """``None`` when the correction was not asked for."""
+    calibration_emitter: Optional[CalibrationEmitter]
+    """``None`` when no emitter was estimated or the calibration holds no response to
+    it (no board stripe-bias correction, or written before it was kept)."""
 
 
 class BallBarMeasurement(TypedDict):

@@ -104,6 +104,9 @@ pub struct BoardStripeCorrection {
     pub neglected_share: f64,
     /// The emitter's assumed position range within the plane about `n d`, +- mm.
     pub emitter_range_mm: f64,
+    /// The calibration's response to the emitter's position (set by the caller that
+    /// ran the adjustments: [`super::emitter_carry`]).
+    pub emitter_response: Option<super::emitter_carry::EmitterResponse>,
 }
 
 /// The corrected views and what the correction did.
@@ -116,6 +119,10 @@ pub struct BoardStripeViews {
     /// `+-emitter_range_mm` along the plane's two in-plane axes, in the order `+e1, -e1,
     /// +e2, -e2` (the emitter's part of the uncertainty, module docs).
     pub emitter_moved: Vec<Vec<ViewObs>>,
+    /// The assumed emitter `n d` and the plane's two in-plane axes it is moved along
+    /// (camera frame).
+    pub emitter_origin_cam_mm: Vector3<f64>,
+    pub emitter_axes_cam: [Vector3<f64>; 2],
     pub summary: BoardStripeCorrection,
 }
 
@@ -319,10 +326,13 @@ pub fn correct_board_stripes(
         rms_px: (sum2 / nc).sqrt(),
         neglected_share: neglected_share(),
         emitter_range_mm: EMITTER_RANGE_MM,
+        emitter_response: None,
     };
     Some(BoardStripeViews {
         corrected: moved(&delta),
         emitter_moved,
+        emitter_origin_cam_mm: rig.emitter,
+        emitter_axes_cam: [rig.e1, rig.e2],
         summary,
     })
 }

@@ -4,6 +4,7 @@
 
 use super::board_scale::{check_board_scale, warning as board_scale_warning};
 use super::board_stripe::{correct_board_stripes, BoardStripeCorrection};
+use super::emitter_carry::EmitterResponse;
 use super::gates::{converged, determined, judge, view_residuals, views_check};
 use super::held::held;
 use super::labels::resolve_labellings;
@@ -218,12 +219,27 @@ fn correct_stripes(
         corr.summary.neglected_share.powi(2),
     )];
     let from = start_of(&again);
+    // The emitter moved: +e1, -e1, +e2, -e2 (`emitter_moved`'s order).
+    let mut moved = Vec::with_capacity(4);
     for views in &corr.emitter_moved {
         let alt = joint_adjustment(views, board, &from, jopts)?;
-        terms.push((alt.named_difference(&again), 1.0 / 6.0));
+        moved.push(alt.named_difference(&again));
     }
+    terms.extend(moved.iter().map(|d| (d.clone(), 1.0 / 6.0)));
     again.add_systematic_terms(&terms);
-    Ok((again, corr.corrected, Some(corr.summary)))
+    let mut summary = corr.summary;
+    if let [p1, m1, p2, m2] = &moved[..] {
+        summary.emitter_response = Some(EmitterResponse {
+            origin_cam_mm: corr.emitter_origin_cam_mm,
+            axes_cam: corr.emitter_axes_cam,
+            range_mm: summary.emitter_range_mm,
+            parameters: again.named_covariance.parameters.clone(),
+            plus: [p1.clone(), p2.clone()],
+            minus: [m1.clone(), m2.clone()],
+            covariance_trace: again.named_covariance.matrix.trace(),
+        });
+    }
+    Ok((again, corr.corrected, Some(summary)))
 }
 
 /// The laser plane's first estimate from the views' stripe points (`None` when no view

@@ -4,7 +4,10 @@
 //!
 //! Spheres are fitted with the robust start, then (by default) corrected for the
 //! curved-surface stripe bias ([`crate::reconstruct::fit::stripe_bias`]); what the
-//! correction leaves goes into the budget's systematic part. A ball bar's two spheres
+//! correction leaves goes into the budget's systematic part; the emitter it estimates
+//! from the stripe's brightness is carried into the calibration's board correction
+//! ([`super::emitter_carry`]: the values move to it, the calibration part loses the
+//! assumed emitter's range; a ball bar's two estimates averaged). A ball bar's two spheres
 //! are found one after the other: the first robust fit takes the sphere with more
 //! points, its points (within a margin of its surface) are set aside, the second fit
 //! takes the other.
@@ -19,12 +22,13 @@
 //! profiler's model [`MeasureOptions::correct_bias`] is ignored: no correction, no
 //! systematic part, `bias: None` (`stripe_bias: null` in the JSON).
 
-use nalgebra::Vector3;
+use nalgebra::{DMatrix, Vector3};
 use serde_json::{json, Value};
 
+use super::emitter_carry::{CarryInfo, EmitterResponse, EmitterSample};
 use crate::error::{Error, Result};
 use crate::model::{Calibration, ProfilerCalibration, RobotReading, Scan, StripeDirection};
-use crate::reconstruct::fit::stripe_bias::{correct_sphere_bias, StripeBiasOptions};
+use crate::reconstruct::fit::stripe_bias::{correct_sphere_bias, plane_basis, StripeBiasOptions};
 use crate::reconstruct::fit::{
     assumed_emitter_source, fit_plane, fit_sphere, measure_plane, measure_sphere, new_source_id,
     sphere_distance, Budget, FitOptions, PlaneFit, PlaneMeasurement, ScanFrames, SphereFitResult,
@@ -73,6 +77,13 @@ pub struct SphereReport {
     pub measurement: SphereMeasurement,
     /// `None` when the correction was not asked for.
     pub bias: Option<BiasInfo>,
+    /// The emitter the correction estimated from the stripe's brightness (`None`:
+    /// assumed, or no correction).
+    pub emitter: Option<EmitterSample>,
+    /// What carrying the emitter estimate into the calibration did
+    /// ([`super::emitter_carry`]; `None`: no estimate, or a calibration without the
+    /// board correction's response).
+    pub calibration_emitter: Option<CarryInfo>,
 }
 
 /// A measured plane: the fit and its budgets.
@@ -130,7 +141,17 @@ pub fn measure_scan_sphere(
 ) -> Result<SphereReport> {
     let mut frames = ScanFrames::new(model, readings);
     let fit = fit_sphere(&points.points_mm, &opts.fit)?;
-    sphere_report(&mut frames, model, readings, points, fit, opts)
+    let mut report = [sphere_report(
+        &mut frames,
+        model,
+        readings,
+        points,
+        fit,
+        opts,
+    )?];
+    carry_emitter(model, &mut report)?;
+    let [report] = report;
+    Ok(report)
 }
 
 fn sphere_report(
@@ -143,13 +164,15 @@ fn sphere_report(
 ) -> Result<SphereReport> {
     // A camera's bias model: a profiler's calibration has none (module docs).
     if let (true, Some(cal)) = (opts.correct_bias, model.calibration()) {
-        let (fit, used, coords, systematic, info) =
+        let (fit, used, coords, systematic, info, emitter) =
             correct_bias(model, cal, readings, points, fit, &opts.fit)?;
         let measurement = measure_sphere(frames, &used, &coords, &fit, &systematic)?;
         return Ok(SphereReport {
             fit,
             measurement,
             bias: Some(info),
+            emitter,
+            calibration_emitter: None,
         });
     }
     let measurement = measure_sphere(
@@ -163,7 +186,65 @@ fn sphere_report(
         fit,
         measurement,
         bias: None,
+        emitter: None,
+        calibration_emitter: None,
     })
+}
+
+/// Carries the spheres' emitter estimates into the calibration
+/// ([`super::emitter_carry`]): their mean (weighted by the floored variances; its
+/// standard uncertainty the smallest of theirs, their errors being mostly shared) moves
+/// every report's values and calibration parts. Returns the calibration's covariance the
+/// reports now use (the model's where nothing was carried).
+fn carry_emitter(model: &UncertaintyModel, reports: &mut [SphereReport]) -> Result<DMatrix<f64>> {
+    let cov = model.covariance().clone();
+    let Some(cal) = model.calibration() else {
+        return Ok(cov);
+    };
+    let Some(response) = EmitterResponse::of(cal)? else {
+        return Ok(cov);
+    };
+    let offsets: Vec<([f64; 2], [f64; 2])> = reports
+        .iter()
+        .filter_map(|r| r.emitter.as_ref())
+        .map(|e| response.offsets(e))
+        .collect();
+    if offsets.is_empty() {
+        return Ok(cov);
+    }
+    let mut x = [0.0; 2];
+    let mut sd = [f64::INFINITY; 2];
+    for k in 0..2 {
+        let w: f64 = offsets.iter().map(|o| o.1[k].powi(-2)).sum();
+        x[k] = offsets
+            .iter()
+            .map(|o| o.0[k] * o.1[k].powi(-2))
+            .sum::<f64>()
+            / w;
+        sd[k] = offsets.iter().map(|o| o.1[k]).fold(f64::INFINITY, f64::min);
+    }
+    let carried = response.carry(cal, model.names(), &cov, x, sd);
+    let info = CarryInfo {
+        offset_mm: x,
+        sd_mm: sd,
+        reason: carried.as_ref().err().cloned(),
+    };
+    let out = match carried {
+        Ok(c) => {
+            for r in reports.iter_mut() {
+                r.measurement.recalibrated(&c.shift, &c.covariance);
+                let m = &r.measurement;
+                r.fit.diameter_mm = m.diameter.value;
+                r.fit.center_mm = Vector3::from_fn(|k, _| m.center[k].value);
+            }
+            c.covariance
+        }
+        Err(_) => cov,
+    };
+    for r in reports.iter_mut() {
+        r.calibration_emitter = Some(info.clone());
+    }
+    Ok(out)
 }
 
 /// Measures the two spheres of a ball bar in `points` and their centres' distance.
@@ -214,11 +295,10 @@ pub fn measure_scan_ball_bar(
     let first = fit_sphere(&mine.points_mm, &opts.fit)?;
     let a = sphere_report(&mut frames, model, readings, &mine, first, opts)?;
     let b = sphere_report(&mut frames, model, readings, &rest, second, opts)?;
-    let (distance, _) = sphere_distance(&a.measurement, &b.measurement, model.covariance());
-    Ok(BallBarReport {
-        spheres: [a, b],
-        distance,
-    })
+    let mut spheres = [a, b];
+    let cov = carry_emitter(model, &mut spheres)?;
+    let (distance, _) = sphere_distance(&spheres[0].measurement, &spheres[1].measurement, &cov);
+    Ok(BallBarReport { spheres, distance })
 }
 
 /// Measures the plane in `points`.
@@ -302,17 +382,26 @@ fn correct_bias(
         diameter_change_mm: c.diameter_change_mm,
         points_saturated: c.saturated,
     };
-    Ok((c.fit, kept, coords, systematic, info))
+    let emitter = c.emitter_estimate.map(|e| {
+        let (e1, e2) = plane_basis(&plane.normal);
+        EmitterSample {
+            emitter_cam_mm: e.emitter_cam_mm,
+            sd_mm: e.sd_mm,
+            basis: [e1, e2],
+        }
+    });
+    Ok((c.fit, kept, coords, systematic, info, emitter))
 }
 
 /// A corrected fit, the points it used, their corrected coordinates, the systematic
-/// part and what the correction did.
+/// part, what the correction did and its emitter estimate ([`SphereReport::emitter`]).
 type BiasCorrected = (
     SphereFitResult,
     ScanPoints,
     Vec<[f64; 3]>,
     SphereSystematic,
     BiasInfo,
+    Option<EmitterSample>,
 );
 
 /// A budget as JSON: `value_mm`, `expanded_mm` (the headline, `k` = 2), `k`,
@@ -328,7 +417,9 @@ impl SphereReport {
     /// The spec's sphere-fit record of the final fit plus `uncertainty` (the budgets of
     /// `diameter`, `center` [x, y, z] and `form`) and `stripe_bias`
     /// (`sheet_sigma_mm`, `diameter_change_mm`, `points_saturated`; null without the
-    /// correction).
+    /// correction) and `calibration_emitter` (the emitter estimate carried into the
+    /// calibration: `offset_mm`, `sd_mm`, `applied`, `reason`; null when there was
+    /// none to carry).
     pub fn to_json(&self) -> Value {
         let m = &self.measurement;
         let bias = match &self.bias {
@@ -338,12 +429,16 @@ impl SphereReport {
             None => Value::Null,
         };
         let c = self.fit.center_mm;
+        let carried = self
+            .calibration_emitter
+            .as_ref()
+            .map_or(Value::Null, CarryInfo::to_json);
         json!({"diameter_mm": self.fit.diameter_mm, "center_mm": [c.x, c.y, c.z],
                "rms_mm": self.fit.rms_mm, "points": self.fit.points, "outliers": self.fit.outliers,
                "uncertainty": {"diameter": budget_to_json(&m.diameter),
                                "center": m.center.iter().map(budget_to_json).collect::<Vec<_>>(),
                                "form": budget_to_json(&m.form)},
-               "stripe_bias": bias})
+               "stripe_bias": bias, "calibration_emitter": carried})
     }
 }
 

@@ -30,6 +30,7 @@ mod bench;
 mod board_scale;
 pub mod board_stripe;
 mod calibrate;
+pub mod emitter_carry;
 mod flat_views;
 pub mod gates;
 mod held;

@@ -218,7 +218,7 @@ pub(super) fn build_report(
 /// calibration.json's `board_stripe_bias`: what the correction of the stripe's bias on
 /// the board did ([`super::board_stripe`]).
 fn board_stripe_extra(c: &super::board_stripe::BoardStripeCorrection) -> serde_json::Value {
-    serde_json::json!({
+    let mut v = serde_json::json!({
         "sheet_sigma_mm": c.sheet_sigma_mm,
         "psf_sigma_px": c.psf_sigma_px,
         "points_corrected": c.corrected,
@@ -228,5 +228,9 @@ fn board_stripe_extra(c: &super::board_stripe::BoardStripeCorrection) -> serde_j
         "rms_px": c.rms_px,
         "neglected_share": c.neglected_share,
         "emitter_range_mm": c.emitter_range_mm,
-    })
+    });
+    if let Some(r) = &c.emitter_response {
+        v["emitter_response"] = r.to_json();
+    }
+    v
 }

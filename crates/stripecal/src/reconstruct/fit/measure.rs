@@ -13,7 +13,7 @@
 //! largely cancels, as it does in reality; what a scan estimates from its own stripe
 //! (emitter, sheet and PSF sigmas) by nothing else, so two spheres' parts add.
 
-use nalgebra::{DMatrix, Matrix3, Matrix4, Vector3};
+use nalgebra::{DMatrix, DVector, Matrix3, Matrix4, Vector3};
 
 use crate::error::{Error, Result};
 use crate::reconstruct::ScanPoints;
@@ -34,6 +34,30 @@ pub struct SphereMeasurement {
     pub center_forms: [LinearForm; 3],
     /// The form of the diameter.
     pub diameter_form: LinearForm,
+    /// The form of the probing form (its two extreme points).
+    pub probing_form: LinearForm,
+}
+
+impl SphereMeasurement {
+    /// The measurement with the calibration's numbers moved by `shift` and their
+    /// covariance `cov` (both over the measurement's numbers): each value moves by its
+    /// calibration gradient times `shift` (first order), each calibration part is read
+    /// from `cov` ([`crate::pipeline::emitter_carry`]).
+    pub fn recalibrated(&mut self, shift: &DVector<f64>, cov: &DMatrix<f64>) {
+        let moved = |f: &LinearForm, b: &Budget| {
+            let dv = if f.calibration.len() == shift.len() {
+                f.calibration.dot(shift)
+            } else {
+                0.0
+            };
+            f.budget(b.value + dv, cov)
+        };
+        self.diameter = moved(&self.diameter_form, &self.diameter);
+        for k in 0..3 {
+            self.center[k] = moved(&self.center_forms[k], &self.center[k]);
+        }
+        self.form = moved(&self.probing_form, &self.form);
+    }
 }
 
 /// Systematic standard uncertainties a model leaves on a sphere fit, mm, SIGNED: per
@@ -138,6 +162,7 @@ pub fn measure_sphere(
         form: form.0.budget(form.1, &cov),
         center_forms,
         diameter_form,
+        probing_form: form.0,
     })
 }
 
