@@ -27,12 +27,20 @@ def rig(tmp_path_factory: pytest.TempPathFactory) -> Tuple[Path, stripecal.Calib
     return root, cal, truth
 
 
-def test_ball_budget_covers_the_truth(rig: Any) -> None:
+@pytest.fixture(scope="module")
+def ball(rig: Any) -> Any:
+    """The ball measured with the defaults (once for the module)."""
+    root, cal, truth = rig
+    d0 = float(truth.sphere["diameter_mm"])
+    return stripecal.measure_sphere(cal, root / "scan", diameter_range_mm=(0.8 * d0, 1.2 * d0))
+
+
+def test_ball_budget_covers_the_truth(rig: Any, ball: Any) -> None:
     root, cal, truth = rig
     sphere = truth.sphere
     d0 = float(sphere["diameter_mm"])
     c0 = np.asarray(sphere["center_mm"])
-    m = stripecal.measure_sphere(cal, root / "scan", diameter_range_mm=(0.8 * d0, 1.2 * d0))
+    m = ball
     u = m["uncertainty"]
     rows = [("diameter", m["diameter_mm"] - d0, u["diameter"])]
     rows += [(f"centre {a}", m["center_mm"][k] - c0[k], u["center"][k]) for k, a in enumerate("xyz")]
@@ -67,16 +75,19 @@ def test_ball_budget_covers_the_truth(rig: Any) -> None:
     nocal = stripecal.measure_sphere(cal, root / "scan", diameter_range_mm=(0.8 * d0, 1.2 * d0),
                                      calibration_part=False)
     assert nocal["uncertainty"]["diameter"]["calibration_mm"] == 0.0
+    # Nothing to carry the emitter estimate into, and said why.
+    assert nocal["calibration_emitter"] is not None and not nocal["calibration_emitter"]["applied"]
+    assert "calibration" in nocal["calibration_emitter"]["reason"]
     assert nocal["uncertainty"]["diameter"]["random_mm"] == pytest.approx(u["diameter"]["random_mm"], rel=1e-9)
 
 
-def test_the_emitter_estimate_is_carried_into_the_calibration(rig: Any, tmp_path: Path) -> None:
+def test_the_emitter_estimate_is_carried_into_the_calibration(rig: Any, ball: Any, tmp_path: Path) -> None:
     """The sphere's emitter estimate replaces the calibration's assumed emitter range
     (docs/measurement.md, "The emitter carried into the calibration")."""
     root, cal, truth = rig
     d0 = float(truth.sphere["diameter_mm"])
     rng = (0.8 * d0, 1.2 * d0)
-    m = stripecal.measure_sphere(cal, root / "scan", diameter_range_mm=rng)
+    m = ball
     ce = m["calibration_emitter"]
     assert ce is not None and ce["applied"] and ce["reason"] is None, ce
     # The twin's emitter is where the calibration assumes it (n d): the estimate lands
@@ -101,10 +112,6 @@ def test_the_emitter_estimate_is_carried_into_the_calibration(rig: Any, tmp_path
     # fraction of a micrometre.
     assert abs(m["diameter_mm"] - plain["diameter_mm"]) < 2e-4
     assert np.max(np.abs(np.asarray(m["center_mm"]) - plain["center_mm"])) < 3e-4
-    # Left out with the calibration part, and said why.
-    nocal = stripecal.measure_sphere(cal, root / "scan", diameter_range_mm=rng, calibration_part=False)
-    assert nocal["calibration_emitter"] is not None and not nocal["calibration_emitter"]["applied"]
-    assert "calibration" in nocal["calibration_emitter"]["reason"]
 
 
 def test_point_covariance_stripe_part_and_robot_figures(rig: Any) -> None:
