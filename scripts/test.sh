@@ -16,6 +16,9 @@ export PIP_DISABLE_PIP_VERSION_CHECK=1 PIP_ROOT_USER_ACTION=ignore
 start=$SECONDS
 step() { printf '\n==> %s  (%ss)\n' "$*" "$((SECONDS - start))"; }
 
+step "the wheel's and the tests' builds share their dependencies (crates/workspace-hack)"
+"$PYTHON" scripts/check_shared_features.py
+
 step "pip install -e '.[test]'  (builds stripecal._core with maturin)"
 "$PYTHON" -m pip install --quiet -e '.[test]'
 

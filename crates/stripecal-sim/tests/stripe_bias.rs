@@ -247,6 +247,20 @@ fn sweep() {
     for (preset, over, every) in runs {
         let r = run(&preset, over.clone(), every);
         r.report(&format!("{preset} {over} every {every}"));
+        // One line per run for scripts: the errors and changes in mm, full precision.
+        let c = &r.corr;
+        let truth_c = c.uncorrected.center_mm - r.c0;
+        let e1 = c.fit.center_mm - truth_c;
+        eprintln!(
+            "SWEEP {}",
+            serde_json::json!({
+                "preset": preset, "overrides": over, "every": every,
+                "diameter_error_mm": [r.d0, r.d1()], "diameter_change_mm": c.diameter_change_mm,
+                "diameter_systematic_mm": c.diameter_systematic_mm,
+                "center_error_mm": [r.c0.as_slice(), e1.as_slice()],
+                "center_change_mm": c.center_change_mm.as_slice(),
+            })
+        );
     }
 }
 
