@@ -1,5 +1,7 @@
 """Issue 4, acceptance 4: the whole calibration against a multi-stage OpenCV pipeline on
-the SAME rendered images, median over 10 seeds of the 15-pose hp3-paper twin.
+the SAME rendered images, median over 10 seeds of the 15-pose hp3-paper twin
+(``STRIPECAL_OPENCV_SEEDS=10``; by default the first 5 of them, which keeps CI's run
+within its time: the 10 took about 80 s on 2 cores).
 
 OpenCV: cv2.findCirclesGrid centres (assigned to board indices by the nearest of our
 detected circles: OpenCV's own ordering is not what is measured here),
@@ -12,7 +14,7 @@ the true plane over the part of the true plane in view at stand-offs 80-130 mm.
 Each of our median errors must be at most half of the better OpenCV method's.
 
 The printed table is recorded in docs/results/calibration.md
-(`python -m pytest tests/test_calib_opencv.py -s`).
+(`STRIPECAL_OPENCV_SEEDS=10 python -m pytest tests/test_calib_opencv.py -s`).
 """
 
 from __future__ import annotations
@@ -31,7 +33,7 @@ import stripecal.sim
 cv2 = pytest.importorskip("cv2")
 
 F64 = npt.NDArray[np.float64]
-SEEDS = range(int(os.environ.get("STRIPECAL_OPENCV_SEEDS", "10")))
+SEEDS = range(int(os.environ.get("STRIPECAL_OPENCV_SEEDS", "5")))
 
 
 def make(r: F64, t: F64) -> F64:
