@@ -44,9 +44,11 @@
 //! What the model leaves is a systematic error shared by all views, added to the
 //! covariance in two parts ([`crate::pipeline`]'s `correct_stripes`):
 //! - the model's neglected terms: `u^2 D D^T` (rank one, the same direction as the
-//!   correction), `u` the sphere's bound, uniform within +-10 % of the correction
-//!   (`0.058`; on the twin the correction leaves ~5 % of the hand-eye's bias,
-//!   noise-free);
+//!   correction), `u` uniform within +-[`BOARD_NEGLECTED_FRACTION`] (10 %) of the
+//!   correction (`0.058`; on the twin the correction leaves ~5 % of the hand-eye's bias,
+//!   noise-free). The board's own bound: the sphere's
+//!   ([`crate::reconstruct::fit::stripe_bias::NEGLECTED_FRACTION`], 12 %) comes from
+//!   curved profiles and their noise;
 //! - the emitter, which no calibration holds: taken as uniform within
 //!   +-[`EMITTER_RANGE_MM`] of `n d` along each of the plane's two in-plane axes. The
 //!   same points are moved by the biases predicted for the emitter at each end of each
@@ -71,8 +73,7 @@ use crate::model::camera::Camera;
 use crate::model::geometry::{Iso3, Plane};
 use crate::model::StripeDirection;
 use crate::reconstruct::fit::stripe_bias::{
-    board_point_profile, board_point_scale, extractor_response, neglected_share, BoardSurface,
-    PointProfile, Rig,
+    board_point_profile, board_point_scale, extractor_response, BoardSurface, PointProfile, Rig,
 };
 use crate::vision::stripe::StripeOptions;
 
@@ -82,6 +83,9 @@ pub const MIN_POINTS: usize = 50;
 const WIDTH_POINTS: usize = 1500;
 /// The emitter's assumed position range within the plane, +- mm.
 pub const EMITTER_RANGE_MM: f64 = 30.0;
+/// The board model's neglected terms: the half width of their uniform distribution, as a
+/// fraction of the correction (module docs).
+pub const BOARD_NEGLECTED_FRACTION: f64 = 0.10;
 /// Points lit at a larger incidence are not modelled.
 const MAX_INCIDENCE_DEG: f64 = 80.0;
 
@@ -324,7 +328,7 @@ pub fn correct_board_stripes(
         saturated: pts.len() - clear.len(),
         mean_px: sum / nc,
         rms_px: (sum2 / nc).sqrt(),
-        neglected_share: neglected_share(),
+        neglected_share: BOARD_NEGLECTED_FRACTION / 3f64.sqrt(),
         emitter_range_mm: EMITTER_RANGE_MM,
         emitter_response: None,
     };
