@@ -132,22 +132,14 @@ fn random_views_are_never_misordered() {
     let board = twin.board.clone();
     // Sample the poses with their truth first (the library's generator: its defaults
     // are this test's views), then render board images (no laser) and detect in
-    // parallel. The first `count` views of the acceptance's 200.
-    let count = 2 * std::env::var("STRIPECAL_TARGET_VIEWS")
-        .ok()
-        .and_then(|s| s.parse::<usize>().ok())
-        .unwrap_or(40);
-    let mut views = RandomViews::default().sample(&twin).unwrap();
-    if count < views.len() {
-        views.truncate(count);
-    } else {
-        views = RandomViews {
-            count,
-            ..RandomViews::default()
-        }
-        .sample(&twin)
-        .unwrap();
+    // parallel. The sampler draws in order, so a count of 80 renders the first 80 of
+    // the acceptance's 200.
+    let views = RandomViews {
+        count: 2 * common::target_views(),
+        ..RandomViews::default()
     }
+    .sample(&twin)
+    .unwrap();
     // STRIPECAL_VIEWS=3,17 renders only those views (debugging).
     let only: Option<Vec<usize>> = std::env::var("STRIPECAL_VIEWS")
         .ok()

@@ -7,7 +7,7 @@
 //! `STRIPECAL_TARGET_VIEWS=100 cargo test -p stripecal --test vision_targets --
 //! --nocapture` runs the acceptance's 100 + 100 views of every kind and prints the
 //! figures quoted in BENCHMARKS.md ("Vision: targets"). Without it each kind gets
-//! [`DEFAULT_VIEWS`] + [`DEFAULT_VIEWS`] (the same first views of the same sequence):
+//! [`common::DEFAULT_TARGET_VIEWS`] + as many (the same first views of the same sequence):
 //! the full count renders 400 board images per kind and took 100-110 s of the CI's
 //! 30 minutes for each of the two slow kinds.
 
@@ -112,22 +112,11 @@ fn reason(m: &str) -> String {
         .to_string()
 }
 
-/// Random views of each sort (whole board, partial) unless `STRIPECAL_TARGET_VIEWS` says.
-const DEFAULT_VIEWS: usize = 40;
-
-/// [`DEFAULT_VIEWS`] random views of each sort, or `STRIPECAL_TARGET_VIEWS`.
-fn view_count() -> usize {
-    std::env::var("STRIPECAL_TARGET_VIEWS")
-        .ok()
-        .and_then(|s| s.parse().ok())
-        .unwrap_or(DEFAULT_VIEWS)
-}
-
-/// [`view_count`] whole-board and as many partial random views of `twin`'s board: prints
+/// [`common::target_views`] whole-board and as many partial random views of `twin`'s board: prints
 /// the figures and returns the whole-board error statistics; asserts zero misordered
 /// (in `run`) and a whole-board detection rate of at least 98 %.
 fn random_views(name: &str, twin: &Twin) -> Stats {
-    let n = view_count();
+    let n = common::target_views();
     let whole = RandomViews {
         count: n,
         seed: 11,

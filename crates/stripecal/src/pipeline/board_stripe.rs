@@ -73,7 +73,8 @@ use crate::model::camera::Camera;
 use crate::model::geometry::{Iso3, Plane};
 use crate::model::StripeDirection;
 use crate::reconstruct::fit::stripe_bias::{
-    board_point_profile, board_point_scale, extractor_response, BoardSurface, PointProfile, Rig,
+    board_point_profile, board_point_scale, extractor_response, neglected_share, BoardSurface,
+    PointProfile, Rig,
 };
 use crate::vision::stripe::StripeOptions;
 
@@ -328,7 +329,7 @@ pub fn correct_board_stripes(
         saturated: pts.len() - clear.len(),
         mean_px: sum / nc,
         rms_px: (sum2 / nc).sqrt(),
-        neglected_share: BOARD_NEGLECTED_FRACTION / 3f64.sqrt(),
+        neglected_share: neglected_share(BOARD_NEGLECTED_FRACTION),
         emitter_range_mm: EMITTER_RANGE_MM,
         emitter_response: None,
     };

@@ -123,3 +123,15 @@ impl Stats {
         (self.ss / self.n.max(1) as f64).sqrt()
     }
 }
+
+/// Random views of each sort (whole board, partial) the detection tests render unless
+/// `STRIPECAL_TARGET_VIEWS` asks for another count (the acceptance's is 100).
+pub const DEFAULT_TARGET_VIEWS: usize = 40;
+
+/// `STRIPECAL_TARGET_VIEWS`, or [`DEFAULT_TARGET_VIEWS`]: the random views of each sort.
+pub fn target_views() -> usize {
+    std::env::var("STRIPECAL_TARGET_VIEWS")
+        .ok()
+        .and_then(|s| s.parse().ok())
+        .unwrap_or(DEFAULT_TARGET_VIEWS)
+}

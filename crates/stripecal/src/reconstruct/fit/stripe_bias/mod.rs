@@ -225,10 +225,12 @@ pub const OUTLINE_MARGIN_PX: f64 = 8.0;
 /// a fraction of the correction.
 pub const NEGLECTED_FRACTION: f64 = 0.12;
 
-/// The standard uncertainty of the neglected terms per unit correction (uniform over
-/// `+-NEGLECTED_FRACTION`).
-pub fn neglected_share() -> f64 {
-    NEGLECTED_FRACTION / 3f64.sqrt()
+/// The standard uncertainty of neglected terms per unit correction when they are
+/// uniform within `+-fraction` of it: the sphere's is `neglected_share(NEGLECTED_FRACTION)`,
+/// the board's `neglected_share(BOARD_NEGLECTED_FRACTION)`
+/// ([`crate::pipeline::board_stripe`]).
+pub fn neglected_share(fraction: f64) -> f64 {
+    fraction / 3f64.sqrt()
 }
 /// The sphere model's rig for `opts`: the emitter given or `n d`, the incidence and
 /// view limits (`max_view_deg` checked: within 0..=90); `stripe` with its direction
@@ -573,7 +575,7 @@ pub fn correct_sphere_bias(
     let diameter_change_mm = fit.diameter_mm - uncorrected.diameter_mm;
     let center_change_mm = fit.center_mm - uncorrected.center_mm;
     parts.push(model_part(
-        neglected_share(),
+        neglected_share(NEGLECTED_FRACTION),
         diameter_change_mm,
         &center_change_mm,
     ));

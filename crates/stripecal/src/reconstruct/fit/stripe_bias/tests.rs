@@ -249,7 +249,7 @@ fn synthetic_scan_bias_is_outward_and_corrected() {
     assert!(de < 2.0, "emitter off by {de} mm");
     // The systematic part: mostly the model-error share of the correction.
     let sys = res.diameter_systematic_mm;
-    let share = neglected_share() * res.diameter_change_mm.abs();
+    let share = neglected_share(NEGLECTED_FRACTION) * res.diameter_change_mm.abs();
     assert!(sys >= share && sys < share + 2e-4, "{sys} vs {share}");
     // Its parts: the model's (signed as the correction), the estimated emitter's two
     // axes and the two sigmas, each the scan's own; their root sum of squares is it.
