@@ -12,7 +12,9 @@ Reported per quantity (diameter, centre x/y/z, bar length): the error on every s
 expanded uncertainty U (k = 2), how many seeds have |error| <= U, the RMS of the errors
 over the seeds and the ratio mean(U) / RMS (item 1: <= 3, i.e. not inflated); pooled
 coverage over quantities and seeds (DECISIONS 7: >= 90 of 100); the largest |error| per
-quantity (item 2: diameter 0.002, centre 0.005, bar 0.005 mm).
+quantity (item 2: diameter 0.002, centre 0.005, bar 0.005 mm); the mean of each standard part
+of the budget (random, calibration, robot, systematic). ``--json`` keeps per seed and
+quantity [error, U, random, calibration, robot, systematic] in mm.
 
 Usage: python scripts/measurement_acceptance.py [--seeds 20] [--first 1] [--verify]
 [--out DIR] [--json OUT.json]   (about 30 s per seed on two cores, 60 s with --verify).
@@ -34,6 +36,11 @@ from stripecal import sim
 LIMITS = {"diameter": 0.002, "centre x": 0.005, "centre y": 0.005, "centre z": 0.005, "bar length": 0.005}
 
 
+def parts(budget: Dict[str, float]) -> List[float]:
+    """U (k = 2), then the standard uncertainties random, calibration, robot, systematic."""
+    return [float(budget[k]) for k in ("expanded_mm", "random_mm", "calibration_mm", "robot_mm", "systematic_mm")]
+
+
 def one_seed(seed: int, root: Path, with_verify: bool) -> Dict[str, List[float]]:
     knobs = {"seed": seed, "poses": {"count": 5}, "imaging": {"noise_gray": 1.0, "psf_sigma_px": 0.7}}
     if with_verify:
@@ -51,9 +58,9 @@ def one_seed(seed: int, root: Path, with_verify: bool) -> Dict[str, List[float]]
     c0 = np.asarray(sphere["center_mm"], np.float64)
     m = stripecal.measure_sphere(cal, scan, diameter_range_mm=(0.8 * d0, 1.2 * d0))
     u = m["uncertainty"]
-    out: Dict[str, List[float]] = {"diameter": [m["diameter_mm"] - d0, u["diameter"]["expanded_mm"]]}
+    out: Dict[str, List[float]] = {"diameter": [m["diameter_mm"] - d0, *parts(u["diameter"])]}
     for k, a in enumerate("xyz"):
-        out[f"centre {a}"] = [m["center_mm"][k] - c0[k], u["center"][k]["expanded_mm"]]
+        out[f"centre {a}"] = [m["center_mm"][k] - c0[k], *parts(u["center"][k])]
     verify_dir = summary.get("verify_dir") if with_verify else None
     if verify_dir:
         bar_dir = Path(str(verify_dir)) / "bar_1"
@@ -62,7 +69,7 @@ def one_seed(seed: int, root: Path, with_verify: bool) -> Dict[str, List[float]]
         diam = [float(s["diameter_mm"]) for s in bt["spheres"]]
         b = stripecal.measure_ball_bar(cal, bar_dir, diameter_range_mm=(0.8 * min(diam), 1.2 * max(diam)))
         length = float(np.linalg.norm(centres[0] - centres[1]))
-        out["bar length"] = [b["distance"]["value_mm"] - length, b["distance"]["expanded_mm"]]
+        out["bar length"] = [b["distance"]["value_mm"] - length, *parts(b["distance"])]
     return out
 
 
@@ -80,7 +87,7 @@ def main() -> None:
         for seed in range(a.first, a.first + a.seeds):
             r = one_seed(seed, base / f"seed{seed}", a.verify)
             results[seed] = r
-            print(f"seed {seed:3d}: " + "  ".join(f"{k} {e:+.5f} (U {u:.5f})" for k, (e, u) in r.items()), flush=True)
+            print(f"seed {seed:3d}: " + "  ".join(f"{k} {v[0]:+.5f} (U {v[1]:.5f})" for k, v in r.items()), flush=True)
     quantities = [k for k in LIMITS if all(k in r for r in results.values())]
     inside = total = 0
     print(f"\n{'quantity':<11} {'inside U':>9} {'RMS err':>9} {'mean U':>9} {'U/RMS':>6} {'max |err|':>10} {'limit':>7}")
@@ -94,6 +101,10 @@ def main() -> None:
         print(f"{q:<11} {n_in:>5}/{len(e):<3} {rms:9.5f} {u.mean():9.5f} {u.mean() / rms:6.2f} "
               f"{np.abs(e).max():10.5f} {LIMITS[q]:7.3f}")
     print(f"\npooled coverage: {inside} of {total} inside U (k = 2)")
+    print(f"\n{'mean parts':<11} {'random':>9} {'calib':>9} {'robot':>9} {'system':>9}   (standard, mm)")
+    for q in quantities:
+        p = np.array([results[s][q][2:6] for s in results]).mean(axis=0)
+        print(f"{q:<11} " + " ".join(f"{x:9.5f}" for x in p))
     if a.json:
         Path(a.json).write_text(json.dumps({str(k): v for k, v in results.items()}, indent=1))
 
