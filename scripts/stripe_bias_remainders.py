@@ -10,7 +10,9 @@ correction, mean over the seeds and its standard error.
     python scripts/stripe_bias_remainders.py table sweep.log
 
 The runs print one ``SWEEP {json}`` line each (the sweep test in
-crates/stripecal-sim/tests/stripe_bias.rs).
+crates/stripecal-sim/tests/stripe_bias.rs). With ``STRIPE_BIAS_TRUE_MODEL=1`` in the
+test's environment the correction takes the twin's true sheet sigma, PSF sigma and
+emitter instead of estimating them: the remainder is then the model's own.
 """
 
 from __future__ import annotations

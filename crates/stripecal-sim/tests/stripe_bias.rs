@@ -73,7 +73,9 @@ impl Run {
 }
 
 /// Renders every `every`-th frame of the ball scan of `preset` with `overrides`,
-/// reconstructs it with the true calibration, fits the sphere and corrects it.
+/// reconstructs it with the true calibration, fits the sphere and corrects it (with the
+/// twin's true sheet sigma, PSF sigma and emitter when `STRIPE_BIAS_TRUE_MODEL` is set:
+/// what remains then is the model's, not its estimates').
 fn run(preset: &str, overrides: serde_json::Value, every: usize) -> Run {
     let cfg = SimConfig::preset(preset)
         .unwrap()
@@ -106,6 +108,7 @@ fn run(preset: &str, overrides: serde_json::Value, every: usize) -> Run {
     let base_cam: Vec<Iso3> = qs.iter().map(|q| tw.base_cam(q).unwrap()).collect();
     let sphere = tw.sphere.unwrap();
     let t0 = std::time::Instant::now();
+    let known = std::env::var("STRIPE_BIAS_TRUE_MODEL").is_ok();
     let corr = correct_sphere_bias(
         &inl,
         &base_cam,
@@ -113,6 +116,9 @@ fn run(preset: &str, overrides: serde_json::Value, every: usize) -> Run {
         calib.laser_plane.as_ref().unwrap(),
         &StripeBiasOptions {
             stripe: opts.stripe.clone(),
+            sheet_sigma_mm: known.then_some(tw.cfg.imaging.laser_sigma_mm),
+            psf_sigma_px: known.then_some(tw.cfg.imaging.psf_sigma_px),
+            emitter_cam_mm: known.then_some([tw.emitter.x, tw.emitter.y, tw.emitter.z]),
             ..Default::default()
         },
     )
@@ -238,7 +244,9 @@ fn ball_bias_is_corrected_on_the_paper_rig() {
 }
 
 /// Throwaway sweeps: `STRIPE_BIAS_RUNS='[["hp3-paper", {"seed": 2}, 1], ...]' cargo test
-/// -p stripecal-sim --test stripe_bias sweep -- --ignored --nocapture`.
+/// --test stripe_bias sweep -- --ignored --nocapture` (`STRIPE_BIAS_TRUE_MODEL=1`: the
+/// true sigmas and emitter, see [`run`]). From the workspace root without `-p`, so that
+/// the build shares the workspace's dependency features (crates/workspace-hack).
 #[test]
 #[ignore]
 fn sweep() {
