@@ -537,6 +537,11 @@ fn noise_response() {
         let noisy_c: Vec<_> = (0..draws)
             .map(|j| {
                 let r = noisy.render_scan_frame(q, 1000 * (j + 1) + k).unwrap();
+                // The two twins differ in their noise only: the same true stripe.
+                assert_eq!(
+                    r.stripe, r0.stripe,
+                    "frame {k}: the twins' geometry differs"
+                );
                 centres(r.laser_image.as_ref().unwrap())
             })
             .collect();
