@@ -155,9 +155,11 @@
 //!   mean by two standard errors (at most 11.3 %); single seeds reach 13 % (z) and
 //!   11.3 % (diameter), random error included (`scripts/stripe_bias_remainders.py`
 //!   runs these scans and prints the table). The remainders grow with the image noise
-//!   (the windowed centroid's noise bias on weak, oblique profiles, which the noise-free
-//!   model does not contain; the wide rig leaves 2.8 % noise-free, 5.6 % at noise 1 and
-//!   9.3 % at noise 2), so a rig noisier than 2 gray levels on its stripe can leave more.
+//!   (the extractor's mean response to the noise on the rendered stripe, a few tenths
+//!   of a micrometre on the diameter at noise 2, which the same extractor on the model's
+//!   profiles does not show: docs/measurement.md; the wide rig leaves 2.8 % noise-free,
+//!   5.6 % at noise 1 and 9.3 % at noise 2), so a rig noisier than 2 gray levels on its
+//!   stripe can leave more.
 //!   The centre's y coordinate, which the correction hardly moves (0.01-0.4 um), keeps
 //!   up to 0.06 um: far below its random and calibration parts, but not within 12 % of
 //!   its own correction. Before the
