@@ -482,7 +482,7 @@ fn moved_emitter_is_estimated_from_the_brightness() {
 /// diameter (every 2nd frame, 40 draws), +0.33 and +0.36 um (every 4th, 24 and 40
 /// draws); the rows' median shift +0.0009 to +0.0023 px in every view bin (`TAILS`
 /// lines, with the draws off by more than 0.1 px); the same extractor on the model's rows
-/// moved them by -0.0001 to +0.0001 px (docs/measurement.md).
+/// moved them by -0.0001 to +0.0001 px below 70 deg (docs/measurement.md).
 #[test]
 #[ignore]
 fn noise_response() {
