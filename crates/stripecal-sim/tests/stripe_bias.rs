@@ -3,13 +3,16 @@
 //! (`stripecal::reconstruct::correct_sphere_bias`) brings it within 0.002 mm, and the
 //! sheet thickness it estimates from the stripe widths is the twin's.
 
+use nalgebra::{Matrix4, Point3, Vector3, Vector4};
 use stripecal::model::image::AnyView;
 use stripecal::model::RobotReading;
+use stripecal::reconstruct::Triangulator;
 use stripecal::reconstruct::{
     correct_sphere_bias, fit_sphere, reconstruct_frames, FitOptions, ReconstructOptions,
     ScanPoints, SphereBiasCorrection, StripeBiasOptions,
 };
 use stripecal::Iso3;
+use stripecal_sim::truth::StripePointTruth;
 use stripecal_sim::{SimConfig, Twin};
 
 /// One scan's figures.
@@ -150,6 +153,84 @@ fn run(preset: &str, overrides: serde_json::Value, every: usize) -> Run {
     }
 }
 
+/// The model's predicted bias per point (px) with the true sphere and sigmas, and the
+/// emitter given (`None`: the model's default, `n d`).
+fn true_bias_px(
+    tw: &Twin,
+    sp: &ScanPoints,
+    base_cam: &[Iso3],
+    calib: &stripecal::model::Calibration,
+    opts: &ReconstructOptions,
+    emitter_cam_mm: Option<[f64; 3]>,
+) -> Vec<Option<f64>> {
+    let sphere = tw.sphere.unwrap();
+    stripecal::reconstruct::predicted_bias_px(
+        sp,
+        base_cam,
+        &calib.camera,
+        calib.laser_plane.as_ref().unwrap(),
+        (&sphere.center_mm, 0.5 * sphere.diameter_mm),
+        tw.cfg.imaging.laser_sigma_mm,
+        tw.cfg.imaging.psf_sigma_px,
+        &StripeBiasOptions {
+            stripe: opts.stripe.clone(),
+            emitter_cam_mm,
+            ..Default::default()
+        },
+    )
+    .unwrap()
+}
+
+/// The twin's true sphere stripe point on point `i`'s scan line (its frame's row).
+fn sphere_truth<'r>(
+    renders: &'r [stripecal_sim::ViewRender],
+    sp: &ScanPoints,
+    i: usize,
+) -> Option<&'r StripePointTruth> {
+    renders[sp.frame[i] as usize]
+        .stripe
+        .iter()
+        .find(|s| s.surface == "sphere" && (s.v - sp.v_px[i]).abs() < 1e-6)
+}
+
+/// The 10-degree bin of an angle (the last one holds 90 deg and beyond).
+fn bin_of(deg: f64) -> usize {
+    ((deg / 10.0) as usize).min(9)
+}
+
+/// A point's row of the sphere fit's linearisation: `J = [-n, -1]` (base frame, `n` the
+/// true sphere's normal at the true point `t`) and the radial move of the point measured
+/// at `u` on `t`'s scan line per pixel along it, mm/px (stripes along columns).
+fn radial_row(
+    tri: &Triangulator,
+    base_cam: &Iso3,
+    sphere_center_mm: &Vector3<f64>,
+    t: &StripePointTruth,
+    u: f64,
+) -> Option<(Vector4<f64>, f64)> {
+    let a = tri.point_cam_mm(u + 0.5, t.v)?;
+    let b = tri.point_cam_mm(u - 0.5, t.v)?;
+    let c_cam = base_cam.inverse() * Point3::from(*sphere_center_mm);
+    let n_cam = (Vector3::from(t.p_cam) - c_cam.coords).normalize();
+    let n = base_cam.rotation * n_cam;
+    Some((Vector4::new(-n.x, -n.y, -n.z, -1.0), (a - b).dot(&n_cam)))
+}
+
+/// The fitted diameter's linear response to radial moves of the points whose rows are
+/// `js`: [`Self::gain`] of a row times its radial move (mm) is the diameter's change.
+struct DiameterLeverage(Matrix4<f64>);
+
+impl DiameterLeverage {
+    fn new<'a>(js: impl Iterator<Item = &'a Vector4<f64>>) -> Self {
+        let nm: Matrix4<f64> = js.map(|j| j * j.transpose()).sum();
+        DiameterLeverage(nm.try_inverse().unwrap())
+    }
+
+    fn gain(&self, j: &Vector4<f64>) -> f64 {
+        -2.0 * (self.0 * j)[3]
+    }
+}
+
 /// Measured minus true stripe centre per point against the model's prediction (true
 /// sphere, true sigmas), in bins of the true incidence angle.
 fn diagnose(
@@ -160,30 +241,11 @@ fn diagnose(
     calib: &stripecal::model::Calibration,
     opts: &ReconstructOptions,
 ) {
-    let sphere = tw.sphere.unwrap();
-    let pred = stripecal::reconstruct::predicted_bias_px(
-        sp,
-        base_cam,
-        &calib.camera,
-        calib.laser_plane.as_ref().unwrap(),
-        (&sphere.center_mm, 0.5 * sphere.diameter_mm),
-        tw.cfg.imaging.laser_sigma_mm,
-        tw.cfg.imaging.psf_sigma_px,
-        &StripeBiasOptions {
-            stripe: opts.stripe.clone(),
-            ..Default::default()
-        },
-    )
-    .unwrap();
+    let pred = true_bias_px(tw, sp, base_cam, calib, opts, None);
     let mut bins = vec![(0usize, 0.0f64, 0.0f64, 0.0f64); 10];
     let mut none = 0;
     for (i, pr) in pred.iter().enumerate() {
-        let f = sp.frame[i] as usize;
-        let Some(t) = renders[f]
-            .stripe
-            .iter()
-            .find(|s| s.surface == "sphere" && (s.v - sp.v_px[i]).abs() < 1e-6)
-        else {
+        let Some(t) = sphere_truth(renders, sp, i) else {
             continue;
         };
         let Some(p) = *pr else {
@@ -191,7 +253,7 @@ fn diagnose(
             continue;
         };
         let act = sp.u_px[i] - t.u;
-        let b = ((t.incidence_deg / 10.0) as usize).min(9);
+        let b = bin_of(t.incidence_deg);
         bins[b].0 += 1;
         bins[b].1 += act;
         bins[b].2 += p;
@@ -234,65 +296,35 @@ fn lever(
     calib: &stripecal::model::Calibration,
     opts: &ReconstructOptions,
 ) {
-    use nalgebra::{Matrix4, Point3, Vector4};
     let sphere = tw.sphere.unwrap();
     let e = tw.emitter;
-    let pred = stripecal::reconstruct::predicted_bias_px(
-        sp,
-        base_cam,
-        &calib.camera,
-        calib.laser_plane.as_ref().unwrap(),
-        (&sphere.center_mm, 0.5 * sphere.diameter_mm),
-        tw.cfg.imaging.laser_sigma_mm,
-        tw.cfg.imaging.psf_sigma_px,
-        &StripeBiasOptions {
-            stripe: opts.stripe.clone(),
-            emitter_cam_mm: Some([e.x, e.y, e.z]),
-            ..Default::default()
-        },
-    )
-    .unwrap();
-    let tri = stripecal::reconstruct::Triangulator::from_calibration(calib, 1.0).unwrap();
+    let pred = true_bias_px(tw, sp, base_cam, calib, opts, Some([e.x, e.y, e.z]));
+    let tri = Triangulator::from_calibration(calib, 1.0).unwrap();
+    let truths: Vec<Option<&StripePointTruth>> = (0..sp.len())
+        .map(|i| sphere_truth(renders, sp, i))
+        .collect();
     // (view deg, J, radial mm per px, error px)
     let mut rows = Vec::new();
     for (i, pr) in pred.iter().enumerate() {
-        let (Some(p), true) = (*pr, modelled[i]) else {
+        let (Some(p), true, Some(t)) = (*pr, modelled[i], truths[i]) else {
             continue;
         };
         let f = sp.frame[i] as usize;
-        let Some(t) = renders[f]
-            .stripe
-            .iter()
-            .find(|s| s.surface == "sphere" && (s.v - sp.v_px[i]).abs() < 1e-6)
-        else {
-            continue;
-        };
-        let (u, v) = (sp.u_px[i], sp.v_px[i]);
-        let (Some(a), Some(b)) = (tri.point_cam_mm(u + 0.5, v), tri.point_cam_mm(u - 0.5, v))
-        else {
-            continue;
-        };
-        let c_cam = base_cam[f].inverse() * Point3::from(sphere.center_mm);
-        let n_cam = (nalgebra::Vector3::from(t.p_cam) - c_cam.coords).normalize();
-        let n = base_cam[f].rotation * n_cam;
-        let j = Vector4::new(-n.x, -n.y, -n.z, -1.0);
-        rows.push((t.view_deg, j, (a - b).dot(&n_cam), u - p - t.u));
+        let u = sp.u_px[i];
+        if let Some((j, q)) = radial_row(&tri, &base_cam[f], &sphere.center_mm, t, u) {
+            rows.push((t.view_deg, j, q, u - p - t.u));
+        }
     }
     // Selection: raw errors (measured minus true centre, px) of the points the model
     // kept and of those it left out, and the true stripe rows with no point at all.
     let mut sel = vec![(0usize, 0.0f64, 0usize, 0.0f64, 0usize); 10];
     let mut seen = std::collections::HashSet::new();
-    for (i, &kept) in modelled.iter().enumerate() {
-        let f = sp.frame[i] as usize;
-        let Some(t) = renders[f]
-            .stripe
-            .iter()
-            .find(|s| s.surface == "sphere" && (s.v - sp.v_px[i]).abs() < 1e-6)
-        else {
+    for (i, (&kept, t)) in modelled.iter().zip(&truths).enumerate() {
+        let Some(t) = t else {
             continue;
         };
-        seen.insert((f, sp.v_px[i].round() as i64));
-        let b = &mut sel[((t.view_deg / 10.0) as usize).min(9)];
+        seen.insert((sp.frame[i] as usize, sp.v_px[i].round() as i64));
+        let b = &mut sel[bin_of(t.view_deg)];
         if kept {
             b.0 += 1;
             b.1 += sp.u_px[i] - t.u;
@@ -304,7 +336,7 @@ fn lever(
     for (f, r) in renders.iter().enumerate() {
         for t in r.stripe.iter().filter(|s| s.surface == "sphere") {
             if !seen.contains(&(f, t.v.round() as i64)) {
-                sel[((t.view_deg / 10.0) as usize).min(9)].4 += 1;
+                sel[bin_of(t.view_deg)].4 += 1;
             }
         }
     }
@@ -320,17 +352,12 @@ fn lever(
             b.4
         );
     }
-    let mut nm = Matrix4::zeros();
-    for r in &rows {
-        nm += r.1 * r.1.transpose();
-    }
-    let ninv = nm.try_inverse().unwrap();
+    let lev = DiameterLeverage::new(rows.iter().map(|r| &r.1));
     let mut bins = vec![(0usize, 0.0f64, 0.0f64, 0.0f64); 10];
     let mut total = 0.0;
     for (view, j, q, err) in &rows {
-        let g = -2.0 * (ninv * j)[3];
-        let k = ((view / 10.0) as usize).min(9);
-        let b = &mut bins[k];
+        let g = lev.gain(j);
+        let b = &mut bins[bin_of(*view)];
         b.0 += 1;
         b.1 += g * q * err;
         b.2 += err;
@@ -486,7 +513,6 @@ fn moved_emitter_is_estimated_from_the_brightness() {
 #[test]
 #[ignore]
 fn noise_response() {
-    use nalgebra::{Matrix4, Point3, Vector3, Vector4};
     use stripecal::vision::stripe::extract_stripe;
     let env = |k: &str, d: &str| std::env::var(k).unwrap_or_else(|_| d.to_string());
     let preset = env("STRIPE_NOISE_PRESET", "hp3-wide");
@@ -510,7 +536,7 @@ fn noise_response() {
     };
     let (clean, noisy) = (twin(0.0), twin(2.0));
     let calib = clean.true_calibration();
-    let tri = stripecal::reconstruct::Triangulator::from_calibration(&calib, 1.0).unwrap();
+    let tri = Triangulator::from_calibration(&calib, 1.0).unwrap();
     let sphere = clean.sphere.unwrap();
     let mut so = ReconstructOptions::default().stripe;
     so.direction = stripecal::reconstruct::stripe_direction_from_plane(
@@ -534,7 +560,6 @@ fn noise_response() {
         .collect();
     for (k, q) in qs.iter().enumerate() {
         let base_cam = clean.base_cam(q).unwrap();
-        let c_cam = base_cam.inverse() * Point3::from(sphere.center_mm);
         let r0 = clean.render_scan_frame(q, k).unwrap();
         let c0 = centres(r0.laser_image.as_ref().unwrap());
         let noisy_c: Vec<_> = (0..draws)
@@ -559,44 +584,29 @@ fn noise_response() {
             if found.len() * 2 < draws {
                 continue;
             }
-            let (Some(a), Some(b)) = (
-                tri.point_cam_mm(u0 + 0.5, t.v),
-                tri.point_cam_mm(u0 - 0.5, t.v),
-            ) else {
+            let Some((j, q)) = radial_row(&tri, &base_cam, &sphere.center_mm, t, u0) else {
                 continue;
             };
-            let n_cam = (Vector3::from(t.p_cam) - c_cam.coords).normalize();
-            let n = base_cam.rotation * n_cam;
             let m = found.iter().sum::<f64>() / found.len() as f64;
             let mut sorted = found.clone();
             sorted.sort_by(f64::total_cmp);
             let med = sorted[sorted.len() / 2];
             let big = found.iter().filter(|d| d.abs() > 0.1).count();
             tails.push((t.view_deg, med, big, found.len()));
-            rows.push((
-                t.view_deg,
-                Vector4::new(-n.x, -n.y, -n.z, -1.0),
-                (a - b).dot(&n_cam),
-                m,
-                found.len() as f64 / draws as f64,
-            ));
+            rows.push((t.view_deg, j, q, m, found.len() as f64 / draws as f64));
         }
     }
-    let mut nm = Matrix4::zeros();
-    for r in rows.iter().filter(|r| r.0 <= 75.0) {
-        nm += r.1 * r.1.transpose();
-    }
-    let ninv = nm.try_inverse().unwrap();
+    let lev = DiameterLeverage::new(rows.iter().filter(|r| r.0 <= 75.0).map(|r| &r.1));
     // per bin: rows, sum of shifts, sum of squares, found, diameter (um)
     let mut bins = vec![(0usize, 0.0f64, 0.0f64, 0.0f64, 0.0f64); 10];
     for (view, j, q, m, f) in &rows {
-        let b = &mut bins[((view / 10.0) as usize).min(9)];
+        let b = &mut bins[bin_of(*view)];
         b.0 += 1;
         b.1 += m;
         b.2 += m * m;
         b.3 += f;
         if *view <= 75.0 {
-            b.4 += -2.0 * (ninv * j)[3] * q * m * 1e3;
+            b.4 += lev.gain(j) * q * m * 1e3;
         }
     }
     let mut total = 0.0;
@@ -625,7 +635,7 @@ fn noise_response() {
     // The shape of the response: the rows' median shift and the draws off by > 0.1 px.
     let mut tb = vec![(0usize, 0.0f64, 0usize, 0usize); 10];
     for (view, med, big, n) in &tails {
-        let b = &mut tb[((view / 10.0) as usize).min(9)];
+        let b = &mut tb[bin_of(*view)];
         b.0 += 1;
         b.1 += med;
         b.2 += big;
