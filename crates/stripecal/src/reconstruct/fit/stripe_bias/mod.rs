@@ -189,6 +189,7 @@
 //!   beyond its limit, the extractor's support near the outline, a saturated stripe) are
 //!   left out of the corrected fit ([`SphereBiasCorrection::modelled`]).
 
+mod noise;
 mod plane;
 mod points;
 mod profile;
@@ -209,6 +210,7 @@ use super::sheet_sigma::{estimate_sheet_sigma, SheetSigmaEstimate};
 use super::{fit_sphere, FitOptions, SphereFitResult};
 
 pub(crate) use plane::{board_point_profile, board_point_scale, Board as BoardSurface};
+pub use noise::{predicted_noise_shift_px, NoiseShift};
 pub use points::predicted_bias_px;
 use points::{corrected_points, corrections, point_geo};
 pub(crate) use profile::{extractor_response, plane_basis, point_profile, PointProfile, Rig};

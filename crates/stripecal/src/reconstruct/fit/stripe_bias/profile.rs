@@ -431,6 +431,21 @@ pub(crate) fn extractor_response(
     stripe: &StripeOptions,
     buf: &mut Vec<f64>,
 ) -> Option<(f64, f64, f64)> {
+    let x0 = scan_line_values(prof, psf_sigma_px, stripe, buf)?;
+    let (c, width, peak) = profile_centre(buf, stripe)?;
+    Some((c + x0 - prof.a0, width as f64, peak))
+}
+
+/// The modelled profile's pixel values on its scan line into `buf` (pixel `k` at the
+/// along-line coordinate `x0 + k`, returned): each sample's weight spread over the pixel
+/// box convolved with the PSF, with room for the extractor's window and flanks either
+/// side. `None` when the profile is empty or implausibly long.
+pub(crate) fn scan_line_values(
+    prof: &PointProfile,
+    psf_sigma_px: f64,
+    stripe: &StripeOptions,
+    buf: &mut Vec<f64>,
+) -> Option<f64> {
     let sb = psf_sigma_px;
     let var = sb * sb;
     let (mut lo, mut hi) = (f64::INFINITY, f64::NEG_INFINITY);
@@ -489,6 +504,5 @@ pub(crate) fn extractor_response(
             *v += w * kv;
         }
     }
-    let (c, width, peak) = profile_centre(buf, stripe)?;
-    Some((c + x0 - prof.a0, width as f64, peak))
+    Some(x0)
 }

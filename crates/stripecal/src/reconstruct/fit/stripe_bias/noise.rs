@@ -1,0 +1,151 @@
+//! The model's response to image noise (a diagnostic): what the extractor's mean centre
+//! does when white Gaussian noise is added to each point's modelled scan line.
+//!
+//! The curved-surface model ([`super`]) is noise-free. The windowed centroid is not
+//! linear in the pixel values (the half-maximum width sets the window, the peak pixel
+//! is the largest of noisy values, the window's ends move), so on a skewed profile the
+//! noise has a mean effect too. Here each point's modelled profile is scaled to the
+//! point's measured peak height, a flat background of `8 noise` is added (so that no
+//! pixel is clipped at zero) and the extractor runs on `pairs` antithetic pairs
+//! (`+e`, `-e`) of noisy copies: the mean centre minus the noise-free centre, px along
+//! the scan line. Antithetic pairs cancel the response's odd (linear) part exactly, so
+//! what is left is its even part, the bias, at a fraction of the draws.
+
+use nalgebra::Vector3;
+use rayon::prelude::*;
+
+use crate::error::Result;
+use crate::model::camera::Camera;
+use crate::model::geometry::{Iso3, Plane};
+use crate::model::StripeDirection;
+use crate::numerics::rng::SplitMix64;
+use crate::reconstruct::{stripe_direction_from_plane, ScanPoints};
+use crate::vision::stripe::profile_centre;
+
+use super::points::point_geo;
+use super::profile::{point_profile, scan_line_values, PointProfile};
+use super::StripeBiasOptions;
+
+/// The model's mean noise-induced centre shift per point (px along the scan line), for
+/// white Gaussian noise of `noise_gray` (standard deviation, in the units of
+/// [`ScanPoints::intensity`]) over `pairs` antithetic pairs seeded by `seed`; `None`
+/// where the model fails or the extractor rejects every noisy copy. The sphere and the
+/// other arguments as [`super::predicted_bias_px`].
+#[allow(clippy::too_many_arguments)]
+pub fn predicted_noise_shift_px(
+    points: &ScanPoints,
+    base_cam: &[Iso3],
+    camera: &Camera,
+    plane: &Plane,
+    sphere: (&Vector3<f64>, f64),
+    sheet_sigma_mm: f64,
+    psf_sigma_px: f64,
+    opts: &StripeBiasOptions,
+    noise_gray: f64,
+    pairs: usize,
+    seed: u64,
+) -> Result<Vec<Option<NoiseShift>>> {
+    let mut stripe = opts.stripe.clone();
+    if stripe.direction == StripeDirection::Auto {
+        stripe.direction = stripe_direction_from_plane(camera, plane);
+    }
+    let rig = super::sphere_rig(camera, plane, &stripe, opts)?;
+    let cam_base: Vec<Iso3> = base_cam.iter().map(|t| t.inverse()).collect();
+    let geo = (0..points.len())
+        .map(|i| point_geo(points, &cam_base, rig.along, i))
+        .collect::<Result<Vec<_>>>()?;
+    Ok(geo
+        .par_iter()
+        .enumerate()
+        .map_init(
+            || (PointProfile::default(), Vec::new(), Vec::new()),
+            |(prof, buf, noisy), (i, (g, f))| {
+                if g.saturated {
+                    return None;
+                }
+                let c = (cam_base[*f] * nalgebra::Point3::from(*sphere.0)).coords;
+                if !point_profile(
+                    &rig,
+                    &c,
+                    sphere.1,
+                    g.line,
+                    &g.p_cam,
+                    sheet_sigma_mm,
+                    psf_sigma_px,
+                    prof,
+                ) {
+                    return None;
+                }
+                scan_line_values(prof, psf_sigma_px, rig.stripe, buf)?;
+                let (_, _, peak) = profile_centre(buf, rig.stripe)?;
+                let measured = points.intensity.get(i).copied().unwrap_or(0.0) as f64;
+                if !(measured > 0.0 && peak > 0.0) {
+                    return None;
+                }
+                // Model units per gray level of the image.
+                let sd = noise_gray * peak / measured;
+                let floor = 8.0 * sd;
+                buf.iter_mut().for_each(|v| *v += floor);
+                let (c0, _, _) = profile_centre(buf, rig.stripe)?;
+                let mut rng = SplitMix64(seed ^ (i as u64).wrapping_mul(0x9E37_79B9_7F4A_7C15));
+                let mut d: Vec<f64> = Vec::with_capacity(2 * pairs);
+                for _ in 0..pairs {
+                    let e: Vec<f64> = buf.iter().map(|_| sd * rng.normal()).collect();
+                    for sign in [1.0, -1.0] {
+                        noisy.clear();
+                        noisy.extend(buf.iter().zip(&e).map(|(v, e)| v + sign * e));
+                        if let Some((c1, _, _)) = profile_centre(noisy, rig.stripe) {
+                            d.push(c1 - c0);
+                        }
+                    }
+                }
+                NoiseShift::of(&mut d)
+            },
+        )
+        .collect())
+}
+
+/// A point's centre shifts under noise, px: their mean, median, and their mean within
+/// three robust sigmas (`1.4826` median absolute deviations) of the median, as a robust
+/// fit that trims its residuals keeps them.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct NoiseShift {
+    pub mean: f64,
+    pub median: f64,
+    pub trimmed: f64,
+    /// The shifts' standard deviation.
+    pub sd: f64,
+}
+
+impl NoiseShift {
+    /// The figures of the shifts `d` (sorted in place); `None` when empty.
+    pub fn of(d: &mut [f64]) -> Option<NoiseShift> {
+        if d.is_empty() {
+            return None;
+        }
+        d.sort_by(f64::total_cmp);
+        let n = d.len() as f64;
+        let mean = d.iter().sum::<f64>() / n;
+        let sd = (d.iter().map(|x| (x - mean).powi(2)).sum::<f64>() / n).sqrt();
+        let median = d[d.len() / 2];
+        let mut dev: Vec<f64> = d.iter().map(|x| (x - median).abs()).collect();
+        dev.sort_by(f64::total_cmp);
+        let lim = 3.0 * 1.4826 * dev[dev.len() / 2];
+        let kept: Vec<f64> = d
+            .iter()
+            .copied()
+            .filter(|x| (x - median).abs() <= lim)
+            .collect();
+        let trimmed = if kept.is_empty() {
+            median
+        } else {
+            kept.iter().sum::<f64>() / kept.len() as f64
+        };
+        Some(NoiseShift {
+            mean,
+            median,
+            trimmed,
+            sd,
+        })
+    }
+}
