@@ -47,8 +47,8 @@
 //!   correction), `u` uniform within +-[`BOARD_NEGLECTED_FRACTION`] (10 %) of the
 //!   correction (`0.058`; on the twin the correction leaves ~5 % of the hand-eye's bias,
 //!   noise-free). The board's own bound: the sphere's
-//!   ([`crate::reconstruct::fit::stripe_bias::NEGLECTED_FRACTION`], 12 %) comes from
-//!   curved profiles and their noise;
+//!   ([`crate::reconstruct::fit::stripe_bias::NEGLECTED_FRACTION`], 8 %) comes from
+//!   curved profiles at several rigs, sheets and noise levels;
 //! - the emitter, which no calibration holds: taken as uniform within
 //!   +-[`EMITTER_RANGE_MM`] of `n d` along each of the plane's two in-plane axes. The
 //!   same points are moved by the biases predicted for the emitter at each end of each

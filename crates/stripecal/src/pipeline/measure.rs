@@ -165,7 +165,7 @@ fn sphere_report(
     // A camera's bias model: a profiler's calibration has none (module docs).
     if let (true, Some(cal)) = (opts.correct_bias, model.calibration()) {
         let (fit, used, coords, systematic, info, emitter) =
-            correct_bias(model, cal, readings, points, fit, &opts.fit)?;
+            correct_bias(model, cal, readings, points, &opts.fit)?;
         let measurement = measure_sphere(frames, &used, &coords, &fit, &systematic)?;
         return Ok(SphereReport {
             fit,
@@ -315,15 +315,15 @@ pub fn measure_scan_plane(
 }
 
 /// The curved-surface stripe bias correction of a sphere fit
-/// ([`crate::reconstruct::fit::stripe_bias`]) of the fit's inliers: the corrected fit,
-/// the points it used (the modelled inliers) with their corrected coordinates, the
+/// ([`crate::reconstruct::fit::stripe_bias`]) of the sphere's points: the corrected fit,
+/// the points it corrected (the modelled ones; the fit's inlier mask keeps its trimmed
+/// ones) with their corrected coordinates, the
 /// systematic part it leaves and what it did.
 fn correct_bias(
     model: &UncertaintyModel,
     cal: &Calibration,
     readings: &[RobotReading],
     points: &ScanPoints,
-    fit: SphereFitResult,
     opts: &FitOptions,
 ) -> Result<BiasCorrected> {
     let plane = crate::reconstruct::laser_plane_of(cal)?;
@@ -331,14 +331,17 @@ fn correct_bias(
         .iter()
         .map(|r| Ok(r.base_hand(cal.robot.as_ref())? * cal.hand_cam))
         .collect::<Result<Vec<_>>>()?;
-    let inliers: Vec<usize> = (0..points.len()).filter(|&i| fit.inlier[i]).collect();
-    let sphere_pts = points.subset(&inliers);
+    // All the sphere's points: the correction picks the ones it corrects and fits
+    // itself, by the corrected residuals (a choice by the uncorrected fit's trimming
+    // would keep the points whose noise hides their bias: module docs of
+    // `stripe_bias`, "Which points are fitted").
+    let sphere_pts = points;
     let mut o = StripeBiasOptions {
         fit: *opts,
         ..Default::default()
     };
     o.stripe.direction = model.direction();
-    let c = correct_sphere_bias(&sphere_pts, &base_cam, &cal.camera, plane, &o).map_err(|e| {
+    let c = correct_sphere_bias(sphere_pts, &base_cam, &cal.camera, plane, &o).map_err(|e| {
         let hint = "measure without it: correct_bias=False / --no-bias-correction";
         match e {
             Error::Degenerate(m) => {
@@ -350,6 +353,7 @@ fn correct_bias(
             other => other,
         }
     })?;
+    // The modelled points, in order: the corrected fit's inlier mask is over them.
     let used: Vec<usize> = (0..sphere_pts.len()).filter(|&i| c.modelled[i]).collect();
     let kept = sphere_pts.subset(&used);
     let coords: Vec<[f64; 3]> = used

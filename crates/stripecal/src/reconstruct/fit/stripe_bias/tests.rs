@@ -227,6 +227,75 @@ fn synthetic_scan(r: f64, s: f64, b: f64) -> (ScanPoints, Vec<Iso3>, Vector3<f64
     (sp, poses, c_mid)
 }
 
+/// The corrected fit trims the CORRECTED residuals (module docs, "Which points are
+/// fitted"): copies of every 40th point moved 20 mm outwards are not corrected at all;
+/// copies moved 4 of the uncorrected fit's robust sigmas outwards (inside its candidate
+/// band, outside its 3-sigma inliers) are corrected and then trimmed; neither moves the
+/// corrected sphere. Fitting every given point untrimmed, as before, kept the near
+/// copies.
+#[test]
+fn the_corrected_fit_trims_the_corrected_residuals() {
+    let (r, s, b) = (22.43, 0.12, 0.7);
+    let (sp, poses, c) = synthetic_scan(r, s, b);
+    let cam = camera([0.0; 5]);
+    let o = StripeBiasOptions::default();
+    let clean = correct_sphere_bias(&sp, &poses, &cam, &plane(), &o).unwrap();
+    let (used, modelled) = (
+        clean.used.iter().filter(|&&u| u).count(),
+        clean.modelled.iter().filter(|&&m| m).count(),
+    );
+    assert!(
+        used * 10 >= modelled * 9,
+        "{used} of {modelled} modelled points fitted"
+    );
+    let step = clean.uncorrected.robust_sigma_mm * 4.0;
+    assert!(
+        step > 1e-4,
+        "uncorrected robust sigma {}",
+        clean.uncorrected.robust_sigma_mm
+    );
+    let picks: Vec<usize> = (0..sp.len())
+        .step_by(40)
+        .filter(|&i| clean.used[i])
+        .collect();
+    let moved = |by: f64| {
+        let mut m = sp.subset(&picks);
+        for p in m.points_mm.iter_mut() {
+            let v = Vector3::from(*p);
+            let q = v + (v - c).normalize() * by;
+            *p = [q.x, q.y, q.z];
+        }
+        m
+    };
+    let mut all = sp.clone();
+    all.append(&moved(20.0));
+    all.append(&moved(step));
+    let n = sp.len();
+    let k = picks.len();
+    let res = correct_sphere_bias(&all, &poses, &cam, &plane(), &o).unwrap();
+    let far = n..n + k;
+    let near = n + k..n + 2 * k;
+    assert!(
+        far.clone().all(|i| !res.modelled[i] && !res.used[i]),
+        "far copies corrected"
+    );
+    let near_modelled = near.clone().filter(|&i| res.modelled[i]).count();
+    assert!(
+        near_modelled * 10 >= k * 9,
+        "{near_modelled} of {k} near copies corrected"
+    );
+    let near_used = near.clone().filter(|&i| res.used[i]).count();
+    assert_eq!(near_used, 0, "near copies in the corrected fit");
+    let dd = res.fit.diameter_mm - clean.fit.diameter_mm;
+    let dc = (res.fit.center_mm - clean.fit.center_mm).norm();
+    // The near copies, kept, would move the diameter by about 2 k / n of their offset.
+    let kept_shift = 2.0 * step * k as f64 / n as f64;
+    assert!(
+        dd.abs() < 0.1 * kept_shift && dc < 0.1 * kept_shift,
+        "moved by {dd}, {dc} (kept: {kept_shift})"
+    );
+}
+
 #[test]
 fn synthetic_scan_bias_is_outward_and_corrected() {
     let (r, s, b) = (22.43, 0.12, 0.7);
