@@ -8,7 +8,9 @@
 //!   whatever else scatters point to point), heteroscedasticity-consistent:
 //!   `m / (m - p) N^-1 (sum_i J_i^T r_i^2 J_i) N^-1` rather than one variance for all
 //!   points, `sigma^2 N^-1`, because a scan's weak and oblique profiles scatter more and
-//!   decide the shape's size and tilt (`measure.rs`, `sandwich`);
+//!   decide the shape's size and tilt (`measure.rs`, `sandwich`); for a trimmed sphere
+//!   fit `N` is replaced by the skipped fit's bread, `N` less its points at the
+//!   trimming threshold (`measure.rs`, `trimmed_bread`);
 //! - **calibration**: the calibration's covariance `C` carried through every point
 //!   ([`crate::reconstruct::uncertainty`]): shared by all points of all scans measured
 //!   with the calibration, it does not average out; `g^T C g` with `g` the quantity's

@@ -129,7 +129,17 @@ pub fn measure_sphere(
     let mut sens = Sensitivity::new(frames, &n_d, rows)?;
     let id = new_source_id();
     let s2 = res.iter().map(|x| x * x).sum::<f64>() / (idx.len() - 4) as f64;
-    let random = sandwich(&sens.ninv, normals.iter().map(|x| &x.1[..]).zip(&res));
+    // The trimmed fit's bread: N less the points at the trimming threshold (a skipped
+    // fit moves less with its inliers than N says: [`trimmed_bread`]).
+    let cut = fit.trim_threshold_mm;
+    let near_cut = coords.iter().map(|p| {
+        let d = Vector3::from(*p) - c;
+        let dist = d.norm();
+        let u = if dist > 0.0 { d / dist } else { Vector3::z() };
+        (nalgebra::Vector4::new(-u.x, -u.y, -u.z, -1.0), dist - r)
+    });
+    let bread = trimmed_bread(&n, cut, near_cut);
+    let random = sandwich(&bread, normals.iter().map(|x| &x.1[..]).zip(&res));
     add_random(&mut sens.params, &random, id);
     for part in &systematic.parts {
         let sys = [
@@ -295,6 +305,48 @@ fn range_form<'r>(
     form.random
         .insert((id, 2, 0), range_random_sigma(s2.sqrt(), idx.len()));
     Ok((form, res[imax] - res[imin]))
+}
+
+/// The inverse bread of a trimmed (skipped) least-squares fit. Its estimating equation
+/// `sum_i J_i psi(r_i) = 0` has `psi(r) = r 1{|r| <= c}`, whose expected derivative is
+/// `P(|r| <= c) - c (f(c) + f(-c))` (`f` the residuals' density): the points that cross
+/// the threshold as the fit moves make it move less, so the bread is
+/// `A = N - c sum_i J_i J_i^T (f_i(c) + f_i(-c))`, estimated with a box of half width
+/// `h = 0.1 c` around `|r| = c`: `A = N - (c / 2h) sum_{||r_i| - c| < h} J_i J_i^T`.
+/// Without it the sandwich treats the trimmed fit as if its point set were fixed, and
+/// understates the scatter of a fit whose residuals have heavy tails (a stripe
+/// extractor's, where a few percent of the centres lie beyond four sigmas). `n`: the
+/// inliers' `J^T J`; `rows`: `(J_i, r_i)` of every point the fit was given; `cut`: the
+/// trimming threshold (0: untrimmed, `N^-1`). Where the correction would leave `A` with
+/// less than half of `N`'s smallest eigenvalue (too few points near the cut to say), the
+/// bread is `N / 2` (twice the variance: the conservative end).
+fn trimmed_bread(
+    n: &Matrix4<f64>,
+    cut: f64,
+    rows: impl Iterator<Item = (nalgebra::Vector4<f64>, f64)>,
+) -> DMatrix<f64> {
+    let to_d = |m: &Matrix4<f64>| DMatrix::from_fn(4, 4, |a, b| m[(a, b)]);
+    let inv = |m: &Matrix4<f64>| m.try_inverse().map(|x| to_d(&x));
+    let Some(ninv) = inv(n) else {
+        return to_d(n);
+    };
+    if cut.is_nan() || cut <= 0.0 {
+        return ninv;
+    }
+    let h = 0.1 * cut;
+    let mut k = Matrix4::zeros();
+    for (j, r) in rows {
+        if (r.abs() - cut).abs() < h {
+            k += j * j.transpose();
+        }
+    }
+    let a = n - k * (cut / (2.0 * h));
+    let min_n = n.symmetric_eigen().eigenvalues.min();
+    let min_a = a.symmetric_eigen().eigenvalues.min();
+    match inv(&a) {
+        Some(ainv) if min_a >= 0.5 * min_n => ainv,
+        _ => ninv * 2.0,
+    }
 }
 
 /// Random sources of a fit's parameters: `L` with `L L^T = cov` (eigen, may be singular).

@@ -32,6 +32,9 @@ pub struct SphereFitResult {
     pub robust_sigma_mm: f64,
     /// Largest |residual| of an inlier, mm.
     pub max_residual_mm: f64,
+    /// The last round's trimming threshold (`trim_sigma` robust sigmas), mm: points with
+    /// a larger |residual| are outliers; 0 when the fit does not trim.
+    pub trim_threshold_mm: f64,
     /// Inlier mask (same order as the input points).
     pub inlier: Vec<bool>,
 }
@@ -346,6 +349,7 @@ pub fn fit_sphere(points: &[[f64; 3]], opts: &FitOptions) -> Result<SphereFitRes
         outliers: n - k,
         robust_sigma_mm: robust,
         max_residual_mm: max_res,
+        trim_threshold_mm: opts.trim_sigma * robust,
         inlier: mask,
     })
 }
