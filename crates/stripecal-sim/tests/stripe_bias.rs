@@ -475,9 +475,10 @@ fn moved_emitter_is_estimated_from_the_brightness() {
     // Modelled as if unclipped they left ~0.002 mm in the centre; they are left out.
     let c = &r.corr;
     assert!(
-        c.saturated > c.modelled.len() / 2,
-        "{} saturated",
-        c.saturated
+        c.saturated > c.uncorrected.points / 2,
+        "{} saturated of the uncorrected fit's {} inliers",
+        c.saturated,
+        c.uncorrected.points
     );
     let truth_c = c.uncorrected.center_mm - r.c0;
     let dc = (c.fit.center_mm - truth_c).norm();

@@ -9,8 +9,9 @@
 //!    ([`crate::numerics::lm::levenberg_marquardt`], default tolerances: it stops at the
 //!    cost's round-off floor) on the residuals `r_i = |p_i - c| - R` (Jacobian row
 //!    `[-(p_i - c)^T / |p_i - c|, -1]`).
-//! 3. Trimming (when `trim_sigma > 0`): the robust sigma of the residuals of ALL points
-//!    is `s = 1.4826 * median |r_i|`; points with `|r_i| > trim_sigma * s` are outliers;
+//! 3. Trimming (when `trim_sigma > 0`): the robust sigma of the current inliers'
+//!    residuals (every point's in the first round, or the robust start's inliers') is
+//!    `s = 1.4826 * median |r_i|`; points with `|r_i| > trim_sigma * s` are outliers;
 //!    the fit is redone on the inliers (from the previous solution) until the inlier set
 //!    stops changing (at most `max_trim_rounds`). The outlier count is reported.
 //! 4. Uncertainty: `sigma^2 = sum r_i^2 / (n - 4)` over the inliers and

@@ -475,7 +475,11 @@ pub fn correct_sphere_bias(
     // Which points are corrected and which fitted (module docs): the candidates are the
     // points near the uncorrected sphere, the fit trims the corrected residuals.
     let cand = candidates(&points.points_mm, &uncorrected);
-    let cand_unsaturated = cand.iter().filter(|&&i| !geo[i].0.saturated).count();
+    // The model's sanity check counts the uncorrected fit's inliers (the band's extra
+    // points lie at the rim, where the model's limits leave many out).
+    let inliers_unsaturated = (0..n)
+        .filter(|&i| uncorrected.inlier[i] && !geo[i].0.saturated)
+        .count();
     // Refits of the corrected points: trimmed as the caller's fit is (on the corrected
     // residuals), started from the algebraic fit; the sensitivity fits of the same
     // points untrimmed.
@@ -555,11 +559,12 @@ pub fn correct_sphere_bias(
             .zip(&corr)
             .filter_map(|(&i, c)| c.map(|_| i))
             .collect();
-        if good.len() < cand_unsaturated / 2 || good.len() < MIN_MODELLED {
+        let good_inliers = good.iter().filter(|&&i| uncorrected.inlier[i]).count();
+        if good_inliers < inliers_unsaturated / 2 || good.len() < MIN_MODELLED {
             return Err(Error::Degenerate(format!(
-                "stripe bias: the model holds for {} of the {} points near the sphere only{}",
-                good.len(),
-                cand.len(),
+                "stripe bias: the model holds for {good_inliers} of the uncorrected fit's {} \
+                 inliers only{}",
+                uncorrected.points,
                 saturated_hint(saturated)
             )));
         }
