@@ -105,6 +105,14 @@ fn exact_fit() -> FitOptions {
     }
 }
 
+/// Each point's outward unit normal of the sphere centred at `centre`.
+fn outward_normals(pts: &ScanPoints, centre: &Vector3<f64>) -> Vec<Vector3<f64>> {
+    pts.points_mm
+        .iter()
+        .map(|p| (Vector3::from(*p) - centre).normalize())
+        .collect()
+}
+
 fn sd(x: &[f64]) -> f64 {
     let m = x.iter().sum::<f64>() / x.len() as f64;
     (x.iter().map(|v| (v - m).powi(2)).sum::<f64>() / (x.len() - 1) as f64).sqrt()
@@ -259,11 +267,7 @@ fn random_part_matches_monte_carlo_with_unequal_noise() {
     let model = UncertaintyModel::new(&cal, &UncertaintyOptions::default()).unwrap();
     let mut frames = ScanFrames::new(&model, &rd);
     // Each point's normal and noise: sd 1 um in the cap's middle to 5 um at its rim.
-    let normals: Vec<Vector3<f64>> = pts
-        .points_mm
-        .iter()
-        .map(|p| (Vector3::from(*p) - centre).normalize())
-        .collect();
+    let normals = outward_normals(&pts, &centre);
     let mid = normals.iter().sum::<Vector3<f64>>().normalize();
     let ang: Vec<f64> = normals
         .iter()
@@ -404,11 +408,7 @@ fn random_part_of_a_trimmed_fit_matches_monte_carlo_with_heavy_tails() {
     let rd = readings();
     let model = UncertaintyModel::new(&cal, &UncertaintyOptions::default()).unwrap();
     let mut frames = ScanFrames::new(&model, &rd);
-    let normals: Vec<Vector3<f64>> = pts
-        .points_mm
-        .iter()
-        .map(|p| (Vector3::from(*p) - centre).normalize())
-        .collect();
+    let normals = outward_normals(&pts, &centre);
     let trimmed = FitOptions {
         trim_sigma: 3.0,
         robust_start: false,

@@ -12,18 +12,16 @@
 //! what is left is its even part, the bias, at a fraction of the draws.
 
 use nalgebra::Vector3;
-use rayon::prelude::*;
 
 use crate::error::Result;
 use crate::model::camera::Camera;
 use crate::model::geometry::{Iso3, Plane};
-use crate::model::StripeDirection;
 use crate::numerics::rng::SplitMix64;
-use crate::reconstruct::{stripe_direction_from_plane, ScanPoints};
+use crate::reconstruct::ScanPoints;
 use crate::vision::stripe::profile_centre;
 
-use super::points::point_geo;
-use super::profile::{point_profile, scan_line_values, PointProfile};
+use super::points::per_modelled_point;
+use super::profile::scan_line_values;
 use super::StripeBiasOptions;
 
 /// The model's mean noise-induced centre shift per point (px along the scan line), for
@@ -45,64 +43,37 @@ pub fn predicted_noise_shift_px(
     pairs: usize,
     seed: u64,
 ) -> Result<Vec<Option<NoiseShift>>> {
-    let mut stripe = opts.stripe.clone();
-    if stripe.direction == StripeDirection::Auto {
-        stripe.direction = stripe_direction_from_plane(camera, plane);
-    }
-    let rig = super::sphere_rig(camera, plane, &stripe, opts)?;
-    let cam_base: Vec<Iso3> = base_cam.iter().map(|t| t.inverse()).collect();
-    let geo = (0..points.len())
-        .map(|i| point_geo(points, &cam_base, rig.along, i))
-        .collect::<Result<Vec<_>>>()?;
-    Ok(geo
-        .par_iter()
-        .enumerate()
-        .map_init(
-            || (PointProfile::default(), Vec::new(), Vec::new()),
-            |(prof, buf, noisy), (i, (g, f))| {
-                if g.saturated {
-                    return None;
-                }
-                let c = (cam_base[*f] * nalgebra::Point3::from(*sphere.0)).coords;
-                if !point_profile(
-                    &rig,
-                    &c,
-                    sphere.1,
-                    g.line,
-                    &g.p_cam,
-                    sheet_sigma_mm,
-                    psf_sigma_px,
-                    prof,
-                ) {
-                    return None;
-                }
-                scan_line_values(prof, psf_sigma_px, rig.stripe, buf)?;
-                let (_, _, peak) = profile_centre(buf, rig.stripe)?;
-                let measured = points.intensity.get(i).copied().unwrap_or(0.0) as f64;
-                if !(measured > 0.0 && peak > 0.0) {
-                    return None;
-                }
-                // Model units per gray level of the image.
-                let sd = noise_gray * peak / measured;
-                let floor = 8.0 * sd;
-                buf.iter_mut().for_each(|v| *v += floor);
-                let (c0, _, _) = profile_centre(buf, rig.stripe)?;
-                let mut rng = SplitMix64(seed ^ (i as u64).wrapping_mul(0x9E37_79B9_7F4A_7C15));
-                let mut d: Vec<f64> = Vec::with_capacity(2 * pairs);
-                for _ in 0..pairs {
-                    let e: Vec<f64> = buf.iter().map(|_| sd * rng.normal()).collect();
-                    for sign in [1.0, -1.0] {
-                        noisy.clear();
-                        noisy.extend(buf.iter().zip(&e).map(|(v, e)| v + sign * e));
-                        if let Some((c1, _, _)) = profile_centre(noisy, rig.stripe) {
-                            d.push(c1 - c0);
-                        }
+    per_modelled_point(
+        (points, base_cam, camera, plane, opts),
+        sphere,
+        (sheet_sigma_mm, psf_sigma_px),
+        |rig, i, prof, (buf, noisy): &mut (Vec<f64>, Vec<f64>)| {
+            scan_line_values(prof, psf_sigma_px, rig.stripe, buf)?;
+            let (_, _, peak) = profile_centre(buf, rig.stripe)?;
+            let measured = points.intensity.get(i).copied().unwrap_or(0.0) as f64;
+            if !(measured > 0.0 && peak > 0.0) {
+                return None;
+            }
+            // Model units per gray level of the image.
+            let sd = noise_gray * peak / measured;
+            let floor = 8.0 * sd;
+            buf.iter_mut().for_each(|v| *v += floor);
+            let (c0, _, _) = profile_centre(buf, rig.stripe)?;
+            let mut rng = SplitMix64(seed ^ (i as u64).wrapping_mul(0x9E37_79B9_7F4A_7C15));
+            let mut d: Vec<f64> = Vec::with_capacity(2 * pairs);
+            for _ in 0..pairs {
+                let e: Vec<f64> = buf.iter().map(|_| sd * rng.normal()).collect();
+                for sign in [1.0, -1.0] {
+                    noisy.clear();
+                    noisy.extend(buf.iter().zip(&e).map(|(v, e)| v + sign * e));
+                    if let Some((c1, _, _)) = profile_centre(noisy, rig.stripe) {
+                        d.push(c1 - c0);
                     }
                 }
-                NoiseShift::of(&mut d)
-            },
-        )
-        .collect())
+            }
+            NoiseShift::of(&mut d)
+        },
+    )
 }
 
 /// A point's centre shifts under noise, px: their mean, median, and their mean within

@@ -129,6 +129,35 @@ pub fn predicted_bias_px(
     psf_sigma_px: f64,
     opts: &StripeBiasOptions,
 ) -> Result<Vec<Option<f64>>> {
+    per_modelled_point(
+        (points, base_cam, camera, plane, opts),
+        sphere,
+        (sheet_sigma_mm, psf_sigma_px),
+        |rig, _, prof, buf: &mut Vec<f64>| {
+            extractor_response(prof, psf_sigma_px, rig.stripe, buf).map(|x| x.0)
+        },
+    )
+}
+
+/// The scan, its poses and the model's setting: `(points, base_cam, camera, plane, opts)`.
+pub(crate) type ModelInputs<'a> = (
+    &'a ScanPoints,
+    &'a [Iso3],
+    &'a Camera,
+    &'a Plane,
+    &'a StripeBiasOptions,
+);
+
+/// `f(rig, i, profile, scratch)` on each point's modelled profile for the sphere
+/// `(centre, radius)` (base frame) and the sigmas `(sheet mm, PSF px)`, in parallel;
+/// `None` where the point is saturated or the model fails. What the diagnostics
+/// ([`predicted_bias_px`], [`super::predicted_noise_shift_px`]) share.
+pub(crate) fn per_modelled_point<T: Send, S: Default + Send>(
+    (points, base_cam, camera, plane, opts): ModelInputs<'_>,
+    sphere: (&Vector3<f64>, f64),
+    (sigma, psf): (f64, f64),
+    f: impl Fn(&Rig<'_>, usize, &PointProfile, &mut S) -> Option<T> + Sync + Send,
+) -> Result<Vec<Option<T>>> {
     let mut stripe = opts.stripe.clone();
     if stripe.direction == StripeDirection::Auto {
         stripe.direction = stripe_direction_from_plane(camera, plane);
@@ -140,26 +169,18 @@ pub fn predicted_bias_px(
         .collect::<Result<Vec<_>>>()?;
     Ok(geo
         .par_iter()
+        .enumerate()
         .map_init(
-            || (PointProfile::default(), Vec::new()),
-            |(prof, buf), (g, f)| {
+            || (PointProfile::default(), S::default()),
+            |(prof, scratch), (i, (g, fr))| {
                 if g.saturated {
                     return None;
                 }
-                let c = (cam_base[*f] * nalgebra::Point3::from(*sphere.0)).coords;
-                if !point_profile(
-                    &rig,
-                    &c,
-                    sphere.1,
-                    g.line,
-                    &g.p_cam,
-                    sheet_sigma_mm,
-                    psf_sigma_px,
-                    prof,
-                ) {
+                let c = (cam_base[*fr] * nalgebra::Point3::from(*sphere.0)).coords;
+                if !point_profile(&rig, &c, sphere.1, g.line, &g.p_cam, sigma, psf, prof) {
                     return None;
                 }
-                extractor_response(prof, psf_sigma_px, rig.stripe, buf).map(|x| x.0)
+                f(&rig, i, prof, scratch)
             },
         )
         .collect())
