@@ -17,8 +17,8 @@ use crate::model::camera::Camera;
 use crate::model::geometry::{Iso3, Plane};
 use crate::model::kinematics::Robot;
 use crate::model::{
-    Calibration, NamedCovariance, Quality, QualityCheck, RobotPoseNoise, RobotPoseView, SensorKind,
-    Sphere, SphereFit, Truth,
+    Calibration, LaserBoardFigure, LeaveOneOut, LooFold, LooView, NamedCovariance, Quality,
+    QualityCheck, RobotPoseNoise, RobotPoseView, SensorKind, Sphere, SphereFit, Truth,
 };
 
 /// The `format` value of calibration.json.
@@ -57,7 +57,7 @@ const SPHERE_FIT_KEYS: [&str; 5] = ["diameter_mm", "center_mm", "rms_mm", "point
 
 // ---------------------------------------------------------------- shared parts
 
-fn camera_from(c: &Obj<'_>) -> Result<Camera> {
+pub(super) fn camera_from(c: &Obj<'_>) -> Result<Camera> {
     let width = c.positive_u32("width")?;
     let height = c.positive_u32("height")?;
     let fu = c.positive_f64("fu")?;
@@ -80,7 +80,7 @@ fn camera_from(c: &Obj<'_>) -> Result<Camera> {
     Ok(cam)
 }
 
-fn camera_value(c: &Camera) -> Value {
+pub(super) fn camera_value(c: &Camera) -> Value {
     let mut m = Map::new();
     m.insert("width".into(), Value::from(c.width));
     m.insert("height".into(), Value::from(c.height));
@@ -96,7 +96,7 @@ fn camera_value(c: &Camera) -> Value {
     Value::Object(m)
 }
 
-fn plane_from(p: &Obj<'_>) -> Result<Plane> {
+pub(super) fn plane_from(p: &Obj<'_>) -> Result<Plane> {
     let nv = p.req("normal")?;
     let n = nv.vec3()?;
     if (n.norm() - 1.0).abs() > NORMAL_TOL {
@@ -125,7 +125,7 @@ fn opt_plane_from(root: &Obj<'_>) -> Result<Option<Plane>> {
         .transpose()
 }
 
-fn plane_value(p: &Plane) -> Value {
+pub(super) fn plane_value(p: &Plane) -> Value {
     let mut m = Map::new();
     m.insert("normal".into(), vec3_value(&p.normal));
     m.insert("d_mm".into(), num(p.d));
@@ -350,6 +350,71 @@ pub fn calibration_robot_pose_noise(c: &Calibration) -> Result<Option<RobotPoseN
     };
     let root = Obj::root(Path::new("calibration.json"), v)?;
     robot_pose_noise_from(&root).map(Some)
+}
+
+/// `leave_one_out` (see [`super::self_checks_extra`]); a `null` number reads as NaN,
+/// a view without `fold` (files written before it existed) has none.
+fn leave_one_out_from(o: &Obj<'_>) -> Result<LeaveOneOut> {
+    let num = |o: &Obj<'_>, key: &str| -> Result<f64> {
+        Ok(o.opt(key).map(|v| v.f64()).transpose()?.unwrap_or(f64::NAN))
+    };
+    let opt_num = |o: &Obj<'_>, key: &str| -> Result<Option<f64>> {
+        Ok(o.opt(key)
+            .map(|v| v.f64())
+            .transpose()?
+            .filter(|x| x.is_finite()))
+    };
+    let mut views = Vec::new();
+    for item in o.req("views")?.arr()? {
+        let v = item.obj()?;
+        let fold = v
+            .opt_obj("fold")?
+            .map(|f| -> Result<LooFold> {
+                Ok(LooFold {
+                    camera: camera_from(&f.obj("camera")?)?,
+                    plane: plane_from(&f.obj("laser_plane")?)?,
+                    cam_board: f.obj("cam_board")?.pose()?,
+                })
+            })
+            .transpose()?;
+        views.push(LooView {
+            view: v.count("view")?,
+            points: v.count("points")?,
+            board_rms_px: num(&v, "board_rms_px")?,
+            board_rms_mm: num(&v, "board_rms_mm")?,
+            stripe_points: v.count("stripe_points")?,
+            stripe_rms_mm: opt_num(&v, "stripe_rms_mm")?,
+            disagrees: v.req("disagrees")?.bool()?,
+            fold,
+        });
+    }
+    let laser_board = o
+        .opt_obj("laser_board")?
+        .map(|l| -> Result<LaserBoardFigure> {
+            Ok(LaserBoardFigure {
+                median_mm: num(&l, "median_mm")?,
+                p95_mm: num(&l, "p95_mm")?,
+                points: l.count("points")?,
+            })
+        })
+        .transpose()?;
+    Ok(LeaveOneOut {
+        views,
+        median_board_rms_px: num(o, "median_board_rms_px")?,
+        median_board_rms_mm: num(o, "median_board_rms_mm")?,
+        median_stripe_rms_mm: opt_num(o, "median_stripe_rms_mm")?,
+        laser_board,
+    })
+}
+
+/// The leave-one-view-out figures a calibration holds (its extra key
+/// `leave_one_out`), `None` when it has none; an error when the key is malformed.
+pub fn calibration_leave_one_out(c: &Calibration) -> Result<Option<LeaveOneOut>> {
+    let Some(v) = c.extra.get("leave_one_out") else {
+        return Ok(None);
+    };
+    let root = Obj::root(Path::new("calibration.json"), v)?;
+    leave_one_out_from(&root).map(Some)
 }
 
 /// The common keys, or a bench file's (neither `hand_cam` nor `base_board`: read as

@@ -35,9 +35,9 @@ mod sensor;
 pub use artefacts::read_artefacts;
 pub use atomic::write_atomic;
 pub use calibration::{
-    calibration_from_json, calibration_robot_pose_noise, calibration_to_json, read_calibration,
-    read_sphere_fit, read_truth, sphere_fit_to_json, truth_from_json, truth_to_json,
-    write_calibration, write_sphere_fit, write_truth,
+    calibration_from_json, calibration_leave_one_out, calibration_robot_pose_noise,
+    calibration_to_json, read_calibration, read_sphere_fit, read_truth, sphere_fit_to_json,
+    truth_from_json, truth_to_json, write_calibration, write_sphere_fit, write_truth,
 };
 pub use csv::{
     read_scan_csv, read_views_csv, write_scan_csv, write_scan_csv_with, write_views_csv,

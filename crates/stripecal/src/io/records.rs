@@ -156,6 +156,16 @@ pub fn self_checks_extra(
                 o.insert("stripe_points".into(), Value::from(v.stripe_points));
                 o.insert("stripe_rms_mm".into(), opt(v.stripe_rms_mm));
                 o.insert("disagrees".into(), Value::from(v.disagrees));
+                if let Some(f) = &v.fold {
+                    let mut fo = Map::new();
+                    fo.insert("camera".into(), super::calibration::camera_value(&f.camera));
+                    fo.insert(
+                        "laser_plane".into(),
+                        super::calibration::plane_value(&f.plane),
+                    );
+                    fo.insert("cam_board".into(), super::json::pose_value(&f.cam_board));
+                    o.insert("fold".into(), Value::Object(fo));
+                }
                 Value::Object(o)
             })
             .collect();
@@ -170,6 +180,13 @@ pub fn self_checks_extra(
             finite_or_null(l.median_board_rms_mm),
         );
         o.insert("median_stripe_rms_mm".into(), opt(l.median_stripe_rms_mm));
+        if let Some(f) = &l.laser_board {
+            let mut lb = Map::new();
+            lb.insert("median_mm".into(), finite_or_null(f.median_mm));
+            lb.insert("p95_mm".into(), finite_or_null(f.p95_mm));
+            lb.insert("points".into(), Value::from(f.points));
+            o.insert("laser_board".into(), Value::Object(lb));
+        }
         m.insert("leave_one_out".into(), Value::Object(o));
     }
     m

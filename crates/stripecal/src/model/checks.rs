@@ -44,6 +44,56 @@ pub struct LooView {
     /// Whether the view disagrees with the others: its `board_rms_px` beyond
     /// [`LOO_DISAGREE_FACTOR`] times the median over views.
     pub disagrees: bool,
+    /// What the calibration without the view predicts for it (`None` without a laser
+    /// plane): enough to score any stripe points of the view
+    /// ([`crate::pipeline::held_out_laser_board`]).
+    pub fold: Option<LooFold>,
+}
+
+/// What the calibration without view `view` predicts for that view: its camera and
+/// laser plane, and the view's board pose in the camera frame (from its robot pose and
+/// the fold's hand-eye and robot-world; on the bench from its own target points with
+/// the fold's camera).
+#[derive(Debug, Clone, PartialEq)]
+pub struct LooFold {
+    pub camera: crate::model::camera::Camera,
+    pub plane: crate::model::geometry::Plane,
+    pub cam_board: crate::model::geometry::Iso3,
+}
+
+/// The held-out laser->board distance (DECISIONS 8): every stripe point of every view,
+/// triangulated with the laser plane of the calibration without that view, against the
+/// board plane that calibration predicts for the view; absolute distances pooled over
+/// all points of all views.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct LaserBoardFigure {
+    /// Median of the absolute distances, mm.
+    pub median_mm: f64,
+    /// Their 95th percentile, mm.
+    pub p95_mm: f64,
+    /// Points scored.
+    pub points: usize,
+}
+
+impl LaserBoardFigure {
+    /// The figure of absolute distances `d` (mm); `None` for none.
+    pub fn of(d: &mut [f64]) -> Option<LaserBoardFigure> {
+        if d.is_empty() {
+            return None;
+        }
+        d.sort_by(f64::total_cmp);
+        let q = |p: f64| {
+            // linear interpolation between order statistics (numpy's default)
+            let x = p * (d.len() - 1) as f64;
+            let (i, f) = (x.floor() as usize, x - x.floor());
+            d[i] + f * (d[(i + 1).min(d.len() - 1)] - d[i])
+        };
+        Some(LaserBoardFigure {
+            median_mm: q(0.5),
+            p95_mm: q(0.95),
+            points: d.len(),
+        })
+    }
 }
 
 /// A view whose leave-one-out figure exceeds this many times the median disagrees.
@@ -56,4 +106,7 @@ pub struct LeaveOneOut {
     pub median_board_rms_px: f64,
     pub median_board_rms_mm: f64,
     pub median_stripe_rms_mm: Option<f64>,
+    /// The held-out laser->board distance over the calibration's own stripe points
+    /// (DECISIONS 8; `None` without a laser plane).
+    pub laser_board: Option<LaserBoardFigure>,
 }

@@ -15,7 +15,9 @@ mod profile;
 mod quality;
 mod results;
 
-pub use checks::{BoardScaleCheck, LeaveOneOut, LooView, LOO_DISAGREE_FACTOR};
+pub use checks::{
+    BoardScaleCheck, LaserBoardFigure, LeaveOneOut, LooFold, LooView, LOO_DISAGREE_FACTOR,
+};
 pub use dataset::{
     Dataset, Rig, RobotReading, Scan, ScanFrame, StripeChannel, StripeDirection, View,
 };

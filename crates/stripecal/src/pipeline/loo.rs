@@ -33,7 +33,7 @@ use crate::error::{Error, Result};
 use crate::model::board::Board;
 use crate::model::camera::Camera;
 use crate::model::geometry::{Iso3, Plane};
-use crate::model::{LeaveOneOut, LooView, LOO_DISAGREE_FACTOR};
+use crate::model::{LaserBoardFigure, LeaveOneOut, LooFold, LooView, LOO_DISAGREE_FACTOR};
 use crate::numerics::robust::median_mean;
 
 /// The views a leave-one-out needs at least: every refit keeps 3.
@@ -59,9 +59,9 @@ pub(super) fn leave_one_out(
     };
     let mut opts = jopts.clone();
     opts.board_scale = full.board_scale;
-    let mut views: Vec<LooView> = (0..used.len())
+    let scored: Vec<(LooView, Vec<f64>)> = (0..used.len())
         .into_par_iter()
-        .map(|k| -> Result<LooView> {
+        .map(|k| -> Result<(LooView, Vec<f64>)> {
             let others: Vec<ViewObs> = used
                 .iter()
                 .enumerate()
@@ -93,6 +93,8 @@ pub(super) fn leave_one_out(
             predict_with_pose(&used[k], board, &fit, cb, opts.centre_model)
         })
         .collect::<Result<_>>()?;
+    let mut distances: Vec<f64> = scored.iter().flat_map(|(_, d)| d.iter().copied()).collect();
+    let mut views: Vec<LooView> = scored.into_iter().map(|(v, _)| v).collect();
     let med = |views: &[LooView], f: &dyn Fn(&LooView) -> Option<f64>| {
         let mut xs: Vec<f64> = views.iter().filter_map(f).collect();
         median_mean(&mut xs)
@@ -105,8 +107,50 @@ pub(super) fn leave_one_out(
         median_board_rms_px: median_px,
         median_board_rms_mm: med(&views, &|v| Some(v.board_rms_mm)).unwrap_or(f64::NAN),
         median_stripe_rms_mm: med(&views, &|v| v.stripe_rms_mm),
+        laser_board: LaserBoardFigure::of(&mut distances),
         views,
     }))
+}
+
+/// The held-out laser->board distance (DECISIONS 8) of any stripe points: `points`
+/// holds `(view, [(u, v), ...])` per view (views.csv rows), scored with the folds of a
+/// leave-one-out (`loo`): each point triangulated with the laser plane of the
+/// calibration without its view, its distance from the board plane that calibration
+/// predicts for the view. For a peer's or a plain extractor's points, so that a
+/// figure cannot improve by leaving hard points out.
+///
+/// Errors: a view without a fold (not in the leave-one-out, or no laser plane), a
+/// non-finite point. `None` when no point could be scored.
+pub fn held_out_laser_board(
+    loo: &LeaveOneOut,
+    points: &[(usize, Vec<[f64; 2]>)],
+) -> Result<Option<LaserBoardFigure>> {
+    let mut d = Vec::new();
+    for (view, uvs) in points {
+        let fold = loo
+            .views
+            .iter()
+            .find(|v| v.view == *view)
+            .and_then(|v| v.fold.as_ref())
+            .ok_or_else(|| {
+                Error::InvalidInput(format!(
+                    "held-out laser->board: view {view} has no leave-one-out fold (not used \
+                     by the calibration, or no laser plane)"
+                ))
+            })?;
+        let board_plane = board_plane_in_cam(&fold.cam_board);
+        for uv in uvs {
+            if !(uv[0].is_finite() && uv[1].is_finite()) {
+                return Err(Error::InvalidInput(format!(
+                    "held-out laser->board: view {view}: point {uv:?} is not finite"
+                )));
+            }
+            if let Some(p) = ray_on_plane(&fold.camera, *uv, &fold.plane) {
+                d.push((board_plane.normal.dot(&p) - board_plane.d).abs());
+            }
+        }
+    }
+    Ok(LaserBoardFigure::of(&mut d))
 }
 
 /// View `v`'s observations predicted by `fit` (which did not see it) from its robot
@@ -117,7 +161,7 @@ fn predict_view(
     board: &Board,
     fit: &JointResult,
     model: CentreModel,
-) -> Result<LooView> {
+) -> Result<(LooView, Vec<f64>)> {
     let a = v.base_hand.ok_or_else(|| {
         Error::InvalidInput(format!("leave-one-out: view {} has no robot pose", v.view))
     })?;
@@ -179,14 +223,15 @@ fn own_board_pose(
     })
 }
 
-/// View `v`'s observations against the board pose `cb` and `fit`'s camera and plane.
+/// View `v`'s observations against the board pose `cb` and `fit`'s camera and plane,
+/// with the absolute distances of its stripe points from that board plane (mm).
 fn predict_with_pose(
     v: &ViewObs,
     board: &Board,
     fit: &JointResult,
     cb: Iso3,
     model: CentreModel,
-) -> Result<LooView> {
+) -> Result<(LooView, Vec<f64>)> {
     let s = fit.board_scale;
     // The board's points are imaged as rig.json's board at t / s (see the layout).
     let cb_img = Iso3::from_parts((cb.translation.vector / s).into(), cb.rotation);
@@ -213,17 +258,17 @@ fn predict_with_pose(
         ss_mm += (hit - predicted.coords).norm_squared();
     }
     let n = v.circles.len().max(1) as f64;
-    let mut stripe_ss = 0.0;
-    let mut stripe_n = 0usize;
+    let mut dist = Vec::with_capacity(v.stripe.len());
     if let Some(plane) = &fit.plane {
         for uv in &v.stripe {
             if let Some(p) = ray_on_plane(cam, *uv, plane) {
-                stripe_ss += (board_plane.normal.dot(&p) - board_plane.d).powi(2);
-                stripe_n += 1;
+                dist.push((board_plane.normal.dot(&p) - board_plane.d).abs());
             }
         }
     }
-    Ok(LooView {
+    let stripe_n = dist.len();
+    let stripe_ss: f64 = dist.iter().map(|d| d * d).sum();
+    let view = LooView {
         view: v.view,
         points: v.circles.len(),
         board_rms_px: (ss_px / n).sqrt(),
@@ -231,7 +276,13 @@ fn predict_with_pose(
         stripe_points: stripe_n,
         stripe_rms_mm: (stripe_n > 0).then(|| (stripe_ss / stripe_n as f64).sqrt()),
         disagrees: false,
-    })
+        fold: fit.plane.map(|plane| LooFold {
+            camera: cam.clone(),
+            plane,
+            cam_board: cb,
+        }),
+    };
+    Ok((view, dist))
 }
 
 /// Where the viewing ray of pixel `uv` meets `plane` (camera frame, mm); `None` when it

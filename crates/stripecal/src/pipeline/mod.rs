@@ -38,6 +38,7 @@ mod kinematics;
 mod labels;
 mod laser_only;
 mod loo;
+pub use loo::held_out_laser_board;
 pub mod measure;
 #[cfg(test)]
 mod measure_profiler_tests;

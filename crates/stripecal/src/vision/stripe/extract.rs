@@ -1,9 +1,14 @@
-//! The extractor: the rows and columns drivers that run the ridge search per scan line
-//! and the sub-pixel centre of the chosen peak, then the continuity filter and the
-//! oblique flag; and the automatic choice of the scan direction.
+//! The extractor: the survey of the line (its width, saturation and speckle), the
+//! smoothing along the line where it helps, the rows and columns drivers that run the
+//! ridge search per scan line, the decision between comparable peaks by the line's
+//! continuity, and the sub-pixel centre of the chosen peak; then the continuity filter
+//! and the oblique flag; and the automatic choice of the scan direction.
 
+use super::chains::{Chains, Decision};
 use super::peak::{line_subpixel, ColumnLine, Params, RowLine, Sub};
 use super::ridge::{scan_columns, scan_line, LineCand, LineReject, RidgePixel};
+use super::smooth::{scale_of, smooth_along};
+use super::survey::{survey, Survey};
 use super::{RejectCounts, StripeDirection, StripeOptions, StripePoint, FLAG_OBLIQUE};
 use crate::error::Result;
 use crate::model::image::{AnyView, ImageView};
@@ -22,7 +27,15 @@ pub struct StripeExtractor {
     rows: Vec<LineCand>,
     seg: Vec<f32>,
     col: Vec<u16>,
+    /// The smoothed image and its column sums.
+    smooth: Vec<u16>,
+    acc: Vec<u32>,
+    chains: Chains,
+    decisions: Vec<Decision>,
     rejected: RejectCounts,
+    survey: Survey,
+    along: usize,
+    ridge: usize,
 }
 
 impl StripeExtractor {
@@ -30,12 +43,19 @@ impl StripeExtractor {
     pub fn new(opts: StripeOptions) -> Result<StripeExtractor> {
         opts.validate()?;
         Ok(StripeExtractor {
+            ridge: opts.ridge_px,
             opts,
             cands: Vec::new(),
             rows: Vec::new(),
             seg: Vec::new(),
             col: Vec::new(),
+            smooth: Vec::new(),
+            acc: Vec::new(),
+            chains: Chains::default(),
+            decisions: Vec::new(),
             rejected: RejectCounts::default(),
+            survey: Survey::default(),
+            along: 1,
         })
     }
 
@@ -47,6 +67,17 @@ impl StripeExtractor {
     /// Why scan lines of the last image gave no point.
     pub fn rejected(&self) -> RejectCounts {
         self.rejected
+    }
+
+    /// What the survey of the last image saw (its line's width, saturation, speckle).
+    pub fn survey(&self) -> Survey {
+        self.survey
+    }
+
+    /// The ridge distance and the scan lines averaged along the line for the last
+    /// image (from the survey, or the options where they fix them).
+    pub fn adapted(&self) -> (usize, usize) {
+        (self.ridge, self.along)
     }
 
     /// Extracts the stripe of `img` into `out` (cleared first), in scan-line order, and
@@ -70,101 +101,130 @@ impl StripeExtractor {
         img: &ImageView<'_, T>,
         out: &mut Vec<StripePoint>,
     ) -> Result<StripeDirection> {
-        let (dir, auto) = match self.opts.direction {
+        self.survey = survey(img, &self.opts, self.opts.direction);
+        let mut opts = self.opts.clone();
+        opts.ridge_px = if self.opts.adapt_ridge {
+            self.survey.ridge_px(&self.opts)
+        } else {
+            self.opts.ridge_px
+        };
+        self.ridge = opts.ridge_px;
+        self.along = self.survey.along_line(&self.opts);
+        let (dir, auto) = match opts.direction {
             StripeDirection::Auto => (
-                auto_direction(img, &self.opts, &mut self.cands, &mut self.rows),
+                auto_direction(img, &opts, &mut self.cands, &mut self.rows),
                 true,
             ),
             d => (d, false),
         };
-        let p = Params::new::<T>(&self.opts);
+        if self.along > 1 {
+            let mut sm = std::mem::take(&mut self.smooth);
+            let mut acc = std::mem::take(&mut self.acc);
+            smooth_along(img, dir, self.along, &mut sm, &mut acc);
+            let view = ImageView::from_slice(&sm, img.width(), img.height())?;
+            // the smoothed image is on the 16-bit scale: peaks back to the input's
+            let back = 1.0 / scale_of::<T>() as f32;
+            self.passes(&view, dir, false, &opts, out, back);
+            self.smooth = sm;
+            self.acc = acc;
+        } else {
+            self.passes(img, dir, auto, &opts, out, 1.0);
+        }
+        Ok(dir)
+    }
+
+    /// The ridge search, the decision per scan line and the sub-pixel centres on `img`
+    /// (the image or its smoothed copy); peaks scaled by `back` into the input's gray
+    /// levels.
+    fn passes<T: RidgePixel>(
+        &mut self,
+        img: &ImageView<'_, T>,
+        dir: StripeDirection,
+        auto: bool,
+        opts: &StripeOptions,
+        out: &mut Vec<StripePoint>,
+        back: f32,
+    ) {
+        let p = Params::new::<T>(opts);
         let thr = T::from_u32_clamped(p.min_contrast.ceil().max(1.0) as u32);
         let mut rej = RejectCounts::default();
-        let dir = if dir == StripeDirection::Rows {
+        if dir == StripeDirection::Rows {
             if !auto {
                 // (the auto decision leaves the column candidates in `cands`)
                 self.cands.clear();
                 self.cands.resize(img.width(), LineCand::default());
                 scan_columns(img, p.d, thr, &mut self.cands);
             }
-            self.columns_pass(img, &p, out, &mut rej);
-            StripeDirection::Rows
         } else {
-            self.rows_pass(img, &p, thr, auto, out, &mut rej);
-            StripeDirection::Cols
-        };
-        rej.isolated = continuity(out, dir, self.opts.min_chain, self.opts.max_jump_px);
-        flag_oblique(out, dir, self.opts.max_slope);
-        self.rejected = rej;
-        Ok(dir)
-    }
-
-    /// `Rows` direction: one point per image column, from the column candidates in
-    /// `self.cands`.
-    fn columns_pass<T: RidgePixel>(
-        &mut self,
-        img: &ImageView<'_, T>,
-        p: &Params,
-        out: &mut Vec<StripePoint>,
-        rej: &mut RejectCounts,
-    ) {
-        let ratio = self.opts.second_peak_ratio;
-        for x in 0..img.width() {
-            let pk = match self.cands[x].verdict(ratio) {
-                Ok(pk) => pk,
-                Err(e) => {
-                    count(rej, e);
+            self.row_candidates(img, p.d, thr, auto);
+        }
+        // a wide line's peak pixel wanders within its top
+        let slack = 0.5 * opts.ridge_px as f32;
+        self.chains.decide(
+            &self.cands,
+            opts.second_peak_ratio,
+            opts.max_jump_px,
+            slack,
+            &mut self.decisions,
+        );
+        for (l, d) in self.decisions.iter().enumerate() {
+            let (pk, reflection) = match *d {
+                Decision::Peak(pk, r) => (pk, r),
+                Decision::Reject(e) => {
+                    count(&mut rej, e);
                     continue;
                 }
             };
-            let mut line = ColumnLine {
-                img,
-                x,
-                buf: &mut self.col,
+            rej.reflections += reflection as usize;
+            let (a, res) = if dir == StripeDirection::Rows {
+                let mut line = ColumnLine {
+                    img,
+                    x: l,
+                    buf: &mut self.col,
+                };
+                line_subpixel(&mut line, &mut self.seg, img.height(), pk, &p)
+            } else {
+                let w = img.width();
+                line_subpixel(&mut RowLine(img.row(l)), &mut self.seg, w, pk, &p)
             };
-            let (y0, res) = line_subpixel(&mut line, &mut self.seg, img.height(), pk, p);
             match res {
-                Ok(s) => out.push(point(x as f64, y0 as f64 + s.c, &s)),
-                Err(e) => count(rej, e),
+                Ok(s) => {
+                    let pos = a as f64 + s.c;
+                    let mut pt = if dir == StripeDirection::Rows {
+                        point(l as f64, pos, &s)
+                    } else {
+                        point(pos, l as f64, &s)
+                    };
+                    pt.peak *= back;
+                    out.push(pt);
+                }
+                Err(e) => count(&mut rej, e),
             }
         }
+        rej.isolated = continuity(out, dir, opts.min_chain, opts.max_jump_px);
+        flag_oblique(out, dir, opts.max_slope);
+        self.rejected = rej;
     }
 
-    /// `Cols` direction: one point per image row (rows the auto decision sampled reuse
-    /// its candidates in `self.rows`).
-    fn rows_pass<T: RidgePixel>(
+    /// `Cols` direction: the candidates of every image row into `self.cands` (rows the
+    /// auto decision sampled reuse its candidates in `self.rows`).
+    fn row_candidates<T: RidgePixel>(
         &mut self,
         img: &ImageView<'_, T>,
-        p: &Params,
+        d: usize,
         thr: T,
         auto: bool,
-        out: &mut Vec<StripePoint>,
-        rej: &mut RejectCounts,
     ) {
-        let ratio = self.opts.second_peak_ratio;
-        let w = img.width();
-        for y in 0..img.height() {
-            let row = img.row(y);
+        self.cands.clear();
+        self.cands.resize(img.height(), LineCand::default());
+        for (y, cand) in self.cands.iter_mut().enumerate() {
             // rows that the auto decision sampled are scanned already
             let sampled = (auto && y % AUTO_STEP == AUTO_STEP / 2)
                 .then(|| self.rows.get(y / AUTO_STEP).copied())
                 .flatten();
-            let cand = sampled.unwrap_or_else(|| {
-                let mut cand = LineCand::default();
-                scan_line(row, p.d, thr, &mut cand);
-                cand
-            });
-            let pk = match cand.verdict(ratio) {
-                Ok(pk) => pk,
-                Err(e) => {
-                    count(rej, e);
-                    continue;
-                }
-            };
-            let (x0, res) = line_subpixel(&mut RowLine(row), &mut self.seg, w, pk, p);
-            match res {
-                Ok(s) => out.push(point(x0 as f64 + s.c, y as f64, &s)),
-                Err(e) => count(rej, e),
+            match sampled {
+                Some(c) => *cand = c,
+                None => scan_line(img.row(y), d, thr, cand),
             }
         }
     }

@@ -48,6 +48,7 @@
 //! Colour laser images: the extractor runs on one channel's image, the signal that
 //! `stripe.channel` names ([`colour`]: BT.601 gray, or the laser colour's channel).
 
+mod chains;
 pub mod colour;
 mod edges;
 mod extract;
@@ -55,6 +56,8 @@ mod gauss;
 mod line;
 mod peak;
 mod ridge;
+mod smooth;
+pub mod survey;
 
 pub use crate::model::{StripeChannel, StripeDirection};
 pub use colour::{stripe_signal, stripe_signal_of_file};
@@ -149,6 +152,12 @@ pub struct StripeOptions {
     /// Points where the stripe's slope against the scan line exceeds this get
     /// [`FLAG_OBLIQUE`].
     pub max_slope: f32,
+    /// Widen the ridge distance to the line's width ([`survey`]): a line wider than
+    /// about `2 * ridge_px - 6` px is found with `ceil(width / 2) + 3`.
+    pub adapt_ridge: bool,
+    /// Scan lines averaged along the line before the centre (1: none; 0: auto, from
+    /// the [`survey`]: 5 for a saturated or speckled line, 1 otherwise). At most 31.
+    pub along_line: usize,
 }
 
 impl Default for StripeOptions {
@@ -160,16 +169,18 @@ impl Default for StripeOptions {
             min_contrast: 6.0,
             second_peak_ratio: 0.5,
             min_width_px: 1.2,
-            max_width_px: 24.0,
+            max_width_px: 36.0,
             window_fwhm: 1.0,
             flank_px: 3,
-            max_saturated_px: 6,
+            max_saturated_px: 48,
             low_signal_gray: 20.0,
             uneven_gray: 5.0,
             uneven_rel: 0.1,
             min_chain: 3,
             max_jump_px: 4.0,
             max_slope: 1.5,
+            adapt_ridge: true,
+            along_line: 0,
         }
     }
 }
@@ -214,6 +225,9 @@ impl StripeOptions {
         }
         if self.flank_px < 1 || self.flank_px > 32 {
             return bad(format!("flank_px {} must be in 1..=32", self.flank_px));
+        }
+        if self.along_line > 31 {
+            return bad(format!("along_line {} must be in 0..=31", self.along_line));
         }
         Ok(())
     }
@@ -299,6 +313,10 @@ pub struct RejectCounts {
     pub border: usize,
     /// Not part of a chain of neighbouring points (continuity).
     pub isolated: usize,
+    /// Scan lines that DID give a point, from the peak that continues the line, while
+    /// holding another peak of comparable strength (a reflection, a second line) that
+    /// was left out.
+    pub reflections: usize,
 }
 
 /// The stripe of one image.

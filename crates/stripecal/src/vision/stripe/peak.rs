@@ -13,6 +13,8 @@ use crate::model::image::{ImageView, Pixel};
 const SHORT_REACH: usize = 16;
 /// Rounds of window sizing and background estimation.
 const ROUNDS: usize = 2;
+/// A saturated run at least this long is a plateau: the centre comes from its edges.
+pub(super) const PLATEAU_PX: usize = 2;
 
 /// Options converted to the image's gray scale.
 #[derive(Debug, Clone, Copy)]
@@ -437,6 +439,18 @@ pub(super) fn subpixel<T: Pixel>(
     let (l, r) = (win.l - xmin as f32, win.r - xmin as f32);
     let last = xmax - xmin;
     let sums = residual_sums(&seg[xmin..=xmax], &win.bg, xmin, res);
+    if longest >= PLATEAU_PX {
+        // A saturated plateau: its top is clipped, so its middle is where the two
+        // edges' half-maximum crossings put it (as line profilers take it).
+        let c = 0.5 * (l + r) + xmin as f32;
+        return Ok(Sub {
+            c: c as f64,
+            peak: win.a,
+            width: w,
+            support: (c - flanks.0 as f32 + 0.5).max(flanks.1 as f32 + p.flank as f32 - 0.5 - c),
+            flags,
+        });
+    }
     let c = window_centroid(sums, 0.5 * (l + r), h, w, last)?;
     let mut cf = c as f64;
     if p.method == StripeMethod::Gaussian {

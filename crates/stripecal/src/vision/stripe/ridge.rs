@@ -48,22 +48,51 @@ ridge_pixel!(u16, 257.0);
 
 /// A run of consecutive ridge responses above the threshold.
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
-struct Run {
+pub(crate) struct Run {
     last: u32,
+    /// The largest ridge response of the run.
     strength: u32,
+    /// The sum of the run's ridge responses (its area: a wide or saturated line's
+    /// weight when lines of the same height compete).
+    area: u32,
     vmax: u32,
     pfirst: u32,
     plast: u32,
 }
 
-/// Peak candidates of one scan line: the strongest run and the strength of the next.
+impl Run {
+    /// The run's peak pixel: the middle of its brightest pixels.
+    #[inline]
+    pub(crate) fn peak(&self) -> usize {
+        ((self.pfirst + self.plast) / 2) as usize
+    }
+
+    /// The sum of the run's ridge responses.
+    #[inline]
+    pub(crate) fn area(&self) -> u32 {
+        self.area
+    }
+
+    /// The run's largest ridge response.
+    #[inline]
+    pub(crate) fn strength_f32(&self) -> f32 {
+        self.strength as f32
+    }
+}
+
+/// Runs a scan line keeps for the continuity decision between comparable peaks.
+pub(crate) const MAX_RUNS: usize = 4;
+
+/// Peak candidates of one scan line: the strongest runs (at most [`MAX_RUNS`], strongest
+/// first) and the strength of the strongest run not kept.
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
 pub(crate) struct LineCand {
     cur: Run,
     active: bool,
-    best: Run,
-    has_best: bool,
-    second: u32,
+    runs: [Run; MAX_RUNS],
+    n: u8,
+    /// The strongest response among the runs that were not kept.
+    dropped: u32,
 }
 
 impl LineCand {
@@ -73,6 +102,7 @@ impl LineCand {
             let c = &mut self.cur;
             c.last = pos;
             c.strength = c.strength.max(r);
+            c.area = c.area.saturating_add(r);
             if v > c.vmax {
                 c.vmax = v;
                 c.pfirst = pos;
@@ -85,6 +115,7 @@ impl LineCand {
             self.cur = Run {
                 last: pos,
                 strength: r,
+                area: r,
                 vmax: v,
                 pfirst: pos,
                 plast: pos,
@@ -93,38 +124,64 @@ impl LineCand {
         }
     }
 
+    /// Files the current run among the strongest (the first of equal strengths stays
+    /// ahead).
     fn close(&mut self) {
         if !self.active {
             return;
         }
         self.active = false;
         let c = self.cur;
-        if !self.has_best {
-            self.best = c;
-            self.has_best = true;
-        } else if c.strength > self.best.strength {
-            self.second = self.second.max(self.best.strength);
-            self.best = c;
-        } else {
-            self.second = self.second.max(c.strength);
+        let n = self.n as usize;
+        let at = self.runs[..n]
+            .iter()
+            .position(|r| c.strength > r.strength)
+            .unwrap_or(n);
+        if at >= MAX_RUNS {
+            self.dropped = self.dropped.max(c.strength);
+            return;
         }
+        if n == MAX_RUNS {
+            self.dropped = self.dropped.max(self.runs[MAX_RUNS - 1].strength);
+        }
+        let end = n.min(MAX_RUNS - 1);
+        self.runs.copy_within(at..end, at + 1);
+        self.runs[at] = c;
+        self.n = (end + 1) as u8;
     }
 
     /// Whether any run was found (for the tests).
     #[cfg(test)]
     pub(super) fn has_peak(&self) -> bool {
-        self.has_best
+        self.n > 0
+    }
+
+    /// The kept runs, strongest first.
+    #[inline]
+    pub(crate) fn runs(&self) -> &[Run] {
+        &self.runs[..self.n as usize]
+    }
+
+    /// The strength of the second strongest run (0 with one run).
+    #[inline]
+    fn second(&self) -> u32 {
+        if self.n > 1 {
+            self.runs[1].strength
+        } else {
+            self.dropped
+        }
     }
 
     /// The peak pixel of the single trustworthy run, or why there is none.
     pub(super) fn verdict(&self, ratio: f32) -> std::result::Result<usize, LineReject> {
-        if !self.has_best {
+        if self.n == 0 {
             return Err(LineReject::NoPeak);
         }
-        if self.second as f32 >= ratio * self.best.strength as f32 {
+        let best = &self.runs[0];
+        if self.second() as f32 >= ratio * best.strength as f32 {
             return Err(LineReject::Multiple);
         }
-        Ok(((self.best.pfirst + self.best.plast) / 2) as usize)
+        Ok(best.peak())
     }
 }
 

@@ -1,0 +1,130 @@
+//! Smoothing along the line: each pixel averaged with its neighbours across the scan
+//! lines (`n` scan lines, centred; clipped at the image's border), before the centre
+//! is taken. Laser speckle is a random brightness pattern of a few pixels' grain; along
+//! a straight line the average of neighbouring scan lines' profiles is centred where
+//! the middle scan line's is (each profile is the same shape shifted in proportion to
+//! its distance), so the centre keeps its place while the speckle averages down.
+//!
+//! The result is a 16-bit image on the input's scale times `257` for 8-bit input (the
+//! extractor's gray options scale with it), so a pixel is at full scale only where
+//! every averaged pixel is.
+
+use crate::model::image::{ImageView, Pixel};
+use crate::model::StripeDirection;
+
+/// 16-bit levels per input level: 257 for 8-bit input, 1 for 16-bit.
+#[inline]
+pub(super) fn scale_of<T: Pixel>() -> u32 {
+    if <T as Pixel>::MAX > 255.0 {
+        1
+    } else {
+        257
+    }
+}
+
+/// The image `img` averaged over `n` scan lines across `dir`'s scan lines, into `out`
+/// (`width * height` 16-bit pixels, row-major).
+pub(super) fn smooth_along<T: Pixel>(
+    img: &ImageView<'_, T>,
+    dir: StripeDirection,
+    n: usize,
+    out: &mut Vec<u16>,
+    acc: &mut Vec<u32>,
+) {
+    let (w, h) = (img.width(), img.height());
+    out.clear();
+    out.resize(w * h, 0);
+    let k = (n / 2) as isize;
+    let scale = scale_of::<T>();
+    if dir == StripeDirection::Rows {
+        // scan lines are columns: average along the rows (the line runs along them)
+        for y in 0..h {
+            let row = img.row(y);
+            let o = &mut out[y * w..(y + 1) * w];
+            let mut s: u32 = 0;
+            let mut cnt: u32 = 0;
+            // running sum over the window x - k ..= x + k, clipped
+            for x in 0..(k as usize).min(w) {
+                s += row[x].to_u32();
+                cnt += 1;
+            }
+            for x in 0..w {
+                let add = x as isize + k;
+                if (add as usize) < w {
+                    s += row[add as usize].to_u32();
+                    cnt += 1;
+                }
+                let sub = x as isize - k - 1;
+                if sub >= 0 {
+                    s -= row[sub as usize].to_u32();
+                    cnt -= 1;
+                }
+                o[x] = ((s * scale + cnt / 2) / cnt) as u16;
+            }
+        }
+    } else {
+        // scan lines are rows: average down the columns
+        acc.clear();
+        acc.resize(w, 0);
+        let mut cnt: u32 = 0;
+        for y in 0..(k as usize).min(h) {
+            for (a, v) in acc.iter_mut().zip(img.row(y)) {
+                *a += v.to_u32();
+            }
+            cnt += 1;
+        }
+        for y in 0..h {
+            let add = y as isize + k;
+            if (add as usize) < h {
+                for (a, v) in acc.iter_mut().zip(img.row(add as usize)) {
+                    *a += v.to_u32();
+                }
+                cnt += 1;
+            }
+            let sub = y as isize - k - 1;
+            if sub >= 0 {
+                for (a, v) in acc.iter_mut().zip(img.row(sub as usize)) {
+                    *a -= v.to_u32();
+                }
+                cnt -= 1;
+            }
+            for (o, a) in out[y * w..(y + 1) * w].iter_mut().zip(acc.iter()) {
+                *o = ((a * scale + cnt / 2) / cnt) as u16;
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn averages_across_the_scan_lines_and_keeps_full_scale() {
+        let (w, h) = (7, 6);
+        let img: Vec<u8> = (0..w * h)
+            .map(|i| if i % w == 3 { 255 } else { (i % 5) as u8 * 10 })
+            .collect();
+        let v = ImageView::from_slice(&img, w, h).unwrap();
+        let (mut out, mut acc) = (Vec::new(), Vec::new());
+        smooth_along(&v, StripeDirection::Cols, 3, &mut out, &mut acc);
+        for y in 0..h {
+            for x in 0..w {
+                let ys: Vec<usize> = (y.saturating_sub(1)..=(y + 1).min(h - 1)).collect();
+                let s: u32 = ys.iter().map(|&yy| img[yy * w + x] as u32).sum();
+                let want = (s * 257 + ys.len() as u32 / 2) / ys.len() as u32;
+                assert_eq!(out[y * w + x] as u32, want, "({x}, {y})");
+            }
+            assert_eq!(out[y * w + 3], 65535);
+        }
+        smooth_along(&v, StripeDirection::Rows, 3, &mut out, &mut acc);
+        for y in 0..h {
+            for x in 0..w {
+                let xs: Vec<usize> = (x.saturating_sub(1)..=(x + 1).min(w - 1)).collect();
+                let s: u32 = xs.iter().map(|&xx| img[y * w + xx] as u32).sum();
+                let want = (s * 257 + xs.len() as u32 / 2) / xs.len() as u32;
+                assert_eq!(out[y * w + x] as u32, want, "({x}, {y})");
+            }
+        }
+    }
+}

@@ -1,0 +1,219 @@
+//! A look at the image's line before extraction: how wide it is across, whether it is
+//! saturated, and how much its brightness jumps from one scan line to the next
+//! (speckle). The ridge distance and the smoothing along the line follow from it.
+//!
+//! ## Method
+//!
+//! Every [`STEP`]-th row and column is sampled. On each, the brightest pixel is the
+//! line's candidate when it stands at least `4 * min_contrast` above the line's median
+//! (a rough background); its width is the run of pixels around it above the level
+//! halfway between that median and the maximum (full width at half maximum, whole
+//! pixels). The line runs along the axis whose samples cross it narrowly: the width
+//! across the line is the median over the rows' runs or the columns' runs, whichever is
+//! smaller (a column cut along a near-vertical line gives a long run).
+//!
+//! A sampled row (column) and its neighbour are compared where both hold the line
+//! (their brightest pixels within 2 px plus the width; when fewer than half of the
+//! samples do, there is no line to measure and the index is 0): `|m_a - m_b| / ((m_a + m_b) /
+//! 2)` of their heights above the median. Its median over the pairs is the speckle
+//! index: about `sqrt(2) * 0.67 * noise / height` for a line with white noise alone
+//! (below 0.02 for a line 100 gray levels over a noise of 2), and 0.1-0.3 for a
+//! speckle of contrast 0.15-0.4 (the grain decorrelates the heights within a few scan
+//! lines).
+//!
+//! ## What follows
+//!
+//! - The ridge distance: `max(ridge_px, ceil(width / 2) + 3)` (at most
+//!   [`MAX_RIDGE_PX`]): a ridge must be narrower than twice the distance; a narrow line
+//!   keeps `ridge_px` (and the extraction of narrow lines is what it always was).
+//! - Smoothing along the line ([`StripeOptions::along_line`] `0`, auto): on when more
+//!   than [`SATURATED_SHARE`] of the sampled lines' peaks are at full scale (a
+//!   saturated line's edges carry the speckle that its clipped top hides) or the
+//!   speckle index exceeds [`SPECKLE_INDEX`].
+
+use super::ridge::RidgePixel;
+use super::{StripeDirection, StripeOptions};
+use crate::model::image::{ImageView, Pixel};
+
+/// Every `STEP`-th row and column is sampled.
+const STEP: usize = 8;
+/// The largest ridge distance the survey sets, px (a line up to about 58 px wide).
+pub const MAX_RIDGE_PX: usize = 32;
+/// Smoothing is on when more than this share of the sampled peaks are saturated.
+pub const SATURATED_SHARE: f64 = 0.25;
+/// Smoothing is on when the speckle index exceeds this.
+pub const SPECKLE_INDEX: f64 = 0.08;
+/// Scan lines averaged along the line when smoothing is on (auto).
+pub const AUTO_ALONG_LINE: usize = 5;
+
+/// What the survey saw.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct Survey {
+    /// The line's width across (FWHM, whole pixels; 0: no line seen).
+    pub width_px: f64,
+    /// Share of the sampled peaks at full scale.
+    pub saturated_share: f64,
+    /// The speckle index (module docs; 0 without pairs).
+    pub speckle_index: f64,
+    /// Whether the line runs along the columns (the rows cross it narrowly).
+    pub along_columns: bool,
+}
+
+impl Survey {
+    /// The ridge distance for `opts` (module docs).
+    pub fn ridge_px(&self, opts: &StripeOptions) -> usize {
+        let w = self.width_px.min(opts.max_width_px as f64);
+        let d = (0.5 * w).ceil() as usize + 3;
+        d.clamp(opts.ridge_px, MAX_RIDGE_PX.max(opts.ridge_px))
+    }
+
+    /// Scan lines to average along the line: `opts.along_line` when set, else
+    /// [`AUTO_ALONG_LINE`] for a saturated or speckled line and 1 (none) otherwise.
+    pub fn along_line(&self, opts: &StripeOptions) -> usize {
+        match opts.along_line {
+            0 => {
+                if self.saturated_share > SATURATED_SHARE || self.speckle_index > SPECKLE_INDEX {
+                    AUTO_ALONG_LINE
+                } else {
+                    1
+                }
+            }
+            n => n,
+        }
+    }
+}
+
+/// The peak of one sampled line: `(position, height above the median, width,
+/// saturated)`, or `None` without a clear peak.
+fn line_peak<T: RidgePixel>(
+    line: &mut impl Iterator<Item = T>,
+    buf: &mut Vec<u32>,
+    min_height: f32,
+    limit: usize,
+) -> Option<(usize, f32, usize, bool)> {
+    buf.clear();
+    buf.extend(line.map(|v| v.as_u32()));
+    if buf.len() < 3 {
+        return None;
+    }
+    let (pk, &vmax) = buf
+        .iter()
+        .enumerate()
+        .max_by_key(|(i, v)| (**v, usize::MAX - i))?;
+    let mut sorted = buf.clone();
+    let mid = sorted.len() / 2;
+    let (_, &mut med, _) = sorted.select_nth_unstable(mid);
+    let height = vmax as f32 - med as f32;
+    if height < min_height {
+        return None;
+    }
+    let half = med as f32 + 0.5 * height;
+    let mut a = pk;
+    while a > 0 && buf[a - 1] as f32 >= half && pk - a < limit {
+        a -= 1;
+    }
+    let mut b = pk;
+    while b + 1 < buf.len() && buf[b + 1] as f32 >= half && b - pk < limit {
+        b += 1;
+    }
+    let sat = vmax as f32 >= <T as Pixel>::MAX;
+    // the middle of the run (a plateau's argmax is its first pixel)
+    Some(((a + b) / 2, height, b - a + 1, sat))
+}
+
+/// Peaks of the sampled lines and of their neighbours: `(width, saturated, speckle
+/// ratio of the pair if both hold the line)`.
+fn sample(
+    n_lines: usize,
+    mut get: impl FnMut(usize, &mut Vec<u32>) -> Option<(usize, f32, usize, bool)>,
+) -> (Vec<usize>, usize, Vec<f64>) {
+    let (mut widths, mut sat, mut ratios) = (Vec::new(), 0usize, Vec::new());
+    let mut buf = Vec::new();
+    for l in (STEP / 2..n_lines.saturating_sub(1)).step_by(STEP) {
+        let Some((pa, ha, wa, sa)) = get(l, &mut buf) else {
+            continue;
+        };
+        widths.push(wa);
+        sat += sa as usize;
+        if let Some((pb, hb, _, sb)) = get(l + 1, &mut buf) {
+            if pa.abs_diff(pb) <= 2 + wa && !sa && !sb {
+                ratios.push(f64::from((ha - hb).abs() / (0.5 * (ha + hb))));
+            }
+        }
+    }
+    (widths, sat, ratios)
+}
+
+fn median_usize(v: &mut [usize]) -> Option<f64> {
+    if v.is_empty() {
+        return None;
+    }
+    v.sort_unstable();
+    let n = v.len();
+    Some(0.5 * (v[(n - 1) / 2] + v[n / 2]) as f64)
+}
+
+/// Surveys the line of `img` (module docs); `dir` is the scan direction when known
+/// (`Cols`: the rows cross the line), `Auto` to decide it here too.
+pub(crate) fn survey<T: RidgePixel>(
+    img: &ImageView<'_, T>,
+    opts: &StripeOptions,
+    dir: StripeDirection,
+) -> Survey {
+    let (w, h) = (img.width(), img.height());
+    let min_height = 4.0 * opts.min_contrast * T::SCALE;
+    let limit = 4 * opts.max_width_px.ceil() as usize;
+    let rows = || {
+        sample(h, |y, buf| {
+            line_peak::<T>(&mut img.row(y).iter().copied(), buf, min_height, limit)
+        })
+    };
+    let cols = || {
+        sample(w, |x, buf| {
+            line_peak::<T>(&mut (0..h).map(|y| img.get(x, y)), buf, min_height, limit)
+        })
+    };
+    let (along_columns, (mut widths, sat, mut ratios)) = match dir {
+        StripeDirection::Cols => (true, rows()),
+        StripeDirection::Rows => (false, cols()),
+        StripeDirection::Auto => {
+            let (r, c) = (rows(), cols());
+            // the axis that crosses the line on more of its samples; at a like rate
+            // (a diagonal line) the one that crosses it more narrowly
+            let rate_r = r.0.len() as f64 / (h / STEP).max(1) as f64;
+            let rate_c = c.0.len() as f64 / (w / STEP).max(1) as f64;
+            let (mut wr, mut wc) = (r.0.clone(), c.0.clone());
+            let narrower_rows = match (median_usize(&mut wr), median_usize(&mut wc)) {
+                (Some(a), Some(b)) => a <= b,
+                (a, _) => a.is_some(),
+            };
+            if rate_r > 1.5 * rate_c || (rate_c <= 1.5 * rate_r && narrower_rows) {
+                (true, r)
+            } else {
+                (false, c)
+            }
+        }
+    };
+    let n = widths.len();
+    let Some(width) = median_usize(&mut widths) else {
+        return Survey {
+            along_columns,
+            ..Survey::default()
+        };
+    };
+    ratios.sort_by(f64::total_cmp);
+    // a line holds the same place on neighbouring scan lines: without that on most
+    // samples there is no line to measure speckle on
+    let speckle_index = if ratios.len() >= 5 && 2 * ratios.len() >= n {
+        let k = ratios.len();
+        0.5 * (ratios[(k - 1) / 2] + ratios[k / 2])
+    } else {
+        0.0
+    };
+    Survey {
+        width_px: width,
+        saturated_share: sat as f64 / n.max(1) as f64,
+        speckle_index,
+        along_columns,
+    }
+}
