@@ -142,20 +142,27 @@ struct Pt {
     saturated: bool,
 }
 
+/// The share of saturated stripe points above which the correction is off: the
+/// model is an unsaturated Gaussian sheet, and a line that is mostly clipped is not
+/// (module docs).
+pub const MAX_SATURATED_SHARE: f64 = 0.5;
+
 /// The correction (module docs): the views with their stripe points moved by the
-/// predicted bias (points the model cannot follow left out), and what it did; `None`
-/// when nothing can be corrected (no view with widths, too few points, a sheet sigma
-/// that the widths do not determine).
+/// predicted bias (points the model cannot follow left out), and what it did; `Err`
+/// with the reason when nothing is corrected (no view with widths, a line the model
+/// does not describe: mostly saturated, or smoothed along the line for speckle; too
+/// few points, a sheet sigma that the widths do not determine).
 pub fn correct_board_stripes(
     views: &[ViewObs],
     cam_board: &[Iso3],
     camera: &Camera,
     plane: &Plane,
     stripe: &StripeOptions,
-) -> Option<BoardStripeViews> {
+) -> std::result::Result<BoardStripeViews, String> {
     let direction = views
         .iter()
-        .find_map(|v| v.stripe_shape.as_ref().map(|s| s.direction))?;
+        .find_map(|v| v.stripe_shape.as_ref().map(|s| s.direction))
+        .ok_or("no stripe widths were recorded")?;
     if direction == StripeDirection::Auto
         || views.iter().any(|v| {
             v.stripe_shape
@@ -163,7 +170,26 @@ pub fn correct_board_stripes(
                 .is_some_and(|s| s.direction != direction)
         })
     {
-        return None;
+        return Err("the views' stripes were extracted in different scan directions".into());
+    }
+    let shapes = || views.iter().filter_map(|v| v.stripe_shape.as_ref());
+    let smoothed = shapes().filter(|s| s.along_line > 1).count();
+    if smoothed > 0 {
+        return Err(format!(
+            "the stripes of {smoothed} view(s) were smoothed along the line for speckle \
+             (the model describes a single scan line's profile of a clean Gaussian sheet)"
+        ));
+    }
+    let n_all: usize = shapes().map(|s| s.saturated.len()).sum();
+    let n_sat: usize = shapes()
+        .map(|s| s.saturated.iter().filter(|x| **x).count())
+        .sum();
+    if n_all > 0 && n_sat as f64 > MAX_SATURATED_SHARE * n_all as f64 {
+        return Err(format!(
+            "{:.0} % of the stripe points are saturated (the model is an unsaturated \
+             Gaussian sheet; lower the exposure or the laser power to use it)",
+            100.0 * n_sat as f64 / n_all as f64
+        ));
     }
     let mut sopts = stripe.clone();
     sopts.direction = direction;
@@ -218,7 +244,10 @@ pub fn correct_board_stripes(
     // Saturated points are kept as measured and not modelled (module docs).
     let clear: Vec<&Pt> = pts.iter().filter(|q| !q.saturated).collect();
     if clear.len() < MIN_POINTS {
-        return None;
+        return Err(format!(
+            "{} unsaturated stripe points with a width, fewer than {MIN_POINTS}",
+            clear.len()
+        ));
     }
     let surfaces = surfaces_of(&rig);
     // 1. Sheet and PSF sigmas from the widths (g and the slope do not depend on them).
@@ -239,10 +268,15 @@ pub fn correct_board_stripes(
         r += x * y;
         used += 1;
     }
+    let undetermined = || {
+        "the stripe widths do not determine the sheet's thickness (the boards' tilts \
+         are too alike)"
+            .to_string()
+    };
     if used < MIN_POINTS {
-        return None;
+        return Err(undetermined());
     }
-    let sol = a.lu().solve(&r)?;
+    let sol = a.lu().solve(&r).ok_or_else(undetermined)?;
     let (s2, b2) = if sol[1] < 0.0 {
         // No PSF term: the sheet alone.
         (r[0] / a[(0, 0)], 0.0)
@@ -250,7 +284,7 @@ pub fn correct_board_stripes(
         (sol[0], sol[1])
     };
     if !(s2.is_finite() && s2 > 0.0) {
-        return None;
+        return Err(undetermined());
     }
     let (sigma, psf) = (s2.sqrt(), b2.sqrt());
     // 2. The predicted bias per point, for the emitter at `n d` and moved.
@@ -277,7 +311,9 @@ pub fn correct_board_stripes(
     let keep: Vec<bool> = delta.iter().map(Option::is_some).collect();
     let corrected = keep.iter().filter(|k| **k).count();
     if corrected < MIN_POINTS {
-        return None;
+        return Err(format!(
+            "the model follows {corrected} stripe points, fewer than {MIN_POINTS}"
+        ));
     }
     // The views with every kept point moved by `d[k]` (the points of `clear` in order).
     let moved = |d: &[Option<f64>]| -> Vec<ViewObs> {
@@ -333,7 +369,7 @@ pub fn correct_board_stripes(
         emitter_range_mm: EMITTER_RANGE_MM,
         emitter_response: None,
     };
-    Some(BoardStripeViews {
+    Ok(BoardStripeViews {
         corrected: moved(&delta),
         emitter_moved,
         emitter_origin_cam_mm: rig.emitter,

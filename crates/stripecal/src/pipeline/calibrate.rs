@@ -146,6 +146,9 @@ pub(super) fn calibrate_unjudged(
     };
     let (adj, used_obs, board_stripe) =
         correct_stripes(adj, used_obs, &used_poses, board, &jopts, opts)?;
+    if let Some(Err(why)) = &board_stripe {
+        warnings.push(format!("board stripe-bias correction not applied: {why}"));
+    }
     warnings.extend(adj.warnings.iter().cloned());
     if let Some(w) = super::kinematics::diagnose(&adj, camcal.rms_px, rig, &used_obs, opts) {
         warnings.push(w);
@@ -195,17 +198,21 @@ fn correct_stripes(
     board: &Board,
     jopts: &JointOptions,
     opts: &CalibrateOptions,
-) -> Result<(JointResult, Vec<ViewObs>, Option<BoardStripeCorrection>)> {
+) -> Result<(
+    JointResult,
+    Vec<ViewObs>,
+    Option<std::result::Result<BoardStripeCorrection, String>>,
+)> {
     let Some(plane) = adj
         .plane
         .filter(|_| opts.board_stripe_bias && opts.method == Method::OneStage)
     else {
         return Ok((adj, used_obs, None));
     };
-    let Some(corr) =
-        correct_board_stripes(&used_obs, used_poses, &adj.camera, &plane, &opts.stripe)
-    else {
-        return Ok((adj, used_obs, None));
+    let corr = match correct_board_stripes(&used_obs, used_poses, &adj.camera, &plane, &opts.stripe)
+    {
+        Ok(c) => c,
+        Err(why) => return Ok((adj, used_obs, Some(Err(why)))),
     };
     let start_of = |r: &JointResult| JointStart {
         camera: r.camera.clone(),
@@ -239,7 +246,7 @@ fn correct_stripes(
             covariance_trace: again.named_covariance.matrix.trace(),
         });
     }
-    Ok((again, corr.corrected, Some(summary)))
+    Ok((again, corr.corrected, Some(Ok(summary))))
 }
 
 /// The laser plane's first estimate from the views' stripe points (`None` when no view

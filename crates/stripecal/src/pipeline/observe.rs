@@ -9,14 +9,16 @@ use std::sync::atomic::{AtomicUsize, Ordering};
 use rayon::prelude::*;
 
 use super::CalibrateOptions;
-use crate::calib::{CircleObs, StripeShape, ViewObs};
+use crate::calib::{CircleObs, StripeExtraction, StripeShape, ViewObs};
 use crate::error::{Error, Result};
 use crate::io::load_image_info;
+use crate::model::image::AnyView;
 use crate::model::image::{AnyGray, AnyImage};
 use crate::model::{Dataset, RobotReading, StripeChannel, View};
 use crate::vision::stripe::colour::{auto_sample, channel_scores, choose_channel};
 use crate::vision::stripe::{
-    extract_stripe, flag_reflectance_edges, stripe_signal_of_file, EdgeOptions, StripeOptions,
+    flag_reflectance_edges, stripe_signal_of_file, EdgeOptions, Stripe, StripeDirection,
+    StripeExtractor, StripeOptions, StripePoint, FLAG_EDGE, FLAG_OBLIQUE, FLAG_UNEVEN_BACKGROUND,
 };
 use crate::vision::target::detect_target;
 
@@ -220,24 +222,16 @@ fn observe_view(
             stripe_signal_of_file(&laser_path, &laser_any, channel, stripe_opts)?
         };
         let lview = signal.view()?;
-        match extract_stripe(lview, stripe_opts) {
-            Ok(mut s) => {
-                let eo = EdgeOptions {
-                    single_image: single,
-                    ..opts.edges.clone()
-                };
-                flag_reflectance_edges(&mut s, bview, &eo)?;
-                let kept: Vec<_> = s.points.iter().filter(|p| p.trusted()).collect();
-                stripe = kept.iter().map(|p| [p.u, p.v]).collect();
-                shape = Some(StripeShape {
-                    direction: s.direction,
-                    width_px: kept.iter().map(|p| f64::from(p.width_px)).collect(),
-                    saturated: kept.iter().map(|p| p.saturated()).collect(),
-                });
-            }
-            Err(Error::Detection(_)) => {}
-            Err(e) => return Err(e),
-        }
+        let (s, extraction) = extract_view_stripe(lview, bview, single, stripe_opts, opts)?;
+        let kept: Vec<_> = s.iter().filter(|p| p.trusted()).collect();
+        stripe = kept.iter().map(|p| [p.u, p.v]).collect();
+        shape = Some(StripeShape {
+            direction: extraction.1,
+            width_px: kept.iter().map(|p| f64::from(p.width_px)).collect(),
+            saturated: kept.iter().map(|p| p.saturated()).collect(),
+            along_line: extraction.0.along_line,
+            extraction: extraction.0,
+        });
     }
     Ok(Ok(ViewObs {
         view: i,
@@ -248,4 +242,70 @@ fn observe_view(
         alternatives: det.alternatives,
         stripe_shape: shape,
     }))
+}
+
+/// The stripe of one laser image with its reflectance edges flagged from the board
+/// image, and what the extraction found and left out (an image without a line gives no
+/// points and says so in its counts: not an error), with the scan direction used.
+fn extract_view_stripe(
+    laser: AnyView<'_>,
+    board: AnyView<'_>,
+    single: bool,
+    stripe_opts: &StripeOptions,
+    opts: &CalibrateOptions,
+) -> Result<(Vec<StripePoint>, (StripeExtraction, StripeDirection))> {
+    let mut ex = StripeExtractor::new(stripe_opts.clone())?;
+    let (w, h) = laser.size();
+    let mut points = Vec::with_capacity(w.max(h));
+    let direction = ex.extract_into(laser, &mut points)?;
+    let (_, along_line) = ex.adapted();
+    let mut s = Stripe {
+        direction,
+        size: (w, h),
+        points,
+        lines: if direction == StripeDirection::Rows {
+            w
+        } else {
+            h
+        },
+        rejected: ex.rejected(),
+        survey: ex.survey(),
+        along_line,
+    };
+    let eo = EdgeOptions {
+        single_image: single,
+        ..opts.edges.clone()
+    };
+    flag_reflectance_edges(&mut s, board, &eo)?;
+    let count = |f: u8| s.points.iter().filter(|p| p.flags & f != 0).count();
+    // each point counted under its first reason: edge, uneven, oblique
+    let at_edge = count(FLAG_EDGE);
+    let uneven = s
+        .points
+        .iter()
+        .filter(|p| p.flags & FLAG_EDGE == 0 && p.flags & FLAG_UNEVEN_BACKGROUND != 0)
+        .count();
+    let oblique = s
+        .points
+        .iter()
+        .filter(|p| {
+            p.flags & (FLAG_EDGE | FLAG_UNEVEN_BACKGROUND) == 0 && p.flags & FLAG_OBLIQUE != 0
+        })
+        .count();
+    let e = StripeExtraction {
+        lines: s.lines,
+        rejected: s.rejected,
+        found: s.points.len(),
+        at_edge,
+        uneven_background: uneven,
+        oblique,
+        saturated: s
+            .points
+            .iter()
+            .filter(|p| p.trusted() && p.saturated())
+            .count(),
+        width_px: s.survey.width_px,
+        along_line,
+    };
+    Ok((s.points, (e, direction)))
 }

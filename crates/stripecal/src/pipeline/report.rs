@@ -37,8 +37,11 @@ pub(super) struct Stage<'a> {
     pub checks: SelfChecks,
     /// The blocks held from `--from`.
     pub held: Option<&'a Held<'a>>,
-    /// The stripe's bias on the board, when corrected.
-    pub board_stripe: Option<super::board_stripe::BoardStripeCorrection>,
+    /// The stripe's bias on the board: `None` when not attempted (switched off, the
+    /// paper's method, no laser plane); `Err` with the reason when the model did not
+    /// apply.
+    pub board_stripe:
+        Option<std::result::Result<super::board_stripe::BoardStripeCorrection, String>>,
 }
 
 /// The one-sigmas of the estimated blocks: the adjustment's covariance for the
@@ -147,8 +150,17 @@ pub(super) fn build_report(
         st.checks.board_scale.as_ref(),
         st.checks.leave_one_out.as_ref(),
     ));
-    if let Some(c) = &st.board_stripe {
-        extra.insert("board_stripe_bias".into(), board_stripe_extra(c));
+    match &st.board_stripe {
+        Some(Ok(c)) => {
+            extra.insert("board_stripe_bias".into(), board_stripe_extra(c));
+        }
+        Some(Err(why)) => {
+            extra.insert(
+                "board_stripe_bias".into(),
+                serde_json::json!({"applied": false, "reason": why}),
+            );
+        }
+        None => {}
     }
     if let (Method::OneStage, Some(n)) = (opts.method, &adj.robot_noise) {
         extra.extend(robot_pose_noise_extra(n));
@@ -219,6 +231,7 @@ pub(super) fn build_report(
 /// the board did ([`super::board_stripe`]).
 fn board_stripe_extra(c: &super::board_stripe::BoardStripeCorrection) -> serde_json::Value {
     let mut v = serde_json::json!({
+        "applied": true,
         "sheet_sigma_mm": c.sheet_sigma_mm,
         "psf_sigma_px": c.psf_sigma_px,
         "points_corrected": c.corrected,

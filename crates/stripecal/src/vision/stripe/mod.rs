@@ -331,6 +331,10 @@ pub struct Stripe {
     /// Scan lines examined.
     pub lines: usize,
     pub rejected: RejectCounts,
+    /// What the survey saw of the line ([`survey`]), and the scan lines averaged along
+    /// the line before the centres (1: none).
+    pub survey: survey::Survey,
+    pub along_line: usize,
 }
 
 /// Extracts the stripe of one image (see the module docs). An image where no scan line
@@ -345,6 +349,7 @@ pub fn extract_stripe(img: AnyView<'_>, opts: &StripeOptions) -> Result<Stripe> 
     let mut points = Vec::with_capacity(w0.max(h0));
     let direction = ex.extract_into(img, &mut points)?;
     let rejected = ex.rejected();
+    let (_, along_line) = ex.adapted();
     let (w, h) = img.size();
     let lines = if direction == StripeDirection::Rows {
         w
@@ -376,5 +381,7 @@ pub fn extract_stripe(img: AnyView<'_>, opts: &StripeOptions) -> Result<Stripe> 
         points,
         lines,
         rejected,
+        survey: ex.survey(),
+        along_line,
     })
 }
