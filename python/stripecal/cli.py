@@ -365,14 +365,23 @@ def print_calibration(cal: stripecal.Calibration) -> None:
         print(f"  stripe found in the {channel} channel ({how})")
     views = cal.views
     if views:
-        print("\n  view  used  circles  stripe pts  off plane  circle RMS px  stripe RMS px  note")
+        print("\n  view  used  circles  stripe found  left out  off plane  stripe pts  sat %"
+              "  circle RMS px  stripe RMS px  note")
         for v in views:
             crms = v["circle_rms_px"]
             srms = v["stripe_rms_px"]
             off = v.get("stripe_off_plane")  # absent from files written before it existed
+            ex = v.get("stripe_extraction")
+            found = left = sat = ""
+            if ex is not None:
+                found = str(ex["found"])
+                lo = ex["left_out"]
+                left = str(lo["at_edge"] + lo["uneven_background"] + lo["oblique"])
+                share = ex["saturated_share"]
+                sat = "" if share is None else f"{100 * share:.0f}"
             note = v["note"] or ("OUTLIER" if v["outlier"] else "")
-            print(f"  {v['view']:>4}  {'yes' if v['used'] else 'no':>4}  {v['circles']:>7}  {v['stripe_points']:>10}"
-                  f"  {'' if off is None else off:>9}"
+            print(f"  {v['view']:>4}  {'yes' if v['used'] else 'no':>4}  {v['circles']:>7}  {found:>12}  {left:>8}"
+                  f"  {'' if off is None else off:>9}  {v['stripe_points']:>10}  {sat:>5}"
                   f"  {'' if crms is None else f'{crms:.4f}':>13}  {'' if srms is None else f'{srms:.4f}':>13}  {note}")
     if cal.laser_plane is None:
         print("\n  laser plane: not estimated (no laser images)")
@@ -433,6 +442,10 @@ def print_leave_one_out(cal: stripecal.Calibration) -> None:
     ms = loo["median_stripe_rms_mm"]
     print(f"  median      {loo['median_board_rms_px']:>12.4f}  {loo['median_board_rms_mm']:>12.4f}"
           f"  {'' if ms is None else f'{ms:.4f}':>13}")
+    lb = loo.get("laser_board")
+    if lb is not None:
+        print(f"  held-out laser->board distance (DECISIONS 8, {lb['points']} stripe points):"
+              f" median {lb['median_mm']:.4f} mm, p95 {lb['p95_mm']:.4f} mm")
 
 
 def cmd_calibrate(args: argparse.Namespace) -> int:

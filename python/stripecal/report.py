@@ -267,7 +267,17 @@ def write_report(
         def f4(x: Optional[float]) -> str:
             return "" if x is None else f"{x:.4f}"
         bad = ' style="color:#b00"' if v["outlier"] or not v["used"] else ""
+        ex = v.get("stripe_extraction")
+        found = left = sat = ""
+        if ex is not None:
+            found = str(ex["found"])
+            lo = ex["left_out"]
+            left = str(lo["at_edge"] + lo["uneven_background"] + lo["oblique"])
+            share = ex["saturated_share"]
+            sat = "" if share is None else f"{100 * share:.0f}"
+        off = v.get("stripe_off_plane")
         vr.append(f"<tr{bad}><td>{v['view']}</td><td>{'yes' if v['used'] else 'no'}</td><td>{v['circles']}</td>"
+                  f"<td>{found}</td><td>{left}</td><td>{'' if off is None else off}</td><td>{sat}</td>"
                   f"<td>{v['stripe_points']}</td><td>{f4(v['circle_rms_px'])}</td>"
                   f"<td>{f4(v['stripe_rms_px'])}</td><td>{html.escape(str(v['note'] or ''))}</td></tr>")
     warn = "".join(f"<li>{html.escape(str(w))}</li>" for w in e.get("warnings", []))
@@ -288,7 +298,7 @@ stripe <b>{q['stripe_rms_px']:.4f} px</b> ({float(e.get('stripe_rms_mm') or floa
 <h2>Parameters</h2>
 <table><tr><th>parameter</th><th>value</th><th>1 sigma</th><th>true</th><th>error</th></tr>{''.join(tr)}</table>
 <h2>Views</h2>
-<table><tr><th>view</th><th>used</th><th>circles</th><th>stripe points</th><th>circle RMS px</th><th>stripe RMS px</th><th>note</th></tr>{''.join(vr)}</table>
+<table><tr><th>view</th><th>used</th><th>circles</th><th>stripe found</th><th>left out</th><th>off plane</th><th>saturated %</th><th>stripe points used</th><th>circle RMS px</th><th>stripe RMS px</th><th>note</th></tr>{''.join(vr)}</table>
 {_robot_html(cal)}
 {loo_html}
 {extra_sections}
@@ -379,10 +389,17 @@ def _leave_one_out_html(cal: stripecal.Calibration) -> str:
         "calibration solved without it, against the detected points; stripe points triangulated with the "
         "laser plane against the predicted board plane."
     )
+    lb = loo.get("laser_board")
+    laser_board = (
+        "" if lb is None else
+        f" Held-out laser-&gt;board distance (every stripe point of every view against the board plane "
+        f"predicted by the calibration without its view; {lb['points']} points): median "
+        f"<b>{lb['median_mm']:.4f} mm</b>, p95 <b>{lb['p95_mm']:.4f} mm</b>."
+    )
     return (
         f"<h2>Leave-one-view-out</h2><p>{how} Median: <b>{med_px:.4f} px</b>, "
         f"<b>{loo['median_board_rms_mm']:.4f} mm</b> on the board"
-        + ("" if ms is None else f", stripe <b>{ms:.4f} mm</b>") + f". {html.escape(verdict)}</p>"
+        + ("" if ms is None else f", stripe <b>{ms:.4f} mm</b>") + f".{laser_board} {html.escape(verdict)}</p>"
         "<table><tr><th>view</th><th>points</th><th>board RMS px</th><th>board RMS mm</th>"
         f"<th>stripe RMS mm</th><th></th></tr>{''.join(rows)}</table>"
     )

@@ -45,6 +45,7 @@ __all__ = [
     "AxzbSolution",
     "BenchView",
     "BoardScaleCheck",
+    "BoardStripeBias",
     "CalibrationExtra",
     "CalibrationExtraInput",
     "CalibrationQuality",
@@ -54,6 +55,7 @@ __all__ = [
     "CalibrationView",
     "CameraCalibration",
     "CameraParamSigma",
+    "CameraRecord",
     "CameraSigma",
     "CircleDetection",
     "DatasetView",
@@ -62,44 +64,51 @@ __all__ = [
     "Flatness",
     "Gray",
     "I64",
+    "LaserBoardFigure",
     "LaserPlaneFit",
     "LeaveOneOut",
+    "LeaveOneOutFold",
     "LeaveOneOutView",
+    "PlaneRecord",
     "PlaneSigma",
     "PlyCloud",
+    "PoseRecord",
+    "PoseSigma",
+    "ProfilerAdjustment",
     "ProfilerCounts",
+    "ProfilerExtraInput",
     "ProfilerPose",
+    "ProfilerQuality",
     "ProfilerRobot",
     "ProfilerStand",
+    "ProfilerStart",
     "ProfilerSummary",
     "ProfilerTruth",
-    "ProfilerAdjustment",
-    "ProfilerStart",
     "ProfilerTruthView",
+    "ProfilerUncertainty",
+    "ProfilerUncertaintyInput",
     "ProfilerViewCounts",
     "QualityCheck",
-    "PoseSigma",
     "ResidualSigma",
     "RobotPoseAtFloor",
     "RobotPoseFloor",
     "RobotPoseNoise",
     "RobotPoseNoiseView",
+    "ScanLinesWithoutPoint",
     "SimConfig",
     "SimPose",
     "SkippedFrame",
-    "SphereSigma",
-    "ProfilerExtraInput",
-    "ProfilerQuality",
-    "ProfilerUncertainty",
-    "ProfilerUncertaintyInput",
     "SphereFitExtra",
     "SphereFitExtraInput",
     "SphereInput",
+    "SphereSigma",
     "SphereTruth",
+    "StripeExtraction",
+    "StripeLeftOut",
+    "TwinDhRow",
     "TwinPlane",
     "TwinSphere",
     "TwinSummary",
-    "TwinDhRow",
     "TwinViewSummary",
     "VerifyScan",
     "ViewRender",
@@ -304,9 +313,60 @@ class ResidualSigma(TypedDict):
     """Of a stripe point's distance from its predicted line."""
 
 
-class CalibrationView(TypedDict):
-    """Per-view figures of a calibration (``Calibration.views``)."""
+class StripeLeftOut(TypedDict):
+    """Stripe points the extraction found but left out as biased."""
 
+    at_edge: int
+    """A reflectance edge of the board image in their support."""
+    uneven_background: int
+    """An uneven background in the stripe image across their support."""
+    oblique: int
+    """The stripe crosses the scan line at a shallow angle there."""
+
+
+class ScanLinesWithoutPoint(TypedDict):
+    """Scan lines of a laser image that gave no stripe point, by reason."""
+
+    no_peak: int
+    multiple_peaks: int
+    """Two or more comparable peaks that the line's continuity did not decide."""
+    saturated: int
+    """A saturated plateau longer than ``max_saturated_px``."""
+    shape: int
+    """A width outside the accepted range, or a peak too weak."""
+    border: int
+    isolated: int
+    """Not part of a chain of neighbouring points."""
+
+
+class StripeExtraction(TypedDict):
+    """What the stripe extraction of one view found and left out
+    (``CalibrationView["stripe_extraction"]``)."""
+
+    scan_lines: int
+    """Scan lines searched."""
+    found: int
+    """Stripe points found."""
+    left_out: StripeLeftOut
+    """Of them, left out as biased."""
+    saturated: int
+    """Of the points kept, those whose profile holds a saturated pixel."""
+    saturated_share: Optional[float]
+    """``saturated`` over the points kept (above 0.5 the CLI advises lowering the
+    exposure or the laser power)."""
+    width_px: Optional[float]
+    """The line's width across, px (the extractor's survey)."""
+    along_line: int
+    """Scan lines averaged along the line before the centres (1: none; 5 for a
+    saturated or speckled line)."""
+    scan_lines_without_point: ScanLinesWithoutPoint
+    """Scan lines that gave no point, by reason."""
+    reflections_left_out: int
+    """Scan lines that gave a point from the peak continuing the line while holding
+    another comparable peak (a reflection) that was left out."""
+
+
+class _CalibrationViewBase(TypedDict):
     view: int
     """Index of the view in the dataset (views.csv order)."""
     used: bool
@@ -329,9 +389,15 @@ class CalibrationView(TypedDict):
     """Why the view was left out, if it was."""
 
 
-class LeaveOneOutView(TypedDict):
-    """One view's leave-one-view-out figures: its observations predicted by the
-    calibration solved without it, from its robot pose alone."""
+class CalibrationView(_CalibrationViewBase, total=False):
+    """Per-view figures of a calibration (``Calibration.views``)."""
+
+    stripe_extraction: StripeExtraction
+    """What the stripe extraction found and left out (views with a laser image; absent
+    from files written before it existed)."""
+
+
+class _LeaveOneOutViewBase(TypedDict):
 
     view: int
     """Index of the view in the dataset (views.csv order)."""
@@ -352,10 +418,69 @@ class LeaveOneOutView(TypedDict):
     median over views."""
 
 
-class LeaveOneOut(TypedDict):
-    """The leave-one-view-out figures of a calibration (``Calibration.leave_one_out``):
-    the out-of-sample figure to quote for a real rig."""
+class CameraRecord(TypedDict):
+    """A camera as calibration.json writes it (its ``camera`` key)."""
 
+    width: int
+    height: int
+    fu: float
+    fv: float
+    u0: float
+    v0: float
+    distortion_model: str
+    distortion: List[float]
+    """``[k1, k2, p1, p2, k3]``."""
+
+
+class PlaneRecord(TypedDict):
+    """A laser plane ``normal . p = d_mm`` in the camera frame, as calibration.json
+    writes it."""
+
+    normal: List[float]
+    d_mm: float
+
+
+class PoseRecord(TypedDict):
+    """A rigid transform as calibration.json writes it."""
+
+    rotation_vector: List[float]
+    """Axis times angle, rad."""
+    translation_mm: List[float]
+
+
+class LeaveOneOutFold(TypedDict):
+    """What the calibration without a view predicts for that view: enough to score any
+    stripe points of it (``Calibration.held_out_laser_board``)."""
+
+    camera: CameraRecord
+    laser_plane: PlaneRecord
+    cam_board: PoseRecord
+    """The view's board pose in the camera frame, ``T_cam_board``, from its robot pose
+    (on the bench: from its own target points)."""
+
+
+class LeaveOneOutView(_LeaveOneOutViewBase, total=False):
+    """One view's leave-one-view-out figures: its observations predicted by the
+    calibration solved without it, from its robot pose alone."""
+
+    fold: LeaveOneOutFold
+    """The calibration without the view, as far as scoring its stripe points needs
+    (with a laser plane; absent from files written before it existed)."""
+
+
+class LaserBoardFigure(TypedDict):
+    """The held-out laser->board distance (DECISIONS 8): each stripe point of each view
+    triangulated with the laser plane of the calibration without that view, its distance
+    from the board plane that calibration predicts for the view; over all points."""
+
+    median_mm: float
+    p95_mm: float
+    """The 95th percentile, mm."""
+    points: int
+    """Points scored."""
+
+
+class _LeaveOneOutBase(TypedDict):
     views: List[LeaveOneOutView]
     """Per view."""
     median_board_rms_px: float
@@ -364,6 +489,15 @@ class LeaveOneOut(TypedDict):
     """Median over views of ``board_rms_mm``."""
     median_stripe_rms_mm: Optional[float]
     """Median over views with stripe points of ``stripe_rms_mm``."""
+
+
+class LeaveOneOut(_LeaveOneOutBase, total=False):
+    """The leave-one-view-out figures of a calibration (``Calibration.leave_one_out``):
+    the out-of-sample figure to quote for a real rig."""
+
+    laser_board: LaserBoardFigure
+    """The held-out laser->board distance of the calibration's own stripe points (with
+    a laser plane; absent from files written before it existed)."""
 
 
 class BoardScaleCheck(TypedDict):
@@ -467,6 +601,28 @@ class RobotCalibration(TypedDict):
     fixed: List[DhFixed]
 
 
+class BoardStripeBias(TypedDict, total=False):
+    """calibration.json's ``board_stripe_bias``: whether the stripe's sub-pixel bias on
+    the board was corrected, and what the correction did (its ``emitter_response``, read
+    by the measurement, is not typed here)."""
+
+    applied: bool
+    """Whether the correction was applied (absent from files written before it
+    existed: they hold this record only when it was)."""
+    reason: str
+    """Why not, when not applied (a mostly saturated line, a line smoothed for
+    speckle, too few points, the sheet undetermined)."""
+    sheet_sigma_mm: float
+    psf_sigma_px: float
+    points_corrected: int
+    points_left_out: int
+    points_saturated: int
+    mean_px: float
+    rms_px: float
+    neglected_share: float
+    emitter_range_mm: float
+
+
 class CalibrationExtra(TypedDict, total=False):
     """The other top-level keys of calibration.json (``Calibration.extra``). The
     library writes all but ``base_board_orientation`` and ``warnings`` (only when there
@@ -498,6 +654,8 @@ class CalibrationExtra(TypedDict, total=False):
     """The robot-pose noise estimated by the one-stage adjustment."""
     robot_calibration: RobotCalibration
     """The robot's DH corrections (``--robot``)."""
+    board_stripe_bias: BoardStripeBias
+    """The correction of the stripe's bias on the board."""
     held_blocks: List[str]
     """The blocks held at the values of the calibration it started from (their
     uncertainty is that file's; the others' is conditional on them)."""

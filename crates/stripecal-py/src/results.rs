@@ -8,8 +8,8 @@ use pyo3::exceptions::PyTypeError;
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyList, PyTuple};
 use stripecal::io::{
-    calibration_from_json, calibration_to_json, truth_from_json, truth_to_json, write_calibration,
-    write_sphere_fit, write_truth,
+    calibration_from_json, calibration_leave_one_out, calibration_to_json, truth_from_json,
+    truth_to_json, write_calibration, write_sphere_fit, write_truth,
 };
 use stripecal::model::geometry::Plane;
 use stripecal::model::{
@@ -17,9 +17,12 @@ use stripecal::model::{
 };
 
 use crate::camera::PyCamera;
-use crate::convert::{fixed, iso_to_py, json_to_py, map_to_py, nd, opt_dict_to_map, py_to_iso};
+use crate::convert::{
+    fixed, iso_to_py, json_to_py, map_to_py, nd, opt_dict_to_map, py_to_iso, rows_of,
+};
 use crate::errors::{invalid_input, ResultExt};
 use crate::robot::PyRobot;
+use stripecal::pipeline::held_out_laser_board;
 
 /// `(normal, d_mm)` -> a plane (normalised, `d >= 0`).
 fn plane_from_py(py: Python<'_>, obj: &Bound<'_, PyAny>) -> PyResult<Plane> {
@@ -338,6 +341,57 @@ impl PyCalibration {
     fn stripe_residuals<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
         let data: Vec<f64> = self.stripe_residuals.iter().flatten().copied().collect();
         nd(py, &[self.stripe_residuals.len(), 4], data)
+    }
+
+    /// The held-out laser->board distance (DECISIONS 8) of any stripe points, scored
+    /// with this calibration's leave-one-out folds: `points` maps a view (views.csv row,
+    /// 0-based) to its `(N, 2)` pixel points `(u, v)`; each point is triangulated with
+    /// the laser plane of the calibration without its view, and its distance from the
+    /// board plane that calibration predicts for the view is taken. Returns
+    /// `{"median_mm", "p95_mm", "points"}` over all points, None when none could be
+    /// scored. For a peer's or a plain extractor's points: a figure that leaving hard
+    /// points out cannot improve. `InvalidInputError` without a leave-one-out with folds
+    /// (a file written before they were kept, `leave_one_out=False`) or for a view it
+    /// does not hold.
+    fn held_out_laser_board<'py>(
+        &self,
+        py: Python<'py>,
+        points: &Bound<'py, PyDict>,
+    ) -> PyResult<Option<Bound<'py, PyDict>>> {
+        let loo = calibration_leave_one_out(&self.inner)
+            .py_err(py)?
+            .ok_or_else(|| {
+                invalid_input(
+                    py,
+                    "held_out_laser_board: the calibration holds no leave-one-out (calibrate \
+                     with leave_one_out=True)"
+                        .to_string(),
+                )
+            })?;
+        let mut pts = Vec::with_capacity(points.len());
+        for (k, v) in points.iter() {
+            let view: usize = k.extract().map_err(|_| {
+                invalid_input(
+                    py,
+                    format!(
+                        "held_out_laser_board: points' keys are view numbers (int >= 0), got \
+                         {}",
+                        crate::convert::type_name(&k)
+                    ),
+                )
+            })?;
+            let (rows, _) = rows_of::<2>(&v, &format!("points[{view}]"))?;
+            pts.push((view, rows));
+        }
+        let fig = py.detach(|| held_out_laser_board(&loo, &pts)).py_err(py)?;
+        fig.map(|f| {
+            let d = PyDict::new(py);
+            d.set_item("median_mm", f.median_mm)?;
+            d.set_item("p95_mm", f.p95_mm)?;
+            d.set_item("points", f.points)?;
+            Ok(d)
+        })
+        .transpose()
     }
 
     /// Writes calibration.json (atomically).

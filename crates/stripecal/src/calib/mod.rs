@@ -60,6 +60,8 @@ pub struct ViewObs {
     pub stripe_shape: Option<StripeShape>,
 }
 
+pub use crate::model::StripeExtraction;
+
 /// The items of `v` where `keep` holds (index-aligned).
 pub(crate) fn kept<T: Copy>(v: &[T], keep: &[bool]) -> Vec<T> {
     v.iter()
@@ -78,43 +80,6 @@ impl StripeShape {
             saturated: kept(&self.saturated, keep),
             along_line: self.along_line,
             extraction: self.extraction,
-        }
-    }
-}
-
-/// What the stripe extraction of one view found and left out, before the calibration
-/// selects its points (per view in calibration.json and the CLI's table).
-#[derive(Debug, Clone, Copy, PartialEq, Default)]
-pub struct StripeExtraction {
-    /// Scan lines searched.
-    pub lines: usize,
-    /// Scan lines without a point, by reason.
-    pub rejected: crate::vision::stripe::RejectCounts,
-    /// Points the extractor found.
-    pub found: usize,
-    /// Of them left out as biased: a reflectance edge of the board image in their
-    /// support, an uneven background in the stripe image, a shallow crossing of the
-    /// scan line.
-    pub at_edge: usize,
-    pub uneven_background: usize,
-    pub oblique: usize,
-    /// Of the points kept, those whose profile holds a saturated pixel.
-    pub saturated: usize,
-    /// The line's width across (the survey's, px) and the scan lines averaged along
-    /// the line (1: none).
-    pub width_px: f64,
-    pub along_line: usize,
-}
-
-impl StripeExtraction {
-    /// Of the points found, the share whose profile holds a saturated pixel (0 with
-    /// none kept).
-    pub fn saturated_share(&self) -> f64 {
-        let kept = self.found - self.at_edge - self.uneven_background - self.oblique;
-        if kept == 0 {
-            0.0
-        } else {
-            self.saturated as f64 / kept as f64
         }
     }
 }

@@ -10,7 +10,7 @@ use serde_json::{Map, Value};
 
 use crate::model::{
     AdjustmentSummary, BoardScaleCheck, CameraSigma, LeaveOneOut, PlaneSigma, PoseSigma,
-    RobotCalibration, RobotPoseNoise, Uncertainty, ViewRecord,
+    RobotCalibration, RobotPoseNoise, StripeExtraction, Uncertainty, ViewRecord,
 };
 
 /// A number, or `null` when it is not finite.
@@ -82,7 +82,38 @@ pub fn view_record_to_json(r: &ViewRecord) -> Value {
         "note".into(),
         r.note.as_deref().map_or(Value::Null, Value::from),
     );
+    if let Some(e) = &r.stripe_extraction {
+        m.insert("stripe_extraction".into(), stripe_extraction_to_json(e));
+    }
     Value::Object(m)
+}
+
+/// A view's `stripe_extraction`: what the extractor found and left out, the line's
+/// width and saturation.
+pub fn stripe_extraction_to_json(e: &StripeExtraction) -> Value {
+    let r = &e.rejected;
+    serde_json::json!({
+        "scan_lines": e.lines,
+        "found": e.found,
+        "left_out": {
+            "at_edge": e.at_edge,
+            "uneven_background": e.uneven_background,
+            "oblique": e.oblique,
+        },
+        "saturated": e.saturated,
+        "saturated_share": finite_or_null(e.saturated_share()),
+        "width_px": finite_or_null(e.width_px),
+        "along_line": e.along_line,
+        "scan_lines_without_point": {
+            "no_peak": r.no_peak,
+            "multiple_peaks": r.multiple_peaks,
+            "saturated": r.saturated,
+            "shape": r.shape,
+            "border": r.border,
+            "isolated": r.isolated,
+        },
+        "reflections_left_out": r.reflections,
+    })
 }
 
 /// The calibration's keys beyond the contract's fixed ones, in this order: the summary,

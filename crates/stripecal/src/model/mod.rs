@@ -14,6 +14,7 @@ pub mod kinematics;
 mod profile;
 mod quality;
 mod results;
+mod stripe_extraction;
 
 pub use checks::{
     BoardScaleCheck, LaserBoardFigure, LeaveOneOut, LooFold, LooView, LOO_DISAGREE_FACTOR,
@@ -32,3 +33,4 @@ pub use results::{
     PoseSigma, Quality, RobotCalibration, RobotPoseNoise, RobotPoseView, Sphere, SphereFit, Truth,
     Uncertainty, ViewRecord,
 };
+pub use stripe_extraction::{RejectCounts, StripeExtraction};

@@ -255,6 +255,8 @@ pub struct ViewRecord {
     pub outlier: Option<bool>,
     /// Why it was left out, if it was.
     pub note: Option<String>,
+    /// What the stripe extraction found and left out (`None` without a laser image).
+    pub stripe_extraction: Option<super::StripeExtraction>,
 }
 
 /// The robot-pose noise a one-stage calibration estimated (calibration.json

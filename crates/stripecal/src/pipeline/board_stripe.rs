@@ -173,13 +173,6 @@ pub fn correct_board_stripes(
         return Err("the views' stripes were extracted in different scan directions".into());
     }
     let shapes = || views.iter().filter_map(|v| v.stripe_shape.as_ref());
-    let smoothed = shapes().filter(|s| s.along_line > 1).count();
-    if smoothed > 0 {
-        return Err(format!(
-            "the stripes of {smoothed} view(s) were smoothed along the line for speckle \
-             (the model describes a single scan line's profile of a clean Gaussian sheet)"
-        ));
-    }
     let n_all: usize = shapes().map(|s| s.saturated.len()).sum();
     let n_sat: usize = shapes()
         .map(|s| s.saturated.iter().filter(|x| **x).count())
@@ -189,6 +182,13 @@ pub fn correct_board_stripes(
             "{:.0} % of the stripe points are saturated (the model is an unsaturated \
              Gaussian sheet; lower the exposure or the laser power to use it)",
             100.0 * n_sat as f64 / n_all as f64
+        ));
+    }
+    let smoothed = shapes().filter(|s| s.along_line > 1).count();
+    if smoothed > 0 {
+        return Err(format!(
+            "the stripes of {smoothed} view(s) were smoothed along the line for speckle \
+             (the model describes a single scan line's profile of a clean Gaussian sheet)"
         ));
     }
     let mut sopts = stripe.clone();

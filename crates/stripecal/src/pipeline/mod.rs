@@ -195,6 +195,8 @@ pub struct ViewStatus {
     pub stripe_used: usize,
     /// Stripe points rejected as off the board plane ([`stripe_select`]).
     pub stripe_off_plane: usize,
+    /// What the stripe extraction found and left out (`None` without a laser image).
+    pub stripe_extraction: Option<crate::model::StripeExtraction>,
     pub used: bool,
     /// Why it was left out, if it was.
     pub note: Option<String>,
@@ -209,6 +211,7 @@ impl ViewStatus {
             stripe_points: v.stripe.len(),
             stripe_used: 0,
             stripe_off_plane: 0,
+            stripe_extraction: v.stripe_shape.as_ref().map(|s| s.extraction),
             used: false,
             note: None,
         }
@@ -222,6 +225,7 @@ impl ViewStatus {
             stripe_points: 0,
             stripe_used: 0,
             stripe_off_plane: 0,
+            stripe_extraction: None,
             used: false,
             note,
         }

@@ -135,7 +135,63 @@ pub(super) fn observe(ds: &Dataset, opts: &CalibrateOptions) -> Result<Observed>
             }
         }
     }
+    o.warnings.extend(extraction_warnings(ds, &o.obs));
     Ok(o)
+}
+
+/// A view's stripe points are mostly saturated beyond this share: advice to lower the
+/// exposure or the laser power.
+pub const SATURATED_ADVICE_SHARE: f64 = 0.5;
+
+/// What the stripe extraction of the views asks the user to know: laser images where no
+/// line was found (each named, with the scan lines' reasons), and views whose points
+/// are mostly saturated (with advice).
+fn extraction_warnings(ds: &Dataset, obs: &[ViewObs]) -> Vec<String> {
+    let mut w = Vec::new();
+    let mut saturated = Vec::new();
+    for v in obs {
+        let Some(e) = v.stripe_shape.as_ref().map(|s| &s.extraction) else {
+            continue;
+        };
+        let line = ds.views.get(v.view).map_or(0, |x| x.line);
+        if e.found == 0 {
+            let r = &e.rejected;
+            w.push(format!(
+                "view {} (views.csv line {line}): no laser line found in its laser image ({} \
+                 scan lines: {} without a peak, {} with several comparable peaks, {} \
+                 saturated too long, {} of the wrong width or too weak, {} at the border, {} \
+                 isolated); the view serves the camera and the robot only (check the \
+                 exposure and rig.json's stripe.direction)",
+                v.view,
+                e.lines,
+                r.no_peak,
+                r.multiple_peaks,
+                r.saturated,
+                r.shape,
+                r.border,
+                r.isolated
+            ));
+        } else if e.saturated_share() > SATURATED_ADVICE_SHARE {
+            saturated.push((v.view, e.saturated_share()));
+        }
+    }
+    if !saturated.is_empty() {
+        let (lo, hi) = saturated
+            .iter()
+            .fold((1.0f64, 0.0f64), |(a, b), s| (a.min(s.1), b.max(s.1)));
+        let names: Vec<String> = saturated.iter().map(|s| s.0.to_string()).collect();
+        w.push(format!(
+            "the laser line is saturated in {} of {} views (views {}: {:.0}-{:.0} % of their \
+             stripe points): their centres come from the saturated plateau's edges, and the \
+             stripe-bias model does not apply; lower the exposure or the laser power",
+            saturated.len(),
+            obs.iter().filter(|v| v.stripe_shape.is_some()).count(),
+            names.join(", "),
+            100.0 * lo,
+            100.0 * hi
+        ));
+    }
+    w
 }
 
 /// One view: `Ok(Err(why))` when its board is not found (the view is left out), an

@@ -111,6 +111,7 @@ pub(super) fn view_records_from(
                 stripe_rms_px: r.and_then(|r| finite(r.2)),
                 outlier: r.map(|r| r.3),
                 note: s.note.clone(),
+                stripe_extraction: s.stripe_extraction,
             }
         })
         .collect()

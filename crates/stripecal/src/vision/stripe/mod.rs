@@ -59,7 +59,7 @@ mod ridge;
 mod smooth;
 pub mod survey;
 
-pub use crate::model::{StripeChannel, StripeDirection};
+pub use crate::model::{RejectCounts, StripeChannel, StripeDirection};
 pub use colour::{stripe_signal, stripe_signal_of_file};
 pub use edges::{flag_reflectance_edges, EdgeOptions};
 pub use extract::{resolve_direction, StripeExtractor};
@@ -296,27 +296,6 @@ impl StripePoint {
     pub fn trusted(&self) -> bool {
         self.flags & FLAG_BIASED == 0
     }
-}
-
-/// Why scan lines gave no point.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
-pub struct RejectCounts {
-    /// No ridge above `min_contrast`.
-    pub no_peak: usize,
-    /// Two or more comparable peaks.
-    pub multiple_peaks: usize,
-    /// A saturated plateau longer than `max_saturated_px`.
-    pub saturated: usize,
-    /// Width outside the accepted range, or a peak too weak after background removal.
-    pub shape: usize,
-    /// The window or its flanks leave the image.
-    pub border: usize,
-    /// Not part of a chain of neighbouring points (continuity).
-    pub isolated: usize,
-    /// Scan lines that DID give a point, from the peak that continues the line, while
-    /// holding another peak of comparable strength (a reflection, a second line) that
-    /// was left out.
-    pub reflections: usize,
 }
 
 /// The stripe of one image.
