@@ -337,6 +337,9 @@ class ScanLinesWithoutPoint(TypedDict):
     border: int
     isolated: int
     """Not part of a chain of neighbouring points."""
+    reflection_only: int
+    """The only peak continues a reflection (a line that lost to a heavier one where
+    both were seen)."""
 
 
 class StripeExtraction(TypedDict):
@@ -364,6 +367,9 @@ class StripeExtraction(TypedDict):
     reflections_left_out: int
     """Scan lines that gave a point from the peak continuing the line while holding
     another comparable peak (a reflection) that was left out."""
+    ambiguous_scan_lines: int
+    """Scan lines with two comparable peaks that the line's continuity did not decide
+    between: both were kept, and the board plane's consensus chose."""
 
 
 class _CalibrationViewBase(TypedDict):

@@ -223,6 +223,13 @@ pub struct ImagingCfg {
     pub speckle_contrast: f64,
     /// Speckle grain size (Gaussian correlation sigma), px.
     pub speckle_grain_px: f64,
+    /// A reflection of the laser line (a shiny part of the scene): a second, weaker
+    /// copy of the laser light, this fraction of it (0: none), displaced in the image by
+    /// `reflection_offset_px` (whole pixels, x then y). Not part of the stripe's truth.
+    #[serde(default)]
+    pub reflection_ratio: f64,
+    #[serde(default = "default_reflection_offset")]
+    pub reflection_offset_px: [i32; 2],
     /// Colour images: the calibration views and the ball scan are rendered as RGB
     /// (written as RGB PNGs) from per-channel reflectances, ambient and laser colour,
     /// with independent noise of `noise_gray` in each channel (default `false`: gray).
@@ -247,6 +254,10 @@ pub struct ImagingCfg {
     pub ink_rgb: Option<[f64; 3]>,
 }
 
+fn default_reflection_offset() -> [i32; 2] {
+    [40, 0]
+}
+
 fn default_laser_colour() -> String {
     "red".into()
 }
@@ -267,6 +278,10 @@ impl ImagingCfg {
             ))),
         }
     }
+
+    /// The reflection's knobs, as truth.json's sim_config leaves them out of twins
+    /// without one (so their truth.json is what it was before they existed).
+    pub const REFLECTION_KNOBS: [&'static str; 2] = ["reflection_ratio", "reflection_offset_px"];
 
     /// The knobs of colour images, as truth.json's sim_config leaves them out of gray
     /// twins (so a gray twin's truth.json is what it was before they existed).
@@ -483,6 +498,8 @@ impl SimConfig {
                 laser_emitter_mm: None,
                 speckle_contrast: 0.0,
                 speckle_grain_px: 1.0,
+                reflection_ratio: 0.0,
+                reflection_offset_px: default_reflection_offset(),
                 colour: false,
                 laser_colour: default_laser_colour(),
                 ambient_rgb: default_white(),
@@ -735,6 +752,7 @@ impl SimConfig {
             ("imaging.laser_ambient", im.laser_ambient),
             ("imaging.laser_peak", im.laser_peak),
             ("imaging.vignetting", im.vignetting),
+            ("imaging.reflection_ratio", im.reflection_ratio),
         ] {
             if !(v.is_finite() && v >= 0.0) {
                 return bad(k, format!("{v} must be finite and >= 0"));

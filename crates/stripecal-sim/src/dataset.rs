@@ -647,6 +647,18 @@ impl Twin {
                 m.remove("profiler");
             }
         }
+        if self.cfg.imaging.reflection_ratio == 0.0 {
+            // no reflection: truth.json as before the knob existed
+            if let Some(im) = cfg
+                .as_object_mut()
+                .and_then(|m| m.get_mut("imaging"))
+                .and_then(|v| v.as_object_mut())
+            {
+                for k in crate::config::ImagingCfg::REFLECTION_KNOBS {
+                    im.remove(k);
+                }
+            }
+        }
         if !self.cfg.imaging.colour && self.cfg.stripe_channel.is_none() {
             // gray: truth.json as before the colour knobs existed
             if let Some(m) = cfg.as_object_mut() {

@@ -149,7 +149,18 @@ fn form_channel(
             let i = row * w + col;
             let r2 = ((col as f64 - cam.u0).powi(2) + (row as f64 - cam.v0).powi(2)) / rc2;
             let vig = 1.0 - im.vignetting * r2;
-            let mut l = lin.laser[i] as f64 * las;
+            let mut l = lin.laser[i] as f64;
+            if im.reflection_ratio > 0.0 {
+                // the reflection: the laser light seen `reflection_offset_px` away
+                let (sx, sy) = (
+                    col as i64 - im.reflection_offset_px[0] as i64,
+                    row as i64 - im.reflection_offset_px[1] as i64,
+                );
+                if sx >= 0 && sy >= 0 && (sx as usize) < w && (sy as usize) < h {
+                    l += im.reflection_ratio * lin.laser[sy as usize * w + sx as usize] as f64;
+                }
+            }
+            l *= las;
             if let Some(s) = &speckle {
                 l *= s[i] as f64;
             }

@@ -149,6 +149,12 @@ fn compare(stripe: &Stripe, truth: &[StripePointTruth], surface: &str, transpose
             continue;
         }
         let e = (pos - t.1).abs();
+        if e > 2.0 && std::env::var("DBGPTS").is_ok() {
+            eprintln!(
+                "     BAD line {line} pos {pos:.2} truth {:.2} peak {} w {} flags {}",
+                t.1, p.peak, p.width_px, p.flags
+            );
+        }
         s.n += 1;
         s.sum_sq += e * e;
         s.max_trusted = s.max_trusted.max(e);
@@ -206,7 +212,13 @@ fn calib_stats(
         };
         flag_reflectance_edges(&mut s, view_of(&bimg), &eo).unwrap();
         let b = compare(&s, &r.stripe, "board", transposed);
-        eprintln!("  view {i}: {}; rejected {:?}", b.line("board"), s.rejected);
+        eprintln!(
+            "  view {i}: {}; rejected {:?} survey {:?} along {}",
+            b.line("board"),
+            s.rejected,
+            s.survey,
+            s.along_line
+        );
         board.add(&b);
         table.add(&compare(&s, &r.stripe, "table", transposed));
     }

@@ -111,8 +111,10 @@ pub fn stripe_extraction_to_json(e: &StripeExtraction) -> Value {
             "shape": r.shape,
             "border": r.border,
             "isolated": r.isolated,
+            "reflection_only": r.reflection_only,
         },
         "reflections_left_out": r.reflections,
+        "ambiguous_scan_lines": r.ambiguous,
     })
 }
 
@@ -374,6 +376,7 @@ mod tests {
             stripe_rms_px: Some(0.02),
             outlier: None,
             note: Some("left out".into()),
+            stripe_extraction: None,
         };
         let m = calibration_extra(&s, &[v], &[]);
         let keys: Vec<&str> = m.keys().map(|k| k.as_str()).collect();

@@ -22,6 +22,12 @@ pub struct RejectCounts {
     /// holding another peak of comparable strength (a reflection, a second line) that
     /// was left out.
     pub reflections: usize,
+    /// Scan lines whose only peak continues a reflection (a chain that lost to a
+    /// heavier line where both were seen).
+    pub reflection_only: usize,
+    /// Scan lines that gave two points (`keep_ambiguous`): two comparable peaks that
+    /// the line's continuity did not decide between.
+    pub ambiguous: usize,
 }
 
 /// What the stripe extraction of one view found and left out, before the calibration
@@ -52,7 +58,9 @@ impl StripeExtraction {
     /// Of the points found, the share whose profile holds a saturated pixel (0 with
     /// none kept).
     pub fn saturated_share(&self) -> f64 {
-        let kept = self.found - self.at_edge - self.uneven_background - self.oblique;
+        let kept = self
+            .found
+            .saturating_sub(self.at_edge + self.uneven_background + self.oblique);
         if kept == 0 {
             0.0
         } else {

@@ -179,6 +179,9 @@ pub(super) fn calibrate_unjudged(
     ))
 }
 
+/// What became of the board stripe-bias correction: applied, or why not.
+type BoardStripeOutcome = std::result::Result<BoardStripeCorrection, String>;
+
 /// The stripe's bias on the board corrected ([`super::board_stripe`]) and the adjustment
 /// run again from its own solution on the corrected points, its covariance widened by
 /// what the correction leaves; the input as it is when the correction is off or cannot
@@ -198,11 +201,7 @@ fn correct_stripes(
     board: &Board,
     jopts: &JointOptions,
     opts: &CalibrateOptions,
-) -> Result<(
-    JointResult,
-    Vec<ViewObs>,
-    Option<std::result::Result<BoardStripeCorrection, String>>,
-)> {
+) -> Result<(JointResult, Vec<ViewObs>, Option<BoardStripeOutcome>)> {
     let Some(plane) = adj
         .plane
         .filter(|_| opts.board_stripe_bias && opts.method == Method::OneStage)

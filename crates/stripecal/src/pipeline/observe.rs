@@ -106,6 +106,8 @@ pub(super) fn observe(ds: &Dataset, opts: &CalibrateOptions) -> Result<Observed>
     let lossy = AtomicUsize::new(0);
     let mut stripe_opts = opts.stripe.clone();
     stripe_opts.direction = ds.rig.stripe_direction;
+    // both peaks of an undecided scan line: the board plane's consensus tells which
+    stripe_opts.keep_ambiguous = true;
     let channel = dataset_channel(ds, &stripe_opts)?;
     let results: Vec<Result<std::result::Result<ViewObs, String>>> = ds
         .views

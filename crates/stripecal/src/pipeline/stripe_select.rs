@@ -78,6 +78,10 @@ pub const RANSAC_ITERATIONS: usize = 1500;
 pub const MAX_SCORED_POINTS: usize = 6000;
 /// Rounds of the refinement.
 pub const MAX_REFINEMENTS: usize = 20;
+/// The least tolerance of a view's offset from the consensus plane, px: a view's board
+/// pose comes from the camera stage, off by a pixel or two on a real camera (module
+/// docs, step 5).
+pub const LOOSE_PX: f64 = 3.0;
 /// Sine of the angle between a board and the laser plane is floored at this.
 const MIN_SINE: f64 = 0.1;
 
@@ -212,16 +216,15 @@ pub fn select_on_board_plane(
             normals.push(cb.rotation * Vector3::z());
         }
     }
-    let plane = consensus(&pts, &normals, vis.len())?;
-    let (plane, sigma_px, threshold_px) = match plane {
-        Some(p) => p,
-        None => return Err(not_enough(views, None)),
+    let Some(c) = consensus(&pts, &normals, vis.len())? else {
+        return Err(not_enough(views, None));
     };
-    // 6. Keep the points within the threshold.
+    let (plane, sigma_px, threshold_px) = (c.plane, c.sigma, c.thr);
+    // 6. Keep the points on their view's line, of views within the offsets' threshold.
     let mut keep: Vec<Vec<bool>> = views.iter().map(|(_, s)| vec![false; s.len()]).collect();
     let sines = sines(&plane, &normals);
     for q in &pts {
-        if residual(&plane, q, sines[q.view]) <= threshold_px {
+        if c.keeps(q, sines[q.view]) {
             keep[vis[q.view]][q.index] = true;
         }
     }
@@ -294,7 +297,119 @@ fn sines(plane: &Plane, normals: &[Vector3<f64>]) -> Vec<f64> {
 /// A point's residual against `plane`, px (module docs, step 2).
 #[inline]
 fn residual(plane: &Plane, q: &Pt, sine: f64) -> f64 {
-    plane.signed_distance(&q.p).abs() / sine * q.px_per_mm
+    signed_residual(plane, q, sine).abs()
+}
+
+/// [`residual`] with its sign.
+#[inline]
+fn signed_residual(plane: &Plane, q: &Pt, sine: f64) -> f64 {
+    plane.signed_distance(&q.p) / sine * q.px_per_mm
+}
+
+/// A view's offset from the consensus plane, px: a line along its stripe, `a + b t`
+/// with `t` the point's position along the view's line (mm from the view's centroid):
+/// a board pose off by a small rotation tilts the residuals along the line, off by a
+/// translation shifts them.
+#[derive(Debug, Clone, Copy)]
+struct Offset {
+    a: f64,
+    b: f64,
+    centroid: Vector3<f64>,
+    dir: Vector3<f64>,
+}
+
+impl Offset {
+    #[inline]
+    fn at(&self, p: &Vector3<f64>) -> f64 {
+        self.a + self.b * self.dir.dot(&(p - self.centroid))
+    }
+}
+
+/// The consensus's verdict: the plane, the points' scatter about their view's offset
+/// line and its threshold (px), each view's offset from the plane (`None`: no point of
+/// the view near it) and the offsets' threshold (px, at the views' centroids).
+struct Consensus {
+    plane: Plane,
+    sigma: f64,
+    thr: f64,
+    offsets: Vec<Option<Offset>>,
+    offset_thr: f64,
+}
+
+impl Consensus {
+    /// Whether point `q` is on its view's board plane.
+    fn keeps(&self, q: &Pt, sine: f64) -> bool {
+        self.offsets[q.view].is_some_and(|o| {
+            o.a.abs() <= self.offset_thr
+                && (signed_residual(&self.plane, q, sine) - o.at(&q.p)).abs() <= self.thr
+        })
+    }
+}
+
+/// Each view's offset line from `plane` (see [`Offset`]): a least-squares line through
+/// the signed residuals of its points within `window` px of the plane, refitted twice
+/// to those within 3 robust sigmas of it (a depth step's points drop out); `None` for
+/// a view with fewer than 3 points there.
+fn view_offsets(
+    pts: &[Pt],
+    plane: &Plane,
+    sines: &[f64],
+    nviews: usize,
+    window: f64,
+) -> Vec<Option<Offset>> {
+    let mut per: Vec<Vec<(Vector3<f64>, f64)>> = vec![Vec::new(); nviews];
+    for q in pts {
+        let r = signed_residual(plane, q, sines[q.view]);
+        if r.abs() <= window {
+            per[q.view].push((q.p, r));
+        }
+    }
+    per.into_iter().map(|v| offset_line(&v)).collect()
+}
+
+/// [`view_offsets`] of one view's `(point, residual)`.
+fn offset_line(v: &[(Vector3<f64>, f64)]) -> Option<Offset> {
+    if v.len() < 3 {
+        return None;
+    }
+    let pa = tls::principal_axes(v.iter().map(|(p, _)| p)).ok()?;
+    let dir = pa.axes.column(0).into_owned();
+    let c = pa.centroid;
+    let mut o = Offset {
+        a: 0.0,
+        b: 0.0,
+        centroid: c,
+        dir,
+    };
+    let mut tol = f64::INFINITY;
+    for _ in 0..3 {
+        let (mut n, mut st, mut sr, mut stt, mut str_) = (0.0, 0.0, 0.0, 0.0, 0.0);
+        for (p, r) in v {
+            if (r - o.at(p)).abs() > tol {
+                continue;
+            }
+            let t = dir.dot(&(p - c));
+            n += 1.0;
+            st += t;
+            sr += r;
+            stt += t * t;
+            str_ += t * r;
+        }
+        if n < 3.0 {
+            break;
+        }
+        let det = n * stt - st * st;
+        let (a, b) = if det > 1e-12 * n * stt.max(1e-300) {
+            ((sr * stt - st * str_) / det, (n * str_ - st * sr) / det)
+        } else {
+            (sr / n, 0.0)
+        };
+        o.a = a;
+        o.b = b;
+        let mut dev: Vec<f64> = v.iter().map(|(p, r)| (r - o.at(p)).abs()).collect();
+        tol = 3.0 * 1.4826 * median(&mut dev).unwrap_or(0.0) + 1e-12;
+    }
+    Some(o)
 }
 
 /// The noise scale (px) from the chords within each view (module docs, step 3); `None`
@@ -325,13 +440,9 @@ fn local_sigma(pts: &[Pt], nviews: usize) -> Option<f64> {
     median(&mut d).map(|m| m / (0.6745 * 1.5f64.sqrt()))
 }
 
-/// The consensus plane, the robust sigma and the threshold (px) (module docs, steps 4
-/// and 5); `None` when fewer than 2 views have points.
-fn consensus(
-    pts: &[Pt],
-    normals: &[Vector3<f64>],
-    nviews: usize,
-) -> Result<Option<(Plane, f64, f64)>> {
+/// The consensus plane, the robust sigma and the threshold (px) and the views' offsets
+/// (module docs, steps 4 and 5); `None` when fewer than 2 views have points.
+fn consensus(pts: &[Pt], normals: &[Vector3<f64>], nviews: usize) -> Result<Option<Consensus>> {
     let per_view: Vec<Vec<usize>> = (0..nviews)
         .map(|v| (0..pts.len()).filter(|&i| pts[i].view == v).collect())
         .collect();
@@ -341,6 +452,10 @@ fn consensus(
     }
     let sigma0 = local_sigma(pts, nviews).unwrap_or(0.0);
     let t0 = (THRESHOLD_SIGMAS * sigma0).max(FLOOR_PX);
+    // Candidates are scored with the views' own offsets in mind: a view's board pose is
+    // as good as the camera stage's fit, which on a real camera is off by a pixel or
+    // two, not by the stripe's noise.
+    let t_score = t0.max(LOOSE_PX);
     // Points scored: every view's points evenly thinned to the budget.
     let stride = pts.len().div_ceil(MAX_SCORED_POINTS).max(1);
     let scored: Vec<&Pt> = pts.iter().step_by(stride).collect();
@@ -374,25 +489,53 @@ fn consensus(
         let s = sines(&plane, normals);
         let cost: f64 = scored
             .iter()
-            .map(|q| residual(&plane, q, s[q.view]).powi(2).min(t0 * t0))
+            .map(|q| {
+                residual(&plane, q, s[q.view])
+                    .powi(2)
+                    .min(t_score * t_score)
+            })
             .sum();
         if best.is_none_or(|(c, _)| cost < c) {
             best = Some((cost, plane));
         }
     }
-    let Some((_, mut plane)) = best else {
+    let Some((_, plane)) = best else {
         return Ok(None);
     };
-    // 5. Refinement.
-    let mut thr = t0;
-    let mut sigma = sigma0;
+    Ok(Some(refine(
+        pts, normals, nviews, plane, sigma0, t0, t_score,
+    )))
+}
+
+/// Step 5 of the module docs: each view's offset from the plane, its points' scatter
+/// about it, the plane refitted to the points kept, until the points kept stay the same.
+fn refine(
+    pts: &[Pt],
+    normals: &[Vector3<f64>],
+    nviews: usize,
+    mut plane: Plane,
+    sigma0: f64,
+    t0: f64,
+    window: f64,
+) -> Consensus {
+    let mut c = Consensus {
+        plane,
+        sigma: sigma0,
+        thr: t0,
+        offsets: vec![None; nviews],
+        offset_thr: window,
+    };
     let mut inliers: Vec<bool> = Vec::new();
     for _ in 0..MAX_REFINEMENTS {
         let s = sines(&plane, normals);
-        let now: Vec<bool> = pts
-            .iter()
-            .map(|q| residual(&plane, q, s[q.view]) <= thr)
-            .collect();
+        c.plane = plane;
+        c.offsets = view_offsets(pts, &plane, &s, nviews, c.offset_thr.max(c.thr));
+        // the offsets' own scatter sets their threshold (a view far off the others is
+        // a view whose board pose, or line, is not the others')
+        let mut dev: Vec<f64> = c.offsets.iter().flatten().map(|o| o.a.abs()).collect();
+        let spread = 1.4826 * median(&mut dev).unwrap_or(0.0);
+        c.offset_thr = (THRESHOLD_SIGMAS * spread).max(c.thr).max(LOOSE_PX);
+        let now: Vec<bool> = pts.iter().map(|q| c.keeps(q, s[q.view])).collect();
         if now == inliers {
             break;
         }
@@ -412,23 +555,29 @@ fn consensus(
         if used.len() < 3 || in_views.all(|v| Some(v) == first) {
             break; // one view's line: the candidate plane stays
         }
-        let pa = tls::principal_axes(used.iter().copied())?;
+        let Ok(pa) = tls::principal_axes(used.iter().copied()) else {
+            break;
+        };
         let n = pa.axes.column(2).into_owned();
         let Ok(p) = Plane::new(n, n.dot(&pa.centroid)) else {
             break;
         };
         plane = p;
+        // the points' scatter about their own view's offset
         let s = sines(&plane, normals);
+        let offsets = view_offsets(pts, &plane, &s, nviews, c.offset_thr.max(c.thr));
         let mut r: Vec<f64> = pts
             .iter()
             .zip(&inliers)
             .filter(|(_, k)| **k)
-            .map(|(q, _)| residual(&plane, q, s[q.view]))
+            .filter_map(|(q, _)| {
+                offsets[q.view].map(|o| (signed_residual(&plane, q, s[q.view]) - o.at(&q.p)).abs())
+            })
             .collect();
-        sigma = 1.4826 * median(&mut r).unwrap_or(0.0);
-        thr = (THRESHOLD_SIGMAS * sigma).max(FLOOR_PX);
+        c.sigma = 1.4826 * median(&mut r).unwrap_or(0.0);
+        c.thr = (THRESHOLD_SIGMAS * c.sigma).max(FLOOR_PX);
     }
-    Ok(Some((plane, sigma, thr)))
+    c
 }
 
 #[cfg(test)]

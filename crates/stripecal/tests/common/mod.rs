@@ -41,6 +41,7 @@ pub fn plane_error_in_volume(cam: &Camera, truth: &Plane, est: &Plane, near: f64
     worst
 }
 
+#[derive(Debug, Clone)]
 pub struct Errs {
     pub fu_rel: f64,
     pub fv_rel: f64,

@@ -6,7 +6,8 @@
 //! (laser off, same pose) shows those steps directly: a point is flagged [`FLAG_EDGE`]
 //! when the board image's gray range over the point's support (the scan-line segment
 //! its centre depends on: window and background flanks, `support_px` each side, plus
-//! `margin_px`), on its own scan line and `lines` neighbours each side, exceeds
+//! `margin_px`), on its own scan line and `lines` neighbours each side (and the scan
+//! lines the extractor averaged along the line, [`Stripe::along_line`]), exceeds
 //! `min_gray + rel * max` (a step, not noise or shading).
 //!
 //! Single-image views (board lit and stripe on, one image): the image holds the stripe
@@ -104,11 +105,14 @@ fn flag<T: Pixel>(
             img.get(pos as usize, line as usize).to_f32()
         }
     };
+    // a stripe smoothed along the line over `along_line` scan lines depends on the
+    // board over that many lines too
     let lines = if o.single_image {
         o.single_image_lines
     } else {
         o.lines
-    } as isize;
+    } as isize
+        + (stripe.along_line / 2) as isize;
     let n = stripe.points.len();
     let mut flagged = 0;
     for i in 0..n {

@@ -6,10 +6,12 @@
 
 use super::chains::{Chains, Decision};
 use super::peak::{line_subpixel, ColumnLine, Params, RowLine, Sub};
-use super::ridge::{scan_columns, scan_line, LineCand, LineReject, RidgePixel};
+use super::ridge::{scan_columns, scan_line, LineCand, LineReject, RidgePixel, Run};
 use super::smooth::{scale_of, smooth_along};
 use super::survey::{survey, Survey};
-use super::{RejectCounts, StripeDirection, StripeOptions, StripePoint, FLAG_OBLIQUE};
+use super::{
+    RejectCounts, StripeDirection, StripeOptions, StripePoint, FLAG_AMBIGUOUS, FLAG_OBLIQUE,
+};
 use crate::error::Result;
 use crate::model::image::{AnyView, ImageView};
 
@@ -32,6 +34,8 @@ pub struct StripeExtractor {
     acc: Vec<u32>,
     chains: Chains,
     decisions: Vec<Decision>,
+    /// The second points of ambiguous scan lines.
+    alts: Vec<StripePoint>,
     rejected: RejectCounts,
     survey: Survey,
     along: usize,
@@ -53,6 +57,7 @@ impl StripeExtractor {
             acc: Vec::new(),
             chains: Chains::default(),
             decisions: Vec::new(),
+            alts: Vec::new(),
             rejected: RejectCounts::default(),
             survey: Survey::default(),
             along: 1,
@@ -103,11 +108,9 @@ impl StripeExtractor {
     ) -> Result<StripeDirection> {
         self.survey = survey(img, &self.opts, self.opts.direction);
         let mut opts = self.opts.clone();
-        opts.ridge_px = if self.opts.adapt_ridge {
-            self.survey.ridge_px(&self.opts)
-        } else {
-            self.opts.ridge_px
-        };
+        if self.opts.adapt_to_line {
+            self.survey.adapt(&mut opts);
+        }
         self.ridge = opts.ridge_px;
         self.along = self.survey.along_line(&self.opts);
         let (dir, auto) = match opts.direction {
@@ -160,50 +163,114 @@ impl StripeExtractor {
         }
         // a wide line's peak pixel wanders within its top
         let slack = 0.5 * opts.ridge_px as f32;
+        let limit = p.reach;
+        let weight = |l: usize, r: &Run| -> u32 {
+            // the brightest value times the plateau at it about the peak (module docs of
+            // `chains`): walked on the scan line itself
+            let v = r.vmax();
+            let pk = r.peak();
+            let at = |i: usize| -> u32 {
+                if dir == StripeDirection::Rows {
+                    img.get(l, i).as_u32()
+                } else {
+                    img.row(l)[i].as_u32()
+                }
+            };
+            let n = if dir == StripeDirection::Rows {
+                img.height()
+            } else {
+                img.width()
+            };
+            if pk >= n || at(pk) != v {
+                return v;
+            }
+            let (mut a, mut b) = (pk, pk);
+            while a > 0 && pk - a < limit && at(a - 1) == v {
+                a -= 1;
+            }
+            while b + 1 < n && b - pk < limit && at(b + 1) == v {
+                b += 1;
+            }
+            v.saturating_mul((b - a + 1) as u32)
+        };
         self.chains.decide(
             &self.cands,
             opts.second_peak_ratio,
             opts.max_jump_px,
             slack,
+            weight,
             &mut self.decisions,
         );
-        for (l, d) in self.decisions.iter().enumerate() {
-            let (pk, reflection) = match *d {
-                Decision::Peak(pk, r) => (pk, r),
+        self.alts.clear();
+        for l in 0..self.decisions.len() {
+            let (pk, alt, reflection) = match self.decisions[l] {
+                Decision::Peak(pk, r) => (pk, None, r),
+                Decision::Ambiguous(a, b) if opts.keep_ambiguous => (a, Some(b), false),
+                Decision::Ambiguous(..) => {
+                    count(&mut rej, LineReject::Multiple);
+                    continue;
+                }
                 Decision::Reject(e) => {
                     count(&mut rej, e);
                     continue;
                 }
             };
             rej.reflections += reflection as usize;
-            let (a, res) = if dir == StripeDirection::Rows {
-                let mut line = ColumnLine {
-                    img,
-                    x: l,
-                    buf: &mut self.col,
-                };
-                line_subpixel(&mut line, &mut self.seg, img.height(), pk, &p)
-            } else {
-                let w = img.width();
-                line_subpixel(&mut RowLine(img.row(l)), &mut self.seg, w, pk, &p)
-            };
-            match res {
-                Ok(s) => {
-                    let pos = a as f64 + s.c;
-                    let mut pt = if dir == StripeDirection::Rows {
-                        point(l as f64, pos, &s)
-                    } else {
-                        point(pos, l as f64, &s)
-                    };
-                    pt.peak *= back;
-                    out.push(pt);
+            rej.ambiguous += alt.is_some() as usize;
+            let first = self.centre(img, dir, l, pk, &p, back);
+            let second = alt.map(|b| self.centre(img, dir, l, b, &p, back));
+            match (first, second) {
+                (Ok(mut a), Some(Ok(mut b))) => {
+                    a.flags |= FLAG_AMBIGUOUS;
+                    b.flags |= FLAG_AMBIGUOUS;
+                    out.push(a);
+                    self.alts.push(b);
                 }
-                Err(e) => count(&mut rej, e),
+                (Ok(a), _) => out.push(a),
+                (Err(_), Some(Ok(b))) => out.push(b),
+                (Err(e), _) => count(&mut rej, e),
             }
         }
         rej.isolated = continuity(out, dir, opts.min_chain, opts.max_jump_px);
         flag_oblique(out, dir, opts.max_slope);
+        if !self.alts.is_empty() {
+            rej.isolated += continuity(&mut self.alts, dir, opts.min_chain, opts.max_jump_px);
+            flag_oblique(&mut self.alts, dir, opts.max_slope);
+            out.extend_from_slice(&self.alts);
+        }
         self.rejected = rej;
+    }
+
+    /// The stripe point of the peak at `pk` of scan line `l`, its peak scaled by `back`.
+    fn centre<T: RidgePixel>(
+        &mut self,
+        img: &ImageView<'_, T>,
+        dir: StripeDirection,
+        l: usize,
+        pk: usize,
+        p: &Params,
+        back: f32,
+    ) -> std::result::Result<StripePoint, LineReject> {
+        let (a, res) = if dir == StripeDirection::Rows {
+            let mut line = ColumnLine {
+                img,
+                x: l,
+                buf: &mut self.col,
+            };
+            line_subpixel(&mut line, &mut self.seg, img.height(), pk, p)
+        } else {
+            let w = img.width();
+            line_subpixel(&mut RowLine(img.row(l)), &mut self.seg, w, pk, p)
+        };
+        let s = res?;
+        let pos = a as f64 + s.c;
+        let mut pt = if dir == StripeDirection::Rows {
+            point(l as f64, pos, &s)
+        } else {
+            point(pos, l as f64, &s)
+        };
+        pt.peak *= back;
+        Ok(pt)
     }
 
     /// `Cols` direction: the candidates of every image row into `self.cands` (rows the
@@ -249,6 +316,7 @@ fn count(rej: &mut RejectCounts, r: LineReject) {
     match r {
         LineReject::NoPeak => rej.no_peak += 1,
         LineReject::Multiple => rej.multiple_peaks += 1,
+        LineReject::Reflection => rej.reflection_only += 1,
         LineReject::Shape => rej.shape += 1,
         LineReject::Saturated => rej.saturated += 1,
         LineReject::Border => rej.border += 1,
@@ -322,6 +390,23 @@ fn flag_oblique(pts: &mut [StripePoint], dir: StripeDirection, max_slope: f32) {
     }
 }
 
+/// Whether a scan line looks like it crosses the line: one peak, or two comparable ones
+/// (the line and a reflection).
+#[inline]
+fn holds_line(c: &LineCand, ratio: f32) -> bool {
+    match c.verdict(ratio) {
+        Ok(_) => true,
+        Err(LineReject::Multiple) => {
+            let runs = c.runs();
+            runs.len() >= 2
+                && runs
+                    .get(2)
+                    .is_none_or(|r| r.strength_f32() < ratio * runs[0].strength_f32())
+        }
+        Err(_) => false,
+    }
+}
+
 /// Decides the scan direction of an image: the ridge test on every 4th row and on every
 /// column; the direction that yields more single-peak scan lines wins (the rows found,
 /// scaled by 4, against the columns found); ties and images without any stripe give
@@ -354,14 +439,14 @@ fn auto_direction<T: RidgePixel>(
         let mut c = LineCand::default();
         scan_line(img.row(y), d, thr, &mut c);
         rows_n += 1;
-        rows_hit += c.verdict(ratio).is_ok() as usize;
+        rows_hit += holds_line(&c, ratio) as usize;
         rows.push(c);
     }
     // Columns: the row-wise (cache friendly) ridge test of every column.
     cands.clear();
     cands.resize(w, LineCand::default());
     scan_columns(img, d, thr, cands);
-    let cols_hit = cands.iter().filter(|c| c.verdict(ratio).is_ok()).count();
+    let cols_hit = cands.iter().filter(|c| holds_line(c, ratio)).count();
     let per_row = if rows_n > 0 {
         rows_hit as f64 / rows_n as f64 * h as f64
     } else {

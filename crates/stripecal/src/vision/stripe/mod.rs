@@ -8,17 +8,35 @@
 //! stripe runs roughly along rows, each COLUMN is a scan line, one point `(u = column, v)`.
 //! [`StripeDirection::Auto`] decides from the image (see [`resolve_direction`]).
 //!
+//! ## Before the scan lines: the survey
+//!
+//! [`survey`] looks at every 8th row and column: the line's width across, the share of
+//! its peaks at full scale, and a speckle index (how much its brightness jumps from a
+//! scan line to the next). A line wider than the ridge test's distance allows gets a
+//! wider one (`ceil(width / 2) + 3`, with wider widths and longer saturated plateaus
+//! accepted: [`StripeOptions::adapt_to_line`]); a saturated or
+//! speckled line is smoothed along the line over 5 scan lines first
+//! ([`StripeOptions::along_line`]: the centre of a straight line stays where it is, the
+//! speckle averages down, a saturated plateau's edges steady). A narrow, unsaturated,
+//! clean line is extracted exactly as before the survey existed.
+//!
 //! ## Per scan line
 //!
 //! 1. **Peak search (ridge test).** `r(x) = I(x) - max(I(x - d), I(x + d))` with
-//!    `d = ridge_px`: positive only on a bright ridge narrower than `2 d`; a step of the
-//!    background (a circle's border, the plate's edge, board texture in single-image
-//!    views) gives `r <= 0`. Runs of `r >= min_contrast` are peak candidates. This pass is
-//!    one read of the scan line with integer arithmetic, vectorised by the compiler; only
-//!    the few pixels above the threshold are looked at further.
-//! 2. **Rejection.** No candidate: no point. Two candidates with the weaker one at least
-//!    `second_peak_ratio` of the stronger (a reflection, a second stripe): the scan line is
-//!    ambiguous and gives no point.
+//!    `d = ridge_px` (or the survey's): positive only on a bright ridge narrower than
+//!    `2 d`; a step of the background (a circle's border, the plate's edge, board
+//!    texture in single-image views) gives `r <= 0`. Runs of `r >= min_contrast` (runs
+//!    less than `d` apart merged: one line) are peak candidates; a scan line keeps its
+//!    four strongest. This pass is one read of the scan line with integer arithmetic,
+//!    vectorised by the compiler; only the few pixels above the threshold are looked at
+//!    further.
+//! 2. **One peak or several.** No candidate: no point. A single candidate, or a weaker
+//!    one below `second_peak_ratio` of the strongest: the strongest. Two comparable
+//!    candidates (a reflection, a second line, a bright edge of the scene) are decided
+//!    by the line's continuity ([`chains`]): the one on the heaviest chain of peaks
+//!    through the neighbouring scan lines; a scan line that chain cannot decide gives
+//!    no point, or both with [`FLAG_AMBIGUOUS`] when [`StripeOptions::keep_ambiguous`]
+//!    (the calibration's board-plane consensus then tells which).
 //! 3. **Local background** from two flanks of `flank_px` pixels just outside the centre
 //!    window, linear between them (it follows the board texture and shading locally).
 //!    Flanks that disagree or are not flat mean a reflectance change under the stripe:
@@ -27,7 +45,10 @@
 //!    height above the background. Rejected: width outside `[min_width_px,
 //!    max_width_px]`, a saturated plateau longer than `max_saturated_px`, a window that
 //!    leaves the image.
-//! 5. **Sub-pixel centre.** [`StripeMethod::Centroid`] (the paper's way): gray centroid of
+//! 5. **Sub-pixel centre.** A saturated plateau (2 px or more at full scale): the
+//!    middle of its two half-maximum crossings (the clipped top holds no centre; its
+//!    edges do, as line profilers take it). Otherwise [`StripeMethod::Centroid`] (the
+//!    paper's way): gray centroid of
 //!    `I - background` over a window of `+-window_fwhm * width_px` centred on the current
 //!    estimate, with fractional weights at the window ends, iterated to a fixed point (so
 //!    the window truncation does not pull the centre). [`StripeMethod::Gaussian`]: a
@@ -83,6 +104,11 @@ pub const FLAG_UNEVEN_BACKGROUND: u8 = 8;
 /// max_slope`, from the neighbouring points): the scan-line profile runs along the stripe
 /// and follows its bends and intensity changes (a sphere's rim), so the centre is biased.
 pub const FLAG_OBLIQUE: u8 = 16;
+/// The scan line held two comparable peaks that the line's continuity did not decide
+/// between, and both were kept ([`StripeOptions::keep_ambiguous`]): one of the two
+/// points of the scan line is not the stripe (a calibration's board-plane consensus
+/// tells which).
+pub const FLAG_AMBIGUOUS: u8 = 32;
 /// Flags that warn of a biased centre: leave such points out of calibration.
 pub const FLAG_BIASED: u8 = FLAG_EDGE | FLAG_UNEVEN_BACKGROUND | FLAG_OBLIQUE;
 
@@ -152,12 +178,20 @@ pub struct StripeOptions {
     /// Points where the stripe's slope against the scan line exceeds this get
     /// [`FLAG_OBLIQUE`].
     pub max_slope: f32,
-    /// Widen the ridge distance to the line's width ([`survey`]): a line wider than
-    /// about `2 * ridge_px - 6` px is found with `ceil(width / 2) + 3`.
-    pub adapt_ridge: bool,
+    /// Adapt to the line's width and saturation ([`survey`]): a line wider than about
+    /// `2 * ridge_px - 4` px is found with the ridge distance `ceil(width / 2) + 3`,
+    /// widths up to `1.5 * width + 4` are accepted and, on a saturated line, plateaus
+    /// as long as its width (`ridge_px`, `max_width_px` and `max_saturated_px` are the
+    /// least these become; a narrow, unsaturated line is extracted with them as set).
+    pub adapt_to_line: bool,
     /// Scan lines averaged along the line before the centre (1: none; 0: auto, from
     /// the [`survey`]: 5 for a saturated or speckled line, 1 otherwise). At most 31.
     pub along_line: usize,
+    /// A scan line with two comparable peaks that the line's continuity does not
+    /// decide between (a saturated reflection beside a saturated line) gives both,
+    /// flagged [`FLAG_AMBIGUOUS`], after the scan lines' single points (default false:
+    /// no point; the calibration keeps both and lets its board-plane consensus decide).
+    pub keep_ambiguous: bool,
 }
 
 impl Default for StripeOptions {
@@ -169,18 +203,19 @@ impl Default for StripeOptions {
             min_contrast: 6.0,
             second_peak_ratio: 0.5,
             min_width_px: 1.2,
-            max_width_px: 36.0,
+            max_width_px: 24.0,
             window_fwhm: 1.0,
             flank_px: 3,
-            max_saturated_px: 48,
+            max_saturated_px: 6,
             low_signal_gray: 20.0,
             uneven_gray: 5.0,
             uneven_rel: 0.1,
             min_chain: 3,
             max_jump_px: 4.0,
             max_slope: 1.5,
-            adapt_ridge: true,
+            adapt_to_line: true,
             along_line: 0,
+            keep_ambiguous: false,
         }
     }
 }

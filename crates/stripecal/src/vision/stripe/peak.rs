@@ -34,7 +34,7 @@ pub(super) struct Params {
     /// Longest half-width walk, px.
     limit: usize,
     /// Half length of the segment around the peak that sub-pixel work may read.
-    reach: usize,
+    pub reach: usize,
 }
 
 impl Params {

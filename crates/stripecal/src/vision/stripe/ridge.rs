@@ -11,6 +11,12 @@ const CHUNK: usize = 64;
 /// Candidate runs closer than this (pixels between them) are one run.
 const MERGE_GAP: u32 = 2;
 
+/// The merge gap for the ridge distance `d`.
+#[inline]
+fn merge_gap(_d: usize) -> u32 {
+    MERGE_GAP
+}
+
 /// Integer pixel operations of the ridge pass.
 pub(crate) trait RidgePixel: Pixel + Ord {
     const ZERO: Self;
@@ -52,9 +58,6 @@ pub(crate) struct Run {
     last: u32,
     /// The largest ridge response of the run.
     strength: u32,
-    /// The sum of the run's ridge responses (its area: a wide or saturated line's
-    /// weight when lines of the same height compete).
-    area: u32,
     vmax: u32,
     pfirst: u32,
     plast: u32,
@@ -67,10 +70,18 @@ impl Run {
         ((self.pfirst + self.plast) / 2) as usize
     }
 
-    /// The sum of the run's ridge responses.
+    /// The run's weight when lines compete, within the run alone: its brightest value
+    /// times the pixels at that value ([`super::chains`] measures a saturated plateau on
+    /// the scan line itself).
+    #[cfg(test)]
+    pub(crate) fn weight(&self) -> u32 {
+        self.vmax.saturating_mul(self.plast - self.pfirst + 1)
+    }
+
+    /// The run's brightest value.
     #[inline]
-    pub(crate) fn area(&self) -> u32 {
-        self.area
+    pub(crate) fn vmax(&self) -> u32 {
+        self.vmax
     }
 
     /// The run's largest ridge response.
@@ -97,12 +108,11 @@ pub(crate) struct LineCand {
 
 impl LineCand {
     #[inline]
-    fn push(&mut self, pos: u32, r: u32, v: u32) {
-        if self.active && pos <= self.cur.last + 1 + MERGE_GAP {
+    fn push(&mut self, pos: u32, r: u32, v: u32, gap: u32) {
+        if self.active && pos <= self.cur.last + 1 + gap {
             let c = &mut self.cur;
             c.last = pos;
             c.strength = c.strength.max(r);
-            c.area = c.area.saturating_add(r);
             if v > c.vmax {
                 c.vmax = v;
                 c.pfirst = pos;
@@ -115,7 +125,6 @@ impl LineCand {
             self.cur = Run {
                 last: pos,
                 strength: r,
-                area: r,
                 vmax: v,
                 pfirst: pos,
                 plast: pos,
@@ -190,6 +199,8 @@ impl LineCand {
 pub(super) enum LineReject {
     NoPeak,
     Multiple,
+    /// The only peak continues a chain that is a reflection ([`super::chains`]).
+    Reflection,
     Shape,
     Saturated,
     Border,
@@ -323,7 +334,7 @@ pub(super) fn scan_line_generic<T: RidgePixel>(line: &[T], d: usize, thr: T, can
         &line[d..n - d],
         &line[2 * d..],
         thr,
-        |i, r, v| cand.push((d + i) as u32, r, v),
+        |i, r, v| cand.push((d + i) as u32, r, v, merge_gap(d)),
     );
     cand.close();
 }
@@ -342,11 +353,12 @@ pub(super) fn scan_columns_generic<T: RidgePixel>(
     if h < 2 * d + 1 {
         return;
     }
+    let gap = merge_gap(d);
     for y in d..h - d {
         let (ra, rm, rb) = (img.row(y - d), img.row(y), img.row(y + d));
         ridge_blocks(ra, rm, rb, thr, |i, r, v| {
             if let Some(c) = cands.get_mut(i) {
-                c.push(y as u32, r, v);
+                c.push(y as u32, r, v, gap);
             }
         });
     }

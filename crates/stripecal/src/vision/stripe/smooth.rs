@@ -44,11 +44,11 @@ pub(super) fn smooth_along<T: Pixel>(
             let mut s: u32 = 0;
             let mut cnt: u32 = 0;
             // running sum over the window x - k ..= x + k, clipped
-            for x in 0..(k as usize).min(w) {
-                s += row[x].to_u32();
+            for v in &row[..(k as usize).min(w)] {
+                s += v.to_u32();
                 cnt += 1;
             }
-            for x in 0..w {
+            for (x, ox) in o.iter_mut().enumerate() {
                 let add = x as isize + k;
                 if (add as usize) < w {
                     s += row[add as usize].to_u32();
@@ -59,7 +59,7 @@ pub(super) fn smooth_along<T: Pixel>(
                     s -= row[sub as usize].to_u32();
                     cnt -= 1;
                 }
-                o[x] = ((s * scale + cnt / 2) / cnt) as u16;
+                *ox = ((s * scale + cnt / 2) / cnt) as u16;
             }
         }
     } else {

@@ -17,19 +17,23 @@
 //! samples do, there is no line to measure and the index is 0): `|m_a - m_b| / ((m_a + m_b) /
 //! 2)` of their heights above the median. Its median over the pairs is the speckle
 //! index: about `sqrt(2) * 0.67 * noise / height` for a line with white noise alone
-//! (below 0.02 for a line 100 gray levels over a noise of 2), and 0.1-0.3 for a
-//! speckle of contrast 0.15-0.4 (the grain decorrelates the heights within a few scan
-//! lines).
+//! (below 0.02 for a line 100 gray levels over a noise of 2, 0.035 for one 40 over
+//! 1.5), and about 0.09 for the twin's speckle of contrast 0.3 and 2 px grain (the
+//! grain decorrelates the heights within a few scan lines).
 //!
 //! ## What follows
 //!
-//! - The ridge distance: `max(ridge_px, ceil(width / 2) + 3)` (at most
-//!   [`MAX_RIDGE_PX`]): a ridge must be narrower than twice the distance; a narrow line
-//!   keeps `ridge_px` (and the extraction of narrow lines is what it always was).
-//! - Smoothing along the line ([`StripeOptions::along_line`] `0`, auto): on when more
-//!   than [`SATURATED_SHARE`] of the sampled lines' peaks are at full scale (a
-//!   saturated line's edges carry the speckle that its clipped top hides) or the
-//!   speckle index exceeds [`SPECKLE_INDEX`].
+//! - The widths accepted: up to `max(max_width_px, 1.5 * width + 4)` (at most
+//!   [`MAX_WIDTH_PX`]), and on a wide saturated line plateaus up to
+//!   `max(max_saturated_px, width)`.
+//! - The ridge distance: `ridge_px` while `ceil(width / 2) + 2 <= ridge_px`, else
+//!   `ceil(width / 2) + 3` (at most [`MAX_RIDGE_PX`]): a ridge must be narrower than
+//!   twice the distance; a narrow line keeps `ridge_px` (and the extraction of narrow
+//!   lines is what it always was).
+//! - Smoothing along the line ([`StripeOptions::along_line`] `0`, auto): on for a wide
+//!   saturated line (more than [`SATURATED_SHARE`] of the sampled lines' peaks at full
+//!   scale, at least [`WIDE_PX`] wide: its edges carry the speckle its clipped top
+//!   hides) or when the speckle index exceeds [`SPECKLE_INDEX`].
 
 use super::ridge::RidgePixel;
 use super::{StripeDirection, StripeOptions};
@@ -39,10 +43,14 @@ use crate::model::image::{ImageView, Pixel};
 const STEP: usize = 8;
 /// The largest ridge distance the survey sets, px (a line up to about 58 px wide).
 pub const MAX_RIDGE_PX: usize = 32;
+/// The widest line the survey lets the extractor accept, px.
+pub const MAX_WIDTH_PX: f32 = 64.0;
 /// Smoothing is on when more than this share of the sampled peaks are saturated.
 pub const SATURATED_SHARE: f64 = 0.25;
+/// A saturated line at least this wide (px) is a wide saturated line.
+pub const WIDE_PX: f64 = 10.0;
 /// Smoothing is on when the speckle index exceeds this.
-pub const SPECKLE_INDEX: f64 = 0.08;
+pub const SPECKLE_INDEX: f64 = 0.06;
 /// Scan lines averaged along the line when smoothing is on (auto).
 pub const AUTO_ALONG_LINE: usize = 5;
 
@@ -62,9 +70,34 @@ pub struct Survey {
 impl Survey {
     /// The ridge distance for `opts` (module docs).
     pub fn ridge_px(&self, opts: &StripeOptions) -> usize {
-        let w = self.width_px.min(opts.max_width_px as f64);
-        let d = (0.5 * w).ceil() as usize + 3;
-        d.clamp(opts.ridge_px, MAX_RIDGE_PX.max(opts.ridge_px))
+        let w = self.width_px.min(f64::from(MAX_WIDTH_PX));
+        let half = (0.5 * w).ceil() as usize;
+        if half + 2 <= opts.ridge_px {
+            // the ridge test finds this line as it is
+            return opts.ridge_px;
+        }
+        (half + 3).clamp(opts.ridge_px, MAX_RIDGE_PX.max(opts.ridge_px))
+    }
+
+    /// A wide saturated line: more than [`SATURATED_SHARE`] of the peaks at full scale
+    /// and at least [`WIDE_PX`] wide (a narrow line that touches full scale keeps the
+    /// extraction of narrow lines).
+    pub fn saturated_wide(&self) -> bool {
+        self.saturated_share > SATURATED_SHARE && self.width_px >= WIDE_PX
+    }
+
+    /// `opts` adapted to the line (module docs): the ridge distance, the widths accepted
+    /// and, on a saturated line, the plateau trusted; never below their values.
+    pub fn adapt(&self, opts: &mut StripeOptions) {
+        opts.ridge_px = self.ridge_px(opts);
+        let wide = (1.5 * self.width_px + 4.0) as f32;
+        opts.max_width_px = opts.max_width_px.max(wide.min(MAX_WIDTH_PX));
+        if self.saturated_wide() {
+            let plateau = self.width_px.ceil() as usize;
+            opts.max_saturated_px = opts
+                .max_saturated_px
+                .max(plateau.min(MAX_WIDTH_PX as usize));
+        }
     }
 
     /// Scan lines to average along the line: `opts.along_line` when set, else
@@ -72,7 +105,7 @@ impl Survey {
     pub fn along_line(&self, opts: &StripeOptions) -> usize {
         match opts.along_line {
             0 => {
-                if self.saturated_share > SATURATED_SHARE || self.speckle_index > SPECKLE_INDEX {
+                if self.saturated_wide() || self.speckle_index > SPECKLE_INDEX {
                     AUTO_ALONG_LINE
                 } else {
                     1
