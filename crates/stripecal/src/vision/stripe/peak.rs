@@ -15,6 +15,8 @@ const SHORT_REACH: usize = 16;
 const ROUNDS: usize = 2;
 /// A saturated run at least this long is a plateau: the centre comes from its edges.
 pub(super) const PLATEAU_PX: usize = 2;
+/// A plateau's background counts as uneven beyond this share of its height.
+const PLATEAU_UNEVEN_REL: f32 = 0.25;
 
 /// Options converted to the image's gray scale.
 #[derive(Debug, Clone, Copy)]
@@ -215,6 +217,8 @@ struct PeakWindow {
     flanks: (usize, usize),
     /// The flanks disagree or are not flat.
     uneven: bool,
+    /// The largest of the flanks' disagreement and their own ranges, gray.
+    unevenness: f32,
     /// Half-maximum crossings left and right, and the width between them.
     l: f32,
     r: f32,
@@ -254,6 +258,7 @@ fn peak_window<T: Pixel>(
     let mut h = 0.0;
     let mut flanks = (0usize, 0usize);
     let mut uneven = false;
+    let mut unevenness = 0.0f32;
     for _ in 0..ROUNDS {
         let w = r - l;
         if !(w >= p.min_width && w <= p.max_width) {
@@ -291,7 +296,8 @@ fn peak_window<T: Pixel>(
             return Err(LineReject::Shape);
         }
         let tol = p.uneven + p.uneven_rel * a;
-        uneven = (mr - ml).abs() > tol || maxl - minl > tol || maxr - minr > tol;
+        unevenness = (mr - ml).abs().max(maxl - minl).max(maxr - minr);
+        uneven = unevenness > tol;
         l = crossing(seg, pk, -1, &bg, 0.5 * a, limit)?;
         r = crossing(seg, pk, 1, &bg, 0.5 * a, limit)?;
     }
@@ -306,6 +312,7 @@ fn peak_window<T: Pixel>(
         h,
         flanks,
         uneven,
+        unevenness,
         l,
         r,
         w,
@@ -426,7 +433,15 @@ pub(super) fn subpixel<T: Pixel>(
             return Err(LineReject::Saturated);
         }
     }
-    if win.uneven {
+    // A plateau's centre comes from its steep edges, which a background step moves by
+    // far less than it moves a centroid: only a step of a good part of its height counts
+    // (the halo and speckle around a saturated line are not one).
+    let uneven = if longest >= PLATEAU_PX {
+        win.unevenness > PLATEAU_UNEVEN_REL * win.a
+    } else {
+        win.uneven
+    };
+    if uneven {
         flags |= FLAG_UNEVEN_BACKGROUND;
     }
     if win.a < p.low_signal {
