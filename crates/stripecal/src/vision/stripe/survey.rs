@@ -26,10 +26,12 @@
 //! - The widths accepted: up to `max(max_width_px, 1.5 * width + 4)` (at most
 //!   [`MAX_WIDTH_PX`]), and on a wide saturated line plateaus up to
 //!   `max(max_saturated_px, width)`.
-//! - The ridge distance: `ridge_px` while `ceil(width / 2) + 2 <= ridge_px`, else
-//!   `ceil(width / 2) + 3` (at most [`MAX_RIDGE_PX`]): a ridge must be narrower than
-//!   twice the distance; a narrow line keeps `ridge_px` (and the extraction of narrow
-//!   lines is what it always was).
+//! - The ridge distance: `ridge_px` while `ceil(width / 2) <= ridge_px` (at that
+//!   distance from its peak the line is at or below half its height: the ridge test
+//!   finds it), else `ceil(width / 2) + 3` (at most [`MAX_RIDGE_PX`]); a line up to
+//!   twice the ridge distance wide keeps `ridge_px`, and its extraction is what it
+//!   always was (a wider distance also widens the window the centre is taken over,
+//!   which moved the twin's ball diameter by 0.0015 mm on 7-9 px saturated lines).
 //! - Smoothing along the line ([`StripeOptions::along_line`] `0`, auto): on for a wide
 //!   saturated line (more than [`SATURATED_SHARE`] of the sampled lines' peaks at full
 //!   scale, at least [`WIDE_PX`] wide: its edges carry the speckle its clipped top
@@ -72,8 +74,9 @@ impl Survey {
     pub fn ridge_px(&self, opts: &StripeOptions) -> usize {
         let w = self.width_px.min(f64::from(MAX_WIDTH_PX));
         let half = (0.5 * w).ceil() as usize;
-        if half + 2 <= opts.ridge_px {
-            // the ridge test finds this line as it is
+        if half <= opts.ridge_px {
+            // the ridge test finds this line as it is: at the distance its neighbours
+            // are compared from, the line is at or below half its height
             return opts.ridge_px;
         }
         (half + 3).clamp(opts.ridge_px, MAX_RIDGE_PX.max(opts.ridge_px))
