@@ -756,7 +756,7 @@ def calibrate(
     board_scale_tolerance: float = 0.01,
     leave_one_out: bool = True,
     accept_poor: bool = False,
-    robot_pose_noise: bool = False,
+    robot_pose_noise: bool = True,
     robot: str = "fixed",
     board_stripe_bias: bool = True,
 ) -> Calibration: ...
@@ -775,7 +775,7 @@ def calibrate(
     board_scale_tolerance: float = 0.01,
     leave_one_out: bool = True,
     accept_poor: bool = False,
-    robot_pose_noise: bool = False,
+    robot_pose_noise: bool = True,
     robot: str = "fixed",
     board_stripe_bias: bool = True,
 ) -> ProfilerCalibration: ...
@@ -794,7 +794,7 @@ def calibrate(
     board_scale_tolerance: float = 0.01,
     leave_one_out: bool = True,
     accept_poor: bool = False,
-    robot_pose_noise: bool = False,
+    robot_pose_noise: bool = True,
     robot: str = "fixed",
     board_stripe_bias: bool = True,
 ) -> Union[Calibration, ProfilerCalibration]: ...

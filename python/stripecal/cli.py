@@ -385,8 +385,17 @@ def print_calibration(cal: stripecal.Calibration) -> None:
     rn = cal.robot_pose_noise
     if rn is not None and rn["translation_mm"] is not None and rn["rotation_deg"] is not None:
         floor = [k for k, v in rn["at_floor"].items() if v]
-        print(f"\n  robot-pose noise: {rn['translation_mm']:.3g} mm, {rn['rotation_deg']:.3g} deg"
+        k = rn.get("image_factor")
+        image = f"; the images' own part {k:.3g} x their pose precision" if k is not None else ""
+        print(f"\n  robot-pose noise: {rn['translation_mm']:.3g} mm, {rn['rotation_deg']:.3g} deg{image}"
               f" ({'at floor: ' + ', '.join(floor) if floor else 'estimated'})")
+        tests = ", ".join(f"{v['view']}: {v['test']:.1f}" for v in rn["views"] if v["test"] is not None)
+        if tests:
+            print(f"    per-view pose test (above 4: the pose is off by far more than the others'): {tests}")
+        for v in rn.get("left_out", []):
+            t = "?" if v["test"] is None else f"{v['test']:.1f}"
+            print(f"    view {v['view']} LEFT OUT: its pose test {t} (corrected by {v['translation_mm']:.3f} mm,"
+                  f" {v['rotation_deg']:.4f} deg)")
     rc = cal.robot_calibration
     if rc is not None:
         print(f"\n  robot calibration ({rc['mode']}): {len(rc['estimated'])} DH corrections estimated,"
@@ -454,7 +463,7 @@ def cmd_calibrate(args: argparse.Namespace) -> int:
             from_calibration=args.from_calibration, fix=fix, laser_only=args.laser_only,
             estimate_board_scale=args.estimate_board_scale, board_scale_tolerance=args.board_scale_tolerance,
             leave_one_out=not args.no_leave_one_out, accept_poor=args.accept_poor,
-            robot_pose_noise=args.robot_pose_noise,
+            robot_pose_noise=not args.no_robot_pose_noise,
             robot=args.robot, board_stripe_bias=not args.no_board_stripe_correction,
         )
     except stripecal.CalibrationQualityError as e:
@@ -513,9 +522,13 @@ def _add_calibrate(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> 
                         "offsets), full (every identifiable correction), auto (the corrections "
                         "the data show); default fixed (rig.json's DH table is exact; the same "
                         "as --fix robot). Needs joint readings")
+    p.add_argument("--no-robot-pose-noise", action="store_true",
+                   help="take the robot poses as exact (the paper's rigid model, for comparison); "
+                        "default: every view's robot pose is corrected by its own small transform "
+                        "and the robot-pose noise (mm, deg) is estimated and reported")
     p.add_argument("--robot-pose-noise", action="store_true",
-                   help="correct every view's robot pose by its own small transform and report "
-                        "the robot-pose noise (mm, deg); default: the robot poses are exact")
+                   help="accepted for older scripts, changes nothing: the robot-pose noise is the "
+                        "default (--no-robot-pose-noise turns it off)")
     p.add_argument("--no-board-stripe-correction", action="store_true",
                    help="do not correct the laser stripe's sub-pixel bias on the board (default: "
                         "corrected before the final adjustment, what remains added to the "

@@ -393,6 +393,9 @@ class RobotPoseAtFloor(TypedDict):
     """The translation's sigma is its floor (the estimate is below it)."""
     rotation: bool
     """The rotation's sigma is its floor."""
+    image: bool
+    """The image part's factor is at its floor (the images are as good as their
+    residuals say; False in files written before it existed)."""
 
 
 class RobotPoseFloor(TypedDict):
@@ -429,12 +432,20 @@ class RobotPoseNoise(TypedDict):
     """One-sigma of a flange translation component, mm."""
     rotation_deg: Optional[float]
     """One-sigma of a flange rotation component, degrees."""
+    image_factor: Optional[float]
+    """The part of each view's pose error its own image makes (detector biases, a board
+    not quite flat, a lens the model does not quite fit), in units of the image's own
+    uncertainty of the view's pose; None when not modelled (files written before it
+    existed)."""
     at_floor: RobotPoseAtFloor
-    """Which of the two sits at its floor."""
+    """Which of the components sits at its floor."""
     floor: RobotPoseFloor
     """The floors."""
     views: List[RobotPoseNoiseView]
     """Per view used."""
+    left_out: List[RobotPoseNoiseView]
+    """Views left out because their test exceeded 4 (their figures from the adjustment
+    that found them; empty in files written before it existed)."""
 
 
 class DhCorrection(TypedDict):

@@ -28,5 +28,5 @@ pub(crate) use results::calibration_number;
 pub use results::{
     AdjustmentSummary, Calibration, CameraSigma, Cloud, DhCorrection, NamedCovariance, PlaneSigma,
     PoseSigma, Quality, RobotCalibration, RobotPoseNoise, RobotPoseView, Sphere, SphereFit, Truth,
-    Uncertainty, ViewRecord,
+    Uncertainty, ViewRecord, ROBOT_POSE_TEST_LIMIT,
 };
