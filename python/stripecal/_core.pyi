@@ -810,6 +810,7 @@ def plan_poses(
     margin_px: float = 10.0,
     fix: Sequence[str] = ...,
     robot: str = "fixed",
+    pose_noise: Optional[Tuple[float, float]] = None,
 ) -> PosePlan: ...
 def calibrate_camera(
     views: Sequence[Tuple[npt.ArrayLike, npt.ArrayLike]],

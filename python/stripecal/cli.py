@@ -773,10 +773,19 @@ def cmd_plan(args: argparse.Namespace) -> int:
     Exit status 1 when fewer than 3 poses are usable or the poses leave a parameter
     undetermined (named)."""
     joints = _read_poses_csv(args.poses)
+    pose_noise = None
+    if args.pose_noise:
+        try:
+            mm, deg = (float(x) for x in args.pose_noise.split(","))
+        except ValueError:
+            raise stripecal.InvalidInputError(f"--pose-noise expects MM,DEG, got {args.pose_noise!r}") from None
+        pose_noise = (mm, deg)
     plan = stripecal.plan_poses(args.rig, args.nominal, joints, sigma_px=(args.noise_px, args.stripe_noise_px),
-                                standoff_mm=args.standoff, robot=args.robot)
+                                standoff_mm=args.standoff, robot=args.robot, pose_noise=pose_noise)
+    pn = plan.get("pose_noise_mm_deg")
+    noise = f"; robot-pose noise {pn[0]:.3g} mm, {pn[1]:.3g} deg" if pn is not None else ""
     print(f"{len(plan['poses'])} poses, {plan['usable']} usable; detection noise {plan['sigma_px'][0]:g} px "
-          f"(targets), {plan['sigma_px'][1]:g} px (stripe)\n")
+          f"(targets), {plan['sigma_px'][1]:g} px (stripe){noise}\n")
     print("  pose  usable  points  stripe  stand-off mm  tilt deg  reason")
     for p in plan["poses"]:
         so, tilt = p["standoff_mm"], p["tilt_deg"]
@@ -833,6 +842,9 @@ def _add_plan(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     p.add_argument("--robot", choices=["fixed", "offsets", "full", "auto"], default="fixed",
                    help="plan a robot calibration too: the DH corrections' sigmas (auto is planned as full)")
     p.add_argument("--standoff", type=float, metavar="MM", help="stand-off of the predicted point, mm (default: the median pose's)")
+    p.add_argument("--pose-noise", metavar="MM,DEG",
+                   help="the robot-pose noise to plan with, one-sigma per flange component (default: the nominal "
+                        "calibration's robot_pose_noise, else rig.json's robot figures, else an exact robot)")
     p.add_argument("--json", dest="output", metavar="OUT.json", help="write the plan as JSON (atomically)")
     p.set_defaults(func=cmd_plan)
 

@@ -749,6 +749,11 @@ class PosePlan(TypedDict):
     """Warnings."""
     robot_held: List[DhFixed]
     """With ``robot=``: the DH corrections the identifiability rule holds, and why."""
+    pose_noise_mm_deg: Optional[List[float]]
+    """The robot-pose noise planned with (one-sigma per flange component: translation mm,
+    rotation deg): the nominal calibration's estimate, rig.json's figures or an exact
+    robot's floors (``pose_noise=`` to choose); None when the robot poses are taken as
+    exact."""
 
 
 # --- vision: target detection ---------------------------------------------------------

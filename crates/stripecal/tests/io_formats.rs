@@ -830,6 +830,8 @@ fn calibration_robot_pose_noise_round_trips() {
         floor_rotation_deg: 0.012,
         image_factor: Some(12.5),
         image_factor_at_floor: false,
+        kinematic_mm: Some(0.3),
+        kinematic_deg: Some(0.01),
         views: vec![
             RobotPoseView {
                 view: 0,

@@ -350,6 +350,14 @@ fn robot_pose_noise_from(o: &Obj<'_>) -> Result<RobotPoseNoise> {
             Some(v) if !v.is_null() => Some(v.f64()?),
             _ => None,
         },
+        kinematic_mm: match o.opt("kinematic_mm") {
+            Some(v) if !v.is_null() => Some(v.f64()?),
+            _ => None,
+        },
+        kinematic_deg: match o.opt("kinematic_deg") {
+            Some(v) if !v.is_null() => Some(v.f64()?),
+            _ => None,
+        },
         image_factor_at_floor: match f.opt("image") {
             Some(v) => v.bool()?,
             None => false,

@@ -177,7 +177,9 @@ pub fn self_checks_extra(
 
 /// calibration.json's `robot_pose_noise` key (an extra key): `translation_mm` and
 /// `rotation_deg` (one-sigma per component), `image_factor` (the factor of the part of
-/// each view's pose error its own image makes; `null` when not modelled), `at_floor`
+/// each view's pose error its own image makes; `null` when not modelled),
+/// `kinematic_mm`, `kinematic_deg` (the DH error sizes whose effect the covariance carries; `null` without
+/// joint readings), `at_floor`
 /// (`translation`, `rotation`, `image`), `floor` (`translation_mm`, `rotation_deg`) and
 /// `views` (`view`, `translation_mm`, `rotation_deg`, `test`; a non-finite test is
 /// `null`), `left_out` (the same for the views left out by their test). Read back by
@@ -192,6 +194,14 @@ pub fn robot_pose_noise_extra(n: &RobotPoseNoise) -> Map<String, Value> {
     o.insert(
         "image_factor".into(),
         n.image_factor.map_or(Value::Null, finite_or_null),
+    );
+    o.insert(
+        "kinematic_mm".into(),
+        n.kinematic_mm.map_or(Value::Null, finite_or_null),
+    );
+    o.insert(
+        "kinematic_deg".into(),
+        n.kinematic_deg.map_or(Value::Null, finite_or_null),
     );
     let mut f = Map::new();
     f.insert("translation".into(), Value::from(n.translation_at_floor));

@@ -283,6 +283,13 @@ pub struct RobotPoseNoise {
     /// Whether that factor sits at its floor (the images are as good as their
     /// residuals say).
     pub image_factor_at_floor: bool,
+    /// With joint readings and rig.json's DH table: the size of DH errors (one-sigma of
+    /// a length, mm; angles alike at the flange) the robot-pose noise is consistent with,
+    /// whose effect on `X` and `Z` (a common error of every pose, which no view can
+    /// show) the covariance carries; `None` otherwise.
+    pub kinematic_mm: Option<f64>,
+    /// The same for the DH angles, degrees.
+    pub kinematic_deg: Option<f64>,
     /// Per view used.
     pub views: Vec<RobotPoseView>,
     /// Views named and left out because their test exceeded

@@ -467,6 +467,7 @@ pub(super) fn joint_options(opts: &CalibrateOptions, rig: &Rig) -> JointOptions 
         robust: opts.robust,
         free: opts.free,
         robot_noise: opts.robot_pose_noise,
+        kinematics: rig.robot.clone(),
         robot_floor: rig
             .robot
             .as_ref()

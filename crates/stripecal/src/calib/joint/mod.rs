@@ -72,6 +72,7 @@
 mod bench;
 mod chain;
 mod covariance;
+mod kinematic;
 mod layout;
 mod predict;
 pub mod profile;
@@ -116,6 +117,15 @@ const MAX_REWEIGHTS: usize = 5;
 /// that share between them slowly (rosi_10x10 needs about 15 from the start); the dead
 /// band of the robot-pose sigmas ends it sooner when they settle.
 const MAX_REWEIGHTS_POSE_NOISE: usize = 30;
+
+/// The robot-pose noise's own floors (translation mm, rotation deg): what an exact robot
+/// is estimated at ([`robot_noise`] module docs).
+pub const POSE_NOISE_FLOOR: (f64, f64) = (
+    robot_noise::ABSOLUTE_FLOOR_MM,
+    robot_noise::ABSOLUTE_FLOOR_DEG,
+);
+
+pub use self::robot_noise::IMAGE_FACTOR_FLOOR;
 
 /// Huber threshold on the weighted residuals (in units of the residual's sigma).
 pub const HUBER_SIGMAS: f64 = 1.345;
@@ -212,6 +222,10 @@ pub struct JointOptions {
     pub image_pose_noise: bool,
     /// The image part's starting factor `k` (default 1).
     pub initial_image_factor: f64,
+    /// The robot's DH table when the poses come from its joint readings (rig.json's
+    /// robot; default none): with the robot-pose noise, the covariance then carries what
+    /// DH errors of the size the noise shows would do to the estimate ([`kinematic`]).
+    pub kinematics: Option<crate::model::kinematics::Robot>,
     /// Widen the covariance to the views' own scatter where that is larger (a covariance
     /// clustered by view, [`crate::calib::clustered`]; default true).
     pub clustered_covariance: bool,
@@ -251,6 +265,7 @@ impl Default for JointOptions {
             robot_noise: true,
             image_pose_noise: true,
             initial_image_factor: 1.0,
+            kinematics: None,
             clustered_covariance: true,
             robot_floor: (None, None),
             initial_robot_sigma: (0.05, 0.01),
@@ -410,6 +425,25 @@ pub fn joint_adjustment(
     let mut warnings = Vec::new();
     let terms = Terms::collect(views, board, &mut warnings)?;
     let free = free_blocks(&terms, start, opts)?;
+    // The robot's DH rows are chosen and estimated on the rigid model, as in wave two:
+    // with the robot-pose corrections free a DH error's flange motion is largely theirs
+    // to take, and the selection would not see it. The final solve, with the
+    // corrections chosen, has the robot-pose noise (what the DH rows leave).
+    let calibrating_robot = opts
+        .robot
+        .as_ref()
+        .is_some_and(|r| r.mode != RobotMode::Fixed);
+    let final_opts = opts;
+    let rigid_opts;
+    let opts = if calibrating_robot && opts.robot_noise {
+        rigid_opts = JointOptions {
+            robot_noise: false,
+            ..opts.clone()
+        };
+        &rigid_opts
+    } else {
+        opts
+    };
     let layout = ParamLayout::of(start, &free, opts, &terms.used, None);
     if layout.num_global() == 0 {
         return Err(Error::InvalidInput(
@@ -454,11 +488,16 @@ pub fn joint_adjustment(
         problem.all_weights(),
     )?;
     if let Some(out) = &outcome {
-        if let Some(b) = &out.block {
-            let lr = ParamLayout::of(start, &free, opts, &terms.used, Some(b.clone()));
+        if out.block.is_some() || final_opts.robot_noise {
+            let opts = final_opts;
+            let lr = ParamLayout::of(start, &free, opts, &terms.used, out.block.clone());
             let p0 = robot_solve::transfer(&out.layout, &out.p, &lr);
             let mut pr = JointProblem::new(&start.camera, &lr, terms.clone(), opts);
-            pr.set_all_weights(&out.weights);
+            // The image groups' weights of the rounds; the robot-pose noise's start
+            // from the options (the rounds had none).
+            let mut w = pr.all_weights();
+            w[..2].copy_from_slice(&out.weights[..2]);
+            pr.set_all_weights(&w);
             let (r, it) = solve(&mut pr, p0, opts, false)?;
             return finish(
                 start,
@@ -530,6 +569,12 @@ fn finish(
             view_scatter = Some(ratio);
         }
     }
+    let mut kinematic_sigma = None;
+    if let Some((term, sigma)) = kinematic::term(problem, layout, &res, &s, opts)? {
+        let mut g = cov.view_mut((0, 0), (ng, ng));
+        g += term;
+        kinematic_sigma = Some(sigma);
+    }
     let named = covariance::named_covariance(layout, &res.params, &s, &cov, plane_sign);
     let sigma = covariance::joint_sigma(&named);
     let n_image = res.residuals.len() - problem.prior_rows_per_view() * s.corrections.len();
@@ -542,7 +587,7 @@ fn finish(
     );
     let robot = robot.map(|out| robot_solve::report(out, layout, &res.params, &res.covariance));
     let robot_noise = problem.robot_noise().then(|| {
-        robot_noise::report(
+        let mut n = robot_noise::report(
             layout,
             &s,
             &res.covariance,
@@ -550,7 +595,10 @@ fn finish(
             &problem.robot_weights(),
             &problem.robot_state(),
             &problem.terms.used,
-        )
+        );
+        n.kinematic_mm = kinematic_sigma.map(|k| k.0);
+        n.kinematic_deg = kinematic_sigma.map(|k| k.1);
+        n
     });
     let all_names = layout.names();
     let unobservable = res

@@ -622,6 +622,60 @@ impl<'a> JointProblem<'a> {
         Ok(acc.into_iter().map(ViewShare::reduced).collect())
     }
 
+    /// `J^T J_k` (n x p) at `p`: the gradient of the weighted image rows' sum of squares'
+    /// linear term along each of `p` flange motions, `twists[view][k]` the view's flange
+    /// perturbation `(w, v)` per unit of motion `k` in its correction's frame (the image
+    /// rows reach them through the view's correction columns). `None` without the
+    /// robot-pose corrections.
+    pub fn flange_response(
+        &self,
+        p: &[f64],
+        twists: &[Vec<[f64; 6]>],
+    ) -> Result<Option<DMatrix<f64>>> {
+        if !self.robot {
+            return Ok(None);
+        }
+        let (n, m) = (self.num_params(), self.num_residuals());
+        let ng = self.layout.num_global();
+        let pv = self.layout.per_view_len();
+        let w = self.row_width();
+        let k = twists.first().map_or(0, |t| t.len());
+        let mut r = vec![0.0; m];
+        let mut rows = JacobianRows::new(m, w, n);
+        self.residuals_and_jacobian_rows(p, &mut r, &mut rows)?;
+        let mut g = DMatrix::zeros(n, k);
+        let po = self.prior_offset();
+        for &(view, i0, i1) in self.view_runs.iter().filter(|r| r.1 < po) {
+            let Some(tw) = twists.get(view) else { continue };
+            let own = ng + view * pv;
+            for i in i0..i1 {
+                let (cols, vals) = rows.row(i);
+                // The row's value along each motion: its correction columns times the
+                // motion's twist.
+                let dcols: Vec<usize> = (0..6).map(|q| own + q).collect();
+                let along: Vec<f64> = (0..k)
+                    .map(|j| {
+                        cols.iter()
+                            .zip(vals)
+                            .filter_map(|(c, v)| {
+                                dcols.iter().position(|d| d == c).map(|q| v * tw[j][q])
+                            })
+                            .sum()
+                    })
+                    .collect();
+                for (c, v) in cols.iter().zip(vals) {
+                    if *v == 0.0 {
+                        continue;
+                    }
+                    for (j, a) in along.iter().enumerate() {
+                        g[(*c, j)] += v * a;
+                    }
+                }
+            }
+        }
+        Ok(Some(g))
+    }
+
     /// Stripe foot point from the warm-start cache, which it updates.
     fn cached_foot_point(
         &self,

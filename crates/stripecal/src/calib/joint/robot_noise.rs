@@ -120,7 +120,7 @@ pub(super) const RESOLUTION_CAP: f64 = 100.0;
 
 /// The floor of the image part's factor `k` (module docs): a part 1 % of the image's
 /// own precision is nothing.
-pub(super) const IMAGE_FACTOR_FLOOR: f64 = 0.01;
+pub const IMAGE_FACTOR_FLOOR: f64 = 0.01;
 
 /// Weights `1 / sigma` of a view's prior rows: the robot's rotation (1/rad) and
 /// translation (1/mm), and the image part's `1 / k` (`None`: no image part).
@@ -442,6 +442,8 @@ pub(super) fn report(
         floor_rotation_deg: state.floors.rotation_rad.to_degrees(),
         image_factor: w.image.map(|k| 1.0 / k),
         image_factor_at_floor: w.image.is_some() && state.image_at_floor,
+        kinematic_mm: None,
+        kinematic_deg: None,
         views,
         left_out: Vec::new(),
     }
