@@ -389,6 +389,10 @@ def print_calibration(cal: stripecal.Calibration) -> None:
         image = f"; the images' own part {k:.3g} x their pose precision" if k is not None else ""
         print(f"\n  robot-pose noise: {rn['translation_mm']:.3g} mm, {rn['rotation_deg']:.3g} deg{image}"
               f" ({'at floor: ' + ', '.join(floor) if floor else 'estimated'})")
+        km, kd = rn.get("kinematic_mm"), rn.get("kinematic_deg")
+        if km is not None and kd is not None:
+            print(f"    DH errors of {km:.3g} mm / {kd:.3g} deg would explain it: their effect on X and Z is in the sigmas"
+                  " (--robot auto estimates them)")
         tests = ", ".join(f"{v['view']}: {v['test']:.1f}" for v in rn["views"] if v["test"] is not None)
         if tests:
             print(f"    per-view pose test (above 4: the pose is off by far more than the others'): {tests}")

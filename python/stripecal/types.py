@@ -437,6 +437,12 @@ class RobotPoseNoise(TypedDict):
     not quite flat, a lens the model does not quite fit), in units of the image's own
     uncertainty of the view's pose; None when not modelled (files written before it
     existed)."""
+    kinematic_mm: Optional[float]
+    """With joint readings and rig.json's DH table: the DH length error (one-sigma, mm)
+    the pose noise is consistent with, whose effect on X and Z the covariance carries;
+    None otherwise."""
+    kinematic_deg: Optional[float]
+    """The same for the DH angles, degrees."""
     at_floor: RobotPoseAtFloor
     """Which of the components sits at its floor."""
     floor: RobotPoseFloor
