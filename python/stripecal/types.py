@@ -757,9 +757,8 @@ class PosePlan(TypedDict):
     """With ``robot=``: the DH corrections the identifiability rule holds, and why."""
     pose_noise_mm_deg: Optional[List[float]]
     """The robot-pose noise planned with (one-sigma per flange component: translation mm,
-    rotation deg): the nominal calibration's estimate, rig.json's figures or an exact
-    robot's floors (``pose_noise=`` to choose); None when the robot poses are taken as
-    exact."""
+    rotation deg): ``pose_noise=``, else the nominal calibration's estimate, else rig.json's
+    figures; None when the robot is planned exact (none of them)."""
 
 
 # --- vision: target detection ---------------------------------------------------------

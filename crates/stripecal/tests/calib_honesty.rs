@@ -165,7 +165,7 @@ fn split_halves_are_honest_on_real_data_and_twins() {
 /// hand-eye and robot-world within 3 of their stated sigmas of the truth (the rigid
 /// model was up to 205 sigmas off), the pose noise reports it and the DH error size the
 /// covariance carries; its split halves are honest; with `--robot auto` the link is
-/// found and the pose noise falls to its floors.
+/// found (and the poses are the calibrated robot's).
 #[test]
 fn a_dh_error_held_fixed_is_within_the_stated_sigmas() {
     let cfg = SimConfig::hp3_paper()
@@ -241,15 +241,13 @@ fn a_dh_error_held_fixed_is_within_the_stated_sigmas() {
         .iter()
         .find(|e| e.name == "robot.joints[1].a_mm")
         .expect("a_2 estimated");
-    let n = rep.adjustment.robot_noise.clone().unwrap();
     println!(
-        "auto: a_2 {:+.4} +- {:.4} mm, pose noise {:.2e} mm {:.2e} deg",
-        a2.correction, a2.sigma, n.sigma_translation_mm, n.sigma_rotation_deg
+        "auto: a_2 {:+.4} +- {:.4} mm, circles {:.4} px",
+        a2.correction, a2.sigma, rep.calibration.quality.circle_rms_px
     );
     assert!((a2.correction - 2.0).abs() < 3.0 * a2.sigma, "{a2:?}");
-    assert!(
-        n.translation_at_floor || n.sigma_translation_mm < 0.01,
-        "{n:?}"
-    );
-    assert!(n.rotation_at_floor || n.sigma_rotation_deg < 0.001, "{n:?}");
+    // The robot calibrated, its poses are the calibrated robot's (the rigid model of
+    // wave two): no pose noise; the circles fit to their noise.
+    assert!(rep.adjustment.robot_noise.is_none());
+    assert!(rep.calibration.quality.circle_rms_px < 0.03);
 }

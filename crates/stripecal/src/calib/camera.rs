@@ -42,6 +42,9 @@ pub struct CameraOptions {
     pub lm: LmOptions,
     /// Minimum circles for a view to be used (>= 4).
     pub min_circles: usize,
+    /// Widen the camera's sigmas to the views' own scatter where that is larger
+    /// ([`crate::calib::clustered`]; default true).
+    pub clustered_covariance: bool,
 }
 
 impl Default for CameraOptions {
@@ -53,6 +56,7 @@ impl Default for CameraOptions {
                 ..Default::default()
             },
             min_circles: 4,
+            clustered_covariance: true,
         }
     }
 }
@@ -287,6 +291,7 @@ pub fn calibrate_camera(
     Ok(collect_result(
         &problem,
         &res,
+        opts.clustered_covariance,
         &used,
         camera,
         initial_intrinsics,
@@ -442,9 +447,11 @@ fn widened_camera_sigma(problem: &CamProblem<'_>, res: &LmResult) -> Option<Vec<
 
 /// The calibration of the solution `res` (giving `camera`): poses, sigmas, RMS values
 /// and unobservable names.
+#[allow(clippy::too_many_arguments)]
 fn collect_result(
     problem: &CamProblem<'_>,
     res: &LmResult,
+    clustered: bool,
     used: &[(&ViewObs, nalgebra::Matrix3<f64>)],
     camera: Camera,
     initial_intrinsics: [f64; 4],
@@ -453,7 +460,9 @@ fn collect_result(
     let free = &problem.free;
     let nc = free.len();
     let mut camera_sigma = [0.0; 9];
-    let widened = widened_camera_sigma(problem, res);
+    let widened = clustered
+        .then(|| widened_camera_sigma(problem, res))
+        .flatten();
     for (k, &i) in free.iter().enumerate() {
         camera_sigma[i] = widened.as_ref().map_or(res.sigma[k], |w| w[k]);
     }

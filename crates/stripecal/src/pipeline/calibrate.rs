@@ -372,6 +372,7 @@ pub(super) fn camera_stage(
         } else {
             opts.centre_model
         },
+        clustered_covariance: opts.clustered_covariance,
         ..Default::default()
     };
     if one_stage {
@@ -467,6 +468,7 @@ pub(super) fn joint_options(opts: &CalibrateOptions, rig: &Rig) -> JointOptions 
         robust: opts.robust,
         free: opts.free,
         robot_noise: opts.robot_pose_noise,
+        clustered_covariance: opts.clustered_covariance,
         kinematics: rig.robot.clone(),
         robot_floor: rig
             .robot

@@ -147,6 +147,11 @@ pub struct CalibrateOptions {
     /// true whenever the poses come from a robot; `--no-robot-pose-noise` turns it off:
     /// the robot poses exact, the paper's rigid model).
     pub robot_pose_noise: bool,
+    /// Widen the covariance to the views' own scatter where that is larger
+    /// ([`crate::calib::clustered`]; default true). Off: the noise model's covariance
+    /// alone (for studies of effects the views share, which the widening would count as
+    /// scatter).
+    pub clustered_covariance: bool,
     /// The robot's DH corrections to estimate (`--robot`; default fixed: rig.json's DH
     /// table is exact). Needs rig.json's robot and joint readings in views.csv.
     pub robot: crate::calib::joint::RobotMode,
@@ -177,6 +182,7 @@ impl Default for CalibrateOptions {
             board_scale_tolerance: 0.01,
             accept_poor: false,
             robot_pose_noise: true,
+            clustered_covariance: true,
             robot: crate::calib::joint::RobotMode::Fixed,
             board_stripe_bias: true,
             max_board_sag_mm: 0.02,

@@ -67,10 +67,10 @@ pub struct PlanOptions {
     pub robot: RobotMode,
     /// The robot-pose noise to plan with, one-sigma per flange component (translation
     /// mm, rotation deg); `None` (default): the nominal calibration's estimate
-    /// (calibration.json `robot_pose_noise`), else rig.json's robot figures, else the
-    /// adjustment's own floors (an exact robot). Never below rig.json's figures (the
-    /// calibration's floors). The images are planned as good as `sigma_px` says (their
-    /// own part of the pose error at its floor).
+    /// (calibration.json `robot_pose_noise`), else rig.json's robot figures, else none
+    /// (an exact robot: the poses without corrections). Never below rig.json's figures
+    /// (the calibration's floors). The images are planned as good as `sigma_px` says
+    /// (their own part of the pose error at its floor).
     pub pose_noise: Option<(f64, f64)>,
 }
 
@@ -172,8 +172,8 @@ pub struct PosePlan {
     /// With `--robot`: the DH corrections the identifiability rule holds, with why.
     pub robot_held: Vec<HeldEntry>,
     /// The robot-pose noise planned with (one-sigma per flange component: translation
-    /// mm, rotation deg; [`PlanOptions::pose_noise`]), `None` when the plan's
-    /// adjustment takes the robot poses as exact.
+    /// mm, rotation deg; [`PlanOptions::pose_noise`]), `None` when the robot is planned
+    /// exact.
     pub pose_noise_mm_deg: Option<[f64; 2]>,
 }
 
@@ -571,7 +571,9 @@ pub fn plan_poses(
         ..opts.adjustment.clone()
     };
     // The calibration's noise model: the robot-pose noise as planned, never below
-    // rig.json's figures; the images' own part at its floor.
+    // rig.json's figures; the images' own part at its floor. Without any figure the
+    // robot is planned exact (the poses without corrections: what an exact robot's
+    // calibration, its pose noise at the floors, gives).
     let floors = rig
         .robot
         .as_ref()
@@ -585,20 +587,24 @@ pub fn plan_poses(
                 .map(|n| (n.sigma_translation_mm, n.sigma_rotation_deg))
                 .filter(|(t, r)| t.is_finite() && r.is_finite())
         })
-        .unwrap_or(POSE_NOISE_FLOOR);
-    let pose_noise = (
-        planned
-            .0
-            .max(floors.0.unwrap_or(0.0))
-            .max(POSE_NOISE_FLOOR.0),
-        planned
-            .1
-            .max(floors.1.unwrap_or(0.0))
-            .max(POSE_NOISE_FLOOR.1),
-    );
-    jopts.robot_floor = floors;
-    jopts.initial_robot_sigma = pose_noise;
-    jopts.initial_image_factor = IMAGE_FACTOR_FLOOR;
+        .or_else(|| {
+            (floors.0.is_some() || floors.1.is_some())
+                .then(|| (floors.0.unwrap_or(0.0), floors.1.unwrap_or(0.0)))
+        });
+    let pose_noise = planned.map(|p| {
+        (
+            p.0.max(floors.0.unwrap_or(0.0)).max(POSE_NOISE_FLOOR.0),
+            p.1.max(floors.1.unwrap_or(0.0)).max(POSE_NOISE_FLOOR.1),
+        )
+    });
+    match pose_noise {
+        Some(p) if jopts.robot_noise => {
+            jopts.robot_floor = floors;
+            jopts.initial_robot_sigma = p;
+            jopts.initial_image_factor = IMAGE_FACTOR_FLOOR;
+        }
+        _ => jopts.robot_noise = false,
+    }
     if opts.robot != RobotMode::Fixed {
         let nominal = rig.robot.clone().ok_or_else(|| {
             Error::InvalidInput("planning a robot calibration needs rig.json's robot".into())
@@ -676,7 +682,7 @@ pub fn plan_poses(
         state,
         point,
         warnings,
-        pose_noise_mm_deg: jopts.robot_noise.then_some([pose_noise.0, pose_noise.1]),
+        pose_noise_mm_deg: pose_noise.filter(|_| jopts.robot_noise).map(|p| [p.0, p.1]),
         robot_held: pred
             .robot_fixed
             .iter()

@@ -425,15 +425,15 @@ pub fn joint_adjustment(
     let mut warnings = Vec::new();
     let terms = Terms::collect(views, board, &mut warnings)?;
     let free = free_blocks(&terms, start, opts)?;
-    // The robot's DH rows are chosen and estimated on the rigid model, as in wave two:
-    // with the robot-pose corrections free a DH error's flange motion is largely theirs
-    // to take, and the selection would not see it. The final solve, with the
-    // corrections chosen, has the robot-pose noise (what the DH rows leave).
+    // A robot calibrated (`--robot offsets|full|auto`) is calibrated on the rigid model,
+    // as in wave two: with the robot-pose corrections free a DH error's flange motion is
+    // largely theirs to take, the selection would not see it, and the corrections'
+    // estimates traded with the DH rows' (10-40 of their sigmas from the exact-data
+    // estimates on the robot-error twin). Its poses are then the calibrated robot's.
     let calibrating_robot = opts
         .robot
         .as_ref()
         .is_some_and(|r| r.mode != RobotMode::Fixed);
-    let final_opts = opts;
     let rigid_opts;
     let opts = if calibrating_robot && opts.robot_noise {
         rigid_opts = JointOptions {
@@ -488,16 +488,11 @@ pub fn joint_adjustment(
         problem.all_weights(),
     )?;
     if let Some(out) = &outcome {
-        if out.block.is_some() || final_opts.robot_noise {
-            let opts = final_opts;
+        if out.block.is_some() {
             let lr = ParamLayout::of(start, &free, opts, &terms.used, out.block.clone());
             let p0 = robot_solve::transfer(&out.layout, &out.p, &lr);
             let mut pr = JointProblem::new(&start.camera, &lr, terms.clone(), opts);
-            // The image groups' weights of the rounds; the robot-pose noise's start
-            // from the options (the rounds had none).
-            let mut w = pr.all_weights();
-            w[..2].copy_from_slice(&out.weights[..2]);
-            pr.set_all_weights(&w);
+            pr.set_all_weights(&out.weights);
             let (r, it) = solve(&mut pr, p0, opts, false)?;
             return finish(
                 start,
