@@ -106,7 +106,7 @@ def test_cli_plan(dataset: Path, tmp_path: Path, capsys: pytest.CaptureFixture[s
     assert "point on the laser plane at 110.0 mm" in text
     plan = json.loads(out.read_text())
     assert set(plan) == {"poses", "usable", "sigma_px", "points", "stripe_points", "parameters", "covariance",
-                         "state", "point", "warnings", "robot_held"}
+                         "state", "point", "warnings", "robot_held", "pose_noise_mm_deg"}
     assert plan["point"]["standoff_mm"] == 110.0
     assert not list(tmp_path.glob("*.tmp*"))
 

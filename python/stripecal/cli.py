@@ -396,10 +396,11 @@ def print_calibration(cal: stripecal.Calibration) -> None:
         tests = ", ".join(f"{v['view']}: {v['test']:.1f}" for v in rn["views"] if v["test"] is not None)
         if tests:
             print(f"    per-view pose test (above 4: the pose is off by far more than the others'): {tests}")
-        for v in rn.get("left_out", []):
-            t = "?" if v["test"] is None else f"{v['test']:.1f}"
-            print(f"    view {v['view']} LEFT OUT: its pose test {t} (corrected by {v['translation_mm']:.3f} mm,"
-                  f" {v['rotation_deg']:.4f} deg)")
+        for lv in rn.get("left_out", []):
+            t = "?" if lv["test"] is None else f"{lv['test']:.1f}"
+            tm, rd = lv["translation_mm"], lv["rotation_deg"]
+            print(f"    view {lv['view']} LEFT OUT: its pose test {t} (corrected by "
+                  f"{'?' if tm is None else f'{tm:.3f}'} mm, {'?' if rd is None else f'{rd:.4f}'} deg)")
     rc = cal.robot_calibration
     if rc is not None:
         print(f"\n  robot calibration ({rc['mode']}): {len(rc['estimated'])} DH corrections estimated,"

@@ -74,7 +74,8 @@ impl UncertaintyOptions {
     /// The same options with the robot-pose noise the calibration estimated where
     /// neither these options nor the robot's figures give one: its translation sigma as
     /// the repeatability, its rotation sigma as the flange's rotation (without an
-    /// encoder figure). Each is counted once: a figure given (here or in rig.json) is
+    /// encoder figure); a component at its floor is none (an exact robot as far as the
+    /// views tell). Each is counted once: a figure given (here or in rig.json) is
     /// used instead of the estimate, never beside it; the part of the pose noise the
     /// calibration's own images made (`image_factor`) is not the robot's and does not
     /// enter. Call after [`Self::with_robot_figures`].
@@ -82,12 +83,14 @@ impl UncertaintyOptions {
         let Ok(Some(n)) = crate::io::calibration_robot_pose_noise(calibration) else {
             return self;
         };
-        let ok = |x: f64| (x.is_finite() && x >= 0.0).then_some(x);
+        // At its floor a component is no estimate of the robot (the views resolve no
+        // robot error): nothing to add.
+        let ok = |x: f64, floor: bool| (x.is_finite() && x >= 0.0 && !floor).then_some(x);
         if self.repeatability_mm.is_none() {
-            self.repeatability_mm = ok(n.sigma_translation_mm);
+            self.repeatability_mm = ok(n.sigma_translation_mm, n.translation_at_floor);
         }
         if self.encoder_sigma_deg.is_none() && self.flange_rotation_deg.is_none() {
-            self.flange_rotation_deg = ok(n.sigma_rotation_deg);
+            self.flange_rotation_deg = ok(n.sigma_rotation_deg, n.rotation_at_floor);
         }
         self
     }

@@ -308,8 +308,17 @@ fn estimated_pose_noise_stands_in_for_missing_figures() {
     .with_pose_noise(&cal);
     assert_eq!(given.repeatability_mm, Some(0.05));
     assert_eq!(given.flange_rotation_deg, None);
-    // Without an estimate nothing changes.
+    // Without an estimate nothing changes; nor with one at its floors.
     assert_eq!(base.clone().with_pose_noise(&calibration()), base);
+    let mut at_floor = calibration();
+    at_floor
+        .extra
+        .extend(crate::io::robot_pose_noise_extra(&RobotPoseNoise {
+            translation_at_floor: true,
+            rotation_at_floor: true,
+            ..noise.clone()
+        }));
+    assert_eq!(base.clone().with_pose_noise(&at_floor), base);
     // The flange rotation's part: a Monte Carlo over iso flange rotations of 0.01 deg.
     let rot_only = UncertaintyOptions {
         flange_rotation_deg: Some(0.01),
