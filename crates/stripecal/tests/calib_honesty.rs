@@ -158,7 +158,7 @@ fn split_halves_are_honest_on_real_data_and_twins() {
     }
     let r = rms(&pooled);
     println!("pooled RMS z {r:.2} over {} numbers", pooled.len());
-    assert!(r >= 0.5 && r <= 2.0, "pooled RMS z {r}");
+    assert!((0.5..=2.0).contains(&r), "pooled RMS z {r}");
 }
 
 /// A twin whose rig.json has joint 2's link 2 mm short of the arm's (`--robot fixed`):

@@ -35,6 +35,10 @@ use super::JointOptions;
 use crate::error::Result;
 use crate::numerics::lm::LmResult;
 
+/// The covariance term of the global numbers and the DH sigmas `(lengths mm, angles
+/// deg)`.
+pub(super) type KinematicTerm = (DMatrix<f64>, (f64, f64));
+
 /// The covariance term of the global numbers and the DH sigmas (lengths mm, angles deg;
 /// module docs); `None` without the robot-pose corrections, a DH table or joint readings
 /// for every view.
@@ -44,11 +48,11 @@ pub(super) fn term(
     res: &LmResult,
     s: &JointParams,
     opts: &JointOptions,
-) -> Result<Option<(DMatrix<f64>, (f64, f64))>> {
+) -> Result<Option<KinematicTerm>> {
     let Some(nominal) = opts.kinematics.as_ref() else {
         return Ok(None);
     };
-    if !problem.robot_noise() || !(res.sigma2 > 0.0) {
+    if !problem.robot_noise() || res.sigma2.partial_cmp(&0.0) != Some(std::cmp::Ordering::Greater) {
         return Ok(None);
     }
     // Both robot components at their floors: no robot error beyond what the views
@@ -161,7 +165,7 @@ pub(super) fn term(
             }
         }),
     ));
-    let t = &kg * d * kg.transpose();
+    let t = kg * d * kg.transpose();
     let t = 0.5 * (&t + t.transpose());
     Ok(t.iter()
         .all(|x| x.is_finite())

@@ -177,6 +177,10 @@ pub(super) enum Group {
     ImagePose,
 }
 
+/// A view's reduced share of the normal equations `(M_v, s_v)`
+/// ([`JointProblem::view_shares`]).
+pub(super) type ReducedShare = (DMatrix<f64>, DVector<f64>);
+
 /// Number of residual groups ([`Group`]).
 pub(super) const GROUPS: usize = 5;
 
@@ -601,7 +605,7 @@ impl<'a> JointProblem<'a> {
     /// A_dd^-1 A_dg` and `s_v = g_g - A_gd A_dd^-1 g_d` over its rows (its image rows
     /// and prior rows, weighted; `A = J^T J`, `g = J^T r`). Their sums are the reduced
     /// normal equations; `None` when a view's own block is singular.
-    pub fn view_shares(&self, p: &[f64]) -> Result<Option<Vec<(DMatrix<f64>, DVector<f64>)>>> {
+    pub fn view_shares(&self, p: &[f64]) -> Result<Option<Vec<ReducedShare>>> {
         let (n, m) = (self.num_params(), self.num_residuals());
         let ng = self.layout.num_global();
         let pv = self.layout.per_view_len();
@@ -614,9 +618,9 @@ impl<'a> JointProblem<'a> {
             .map(|v| ViewShare::new(ng, ng + v * pv..ng + (v + 1) * pv))
             .collect();
         for &(view, i0, i1) in &self.view_runs {
-            for i in i0..i1 {
+            for (i, ri) in r.iter().enumerate().take(i1).skip(i0) {
                 let (cols, vals) = rows.row(i);
-                acc[view].add_row(cols, vals, r[i]);
+                acc[view].add_row(cols, vals, *ri);
             }
         }
         Ok(acc.into_iter().map(ViewShare::reduced).collect())
@@ -1206,7 +1210,7 @@ fn view_runs(t: &Terms, prior_rows: usize) -> Vec<(usize, usize, usize)> {
     let (nc, po) = (2 * t.circles.len(), 2 * t.circles.len() + t.stripes.len());
     let circles = t.circles.iter().flat_map(|c| [c.view, c.view]);
     let stripes = t.stripes.iter().map(|s| s.view);
-    let priors = (0..t.a.len()).flat_map(|v| std::iter::repeat(v).take(prior_rows));
+    let priors = (0..t.a.len()).flat_map(|v| std::iter::repeat_n(v, prior_rows));
     let mut runs: Vec<(usize, usize, usize)> = Vec::new();
     for (i, v) in circles.chain(stripes).chain(priors).enumerate() {
         match runs.last_mut() {
