@@ -216,7 +216,16 @@ def test_a_bench_calibration_as_a_prior_makes_three_robot_views_enough(
     assert prior.uncertainty["laser_plane"]["d_mm"] == bench_cal.uncertainty["laser_plane"]["d_mm"]
     sp = np.array(prior.uncertainty["hand_cam"]["translation_mm"])
     sh = np.array(held.uncertainty["hand_cam"]["translation_mm"])
-    assert np.all(sp >= sh) and np.any(sp > 1.2 * sh), (sp, sh)
+    assert np.all(sp >= sh), (sp, sh)
+    # What the bench's uncertainty contributes, on the rigid model: with the robot-pose
+    # noise (the default since issue 38) these three rendered views' own part of their
+    # pose error (1.15 x their pose precision) makes the hand-eye's sigma 3-18 times the
+    # rigid model's, and the bench's share is lost in it (z: 0.0054 vs 0.0050 mm).
+    rigid = dict(leave_one_out=False, robot_pose_noise=False)
+    sp0 = np.array(sc.calibrate(ds, from_calibration=bench_json, **rigid).uncertainty["hand_cam"]["translation_mm"])
+    sh0 = np.array(sc.calibrate(ds, from_calibration=bench_json, fix=["camera", "laser_plane"],
+                                **rigid).uncertainty["hand_cam"]["translation_mm"])
+    assert np.all(sp0 >= sh0) and np.any(sp0 > 1.2 * sh0), (sp0, sh0)
     # Honest: the translation error within 3 of the propagated sigmas.
     assert np.all(np.abs(dt) <= 3 * sp), (dt, sp)
     assert prior.extra["prior"]["blocks"] == ["camera", "laser_plane"]

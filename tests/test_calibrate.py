@@ -26,7 +26,7 @@ def dataset(tmp_path_factory: pytest.TempPathFactory) -> Tuple[Path, stripecal.T
 
 @pytest.fixture(scope="module")
 def calibration(dataset: Tuple[Path, stripecal.Truth]) -> stripecal.Calibration:
-    return stripecal.calibrate(dataset[0], robot_pose_noise=True)
+    return stripecal.calibrate(dataset[0])  # the robot-pose noise is the default
 
 
 def _within(value: float, truth: float, sigma: float, k: float = 4.0) -> bool:
@@ -85,11 +85,32 @@ def test_calibration_carries_views_residuals_and_round_trips(
     # The file's numbers read back to the last digit or so (JSON float parsing).
     assert back_rn["views"] == [pytest.approx(v, rel=1e-12) for v in rn["views"]]
     assert back_rn["translation_mm"] == pytest.approx(rn["translation_mm"], rel=1e-12)
-    assert set(rn) == {"translation_mm", "rotation_deg", "at_floor", "floor", "views"}
+    assert set(rn) == {"translation_mm", "rotation_deg", "image_factor", "kinematic_mm", "kinematic_deg",
+                       "at_floor", "floor", "views", "left_out"}
+    assert rn["left_out"] == []
     assert [v["view"] for v in rn["views"]] == list(range(5))
     # The twin's robot is perfect: its noise sits at the floors, far below a real arm's.
-    assert rn["at_floor"] == {"translation": True, "rotation": True}
+    assert rn["at_floor"] == {"translation": True, "rotation": True, "image": True}
     assert rn["translation_mm"] is not None and rn["translation_mm"] < 0.01
+
+
+def test_the_cli_flags_of_the_robot_pose_noise(dataset: Tuple[Path, stripecal.Truth], tmp_path: Path,
+                                               capsys: pytest.CaptureFixture[str]) -> None:
+    """Issue 38: the robot-pose noise is the default; --no-robot-pose-noise takes the poses
+    as exact (no robot_pose_noise in the file), --robot-pose-noise is still accepted and
+    changes nothing."""
+    from stripecal.cli import main
+
+    files = {}
+    for name, flags in (("default", []), ("old", ["--robot-pose-noise"]), ("rigid", ["--no-robot-pose-noise"])):
+        out = tmp_path / f"{name}.json"
+        assert main(["calibrate", str(dataset[0]), "-o", str(out), "--no-leave-one-out"] + flags) == 0
+        files[name] = json.loads(out.read_text())
+    capsys.readouterr()
+    assert files["default"]["robot_pose_noise"] is not None
+    assert files["old"]["robot_pose_noise"] == files["default"]["robot_pose_noise"]
+    assert files["old"]["camera"] == files["default"]["camera"]
+    assert "robot_pose_noise" not in files["rigid"]
 
 
 def test_print_calibration_states_the_robot_pose_noise(
@@ -99,7 +120,7 @@ def test_print_calibration_states_the_robot_pose_noise(
 
     print_calibration(calibration)
     line = [x for x in capsys.readouterr().out.splitlines() if "robot-pose noise:" in x]
-    assert len(line) == 1 and "mm," in line[0] and "deg (at floor: translation, rotation)" in line[0]
+    assert len(line) == 1 and "mm," in line[0] and "(at floor: translation, rotation, image)" in line[0]
 
 
 def test_paper_method_runs_and_both_meet_the_hand_eye_targets(

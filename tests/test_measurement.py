@@ -106,8 +106,12 @@ def test_the_emitter_estimate_is_carried_into_the_calibration(rig: Any, ball: An
     part = lambda r, k: r["uncertainty"]["center"][k]["calibration_mm"]  # noqa: E731
     for k in range(3):
         assert part(m, k) <= part(plain, k) * (1 + 1e-9), k
-    # The range term is most of centre z's calibration part on this rig.
-    assert part(m, 2) < 0.95 * part(plain, 2), (part(m, 2), part(plain, 2))
+    # The range term leaves centre z's calibration part. It was most of it with the rigid
+    # model of wave two (the part fell by more than 5 %); with the robot-pose noise and the
+    # covariance widened to the views' own scatter (issue 38), the calibration's other
+    # uncertainty on this 5-view rendered rig is larger (1.57 um) and the range's share
+    # is about 0.2 um of it (1.572 -> 1.558 um).
+    assert part(m, 2) < (1 - 1e-3) * part(plain, 2), (part(m, 2), part(plain, 2))
     # The values move by the calibration's response at the estimate: near n d, a small
     # fraction of a micrometre.
     assert abs(m["diameter_mm"] - plain["diameter_mm"]) < 2e-4

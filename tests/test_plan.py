@@ -55,6 +55,36 @@ def test_plan_poses_from_a_dataset_folder_and_truth(dataset: Path) -> None:
     assert not any(e["name"].startswith("camera.") for e in held["parameters"])
 
 
+def test_plan_uses_the_calibrations_pose_noise(dataset: Path, tmp_path: Path) -> None:
+    """Issue 38: the plan's adjustment has the calibration's noise model. With a twin's
+    truth (an exact robot, no figures) the robot is planned exact; a robot-pose noise
+    given, or the one an earlier calibration estimated, widens X's and Z's sigmas and
+    is reported."""
+    joints = _joints(dataset)
+    exact = stripecal.plan_poses(dataset, dataset / "truth.json", joints)
+    assert exact["pose_noise_mm_deg"] is None
+    noisy = stripecal.plan_poses(dataset, dataset / "truth.json", joints, pose_noise=(0.2, 0.02))
+    assert noisy["pose_noise_mm_deg"] == pytest.approx([0.2, 0.02])
+    sig = {e["name"]: e["sigma"] for e in exact["parameters"]}
+    wider = {e["name"]: e["sigma"] for e in noisy["parameters"]}
+    assert wider["hand_cam.translation_mm[0]"] > 2 * sig["hand_cam.translation_mm[0]"]
+    assert wider["base_board.translation_mm[2]"] > 2 * sig["base_board.translation_mm[2]"]
+    # An earlier calibration's estimate is planned with when nothing is given.
+    cal = stripecal.calibrate(dataset, leave_one_out=False)
+    rn = cal.robot_pose_noise
+    assert rn is not None
+    from_cal = stripecal.plan_poses(dataset, cal, joints)
+    assert from_cal["pose_noise_mm_deg"] == pytest.approx([rn["translation_mm"], rn["rotation_deg"]])
+    with pytest.raises(stripecal.InvalidInputError, match="pose_noise"):
+        stripecal.plan_poses(dataset, dataset / "truth.json", joints, pose_noise=(-1.0, 0.1))
+    out = tmp_path / "plan.json"
+    poses = tmp_path / "poses.csv"
+    poses.write_text("q1,q2,q3,q4,q5,q6\n" + "\n".join(",".join(f"{x:.6f}" for x in q) for q in joints) + "\n")
+    assert main(["plan", "--rig", str(dataset), "--nominal", str(dataset / "truth.json"), "--poses", str(poses),
+                 "--pose-noise", "0.2,0.02", "--json", str(out)]) == 0
+    assert json.loads(out.read_text())["pose_noise_mm_deg"] == pytest.approx([0.2, 0.02])
+
+
 def test_plan_poses_errors(dataset: Path) -> None:
     joints = _joints(dataset)
     with pytest.raises(stripecal.InvalidInputError, match="usable"):
@@ -76,7 +106,7 @@ def test_cli_plan(dataset: Path, tmp_path: Path, capsys: pytest.CaptureFixture[s
     assert "point on the laser plane at 110.0 mm" in text
     plan = json.loads(out.read_text())
     assert set(plan) == {"poses", "usable", "sigma_px", "points", "stripe_points", "parameters", "covariance",
-                         "state", "point", "warnings", "robot_held"}
+                         "state", "point", "warnings", "robot_held", "pose_noise_mm_deg"}
     assert plan["point"]["standoff_mm"] == 110.0
     assert not list(tmp_path.glob("*.tmp*"))
 

@@ -44,7 +44,8 @@ def _swapped(clean: Path, dest: Path, i: int, j: int) -> Path:
 def test_clean_dataset_passes_every_gate(clean: Path, tmp_path: Path) -> None:
     cal = stripecal.calibrate(clean, leave_one_out=False)
     q = cal.quality
-    assert [c["name"] for c in q["checks"]] == ["pairing", "views", "determined", "converged"]
+    # board_scale: the DECISIONS 5 gate (issue 38)
+    assert [c["name"] for c in q["checks"]] == ["pairing", "views", "determined", "converged", "board_scale"]
     assert all(c["passed"] and c["views"] == [] for c in q["checks"])
     assert q["accepted_poor"] is False
     cal.save(tmp_path / "c.json")

@@ -758,7 +758,7 @@ def calibrate(
     board_scale_tolerance: float = 0.01,
     leave_one_out: bool = True,
     accept_poor: bool = False,
-    robot_pose_noise: bool = False,
+    robot_pose_noise: bool = True,
     robot: str = "fixed",
     board_stripe_bias: bool = True,
 ) -> Calibration: ...
@@ -777,7 +777,7 @@ def calibrate(
     board_scale_tolerance: float = 0.01,
     leave_one_out: bool = True,
     accept_poor: bool = False,
-    robot_pose_noise: bool = False,
+    robot_pose_noise: bool = True,
     robot: str = "fixed",
     board_stripe_bias: bool = True,
 ) -> ProfilerCalibration: ...
@@ -796,7 +796,7 @@ def calibrate(
     board_scale_tolerance: float = 0.01,
     leave_one_out: bool = True,
     accept_poor: bool = False,
-    robot_pose_noise: bool = False,
+    robot_pose_noise: bool = True,
     robot: str = "fixed",
     board_stripe_bias: bool = True,
 ) -> Union[Calibration, ProfilerCalibration]: ...
@@ -812,6 +812,7 @@ def plan_poses(
     margin_px: float = 10.0,
     fix: Sequence[str] = ...,
     robot: str = "fixed",
+    pose_noise: Optional[Tuple[float, float]] = None,
 ) -> PosePlan: ...
 def calibrate_camera(
     views: Sequence[Tuple[npt.ArrayLike, npt.ArrayLike]],

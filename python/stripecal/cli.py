@@ -394,8 +394,22 @@ def print_calibration(cal: stripecal.Calibration) -> None:
     rn = cal.robot_pose_noise
     if rn is not None and rn["translation_mm"] is not None and rn["rotation_deg"] is not None:
         floor = [k for k, v in rn["at_floor"].items() if v]
-        print(f"\n  robot-pose noise: {rn['translation_mm']:.3g} mm, {rn['rotation_deg']:.3g} deg"
+        k = rn.get("image_factor")
+        image = f"; the images' own part {k:.3g} x their pose precision" if k is not None else ""
+        print(f"\n  robot-pose noise: {rn['translation_mm']:.3g} mm, {rn['rotation_deg']:.3g} deg{image}"
               f" ({'at floor: ' + ', '.join(floor) if floor else 'estimated'})")
+        km, kd = rn.get("kinematic_mm"), rn.get("kinematic_deg")
+        if km is not None and kd is not None:
+            print(f"    DH errors of {km:.3g} mm / {kd:.3g} deg would explain it: their effect on X and Z is in the sigmas"
+                  " (--robot auto estimates them)")
+        tests = ", ".join(f"{v['view']}: {v['test']:.1f}" for v in rn["views"] if v["test"] is not None)
+        if tests:
+            print(f"    per-view pose test (above 4: the pose is off by far more than the others'): {tests}")
+        for lv in rn.get("left_out", []):
+            t = "?" if lv["test"] is None else f"{lv['test']:.1f}"
+            tm, rd = lv["translation_mm"], lv["rotation_deg"]
+            print(f"    view {lv['view']} LEFT OUT: its pose test {t} (corrected by "
+                  f"{'?' if tm is None else f'{tm:.3f}'} mm, {'?' if rd is None else f'{rd:.4f}'} deg)")
     rc = cal.robot_calibration
     if rc is not None:
         print(f"\n  robot calibration ({rc['mode']}): {len(rc['estimated'])} DH corrections estimated,"
@@ -467,7 +481,7 @@ def cmd_calibrate(args: argparse.Namespace) -> int:
             from_calibration=args.from_calibration, fix=fix, laser_only=args.laser_only,
             estimate_board_scale=args.estimate_board_scale, board_scale_tolerance=args.board_scale_tolerance,
             leave_one_out=not args.no_leave_one_out, accept_poor=args.accept_poor,
-            robot_pose_noise=args.robot_pose_noise,
+            robot_pose_noise=not args.no_robot_pose_noise,
             robot=args.robot, board_stripe_bias=not args.no_board_stripe_correction,
         )
     except stripecal.CalibrationQualityError as e:
@@ -526,9 +540,13 @@ def _add_calibrate(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> 
                         "offsets), full (every identifiable correction), auto (the corrections "
                         "the data show); default fixed (rig.json's DH table is exact; the same "
                         "as --fix robot). Needs joint readings")
+    p.add_argument("--no-robot-pose-noise", action="store_true",
+                   help="take the robot poses as exact (the paper's rigid model, for comparison); "
+                        "default: every view's robot pose is corrected by its own small transform "
+                        "and the robot-pose noise (mm, deg) is estimated and reported")
     p.add_argument("--robot-pose-noise", action="store_true",
-                   help="correct every view's robot pose by its own small transform and report "
-                        "the robot-pose noise (mm, deg); default: the robot poses are exact")
+                   help="accepted for older scripts, changes nothing: the robot-pose noise is the "
+                        "default (--no-robot-pose-noise turns it off)")
     p.add_argument("--no-board-stripe-correction", action="store_true",
                    help="do not correct the laser stripe's sub-pixel bias on the board (default: "
                         "corrected before the final adjustment, what remains added to the "
@@ -773,10 +791,19 @@ def cmd_plan(args: argparse.Namespace) -> int:
     Exit status 1 when fewer than 3 poses are usable or the poses leave a parameter
     undetermined (named)."""
     joints = _read_poses_csv(args.poses)
+    pose_noise = None
+    if args.pose_noise:
+        try:
+            mm, deg = (float(x) for x in args.pose_noise.split(","))
+        except ValueError:
+            raise stripecal.InvalidInputError(f"--pose-noise expects MM,DEG, got {args.pose_noise!r}") from None
+        pose_noise = (mm, deg)
     plan = stripecal.plan_poses(args.rig, args.nominal, joints, sigma_px=(args.noise_px, args.stripe_noise_px),
-                                standoff_mm=args.standoff, robot=args.robot)
+                                standoff_mm=args.standoff, robot=args.robot, pose_noise=pose_noise)
+    pn = plan.get("pose_noise_mm_deg")
+    noise = f"; robot-pose noise {pn[0]:.3g} mm, {pn[1]:.3g} deg" if pn is not None else ""
     print(f"{len(plan['poses'])} poses, {plan['usable']} usable; detection noise {plan['sigma_px'][0]:g} px "
-          f"(targets), {plan['sigma_px'][1]:g} px (stripe)\n")
+          f"(targets), {plan['sigma_px'][1]:g} px (stripe){noise}\n")
     print("  pose  usable  points  stripe  stand-off mm  tilt deg  reason")
     for p in plan["poses"]:
         so, tilt = p["standoff_mm"], p["tilt_deg"]
@@ -833,6 +860,9 @@ def _add_plan(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     p.add_argument("--robot", choices=["fixed", "offsets", "full", "auto"], default="fixed",
                    help="plan a robot calibration too: the DH corrections' sigmas (auto is planned as full)")
     p.add_argument("--standoff", type=float, metavar="MM", help="stand-off of the predicted point, mm (default: the median pose's)")
+    p.add_argument("--pose-noise", metavar="MM,DEG",
+                   help="the robot-pose noise to plan with, one-sigma per flange component (default: the nominal "
+                        "calibration's robot_pose_noise, else rig.json's robot figures, else an exact robot)")
     p.add_argument("--json", dest="output", metavar="OUT.json", help="write the plan as JSON (atomically)")
     p.set_defaults(func=cmd_plan)
 

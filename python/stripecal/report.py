@@ -299,6 +299,7 @@ stripe <b>{q['stripe_rms_px']:.4f} px</b> ({float(e.get('stripe_rms_mm') or floa
 <table><tr><th>parameter</th><th>value</th><th>1 sigma</th><th>true</th><th>error</th></tr>{''.join(tr)}</table>
 <h2>Views</h2>
 <table><tr><th>view</th><th>used</th><th>circles</th><th>stripe found</th><th>left out</th><th>off plane</th><th>saturated %</th><th>stripe points used</th><th>circle RMS px</th><th>stripe RMS px</th><th>note</th></tr>{''.join(vr)}</table>
+{_robot_pose_noise_html(cal)}
 {_robot_html(cal)}
 {loo_html}
 {extra_sections}
@@ -334,6 +335,43 @@ def checks_html(q: Union[CalibrationQuality, ProfilerQuality]) -> str:
               if q.get("accepted_poor") else "")
     return (f"<h2>Quality checks</h2>{banner}<table><tr><th>check</th><th>verdict</th><th>views</th>"
             f"<th>figures</th></tr>{''.join(rows)}</table>")
+
+
+def _robot_pose_noise_html(cal: stripecal.Calibration) -> str:
+    """The robot-pose noise section: the estimated noise (mm, deg), the image part's
+    factor, the DH error size the covariance carries, and each view's correction and test
+    (views above 4 disagree; those left out are listed)."""
+    rn = cal.robot_pose_noise
+    if rn is None:
+        return ""
+
+    def num(x: Optional[float], fmt: str) -> str:
+        return "" if x is None else format(x, fmt)
+
+    floor = [k for k, v in rn["at_floor"].items() if v]
+    k = rn.get("image_factor")
+    km, kd = rn.get("kinematic_mm"), rn.get("kinematic_deg")
+    rows = []
+    for v in rn["views"]:
+        t = v["test"]
+        bad = ' style="color:#b00"' if t is not None and t > 4.0 else ""
+        rows.append(f"<tr{bad}><td>{v['view']}</td><td>{num(v['translation_mm'], '.4f')}</td>"
+                    f"<td>{num(v['rotation_deg'], '.5f')}</td><td>{num(t, '.2f')}</td><td></td></tr>")
+    for v in rn.get("left_out", []):
+        rows.append(f"<tr style=\"color:#b00\"><td>{v['view']}</td><td>{num(v['translation_mm'], '.4f')}</td>"
+                    f"<td>{num(v['rotation_deg'], '.5f')}</td><td>{num(v['test'], '.2f')}</td><td>left out</td></tr>")
+    text = (f"<p>Each view's robot pose is corrected by its own small transform; the corrections' spread is the "
+            f"robot-pose noise, one-sigma per flange component: <b>{num(rn['translation_mm'], '.3g')} mm</b>, "
+            f"<b>{num(rn['rotation_deg'], '.3g')} deg</b>"
+            + (f" (at floor: {html.escape(', '.join(floor))})" if floor else "") + ". "
+            + (f"The part of each view's pose error its own image makes (detector biases, a board not quite flat, "
+               f"a lens the model does not quite fit): {k:.3g} times the image's own pose precision. " if k is not None
+               else "")
+            + (f"DH errors of {km:.3g} mm / {kd:.3g} deg would explain the noise; what they would do to X and Z "
+               f"is in the sigmas. " if km is not None and kd is not None else "")
+            + "A view whose test is above 4 has a pose off by far more than the others' and is left out.</p>")
+    return (f"<h2>Robot-pose noise</h2>{text}<table><tr><th>view</th><th>correction mm</th><th>correction deg</th>"
+            f"<th>test</th><th></th></tr>{''.join(rows)}</table>")
 
 
 def _robot_html(cal: stripecal.Calibration) -> str:

@@ -533,6 +533,9 @@ class RobotPoseAtFloor(TypedDict):
     """The translation's sigma is its floor (the estimate is below it)."""
     rotation: bool
     """The rotation's sigma is its floor."""
+    image: bool
+    """The image part's factor is at its floor (the images are as good as their
+    residuals say; False in files written before it existed)."""
 
 
 class RobotPoseFloor(TypedDict):
@@ -569,12 +572,26 @@ class RobotPoseNoise(TypedDict):
     """One-sigma of a flange translation component, mm."""
     rotation_deg: Optional[float]
     """One-sigma of a flange rotation component, degrees."""
+    image_factor: Optional[float]
+    """The part of each view's pose error its own image makes (detector biases, a board
+    not quite flat, a lens the model does not quite fit), in units of the image's own
+    uncertainty of the view's pose; None when not modelled (files written before it
+    existed)."""
+    kinematic_mm: Optional[float]
+    """With joint readings and rig.json's DH table: the DH length error (one-sigma, mm)
+    the pose noise is consistent with, whose effect on X and Z the covariance carries;
+    None otherwise."""
+    kinematic_deg: Optional[float]
+    """The same for the DH angles, degrees."""
     at_floor: RobotPoseAtFloor
-    """Which of the two sits at its floor."""
+    """Which of the components sits at its floor."""
     floor: RobotPoseFloor
     """The floors."""
     views: List[RobotPoseNoiseView]
     """Per view used."""
+    left_out: List[RobotPoseNoiseView]
+    """Views left out because their test exceeded 4 (their figures from the adjustment
+    that found them; empty in files written before it existed)."""
 
 
 class DhCorrection(TypedDict):
@@ -902,6 +919,10 @@ class PosePlan(TypedDict):
     """Warnings."""
     robot_held: List[DhFixed]
     """With ``robot=``: the DH corrections the identifiability rule holds, and why."""
+    pose_noise_mm_deg: Optional[List[float]]
+    """The robot-pose noise planned with (one-sigma per flange component: translation mm,
+    rotation deg): ``pose_noise=``, else the nominal calibration's estimate, else rig.json's
+    figures; None when the robot is planned exact (none of them)."""
 
 
 # --- vision: target detection ---------------------------------------------------------

@@ -211,9 +211,10 @@ fn parse_distortion(py: Python<'_>, s: Option<&str>) -> PyResult<Option<Distorti
 /// out, undetermined parameters, no convergence) raises `CalibrationQualityError`
 /// carrying the failed `checks` and the `calibration` for inspection;
 /// `accept_poor=True` returns it instead, with `quality["accepted_poor"]` True. Every
-/// gate's verdict is in `quality["checks"]`. `robot_pose_noise=True` corrects every
-/// view's robot pose by its own small transform and reports the robot-pose noise
-/// (`robot_pose_noise`; default off: the poses are exact). `robot` calibrates the
+/// gate's verdict is in `quality["checks"]`. `robot_pose_noise=True` (default) corrects
+/// every view's robot pose by its own small transform and reports the robot-pose noise
+/// (`robot_pose_noise`); `False`: the poses are exact (the paper's rigid model, for
+/// comparison). `robot` calibrates the
 /// robot's DH rows from the same images: `"fixed"` (default; the same as
 /// `fix=["robot"]`), `"offsets"` (encoder offsets), `"full"` (every identifiable
 /// correction) or `"auto"` (the corrections the data show); the refined rows are the
@@ -233,7 +234,7 @@ fn parse_distortion(py: Python<'_>, s: Option<&str>) -> PyResult<Option<Distorti
 /// released while it runs; a Ctrl-C (SIGINT) during the run raises `KeyboardInterrupt`
 /// when the core returns (the result is dropped), not at once.
 #[pyfunction]
-#[pyo3(signature = (dataset, *, distortion = None, method = "one-stage", robust = false, centre_model = "conic-exact", from_calibration = None, fix = Vec::new(), laser_only = false, estimate_board_scale = false, board_scale_tolerance = 0.01, leave_one_out = true, accept_poor = false, robot_pose_noise = false, robot = "fixed", board_stripe_bias = true))]
+#[pyo3(signature = (dataset, *, distortion = None, method = "one-stage", robust = false, centre_model = "conic-exact", from_calibration = None, fix = Vec::new(), laser_only = false, estimate_board_scale = false, board_scale_tolerance = 0.01, leave_one_out = true, accept_poor = false, robot_pose_noise = true, robot = "fixed", board_stripe_bias = true))]
 #[allow(clippy::too_many_arguments)]
 pub fn calibrate(
     py: Python<'_>,
@@ -265,7 +266,7 @@ pub fn calibrate(
             ("fix", !fix.is_empty()),
             ("laser_only", laser_only),
             ("estimate_board_scale", estimate_board_scale),
-            ("robot_pose_noise", robot_pose_noise),
+            ("robot_pose_noise", !robot_pose_noise),
             ("board_stripe_bias", !board_stripe_bias),
         ];
         if let Some((name, _)) = camera_only.iter().find(|(_, set)| *set) {

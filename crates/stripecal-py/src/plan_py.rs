@@ -54,11 +54,14 @@ fn nominal_of(py: Python<'_>, obj: &Bound<'_, PyAny>) -> PyResult<Calibration> {
 /// The predicted one-sigma of every calibration parameter, and of a point on the laser
 /// plane at the stand-off, for the robot poses `joints` `(M, dof)` (degrees) of the
 /// rig's robot around the nominal calibration (calibration.json or truth.json). Returns
-/// a `PosePlan` dict (stripecal.types). Raises `InvalidInputError` for fewer than 3
+/// a `PosePlan` dict (stripecal.types). The calibration's noise model: the robot-pose
+/// noise `pose_noise=(mm, deg)` (default: the nominal calibration's estimate, else
+/// rig.json's robot figures, else an exact robot; `pose_noise_mm_deg` in the plan).
+/// Raises `InvalidInputError` for fewer than 3
 /// usable poses (naming why each other one is not) or a wrong joint count,
 /// `DegenerateError` naming the parameters the poses do not determine.
 #[pyfunction]
-#[pyo3(signature = (rig, nominal, joints, *, sigma_px = (0.05, 0.1), standoff_mm = None, margin_px = 10.0, fix = Vec::new(), robot = "fixed"))]
+#[pyo3(signature = (rig, nominal, joints, *, sigma_px = (0.05, 0.1), standoff_mm = None, margin_px = 10.0, fix = Vec::new(), robot = "fixed", pose_noise = None))]
 #[allow(clippy::too_many_arguments)]
 pub fn plan_poses<'py>(
     py: Python<'py>,
@@ -70,7 +73,16 @@ pub fn plan_poses<'py>(
     margin_px: f64,
     fix: Vec<String>,
     robot: &str,
+    pose_noise: Option<(f64, f64)>,
 ) -> PyResult<Bound<'py, PyAny>> {
+    if let Some((t, r)) = pose_noise {
+        if !(t.is_finite() && r.is_finite() && t > 0.0 && r > 0.0) {
+            return Err(invalid_input(
+                py,
+                format!("pose_noise must be two positive numbers (mm, deg), got ({t}, {r})"),
+            ));
+        }
+    }
     let robot = stripecal::calib::joint::RobotMode::from_name(robot).py_err(py)?;
     let rig = rig_of(py, rig)?;
     let nominal = nominal_of(py, nominal)?;
@@ -97,6 +109,7 @@ pub fn plan_poses<'py>(
         margin_px,
         free,
         robot,
+        pose_noise,
         ..PlanOptions::default()
     };
     let plan = py

@@ -300,9 +300,12 @@ impl PyCalibration {
 
     /// The robot-pose noise the adjustment estimated (`extra["robot_pose_noise"]`):
     /// `translation_mm` and `rotation_deg` (one-sigma per component of the flange pose),
-    /// `at_floor` (`translation`, `rotation`), `floor` and per view `views` (`view`,
-    /// `translation_mm`, `rotation_deg` of its correction, `test`: above about 4 the view
-    /// disagrees); None when not estimated (the paper's method).
+    /// `image_factor` (the part of each view's pose error its own image makes, in units
+    /// of the image's own pose uncertainty), `at_floor` (`translation`, `rotation`,
+    /// `image`), `floor`, per view `views` (`view`, `translation_mm`, `rotation_deg` of
+    /// its correction, `test`: above 4 the view disagrees) and `left_out` (views left out
+    /// by their test); None when not estimated (the paper's method,
+    /// `robot_pose_noise=False`).
     #[getter]
     fn robot_pose_noise<'py>(&self, py: Python<'py>) -> PyResult<Option<Bound<'py, PyAny>>> {
         self.inner

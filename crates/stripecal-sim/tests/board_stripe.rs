@@ -4,6 +4,13 @@
 //! that into a hand-eye translation error of several of its own sigmas. With the
 //! correction the error is gone and the reported sigma covers what is left; the sheet's
 //! thickness estimated from the widths is the twin's.
+//!
+//! Studied on the rigid model with the noise model's own covariance (`wave_two()`): the
+//! bias is the same in every view of a noise-free render, a micrometre-level effect
+//! against the detector noise's sigma. The defaults of issue 38 (the robot-pose noise,
+//! the covariance widened to the views' own scatter) count a bias every view shares as
+//! scatter of the views (the hand-eye sigma 2.2 um instead of about 0.3 um here), which
+//! covers it: honest, but no longer the premise these tests measure the correction by.
 
 use std::ops::ControlFlow;
 
@@ -32,7 +39,7 @@ fn the_board_stripe_correction_removes_the_hand_eye_bias() {
     let run = |on: bool| {
         let opts = CalibrateOptions {
             board_stripe_bias: on,
-            ..Default::default()
+            ..wave_two()
         };
         let rep = calibrate_dataset(dir.path().join("calib"), &opts).unwrap();
         let c = rep.calibration;
@@ -102,7 +109,7 @@ fn the_emitter_part_covers_a_moved_emitter() {
     let dir = tempfile::tempdir().unwrap();
     let run = |twin: &Twin, root: &std::path::Path| {
         twin.write(root, &mut |_, _, _| {}).unwrap();
-        let rep = calibrate_dataset(root.join("calib"), &CalibrateOptions::default()).unwrap();
+        let rep = calibrate_dataset(root.join("calib"), &wave_two()).unwrap();
         let c = rep.calibration;
         let s = rep.adjustment.sigma;
         let (err_t, err_d) = errors(&c, twin);
@@ -210,4 +217,13 @@ fn errors(c: &stripecal::model::Calibration, twin: &Twin) -> (nalgebra::Vector3<
         c.hand_cam.translation.vector - twin.hand_cam.translation.vector,
         plane.d - twin.laser_plane.d,
     )
+}
+
+/// The rigid model with the noise model's own covariance (module docs).
+fn wave_two() -> CalibrateOptions {
+    CalibrateOptions {
+        robot_pose_noise: false,
+        clustered_covariance: false,
+        ..CalibrateOptions::default()
+    }
 }

@@ -38,16 +38,12 @@ fn noisy_views(t: &Twin, seed: u64) -> Vec<ViewObs> {
 }
 
 fn noisy_robot() -> JointOptions {
-    JointOptions {
-        robot_noise: true,
-        ..JointOptions::default()
-    }
+    JointOptions::default()
 }
 
 fn no_loo() -> CalibrateOptions {
     CalibrateOptions {
         leave_one_out: false,
-        robot_pose_noise: true,
         ..CalibrateOptions::default()
     }
 }
@@ -188,8 +184,11 @@ fn noisy_readings_are_estimated_and_the_sigmas_are_honest() {
         let rep = calibrate_observations(&views, &t.rig().unwrap(), &no_loo()).unwrap();
         let start = start_of(&rep);
         let new = joint_adjustment(&views, &t.board, &start, &noisy_robot()).unwrap();
+        // The rigid model's own sigmas (the covariance widened to the views' scatter
+        // makes even the rigid model's sigmas about honest: z rms 1.2 here).
         let rigid = JointOptions {
             robot_noise: false,
+            clustered_covariance: false,
             ..JointOptions::default()
         };
         let old = joint_adjustment(&views, &t.board, &start, &rigid).unwrap();

@@ -828,6 +828,10 @@ fn calibration_robot_pose_noise_round_trips() {
         rotation_at_floor: true,
         floor_translation_mm: 0.02,
         floor_rotation_deg: 0.012,
+        image_factor: Some(12.5),
+        image_factor_at_floor: false,
+        kinematic_mm: Some(0.3),
+        kinematic_deg: Some(0.01),
         views: vec![
             RobotPoseView {
                 view: 0,
@@ -842,6 +846,12 @@ fn calibration_robot_pose_noise_round_trips() {
                 test: f64::NAN,
             },
         ],
+        left_out: vec![RobotPoseView {
+            view: 5,
+            translation_mm: 4.1,
+            rotation_deg: 0.9,
+            test: 9.5,
+        }],
     };
     let mut c = calibration();
     assert!(calibration_robot_pose_noise(&c).unwrap().is_none());

@@ -15,6 +15,7 @@ use faer::MatMut;
 use nalgebra::{Vector2, Vector3};
 use rayon::prelude::*;
 
+use crate::calib::clustered::ViewShare;
 use crate::calib::conic::{centre_generic_n, quadrature_nodes, CentreModel, CentreScalar};
 use crate::calib::homography::fit_homography;
 use crate::calib::zhang::{pose_from_homography, zhang_intrinsics};
@@ -41,6 +42,9 @@ pub struct CameraOptions {
     pub lm: LmOptions,
     /// Minimum circles for a view to be used (>= 4).
     pub min_circles: usize,
+    /// Widen the camera's sigmas to the views' own scatter where that is larger
+    /// ([`crate::calib::clustered`]; default true).
+    pub clustered_covariance: bool,
 }
 
 impl Default for CameraOptions {
@@ -52,6 +56,7 @@ impl Default for CameraOptions {
                 ..Default::default()
             },
             min_circles: 4,
+            clustered_covariance: true,
         }
     }
 }
@@ -286,6 +291,7 @@ pub fn calibrate_camera(
     Ok(collect_result(
         &problem,
         &res,
+        opts.clustered_covariance,
         &used,
         camera,
         initial_intrinsics,
@@ -404,11 +410,48 @@ fn start_problem<'a>(
     Ok((problem, p0))
 }
 
+/// The camera's sigmas from the model's covariance widened to the views' own scatter
+/// ([`crate::calib::clustered`]); `None` when it cannot be formed (four views or fewer,
+/// unobservable parameters).
+fn widened_camera_sigma(problem: &CamProblem<'_>, res: &LmResult) -> Option<Vec<f64>> {
+    if !res.unobservable.is_empty() {
+        return None;
+    }
+    let (n, m, nc) = (
+        problem.num_params(),
+        problem.num_residuals(),
+        problem.ncam(),
+    );
+    let mut r = vec![0.0; m];
+    let mut rows = JacobianRows::new(m, problem.jacobian_row_width()?, n);
+    problem
+        .residuals_and_jacobian_rows(&res.params, &mut r, &mut rows)
+        .ok()?;
+    let mut shares: Vec<ViewShare> = (0..problem.nviews)
+        .map(|v| ViewShare::new(nc, nc + 6 * v..nc + 6 * v + 6))
+        .collect();
+    for (k, o) in problem.obs.iter().enumerate() {
+        for i in [2 * k, 2 * k + 1] {
+            let (cols, vals) = rows.row(i);
+            shares[o.view].add_row(cols, vals, r[i]);
+        }
+    }
+    let shares: Vec<_> = shares
+        .into_iter()
+        .map(ViewShare::reduced)
+        .collect::<Option<_>>()?;
+    let model = res.covariance.view((0, 0), (nc, nc)).into_owned();
+    let (wide, _) = crate::calib::clustered::widened(&model, &shares)?;
+    Some((0..nc).map(|k| wide[(k, k)].max(0.0).sqrt()).collect())
+}
+
 /// The calibration of the solution `res` (giving `camera`): poses, sigmas, RMS values
 /// and unobservable names.
+#[allow(clippy::too_many_arguments)]
 fn collect_result(
     problem: &CamProblem<'_>,
     res: &LmResult,
+    clustered: bool,
     used: &[(&ViewObs, nalgebra::Matrix3<f64>)],
     camera: Camera,
     initial_intrinsics: [f64; 4],
@@ -417,8 +460,11 @@ fn collect_result(
     let free = &problem.free;
     let nc = free.len();
     let mut camera_sigma = [0.0; 9];
+    let widened = clustered
+        .then(|| widened_camera_sigma(problem, res))
+        .flatten();
     for (k, &i) in free.iter().enumerate() {
-        camera_sigma[i] = res.sigma[k];
+        camera_sigma[i] = widened.as_ref().map_or(res.sigma[k], |w| w[k]);
     }
     let mut poses = Vec::new();
     let mut pose_sigma = Vec::new();

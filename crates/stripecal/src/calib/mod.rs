@@ -13,6 +13,7 @@
 
 pub mod axzb;
 pub mod camera;
+pub mod clustered;
 pub mod conic;
 pub mod consensus;
 pub mod flatness;

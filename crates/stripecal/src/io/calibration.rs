@@ -320,16 +320,25 @@ fn robot_pose_noise_from(o: &Obj<'_>) -> Result<RobotPoseNoise> {
     let f = o.obj("at_floor")?;
     let floor = o.opt_obj("floor")?;
     let floor_num = |key: &str| floor.as_ref().map_or(Ok(f64::NAN), |f| num(f, key));
-    let mut views = Vec::new();
-    for item in o.req("views")?.arr()? {
-        let v = item.obj()?;
-        views.push(RobotPoseView {
-            view: v.count("view")?,
-            translation_mm: num(&v, "translation_mm")?,
-            rotation_deg: num(&v, "rotation_deg")?,
-            test: num(&v, "test")?,
-        });
-    }
+    let read_views = |key: &str| -> Result<Vec<RobotPoseView>> {
+        let mut views = Vec::new();
+        let Some(list) = o.opt(key) else {
+            return Ok(views);
+        };
+        for item in list.arr()? {
+            let v = item.obj()?;
+            views.push(RobotPoseView {
+                view: v.count("view")?,
+                translation_mm: num(&v, "translation_mm")?,
+                rotation_deg: num(&v, "rotation_deg")?,
+                test: num(&v, "test")?,
+            });
+        }
+        Ok(views)
+    };
+    o.req("views")?;
+    let views = read_views("views")?;
+    let left_out = read_views("left_out")?;
     Ok(RobotPoseNoise {
         sigma_translation_mm: num(o, "translation_mm")?,
         sigma_rotation_deg: num(o, "rotation_deg")?,
@@ -337,7 +346,24 @@ fn robot_pose_noise_from(o: &Obj<'_>) -> Result<RobotPoseNoise> {
         rotation_at_floor: f.req("rotation")?.bool()?,
         floor_translation_mm: floor_num("translation_mm")?,
         floor_rotation_deg: floor_num("rotation_deg")?,
+        image_factor: match o.opt("image_factor") {
+            Some(v) if !v.is_null() => Some(v.f64()?),
+            _ => None,
+        },
+        kinematic_mm: match o.opt("kinematic_mm") {
+            Some(v) if !v.is_null() => Some(v.f64()?),
+            _ => None,
+        },
+        kinematic_deg: match o.opt("kinematic_deg") {
+            Some(v) if !v.is_null() => Some(v.f64()?),
+            _ => None,
+        },
+        image_factor_at_floor: match f.opt("image") {
+            Some(v) => v.bool()?,
+            None => false,
+        },
         views,
+        left_out,
     })
 }
 

@@ -226,9 +226,13 @@ pub fn self_checks_extra(
 }
 
 /// calibration.json's `robot_pose_noise` key (an extra key): `translation_mm` and
-/// `rotation_deg` (one-sigma per component), `at_floor` (`translation`, `rotation`),
-/// `floor` (`translation_mm`, `rotation_deg`) and `views` (`view`, `translation_mm`,
-/// `rotation_deg`, `test`; a non-finite test is `null`). Read back by
+/// `rotation_deg` (one-sigma per component), `image_factor` (the factor of the part of
+/// each view's pose error its own image makes; `null` when not modelled),
+/// `kinematic_mm`, `kinematic_deg` (the DH error sizes whose effect the covariance carries; `null` without
+/// joint readings), `at_floor`
+/// (`translation`, `rotation`, `image`), `floor` (`translation_mm`, `rotation_deg`) and
+/// `views` (`view`, `translation_mm`, `rotation_deg`, `test`; a non-finite test is
+/// `null`), `left_out` (the same for the views left out by their test). Read back by
 /// [`super::calibration_robot_pose_noise`].
 pub fn robot_pose_noise_extra(n: &RobotPoseNoise) -> Map<String, Value> {
     let mut o = Map::new();
@@ -237,9 +241,22 @@ pub fn robot_pose_noise_extra(n: &RobotPoseNoise) -> Map<String, Value> {
         finite_or_null(n.sigma_translation_mm),
     );
     o.insert("rotation_deg".into(), finite_or_null(n.sigma_rotation_deg));
+    o.insert(
+        "image_factor".into(),
+        n.image_factor.map_or(Value::Null, finite_or_null),
+    );
+    o.insert(
+        "kinematic_mm".into(),
+        n.kinematic_mm.map_or(Value::Null, finite_or_null),
+    );
+    o.insert(
+        "kinematic_deg".into(),
+        n.kinematic_deg.map_or(Value::Null, finite_or_null),
+    );
     let mut f = Map::new();
     f.insert("translation".into(), Value::from(n.translation_at_floor));
     f.insert("rotation".into(), Value::from(n.rotation_at_floor));
+    f.insert("image".into(), Value::from(n.image_factor_at_floor));
     o.insert("at_floor".into(), Value::Object(f));
     let mut f = Map::new();
     f.insert(
@@ -248,19 +265,20 @@ pub fn robot_pose_noise_extra(n: &RobotPoseNoise) -> Map<String, Value> {
     );
     f.insert("rotation_deg".into(), finite_or_null(n.floor_rotation_deg));
     o.insert("floor".into(), Value::Object(f));
-    let views = n
-        .views
-        .iter()
-        .map(|v| {
-            let mut m = Map::new();
-            m.insert("view".into(), Value::from(v.view));
-            m.insert("translation_mm".into(), finite_or_null(v.translation_mm));
-            m.insert("rotation_deg".into(), finite_or_null(v.rotation_deg));
-            m.insert("test".into(), finite_or_null(v.test));
-            Value::Object(m)
-        })
-        .collect();
-    o.insert("views".into(), Value::Array(views));
+    let views = |vs: &[crate::model::RobotPoseView]| {
+        vs.iter()
+            .map(|v| {
+                let mut m = Map::new();
+                m.insert("view".into(), Value::from(v.view));
+                m.insert("translation_mm".into(), finite_or_null(v.translation_mm));
+                m.insert("rotation_deg".into(), finite_or_null(v.rotation_deg));
+                m.insert("test".into(), finite_or_null(v.test));
+                Value::Object(m)
+            })
+            .collect()
+    };
+    o.insert("views".into(), Value::Array(views(&n.views)));
+    o.insert("left_out".into(), Value::Array(views(&n.left_out)));
     let mut m = Map::new();
     m.insert("robot_pose_noise".into(), Value::Object(o));
     m

@@ -31,6 +31,6 @@ pub(crate) use results::calibration_number;
 pub use results::{
     AdjustmentSummary, Calibration, CameraSigma, Cloud, DhCorrection, NamedCovariance, PlaneSigma,
     PoseSigma, Quality, RobotCalibration, RobotPoseNoise, RobotPoseView, Sphere, SphereFit, Truth,
-    Uncertainty, ViewRecord,
+    Uncertainty, ViewRecord, ROBOT_POSE_TEST_LIMIT,
 };
 pub use stripe_extraction::{RejectCounts, StripeExtraction};

@@ -277,9 +277,33 @@ pub struct RobotPoseNoise {
     /// than the adjustment's own resolution floor.
     pub floor_translation_mm: f64,
     pub floor_rotation_deg: f64,
+    /// The factor `k` of the part of each view's pose error its own image makes (its
+    /// covariance `k^2` times the image's own uncertainty of the view's pose, beyond the
+    /// image residuals' white noise; `calib::joint`'s `robot_noise` docs); `None` when
+    /// not modelled.
+    pub image_factor: Option<f64>,
+    /// Whether that factor sits at its floor (the images are as good as their
+    /// residuals say).
+    pub image_factor_at_floor: bool,
+    /// With joint readings and rig.json's DH table: the size of DH errors (one-sigma of
+    /// a length, mm; angles alike at the flange) the robot-pose noise is consistent with,
+    /// whose effect on `X` and `Z` (a common error of every pose, which no view can
+    /// show) the covariance carries; `None` otherwise.
+    pub kinematic_mm: Option<f64>,
+    /// The same for the DH angles, degrees.
+    pub kinematic_deg: Option<f64>,
     /// Per view used.
     pub views: Vec<RobotPoseView>,
+    /// Views named and left out because their test exceeded
+    /// [`ROBOT_POSE_TEST_LIMIT`], with their figures from the adjustment that found
+    /// them (DECISIONS 1: a view whose pose is off by far more than the others is not
+    /// absorbed into the noise estimate).
+    pub left_out: Vec<RobotPoseView>,
 }
+
+/// A view whose robot-pose test exceeds this disagrees with the noise model (a one-sided
+/// normal tail of 3e-5: one false alarm in about 1000 calibrations of 30 views).
+pub const ROBOT_POSE_TEST_LIMIT: f64 = 4.0;
 
 /// One view's robot-pose correction (an entry of `robot_pose_noise.views`).
 #[derive(Debug, Clone, Copy, PartialEq)]

@@ -2,10 +2,12 @@
 //! stripe points on the board, robot poses against images (`AX = ZB` from the views that
 //! agree), laser plane, adjustment, report, quality gates.
 
-use super::board_scale::{check_board_scale, warning as board_scale_warning};
+use super::board_scale::{
+    check_board_scale, gate as board_scale_gate, warning as board_scale_warning,
+};
 use super::board_stripe::{correct_board_stripes, BoardStripeCorrection};
 use super::emitter_carry::EmitterResponse;
-use super::gates::{converged, determined, judge, view_residuals, views_check};
+use super::gates::{converged, determined, judge, pose_outliers, view_residuals, views_check};
 use super::held::held;
 use super::labels::resolve_labellings;
 use super::laser_only::calibrate_held_chain;
@@ -114,8 +116,10 @@ pub(super) fn calibrate_unjudged(
         median(&mut d)
     };
     // 5. Laser plane and the adjustment (evaluated only, for the paper's method); views
-    // whose residuals are far above the others' are left out once when enough remain.
+    // whose residuals are far above the others', or whose robot pose is off by far more
+    // than the others' (the robot-pose test), are left out once when enough remain.
     let mut first_pass = true;
+    let mut pose_left_out = Vec::new();
     let (plane, start, adj, views_check) = loop {
         let plane = laser_plane_stage(&used_obs, &used_poses, &camcal.camera, &mut warnings)?;
         let mut start = JointStart {
@@ -128,13 +132,33 @@ pub(super) fn calibrate_unjudged(
             h.apply(&mut start);
         }
         let adj = joint_adjustment(&used_obs, board, &start, &jopts)?;
-        let (bad, msg) = view_residuals(&adj, camcal.rms_px);
+        let (mut bad, mut msg) = view_residuals(&adj, camcal.rms_px);
+        let (pose_bad, pose_msg) = pose_outliers(&adj);
+        if !pose_bad.is_empty() {
+            if !first_pass {
+                warnings.push(format!("{pose_msg}: kept (views are left out once)"));
+            } else {
+                let extra: Vec<usize> = pose_bad
+                    .iter()
+                    .map(|v| v.view)
+                    .filter(|v| !bad.contains(v))
+                    .collect();
+                bad.extend(extra);
+                bad.sort_unstable();
+                msg = if msg.starts_with("every view") {
+                    pose_msg
+                } else {
+                    format!("{msg}; {pose_msg}")
+                };
+            }
+        }
         let kept_n = used_obs.len() - bad.len();
         let check = views_check(&bad, &msg, kept_n, total);
         if bad.is_empty() || !check.passed || !first_pass {
             break (plane, start, adj, check);
         }
         first_pass = false;
+        pose_left_out = pose_bad;
         leave_out(
             &bad,
             &msg,
@@ -144,10 +168,13 @@ pub(super) fn calibrate_unjudged(
             &mut status,
         )?;
     };
-    let (adj, used_obs, board_stripe) =
+    let (mut adj, used_obs, board_stripe) =
         correct_stripes(adj, used_obs, &used_poses, board, &jopts, opts)?;
     if let Some(Err(why)) = &board_stripe {
         warnings.push(format!("board stripe-bias correction not applied: {why}"));
+    }
+    if let Some(n) = adj.robot_noise.as_mut() {
+        n.left_out = pose_left_out;
     }
     warnings.extend(adj.warnings.iter().cloned());
     if let Some(w) = super::kinematics::diagnose(&adj, camcal.rms_px, rig, &used_obs, opts) {
@@ -155,12 +182,19 @@ pub(super) fn calibrate_unjudged(
     }
     mark_used(&mut status, &used_obs);
     let checks = self_checks(&used_obs, board, &adj, &jopts, opts, &mut warnings)?;
-    let gate_checks = vec![
+    let mut gate_checks = vec![
         paired.check,
         views_check,
         determined(&adj, &adj.camera, standoff),
         converged(&adj, opts.method),
     ];
+    if let Some(g) = checks
+        .board_scale
+        .as_ref()
+        .and_then(|c| board_scale_gate(c, board))
+    {
+        gate_checks.push(g);
+    }
     let stage = Stage {
         board_stripe,
         camera: Some(camcal),
@@ -219,6 +253,7 @@ fn correct_stripes(
         hand_cam: r.hand_cam,
         base_board: r.base_board,
     };
+    let jopts = &jopts.continuing(&adj);
     let mut again = joint_adjustment(&corr.corrected, board, &start_of(&adj), jopts)?;
     let mut terms = vec![(
         again.named_difference(&adj),
@@ -292,7 +327,10 @@ pub(super) fn self_checks(
     let chain_free = adj.free.camera || adj.free.hand_cam || adj.free.base_board;
     let board_scale = if chain_free || adj.free.board_scale {
         let c = check_board_scale(used, board, adj, jopts, opts.board_scale_tolerance)?;
-        if c.disagrees && !c.estimated {
+        if c.disagrees
+            && !c.estimated
+            && super::board_scale::gate(&c, board).is_some_and(|g| g.passed)
+        {
             warnings.push(board_scale_warning(&c, board));
         }
         Some(c)
@@ -340,6 +378,7 @@ pub(super) fn camera_stage(
         } else {
             opts.centre_model
         },
+        clustered_covariance: opts.clustered_covariance,
         ..Default::default()
     };
     if one_stage {
@@ -435,6 +474,8 @@ pub(super) fn joint_options(opts: &CalibrateOptions, rig: &Rig) -> JointOptions 
         robust: opts.robust,
         free: opts.free,
         robot_noise: opts.robot_pose_noise,
+        clustered_covariance: opts.clustered_covariance,
+        kinematics: rig.robot.clone(),
         robot_floor: rig
             .robot
             .as_ref()

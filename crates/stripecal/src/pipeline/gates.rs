@@ -10,6 +10,8 @@
 //! | `determined` | an estimated number's one-sigma is NaN, or above 5 % of its natural |
 //! |              | scale ([`determined`])                                              |
 //! | `converged`  | the adjustment stopped at its iteration limit                       |
+//! | `board_scale`| the board scale the robot implies is more than 5 honest sigmas and  |
+//! |              | the tolerance off rig.json's (DECISIONS 5; [`super::board_scale`])   |
 //!
 //! Every limit comes from the data: residuals against the median view's and against the
 //! detector's own scatter (the camera stage's residual with free board poses); pose
@@ -25,7 +27,7 @@ use super::{CalibrateOptions, CalibrationReport, Method};
 use crate::calib::joint::JointResult;
 use crate::error::{Error, Result};
 use crate::model::camera::Camera;
-use crate::model::{QualityCheck, QualityFailure};
+use crate::model::{QualityCheck, QualityFailure, RobotPoseView, ROBOT_POSE_TEST_LIMIT};
 use crate::numerics::lm::StopReason;
 use crate::numerics::robust::median;
 
@@ -75,6 +77,50 @@ pub(super) fn view_residuals(adj: &JointResult, detector_rms_px: f64) -> (Vec<us
             figs.join(", ")
         )
     };
+    (bad, msg)
+}
+
+/// The views whose robot-pose test exceeds [`ROBOT_POSE_TEST_LIMIT`] (a pose off by far
+/// more than the others': DECISIONS 1), with the message naming them and their figures;
+/// none without the robot-pose noise, and none when both robot components sit at their
+/// floors (no robot error beyond what the views resolve: on exact observations the test
+/// compares round-off with round-off). A view's correction must also exceed three times
+/// a floor (translation or rotation) to be off.
+pub(super) fn pose_outliers(adj: &JointResult) -> (Vec<RobotPoseView>, String) {
+    let Some(n) = &adj.robot_noise else {
+        return (Vec::new(), String::new());
+    };
+    if n.translation_at_floor && n.rotation_at_floor {
+        return (Vec::new(), String::new());
+    }
+    let bad: Vec<RobotPoseView> = n
+        .views
+        .iter()
+        .filter(|v| {
+            v.test > ROBOT_POSE_TEST_LIMIT
+                && (v.translation_mm > 3.0 * n.floor_translation_mm
+                    || v.rotation_deg > 3.0 * n.floor_rotation_deg)
+        })
+        .copied()
+        .collect();
+    let figs: Vec<String> = bad
+        .iter()
+        .map(|v| {
+            format!(
+                "view {} corrected by {:.3} mm, {:.4} deg, test {:.1}",
+                v.view, v.translation_mm, v.rotation_deg, v.test
+            )
+        })
+        .collect();
+    let views: Vec<usize> = bad.iter().map(|v| v.view).collect();
+    let msg = format!(
+        "the robot pose of {} is off by far more than the others' (robot-pose noise {:.3} mm, \
+         {:.4} deg; {}; limit {ROBOT_POSE_TEST_LIMIT})",
+        name_views(&views),
+        n.sigma_translation_mm,
+        n.sigma_rotation_deg,
+        figs.join(", ")
+    );
     (bad, msg)
 }
 

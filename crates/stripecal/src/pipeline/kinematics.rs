@@ -1,8 +1,10 @@
 //! The fixed-robot diagnosis (issue 14): a robot whose DH rows differ from rig.json's
-//! forces wrong flange poses into every board pose, and the one-stage adjustment's
-//! circle residuals rise far above what the detector achieves with free board poses.
-//! That is said, with the figure, and `--robot auto` suggested; it is a warning, not a
-//! failed calibration (DECISIONS 1: every real robot is off by something).
+//! forces wrong flange poses into every board pose. With the robot-pose noise (the
+//! default) that shows as pose noise above its floors; with the rigid model
+//! (`--no-robot-pose-noise`) the circle residuals rise far above what the detector
+//! achieves with free board poses. That is said, with the figure, and `--robot auto`
+//! suggested; it is a warning, not a failed calibration (DECISIONS 1: every real robot is
+//! off by something).
 
 use super::{CalibrateOptions, Method};
 use crate::calib::joint::{JointResult, RobotMode};
@@ -24,18 +26,32 @@ pub(super) fn diagnose(
     if opts.method != Method::OneStage || adj.robot.is_some() || opts.robot != RobotMode::Fixed {
         return None;
     }
-    let ratio = adj.circle_rms_px / detector_rms_px;
-    if !(ratio.is_finite() && ratio > KINEMATICS_FACTOR) {
-        return None;
-    }
     let joints = used
         .iter()
         .all(|v| matches!(v.reading, Some(RobotReading::Joints(_))));
-    let figure = format!(
-        "the adjustment's circle residuals are {:.4} px RMS, {ratio:.0} x the detector's \
-         {detector_rms_px:.4} px with free board poses",
-        adj.circle_rms_px
-    );
+    let figure = if let Some(n) = &adj.robot_noise {
+        if n.translation_at_floor && n.rotation_at_floor {
+            return None;
+        }
+        format!(
+            "the robot-pose noise is {:.3} mm, {:.4} deg, above its floors ({:.3} mm, {:.4} \
+             deg)",
+            n.sigma_translation_mm,
+            n.sigma_rotation_deg,
+            n.floor_translation_mm,
+            n.floor_rotation_deg
+        )
+    } else {
+        let ratio = adj.circle_rms_px / detector_rms_px;
+        if !(ratio.is_finite() && ratio > KINEMATICS_FACTOR) {
+            return None;
+        }
+        format!(
+            "the adjustment's circle residuals are {:.4} px RMS, {ratio:.0} x the detector's \
+             {detector_rms_px:.4} px with free board poses",
+            adj.circle_rms_px
+        )
+    };
     Some(if joints && rig.robot.is_some() {
         format!(
             "{figure}: the robot's poses do not fit the images (its DH rows differ from \
@@ -44,9 +60,9 @@ pub(super) fn diagnose(
         )
     } else {
         format!(
-            "{figure}: the controller's flange poses do not fit the images (an inaccurate \
-             robot); robot calibration needs joint readings, `--robot-pose-noise` models \
-             the poses' error instead"
+            "{figure}: the controller's flange poses do not fit the images exactly (an \
+             inaccurate robot); the robot-pose noise models their error (robot calibration \
+             needs joint readings)"
         )
     })
 }

@@ -57,7 +57,9 @@ pub(super) fn leave_one_out(
         hand_cam: full.hand_cam,
         base_board: full.base_board,
     };
-    let mut opts = jopts.clone();
+    // The refits start where the full solve ended, its variance components too (they
+    // are re-estimated without the view).
+    let mut opts = jopts.continuing(full);
     opts.board_scale = full.board_scale;
     let scored: Vec<(LooView, Vec<f64>)> = (0..used.len())
         .into_par_iter()

@@ -107,13 +107,18 @@ pub fn scan_readings(scan: &Scan) -> Vec<RobotReading> {
 
 /// The model of the points' uncertainty for a scan: the stripe direction from the
 /// scan's rig.json when the options leave it `Auto`, the robot's figures from the
-/// calibration's robot where the options leave them unset.
+/// calibration's robot where the options leave them unset, and the robot-pose noise the
+/// calibration estimated where neither gives one
+/// ([`UncertaintyOptions::with_pose_noise`]).
 pub fn scan_uncertainty_model(
     calibration: &Calibration,
     scan: &Scan,
     opts: &UncertaintyOptions,
 ) -> Result<UncertaintyModel> {
-    let mut o = opts.clone().with_robot_figures(calibration.robot.as_ref());
+    let mut o = opts
+        .clone()
+        .with_robot_figures(calibration.robot.as_ref())
+        .with_pose_noise(calibration);
     if o.direction == StripeDirection::Auto {
         if let Some(rig) = &scan.rig {
             o.direction = rig.stripe_direction;

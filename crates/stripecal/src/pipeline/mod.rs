@@ -144,9 +144,15 @@ pub struct CalibrateOptions {
     /// [`Error::Quality`], marked `quality.accepted_poor` (default false).
     pub accept_poor: bool,
     /// Correct every view's robot pose by its own small transform and estimate the
-    /// robot-pose noise (`--robot-pose-noise`; default false: the robot poses are exact,
-    /// [`crate::calib::joint::JointOptions::robot_noise`]).
+    /// robot-pose noise ([`crate::calib::joint::JointOptions::robot_noise`]; default
+    /// true whenever the poses come from a robot; `--no-robot-pose-noise` turns it off:
+    /// the robot poses exact, the paper's rigid model).
     pub robot_pose_noise: bool,
+    /// Widen the covariance to the views' own scatter where that is larger
+    /// ([`crate::calib::clustered`]; default true). Off: the noise model's covariance
+    /// alone (for studies of effects the views share, which the widening would count as
+    /// scatter).
+    pub clustered_covariance: bool,
     /// The robot's DH corrections to estimate (`--robot`; default fixed: rig.json's DH
     /// table is exact). Needs rig.json's robot and joint readings in views.csv.
     pub robot: crate::calib::joint::RobotMode,
@@ -176,7 +182,8 @@ impl Default for CalibrateOptions {
             leave_one_out: true,
             board_scale_tolerance: 0.01,
             accept_poor: false,
-            robot_pose_noise: false,
+            robot_pose_noise: true,
+            clustered_covariance: true,
             robot: crate::calib::joint::RobotMode::Fixed,
             board_stripe_bias: true,
             max_board_sag_mm: 0.02,

@@ -26,7 +26,7 @@ use serde::Serialize;
 use crate::calib::conic::predict_centre;
 use crate::calib::joint::{
     camera_name, dh_point_gradients, predicted_covariance, FreeBlocks, JointOptions, JointStart,
-    RobotMode, RobotOptions,
+    RobotMode, RobotOptions, IMAGE_FACTOR_FLOOR, POSE_NOISE_FLOOR,
 };
 use crate::calib::laser_plane::stripe_line_in_view;
 use crate::calib::{CircleObs, ViewObs};
@@ -65,6 +65,13 @@ pub struct PlanOptions {
     /// before the images); the identifiability rule's held ones are in
     /// [`PosePlan::robot_held`].
     pub robot: RobotMode,
+    /// The robot-pose noise to plan with, one-sigma per flange component (translation
+    /// mm, rotation deg); `None` (default): the nominal calibration's estimate
+    /// (calibration.json `robot_pose_noise`), else rig.json's robot figures, else none
+    /// (an exact robot: the poses without corrections). Never below rig.json's figures
+    /// (the calibration's floors). The images are planned as good as `sigma_px` says
+    /// (their own part of the pose error at its floor).
+    pub pose_noise: Option<(f64, f64)>,
 }
 
 impl Default for PlanOptions {
@@ -79,6 +86,7 @@ impl Default for PlanOptions {
             min_points: 4,
             adjustment: JointOptions::default(),
             robot: RobotMode::Fixed,
+            pose_noise: None,
         }
     }
 }
@@ -163,6 +171,10 @@ pub struct PosePlan {
     pub warnings: Vec<String>,
     /// With `--robot`: the DH corrections the identifiability rule holds, with why.
     pub robot_held: Vec<HeldEntry>,
+    /// The robot-pose noise planned with (one-sigma per flange component: translation
+    /// mm, rotation deg; [`PlanOptions::pose_noise`]), `None` when the robot is planned
+    /// exact.
+    pub pose_noise_mm_deg: Option<[f64; 2]>,
 }
 
 /// A DH correction held, and why.
@@ -558,6 +570,41 @@ pub fn plan_poses(
         free: opts.free,
         ..opts.adjustment.clone()
     };
+    // The calibration's noise model: the robot-pose noise as planned, never below
+    // rig.json's figures; the images' own part at its floor. Without any figure the
+    // robot is planned exact (the poses without corrections: what an exact robot's
+    // calibration, its pose noise at the floors, gives).
+    let floors = rig
+        .robot
+        .as_ref()
+        .map_or((None, None), |r| r.pose_noise_floor());
+    let planned = opts
+        .pose_noise
+        .or_else(|| {
+            crate::io::calibration_robot_pose_noise(nominal)
+                .ok()
+                .flatten()
+                .map(|n| (n.sigma_translation_mm, n.sigma_rotation_deg))
+                .filter(|(t, r)| t.is_finite() && r.is_finite())
+        })
+        .or_else(|| {
+            (floors.0.is_some() || floors.1.is_some())
+                .then(|| (floors.0.unwrap_or(0.0), floors.1.unwrap_or(0.0)))
+        });
+    let pose_noise = planned.map(|p| {
+        (
+            p.0.max(floors.0.unwrap_or(0.0)).max(POSE_NOISE_FLOOR.0),
+            p.1.max(floors.1.unwrap_or(0.0)).max(POSE_NOISE_FLOOR.1),
+        )
+    });
+    match pose_noise {
+        Some(p) if jopts.robot_noise => {
+            jopts.robot_floor = floors;
+            jopts.initial_robot_sigma = p;
+            jopts.initial_image_factor = IMAGE_FACTOR_FLOOR;
+        }
+        _ => jopts.robot_noise = false,
+    }
     if opts.robot != RobotMode::Fixed {
         let nominal = rig.robot.clone().ok_or_else(|| {
             Error::InvalidInput("planning a robot calibration needs rig.json's robot".into())
@@ -635,6 +682,7 @@ pub fn plan_poses(
         state,
         point,
         warnings,
+        pose_noise_mm_deg: pose_noise.filter(|_| jopts.robot_noise).map(|p| [p.0, p.1]),
         robot_held: pred
             .robot_fixed
             .iter()

@@ -9,6 +9,9 @@
 //! Jacobian of SO(3) (the solver's increment is `R Exp(w)`), their translations
 //! directly; the board scale directly. With `J` that map, the file's covariance is
 //! `J C J^T`. Held blocks have no rows (their numbers are not estimated).
+//!
+//! The covariance of the global parameters is the model's widened to the views' own
+//! scatter where that is larger ([`crate::calib::clustered`]).
 
 use nalgebra::{DMatrix, Matrix3, Vector3};
 

@@ -28,7 +28,11 @@
 //! | block        | values | columns (estimated)                 | update            |
 //! |--------------|--------|-------------------------------------|-------------------|
 //! | robot pose   | 6      | flange-frame correction `D_i`: `w`, `t` | `R Exp(w)`, `t+v` |
+//! | image pose   | 6      | the part `e_i` of `D_i` the view's image gets wrong (rad, mm) | `p + dp` |
 //! | board pose   | 6      | `T_cam_board(i)` on the bench: `w`, `t` | `R Exp(w)`, `t+v` |
+//!
+//! The image-pose part ([`super::robot_noise`]) does not enter the chain: only the
+//! correction's two priors see it (the robot's on `D_i - e_i`, the image's on `e_i`).
 //!
 //! The board pose is the bench's ([`super::bench`]): no robot, every view's board pose
 //! free. It starts at the view's own pose (not the identity), and reaches the residuals
@@ -78,6 +82,9 @@ pub(super) enum Block {
     BoardScale,
     /// Per view: the correction `D_i` of the robot's flange pose, `A_i' = A_i D_i`.
     RobotPose,
+    /// Per view: the part of `D_i` the view's own image gets wrong (rotation rad,
+    /// translation mm; [`super::robot_noise`]).
+    ImagePose,
     /// Per view, on the bench: the board pose `T_cam_board(i)` ([`super::bench`]).
     BoardPose,
     /// A profiler's sphere centre in the base frame, mm (global, no slots).
@@ -212,6 +219,9 @@ pub(super) struct JointParams {
     /// Per view used: the robot-pose correction `D_i = (R, t)` (empty when not
     /// estimated: the robot poses are taken as exact).
     pub corrections: Vec<(Matrix3<f64>, Vector3<f64>)>,
+    /// Per view used: the image-pose part `e_i` of the correction (rotation rad, then
+    /// translation mm; empty when not estimated).
+    pub image_pose: Vec<[f64; 6]>,
     /// Per view used, on the bench: the board pose `T_cam_board(i) = (R, t)` (empty
     /// with a robot: the board poses follow from the chain).
     pub board_poses: Vec<(Matrix3<f64>, Vector3<f64>)>,
@@ -259,12 +269,35 @@ pub(super) struct ParamLayout {
     sphere: Option<SphereStart>,
 }
 
+/// Which per-view pose corrections a layout estimates.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(super) enum PoseNoise {
+    /// None: the robot poses are exact.
+    Off,
+    /// The robot-pose correction `D_i` with the robot's prior.
+    Robot,
+    /// `D_i` and its image-pose part `e_i` ([`super::robot_noise`]).
+    RobotAndImage,
+}
+
+impl PoseNoise {
+    /// The corrections the options ask for.
+    pub fn of(opts: &JointOptions) -> PoseNoise {
+        match (opts.robot_noise, opts.image_pose_noise) {
+            (false, _) => PoseNoise::Off,
+            (true, false) => PoseNoise::Robot,
+            (true, true) => PoseNoise::RobotAndImage,
+        }
+    }
+}
+
 /// What [`ParamLayout::build`] registers: each block's estimated values and the start.
 struct BuildSpec<'a> {
     cam_free: Vec<bool>,
     plane_free: bool,
     free: FreeBlocks,
     robot_noise: bool,
+    image_pose: bool,
     robot: Option<RobotBlock>,
     board_poses: Option<&'a [Iso3]>,
     sphere: Option<SphereStart>,
@@ -278,17 +311,18 @@ impl ParamLayout {
     /// distortion coefficients, the laser plane charted around the starting normal, `X`,
     /// `Z` and the board scale (held at `scale` unless estimated), each estimated as
     /// `free` says; per view of `view_ids` (dataset rows) a robot-pose correction,
-    /// estimated when `robot_noise`. Without a starting plane the plane block is held
+    /// estimated when `noise` is not [`PoseNoise::Off`], and its image-pose part with
+    /// [`PoseNoise::RobotAndImage`]. Without a starting plane the plane block is held
     /// (it has no observations then).
     pub fn new(
         start: &JointStart,
         free: &FreeBlocks,
         scale: f64,
         view_ids: &[usize],
-        robot_noise: bool,
+        noise: PoseNoise,
         robot: Option<RobotBlock>,
     ) -> ParamLayout {
-        let spec = BuildSpec::camera(start, free, scale, robot_noise, robot, None);
+        let spec = BuildSpec::camera(start, free, scale, noise, robot, None);
         Self::build(spec, view_ids)
     }
 
@@ -307,7 +341,7 @@ impl ParamLayout {
             board_scale: false,
             ..*free
         };
-        let spec = BuildSpec::camera(start, &free, 1.0, false, None, Some(board_poses));
+        let spec = BuildSpec::camera(start, &free, 1.0, PoseNoise::Off, None, Some(board_poses));
         Self::build(spec, view_ids)
     }
 
@@ -337,6 +371,7 @@ impl ParamLayout {
                 board_scale: false,
             },
             robot_noise: false,
+            image_pose: false,
             robot,
             board_poses: None,
             sphere: Some(sphere),
@@ -354,6 +389,7 @@ impl ParamLayout {
             plane_free,
             free,
             robot_noise,
+            image_pose,
             robot,
             board_poses,
             sphere,
@@ -378,6 +414,19 @@ impl ParamLayout {
             BlockDef::transform(Block::BaseBoard, "base_board", free.base_board),
             BlockDef::euclidean(Block::BoardScale, &["board_scale"], vec![free.board_scale]),
             BlockDef::transform(Block::RobotPose, "robot", robot_noise).per_view(),
+            BlockDef::euclidean(
+                Block::ImagePose,
+                &[
+                    "image_wx",
+                    "image_wy",
+                    "image_wz",
+                    "image_tx_mm",
+                    "image_ty_mm",
+                    "image_tz_mm",
+                ],
+                vec![robot_noise && image_pose; 6],
+            )
+            .per_view(),
             BlockDef::transform(Block::BoardPose, "board", board_poses.is_some()).per_view(),
             BlockDef::euclidean(
                 Block::SphereCentre,
@@ -463,7 +512,14 @@ impl ParamLayout {
         used: &[usize],
         robot: Option<RobotBlock>,
     ) -> ParamLayout {
-        ParamLayout::new(start, free, opts.board_scale, used, opts.robot_noise, robot)
+        ParamLayout::new(
+            start,
+            free,
+            opts.board_scale,
+            used,
+            PoseNoise::of(opts),
+            robot,
+        )
     }
 
     fn index(&self, block: Block) -> usize {
@@ -505,6 +561,11 @@ impl ParamLayout {
     /// Columns of the global blocks (the first ones of the vector).
     pub fn num_global(&self) -> usize {
         self.n_global
+    }
+
+    /// Estimated values per view (all per-view blocks together).
+    pub fn per_view_len(&self) -> usize {
+        self.per_view_cols
     }
 
     /// Number of views (instances of each per-view block).
@@ -603,6 +664,10 @@ impl ParamLayout {
             z_t: Vector3::new(v[z + 3], v[z + 4], v[z + 5]),
             scale: v[self.slots(Block::BoardScale).start],
             corrections: self.view_transforms(p, Block::RobotPose),
+            image_pose: (0..self.num_views())
+                .map_while(|i| self.view_columns(Block::ImagePose, i))
+                .map(|c| std::array::from_fn(|k| p[c.start + k]))
+                .collect(),
             board_poses: self.view_transforms(p, Block::BoardPose),
             robot: p[self.robot_columns()].to_vec(),
         }
@@ -687,7 +752,7 @@ impl BuildSpec<'_> {
         start: &JointStart,
         free: &FreeBlocks,
         scale: f64,
-        robot_noise: bool,
+        noise: PoseNoise,
         robot: Option<RobotBlock>,
         board_poses: Option<&'a [Iso3]>,
     ) -> BuildSpec<'a> {
@@ -704,7 +769,8 @@ impl BuildSpec<'_> {
             cam_free,
             plane_free: free.laser_plane && start.plane.is_some(),
             free: *free,
-            robot_noise,
+            robot_noise: noise != PoseNoise::Off,
+            image_pose: noise == PoseNoise::RobotAndImage,
             robot,
             board_poses,
             sphere: None,
@@ -834,7 +900,7 @@ mod tests {
     #[test]
     fn names_and_columns_follow_the_blocks() {
         let s = start(DistortionModel::Radial2);
-        let layout = ParamLayout::new(&s, &FreeBlocks::default(), 1.0, &[], false, None);
+        let layout = ParamLayout::new(&s, &FreeBlocks::default(), 1.0, &[], PoseNoise::Off, None);
         let names = layout.names();
         let expected = [
             "fu",
@@ -879,7 +945,7 @@ mod tests {
     fn per_view_blocks_follow_the_global_columns() {
         let s = start(DistortionModel::Radial1);
         let free = FreeBlocks::default();
-        let layout = ParamLayout::new(&s, &free, 1.0, &[3, 7], true, None);
+        let layout = ParamLayout::new(&s, &free, 1.0, &[3, 7], PoseNoise::Robot, None);
         let ng = layout.num_global();
         assert_eq!(ng, 5 + 3 + 12);
         assert_eq!(layout.num_params(), ng + 12);
@@ -929,7 +995,33 @@ mod tests {
                 .max()
                 < 1e-12
         );
-        let rigid = ParamLayout::new(&s, &free, 1.0, &[3, 7], false, None);
+        // With the image part: its six after each view's correction, plain numbers.
+        let both = ParamLayout::new(&s, &free, 1.0, &[3, 7], PoseNoise::RobotAndImage, None);
+        assert_eq!(both.num_params(), ng + 24);
+        assert_eq!(both.per_view_len(), 12);
+        assert_eq!(
+            both.view_columns(Block::RobotPose, 1),
+            Some(ng + 12..ng + 18)
+        );
+        assert_eq!(
+            both.view_columns(Block::ImagePose, 1),
+            Some(ng + 18..ng + 24)
+        );
+        let names = both.names();
+        assert_eq!(names[ng + 6], "view3_image_wx");
+        assert_eq!(names[ng + 23], "view7_image_tz_mm");
+        let mut dp = vec![0.0; both.num_params()];
+        dp[ng + 19] = 0.25;
+        let p = both.encode();
+        let mut out = vec![0.0; p.len()];
+        both.retract(&p, &dp, &mut out);
+        let d = both.decode(&out);
+        assert_eq!(
+            d.image_pose,
+            vec![[0.0; 6], [0.0, 0.25, 0.0, 0.0, 0.0, 0.0]]
+        );
+        assert_eq!(d.corrections[1].0, Matrix3::identity());
+        let rigid = ParamLayout::new(&s, &free, 1.0, &[3, 7], PoseNoise::Off, None);
         assert_eq!(rigid.num_params(), ng);
         assert!(rigid.decode(&rigid.encode()).corrections.is_empty());
         assert!(!rigid.per_view_free(Block::RobotPose));
@@ -938,7 +1030,7 @@ mod tests {
     #[test]
     fn encode_decode_and_retract_round_trip() {
         let s = start(DistortionModel::OpenCv5);
-        let layout = ParamLayout::new(&s, &FreeBlocks::default(), 1.0, &[], false, None);
+        let layout = ParamLayout::new(&s, &FreeBlocks::default(), 1.0, &[], PoseNoise::Off, None);
         let p = layout.encode();
         assert_eq!(p.len(), layout.num_params());
         let d = layout.decode(&p);

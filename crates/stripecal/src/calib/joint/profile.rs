@@ -421,7 +421,7 @@ pub(super) fn adjust(
             fixed: fixed.into_iter().map(|(i, why)| (cands[i], why)).collect(),
             layout: layout.clone(),
             p: p.clone(),
-            weights: (1.0, 1.0),
+            weights: [1.0; super::residuals::GROUPS],
         });
     }
     let s = layout.decode(&p);

@@ -4,25 +4,29 @@
 //! view's prior rows ([`super::robot_noise`]), as a [`LeastSquares`] problem with
 //! variance-component re-weighting (module docs of [`super`]).
 //!
-//! Residual order: circles (2 each), stripe points, then 6 prior rows per view
-//! (rotation, translation). Jacobian rows: dense (every column) without the robot-pose
-//! noise; with it, each row holds the global columns and its view's six correction
-//! columns (sparse rows: a view's rows share their columns, so the solver sums them per
-//! view before the scatter).
+//! Residual order: circles (2 each), stripe points, then the prior rows per view (the
+//! robot's rotation and translation, 3 each; with the image part its 6). Jacobian rows:
+//! dense (every column) without the robot-pose noise; with it, each row holds the global
+//! columns and its view's per-view columns (the correction's six, the image part's six;
+//! sparse rows: a view's rows share their columns, so the solver sums them per view
+//! before the scatter).
 
-use std::sync::atomic::{AtomicU64, AtomicUsize, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicU64, AtomicUsize, Ordering};
 use std::sync::Mutex;
 
 use faer::MatMut;
-use nalgebra::{Matrix3, Matrix6, Vector3};
+use nalgebra::{DMatrix, DVector, Matrix3, Matrix6, Vector3};
+
+use crate::calib::clustered::ViewShare;
 use rayon::prelude::*;
 
 use super::chain::cam_board;
 use super::layout::{Block, JointParams, ParamLayout, SLOTS};
 use super::robot_noise::{
-    self, Floors, RobotNoiseState, ABSOLUTE_FLOOR_DEG, ABSOLUTE_FLOOR_MM, RESOLUTION_CAP,
+    self, Floors, PriorWeights, RobotNoiseState, ABSOLUTE_FLOOR_DEG, ABSOLUTE_FLOOR_MM,
+    IMAGE_FACTOR_FLOOR, RESOLUTION_CAP,
 };
-use super::{JointOptions, MAX_REWEIGHTS};
+use super::{JointOptions, MAX_REWEIGHTS, MAX_REWEIGHTS_POSE_NOISE};
 use crate::calib::conic::{centre_generic_n, quadrature_nodes, CentreModel};
 use crate::calib::ViewObs;
 use crate::error::{Error, Result};
@@ -168,7 +172,17 @@ pub(super) enum Group {
     RobotRotation,
     /// The robot-pose corrections' translation components, mm.
     RobotTranslation,
+    /// The image part of the corrections (whitened by the image's own information:
+    /// unit-free, its sigma the factor `k`).
+    ImagePose,
 }
+
+/// A view's reduced share of the normal equations `(M_v, s_v)`
+/// ([`JointProblem::view_shares`]).
+pub(super) type ReducedShare = (DMatrix<f64>, DVector<f64>);
+
+/// Number of residual groups ([`Group`]).
+pub(super) const GROUPS: usize = 5;
 
 /// Floor of the image groups' sigmas, px (round-off of exact data).
 const IMAGE_SIGMA_FLOOR_PX: f64 = 1e-9;
@@ -191,9 +205,14 @@ pub(super) struct JointProblem<'a> {
     pub terms: Terms,
     /// Weights `1 / sigma` of the groups ([`Group`] order; f64 bits; re-estimated during
     /// the solve when `variance_components` is set).
-    weights: [AtomicU64; 4],
+    weights: [AtomicU64; GROUPS],
     /// Whether the robot-pose corrections are estimated (prior rows, sparse rows).
     robot: bool,
+    /// Whether their image part is estimated too.
+    image_pose: bool,
+    /// The image part's prior factors are computed from the next Jacobian evaluation's
+    /// image information (set by [`Self::prepare_solve`]).
+    freeze_pending: AtomicBool,
     /// The bench: every view's board pose estimated (sparse rows, no prior rows).
     bench: bool,
     /// The robot's figures as floors of the robot-pose sigmas.
@@ -206,7 +225,8 @@ pub(super) struct JointProblem<'a> {
     variance_components: bool,
     /// MAD instead of RMS for the sigmas (robust).
     robust_sigma: bool,
-    /// Re-estimations left in the current solve (see [`MAX_REWEIGHTS`]).
+    /// Re-estimations left in the current solve (see [`MAX_REWEIGHTS`],
+    /// [`MAX_REWEIGHTS_POSE_NOISE`]).
     reweights_left: AtomicUsize,
     /// The last foot-point parameter of each stripe point (f64 bits; NaN: none): the
     /// next evaluation starts there (a warm start; the result does not depend on it
@@ -227,6 +247,7 @@ impl<'a> JointProblem<'a> {
             .map(|_| AtomicU64::new(f64::NAN.to_bits()))
             .collect();
         let (t0, r0) = opts.initial_robot_sigma;
+        let k0 = opts.initial_image_factor;
         let w = |sigma: f64| AtomicU64::new((1.0 / sigma).to_bits());
         let robot_figures = Floors {
             rotation_rad: opts.robot_floor.1.unwrap_or(0.0).to_radians(),
@@ -236,7 +257,14 @@ impl<'a> JointProblem<'a> {
             floors: robot_figures,
             ..Default::default()
         };
-        let view_runs = view_runs(&terms);
+        let prior_rows = if !layout.per_view_free(Block::RobotPose) {
+            0
+        } else if layout.per_view_free(Block::ImagePose) {
+            12
+        } else {
+            6
+        };
+        let view_runs = view_runs(&terms, prior_rows);
         JointProblem {
             base,
             layout,
@@ -248,24 +276,52 @@ impl<'a> JointProblem<'a> {
                 w(opts.initial_sigma_px.1),
                 w(r0.to_radians()),
                 w(t0),
+                w(k0),
             ],
             robot: layout.per_view_free(Block::RobotPose),
+            image_pose: layout.per_view_free(Block::ImagePose),
+            freeze_pending: AtomicBool::new(true),
             bench: layout.per_view_free(Block::BoardPose),
             robot_figures,
             robot_state: Mutex::new(robot_state),
             view_runs,
             variance_components: opts.variance_components,
             robust_sigma: opts.robust,
-            reweights_left: AtomicUsize::new(MAX_REWEIGHTS),
+            reweights_left: AtomicUsize::new(if layout.per_view_free(Block::RobotPose) {
+                MAX_REWEIGHTS_POSE_NOISE
+            } else {
+                MAX_REWEIGHTS
+            }),
             foot_cache,
         }
     }
 
-    /// Sets the centre models of the next solve and re-arms the re-weighting.
+    /// Sets the centre models of the next solve, re-arms the re-weighting and has the
+    /// image part's prior factors computed afresh at its first evaluation.
     pub fn prepare_solve(&mut self, model: CentreModel, jacobian_model: CentreModel) {
         self.model = model;
         self.jacobian_model = jacobian_model;
-        self.reweights_left.store(MAX_REWEIGHTS, Ordering::Relaxed);
+        self.reweights_left.store(
+            if self.robot {
+                MAX_REWEIGHTS_POSE_NOISE
+            } else {
+                MAX_REWEIGHTS
+            },
+            Ordering::Relaxed,
+        );
+        self.freeze_pending.store(true, Ordering::Relaxed);
+    }
+
+    /// Every group's weight ([`Group`] order).
+    pub fn all_weights(&self) -> [f64; GROUPS] {
+        std::array::from_fn(|g| f64::from_bits(self.weights[g].load(Ordering::Relaxed)))
+    }
+
+    /// Sets every group's weight (a later solve of the same observations).
+    pub fn set_all_weights(&mut self, w: &[f64; GROUPS]) {
+        for (a, w) in self.weights.iter().zip(w) {
+            a.store(w.to_bits(), Ordering::Relaxed);
+        }
     }
 
     /// Starts where `earlier`, a solve of the same observations, ended: its image
@@ -277,17 +333,6 @@ impl<'a> JointProblem<'a> {
         for (a, b) in self.foot_cache.iter().zip(&earlier.foot_cache) {
             a.store(b.load(Ordering::Relaxed), Ordering::Relaxed);
         }
-    }
-
-    /// The image groups' weights `(circle, stripe)`, `1 / sigma`.
-    pub fn image_weights(&self) -> (f64, f64) {
-        (self.weight(Group::Circle), self.weight(Group::Stripe))
-    }
-
-    /// Sets the image groups' weights (a later solve of the same observations).
-    pub fn set_image_weights(&mut self, (wc, ws): (f64, f64)) {
-        self.weights[Group::Circle as usize] = AtomicU64::new(wc.to_bits());
-        self.weights[Group::Stripe as usize] = AtomicU64::new(ws.to_bits());
     }
 
     /// Weight (`1 / sigma`) of a group.
@@ -305,12 +350,22 @@ impl<'a> JointProblem<'a> {
         self.weight(Group::Stripe)
     }
 
-    /// Weights of the robot-pose prior rows (rotation, translation).
-    pub fn robot_weights(&self) -> (f64, f64) {
-        (
-            self.weight(Group::RobotRotation),
-            self.weight(Group::RobotTranslation),
-        )
+    /// Weights of the robot-pose prior rows.
+    pub fn robot_weights(&self) -> PriorWeights {
+        PriorWeights {
+            rotation: self.weight(Group::RobotRotation),
+            translation: self.weight(Group::RobotTranslation),
+            image: self.image_pose.then(|| self.weight(Group::ImagePose)),
+        }
+    }
+
+    /// Prior rows per view (0 without the robot-pose noise).
+    pub fn prior_rows_per_view(&self) -> usize {
+        if self.robot {
+            self.robot_weights().rows()
+        } else {
+            0
+        }
     }
 
     /// Whether the robot-pose corrections are estimated.
@@ -339,16 +394,19 @@ impl<'a> JointProblem<'a> {
             for _ in 0..self.terms.a.len() {
                 g.extend([Group::RobotRotation; 3]);
                 g.extend([Group::RobotTranslation; 3]);
+                if self.image_pose {
+                    g.extend([Group::ImagePose; 6]);
+                }
             }
         }
         g
     }
 
     /// Values per Jacobian row: every column (dense) without the robot-pose noise, the
-    /// global columns and the view's six correction columns with it.
-    fn row_width(&self) -> usize {
+    /// global columns and the view's per-view columns with it.
+    pub(super) fn row_width(&self) -> usize {
         if self.robot || self.bench {
-            self.layout.num_global() + 6
+            self.layout.num_global() + self.layout.per_view_len()
         } else {
             self.num_params()
         }
@@ -358,11 +416,7 @@ impl<'a> JointProblem<'a> {
     /// interleave, view by view, within the last range).
     fn group_ranges(&self) -> [std::ops::Range<usize>; 3] {
         let (nc, po) = (2 * self.terms.circles.len(), self.prior_offset());
-        let np = if self.robot {
-            6 * self.terms.a.len()
-        } else {
-            0
-        };
+        let np = self.prior_rows_per_view() * self.terms.a.len();
         [0..nc, nc..po, po..po + np]
     }
 
@@ -372,7 +426,7 @@ impl<'a> JointProblem<'a> {
     /// `m_g - n m_g / m` when they are not available; for the image groups 1.4826 MAD
     /// instead when robust. `None` for a group without residuals or without redundancy
     /// (its weight stays).
-    fn group_sigmas(&self, r: &[f64], leverages: &mut Leverages<'_>) -> [Option<f64>; 4] {
+    fn group_sigmas(&self, r: &[f64], leverages: &mut Leverages<'_>) -> [Option<f64>; GROUPS] {
         let (n, m) = (self.num_params() as f64, r.len() as f64);
         let ranges = self.group_ranges();
         let largest = (0..3).max_by_key(|&k| ranges[k].len()).unwrap_or(0);
@@ -382,7 +436,7 @@ impl<'a> JointProblem<'a> {
             .collect();
         let h = leverages(&wanted);
         // Per group: count, weighted sum of squares, sum of leverages.
-        let mut acc = [(0usize, 0.0, 0.0); 4];
+        let mut acc = [(0usize, 0.0, 0.0); GROUPS];
         for (i, g) in self.groups().into_iter().enumerate() {
             let a = &mut acc[g as usize];
             a.0 += 1;
@@ -400,6 +454,7 @@ impl<'a> JointProblem<'a> {
                 Group::Stripe,
                 Group::RobotRotation,
                 Group::RobotTranslation,
+                Group::ImagePose,
             ][gi];
             let (count, ss, lev) = acc[gi];
             if count == 0 {
@@ -469,7 +524,7 @@ impl<'a> JointProblem<'a> {
     /// without redundancy, or whose
     /// sigma moves less than [`ROBOT_SIGMA_DEAD_BAND`], keeps its sigma, floored. A sigma
     /// within the dead band of its floor is at its floor.
-    fn reweight_robot(&self, sig: &[Option<f64>; 4], new: &mut [f64; 4]) {
+    fn reweight_robot(&self, sig: &[Option<f64>; GROUPS], new: &mut [f64; GROUPS]) {
         let Ok(mut st) = self.robot_state.lock() else {
             return;
         };
@@ -495,12 +550,15 @@ impl<'a> JointProblem<'a> {
                 .translation_mm
                 .max(own(ABSOLUTE_FLOOR_MM, res_t)),
         };
-        let mut at_floor = [false; 2];
+        let mut at_floor = [false; 3];
+        let groups = if self.image_pose { 3 } else { 2 };
         for (k, (g, floor)) in [
             (Group::RobotRotation, floors.rotation_rad),
             (Group::RobotTranslation, floors.translation_mm),
+            (Group::ImagePose, IMAGE_FACTOR_FLOOR),
         ]
         .into_iter()
+        .take(groups)
         .enumerate()
         {
             let old = 1.0 / new[g as usize];
@@ -518,6 +576,108 @@ impl<'a> JointProblem<'a> {
         }
         st.floors = floors;
         st.at_floor = (at_floor[0], at_floor[1]);
+        st.image_at_floor = at_floor[2];
+    }
+
+    /// The image part's prior factors from the views' image information just stored
+    /// and the image groups' current weights ([`super::robot_noise`] module docs).
+    fn freeze_image_prior(&self) {
+        let (wc, ws) = (self.wc(), self.ws());
+        if let Ok(mut st) = self.robot_state.lock() {
+            st.image_prior = st
+                .info
+                .iter()
+                .map(|[c, s]| robot_noise::image_prior_factor(&(c * (wc * wc) + s * (ws * ws))))
+                .collect();
+        }
+    }
+
+    /// The image part's prior factors (empty before the first Jacobian evaluation).
+    fn image_prior(&self) -> Vec<Matrix6<f64>> {
+        self.robot_state
+            .lock()
+            .map(|s| s.image_prior.clone())
+            .unwrap_or_default()
+    }
+
+    /// Each view's share of the normal equations at `p`, reduced to the global columns
+    /// by eliminating its own per-view columns: `(M_v, s_v)` with `M_v = A_gg - A_gd
+    /// A_dd^-1 A_dg` and `s_v = g_g - A_gd A_dd^-1 g_d` over its rows (its image rows
+    /// and prior rows, weighted; `A = J^T J`, `g = J^T r`). Their sums are the reduced
+    /// normal equations; `None` when a view's own block is singular.
+    pub fn view_shares(&self, p: &[f64]) -> Result<Option<Vec<ReducedShare>>> {
+        let (n, m) = (self.num_params(), self.num_residuals());
+        let ng = self.layout.num_global();
+        let pv = self.layout.per_view_len();
+        let w = self.row_width();
+        let mut r = vec![0.0; m];
+        let mut rows = JacobianRows::new(m, w, n);
+        self.residuals_and_jacobian_rows(p, &mut r, &mut rows)?;
+        let nv = self.terms.a.len();
+        let mut acc: Vec<ViewShare> = (0..nv)
+            .map(|v| ViewShare::new(ng, ng + v * pv..ng + (v + 1) * pv))
+            .collect();
+        for &(view, i0, i1) in &self.view_runs {
+            for (i, ri) in r.iter().enumerate().take(i1).skip(i0) {
+                let (cols, vals) = rows.row(i);
+                acc[view].add_row(cols, vals, *ri);
+            }
+        }
+        Ok(acc.into_iter().map(ViewShare::reduced).collect())
+    }
+
+    /// `J^T J_k` (n x p) at `p`: the gradient of the weighted image rows' sum of squares'
+    /// linear term along each of `p` flange motions, `twists[view][k]` the view's flange
+    /// perturbation `(w, v)` per unit of motion `k` in its correction's frame (the image
+    /// rows reach them through the view's correction columns). `None` without the
+    /// robot-pose corrections.
+    pub fn flange_response(
+        &self,
+        p: &[f64],
+        twists: &[Vec<[f64; 6]>],
+    ) -> Result<Option<DMatrix<f64>>> {
+        if !self.robot {
+            return Ok(None);
+        }
+        let (n, m) = (self.num_params(), self.num_residuals());
+        let ng = self.layout.num_global();
+        let pv = self.layout.per_view_len();
+        let w = self.row_width();
+        let k = twists.first().map_or(0, |t| t.len());
+        let mut r = vec![0.0; m];
+        let mut rows = JacobianRows::new(m, w, n);
+        self.residuals_and_jacobian_rows(p, &mut r, &mut rows)?;
+        let mut g = DMatrix::zeros(n, k);
+        let po = self.prior_offset();
+        for &(view, i0, i1) in self.view_runs.iter().filter(|r| r.1 < po) {
+            let Some(tw) = twists.get(view) else { continue };
+            let own = ng + view * pv;
+            for i in i0..i1 {
+                let (cols, vals) = rows.row(i);
+                // The row's value along each motion: its correction columns times the
+                // motion's twist.
+                let dcols: Vec<usize> = (0..6).map(|q| own + q).collect();
+                let along: Vec<f64> = (0..k)
+                    .map(|j| {
+                        cols.iter()
+                            .zip(vals)
+                            .filter_map(|(c, v)| {
+                                dcols.iter().position(|d| d == c).map(|q| v * tw[j][q])
+                            })
+                            .sum()
+                    })
+                    .collect();
+                for (c, v) in cols.iter().zip(vals) {
+                    if *v == 0.0 {
+                        continue;
+                    }
+                    for (j, a) in along.iter().enumerate() {
+                        g[(*c, j)] += v * a;
+                    }
+                }
+            }
+        }
+        Ok(Some(g))
     }
 
     /// Stripe foot point from the warm-start cache, which it updates.
@@ -920,12 +1080,7 @@ impl LeastSquares for JointProblem<'_> {
         self.layout.num_params()
     }
     fn num_residuals(&self) -> usize {
-        self.prior_offset()
-            + if self.robot {
-                6 * self.terms.a.len()
-            } else {
-                0
-            }
+        self.prior_offset() + self.prior_rows_per_view() * self.terms.a.len()
     }
     fn residuals(&self, p: &[f64], r: &mut [f64]) -> Result<()> {
         let (image, prior) = r.split_at_mut(self.prior_offset());
@@ -936,7 +1091,8 @@ impl LeastSquares for JointProblem<'_> {
             *x *= if i < nc { wc } else { ws };
         }
         if self.robot {
-            robot_noise::prior_residuals(&self.decode(p), self.robot_weights(), prior);
+            let u = self.image_prior();
+            robot_noise::prior_residuals(&self.decode(p), &self.robot_weights(), &u, prior);
         }
         Ok(())
     }
@@ -961,17 +1117,29 @@ impl LeastSquares for JointProblem<'_> {
         let (image, rp) = r.split_at_mut(self.prior_offset());
         let (rc, rs) = image.split_at_mut(2 * nc);
         // Dense rows: values of columns 0..n; sparse: the global columns, then the
-        // view's correction.
-        let (cols, vals) = rows.parts_mut();
-        let (vimage, vp) = vals.split_at_mut(self.prior_offset() * w);
-        let (vc, vs) = vimage.split_at_mut(2 * nc * w);
-        self.circle_rows(&s, &views, rc, vc)?;
-        self.stripe_rows(&s, &views, rs, vs)?;
+        // view's per-view columns.
+        {
+            let (_, vals) = rows.parts_mut();
+            let (vimage, _) = vals.split_at_mut(self.prior_offset() * w);
+            let (vc, vs) = vimage.split_at_mut(2 * nc * w);
+            self.circle_rows(&s, &views, rc, vc)?;
+            self.stripe_rows(&s, &views, rs, vs)?;
+        }
         if self.robot || self.bench {
             let ng = self.layout.num_global();
             if self.robot {
-                robot_noise::prior_rows(&s, self.robot_weights(), rp, vp, w, ng);
+                let (_, vals) = rows.parts_mut();
+                // The image information of this evaluation first: the image part's
+                // prior factors are computed from it at a solve's first evaluation.
+                self.store_image_information(vals, w, ng);
+                if self.image_pose && self.freeze_pending.swap(false, Ordering::Relaxed) {
+                    self.freeze_image_prior();
+                }
+                let u = self.image_prior();
+                let vp = &mut vals[self.prior_offset() * w..];
+                robot_noise::prior_rows(&s, &self.robot_weights(), &u, rp, vp, w, ng);
             }
+            let (cols, _) = rows.parts_mut();
             let block = if self.robot {
                 Block::RobotPose
             } else {
@@ -989,14 +1157,13 @@ impl LeastSquares for JointProblem<'_> {
             };
             for &(view, i0, i1) in runs.iter().filter(|r| self.robot || r.1 < po) {
                 if let Some(vc) = self.layout.view_columns(block, view) {
+                    // The view's per-view columns are contiguous: the block's first.
+                    let vc = vc.start..vc.start + self.layout.per_view_len();
                     template[ng..].iter_mut().zip(vc).for_each(|(c, v)| *c = v);
                 }
                 for row in cols[i0 * w..i1 * w].chunks_exact_mut(w) {
                     row.copy_from_slice(&template);
                 }
-            }
-            if self.robot {
-                self.store_image_information(vals, w, ng);
             }
         }
         Ok(())
@@ -1011,7 +1178,7 @@ impl LeastSquares for JointProblem<'_> {
             return None;
         }
         let sig = self.group_sigmas(r, leverages);
-        let old: [f64; 4] =
+        let old: [f64; GROUPS] =
             std::array::from_fn(|g| f64::from_bits(self.weights[g].load(Ordering::Relaxed)));
         let mut new = old;
         for g in [Group::Circle, Group::Stripe] {
@@ -1038,12 +1205,12 @@ impl LeastSquares for JointProblem<'_> {
 }
 
 /// The runs of consecutive residual rows of one view and one kind, `(view, first,
-/// end)`: circles (2 rows each), stripe points, then 6 prior rows per view.
-fn view_runs(t: &Terms) -> Vec<(usize, usize, usize)> {
+/// end)`: circles (2 rows each), stripe points, then `prior_rows` prior rows per view.
+fn view_runs(t: &Terms, prior_rows: usize) -> Vec<(usize, usize, usize)> {
     let (nc, po) = (2 * t.circles.len(), 2 * t.circles.len() + t.stripes.len());
     let circles = t.circles.iter().flat_map(|c| [c.view, c.view]);
     let stripes = t.stripes.iter().map(|s| s.view);
-    let priors = (0..t.a.len()).flat_map(|v| [v; 6]);
+    let priors = (0..t.a.len()).flat_map(|v| std::iter::repeat_n(v, prior_rows));
     let mut runs: Vec<(usize, usize, usize)> = Vec::new();
     for (i, v) in circles.chain(stripes).chain(priors).enumerate() {
         match runs.last_mut() {

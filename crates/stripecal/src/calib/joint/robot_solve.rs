@@ -4,7 +4,7 @@
 //! `offsets` its only solve with the corrections) and reports.
 
 use super::layout::ParamLayout;
-use super::residuals::{JointProblem, Terms};
+use super::residuals::{JointProblem, Terms, GROUPS};
 use super::robot::{candidates, DhParam, RobotBlock, RobotMode};
 use super::robot_select::{information, select};
 use super::{solve, FreeBlocks, JointOptions, JointStart};
@@ -36,7 +36,7 @@ pub(super) struct RobotOutcome {
     /// Where the final solve starts (in `layout`'s terms) and its image weights.
     pub layout: ParamLayout,
     pub p: Vec<f64>,
-    pub weights: (f64, f64),
+    pub weights: [f64; GROUPS],
 }
 
 /// `p` of layout `from` carried over to layout `to` by parameter name; the robot's
@@ -66,7 +66,7 @@ pub(super) fn robot_rounds(
     terms: &Terms,
     layout0: &ParamLayout,
     p0: &[f64],
-    weights0: (f64, f64),
+    weights0: [f64; GROUPS],
 ) -> Result<Option<RobotOutcome>> {
     let Some(ro) = opts.robot.as_ref() else {
         return Ok(None);
@@ -102,7 +102,7 @@ pub(super) fn robot_rounds(
         );
         let pc = transfer(&layout, &p, &lc);
         let mut prob = JointProblem::new(&start.camera, &lc, terms.clone(), opts);
-        prob.set_image_weights(weights);
+        prob.set_all_weights(&weights);
         prob.prepare_solve(opts.centre_model, opts.centre_model);
         let info = information(&prob, &pc)?;
         let sel = select(&info, &lc, &cands, ro.mode, &chosen)?;
@@ -118,9 +118,9 @@ pub(super) fn robot_rounds(
         let lk = ParamLayout::of(start, free, opts, &terms.used, Some(block.clone()));
         let pk = transfer(&layout, &p, &lk);
         let mut prob = JointProblem::new(&start.camera, &lk, terms.clone(), opts);
-        prob.set_image_weights(weights);
+        prob.set_all_weights(&weights);
         let (res, _) = solve(&mut prob, pk, opts, false)?;
-        weights = prob.image_weights();
+        weights = prob.all_weights();
         reference = block.corrected(&res.params[lk.robot_columns()]);
         p = res.params;
         layout = lk;

@@ -35,6 +35,10 @@ pub struct UncertaintyOptions {
     /// One-sigma of an encoder reading, degrees (`None`: not in the budget; needs joint
     /// readings and a robot).
     pub encoder_sigma_deg: Option<f64>,
+    /// One-sigma of the flange's rotation about each of its axes, degrees (`None`: not
+    /// in the budget). Set from the calibration's estimated robot-pose noise where no
+    /// encoder figure is given ([`Self::with_pose_noise`]).
+    pub flange_rotation_deg: Option<f64>,
     /// A profiler's point noise: one-sigma along the sensor's z (the measuring
     /// direction), mm; `None`: the calibration's `quality.profile_rms_mm` (the sphere
     /// points' scatter about the fitted sphere). Read only by
@@ -50,6 +54,7 @@ impl Default for UncertaintyOptions {
             direction: StripeDirection::Auto,
             repeatability_mm: None,
             encoder_sigma_deg: None,
+            flange_rotation_deg: None,
             profile_sigma_mm: None,
         }
     }
@@ -62,6 +67,30 @@ impl UncertaintyOptions {
         if let Some(r) = robot {
             self.repeatability_mm = self.repeatability_mm.or(r.repeatability_mm);
             self.encoder_sigma_deg = self.encoder_sigma_deg.or(r.encoder_sigma_deg);
+        }
+        self
+    }
+
+    /// The same options with the robot-pose noise the calibration estimated where
+    /// neither these options nor the robot's figures give one: its translation sigma as
+    /// the repeatability, its rotation sigma as the flange's rotation (without an
+    /// encoder figure); a component at its floor is none (an exact robot as far as the
+    /// views tell). Each is counted once: a figure given (here or in rig.json) is
+    /// used instead of the estimate, never beside it; the part of the pose noise the
+    /// calibration's own images made (`image_factor`) is not the robot's and does not
+    /// enter. Call after [`Self::with_robot_figures`].
+    pub fn with_pose_noise(mut self, calibration: &Calibration) -> Self {
+        let Ok(Some(n)) = crate::io::calibration_robot_pose_noise(calibration) else {
+            return self;
+        };
+        // At its floor a component is no estimate of the robot (the views resolve no
+        // robot error): nothing to add.
+        let ok = |x: f64, floor: bool| (x.is_finite() && x >= 0.0 && !floor).then_some(x);
+        if self.repeatability_mm.is_none() {
+            self.repeatability_mm = ok(n.sigma_translation_mm, n.translation_at_floor);
+        }
+        if self.encoder_sigma_deg.is_none() && self.flange_rotation_deg.is_none() {
+            self.flange_rotation_deg = ok(n.sigma_rotation_deg, n.rotation_at_floor);
         }
         self
     }
@@ -114,6 +143,7 @@ pub struct UncertaintyModel {
     pub(super) noise_sigma: f64,
     repeatability_mm: f64,
     encoder_sigma_deg: f64,
+    flange_rotation_deg: f64,
 }
 
 impl UncertaintyModel {
@@ -254,6 +284,7 @@ impl UncertaintyModel {
             noise_sigma,
             repeatability_mm: opts.repeatability_mm.unwrap_or(0.0),
             encoder_sigma_deg: opts.encoder_sigma_deg.unwrap_or(0.0),
+            flange_rotation_deg: opts.flange_rotation_deg.unwrap_or(0.0),
         }
     }
 
@@ -373,6 +404,17 @@ impl UncertaintyModel {
                 robot_sigma += g * g.transpose() * s2;
             }
         }
+        if self.flange_rotation_deg > 0.0 {
+            // The flange turned about each of its axes: a rotation of T_base_cam.
+            let s2 = self.flange_rotation_deg.to_radians().powi(2);
+            for k in 0..3 {
+                let mut tw = [0.0; 6];
+                tw[k] = 1.0;
+                let (w, v) = self.to_camera(&tw);
+                let g = Vector6::new(w.x, w.y, w.z, v.x, v.y, v.z);
+                robot_sigma += g * g.transpose() * s2;
+            }
+        }
         let t2 = self.repeatability_mm * self.repeatability_mm;
         for k in 3..6 {
             robot_sigma[(k, k)] += t2;
@@ -397,6 +439,7 @@ fn check_figures(opts: &UncertaintyOptions, noise: (&str, Option<f64>)) -> Resul
         noise,
         ("repeatability_mm", opts.repeatability_mm),
         ("encoder_sigma_deg", opts.encoder_sigma_deg),
+        ("flange_rotation_deg", opts.flange_rotation_deg),
     ] {
         if let Some(x) = v {
             if !(x.is_finite() && x >= 0.0) {

@@ -267,3 +267,85 @@ fn bad_options_and_files() {
         .to_string();
     assert!(e.contains("no covariance"), "{e}");
 }
+
+/// The calibration's estimated robot-pose noise where rig.json gives no figures: its
+/// translation as the repeatability, its rotation as the flange's; a figure given is used
+/// instead (never both), and the image part of the pose noise does not enter. The flange
+/// rotation's part against a Monte Carlo over flange rotations.
+#[test]
+fn estimated_pose_noise_stands_in_for_missing_figures() {
+    use crate::model::RobotPoseNoise;
+    let mut cal = calibration();
+    let noise = RobotPoseNoise {
+        sigma_translation_mm: 0.03,
+        sigma_rotation_deg: 0.01,
+        translation_at_floor: false,
+        rotation_at_floor: false,
+        floor_translation_mm: 1e-3,
+        floor_rotation_deg: 1e-4,
+        image_factor: Some(20.0),
+        image_factor_at_floor: false,
+        kinematic_mm: None,
+        kinematic_deg: None,
+        views: Vec::new(),
+        left_out: Vec::new(),
+    };
+    cal.extra.extend(crate::io::robot_pose_noise_extra(&noise));
+    let base = UncertaintyOptions {
+        calibration: false,
+        stripe_sigma_px: Some(0.0),
+        ..Default::default()
+    };
+    let o = base.clone().with_pose_noise(&cal);
+    assert_eq!(o.repeatability_mm, Some(0.03));
+    assert_eq!(o.flange_rotation_deg, Some(0.01));
+    // Figures given win, each on its own.
+    let given = UncertaintyOptions {
+        repeatability_mm: Some(0.05),
+        encoder_sigma_deg: Some(0.002),
+        ..base.clone()
+    }
+    .with_pose_noise(&cal);
+    assert_eq!(given.repeatability_mm, Some(0.05));
+    assert_eq!(given.flange_rotation_deg, None);
+    // Without an estimate nothing changes; nor with one at its floors.
+    assert_eq!(base.clone().with_pose_noise(&calibration()), base);
+    let mut at_floor = calibration();
+    at_floor
+        .extra
+        .extend(crate::io::robot_pose_noise_extra(&RobotPoseNoise {
+            translation_at_floor: true,
+            rotation_at_floor: true,
+            ..noise.clone()
+        }));
+    assert_eq!(base.clone().with_pose_noise(&at_floor), base);
+    // The flange rotation's part: a Monte Carlo over iso flange rotations of 0.01 deg.
+    let rot_only = UncertaintyOptions {
+        flange_rotation_deg: Some(0.01),
+        ..base.clone()
+    };
+    let q = RobotReading::Joints(Q.to_vec());
+    let m = UncertaintyModel::new(&cal, &rot_only).unwrap();
+    let c = m.frame(&q).unwrap().point_covariance(320.0, 200.0);
+    let robot = cal.robot.as_ref().unwrap();
+    let a = robot.forward(&Q).unwrap();
+    let tri = Triangulator::from_calibration(&cal, 0.0).unwrap();
+    let mut rng = SplitMix64(5);
+    let (mut s1, mut s2) = (Vector3::zeros(), Matrix3::zeros());
+    let n = 3000;
+    for _ in 0..n {
+        let w = Vector3::new(rng.normal(), rng.normal(), rng.normal()) * 0.01f64.to_radians();
+        let d = iso_from_rotvec(&w, &Vector3::zeros());
+        let (mut out, mut idx) = (Vec::new(), Vec::new());
+        tri.triangulate_into(&(a * d), &[[320.0, 200.0]], &mut out, &mut idx);
+        let p = Vector3::from(out[0]);
+        s1 += p;
+        s2 += p * p.transpose();
+    }
+    let mean = s1 / n as f64;
+    let mc = (s2 - mean * mean.transpose() * n as f64) / (n - 1) as f64;
+    for (k, d) in [0, 3, 5].iter().enumerate() {
+        let r = (c[*d] / mc[(k, k)]).sqrt();
+        assert!((r - 1.0).abs() < 0.06, "axis {k}: ratio {r}");
+    }
+}
