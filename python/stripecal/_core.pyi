@@ -563,7 +563,7 @@ def write_ply(
     binary: bool = True,
 ) -> None: ...
 def load_image(
-    path: _Path, colour: bool = False
+    path: _Path, colour: bool = False, size: Optional[Tuple[int, int]] = None
 ) -> Union[npt.NDArray[np.uint8], npt.NDArray[np.uint16]]: ...
 def save_image(
     path: _Path, image: Union[npt.NDArray[np.uint8], npt.NDArray[np.uint16]]

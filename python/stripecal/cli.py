@@ -547,21 +547,23 @@ def cmd_detect(args: argparse.Namespace) -> int:
     points, or why the image is refused. With --csv, writes every point (view, row, col,
     u, v, flags) to a file. Exit status 1 when fewer than 3 images are detected."""
     if args.rig:
-        board = stripecal.load_rig(args.rig).board
+        rig = stripecal.load_rig(args.rig)
         images = list(args.inputs)
     else:
         if len(args.inputs) != 1:
             print("stripecal detect: give one DATASET folder, or --rig RIG and images", file=sys.stderr)
             return 2
         ds = stripecal.load_dataset(args.inputs[0])
-        board = ds.rig.board
-        images = [n if os.path.isabs(n) else os.path.join(ds.root, n) for n in ds.board_images]
+        rig = ds.rig
+        images = list(ds.board_images)  # already joined with the dataset folder
+    board = rig.board
     print(f"board: {board.kind} {board.rows} x {board.cols}, {len(images)} images")
     print("\n  view  points  markers  alternatives  H rms px  image / reason")
     rows: List[str] = []
     found = 0
     for k, name in enumerate(images):
-        image = stripecal.load_image(name)
+        # the size from the header: another size is refused before it is decoded
+        image = stripecal.load_image(name, size=(rig.width, rig.height))
         try:
             det = stripecal.detect_target(image, board)
         except stripecal.DetectionError as e:
