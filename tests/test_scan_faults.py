@@ -173,13 +173,34 @@ def test_bad_on_bad_image_value(twin) -> None:  # type: ignore[no-untyped-def]
 # --- interrupts ---------------------------------------------------------------------
 
 
+def repeated_rows(folder: Path, table: str, times: int) -> None:
+    """Rewrites ``folder/table`` (scan.csv or views.csv) with its rows repeated ``times``
+    times, each repeat naming hard links to the images under new names: a long run
+    without rendering more, and without naming one file on two rows (refused: it would
+    count one image twice)."""
+    rows = (folder / table).read_text().splitlines()
+    ncols = 2 if table == "views.csv" else 1
+    out = [rows[0]]
+    for k in range(times):
+        for row in rows[1:]:
+            cells = row.split(",")
+            for c in range(ncols):
+                if cells[c] and k > 0:
+                    name = Path(cells[c])
+                    link = name.with_name(f"{name.stem}_r{k}{name.suffix}")
+                    if not (folder / link).exists():
+                        os.link(folder / name, folder / link)
+                    cells[c] = link.as_posix()
+            out.append(",".join(cells))
+    (folder / table).write_text("\n".join(out) + "\n")
+
+
 @pytest.fixture(scope="module")
 def long_scan(twin: Dict[str, Path]) -> Path:
-    """The twin's scan with its 6 frames named 400 times over (2400 frames)."""
+    """The twin's scan with its 6 frames 400 times over (2400 frames, hard links)."""
     scan = twin["root"] / "long_scan"
     shutil.copytree(twin["scan"], scan)
-    rows = (scan / "scan.csv").read_text().splitlines()
-    (scan / "scan.csv").write_text("\n".join([rows[0]] + rows[1:] * 400) + "\n")
+    repeated_rows(scan, "scan.csv", 400)
     return scan
 
 
@@ -329,14 +350,13 @@ def cpu_seconds(pid: int) -> float:
 @posix_only
 def test_sigint_during_calibrate_writes_nothing(twin, tmp_path) -> None:  # type: ignore[no-untyped-def]
     """The calibration runs in the core without a place to stop: the interrupt takes
-    effect when it returns, before anything is written. The dataset names its 3 views 20
-    times over, so the run takes several times the CPU time of starting Python and
-    importing stripecal (~0.15 s); the signal is sent once 0.8 s of CPU time is spent,
-    i.e. inside the calibration."""
+    effect when it returns, before anything is written. The dataset has its 3 views 20
+    times over (hard links to the images), so the run takes several times the CPU time
+    of starting Python and importing stripecal (~0.15 s); the signal is sent once 0.8 s
+    of CPU time is spent, i.e. inside the calibration."""
     data = tmp_path / "calib"
     shutil.copytree(twin["calib"], data)
-    rows = (data / "views.csv").read_text().splitlines()
-    (data / "views.csv").write_text("\n".join([rows[0]] + rows[1:] * 20) + "\n")
+    repeated_rows(data, "views.csv", 20)
     for earlier in [None, b'{"an": "earlier calibration"}\n']:
         out = tmp_path / ("fresh" if earlier is None else "earlier")
         out.mkdir()
