@@ -50,6 +50,7 @@ pub(super) fn calibrate_unjudged(
     opts: &CalibrateOptions,
 ) -> Result<(CalibrationReport, Vec<QualityCheck>)> {
     check_poses_finite(views)?;
+    super::held::check_from_size(rig, opts)?;
     // `--from` without `--fix`: the file's camera and plane as a prior.
     if let Some(from) = opts
         .from
