@@ -384,7 +384,10 @@ def print_calibration(cal: stripecal.Calibration) -> None:
                   f"  {'' if off is None else off:>9}  {v['stripe_points']:>10}  {sat:>5}"
                   f"  {'' if crms is None else f'{crms:.4f}':>13}  {'' if srms is None else f'{srms:.4f}':>13}  {note}")
     if cal.laser_plane is None:
-        print("\n  laser plane: not estimated (no laser images)")
+        lasers = [v for v in views if v.get("stripe_extraction") is not None]
+        why = ("no laser images" if not lasers else
+               f"no laser line on the board in any of the {len(lasers)} laser images: see the warnings")
+        print(f"\n  laser plane: not estimated ({why})")
     bs = cal.board_scale
     if bs is not None:
         what = "estimated" if bs["estimated"] else "implied by the robot"
