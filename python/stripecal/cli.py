@@ -699,8 +699,8 @@ def cmd_fit_sphere(args: argparse.Namespace) -> int:
     cloud = stripecal.read_ply(args.cloud)
     rng = diameter_range(args.diameter_range)
     fit = stripecal.fit_sphere(cloud["points"], trim_sigma=args.trim_sigma, diameter_range_mm=rng)
-    sd = fit.diameter_sigma_mm if fit.diameter_sigma_mm is not None else float("nan")
-    sc = fit.center_sigma_mm if fit.center_sigma_mm is not None else np.full(3, np.nan)
+    sd = fit.fit_diameter_sigma_mm if fit.fit_diameter_sigma_mm is not None else float("nan")
+    sc = fit.fit_center_sigma_mm if fit.fit_center_sigma_mm is not None else np.full(3, np.nan)
     c = fit.center_mm
     rows = [
         ("diameter", f"{fit.diameter_mm:.4f} mm", f"+- {sd:.2g} mm (1 sigma, random part)"),
@@ -714,6 +714,8 @@ def cmd_fit_sphere(args: argparse.Namespace) -> int:
     print(f"sphere fit of {args.cloud} ({len(cloud['points'])} points, base frame)")
     for name, value, note in rows:
         print(f"  {name:<13} {value:>16}  {note}".rstrip())
+    print("  (the +- are the fit's random part only, as fit_*_sigma_mm in the file; the measurement's "
+          "uncertainty, calibration and robot included: stripecal measure)")
     if args.output:
         fit.save(args.output)
         print(f"wrote {args.output}")
