@@ -1,13 +1,16 @@
-"""Faults in the middle of a scan run: bad images (truncated, random bytes, missing,
-wrong size, another bit depth) with ``on_bad_image`` stop / skip, and interrupted runs
-(SIGINT during ``stripecal reconstruct`` and ``stripecal calibrate``, SIGKILL during
-``reconstruct``): the output is complete or absent, an earlier file is left as it was.
+"""Faults in the middle of a scan run: bad images (truncated, a truncated JPEG, a PNG
+with damaged compressed data, random bytes, missing, wrong size, another bit depth) with
+``on_bad_image`` stop / skip, and interrupted runs (SIGINT during ``stripecal
+reconstruct`` and ``stripecal calibrate``, SIGTERM during ``reconstruct``, while its
+output is written and during ``simulate``, SIGKILL during ``reconstruct``): the output
+is complete or absent, an earlier file is left as it was, nothing is left beside it.
 
 One small twin (3 calibration views, a 6-frame ball scan) is rendered for the module.
-Long runs for the signal tests come from scan.csv / views.csv files that name the same
-few images many times, so nothing more is rendered. No timing assertions: a signal is
-sent once the run has visibly started (its progress bar on a pseudo-terminal, or CPU
-time spent), and what is checked is the outcome."""
+Long runs for the signal tests come from scan.csv / views.csv files that repeat the
+same few images many times (under other names: hard links), so nothing more is
+rendered. No timing assertions: a signal is sent once the run has visibly started (its
+progress bar on a pseudo-terminal, CPU time spent, a temporary file that appeared), and
+what is checked is the outcome."""
 
 from __future__ import annotations
 
@@ -81,8 +84,37 @@ def sixteen_bit(p: Path) -> None:
     stripecal.save_image(p, a.astype(np.uint16) * 257)
 
 
+def truncated_jpeg(p: Path) -> None:
+    """The frame as a JPEG cut inside its image data (decoded silently before, its
+    missing rows made up: issue 39, fault 6)."""
+    cv2 = pytest.importorskip("cv2")
+    ok, buf = cv2.imencode(".jpg", stripecal.load_image(p))
+    data = buf.tobytes()
+    p.write_bytes(data[: len(data) * 2 // 3])
+
+
+def damaged_png(p: Path) -> None:
+    """One byte of the compressed image data changed, the chunk's CRC recomputed (issue 39,
+    fault 7): only the zlib checksum tells."""
+    import struct
+    import zlib
+
+    b = bytearray(p.read_bytes())
+    pos = 8
+    while pos + 12 <= len(b):
+        n = struct.unpack(">I", b[pos:pos + 4])[0]
+        if b[pos + 4:pos + 8] == b"IDAT":
+            b[pos + 8 + n // 50] ^= 0x24
+            b[pos + 8 + n:pos + 12 + n] = struct.pack(">I", zlib.crc32(bytes(b[pos + 4:pos + 8 + n])) & 0xFFFFFFFF)
+            break
+        pos += 12 + n
+    p.write_bytes(bytes(b))
+
+
 # (name, spoil, what the reason says)
 KINDS: List[Tuple[str, Callable[[Path], None], str]] = [
+    ("truncated-jpeg", truncated_jpeg, "truncated JPEG"),
+    ("damaged-png", damaged_png, "damaged PNG"),
     ("truncated", truncate, "cannot be decoded"),
     ("random-bytes", random_bytes, "cannot be decoded"),
     ("missing", remove, "does not exist"),
@@ -336,6 +368,87 @@ def test_sigkill_during_reconstruct_leaves_the_earlier_cloud(twin, long_scan, tm
     assert max(frames_done(stderr)) < 400 * FRAMES
     assert ply.read_bytes() == earlier
     assert no_temp_files(tmp_path)
+
+
+@posix_only
+def test_sigterm_during_reconstruct_writes_nothing(twin, long_scan, tmp_path) -> None:  # type: ignore[no-untyped-def]
+    """SIGTERM (a service manager's stop) takes Ctrl-C's way out: stopped between chunks,
+    nothing written, exit 143 (issue 39, fault 8)."""
+    out = tmp_path / "out"
+    out.mkdir()
+    ply = out / "cloud.ply"
+    rc, stdout, stderr = run_on_pty(["reconstruct", str(twin["cal"]), str(long_scan), "-o", str(ply)],
+                                    tmp_path, reconstructing, signal.SIGTERM)
+    assert rc == 143, (stdout, stderr)
+    assert "stripecal reconstruct: terminated (SIGTERM); nothing written" in stderr
+    assert "Traceback" not in stderr and "wrote" not in stdout
+    assert max(frames_done(stderr)) < 400 * FRAMES
+    assert list(out.iterdir()) == []
+
+
+def hidden(folder: Path) -> List[str]:
+    """What a writer left beside its targets: hidden temporaries and staging folders."""
+    return sorted(p.name for p in folder.iterdir() if p.name.startswith("."))
+
+
+@posix_only
+def test_sigterm_while_the_cloud_is_written_leaves_no_temporary(twin, tmp_path) -> None:  # type: ignore[no-untyped-def]
+    """SIGTERM once the cloud's temporary file exists (the write has begun): the write
+    completes, the command exits 143 saying so, and nothing is left beside the target;
+    it used to die there and leave the hidden ``.cloud.ply.tmp-PID-0`` forever (issue 39,
+    fault 8). The signal is sent when the temporary file appears, not after a delay; a
+    write too quick to be caught is retried with a larger cloud."""
+    scan = tmp_path / "scan"
+    shutil.copytree(twin["scan"], scan)
+    repeated_rows(scan, "scan.csv", 30)
+    caught = False
+    for attempt in range(3):
+        out = tmp_path / f"out{attempt}"
+        out.mkdir()
+        ply = out / "cloud.ply"
+        proc = subprocess.Popen([sys.executable, "-m", "stripecal", "reconstruct", str(twin["cal"]), str(scan),
+                                 "-o", str(ply), "--ascii"],
+                                cwd=tmp_path, env=child_env(), stdin=subprocess.DEVNULL,
+                                stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+        while proc.poll() is None and not [p for p in out.iterdir() if ".tmp-" in p.name]:
+            pass
+        if proc.poll() is None:
+            proc.send_signal(signal.SIGTERM)
+            caught = True
+        stdout, stderr = proc.communicate(timeout=600)
+        assert hidden(out) == [], (hidden(out), stderr)
+        if caught:
+            assert proc.returncode == 143, (stdout, stderr)
+            assert "terminated (SIGTERM) after completing its output" in stderr
+            assert len(stripecal.read_ply(ply)["points"]) > 0
+            break
+        assert proc.returncode == 0, (stdout, stderr)
+        repeated_rows(scan, "scan.csv", 2)
+    if not caught:
+        pytest.skip("the cloud was always written before the signal could be sent")
+
+
+@posix_only
+def test_sigterm_while_simulate_writes_leaves_no_staging_folder(tmp_path) -> None:  # type: ignore[no-untyped-def]
+    """SIGTERM once the twin's staging folder ``.calib.partial-PID`` exists: nothing is
+    left beside the output (it used to stay forever, issue 39, fault 8); the folder is
+    said to be possibly incomplete, exit 143."""
+    out = tmp_path / "sim"
+    out.mkdir()
+    camera = '{"width": 192, "height": 144, "fu": 317.9, "fv": 330.6, "u0": 86.4, "v0": 65.5}'
+    proc = subprocess.Popen([sys.executable, "-m", "stripecal", "simulate", str(out), "--poses", "3",
+                             "--scan-frames", "3", "--set", f"camera={camera}"],
+                            cwd=tmp_path, env=child_env(), stdin=subprocess.DEVNULL,
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    while proc.poll() is None and not hidden(out):
+        pass
+    assert proc.poll() is None, "the twin was written before its staging folder was seen"
+    proc.send_signal(signal.SIGTERM)
+    stdout, stderr = proc.communicate(timeout=600)
+    assert proc.returncode == 143, (stdout, stderr)
+    assert f"stripecal simulate: terminated (SIGTERM); {out} may be incomplete" in stderr
+    assert "Traceback" not in stderr
+    assert hidden(out) == []
 
 
 def cpu_seconds(pid: int) -> float:
