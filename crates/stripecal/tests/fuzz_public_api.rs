@@ -1552,6 +1552,7 @@ fn io_functions_take_impossible_paths_and_hostile_records() {
         stripe_rms_px: Some(f64::INFINITY),
         outlier: None,
         note: Some("\u{0}".into()),
+        stripe_extraction: None,
     };
     assert!(serde_json::to_string(&io::view_record_to_json(&rec)).is_ok());
     assert!(serde_json::to_string(&io::warnings_to_json(&["".into(), "\u{0}".into()])).is_ok());

@@ -374,6 +374,7 @@ mod tests {
             stripe_rms_px: Some(0.02),
             outlier: None,
             note: Some("left out".into()),
+            stripe_extraction: None,
         };
         let m = calibration_extra(&s, &[v], &[]);
         let keys: Vec<&str> = m.keys().map(|k| k.as_str()).collect();
