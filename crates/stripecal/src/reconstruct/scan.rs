@@ -109,12 +109,13 @@ pub fn reconstruct_scan(
         .or_else(|| scan.rig.as_ref().map(|r| r.stripe_channel))
         .unwrap_or_default();
     if channel == StripeChannel::Auto {
-        // decided from frames that can be read (a missing one is reported below)
+        // decided from frames that can be read and are the camera's size by their
+        // header (never decoding a huge one; a bad frame is reported below)
         let readable: Vec<std::path::PathBuf> = scan
             .frames
             .iter()
             .map(|f| scan.image_path(&f.image))
-            .filter(|p| p.is_file())
+            .filter(|p| p.is_file() && crate::io::image_size(p).ok() == Some((width, height)))
             .collect();
         let paths: Vec<std::path::PathBuf> = auto_sample(readable.len())
             .into_iter()
