@@ -48,7 +48,7 @@ def test_reconstruct_and_fit_sphere(tiny, tmp_path, capsys) -> None:  # type: ig
     assert "diameter" in out and "+-" in out and "outliers" in out and "points used" in out
     fit = json.loads(sj.read_text())
     assert {"diameter_mm", "center_mm", "rms_mm", "points", "outliers"} <= set(fit)
-    assert "diameter_sigma_mm" in fit and len(fit["center_sigma_mm"]) == 3
+    assert "fit_diameter_sigma_mm" in fit and len(fit["fit_center_sigma_mm"]) == 3  # issue 39: fit-only
     sphere = truth.sphere
     assert sphere is not None
     # Five stripes over the ball's middle; stripe centres ~0.06 px RMS on the ball.

@@ -446,6 +446,116 @@ def test_wrong_argument_types_raise_type_errors_or_typed_errors(fn: Callable[...
     call(fn, *args, allow_type_error=True)
 
 
+# ------------------------------------------------------------------ issue 39: refused, always
+
+
+def _with_duplicate(doc: Any, path: list[int], again: Any) -> tuple[str, str]:
+    """JSON text of ``doc`` with one key of one object (chosen by ``path``) written twice,
+    the second time with ``again``; and that key's path (``board.rows``)."""
+    objects: list[tuple[list[int], str, list[str]]] = []
+
+    def walk(v: Any, idx: list[int], name: str) -> None:
+        if isinstance(v, dict):
+            if v:
+                objects.append((idx, name, list(v)))
+            for i, (k, x) in enumerate(v.items()):
+                walk(x, idx + [i], f"{name}.{k}" if name else k)
+        elif isinstance(v, list):
+            for i, x in enumerate(v):
+                walk(x, idx + [i], f"{name}[{i}]")
+
+    walk(doc, [], "")
+    at, name, keys = objects[path[0] % len(objects)]
+    key = keys[path[1] % len(keys)]
+
+    def dump(v: Any, idx: list[int] | None) -> str:
+        if isinstance(v, dict):
+            parts = []
+            for i, (k, x) in enumerate(v.items()):
+                deeper = idx[1:] if idx and idx[0] == i else None
+                parts.append(f"{json.dumps(k)}: {dump(x, deeper)}")
+                if idx == [] and k == key:
+                    parts.append(f"{json.dumps(k)}: {json.dumps(again)}")
+            return "{" + ", ".join(parts) + "}"
+        if isinstance(v, list):
+            return "[" + ", ".join(dump(x, idx[1:] if idx and idx[0] == i else None) for i, x in enumerate(v)) + "]"
+        return json.dumps(v)
+
+    return dump(doc, at), f"{name}.{key}" if name else key
+
+
+@FUZZ
+@given(path=st.lists(st.integers(0, 1000), min_size=2, max_size=2), again=json_leaf, which=st.integers(0, 1))
+def test_a_repeated_json_key_is_refused_naming_it(path: list[int], again: Any, which: int, calibration_text: str) -> None:
+    """serde_json kept the last of two equal keys silently (issue 39): now an error
+    naming the key's path and line, whatever the second value is."""
+    doc, reader = [(RIG, stripecal.load_rig), (json.loads(calibration_text), stripecal.load_calibration)][which]
+    text, key = _with_duplicate(doc, path, again)
+    with tempfile.TemporaryDirectory() as d:
+        with pytest.raises(stripecal.FormatError) as e:
+            reader(write(d, "doc.json", text.encode()))
+    assert f"key `{key}` appears twice" in str(e.value) and ": line " in str(e.value)
+
+
+@FUZZ
+@given(n=st.integers(1, 6), j=st.integers(0, 100), at=st.integers(0, 100), convention=st.sampled_from(["joints"] + CONVENTIONS))
+def test_a_repeated_row_is_refused_naming_both_lines(n: int, j: int, at: int, convention: str) -> None:
+    """A row of views.csv / scan.csv repeated anywhere below itself counted one view twice
+    (issue 39): refused, naming both lines."""
+    rng = np.random.default_rng(n * 1000 + j)
+    if convention == "joints":
+        header = "q1,q2,q3,q4,q5,q6"
+        values = [[float(x) for x in rng.uniform(-90, 90, 6)] for _ in range(n)]
+    else:
+        header = HEADERS[convention]
+        values = [[float(x) for x in stripecal.matrix_to_pose(_pose(rng), convention)] for _ in range(n)]
+    rows = [f"images/b{k}.png,images/l{k}.png," + ",".join(repr(x) for x in v) for k, v in enumerate(values)]
+    j %= n
+    at = j + 1 + at % (n - j)
+    rows.insert(at, rows[j])
+    with tempfile.TemporaryDirectory() as d:
+        write(d, "rig.json", json.dumps(RIG).encode())
+        write(d, "views.csv", ("board_image,laser_image," + header + "\n" + "\n".join(rows) + "\n").encode())
+        with pytest.raises(stripecal.FormatError) as e:
+            stripecal.load_dataset(d)
+        scan_rows = [r.split(",", 1)[1] for r in rows]
+        write(d, "scan/scan.csv", ("image," + header + "\n" + "\n".join(scan_rows) + "\n").encode())
+        with pytest.raises(stripecal.FormatError) as e2:
+            stripecal.load_scan(Path(d) / "scan")
+    for err in (e.value, e2.value):
+        m = str(err)
+        assert f"line {at + 2}, column" in m and f"repeats line {j + 2} exactly" in m, m
+
+
+def _pose(rng: np.random.Generator) -> np.ndarray:
+    """A random rigid transform with a robot-sized translation (mm)."""
+    w = rng.normal(size=3)
+    th = np.linalg.norm(w)
+    k = w / th
+    kx = np.array([[0, -k[2], k[1]], [k[2], 0, -k[0]], [-k[1], k[0], 0]])
+    t = np.eye(4)
+    t[:3, :3] = np.eye(3) + np.sin(th) * kx + (1 - np.cos(th)) * kx @ kx
+    t[:3, 3] = rng.uniform(-1500, 1500, 3)
+    return t
+
+
+@FUZZ
+@given(cut=st.floats(0.0, 0.999), size=st.sampled_from([(16, 12), (64, 48), (160, 90)]))
+def test_a_truncated_jpeg_is_refused(cut: float, size: tuple[int, int]) -> None:
+    """A JPEG cut anywhere decoded with its missing rows made up (issue 39): refused."""
+    cv2 = pytest.importorskip("cv2")
+    w, h = size
+    img = ((np.arange(w * h).reshape(h, w) * 37) % 251).astype(np.uint8)
+    ok, buf = cv2.imencode(".jpg", img)
+    data = buf.tobytes()
+    n = max(2, int(cut * (len(data) - 2)))
+    with tempfile.TemporaryDirectory() as d:
+        with pytest.raises(stripecal.FormatError):
+            stripecal.load_image(write(d, "cut.jpg", data[:n]))
+        # the whole file is read
+        assert stripecal.load_image(write(d, "whole.jpg", data)).shape == (h, w)
+
+
 def test_found_by_the_campaign_huge_rotation_vectors_are_refused() -> None:
     # a rotation vector whose norm overflows gave a NaN transform (issue 13)
     with pytest.raises(stripecal.InvalidInputError):

@@ -162,7 +162,8 @@ def test_fit_sphere_json(tmp_path) -> None:  # type: ignore[no-untyped-def]
     assert back.points == f.points and back.outliers == f.outliers
     assert np.allclose(back.center_mm, f.center_mm, rtol=0, atol=1e-12)
     assert abs(back.diameter_mm - f.diameter_mm) < 1e-12
-    assert set(back.extra) >= {"diameter_sigma_mm", "center_sigma_mm"}
+    # named for what they are: the fit's random part only (issue 39)
+    assert set(back.extra) >= {"fit_diameter_sigma_mm", "fit_center_sigma_mm", "sigma_note"}
 
 
 def test_fit_plane() -> None:

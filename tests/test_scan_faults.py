@@ -1,13 +1,16 @@
-"""Faults in the middle of a scan run: bad images (truncated, random bytes, missing,
-wrong size, another bit depth) with ``on_bad_image`` stop / skip, and interrupted runs
-(SIGINT during ``stripecal reconstruct`` and ``stripecal calibrate``, SIGKILL during
-``reconstruct``): the output is complete or absent, an earlier file is left as it was.
+"""Faults in the middle of a scan run: bad images (truncated, a truncated JPEG, a PNG
+with damaged compressed data, random bytes, missing, wrong size, another bit depth) with
+``on_bad_image`` stop / skip, and interrupted runs (SIGINT during ``stripecal
+reconstruct`` and ``stripecal calibrate``, SIGTERM during ``reconstruct``, while its
+output is written and during ``simulate``, SIGKILL during ``reconstruct``): the output
+is complete or absent, an earlier file is left as it was, nothing is left beside it.
 
 One small twin (3 calibration views, a 6-frame ball scan) is rendered for the module.
-Long runs for the signal tests come from scan.csv / views.csv files that name the same
-few images many times, so nothing more is rendered. No timing assertions: a signal is
-sent once the run has visibly started (its progress bar on a pseudo-terminal, or CPU
-time spent), and what is checked is the outcome."""
+Long runs for the signal tests come from scan.csv / views.csv files that repeat the
+same few images many times (under other names: hard links), so nothing more is
+rendered. No timing assertions: a signal is sent once the run has visibly started (its
+progress bar on a pseudo-terminal, CPU time spent, a temporary file that appeared), and
+what is checked is the outcome."""
 
 from __future__ import annotations
 
@@ -81,8 +84,37 @@ def sixteen_bit(p: Path) -> None:
     stripecal.save_image(p, a.astype(np.uint16) * 257)
 
 
+def truncated_jpeg(p: Path) -> None:
+    """The frame as a JPEG cut inside its image data (decoded silently before, its
+    missing rows made up: issue 39, fault 6)."""
+    cv2 = pytest.importorskip("cv2")
+    ok, buf = cv2.imencode(".jpg", stripecal.load_image(p))
+    data = buf.tobytes()
+    p.write_bytes(data[: len(data) * 2 // 3])
+
+
+def damaged_png(p: Path) -> None:
+    """One byte of the compressed image data changed, the chunk's CRC recomputed (issue 39,
+    fault 7): only the zlib checksum tells."""
+    import struct
+    import zlib
+
+    b = bytearray(p.read_bytes())
+    pos = 8
+    while pos + 12 <= len(b):
+        n = struct.unpack(">I", b[pos:pos + 4])[0]
+        if b[pos + 4:pos + 8] == b"IDAT":
+            b[pos + 8 + n // 50] ^= 0x24
+            b[pos + 8 + n:pos + 12 + n] = struct.pack(">I", zlib.crc32(bytes(b[pos + 4:pos + 8 + n])) & 0xFFFFFFFF)
+            break
+        pos += 12 + n
+    p.write_bytes(bytes(b))
+
+
 # (name, spoil, what the reason says)
 KINDS: List[Tuple[str, Callable[[Path], None], str]] = [
+    ("truncated-jpeg", truncated_jpeg, "truncated JPEG"),
+    ("damaged-png", damaged_png, "damaged PNG"),
     ("truncated", truncate, "cannot be decoded"),
     ("random-bytes", random_bytes, "cannot be decoded"),
     ("missing", remove, "does not exist"),
@@ -173,13 +205,34 @@ def test_bad_on_bad_image_value(twin) -> None:  # type: ignore[no-untyped-def]
 # --- interrupts ---------------------------------------------------------------------
 
 
+def repeated_rows(folder: Path, table: str, times: int) -> None:
+    """Rewrites ``folder/table`` (scan.csv or views.csv) with its rows repeated ``times``
+    times, each repeat naming hard links to the images under new names: a long run
+    without rendering more, and without naming one file on two rows (refused: it would
+    count one image twice)."""
+    rows = (folder / table).read_text().splitlines()
+    ncols = 2 if table == "views.csv" else 1
+    out = [rows[0]]
+    for k in range(times):
+        for row in rows[1:]:
+            cells = row.split(",")
+            for c in range(ncols):
+                if cells[c] and k > 0:
+                    name = Path(cells[c])
+                    link = name.with_name(f"{name.stem}_r{k}{name.suffix}")
+                    if not (folder / link).exists():
+                        os.link(folder / name, folder / link)
+                    cells[c] = link.as_posix()
+            out.append(",".join(cells))
+    (folder / table).write_text("\n".join(out) + "\n")
+
+
 @pytest.fixture(scope="module")
 def long_scan(twin: Dict[str, Path]) -> Path:
-    """The twin's scan with its 6 frames named 400 times over (2400 frames)."""
+    """The twin's scan with its 6 frames 400 times over (2400 frames, hard links)."""
     scan = twin["root"] / "long_scan"
     shutil.copytree(twin["scan"], scan)
-    rows = (scan / "scan.csv").read_text().splitlines()
-    (scan / "scan.csv").write_text("\n".join([rows[0]] + rows[1:] * 400) + "\n")
+    repeated_rows(scan, "scan.csv", 400)
     return scan
 
 
@@ -317,6 +370,87 @@ def test_sigkill_during_reconstruct_leaves_the_earlier_cloud(twin, long_scan, tm
     assert no_temp_files(tmp_path)
 
 
+@posix_only
+def test_sigterm_during_reconstruct_writes_nothing(twin, long_scan, tmp_path) -> None:  # type: ignore[no-untyped-def]
+    """SIGTERM (a service manager's stop) takes Ctrl-C's way out: stopped between chunks,
+    nothing written, exit 143 (issue 39, fault 8)."""
+    out = tmp_path / "out"
+    out.mkdir()
+    ply = out / "cloud.ply"
+    rc, stdout, stderr = run_on_pty(["reconstruct", str(twin["cal"]), str(long_scan), "-o", str(ply)],
+                                    tmp_path, reconstructing, signal.SIGTERM)
+    assert rc == 143, (stdout, stderr)
+    assert "stripecal reconstruct: terminated (SIGTERM); nothing written" in stderr
+    assert "Traceback" not in stderr and "wrote" not in stdout
+    assert max(frames_done(stderr)) < 400 * FRAMES
+    assert list(out.iterdir()) == []
+
+
+def hidden(folder: Path) -> List[str]:
+    """What a writer left beside its targets: hidden temporaries and staging folders."""
+    return sorted(p.name for p in folder.iterdir() if p.name.startswith("."))
+
+
+@posix_only
+def test_sigterm_while_the_cloud_is_written_leaves_no_temporary(twin, tmp_path) -> None:  # type: ignore[no-untyped-def]
+    """SIGTERM once the cloud's temporary file exists (the write has begun): the write
+    completes, the command exits 143 saying so, and nothing is left beside the target;
+    it used to die there and leave the hidden ``.cloud.ply.tmp-PID-0`` forever (issue 39,
+    fault 8). The signal is sent when the temporary file appears, not after a delay; a
+    write too quick to be caught is retried with a larger cloud."""
+    scan = tmp_path / "scan"
+    shutil.copytree(twin["scan"], scan)
+    repeated_rows(scan, "scan.csv", 30)
+    caught = False
+    for attempt in range(3):
+        out = tmp_path / f"out{attempt}"
+        out.mkdir()
+        ply = out / "cloud.ply"
+        proc = subprocess.Popen([sys.executable, "-m", "stripecal", "reconstruct", str(twin["cal"]), str(scan),
+                                 "-o", str(ply), "--ascii"],
+                                cwd=tmp_path, env=child_env(), stdin=subprocess.DEVNULL,
+                                stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+        while proc.poll() is None and not [p for p in out.iterdir() if ".tmp-" in p.name]:
+            pass
+        if proc.poll() is None:
+            proc.send_signal(signal.SIGTERM)
+            caught = True
+        stdout, stderr = proc.communicate(timeout=600)
+        assert hidden(out) == [], (hidden(out), stderr)
+        if caught:
+            assert proc.returncode == 143, (stdout, stderr)
+            assert "terminated (SIGTERM) after completing its output" in stderr
+            assert len(stripecal.read_ply(ply)["points"]) > 0
+            break
+        assert proc.returncode == 0, (stdout, stderr)
+        repeated_rows(scan, "scan.csv", 2)
+    if not caught:
+        pytest.skip("the cloud was always written before the signal could be sent")
+
+
+@posix_only
+def test_sigterm_while_simulate_writes_leaves_no_staging_folder(tmp_path) -> None:  # type: ignore[no-untyped-def]
+    """SIGTERM once the twin's staging folder ``.calib.partial-PID`` exists: nothing is
+    left beside the output (it used to stay forever, issue 39, fault 8); the folder is
+    said to be possibly incomplete, exit 143."""
+    out = tmp_path / "sim"
+    out.mkdir()
+    camera = '{"width": 192, "height": 144, "fu": 317.9, "fv": 330.6, "u0": 86.4, "v0": 65.5}'
+    proc = subprocess.Popen([sys.executable, "-m", "stripecal", "simulate", str(out), "--poses", "3",
+                             "--scan-frames", "3", "--set", f"camera={camera}"],
+                            cwd=tmp_path, env=child_env(), stdin=subprocess.DEVNULL,
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    while proc.poll() is None and not hidden(out):
+        pass
+    assert proc.poll() is None, "the twin was written before its staging folder was seen"
+    proc.send_signal(signal.SIGTERM)
+    stdout, stderr = proc.communicate(timeout=600)
+    assert proc.returncode == 143, (stdout, stderr)
+    assert f"stripecal simulate: terminated (SIGTERM); {out} may be incomplete" in stderr
+    assert "Traceback" not in stderr
+    assert hidden(out) == []
+
+
 def cpu_seconds(pid: int) -> float:
     """User + system CPU time of a process so far (Linux /proc)."""
     try:
@@ -329,14 +463,13 @@ def cpu_seconds(pid: int) -> float:
 @posix_only
 def test_sigint_during_calibrate_writes_nothing(twin, tmp_path) -> None:  # type: ignore[no-untyped-def]
     """The calibration runs in the core without a place to stop: the interrupt takes
-    effect when it returns, before anything is written. The dataset names its 3 views 20
-    times over, so the run takes several times the CPU time of starting Python and
-    importing stripecal (~0.15 s); the signal is sent once 0.8 s of CPU time is spent,
-    i.e. inside the calibration."""
+    effect when it returns, before anything is written. The dataset has its 3 views 20
+    times over (hard links to the images), so the run takes several times the CPU time
+    of starting Python and importing stripecal (~0.15 s); the signal is sent once 0.8 s
+    of CPU time is spent, i.e. inside the calibration."""
     data = tmp_path / "calib"
     shutil.copytree(twin["calib"], data)
-    rows = (data / "views.csv").read_text().splitlines()
-    (data / "views.csv").write_text("\n".join([rows[0]] + rows[1:] * 20) + "\n")
+    repeated_rows(data, "views.csv", 20)
     for earlier in [None, b'{"an": "earlier calibration"}\n']:
         out = tmp_path / ("fresh" if earlier is None else "earlier")
         out.mkdir()

@@ -15,6 +15,7 @@ import os
 import platform
 import signal
 import sys
+import tempfile
 import threading
 import time
 from typing import Any, Callable, Dict, List, Optional, Sequence, Tuple
@@ -384,7 +385,10 @@ def print_calibration(cal: stripecal.Calibration) -> None:
                   f"  {'' if off is None else off:>9}  {v['stripe_points']:>10}  {sat:>5}"
                   f"  {'' if crms is None else f'{crms:.4f}':>13}  {'' if srms is None else f'{srms:.4f}':>13}  {note}")
     if cal.laser_plane is None:
-        print("\n  laser plane: not estimated (no laser images)")
+        lasers = [v for v in views if v.get("stripe_extraction") is not None]
+        why = ("no laser images" if not lasers else
+               f"no laser line on the board in any of the {len(lasers)} laser images: see the warnings")
+        print(f"\n  laser plane: not estimated ({why})")
     bs = cal.board_scale
     if bs is not None:
         what = "estimated" if bs["estimated"] else "implied by the robot"
@@ -565,21 +569,23 @@ def cmd_detect(args: argparse.Namespace) -> int:
     points, or why the image is refused. With --csv, writes every point (view, row, col,
     u, v, flags) to a file. Exit status 1 when fewer than 3 images are detected."""
     if args.rig:
-        board = stripecal.load_rig(args.rig).board
+        rig = stripecal.load_rig(args.rig)
         images = list(args.inputs)
     else:
         if len(args.inputs) != 1:
             print("stripecal detect: give one DATASET folder, or --rig RIG and images", file=sys.stderr)
             return 2
         ds = stripecal.load_dataset(args.inputs[0])
-        board = ds.rig.board
-        images = [n if os.path.isabs(n) else os.path.join(ds.root, n) for n in ds.board_images]
+        rig = ds.rig
+        images = list(ds.board_images)  # already joined with the dataset folder
+    board = rig.board
     print(f"board: {board.kind} {board.rows} x {board.cols}, {len(images)} images")
     print("\n  view  points  markers  alternatives  H rms px  image / reason")
     rows: List[str] = []
     found = 0
     for k, name in enumerate(images):
-        image = stripecal.load_image(name)
+        # the size from the header: another size is refused before it is decoded
+        image = stripecal.load_image(name, size=(rig.width, rig.height))
         try:
             det = stripecal.detect_target(image, board)
         except stripecal.DetectionError as e:
@@ -593,11 +599,18 @@ def cmd_detect(args: argparse.Namespace) -> int:
             rows.append(f"{k},{int(r)},{int(c)},{float(u)!r},{float(v)!r},{int(f)}\n")
     print(f"\n{found} of {len(images)} images detected")
     if args.csv:
-        tmp = f"{args.csv}.tmp{os.getpid()}"
-        with open(tmp, "w") as f:
-            f.write("view,row,col,u,v,flags\n")
-            f.writelines(rows)
-        os.replace(tmp, args.csv)
+        _uninterruptible()
+        folder = os.path.dirname(os.path.abspath(args.csv))
+        fd, tmp = tempfile.mkstemp(dir=folder, prefix=f".{os.path.basename(args.csv)}.tmp-")
+        try:
+            with os.fdopen(fd, "w") as f:
+                f.write("view,row,col,u,v,flags\n")
+                f.writelines(rows)
+            os.replace(tmp, args.csv)
+        except BaseException:
+            if os.path.exists(tmp):
+                os.unlink(tmp)
+            raise
         print(f"wrote {os.path.abspath(args.csv)}")
     return 0 if found >= 3 else 1
 
@@ -712,8 +725,8 @@ def cmd_fit_sphere(args: argparse.Namespace) -> int:
     cloud = stripecal.read_ply(args.cloud)
     rng = diameter_range(args.diameter_range)
     fit = stripecal.fit_sphere(cloud["points"], trim_sigma=args.trim_sigma, diameter_range_mm=rng)
-    sd = fit.diameter_sigma_mm if fit.diameter_sigma_mm is not None else float("nan")
-    sc = fit.center_sigma_mm if fit.center_sigma_mm is not None else np.full(3, np.nan)
+    sd = fit.fit_diameter_sigma_mm if fit.fit_diameter_sigma_mm is not None else float("nan")
+    sc = fit.fit_center_sigma_mm if fit.fit_center_sigma_mm is not None else np.full(3, np.nan)
     c = fit.center_mm
     rows = [
         ("diameter", f"{fit.diameter_mm:.4f} mm", f"+- {sd:.2g} mm (1 sigma, random part)"),
@@ -727,6 +740,8 @@ def cmd_fit_sphere(args: argparse.Namespace) -> int:
     print(f"sphere fit of {args.cloud} ({len(cloud['points'])} points, base frame)")
     for name, value, note in rows:
         print(f"  {name:<13} {value:>16}  {note}".rstrip())
+    print("  (the +- are the fit's random part only, as fit_*_sigma_mm in the file; the measurement's "
+          "uncertainty, calibration and robot included: stripecal measure)")
     if args.output:
         fit.save(args.output)
         print(f"wrote {args.output}")
@@ -898,13 +913,43 @@ def build_parser() -> argparse.ArgumentParser:
 # The SIGINT handler a command replaced with SIG_IGN at its point of no return
 # (``_uninterruptible``); ``main`` puts it back.
 _SAVED_SIGINT: List[Any] = []
+# The SIGTERM handler ``main`` replaced with ``_on_sigterm`` (put back at its end).
+_SAVED_SIGTERM: List[Any] = []
+# A SIGTERM that arrived after the point of no return: the command completes its write,
+# then ``main`` exits with 143.
+_TERM_PENDING: List[bool] = []
+
+
+class _Terminated(KeyboardInterrupt):
+    """SIGTERM, raised like Ctrl-C's KeyboardInterrupt so that it takes the same way out:
+    the library stops at its next check (or when it returns), nothing is half-written,
+    no temporary file is left; ``main`` exits with 143 (128 + SIGTERM)."""
+
+
+def _on_sigterm(signum: int, frame: Any) -> None:
+    # Python runs this on the main thread between bytecodes: while the library works
+    # (the GIL released) it runs at the library's next signal check or when it returns,
+    # never in the middle of a file's write, so the atomic write completes or is never
+    # begun.
+    if _SAVED_SIGINT:  # past the point of no return: finish, then exit
+        _TERM_PENDING.append(True)
+        return
+    raise _Terminated("terminated (SIGTERM)")
+
+
+def _catch_sigterm() -> None:
+    """SIGTERM (a service manager's stop, ``kill``) handled like Ctrl-C instead of ending
+    the process where it stands, which left a hidden temporary file (or a simulator's
+    staging folder) beside the target."""
+    if threading.current_thread() is threading.main_thread() and not _SAVED_SIGTERM:
+        _SAVED_SIGTERM.append(signal.signal(signal.SIGTERM, _on_sigterm))
 
 
 def _uninterruptible() -> None:
     """The command's point of no return, just before it writes its output: from here to
-    its end Ctrl-C is ignored, so the (atomic) write and the report of it complete. A
-    Ctrl-C that arrived before is raised here (``signal.signal`` runs pending handlers
-    first): nothing has been written then."""
+    its end Ctrl-C is ignored and SIGTERM deferred, so the (atomic) write and the report
+    of it complete. A Ctrl-C or SIGTERM that arrived before is raised here
+    (``signal.signal`` runs pending handlers first): nothing has been written then."""
     if threading.current_thread() is threading.main_thread() and not _SAVED_SIGINT:
         _SAVED_SIGINT.append(signal.signal(signal.SIGINT, signal.SIG_IGN))
 
@@ -912,6 +957,9 @@ def _uninterruptible() -> None:
 def _restore_sigint() -> None:
     while _SAVED_SIGINT:
         signal.signal(signal.SIGINT, _SAVED_SIGINT.pop())
+    while _SAVED_SIGTERM:
+        signal.signal(signal.SIGTERM, _SAVED_SIGTERM.pop())
+    _TERM_PENDING.clear()
 
 
 def _file_state(path: Optional[str]) -> Optional[Tuple[int, int, int]]:
@@ -930,7 +978,8 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
     1 an error (the message on stderr), 2 a usage error, 130 interrupted.
 
     Interrupts: Ctrl-C (SIGINT) makes a command stop, print ``interrupted; nothing
-    written`` and return 130. Outputs are written atomically (a temporary file renamed
+    written`` and return 130; SIGTERM does the same and returns 143 (once a command is
+    writing its output, SIGTERM waits for the write to complete). Outputs are written atomically (a temporary file renamed
     over the target), so there is never a partial file or a temporary file left behind,
     and an earlier file at the output path is unchanged. ``reconstruct`` stops between
     chunks of frames and ignores Ctrl-C once it writes its file; ``calibrate`` stops when
@@ -953,12 +1002,17 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
         output = out if isinstance(out, str) else None
         folder = fold if isinstance(fold, str) else None
         before = _file_state(output)
+        _catch_sigterm()
         try:
-            return func(args)
+            status = func(args)
         except (stripecal.StripecalError, OSError) as e:
             print(f"stripecal {args.command}: error: {e}", file=sys.stderr)
-            return 1
-    except KeyboardInterrupt:
+            status = 1
+        if _TERM_PENDING:
+            print(f"stripecal {command}: terminated (SIGTERM) after completing its output", file=sys.stderr)
+            return 143
+        return status
+    except KeyboardInterrupt as e:
         if getattr(sys.stderr, "isatty", lambda: False)():
             sys.stderr.write("\n")  # end a progress bar's line
         now = _file_state(output)
@@ -968,8 +1022,9 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
             what = f"{folder} may be incomplete"
         else:
             what = "nothing written"
-        print(f"stripecal {command}: interrupted; {what}", file=sys.stderr)
-        return 130
+        term = isinstance(e, _Terminated)
+        print(f"stripecal {command}: {'terminated (SIGTERM)' if term else 'interrupted'}; {what}", file=sys.stderr)
+        return 143 if term else 130
     finally:
         _restore_sigint()
 

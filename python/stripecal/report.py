@@ -174,6 +174,14 @@ def _at(values: Optional[Sequence[Optional[float]]], i: int) -> Optional[float]:
     return values[i]
 
 
+def _no_plane_reason(cal: stripecal.Calibration) -> str:
+    """Why a calibration has no laser plane: no laser images, or no line on the board."""
+    lasers = [v for v in cal.views if v.get("stripe_extraction") is not None]
+    if not lasers:
+        return "no laser images"
+    return f"no laser line on the board in any of the {len(lasers)} laser images, see the warnings"
+
+
 def parameter_rows(cal: stripecal.Calibration, truth: Optional[stripecal.Truth]) -> List[Row]:
     """(name, value, one-sigma or None, true value or None) per estimated number."""
     u = cal.uncertainty
@@ -292,7 +300,7 @@ img{{max-width:100%}} figure{{margin:1em 0}}</style></head><body>
 <h1>{html.escape(title)}</h1>
 <p>method <b>{html.escape(str(e.get('method', '?')))}</b>, camera model {html.escape(cal.camera.distortion_model)},
 {q['views_used']} views used. Residual RMS: circles <b>{q['circle_rms_px']:.4f} px</b>,
-stripe <b>{q['stripe_rms_px']:.4f} px</b> ({float(e.get('stripe_rms_mm') or float('nan')):.4f} mm){'' if cal.laser_plane is not None else ' (laser plane not estimated: no laser images)'}.</p>
+stripe <b>{q['stripe_rms_px']:.4f} px</b> ({float(e.get('stripe_rms_mm') or float('nan')):.4f} mm){'' if cal.laser_plane is not None else ' (laser plane not estimated: ' + _no_plane_reason(cal) + ')'}.</p>
 {checks_html(cal.quality)}
 {('<h2>Warnings</h2><ul>' + warn + '</ul>') if warn else ''}
 <h2>Parameters</h2>

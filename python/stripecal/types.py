@@ -1311,10 +1311,17 @@ class SphereFitExtra(TypedDict, total=False):
     """Other keys of a sphere fit (``SphereFit.extra``), as ``fit_sphere`` writes
     them; a file written elsewhere may lack them or hold others."""
 
+    fit_diameter_sigma_mm: float
+    """The fit's one-sigma of the diameter, mm: its random part only (the points'
+    scatter); the measurement's uncertainty is ``measure_sphere``'s."""
+    fit_center_sigma_mm: List[float]
+    """The fit's one-sigma of the centre's components, mm (random part only)."""
+    sigma_note: str
+    """What the two sigmas are, and where the measurement's uncertainty comes from."""
     diameter_sigma_mm: float
-    """One-sigma of the diameter (random part), mm."""
+    """``fit_diameter_sigma_mm`` in files written before it was named so."""
     center_sigma_mm: List[float]
-    """One-sigma of the centre's components, mm."""
+    """``fit_center_sigma_mm`` in files written before it was named so."""
     robust_sigma_mm: float
     """Robust sigma of the radial residuals at the last trimming round, mm."""
     max_residual_mm: float

@@ -203,6 +203,13 @@ pub fn map_err_at(py: Python<'_>, e: Error, context: &str) -> PyErr {
                 (ErrorKind::IsADirectory, Some(n)) => PyIsADirectoryError::new_err(args(n)),
                 (ErrorKind::NotADirectory, Some(n)) => PyNotADirectoryError::new_err(args(n)),
                 (_, Some(n)) => PyOSError::new_err(args(n)),
+                // the core's own description (a folder, a FIFO...): no errno
+                (ErrorKind::IsADirectory, None) => {
+                    PyIsADirectoryError::new_err(prefix(format!("{filename}: {source}")))
+                }
+                (ErrorKind::NotFound, None) => {
+                    PyFileNotFoundError::new_err(prefix(format!("{filename}: {source}")))
+                }
                 (_, None) => PyOSError::new_err(prefix(format!("{filename}: {source}"))),
             }
         }

@@ -191,15 +191,29 @@ pub fn write_ply_py(
 /// Reads a PNG, TIFF, BMP or JPEG image as a 2D grayscale array (rows, cols) of uint8
 /// or uint16 (colour images are converted to gray by BT.601 luma). `colour=True` keeps
 /// a colour image's channels: (rows, cols, 3) RGB (alpha dropped); gray images stay 2D.
+/// `size=(width, height)`: the size the image must have (e.g. rig.json's); another size
+/// is a `FormatError` naming both, read from the file's header before any pixel is
+/// decoded. A damaged file (a truncated JPEG, a PNG whose compressed data fails its
+/// checksum) is a `FormatError`; a path that is not a regular file an `OSError`.
 #[pyfunction]
-#[pyo3(signature = (path, colour = false))]
+#[pyo3(signature = (path, colour = false, size = None))]
 pub fn load_image<'py>(
     py: Python<'py>,
     path: PathBuf,
     colour: bool,
+    size: Option<(u32, u32)>,
 ) -> PyResult<Bound<'py, PyAny>> {
     let img = py
         .detach_pool(|| {
+            if let Some((w, h)) = size {
+                let (fw, fh) = stripecal::io::image_size(&path)?;
+                if (fw, fh) != (w, h) {
+                    return Err(stripecal::Error::Image {
+                        path: path.clone(),
+                        message: format!("it is {fw} x {fh} pixels, expected {w} x {h}"),
+                    });
+                }
+            }
             stripecal::io::load_image(&path).map(|i| {
                 if colour {
                     i

@@ -482,8 +482,10 @@ fn fit_options(
 /// Fits a sphere to `points` (N, 3) mm: robust start (so other surfaces in the cloud,
 /// e.g. the table, are ignored), geometric least squares, outliers beyond `trim_sigma`
 /// robust sigmas trimmed (0: no trimming). `diameter_range_mm` (min, max) limits the
-/// candidate spheres of the robust start. The result's `extra` holds the one-sigma
-/// `diameter_sigma_mm` and `center_sigma_mm`.
+/// candidate spheres of the robust start. The result's `extra` holds the fit's one-sigma
+/// `fit_diameter_sigma_mm` and `fit_center_sigma_mm`: its random part only (the points'
+/// scatter), with `sigma_note` saying so; `measure_sphere` gives the measurement's
+/// uncertainty (calibration and robot included).
 #[pyfunction]
 #[pyo3(signature = (points, trim_sigma = 3.0, diameter_range_mm = None))]
 pub fn fit_sphere(

@@ -655,27 +655,37 @@ impl PySphereFit {
         map_to_py(py, &self.inner.extra)
     }
 
-    /// One-sigma of the diameter, mm (`extra["diameter_sigma_mm"]`), or None.
+    /// The fit's one-sigma of the diameter, mm: its random part only (the points'
+    /// scatter; calibration and robot errors are not in it, `measure_sphere` has the
+    /// measurement's uncertainty). `extra["fit_diameter_sigma_mm"]`, or an older file's
+    /// `extra["diameter_sigma_mm"]`; None when absent.
     #[getter]
-    fn diameter_sigma_mm(&self) -> Option<f64> {
-        self.inner
-            .extra
-            .get("diameter_sigma_mm")
-            .and_then(|v| v.as_f64())
+    fn fit_diameter_sigma_mm(&self) -> Option<f64> {
+        self.inner.fit_diameter_sigma_mm()
     }
 
-    /// One-sigma of the centre, shape (3,), mm (`extra["center_sigma_mm"]`), or None.
+    /// The fit's one-sigma of the centre, shape (3,), mm: its random part only (as
+    /// `fit_diameter_sigma_mm`). `extra["fit_center_sigma_mm"]`, or an older file's
+    /// `extra["center_sigma_mm"]`; None when absent.
+    #[getter]
+    fn fit_center_sigma_mm<'py>(&self, py: Python<'py>) -> PyResult<Option<Bound<'py, PyAny>>> {
+        match self.inner.fit_center_sigma_mm() {
+            Some(s) => Ok(Some(nd(py, &[3], s.to_vec())?)),
+            None => Ok(None),
+        }
+    }
+
+    /// The former name of `fit_diameter_sigma_mm` (the same value: the fit's random part
+    /// only).
+    #[getter]
+    fn diameter_sigma_mm(&self) -> Option<f64> {
+        self.inner.fit_diameter_sigma_mm()
+    }
+
+    /// The former name of `fit_center_sigma_mm` (the same value).
     #[getter]
     fn center_sigma_mm<'py>(&self, py: Python<'py>) -> PyResult<Option<Bound<'py, PyAny>>> {
-        let v = self
-            .inner
-            .extra
-            .get("center_sigma_mm")
-            .and_then(|v| v.as_array());
-        match v.map(|a| a.iter().filter_map(|x| x.as_f64()).collect::<Vec<f64>>()) {
-            Some(s) if s.len() == 3 => Ok(Some(nd(py, &[3], s)?)),
-            _ => Ok(None),
-        }
+        self.fit_center_sigma_mm(py)
     }
 
     /// Writes the sphere fit JSON (atomically).

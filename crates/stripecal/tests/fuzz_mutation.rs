@@ -28,6 +28,7 @@
 //! number, the seed file and the mutations, so `STRIPECAL_FUZZ_SEED=... cargo test
 //! --test fuzz_mutation` reproduces it.
 
+mod fuzz_faults;
 mod fuzz_support;
 
 use std::path::{Path, PathBuf};

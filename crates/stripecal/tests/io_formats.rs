@@ -667,6 +667,7 @@ fn make_dataset(dir: &Path, views_csv: &str) {
     fs::create_dir_all(dir.join("images")).unwrap();
     save_gray_png(dir.join("images/a.png"), &img).unwrap();
     save_gray_png(dir.join("images/b.png"), &img).unwrap();
+    save_gray_png(dir.join("images/c.png"), &img).unwrap();
 }
 
 #[test]
@@ -675,7 +676,7 @@ fn dataset_loads_and_reports_missing_images() {
     let h = "board_image,laser_image,q1,q2,q3,q4,q5,q6\n";
     make_dataset(
         d.path(),
-        &format!("{h}images/a.png,images/b.png,0,0,0,0,-90,0\nimages/b.png,,1,0,0,0,-90,0\n"),
+        &format!("{h}images/a.png,images/b.png,0,0,0,0,-90,0\nimages/c.png,,1,0,0,0,-90,0\n"),
     );
     let ds = Dataset::load(d.path()).unwrap();
     assert_eq!(ds.views.len(), 2);
@@ -684,7 +685,7 @@ fn dataset_loads_and_reports_missing_images() {
 
     make_dataset(
         d.path(),
-        &format!("{h}images/a.png,images/b.png,0,0,0,0,-90,0\nimages/a.png,images/missing.png,1,0,0,0,-90,0\n"),
+        &format!("{h}images/a.png,images/b.png,0,0,0,0,-90,0\nimages/c.png,images/missing.png,1,0,0,0,-90,0\n"),
     );
     let e = Dataset::load(d.path()).unwrap_err();
     assert_format(e, "views.csv", "line 3", "missing.png does not exist");

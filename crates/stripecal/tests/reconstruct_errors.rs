@@ -329,6 +329,90 @@ fn write_good_scan(dir: &Path) {
     }
 }
 
+/// A baseline JPEG of `img` (quality 90).
+fn jpeg_of(img: &GrayImage<u8>) -> Vec<u8> {
+    let mut out = Vec::new();
+    image::codecs::jpeg::JpegEncoder::new_with_quality(&mut out, 90)
+        .encode(
+            &img.data,
+            img.width as u32,
+            img.height as u32,
+            image::ExtendedColorType::L8,
+        )
+        .unwrap();
+    out
+}
+
+/// The offset of the first byte after a JPEG's start-of-scan segment.
+fn scan_start(b: &[u8]) -> usize {
+    let mut i = 2;
+    while i + 4 <= b.len() {
+        let len = u16::from_be_bytes([b[i + 2], b[i + 3]]) as usize;
+        if b[i + 1] == 0xDA {
+            return i + 2 + len;
+        }
+        i += 2 + len;
+    }
+    panic!("no start of scan")
+}
+
+fn crc32(bytes: &[u8]) -> u32 {
+    let mut c = 0xffff_ffffu32;
+    for &b in bytes {
+        c ^= b as u32;
+        for _ in 0..8 {
+            c = if c & 1 != 0 {
+                (c >> 1) ^ 0xedb8_8320
+            } else {
+                c >> 1
+            };
+        }
+    }
+    !c
+}
+
+/// `png` with a byte of its compressed image data changed (the 6th byte of the first
+/// IDAT's zlib stream: inside the first rows) and every chunk's CRC recomputed, so only
+/// the zlib checksum can tell.
+fn damaged_png(png: &[u8]) -> Vec<u8> {
+    let mut b = png.to_vec();
+    let mut pos = 8;
+    while pos + 12 <= b.len() {
+        let len = u32::from_be_bytes([b[pos], b[pos + 1], b[pos + 2], b[pos + 3]]) as usize;
+        if &b[pos + 4..pos + 8] == b"IDAT" {
+            b[pos + 8 + 6.min(len - 1)] ^= 0x10;
+            let crc = crc32(&b[pos + 4..pos + 8 + len]);
+            b[pos + 8 + len..pos + 12 + len].copy_from_slice(&crc.to_be_bytes());
+            break;
+        }
+        pos += 12 + len;
+    }
+    b
+}
+
+/// A PNG whose header says `w x h` (8-bit gray) with almost no data.
+fn png_header_only(w: u32, h: u32) -> Vec<u8> {
+    let mut b = b"\x89PNG\r\n\x1a\n".to_vec();
+    let mut chunk = |kind: &[u8], data: &[u8]| {
+        b.extend_from_slice(&(data.len() as u32).to_be_bytes());
+        let mut c = kind.to_vec();
+        c.extend_from_slice(data);
+        b.extend_from_slice(&c);
+        b.extend_from_slice(&crc32(&c).to_be_bytes());
+    };
+    let mut ihdr = Vec::new();
+    ihdr.extend_from_slice(&w.to_be_bytes());
+    ihdr.extend_from_slice(&h.to_be_bytes());
+    ihdr.extend_from_slice(&[8, 0, 0, 0, 0]);
+    chunk(b"IHDR", &ihdr);
+    chunk(
+        b"IDAT",
+        &[0x78, 0x9c, 0x63, 0x00, 0x00, 0x00, 0x01, 0x00, 0x01],
+    );
+    chunk(b"IEND", &[]);
+    b
+}
+
 fn opts_with(on_bad_image: BadImage) -> ReconstructOptions {
     ReconstructOptions {
         on_bad_image,
@@ -368,6 +452,7 @@ fn bad_image_in_the_middle_stops_or_is_skipped() {
 
     let k = 3usize; // the bad frame; scan.csv line k + 2
     let png = std::fs::read(clean_dir.join("images/f3.png")).unwrap();
+    let png2 = png.clone();
     type Spoil = Box<dyn Fn(&Path)>;
     let cases: Vec<(&str, Spoil, &str)> = vec![
         (
@@ -407,7 +492,30 @@ fn bad_image_in_the_middle_stops_or_is_skipped() {
                 std::fs::remove_file(p).unwrap();
                 std::fs::create_dir(p).unwrap()
             }),
-            "is not a file",
+            "is a folder, not a file",
+        ),
+        // issue 39, fault 6: a truncated JPEG decoded with its missing rows made up
+        (
+            "truncated JPEG",
+            Box::new(|p: &Path| {
+                // cut inside the image data: the decoder alone makes up the rest
+                let jpeg = jpeg_of(&stripe_image(W, H, 29.0));
+                let data = scan_start(&jpeg);
+                std::fs::write(p, &jpeg[..data + (jpeg.len() - data) / 2]).unwrap()
+            }),
+            "truncated JPEG",
+        ),
+        // issue 39, fault 7: compressed data damaged under intact chunk CRCs
+        (
+            "damaged PNG",
+            Box::new(move |p: &Path| std::fs::write(p, damaged_png(&png2)).unwrap()),
+            "damaged PNG",
+        ),
+        // refused from its header, never decoded
+        (
+            "huge header",
+            Box::new(|p: &Path| std::fs::write(p, png_header_only(30000, 30000)).unwrap()),
+            "is 30000 x 30000 pixels, the calibrated camera is 64 x 48",
         ),
         (
             "wrong size",

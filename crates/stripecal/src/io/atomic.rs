@@ -94,9 +94,82 @@ fn sync_dir(dir: &Path) {
     }
 }
 
-/// Reads a whole text file: [`Error::Io`] when it cannot be read, [`Error::Format`]
-/// (naming the line) when it is not UTF-8. A leading UTF-8 byte-order mark is dropped.
+/// Why `path` cannot be read as a regular file, or `None` when it can be opened as one:
+/// the error to report (the operating system's own when it has one, so its kind and
+/// number stay) and a sentence that completes "`path` ...": it does not exist, is a
+/// folder, a FIFO (reading it would wait for a writer), a device (`/dev/zero` never
+/// ends), a socket, or a symbolic link that cannot be followed (a loop, or one pointing
+/// nowhere).
+pub fn file_problem(path: &Path) -> Option<(io::Error, String)> {
+    match fs::metadata(path) {
+        Ok(m) if m.is_file() => None,
+        Ok(m) if m.is_dir() => {
+            let why = "is a folder, not a file";
+            Some((io::Error::new(io::ErrorKind::IsADirectory, why), why.into()))
+        }
+        Ok(m) => {
+            let why = format!("is {}, not a regular file", special_kind(&m.file_type()));
+            Some((
+                io::Error::new(io::ErrorKind::InvalidInput, why.clone()),
+                why,
+            ))
+        }
+        Err(e) => {
+            let link = fs::symlink_metadata(path).is_ok_and(|m| m.file_type().is_symlink());
+            let why = if link {
+                format!(
+                    "is a symbolic link that cannot be followed (a loop, or it points to \
+                     nothing): {e}"
+                )
+            } else if e.kind() == io::ErrorKind::NotFound {
+                "does not exist".into()
+            } else {
+                format!("cannot be accessed: {e}")
+            };
+            Some((e, why))
+        }
+    }
+}
+
+/// What a file that is neither a regular file nor a folder is.
+fn special_kind(t: &fs::FileType) -> &'static str {
+    #[cfg(unix)]
+    {
+        use std::os::unix::fs::FileTypeExt;
+        if t.is_fifo() {
+            return "a FIFO (named pipe)";
+        }
+        if t.is_char_device() {
+            return "a character device (such as /dev/zero)";
+        }
+        if t.is_block_device() {
+            return "a block device";
+        }
+        if t.is_socket() {
+            return "a socket";
+        }
+    }
+    let _ = t;
+    "a special file"
+}
+
+/// [`Error::Io`] naming `path` when it is not a regular file that can be opened
+/// ([`file_problem`]): checked before opening, so that a FIFO or a device never blocks
+/// or floods a reader.
+pub(super) fn check_regular(path: &Path) -> Result<()> {
+    match file_problem(path) {
+        None => Ok(()),
+        // a missing file keeps the system's error (Python's FileNotFoundError)
+        Some((e, why)) if why == "does not exist" => Err(Error::io(path, e)),
+        Some((e, why)) => Err(Error::io(path, io::Error::new(e.kind(), why))),
+    }
+}
+
+/// Reads a whole text file: [`Error::Io`] when it cannot be read (or is not a regular
+/// file, [`check_regular`]), [`Error::Format`] (naming the line) when it is not UTF-8.
+/// A leading UTF-8 byte-order mark is dropped.
 pub(super) fn read_text(path: &Path) -> Result<String> {
+    check_regular(path)?;
     let bytes = fs::read(path).map_err(|e| Error::io(path, e))?;
     match String::from_utf8(bytes) {
         Ok(mut s) => {

@@ -200,7 +200,81 @@ pub(super) fn parse_table(
             reading,
         });
     }
+    check_unique_files(path, names, &rows)?;
     Ok(rows)
+}
+
+/// A file name as a key: `.` components and repeated separators dropped, so that
+/// `images/./a.png` and `images//a.png` are `images/a.png`.
+fn name_key(name: &str) -> String {
+    let p = Path::new(name);
+    let parts: Vec<String> = p
+        .components()
+        .filter(|c| !matches!(c, std::path::Component::CurDir))
+        .map(|c| c.as_os_str().to_string_lossy().into_owned())
+        .collect();
+    parts.join("/")
+}
+
+/// Refuses a file named on two rows of a table: a repeated row (or an image paired with
+/// two poses) would count one observation twice, doubling its weight and making the
+/// uncertainties too small, silently. The error is on the later line and names the
+/// earlier one. One row may name one file twice (`laser_image` = `board_image`: one
+/// image holds both).
+fn check_unique_files(path: &Path, columns: &[&str], rows: &[Row]) -> Result<()> {
+    let mut seen: std::collections::HashMap<String, (usize, usize)> =
+        std::collections::HashMap::new();
+    for (k, row) in rows.iter().enumerate() {
+        for (c, name) in row.names.iter().enumerate() {
+            if name.is_empty() {
+                continue;
+            }
+            let key = name_key(name);
+            match seen.get(&key) {
+                Some(&(j, _)) if j == k => {}
+                Some(&(j, c0)) => {
+                    let first = &rows[j];
+                    let msg = if first.names == row.names && first.reading == row.reading {
+                        format!(
+                            "repeats line {} exactly ({} {name}, the same {}): the row would \
+                             be counted twice, its weight doubled and the uncertainties too \
+                             small; remove one of the two lines",
+                            first.line,
+                            columns[c],
+                            if row.reading == RobotReading::Fixed {
+                                "row"
+                            } else {
+                                "robot pose"
+                            }
+                        )
+                    } else {
+                        format!(
+                            "{} {name} is named on line {} already ({}): one file is one \
+                             observation, on one line only (counted twice it would double its \
+                             weight{})",
+                            columns[c],
+                            first.line,
+                            columns[c0],
+                            if row.reading != first.reading {
+                                ", paired with two different robot poses"
+                            } else {
+                                ""
+                            }
+                        )
+                    };
+                    return Err(Error::format(
+                        path,
+                        format!("line {}, column {}", row.line, columns[c]),
+                        msg,
+                    ));
+                }
+                None => {
+                    seen.insert(key, (k, c));
+                }
+            }
+        }
+    }
+    Ok(())
 }
 
 /// Reads views.csv: header `board_image,laser_image,q1,...,qN` or

@@ -93,15 +93,16 @@ pub(super) fn check_files_exist<'a>(
     Ok(())
 }
 
-/// Checks that the file `rel` (an `image`, a `profile`) named on `line` of `csv` exists
-/// under `root`.
+/// Checks that the file `rel` (an `image`, a `profile`) named on `line` of `csv` is a
+/// regular file under `root` (not missing, a folder, a FIFO, a device or a broken
+/// symbolic link: [`super::atomic::file_problem`] says which).
 fn check_file_exists(root: &Path, csv: &Path, line: usize, what: &str, rel: &Path) -> Result<()> {
     let p = root.join(rel);
-    if !p.is_file() {
+    if let Some((_, why)) = super::atomic::file_problem(&p) {
         return Err(Error::format(
             csv,
             format!("line {line}"),
-            format!("{what} {} does not exist", p.display()),
+            format!("{what} {} {why}", p.display()),
         ));
     }
     Ok(())

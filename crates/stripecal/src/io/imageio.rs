@@ -11,7 +11,7 @@ use std::path::Path;
 use image::codecs::png::PngEncoder;
 use image::{DynamicImage, ExtendedColorType, ImageEncoder, ImageFormat, ImageReader, Limits};
 
-use super::atomic::write_atomic;
+use super::atomic::{check_regular, write_atomic};
 use crate::error::{Error, Result};
 use crate::model::image::{AnyGray, AnyImage, AnyRgb, GrayImage, RgbImage};
 
@@ -64,38 +64,38 @@ pub fn load_image(p: impl AsRef<Path>) -> Result<AnyImage> {
 /// Loads a PNG, TIFF, BMP or JPEG image, with what the file was: gray (and gray +
 /// alpha, alpha dropped) as [`AnyImage::Gray`], colour (RGB, RGBA with alpha dropped)
 /// as [`AnyImage::Rgb`], 8- or 16-bit. Errors and decoder limits as [`load_gray_info`].
+///
+/// Damage is an error, never a silently wrong image: a path that is not a regular file
+/// (a folder, a FIFO, a device, a symbolic-link loop) is refused before it is opened; a
+/// PNG's compressed data is checked against its zlib (Adler-32) checksum as well as its
+/// chunks' CRCs, and a PNG must end with its `IEND` chunk; a JPEG must end with its
+/// end-of-image marker (a truncated JPEG otherwise decodes with its missing rows made
+/// up). Both are [`Error::Image`] saying what is wrong.
 pub fn load_image_info(p: impl AsRef<Path>) -> Result<(AnyImage, ImageInfo)> {
     let path = p.as_ref();
-    let mut reader = ImageReader::open(path)
+    check_regular(path)?;
+    let reader = ImageReader::open(path)
         .map_err(|e| Error::io(path, e))?
         .with_guessed_format()
         .map_err(|e| Error::io(path, e))?;
-    let format = match reader.format() {
-        Some(ImageFormat::Png) => "png",
-        Some(ImageFormat::Tiff) => "tiff",
-        Some(ImageFormat::Bmp) => "bmp",
-        Some(ImageFormat::Jpeg) => "jpeg",
-        Some(other) => {
-            return Err(image_err(
-                path,
-                format!("unsupported image format {other:?}: expected PNG, TIFF, BMP or JPEG"),
-            ))
+    let format = format_name(path, reader.format())?;
+    let img = match format {
+        "png" => decode_png(path)?,
+        "jpeg" => {
+            let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
+            check_jpeg_complete(&bytes).map_err(|why| image_err(path, why))?;
+            let mut r = ImageReader::with_format(Cursor::new(bytes), ImageFormat::Jpeg);
+            r.limits(limits());
+            r.decode().map_err(|e| image_err(path, e.to_string()))?
         }
-        None => {
-            return Err(image_err(
-                path,
-                "not a PNG, TIFF, BMP or JPEG file (unrecognised content)",
-            ))
+        _ => {
+            let mut reader = reader;
+            reader.limits(limits());
+            reader
+                .decode()
+                .map_err(|e| image_err(path, e.to_string()))?
         }
     };
-    let mut limits = Limits::default();
-    limits.max_image_width = Some(MAX_IMAGE_SIDE);
-    limits.max_image_height = Some(MAX_IMAGE_SIDE);
-    limits.max_alloc = Some(MAX_IMAGE_BYTES);
-    reader.limits(limits);
-    let img = reader
-        .decode()
-        .map_err(|e| image_err(path, e.to_string()))?;
     let colour = !matches!(
         img,
         DynamicImage::ImageLuma8(_)
@@ -112,6 +112,236 @@ pub fn load_image_info(p: impl AsRef<Path>) -> Result<(AnyImage, ImageInfo)> {
             lossy: format == "jpeg",
         },
     ))
+}
+
+/// An image file's width and height from its header, without decoding its pixels: a
+/// caller that knows the size it needs (rig.json's, the calibrated camera's) refuses
+/// another size before the decoder allocates anything for it. Errors as
+/// [`load_image_info`] for files that are not images.
+pub fn image_size(p: impl AsRef<Path>) -> Result<(u32, u32)> {
+    let path = p.as_ref();
+    check_regular(path)?;
+    let mut reader = ImageReader::open(path)
+        .map_err(|e| Error::io(path, e))?
+        .with_guessed_format()
+        .map_err(|e| Error::io(path, e))?;
+    let format = format_name(path, reader.format())?;
+    let mut l = limits();
+    // the header only: a size beyond the decoder's limits is still reported as a size
+    l.max_image_width = None;
+    l.max_image_height = None;
+    reader.limits(l);
+    reader.into_dimensions().map_err(|e| {
+        // a JPEG cut inside its headers: say so rather than the decoder's byte counts
+        let cut = (format == "jpeg")
+            .then(|| std::fs::read(path).ok())
+            .flatten()
+            .and_then(|b| check_jpeg_complete(&b).err());
+        image_err(path, cut.unwrap_or_else(|| e.to_string()))
+    })
+}
+
+/// The decoder limits ([`MAX_IMAGE_SIDE`], [`MAX_IMAGE_BYTES`]).
+fn limits() -> Limits {
+    let mut limits = Limits::default();
+    limits.max_image_width = Some(MAX_IMAGE_SIDE);
+    limits.max_image_height = Some(MAX_IMAGE_SIDE);
+    limits.max_alloc = Some(MAX_IMAGE_BYTES);
+    limits
+}
+
+/// `png`, `tiff`, `bmp` or `jpeg`; other formats and unrecognised content are errors.
+fn format_name(path: &Path, format: Option<ImageFormat>) -> Result<&'static str> {
+    match format {
+        Some(ImageFormat::Png) => Ok("png"),
+        Some(ImageFormat::Tiff) => Ok("tiff"),
+        Some(ImageFormat::Bmp) => Ok("bmp"),
+        Some(ImageFormat::Jpeg) => Ok("jpeg"),
+        Some(other) => Err(image_err(
+            path,
+            format!("unsupported image format {other:?}: expected PNG, TIFF, BMP or JPEG"),
+        )),
+        None => Err(image_err(
+            path,
+            "not a PNG, TIFF, BMP or JPEG file (unrecognised content)",
+        )),
+    }
+}
+
+/// Decodes a PNG with every checksum verified (the `png` crate's default skips the zlib
+/// stream's Adler-32, so damaged compressed data under intact chunk CRCs decoded to a
+/// wrong image) and the file read to its `IEND` chunk.
+fn decode_png(path: &Path) -> Result<DynamicImage> {
+    let file = std::fs::File::open(path).map_err(|e| Error::io(path, e))?;
+    let mut options = png::DecodeOptions::default();
+    options.set_ignore_adler32(false);
+    options.set_ignore_crc(false);
+    let mut decoder = png::Decoder::new_with_options(std::io::BufReader::new(file), options);
+    decoder.set_limits(png::Limits {
+        bytes: usize::try_from(MAX_IMAGE_BYTES).unwrap_or(usize::MAX),
+    });
+    let png_err = |e: png::DecodingError| image_err(path, png_message(e));
+    let (w, h) = {
+        let info = decoder.read_header_info().map_err(png_err)?;
+        (info.width, info.height)
+    };
+    if w > MAX_IMAGE_SIDE || h > MAX_IMAGE_SIDE {
+        return Err(image_err(
+            path,
+            format!("{w} x {h} pixels exceeds the decoder's limit of {MAX_IMAGE_SIDE} per side"),
+        ));
+    }
+    // as the image crate: palettes and gray below 8 bits expanded, tRNS to alpha
+    decoder.set_transformations(png::Transformations::EXPAND);
+    let mut reader = decoder.read_info().map_err(png_err)?;
+    let size = reader
+        .output_buffer_size()
+        .filter(|&n| n as u64 <= MAX_IMAGE_BYTES)
+        .ok_or_else(|| {
+            image_err(
+                path,
+                format!("{w} x {h} pixels exceeds the decoder's memory limit"),
+            )
+        })?;
+    let mut buf = vec![0u8; size];
+    reader.next_frame(&mut buf).map_err(png_err)?;
+    // the rest of the file: the end of the zlib stream (its checksum) and IEND
+    reader.finish().map_err(png_err)?;
+    let (colour, depth) = reader.output_color_type();
+    let bad = || image_err(path, "decoded buffer does not match the image size");
+    let sixteen = |b: Vec<u8>| -> Vec<u16> {
+        b.chunks_exact(2)
+            .map(|c| u16::from_be_bytes([c[0], c[1]]))
+            .collect()
+    };
+    use png::{BitDepth as B, ColorType as C};
+    Ok(match (colour, depth) {
+        (C::Grayscale, B::Eight) => {
+            DynamicImage::ImageLuma8(image::ImageBuffer::from_raw(w, h, buf).ok_or_else(bad)?)
+        }
+        (C::Grayscale, B::Sixteen) => DynamicImage::ImageLuma16(
+            image::ImageBuffer::from_raw(w, h, sixteen(buf)).ok_or_else(bad)?,
+        ),
+        (C::GrayscaleAlpha, B::Eight) => {
+            DynamicImage::ImageLumaA8(image::ImageBuffer::from_raw(w, h, buf).ok_or_else(bad)?)
+        }
+        (C::GrayscaleAlpha, B::Sixteen) => DynamicImage::ImageLumaA16(
+            image::ImageBuffer::from_raw(w, h, sixteen(buf)).ok_or_else(bad)?,
+        ),
+        (C::Rgb, B::Eight) => {
+            DynamicImage::ImageRgb8(image::ImageBuffer::from_raw(w, h, buf).ok_or_else(bad)?)
+        }
+        (C::Rgb, B::Sixteen) => DynamicImage::ImageRgb16(
+            image::ImageBuffer::from_raw(w, h, sixteen(buf)).ok_or_else(bad)?,
+        ),
+        (C::Rgba, B::Eight) => {
+            DynamicImage::ImageRgba8(image::ImageBuffer::from_raw(w, h, buf).ok_or_else(bad)?)
+        }
+        (C::Rgba, B::Sixteen) => DynamicImage::ImageRgba16(
+            image::ImageBuffer::from_raw(w, h, sixteen(buf)).ok_or_else(bad)?,
+        ),
+        (c, d) => {
+            return Err(image_err(
+                path,
+                format!("unsupported PNG colour type {c:?} at {d:?} bits"),
+            ))
+        }
+    })
+}
+
+/// What a PNG decoding error means for the user.
+fn png_message(e: png::DecodingError) -> String {
+    match e {
+        png::DecodingError::IoError(io) if io.kind() == std::io::ErrorKind::UnexpectedEof => {
+            "truncated PNG: the file ends before its image data (or its IEND chunk) is \
+             complete"
+                .into()
+        }
+        png::DecodingError::IoError(io) => format!("read error: {io}"),
+        png::DecodingError::Format(f) => {
+            let f = f.to_string();
+            if f.contains("WrongChecksum") {
+                "damaged PNG: its compressed image data does not match its zlib (Adler-32) \
+                 checksum, though its chunks' CRCs do: the pixels would be wrong"
+                    .into()
+            } else {
+                format!("damaged PNG: {f}")
+            }
+        }
+        png::DecodingError::LimitsExceeded => "exceeds the decoder's memory limit".into(),
+        other => other.to_string(),
+    }
+}
+
+/// Checks that a JPEG file is complete: its marker segments walked from the start of
+/// image to the end-of-image marker (`FF D9`), through every scan's entropy-coded data.
+/// A truncated file ends before that marker; the decoder would make up the missing rows.
+fn check_jpeg_complete(b: &[u8]) -> std::result::Result<(), String> {
+    const TRUNCATED: &str = "truncated JPEG: the file ends";
+    if b.len() < 4 || b[0] != 0xFF || b[1] != 0xD8 {
+        return Err("not a JPEG file (no start-of-image marker)".into());
+    }
+    let mut i = 2;
+    loop {
+        // a marker: FF (fill bytes FF allowed), then its code
+        if i >= b.len() {
+            return Err(format!("{TRUNCATED} before its end-of-image marker"));
+        }
+        if b[i] != 0xFF {
+            return Err(format!(
+                "damaged JPEG: byte {i} (0x{:02X}) where a marker should start",
+                b[i]
+            ));
+        }
+        while i < b.len() && b[i] == 0xFF {
+            i += 1;
+        }
+        let Some(&code) = b.get(i) else {
+            return Err(format!("{TRUNCATED} before its end-of-image marker"));
+        };
+        i += 1;
+        match code {
+            0xD9 => return Ok(()),
+            // markers without a segment
+            0x01 | 0xD0..=0xD7 => continue,
+            0x00 => return Err(format!("damaged JPEG: a stray 0xFF00 at byte {}", i - 2)),
+            _ => {}
+        }
+        let Some(len) = b
+            .get(i..i + 2)
+            .map(|l| usize::from(u16::from_be_bytes([l[0], l[1]])))
+        else {
+            return Err(format!("{TRUNCATED} inside a segment header"));
+        };
+        if len < 2 {
+            return Err(format!(
+                "damaged JPEG: a segment of length {len} at byte {i}"
+            ));
+        }
+        if i + len > b.len() {
+            return Err(format!(
+                "{TRUNCATED} inside a segment (marker 0xFF{code:02X})"
+            ));
+        }
+        i += len;
+        if code == 0xDA {
+            // entropy-coded data: FF is stuffed as FF 00; restart markers FF D0..D7
+            loop {
+                match b.get(i..i + 2) {
+                    None => {
+                        return Err(format!(
+                            "{TRUNCATED} inside its image data, before the end-of-image marker \
+                             (rows at the bottom would be made up)"
+                        ))
+                    }
+                    Some([0xFF, 0x00]) | Some([0xFF, 0xD0..=0xD7]) => i += 2,
+                    Some([0xFF, 0xFF]) => i += 1,
+                    Some([0xFF, _]) => break,
+                    Some(_) => i += 1,
+                }
+            }
+        }
+    }
 }
 
 fn to_image(path: &Path, img: DynamicImage) -> Result<AnyImage> {

@@ -13,21 +13,137 @@ use crate::model::geometry::{iso_from_rotvec, iso_to_rotvec, Iso3, MAX_ROTVEC_AN
 /// The location used for errors about the top-level object.
 const TOP: &str = "top level";
 
-/// Parses JSON text; syntax errors name the line and column.
+/// Parses JSON text; syntax errors name the line and column. A key that appears twice in
+/// one object is an error naming its key path and line (serde_json keeps the last value
+/// silently: a rig.json with two `pitch_mm` would be read with the one the user did not
+/// look at).
 pub(super) fn parse(file: &Path, text: &str) -> Result<Value> {
-    serde_json::from_str(text).map_err(|e| {
+    use serde::de::DeserializeSeed;
+    let mut de = serde_json::Deserializer::from_str(text);
+    let value = Strict {
+        path: String::new(),
+    }
+    .deserialize(&mut de)
+    .and_then(|v| de.end().map(|()| v));
+    value.map_err(|e| {
         let msg = e.to_string();
         // serde_json appends " at line L column C"; the location already says it.
         let msg = match msg.rfind(" at line ") {
             Some(i) if e.line() > 0 => msg[..i].to_string(),
             _ => msg,
         };
+        // a repeated key is well-formed JSON, but not a document with one meaning
+        let what = if msg.starts_with("key `") {
+            msg
+        } else {
+            format!("invalid JSON: {msg}")
+        };
         Error::format(
             file,
             format!("line {}, column {}", e.line(), e.column()),
-            format!("invalid JSON: {msg}"),
+            what,
         )
     })
+}
+
+/// Builds a [`Value`] as serde_json does, refusing a key repeated in one object; `path`
+/// is the key path of the value being read (`board`, `robot.joints[2]`).
+struct Strict {
+    path: String,
+}
+
+impl<'de> serde::de::DeserializeSeed<'de> for Strict {
+    type Value = Value;
+
+    fn deserialize<D: serde::Deserializer<'de>>(
+        self,
+        d: D,
+    ) -> std::result::Result<Value, D::Error> {
+        d.deserialize_any(self)
+    }
+}
+
+impl<'de> serde::de::Visitor<'de> for Strict {
+    type Value = Value;
+
+    fn expecting(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str("any JSON value")
+    }
+
+    fn visit_bool<E>(self, v: bool) -> std::result::Result<Value, E> {
+        Ok(Value::Bool(v))
+    }
+
+    fn visit_i64<E>(self, v: i64) -> std::result::Result<Value, E> {
+        Ok(Value::from(v))
+    }
+
+    fn visit_u64<E>(self, v: u64) -> std::result::Result<Value, E> {
+        Ok(Value::from(v))
+    }
+
+    fn visit_f64<E>(self, v: f64) -> std::result::Result<Value, E> {
+        Ok(Value::from(v))
+    }
+
+    fn visit_str<E>(self, v: &str) -> std::result::Result<Value, E> {
+        Ok(Value::String(v.to_owned()))
+    }
+
+    fn visit_string<E>(self, v: String) -> std::result::Result<Value, E> {
+        Ok(Value::String(v))
+    }
+
+    fn visit_unit<E>(self) -> std::result::Result<Value, E> {
+        Ok(Value::Null)
+    }
+
+    fn visit_none<E>(self) -> std::result::Result<Value, E> {
+        Ok(Value::Null)
+    }
+
+    fn visit_some<D: serde::Deserializer<'de>>(self, d: D) -> std::result::Result<Value, D::Error> {
+        serde::de::DeserializeSeed::deserialize(self, d)
+    }
+
+    fn visit_seq<A: serde::de::SeqAccess<'de>>(
+        self,
+        mut seq: A,
+    ) -> std::result::Result<Value, A::Error> {
+        let mut items = Vec::new();
+        loop {
+            let seed = Strict {
+                path: format!("{}[{}]", self.path, items.len()),
+            };
+            match seq.next_element_seed(seed)? {
+                Some(v) => items.push(v),
+                None => return Ok(Value::Array(items)),
+            }
+        }
+    }
+
+    fn visit_map<A: serde::de::MapAccess<'de>>(
+        self,
+        mut map: A,
+    ) -> std::result::Result<Value, A::Error> {
+        let mut out = Map::new();
+        while let Some(key) = map.next_key::<String>()? {
+            let path = if self.path.is_empty() {
+                key.clone()
+            } else {
+                format!("{}.{key}", self.path)
+            };
+            if out.contains_key(&key) {
+                return Err(serde::de::Error::custom(format_args!(
+                    "key `{path}` appears twice in one object (which value is meant cannot be \
+                     told; JSON readers differ: some keep the first, others the last)"
+                )));
+            }
+            let v = map.next_value_seed(Strict { path })?;
+            out.insert(key, v);
+        }
+        Ok(Value::Object(out))
+    }
 }
 
 /// Pretty-prints a value (2-space indent) with a final newline.

@@ -33,7 +33,7 @@ mod rig;
 mod sensor;
 
 pub use artefacts::read_artefacts;
-pub use atomic::write_atomic;
+pub use atomic::{file_problem, write_atomic};
 pub use calibration::{
     calibration_from_json, calibration_leave_one_out, calibration_robot_pose_noise,
     calibration_to_json, read_calibration, read_sphere_fit, read_truth, sphere_fit_to_json,
@@ -44,8 +44,8 @@ pub use csv::{
     write_views_csv_with,
 };
 pub use imageio::{
-    load_gray, load_gray_info, load_image, load_image_info, save_gray_png, save_png, save_rgb_png,
-    ImageInfo, MAX_IMAGE_BYTES, MAX_IMAGE_SIDE,
+    image_size, load_gray, load_gray_info, load_image, load_image_info, save_gray_png, save_png,
+    save_rgb_png, ImageInfo, MAX_IMAGE_BYTES, MAX_IMAGE_SIDE,
 };
 pub use ply::{read_ply, write_ply, write_ply_with_comments, PlyFormat};
 pub use poses::{

@@ -146,10 +146,10 @@ fn board_from(b: &Obj<'_>) -> Result<Board> {
             } else {
                 b.positive_f64("marker_diameter_mm")?
             };
-            (b.positive_f64("pitch_mm")?, circle, marker, None)
+            (pitch_in_range(b, "pitch_mm")?, circle, marker, None)
         }
         BoardKind::Chessboard => {
-            let square = b.positive_f64("square_mm")?;
+            let square = pitch_in_range(b, "square_mm")?;
             let pitch = b.opt_positive_f64("pitch_mm")?.unwrap_or(square);
             if pitch != square {
                 return Err(b.err(format!(
@@ -173,6 +173,32 @@ fn board_from(b: &Obj<'_>) -> Result<Board> {
     };
     board.validate().map_err(|e| b.err(invalid_message(e)))?;
     Ok(board)
+}
+
+/// The smallest and largest board pitch rig.json may give (mm): a printed target's
+/// spacing is between a micrometre and ten metres. A value outside (`1e-9`, `1e300`:
+/// metres or a typo) made every view's homography fail without naming the key.
+pub const PITCH_RANGE_MM: (f64, f64) = (1e-3, 1e4);
+
+/// `board.<key>` (the pitch or the square size): a positive number within
+/// [`PITCH_RANGE_MM`].
+fn pitch_in_range(b: &Obj<'_>, key: &str) -> Result<f64> {
+    let v = b.req(key)?;
+    let x = v.positive_f64()?;
+    let (lo, hi) = PITCH_RANGE_MM;
+    if !(lo..=hi).contains(&x) {
+        return Err(v.err(format!(
+            "{} mm is not a board's spacing: expected {lo} to {hi} mm (millimetres, the \
+             distance between neighbouring {})",
+            super::poses::short(x),
+            if key == "square_mm" {
+                "corners"
+            } else {
+                "circle centres"
+            }
+        )));
+    }
+    Ok(x)
 }
 
 /// A robot `{"name": ..., "joints": [{theta0_deg, alpha_deg, a_mm, d_mm, beta_deg?}, ...],

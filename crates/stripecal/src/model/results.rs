@@ -171,6 +171,32 @@ pub struct SphereFit {
     pub extra: serde_json::Map<String, serde_json::Value>,
 }
 
+impl SphereFit {
+    /// The fit's one-sigma of the diameter (mm; the fit's random part only): the extra
+    /// key `fit_diameter_sigma_mm`, or `diameter_sigma_mm` of files written before it
+    /// was named for what it is. `None` when neither is a number.
+    pub fn fit_diameter_sigma_mm(&self) -> Option<f64> {
+        ["fit_diameter_sigma_mm", "diameter_sigma_mm"]
+            .iter()
+            .find_map(|k| self.extra.get(*k).and_then(|v| v.as_f64()))
+    }
+
+    /// The fit's one-sigma of the centre's coordinates (mm; random part only):
+    /// `fit_center_sigma_mm`, or an older file's `center_sigma_mm`. `None` when neither
+    /// is an array of 3 numbers.
+    pub fn fit_center_sigma_mm(&self) -> Option<[f64; 3]> {
+        ["fit_center_sigma_mm", "center_sigma_mm"]
+            .iter()
+            .find_map(|k| {
+                let a = self.extra.get(*k)?.as_array()?;
+                match a.iter().map(|x| x.as_f64()).collect::<Option<Vec<f64>>>()?[..] {
+                    [x, y, z] => Some([x, y, z]),
+                    _ => None,
+                }
+            })
+    }
+}
+
 /// A point cloud: xyz in mm (base frame) plus optional per-point properties.
 #[derive(Debug, Clone, PartialEq, Default)]
 pub struct Cloud {

@@ -52,6 +52,7 @@ pub(super) fn calibrate_unjudged(
     opts: &CalibrateOptions,
 ) -> Result<(CalibrationReport, Vec<QualityCheck>)> {
     check_poses_finite(views)?;
+    super::held::check_from_size(rig, opts)?;
     // `--from` without `--fix`: the file's camera and plane as a prior.
     if let Some(from) = opts
         .from
@@ -292,12 +293,12 @@ pub(super) fn laser_plane_stage(
     warnings: &mut Vec<String>,
 ) -> Result<Option<LaserPlaneFit>> {
     if used_obs.iter().all(|v| v.stripe.is_empty()) {
-        warnings.push(
-            "no view has stripe points on the board (no laser images): the laser plane is not \
-             estimated (\"laser_plane\": null); add it later with `stripecal calibrate \
-             --laser-only --from CALIBRATION.json LASER_DATASET`"
-                .into(),
-        );
+        warnings.push(format!(
+            "no view has stripe points on the board ({}): the laser plane is not estimated \
+             (\"laser_plane\": null); add it later with `stripecal calibrate --laser-only \
+             --from CALIBRATION.json LASER_DATASET`",
+            no_stripe_reason(used_obs)
+        ));
         return Ok(None);
     }
     let pv: Vec<(Iso3, Vec<[f64; 2]>)> = used_poses
@@ -308,6 +309,42 @@ pub(super) fn laser_plane_stage(
     let plane = fit_laser_plane(&pv, camera)?;
     warnings.extend(plane.warnings.iter().cloned());
     Ok(Some(plane))
+}
+
+/// Why no view has stripe points on the board: no laser images at all, or laser images
+/// whose line was not found (the views named) or not on the board.
+pub(super) fn no_stripe_reason(obs: &[ViewObs]) -> String {
+    let shapes: Vec<(usize, usize)> = obs
+        .iter()
+        .filter_map(|v| {
+            v.stripe_shape
+                .as_ref()
+                .map(|s| (v.view, s.extraction.found))
+        })
+        .collect();
+    if shapes.is_empty() {
+        return "no laser images".into();
+    }
+    let none: Vec<usize> = shapes.iter().filter(|s| s.1 == 0).map(|s| s.0).collect();
+    let off: Vec<usize> = shapes.iter().filter(|s| s.1 > 0).map(|s| s.0).collect();
+    let mut parts = Vec::new();
+    if !none.is_empty() {
+        parts.push(format!(
+            "no laser line found in the laser image of {}",
+            super::pairing::name_views(&none)
+        ));
+    }
+    if !off.is_empty() {
+        parts.push(format!(
+            "the laser line of {} is not on the board",
+            super::pairing::name_views(&off)
+        ));
+    }
+    format!(
+        "{} laser images, {}: check the exposure, the laser and rig.json's stripe.direction",
+        shapes.len(),
+        parts.join("; ")
+    )
 }
 
 /// The board-scale check and the leave-one-view-out figure of the one-stage

@@ -8,7 +8,7 @@ use serde_json::{Map, Value};
 use super::CalibrateOptions;
 use crate::calib::joint::{FreeBlocks, JointStart};
 use crate::error::{Error, Result};
-use crate::model::{Calibration, NamedCovariance};
+use crate::model::{Calibration, NamedCovariance, Rig};
 
 /// The blocks held from a calibration file.
 pub(super) struct Held<'a> {
@@ -48,6 +48,29 @@ pub(super) fn held(opts: &CalibrateOptions) -> Result<Option<Held<'_>>> {
             }))
         }
     }
+}
+
+/// `--from`'s calibration must be of this dataset's camera: its image size (the file's
+/// `camera.width` x `camera.height`) must be rig.json's. A camera calibrated at another
+/// size (another camera, binning, a crop) held or used as a prior would give a confident
+/// wrong result (a laser plane at 31 mm instead of 80), so it is refused, naming both
+/// sizes, whatever is held (`--fix`, `--laser-only`, or nothing: the prior).
+pub(super) fn check_from_size(rig: &Rig, opts: &CalibrateOptions) -> Result<()> {
+    let Some(from) = &opts.from else {
+        return Ok(());
+    };
+    let (fw, fh) = (from.camera.width, from.camera.height);
+    if (fw, fh) != (rig.width, rig.height) {
+        return Err(Error::InvalidInput(format!(
+            "the calibration to start from (--from) is of a {fw} x {fh} camera (its \
+             camera.width x camera.height), this dataset's images are {} x {} (rig.json \
+             camera.width x camera.height): a camera calibrated at another image size \
+             (another camera, binning or a crop) cannot be held or used as a prior here; \
+             calibrate this camera without --from, or start from a calibration of it",
+            rig.width, rig.height
+        )));
+    }
+    Ok(())
 }
 
 /// Whether `opts` hold no block (`--from` alone is then a prior, [`super::prior`]).

@@ -51,9 +51,14 @@ pub(super) fn calibrate_held_chain(
         .map(|(p, v)| (*p, v.stripe.clone()))
         .collect();
     if pv.len() < 2 {
+        let why = if pv.is_empty() {
+            format!(": {}", super::calibrate::no_stripe_reason(&obs))
+        } else {
+            String::new()
+        };
         return Err(Error::InvalidInput(format!(
             "the laser plane needs stripe points on the board in at least 2 views, got {} \
-             (of {} views whose board was found)",
+             (of {} views whose board was found){why}",
             pv.len(),
             obs.len()
         )));

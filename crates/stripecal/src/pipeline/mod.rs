@@ -286,6 +286,8 @@ pub fn calibrate_dataset_loaded(
     ds: &Dataset,
     opts: &CalibrateOptions,
 ) -> Result<CalibrationReport> {
+    // before the images are looked at: a --from of another camera is refused at once
+    held::check_from_size(&ds.rig, opts)?;
     let Observed {
         obs,
         mut warnings,

@@ -11,7 +11,7 @@ use rayon::prelude::*;
 use super::CalibrateOptions;
 use crate::calib::{CircleObs, StripeExtraction, StripeShape, ViewObs};
 use crate::error::{Error, Result};
-use crate::io::load_image_info;
+use crate::io::{image_size, load_image_info};
 use crate::model::image::AnyView;
 use crate::model::image::{AnyGray, AnyImage};
 use crate::model::{Dataset, RobotReading, StripeChannel, View};
@@ -103,6 +103,7 @@ pub fn observe_dataset(
 
 /// [`observe_dataset`] with the left-out views kept apart.
 pub(super) fn observe(ds: &Dataset, opts: &CalibrateOptions) -> Result<Observed> {
+    check_image_sizes(ds)?;
     let lossy = AtomicUsize::new(0);
     let mut stripe_opts = opts.stripe.clone();
     stripe_opts.direction = ds.rig.stripe_direction;
@@ -139,6 +140,40 @@ pub(super) fn observe(ds: &Dataset, opts: &CalibrateOptions) -> Result<Observed>
     }
     o.warnings.extend(extraction_warnings(ds, &o.obs));
     Ok(o)
+}
+
+/// Every image's size, read from its header, against rig.json's before any image is
+/// decoded: a file of another size (a 30000 x 30000 PNG) is refused without the decoder
+/// allocating for its pixels.
+fn check_image_sizes(ds: &Dataset) -> Result<()> {
+    let want = (ds.rig.width, ds.rig.height);
+    for (i, v) in ds.views.iter().enumerate() {
+        for rel in std::iter::once(&v.board_image).chain(v.laser_image.as_ref()) {
+            let (w, h) = image_size(ds.image_path(rel))?;
+            if (w, h) != want {
+                // the board image was checked first: a laser image that differs is also
+                // one that differs from its board image
+                let also = if rel == &v.board_image {
+                    String::new()
+                } else {
+                    format!(
+                        "; {} and {} differ in size",
+                        rel.display(),
+                        v.board_image.display()
+                    )
+                };
+                return Err(Error::InvalidInput(format!(
+                    "view {i} (views.csv line {}): {} is {w} x {h}, rig.json says {} x {} \
+                     (camera.width, camera.height){also}",
+                    v.line,
+                    rel.display(),
+                    want.0,
+                    want.1
+                )));
+            }
+        }
+    }
+    Ok(())
 }
 
 /// A view's stripe points are mostly saturated beyond this share: advice to lower the

@@ -130,8 +130,8 @@ pub(super) fn check_pairing(
         } else {
             named.extend_from_slice(earlier);
             named.sort_unstable();
-            QualityCheck::fail(
-                "pairing",
+            // a pose row deleted or inserted is said in those words
+            let message = break_message(&rows, &a, &b, members, &popts).unwrap_or_else(|| {
                 format!(
                     "the robot poses of {} do not fit their images{swapped} ({} against the \
                      other views' X and Z; limits {:.3} deg / {:.3} mm); only {members} of \
@@ -141,9 +141,9 @@ pub(super) fn check_pairing(
                     figures(&c, &out, &rows),
                     c.limit.0,
                     c.limit.1
-                ),
-                named.clone(),
-            )
+                )
+            });
+            QualityCheck::fail("pairing", message, named.clone())
         }
     };
     // the calibration goes on with the views that agree (for inspection if the gate
@@ -221,6 +221,34 @@ fn swapped_note(c: &Consensus, rows: &[usize]) -> String {
     )
 }
 
+/// The message of a pose column one row off from some view on (a deleted or an inserted
+/// pose row, [`consensus::find_break`]), naming the view and its views.csv line; `None`
+/// when no such break explains the views.
+fn break_message(
+    rows: &[usize],
+    a: &[Iso3],
+    b: &[Iso3],
+    agree_unshifted: usize,
+    popts: &PairingOptions,
+) -> Option<String> {
+    let br = consensus::find_break(rows, a, b, agree_unshifted, popts)?;
+    // views.csv: the header is line 1, view k is on line k + 2
+    let line = br.first + 2;
+    let (fits, what, moved) = if br.rows < 0 {
+        ("the row above", "deleted", "up")
+    } else {
+        ("the row below", "inserted", "down")
+    };
+    Some(format!(
+        "the robot poses are one row off from view {} (views.csv line {line}) on: the views \
+         before it agree as given, and from view {} on every image fits the robot pose of \
+         {fits}, not its own ({} of {} views agree paired so). A pose row was {what} at line \
+         {line} (the poses below it moved {moved} a row): re-pair the poses with their \
+         images",
+        br.first, br.first, br.agreeing, br.pairs
+    ))
+}
+
 /// The failed `pairing` check when no set of views agrees: a shifted pose column when a
 /// shift explains it, otherwise the figures.
 fn incoherent(
@@ -270,14 +298,29 @@ fn incoherent(
             all,
         );
     }
+    if let Some(msg) = break_message(rows, a, b, c.agreeing(), popts) {
+        return QualityCheck::fail("pairing", msg, all);
+    }
+    // The rotations agree and only the translations do not: the images and the poses
+    // are paired right, but on two length scales (the board's size in rig.json, or the
+    // pose columns' unit).
+    let rotations_agree = c.median.0 <= popts.coherence * c.motion.0;
+    let scale = if rotations_agree && c.median.1 > popts.coherence * c.motion.1 {
+        " (the rotations agree, only the translations do not: the board's size and the \
+         robot's translations are on different scales; check rig.json's board.pitch_mm (or \
+         board.square_mm for a chessboard) and that the translation columns' unit, x_mm or \
+         x_m, is the one the numbers are in)"
+    } else {
+        ""
+    };
     QualityCheck::fail(
         "pairing",
         format!(
             "the robot poses do not agree with the images at all: the best-agreeing views \
              disagree by {:.3} deg / {:.3} mm (median), {:.0} % / {:.0} % of the motion between \
-             the views ({:.2} deg / {:.2} mm; at most {:.0} %): check that the pose columns \
-             are the flange poses of these images, in the units and convention their names \
-             say",
+             the views ({:.2} deg / {:.2} mm; at most {:.0} %){scale}: check that the pose \
+             columns are the flange poses of these images, in the units and convention their \
+             names say",
             c.median.0,
             c.median.1,
             100.0 * c.median.0 / c.motion.0.max(1e-12),

@@ -109,12 +109,13 @@ pub fn reconstruct_scan(
         .or_else(|| scan.rig.as_ref().map(|r| r.stripe_channel))
         .unwrap_or_default();
     if channel == StripeChannel::Auto {
-        // decided from frames that can be read (a missing one is reported below)
+        // decided from frames that can be read and are the camera's size by their
+        // header (never decoding a huge one; a bad frame is reported below)
         let readable: Vec<std::path::PathBuf> = scan
             .frames
             .iter()
             .map(|f| scan.image_path(&f.image))
-            .filter(|p| p.is_file())
+            .filter(|p| p.is_file() && crate::io::image_size(p).ok() == Some((width, height)))
             .collect();
         let paths: Vec<std::path::PathBuf> = auto_sample(readable.len())
             .into_iter()
@@ -237,14 +238,12 @@ pub fn reconstruct_scan(
     Ok(out)
 }
 
-/// Why a frame's image file cannot be opened, if it cannot: it is missing or not a file.
+/// Why a frame's image file cannot be opened, if it cannot: it is missing, a folder, a
+/// FIFO, a device or a broken symbolic link ([`crate::io::file_problem`]).
 fn check_file(path: &Path) -> std::result::Result<(), String> {
-    if path.is_file() {
-        Ok(())
-    } else if path.exists() {
-        Err("is not a file".into())
-    } else {
-        Err("does not exist".into())
+    match crate::io::file_problem(path) {
+        None => Ok(()),
+        Some((_, why)) => Err(why),
     }
 }
 
@@ -252,12 +251,19 @@ fn check_file(path: &Path) -> std::result::Result<(), String> {
 /// wrong with it.
 fn frame_image(path: &Path, width: u32, height: u32) -> std::result::Result<AnyImage, String> {
     check_file(path)?;
-    let img = match crate::io::load_image(path) {
-        Ok(img) => img,
-        Err(Error::Io { source, .. }) => return Err(format!("cannot be read: {source}")),
-        Err(Error::Image { message, .. }) => return Err(format!("cannot be decoded: {message}")),
-        Err(other) => return Err(other.to_string()),
+    let why = |e: Error| match e {
+        Error::Io { source, .. } => format!("cannot be read: {source}"),
+        Error::Image { message, .. } => format!("cannot be decoded: {message}"),
+        other => other.to_string(),
     };
+    // the size from the header first: a huge file is refused before it is decoded
+    let (w, h) = crate::io::image_size(path).map_err(why)?;
+    if (w, h) != (width, height) {
+        return Err(format!(
+            "is {w} x {h} pixels, the calibrated camera is {width} x {height}"
+        ));
+    }
+    let img = crate::io::load_image(path).map_err(why)?;
     let (w, h) = img.size();
     if (w, h) != (width as usize, height as usize) {
         return Err(format!(

@@ -14,4 +14,6 @@ pub mod labelling;
 pub mod pairing;
 
 pub use labelling::{choose, symmetry_motion, Candidates, Decision};
-pub use pairing::{find_consensus, find_shift, Consensus, PairingOptions, Shift};
+pub use pairing::{
+    find_break, find_consensus, find_shift, Break, Consensus, PairingOptions, Shift,
+};

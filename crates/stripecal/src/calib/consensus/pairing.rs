@@ -443,6 +443,85 @@ pub fn find_shift(
     best
 }
 
+/// A pose column that is off by one row from some row on: a pose row deleted (the poses
+/// below it moved up) or inserted. See [`find_break`].
+#[derive(Debug, Clone, PartialEq)]
+pub struct Break {
+    /// The first view (its row in views.csv, 0-based) whose image does not fit its own
+    /// robot pose; the views before it agree as given.
+    pub first: usize,
+    /// From `first` on, image `k` pairs with the robot pose of row `k + rows` (`-1`: a
+    /// pose row deleted, `+1`: one inserted).
+    pub rows: isize,
+    /// Views that agree paired so, and how many pairs that pairing has.
+    pub agreeing: usize,
+    pub pairs: usize,
+}
+
+/// Tests whether the poses are off by one row from some view on (a deleted or an
+/// inserted pose row), as [`find_shift`] tests the whole column: for each view `k` and
+/// `s = -1, +1`, the views before `k` paired as given and image `r >= k` with the pose of
+/// row `r + s` (a pose row at or after `k`). Returns the break under which at least two
+/// thirds of those pairs agree, every view before it among them, when that is more than
+/// agree as given (`agree_unshifted`) and both sides hold at least 2 views; the one with
+/// the most agreeing pairs. Costs one [`find_consensus`] per candidate: for the failure
+/// message only.
+pub fn find_break(
+    rows: &[usize],
+    a: &[Iso3],
+    b: &[Iso3],
+    agree_unshifted: usize,
+    opts: &PairingOptions,
+) -> Option<Break> {
+    let n = rows.len();
+    if a.len() != n || b.len() != n || n < 5 {
+        return None;
+    }
+    let mut best: Option<Break> = None;
+    for s in [-1isize, 1] {
+        for k in 2..n.saturating_sub(1) {
+            let first = rows[k];
+            let (mut sa, mut sb) = (Vec::new(), Vec::new());
+            for j in 0..k {
+                sa.push(a[j]);
+                sb.push(b[j]);
+            }
+            for (j, &r) in rows.iter().enumerate().skip(k) {
+                let target = r as isize + s;
+                if target < first as isize {
+                    continue;
+                }
+                if let Some(t) = rows.iter().position(|&q| q as isize == target) {
+                    sa.push(a[t]);
+                    sb.push(b[j]);
+                }
+            }
+            let pairs = sa.len();
+            if pairs < 5 || pairs - k < 2 {
+                continue;
+            }
+            let Ok(c) = find_consensus(&sa, &sb, opts) else {
+                continue;
+            };
+            let agreeing = c.agreeing();
+            let before_agree = c.coherent && c.agrees[..k].iter().all(|&x| x);
+            if before_agree
+                && 3 * agreeing >= 2 * pairs
+                && agreeing > agree_unshifted
+                && best.as_ref().is_none_or(|b| agreeing > b.agreeing)
+            {
+                best = Some(Break {
+                    first,
+                    rows: s,
+                    agreeing,
+                    pairs,
+                });
+            }
+        }
+    }
+    best
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -539,5 +618,37 @@ mod tests {
         assert_eq!((s.agreeing, s.pairs), (14, 14));
         // the clean pairing has no shift
         assert_eq!(find_shift(&rows, &a, &b, 15, &Default::default()), None);
+    }
+
+    /// A pose row deleted at view 6 (the poses below moved up, the last image's row
+    /// dropped): views 0..5 agree as given, image r > 6 fits the pose of row r - 1.
+    /// Inserted at view 7: image r >= 7 fits the pose of row r + 1.
+    #[test]
+    fn a_deleted_or_inserted_pose_row_is_found() {
+        let (a, b) = rig(15);
+        let opts = PairingOptions::default();
+        // deleted: 14 rows, row i holds pose i (i < 6) or i + 1
+        let da: Vec<Iso3> = (0..14).map(|i| a[if i < 6 { i } else { i + 1 }]).collect();
+        let db: Vec<Iso3> = b[..14].to_vec();
+        let rows: Vec<usize> = (0..14).collect();
+        let c = find_consensus(&da, &db, &opts).unwrap();
+        let br = find_break(&rows, &da, &db, c.agreeing(), &opts).expect("a break");
+        assert_eq!((br.first, br.rows), (6, -1), "{br:?}");
+        assert!(br.agreeing >= 12, "{br:?}");
+        // inserted: 15 rows, row 7 holds a stray pose, row i > 7 holds pose i - 1
+        let stray = a[3] * pose([1.0, 0.0, 0.0], 20.0, [10.0, 0.0, 0.0]);
+        let ia: Vec<Iso3> = (0..15)
+            .map(|i| match i {
+                7 => stray,
+                i if i < 7 => a[i],
+                i => a[i - 1],
+            })
+            .collect();
+        let rows: Vec<usize> = (0..15).collect();
+        let c = find_consensus(&ia, &b, &opts).unwrap();
+        let br = find_break(&rows, &ia, &b, c.agreeing(), &opts).expect("a break");
+        assert_eq!((br.first, br.rows), (7, 1), "{br:?}");
+        // the clean pairing has none
+        assert_eq!(find_break(&rows, &a, &b, 15, &opts), None);
     }
 }

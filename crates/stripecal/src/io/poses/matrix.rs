@@ -10,6 +10,7 @@
 
 use nalgebra::{Matrix3, UnitQuaternion};
 
+use super::short;
 use super::RotationConvention;
 use crate::model::geometry::{nearest_rotation, quaternion_from_matrix};
 
@@ -37,8 +38,9 @@ impl RotationConvention for RotationMatrix {
         if err.is_nan() || det.is_nan() || err > MATRIX_TOL || (det - 1.0).abs() > MATRIX_TOL {
             return Err(format!(
                 "matrix (r11..r33) = [[{}, {}, {}], [{}, {}, {}], [{}, {}, {}]] is not a rotation: \
-                 max |R^T R - I| = {err:.3e} and det = {det} (a rotation has R^T R = I and det = +1, within {MATRIX_TOL})",
-                v[0], v[1], v[2], v[3], v[4], v[5], v[6], v[7], v[8]
+                 max |R^T R - I| = {err:.3e} and det = {} (a rotation has R^T R = I and det = +1, within {MATRIX_TOL})",
+                short(v[0]), short(v[1]), short(v[2]), short(v[3]), short(v[4]), short(v[5]),
+                short(v[6]), short(v[7]), short(v[8]), short(det)
             ));
         }
         Ok(quaternion_from_matrix(&nearest_rotation(&m)))

@@ -188,6 +188,21 @@ fn list(names: &[&str]) -> String {
     names.join(", ")
 }
 
+/// The farthest a flange may be from the robot base (mm): 100 m. A translation beyond it
+/// is not a robot's (most often millimetres under `x_m,y_m,z_m` columns).
+pub const MAX_FLANGE_DISTANCE_MM: f64 = 1e5;
+
+/// A number for a message: as written when short, else in exponent form (`{}` of 1e308
+/// prints 309 digits).
+pub(crate) fn short(x: f64) -> String {
+    let s = format!("{x}");
+    if s.len() <= 24 {
+        s
+    } else {
+        format!("{x:e}")
+    }
+}
+
 /// The pose columns a header may have, for messages.
 fn pose_columns_hint() -> String {
     let t: Vec<String> = TRANSLATIONS.iter().map(|t| t.columns.join(",")).collect();
@@ -353,39 +368,90 @@ impl PoseColumns {
     }
 
     /// `T_base_hand` (mm) of one row's values in column order; an error says what is
-    /// wrong (a count, a non-finite value, a quaternion or matrix that is not a rotation).
+    /// wrong (a count, a non-finite value, a flange farther than
+    /// [`MAX_FLANGE_DISTANCE_MM`] from the base, a quaternion or matrix that is not a
+    /// rotation).
     pub fn to_iso(&self, values: &[f64]) -> std::result::Result<Iso3, String> {
+        self.to_iso_at(values).map_err(|(_, m)| m)
+    }
+
+    /// [`Self::to_iso`] with the columns the error is about (`x_m`, `x_m, y_m, z_m`,
+    /// `qx, qy, qz, qw`), for a reader's location.
+    pub(super) fn to_iso_at(&self, values: &[f64]) -> std::result::Result<Iso3, (String, String)> {
+        let all = || list(&self.names);
         if values.len() != self.names.len() {
-            return Err(format!(
-                "{} values given for the {} columns {}",
-                values.len(),
-                self.names.len(),
-                self.names.join(",")
+            return Err((
+                all(),
+                format!(
+                    "{} values given for the {} columns {}",
+                    values.len(),
+                    self.names.len(),
+                    self.names.join(",")
+                ),
             ));
         }
         if let Some((x, name)) = values.iter().zip(&self.names).find(|(x, _)| !x.is_finite()) {
-            return Err(format!("{name} = {x} is not a finite number"));
+            return Err((
+                name.to_string(),
+                format!("{name} = {x} is not a finite number"),
+            ));
         }
         let mut t = Vector3::zeros();
         let mut r = vec![0.0; self.rotation.columns().len()];
+        let mut raw = [0.0; 3];
         for ((&x, slot), name) in values.iter().zip(&self.slots).zip(&self.names) {
             match *slot {
                 Slot::Translation(k) => {
+                    raw[k] = x;
                     t[k] = x * self.translation.mm_per_unit;
                     // 1e306 m overflows in mm
                     if !t[k].is_finite() {
-                        return Err(format!("{name} = {x} is too large ({} mm)", t[k]));
+                        return Err((
+                            name.to_string(),
+                            format!("{name} = {} is too large (not finite in mm)", short(x)),
+                        ));
                     }
                 }
                 Slot::Rotation(k) => r[k] = x,
             }
         }
-        let rotation = self.rotation.to_rotation(&r)?;
+        let distance = t.norm();
+        if distance.is_nan() || distance > MAX_FLANGE_DISTANCE_MM {
+            let tr = &self.translation;
+            let cols = list(&tr.columns);
+            let shown = format!("({}, {}, {})", short(raw[0]), short(raw[1]), short(raw[2]));
+            let hint =
+                if tr.mm_per_unit > 1.0 && distance / tr.mm_per_unit <= MAX_FLANGE_DISTANCE_MM {
+                    // the same numbers in millimetres would be a robot's flange
+                    " (these numbers look like millimetres: name the columns x_mm,y_mm,z_mm)"
+                        .to_string()
+                } else {
+                    String::new()
+                };
+            return Err((
+                cols.clone(),
+                format!(
+                    "{cols} = {shown} {} puts the flange {} m from the robot base, more \
+                     than the {} m a robot's flange can be{hint}",
+                    tr.unit,
+                    short(distance / 1000.0),
+                    MAX_FLANGE_DISTANCE_MM / 1000.0
+                ),
+            ));
+        }
+        let rotation = self
+            .rotation
+            .to_rotation(&r)
+            .map_err(|m| (list(self.rotation.columns()), m))?;
         if !rotation.coords.iter().all(|c| c.is_finite()) {
-            return Err(format!(
-                "{} ({}) = {r:?} is not a finite rotation",
-                self.rotation.describe(),
-                list(self.rotation.columns())
+            return Err((
+                list(self.rotation.columns()),
+                format!(
+                    "{} ({}) = [{}] is not a finite rotation",
+                    self.rotation.describe(),
+                    list(self.rotation.columns()),
+                    r.iter().map(|&x| short(x)).collect::<Vec<_>>().join(", ")
+                ),
             ));
         }
         Ok(Iso3::from_parts(Translation3::from(t), rotation))
@@ -494,10 +560,18 @@ impl Layout {
         match self {
             Layout::Joints(_) => Ok(RobotReading::Joints(values)),
             Layout::Fixed => Ok(RobotReading::Fixed),
-            Layout::Flange(p) => p
-                .to_iso(&values)
-                .map(RobotReading::FlangePose)
-                .map_err(|m| (format!("columns {}", list(p.rotation_columns())), m)),
+            Layout::Flange(p) => {
+                p.to_iso_at(&values)
+                    .map(RobotReading::FlangePose)
+                    .map_err(|(cols, m)| {
+                        let what = if cols.contains(',') {
+                            "columns"
+                        } else {
+                            "column"
+                        };
+                        (format!("{what} {cols}"), m)
+                    })
+            }
         }
     }
 

@@ -15,6 +15,7 @@
 
 use nalgebra::{Quaternion, UnitQuaternion};
 
+use super::short;
 use super::RotationConvention;
 
 /// How far from 1 the norm of a quaternion may be; it is then normalised.
@@ -36,8 +37,8 @@ impl RotationConvention for UnitQuaternionColumns {
         let norm = q.norm();
         if (norm - 1.0).abs() > QUATERNION_TOL {
             return Err(format!(
-                "quaternion (qw, qx, qy, qz) = ({}, {}, {}, {}) has norm {norm}, expected 1 (within {QUATERNION_TOL})",
-                v[0], v[1], v[2], v[3]
+                "quaternion (qw, qx, qy, qz) = ({}, {}, {}, {}) has norm {}, expected 1 (within {QUATERNION_TOL})",
+                short(v[0]), short(v[1]), short(v[2]), short(v[3]), short(norm)
             ));
         }
         Ok(UnitQuaternion::from_quaternion(q))

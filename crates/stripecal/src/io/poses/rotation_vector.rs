@@ -13,6 +13,7 @@
 
 use nalgebra::{UnitQuaternion, Vector3};
 
+use super::short;
 use super::RotationConvention;
 use crate::model::geometry::{quaternion_to_rotvec, MAX_ROTVEC_ANGLE_RAD};
 
@@ -54,7 +55,9 @@ impl RotationConvention for RotationVector {
             return Err(format!(
                 "rotation vector ({}, {}, {}) has an angle of {angle:e} rad: expected at most \
                  {MAX_ROTVEC_ANGLE_RAD:e} rad (a controller reports at most a turn)",
-                v[0], v[1], v[2]
+                short(v[0]),
+                short(v[1]),
+                short(v[2])
             ));
         }
         Ok(UnitQuaternion::from_scaled_axis(r))

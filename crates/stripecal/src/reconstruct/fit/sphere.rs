@@ -13,6 +13,16 @@ use crate::numerics::rng::SplitMix64;
 use super::trim::{bounding_box, check_points, sigma_floor, trim_loop};
 use super::FitOptions;
 
+/// sphere.json's key of the fit's one-sigma of the diameter (mm).
+pub const FIT_DIAMETER_SIGMA_KEY: &str = "fit_diameter_sigma_mm";
+/// sphere.json's key of the fit's one-sigma of the centre's coordinates (mm).
+pub const FIT_CENTER_SIGMA_KEY: &str = "fit_center_sigma_mm";
+/// What sphere.json says its one-sigmas are.
+pub const FIT_SIGMA_NOTE: &str = "fit_diameter_sigma_mm and fit_center_sigma_mm are the \
+    sphere fit's random part only (the points' scatter about the sphere); errors every point \
+    shares (the calibration, the robot, the stripe's bias) are not in them. The measurement's \
+    uncertainty (a GUM budget, expanded U at k = 2): stripecal measure";
+
 /// A sphere fit with its uncertainty.
 #[derive(Debug, Clone, PartialEq)]
 pub struct SphereFitResult {
@@ -40,22 +50,27 @@ pub struct SphereFitResult {
 }
 
 impl SphereFitResult {
-    /// The spec's sphere-fit record; the uncertainties go to the extra keys
-    /// `diameter_sigma_mm` and `center_sigma_mm` (spec/DATASET.md has no keys for them).
+    /// The spec's sphere-fit record; the fit's one-sigmas go to the extra keys
+    /// `fit_diameter_sigma_mm` and `fit_center_sigma_mm` (spec/DATASET.md has no keys for
+    /// them), named for what they are: the fit's random part only, with `sigma_note`
+    /// saying so and where the measurement's uncertainty comes from. (Files written
+    /// before this named them `diameter_sigma_mm` and `center_sigma_mm`, which read as
+    /// the measurement's; readers accept both: [`SphereFit::fit_diameter_sigma_mm`].)
     pub fn to_sphere_fit(&self) -> SphereFit {
         let mut extra = serde_json::Map::new();
         extra.insert(
-            "diameter_sigma_mm".into(),
+            FIT_DIAMETER_SIGMA_KEY.into(),
             serde_json::json!(self.diameter_sigma_mm),
         );
         extra.insert(
-            "center_sigma_mm".into(),
+            FIT_CENTER_SIGMA_KEY.into(),
             serde_json::json!([
                 self.center_sigma_mm.x,
                 self.center_sigma_mm.y,
                 self.center_sigma_mm.z
             ]),
         );
+        extra.insert("sigma_note".into(), serde_json::json!(FIT_SIGMA_NOTE));
         extra.insert(
             "robust_sigma_mm".into(),
             serde_json::json!(self.robust_sigma_mm),

@@ -257,10 +257,15 @@ fn cut_states(
 }
 
 /// Errors when the grid ends inside the image on a side where the board (as rig.json
-/// describes it) goes on: a whole line of board points beyond the grid, predicted
-/// (homography of the nodes) at least a lattice step inside the image, without a single
-/// circle. The printed pattern is then smaller than rig.json says (or that line is
-/// hidden); a partial view cut by the image border is not affected.
+/// describes it) goes on: board points of the next line beyond the grid, along the
+/// grid's own extent (the points adjacent to it), predicted (homography of the nodes)
+/// whole inside the image (two of them, or the one there is), without a circle. The
+/// printed pattern is then smaller than rig.json says (or that line is hidden); a
+/// partial view cut by the image border is not affected (the grid grows into every
+/// circle of the next line that is inside the image). Neither the whole line nor all of
+/// the adjacent points need be inside: a board declared far larger than the print (20 x
+/// 20, 1000 x 1000 for an 8 x 11) has most of its next line outside the image, and the
+/// print near the image border was taken for a partial view.
 fn check_not_smaller(
     grid: &Grid,
     blobs: &[Blob],
@@ -316,8 +321,21 @@ fn check_not_smaller(
         let Some((_, pts)) = beyond(axis, edge, step) else {
             continue;
         };
+        // the points beside the grid: within its extent along the line
+        let (a, b) = if axis == 0 {
+            (lo.1, hi.1)
+        } else {
+            (lo.0, hi.0)
+        };
+        let pts: Vec<(i64, i64)> = pts
+            .into_iter()
+            .filter(|l| (a..=b).contains(if axis == 0 { &l.1 } else { &l.0 }))
+            .collect();
+        if pts.is_empty() {
+            continue;
+        }
         // a lattice step in px near the line, for the margin
-        let inside = pts.iter().all(|&(i, j)| {
+        let inside = pts.iter().filter(|&&(i, j)| {
             let p = nalgebra::Vector2::new(i as f64, j as f64);
             let (Some(q), Some(qx), Some(qy)) = (
                 apply(&hm, &p),
@@ -331,14 +349,21 @@ fn check_not_smaller(
             let m = 0.5 * rad_units * step + 3.0;
             q.x >= m && q.y >= m && q.x <= w as f64 - 1.0 - m && q.y <= h as f64 - 1.0 - m
         });
-        if inside {
+        // Two circles of the next line whole inside the image and not found: the board
+        // ends there (one alone could be a circle missed). A line cut by the image border
+        // has none inside: the grid would have grown into those.
+        let inside = inside.count();
+        if inside >= pts.len().min(2) {
             let (ext_i, ext_j) = (hi.0 - lo.0 + 1, hi.1 - lo.1 + 1);
             return Err(Error::Detection(describe(&format!(
                 "the grid ends inside the image where the board goes on: no circle on the next \
-                 {name} beyond it, which lies inside the image; the grid found spans {ext_j} x \
-                 {ext_i} lattice steps, the {} x {} board of rig.json more (rows and cols in \
-                 rig.json larger than the printed pattern, or that {name} hidden)",
-                board.rows, board.cols
+                 {name} beyond it, though {inside} of its {} circles beside the grid lie whole \
+                 inside the image; the grid found spans {ext_j} x {ext_i} lattice steps, the {} \
+                 x {} board of rig.json more (rows and cols in rig.json larger than the printed \
+                 pattern, or that {name} hidden)",
+                pts.len(),
+                board.rows,
+                board.cols
             ))));
         }
     }

@@ -408,6 +408,11 @@ mod tests {
             (7, 11, "larger"),
             (9, 11, "ends inside"),
             (8, 12, "ends inside"),
+            // far larger than the print: most of the next line is outside the image,
+            // but the points beside the grid are inside (issue 39, fault 10)
+            (20, 20, "ends inside"),
+            (1000, 1000, "ends inside"),
+            (8, 40, "ends inside"),
         ] {
             let mut b = Board::hp3_paper();
             (b.rows, b.cols) = (rows, cols);
