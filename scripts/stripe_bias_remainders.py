@@ -5,12 +5,12 @@ several seeds per condition; the remainder of each quantity as a percentage of i
 correction, mean over the seeds and its standard error.
 
     python scripts/stripe_bias_remainders.py runs --seeds 1-6 > runs.json
-    STRIPE_BIAS_RUNS="$(cat runs.json)" cargo test --release --test stripe_bias sweep \\
+    STRIPE_BIAS_RUNS="$(cat runs.json)" cargo test --release --test it stripe_bias::sweep \\
         -- --ignored --nocapture 2> sweep.log          # ~25-40 s a scan on two cores
     python scripts/stripe_bias_remainders.py table sweep.log
 
 The runs print one ``SWEEP {json}`` line each (the sweep test in
-crates/stripecal-sim/tests/stripe_bias.rs). With ``STRIPE_BIAS_TRUE_MODEL=1`` in the
+crates/stripecal-sim/tests/it/stripe_bias.rs). With ``STRIPE_BIAS_TRUE_MODEL=1`` in the
 test's environment the correction takes the twin's true sheet sigma, PSF sigma and
 emitter instead of estimating them: the remainder is then the model's own.
 """

@@ -22,8 +22,11 @@ step "the wheel's and the tests' builds share their dependencies (crates/workspa
 step "pip install -e '.[test]'  (builds stripecal._core with maturin)"
 "$PYTHON" -m pip install --quiet -e '.[test]'
 
-step "cargo test  (default members; the pyo3 crate has no test binary)"
-cargo test --quiet
+# The core's and the twin's unit tests and their one integration-test binary each (the
+# pyo3 crate has no test binary). Examples and criterion benches are not built here:
+# `cargo clippy --all-targets` builds them before every submission (CONTRIBUTING.md).
+step "cargo test  (stripecal, stripecal-sim: unit and integration tests)"
+cargo test --quiet -p stripecal -p stripecal-sim --lib --tests
 
 step "pytest"
 "$PYTHON" -m pytest -q

@@ -135,7 +135,7 @@ def test_paper_method_runs_and_both_meet_the_hand_eye_targets(
         return float(np.linalg.norm(getattr(c, key)[:3, 3] - getattr(truth, key)[:3, 3]))
 
     # Which of the two is closer varies per seed at this noise level (both ~0.005 mm);
-    # the median comparison over seeds is in crates/stripecal/tests/calib_rendered.rs.
+    # the median comparison over seeds is in crates/stripecal/tests/it/calib_rendered.rs.
     for c in (calibration, paper):
         assert terr(c, "hand_cam") < 0.02 and terr(c, "base_board") < 0.02
 

@@ -2,7 +2,7 @@
 //! (`calibrate_profiles`: arcs, consensus and closed-form start, the one-stage adjustment
 //! with its point re-selection, the mirror test, the gates; the leave-one-out solves NOT
 //! included) on ONE core (a 1-thread rayon pool), from 15 profiles of ~2,500 points of the
-//! `hp3-profiler` twin in memory (as `crates/stripecal-sim/tests/profiler_calibration.rs`
+//! `hp3-profiler` twin in memory (as `crates/stripecal-sim/tests/it/profiler_calibration.rs`
 //! builds them). The preset's 90 mm line gives 3,000 samples, ~2,940 points after its 2 %
 //! dropouts; here `line_length_mm` is 75 (2,500 samples, ~2,450 points), the rest of the
 //! preset unchanged (0.03 mm spacing, z noise 0.01 mm, 1 % spikes, the table beside the

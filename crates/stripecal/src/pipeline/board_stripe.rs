@@ -59,7 +59,7 @@
 //!   not along `D`: on the paper's twin it moves the plane's offset and the hand-eye's
 //!   z more, and its x less, than a share of `D` would say. On the twin with the emitter
 //!   moved 25 mm the hand-eye x error is -0.64 um against a sigma of 0.40 um
-//!   (`crates/stripecal-sim/tests/board_stripe.rs`).
+//!   (`crates/stripecal-sim/tests/it/board_stripe.rs`).
 //!
 //! The covariance of the DH corrections (robot calibration) is not augmented (their part
 //! of the changes is not read).

@@ -41,7 +41,7 @@
 //!   illumination gradients (0.006-0.008 px); 0.013 px RMS for a board whose edges
 //!   are exactly aligned with the pixel rows (the pixel box is not modelled, the one
 //!   case where its effect does not average out).
-//! - Real images: `tests/chessboard_real.rs`. On `visp_franka` the corners agree with
+//! - Real images: `tests/it/chessboard_real.rs`. On `visp_franka` the corners agree with
 //!   OpenCV's `findChessboardCorners` + `cornerSubPix` to 0.04-0.09 px (median per
 //!   view); `findChessboardCornersSB` differs from both by about 0.25 px, mostly a
 //!   shift along v (on the benchmark's synthetic image SB is 0.06 px RMS from the

@@ -29,7 +29,7 @@
 //! ## Accuracy (digital twin, `hp3-paper`: 768 x 576, noise 1 gray level, PSF 0.7 px)
 //!
 //! Measured against the true centres (area centroids of the exactly projected
-//! outlines) by `crates/stripecal/tests/vision_circles.rs`; the figures are in
+//! outlines) by `crates/stripecal/tests/it/vision_circles.rs`; the figures are in
 //! BENCHMARKS.md ("Vision: circles"). The gravity method is the default because it
 //! measured best there.
 //!

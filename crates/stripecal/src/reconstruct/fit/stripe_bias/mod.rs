@@ -134,7 +134,7 @@
 //! rendered rows' mean noisy-minus-clean centre is -0.0014 to +0.0007 px per 10-degree
 //! bin of view angle, and the model's profiles with the same noise give -0.0001 to
 //! +0.0008 px, their medians +0.001 to +0.005 px alike (the `noise_response` test of
-//! `crates/stripecal-sim/tests/stripe_bias.rs`; [`predicted_noise_shift_px`]).
+//! `crates/stripecal-sim/tests/it/stripe_bias.rs`; [`predicted_noise_shift_px`]).
 //!
 //! ## Saturated points
 //!

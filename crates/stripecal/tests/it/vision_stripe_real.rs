@@ -23,9 +23,9 @@
 //! are what a calibration with speckle is left with.
 //!
 //! Renders are the cost here: each condition renders its five calibration views once.
-//! `cargo test -p stripecal --test vision_stripe_real -- --nocapture` prints the figures.
+//! `cargo test -p stripecal --test it vision_stripe_real:: -- --nocapture` prints the figures.
 
-mod common;
+use crate::common;
 
 use stripecal::model::image::AnyGray;
 use stripecal::model::StripeDirection;

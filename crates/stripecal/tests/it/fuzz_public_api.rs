@@ -90,7 +90,7 @@
 //!   `target::{detect_target, homography_residuals}`,
 //!   `target::TargetDetection::from_circles`, `target::PointFlags::has`.
 
-mod fuzz_support;
+use crate::fuzz_support;
 
 use std::fmt::Debug;
 use std::path::Path;

@@ -4,7 +4,7 @@
 //! (no rendering), the robot poses the NOMINAL robot's forward kinematics of the
 //! readings (what the pipeline computes from rig.json).
 //!
-//! `cargo test -p stripecal --test calib_robot -- --nocapture` prints the figures.
+//! `cargo test -p stripecal --test it calib_robot:: -- --nocapture` prints the figures.
 
 use stripecal::calib::joint::{
     joint_adjustment, JointOptions, JointResult, JointStart, RobotMode, RobotOptions,

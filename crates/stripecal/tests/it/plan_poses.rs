@@ -10,7 +10,7 @@
 //! standard deviation must be within a factor 1.5 of the predicted one (the standard
 //! error of a standard deviation from 50 draws is 10 %).
 //!
-//! `cargo test -p stripecal --test plan_poses -- --nocapture` prints the table.
+//! `cargo test -p stripecal --test it plan_poses:: -- --nocapture` prints the table.
 
 use stripecal::calib::joint::{
     joint_adjustment, FreeBlocks, JointOptions, JointResult, JointStart, RobotMode, RobotOptions,

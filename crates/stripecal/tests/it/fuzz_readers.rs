@@ -13,7 +13,7 @@
 //! (default 1) from the fixed seed `STRIPECAL_FUZZ_SEED`; a failure prints the shrunk
 //! input.
 
-mod fuzz_support;
+use crate::fuzz_support;
 
 use std::path::{Path, PathBuf};
 

@@ -6,9 +6,9 @@
 //! are rejected, counted and reported.
 //!
 //! The twin is rendered and calibrated once for the module.
-//! `cargo test -p stripecal --test calib_sheet -- --nocapture` prints the figures.
+//! `cargo test -p stripecal --test it calib_sheet:: -- --nocapture` prints the figures.
 
-mod common;
+use crate::common;
 
 use std::sync::OnceLock;
 

@@ -3,7 +3,7 @@
 //! bias-free centre model gains over the naive one, Zhang's closed form as a starting
 //! point, typed errors.
 //!
-//! Printed figures (`cargo test -p stripecal --test calib_camera -- --nocapture`)
+//! Printed figures (`cargo test -p stripecal --test it calib_camera:: -- --nocapture`)
 //! are the ones in docs/results/conic_model.md.
 
 use stripecal::calib::camera::{calibrate_camera, CameraCalibration, CameraOptions};

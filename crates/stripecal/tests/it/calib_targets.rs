@@ -4,10 +4,10 @@
 //! poses) meet the circle board's targets: fu 0.01 %, u0 / v0 0.1 px, plane 0.01 mm, X
 //! and Z 0.005 deg / 0.02 mm.
 //!
-//! `cargo test -p stripecal --test calib_targets -- --nocapture` prints the table
+//! `cargo test -p stripecal --test it calib_targets:: -- --nocapture` prints the table
 //! quoted in docs/results/calibration.md.
 
-mod common;
+use crate::common;
 
 use common::{assert_targets, errors, iso_err, row, HEADER};
 use stripecal::calib::consensus::symmetry_motion;

@@ -8,7 +8,7 @@
 //! in BENCHMARKS.md ("Vision: circles"). Without the variable the random-view test runs
 //! the first 80 of the same 200 (the full count took about 90 s of the CI's 30 minutes).
 
-mod common;
+use crate::common;
 
 use common::Stats;
 use rayon::prelude::*;

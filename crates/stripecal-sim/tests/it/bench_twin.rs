@@ -181,7 +181,7 @@ fn bench_knobs_are_checked() {
 }
 
 /// The report's figures: 15 views (noise 1, PSF 0.7), view 4 bent by 1 mm, seeds 1..=3
-/// (`cargo test -p stripecal-sim --test bench_twin -- --ignored --nocapture`).
+/// (`cargo test -p stripecal-sim --test it bench_twin:: -- --ignored --nocapture`).
 #[test]
 #[ignore]
 fn flatness_figures_three_seeds() {

@@ -4,7 +4,7 @@
 //! where the rigid model's are optimistic; a view whose reading is off by a degree
 //! stands out in its test.
 //!
-//! `cargo test -p stripecal --test calib_robot_noise -- --nocapture` prints the figures.
+//! `cargo test -p stripecal --test it calib_robot_noise:: -- --nocapture` prints the figures.
 
 use nalgebra::Matrix3;
 use stripecal::calib::joint::{joint_adjustment, JointOptions, JointResult, JointStart};

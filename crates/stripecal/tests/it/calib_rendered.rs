@@ -2,10 +2,10 @@
 //! stripe extraction, camera, plane, AX = ZB and the one-stage adjustment from a dataset
 //! folder, against truth.json's values.
 //!
-//! `cargo test -p stripecal --test calib_rendered -- --nocapture` prints the table
+//! `cargo test -p stripecal --test it calib_rendered:: -- --nocapture` prints the table
 //! recorded in docs/results/calibration.md.
 
-mod common;
+use crate::common;
 
 use common::{assert_targets, errors, row, Errs, HEADER};
 use stripecal::pipeline::{calibrate_dataset, CalibrateOptions, Method};

@@ -10,7 +10,7 @@
 //! noise). The real sets live in `../shared/realdata` beside the repository; those tests
 //! are skipped with a note when it is absent.
 //!
-//! `cargo test -p stripecal --test calib_honesty -- --nocapture` prints the figures.
+//! `cargo test -p stripecal --test it calib_honesty:: -- --nocapture` prints the figures.
 
 use std::path::{Path, PathBuf};
 

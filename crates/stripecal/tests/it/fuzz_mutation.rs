@@ -26,10 +26,10 @@
 //! Budget: `STRIPECAL_FUZZ_CASES` (default 1) multiplies every test's default case
 //! count; `STRIPECAL_FUZZ_SEED` changes the seed. A failure prints the seed, the case
 //! number, the seed file and the mutations, so `STRIPECAL_FUZZ_SEED=... cargo test
-//! --test fuzz_mutation` reproduces it.
+//! --test it fuzz_mutation::` reproduces it.
 
 mod fuzz_faults;
-mod fuzz_support;
+use crate::fuzz_support;
 
 use std::path::{Path, PathBuf};
 use std::sync::OnceLock;

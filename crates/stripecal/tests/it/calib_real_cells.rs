@@ -2,7 +2,7 @@
 //! the laser plane added later with the rest held (`--laser-only --from`), the board
 //! scale against the robot, and the leave-one-view-out figure against the truth.
 //!
-//! `cargo test -p stripecal --test calib_real_cells -- --nocapture` prints the figures.
+//! `cargo test -p stripecal --test it calib_real_cells:: -- --nocapture` prints the figures.
 
 use stripecal::calib::joint::FreeBlocks;
 use stripecal::calib::ViewObs;

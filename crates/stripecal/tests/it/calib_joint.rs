@@ -2,7 +2,7 @@
 //! exact observations, honest uncertainty under known noise, outlier views and
 //! degenerate inputs. The rendered-image acceptance runs are in `calib_rendered.rs`.
 //!
-//! `cargo test -p stripecal --test calib_joint -- --nocapture` prints the figures.
+//! `cargo test -p stripecal --test it calib_joint:: -- --nocapture` prints the figures.
 
 use stripecal::calib::conic::{predict_centre, CentreModel};
 use stripecal::calib::laser_plane::stripe_line_in_view;

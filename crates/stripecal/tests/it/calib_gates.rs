@@ -2,7 +2,7 @@
 //! their images (swapped pairs, a pose column shifted by a row) on the twin's noisy
 //! observations: named, left out when enough agree, a failed calibration otherwise.
 //!
-//! `cargo test -p stripecal --test calib_gates -- --nocapture` prints the figures.
+//! `cargo test -p stripecal --test it calib_gates:: -- --nocapture` prints the figures.
 
 use stripecal::calib::ViewObs;
 use stripecal::model::{Calibration, Rig};

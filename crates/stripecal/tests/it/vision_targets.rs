@@ -4,14 +4,14 @@
 //! outside): zero misordered points, the detection rate of whole-board views, partial
 //! views' refusals counted by reason.
 //!
-//! `STRIPECAL_TARGET_VIEWS=100 cargo test -p stripecal --test vision_targets --
+//! `STRIPECAL_TARGET_VIEWS=100 cargo test -p stripecal --test it vision_targets:: --
 //! --nocapture` runs the acceptance's 100 + 100 views of every kind and prints the
 //! figures quoted in BENCHMARKS.md ("Vision: targets"). Without it each kind gets
 //! [`common::DEFAULT_TARGET_VIEWS`] + as many (the same first views of the same sequence):
 //! the full count renders 400 board images per kind and took 100-110 s of the CI's
 //! 30 minutes for each of the two slow kinds.
 
-mod common;
+use crate::common;
 
 use common::Stats;
 use std::collections::BTreeMap;

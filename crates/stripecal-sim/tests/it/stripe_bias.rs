@@ -419,7 +419,7 @@ fn ball_bias_is_corrected_on_the_paper_rig() {
 }
 
 /// Throwaway sweeps: `STRIPE_BIAS_RUNS='[["hp3-paper", {"seed": 2}, 1], ...]' cargo test
-/// --test stripe_bias sweep -- --ignored --nocapture` (`STRIPE_BIAS_TRUE_MODEL=1`: the
+/// --test it stripe_bias::sweep -- --ignored --nocapture` (`STRIPE_BIAS_TRUE_MODEL=1`: the
 /// true sigmas and emitter, see [`run`]; `STRIPE_BIAS_LEVER=1`: where the diameter's
 /// remainder comes from, see [`lever`]). From the workspace root without `-p`, so that
 /// the build shares the workspace's dependency features (crates/workspace-hack).
@@ -497,7 +497,7 @@ fn moved_emitter_is_estimated_from_the_brightness() {
 /// minus the noise-free one; printed in bins of the true view angle (mean and its
 /// standard error over the rows, the share of rows found) and propagated to the fitted
 /// diameter (radial, times the row's leverage on a sphere fit of the rows seen at up to
-/// 75 deg, as the corrected fit keeps them). `cargo test --test stripe_bias
+/// 75 deg, as the corrected fit keeps them). `cargo test --test it stripe_bias::
 /// noise_response -- --ignored --nocapture`. hp3-wide seed 1, 16 bits: +0.58 um on the
 /// diameter (every 2nd frame, 40 draws), +0.33 and +0.36 um (every 4th, 24 and 40
 /// draws); the rows' median shift +0.0009 to +0.0023 px in every view bin (`TAILS`
