@@ -18,7 +18,7 @@ from stripecal.cli import main
 @pytest.fixture(scope="module")
 def tiny(tmp_path_factory: pytest.TempPathFactory) -> Tuple[Path, Path, stripecal.Truth]:
     out = tmp_path_factory.mktemp("recon")
-    rc = main(["simulate", str(out / "sim"), "--seed", "5", "--poses", "3",
+    rc = main(["simulate", str(out / "sim"), "--seed", "5", "--poses", "4",
                "--scan-frames", "5", "--scan-step", "3"])
     assert rc == 0
     scan = out / "sim" / "scan"
@@ -62,7 +62,7 @@ def test_reconstruct_and_fit_sphere(tiny, tmp_path, capsys) -> None:  # type: ig
 
 
 def test_calibrate_reconstruct_measure(tiny, tmp_path, capsys) -> None:  # type: ignore[no-untyped-def]
-    """End to end: calibrate the tiny dataset (3 views), reconstruct the scan with that
+    """End to end: calibrate the tiny dataset (4 views: fewer are refused), reconstruct the scan with that
     calibration, fit the ball."""
     _, scan, truth = tiny
     cal = tmp_path / "cal.json"
@@ -78,7 +78,7 @@ def test_calibrate_reconstruct_measure(tiny, tmp_path, capsys) -> None:  # type:
     err_d = fit["diameter_mm"] - sphere["diameter_mm"]
     err_c = np.linalg.norm(np.array(fit["center_mm"]) - np.array(sphere["center_mm"]))
     with capsys.disabled():
-        print(f"\ncalibrated (3 views) -> ball: diameter {fit['diameter_mm']:.4f} mm (error {err_d:+.4f}), "
+        print(f"\ncalibrated (4 views) -> ball: diameter {fit['diameter_mm']:.4f} mm (error {err_d:+.4f}), "
               f"centre error {err_c:.4f} mm, {fit['points']} points, {fit['outliers']} outliers")
     # The paper's seven measurements spread +-0.1 mm; the twin's noise is far smaller.
     assert abs(err_d) < 0.05 and err_c < 0.05

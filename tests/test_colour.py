@@ -121,7 +121,7 @@ def test_auto_chooses_red_for_a_red_laser_and_gray_for_gray_images(
     assert np.array_equal(a.points, r.points)
     # gray laser images: auto is gray
     gray_out = tmp_path / "gray_twin"
-    _twin(False, poses={"count": 3}, scan={"enabled": False}).write(gray_out)
+    _twin(False, poses={"count": 4}, scan={"enabled": False}).write(gray_out)
     cal = stripecal.calibrate(_with_channel(gray_out / "calib", tmp_path / "gray_auto", "auto"))
     assert cal.extra["stripe_channel"] == "gray"
     assert cal.extra["stripe_channel_scores"]["red"] == 0
@@ -209,7 +209,7 @@ def test_unknown_colour_names_rig_json_and_the_key(colour_twin: Tuple[stripecal.
 
 def test_colour_name_with_gray_laser_images_names_the_file(tmp_path: Path) -> None:
     out = tmp_path / "gray"
-    _twin(False, poses={"count": 3}, scan={"max_frames": 2}).write(out)
+    _twin(False, poses={"count": 4}, scan={"max_frames": 2}).write(out)
     bad = _with_channel(out / "calib", tmp_path / "red_on_gray", "red")
     with pytest.raises(stripecal.FormatError, match=r"view_000_laser\.png: stripe\.channel \"red\": a gray laser image") as e:
         stripecal.calibrate(bad)

@@ -260,3 +260,39 @@ def test_board_scale_check_on_rosi_reports_the_scale_and_flags_the_sources_pitch
     assert bs3 is not None and bs3["estimated"]
     print(f"rosi_10x10 25.4 mm, --estimate-board-scale: scale {bs3['scale']:.5f} +- {bs3['sigma']:.5f}")
     assert bs3["implied_mm"] == pytest.approx(bs["implied_mm"], abs=0.15)
+
+
+@pytest.mark.parametrize("printed", [0.8, 1.1])
+def test_a_board_printed_at_another_scale_is_refused_naming_the_implied_size(tmp_path: Path, printed: float) -> None:
+    """Issue 39, fault 5: rosi_10x10 with rig.json's board sizes as if printed at 1/0.8 or
+    1/1.1 of the print (a print at 0.8x or 1.1x): refused, naming the implied size. At 1.1x
+    the board_scale gate fails naming the implied pitch and --estimate-board-scale; at 0.8x
+    the views' translations already disagree by 15 % and the pairing fails, naming the
+    scale the robot implies (roughly)."""
+    root = REALDATA / "rosi_10x10"
+    if not (root / "rig.json").exists():
+        pytest.skip(f"real data set {root} not present")
+    ds = tmp_path / f"rosi_x{printed}"
+    ds.mkdir()
+    rig = json.loads((root / "rig.json").read_text())
+    for key in ["pitch_mm", "circle_diameter_mm", "marker_diameter_mm"]:
+        rig["board"][key] = rig["board"][key] / printed
+    (ds / "rig.json").write_text(json.dumps(rig))
+    (ds / "views.csv").write_text((root / "views.csv").read_text())
+    (ds / "images").symlink_to(root / "images", target_is_directory=True)
+    with pytest.raises(stripecal.CalibrationQualityError) as e:
+        stripecal.calibrate(ds, leave_one_out=False)
+    failed = {c["name"]: c["message"] for c in e.value.checks}
+    print(f"\nrosi_10x10 printed at {printed}x: {failed}")
+    if printed > 1.0:
+        assert list(failed) == ["board_scale"]
+        implied = float(re.search(r"implies ([0-9.]+) mm", failed["board_scale"]).group(1))  # type: ignore[union-attr]
+        # the print's pitch as the robot sees it: 0.9916 x 25.0 = 24.79 mm (the test above)
+        assert implied == pytest.approx(24.79, abs=0.25)
+        assert "--estimate-board-scale" in failed["board_scale"]
+    else:
+        assert list(failed) == ["pairing"]
+        # a rough figure (AX = ZB with the scale free; the board's translations vary
+        # little across the views): 0.76 for the print's 0.8 x 0.9916 = 0.79
+        k = float(re.search(r"imply a board about ([0-9.]+) times", failed["pairing"]).group(1))  # type: ignore[union-attr]
+        assert k == pytest.approx(printed, rel=0.06)

@@ -8,7 +8,7 @@
 //! ([`consensus::find_shift`]): a pose column one row off is reported in those words.
 
 use super::{CalibrateOptions, ViewStatus};
-use crate::calib::axzb::{solve_axzb, AxzbSolution};
+use crate::calib::axzb::{solve_axzb, solve_axzb_with, AxzbOptions, AxzbSolution};
 use crate::calib::consensus::{self, Consensus, PairingOptions};
 use crate::calib::ViewObs;
 use crate::error::{Error, Result};
@@ -31,6 +31,26 @@ pub(super) struct Paired {
 /// two thirds of them, so that the views left out are a clear minority.
 pub(super) fn enough_left(kept: usize, total: usize) -> bool {
     kept >= 4 && 3 * kept >= 2 * total
+}
+
+/// Views with a robot pose and a found board that a calibration without an earlier one
+/// (`--from`) needs: with 3, `AX = ZB` is determined with nothing to spare, so neither
+/// the pairing nor the robot-pose noise can be checked (rosi_10x10's views in threes: the
+/// hand-eye and robot-world up to 3.5 stated sigmas from the 15 views' result; in fours
+/// within 2.4).
+pub(super) const MIN_ROBOT_VIEWS: usize = 4;
+
+/// The refusal of a robot calibration from fewer than [`MIN_ROBOT_VIEWS`] views.
+fn too_few_robot_views(n: usize) -> String {
+    format!(
+        "robot poses: only {n} view{} with a robot pose and a found board; at least \
+         {MIN_ROBOT_VIEWS} are needed to check the poses against the images and to estimate \
+         the robot's pose noise (fewer determine the hand-eye and robot-world with nothing \
+         left to check them, and their sigmas would not hold); add views, or start from an \
+         earlier calibration of the camera (--from CALIBRATION.json, e.g. a bench \
+         calibration)",
+        if n == 1 { "" } else { "s" }
+    )
 }
 
 /// "view 3" / "views 1 and 3" / "views 1, 3 and 7".
@@ -69,6 +89,9 @@ pub(super) fn check_pairing(
     let a: Vec<Iso3> = idx.iter().filter_map(|&i| obs[i].base_hand).collect();
     let b: Vec<Iso3> = idx.iter().map(|&i| poses[i].inverse()).collect();
     let rows: Vec<usize> = idx.iter().map(|&i| obs[i].view).collect();
+    if (1..MIN_ROBOT_VIEWS).contains(&a.len()) && opts.from.is_none() {
+        return Err(Error::Degenerate(too_few_robot_views(a.len())));
+    }
     let popts = PairingOptions {
         factor: opts.outlier_factor,
         min_deg: opts.outlier_min_deg,
@@ -249,6 +272,38 @@ fn break_message(
     ))
 }
 
+/// The scale `k` of the board's translations that makes `A X = Z B` hold best when only
+/// the rotations agree: `Z`'s rotation from [`solve_axzb_with`]'s linear steps (a scale does not
+/// change them), then `R_A t_X + t_A = R_Z (k t_B) + t_Z` in least squares for `t_X`,
+/// `t_Z` and `k`. `None` when that fails or `k` is not positive.
+fn implied_board_scale(a: &[Iso3], b: &[Iso3]) -> Option<f64> {
+    // the linear steps only: the rotations from the rotations alone (the refinement
+    // would bend them towards the translations a wrong scale spoils)
+    let linear = AxzbOptions {
+        refine: false,
+        ..Default::default()
+    };
+    let sol = solve_axzb_with(a, b, &linear).ok()?;
+    let rzm = sol.z.rotation.to_rotation_matrix();
+    let n = a.len();
+    let mut m = nalgebra::DMatrix::<f64>::zeros(3 * n, 7);
+    let mut y = nalgebra::DVector::<f64>::zeros(3 * n);
+    for (i, (ai, bi)) in a.iter().zip(b).enumerate() {
+        let ra = ai.rotation.to_rotation_matrix();
+        let tb = rzm * bi.translation.vector;
+        for r in 0..3 {
+            for col in 0..3 {
+                m[(3 * i + r, col)] = ra[(r, col)];
+                m[(3 * i + r, 3 + col)] = if r == col { -1.0 } else { 0.0 };
+            }
+            m[(3 * i + r, 6)] = -tb[r];
+            y[3 * i + r] = -ai.translation.vector[r];
+        }
+    }
+    let k = m.svd(true, true).solve(&y, 1e-12).ok()?[6];
+    (k.is_finite() && k > 0.0).then_some(k)
+}
+
 /// The failed `pairing` check when no set of views agrees: a shifted pose column when a
 /// shift explains it, otherwise the figures.
 fn incoherent(
@@ -306,12 +361,25 @@ fn incoherent(
     // pose columns' unit).
     let rotations_agree = c.median.0 <= popts.coherence * c.motion.0;
     let scale = if rotations_agree && c.median.1 > popts.coherence * c.motion.1 {
-        " (the rotations agree, only the translations do not: the board's size and the \
-         robot's translations are on different scales; check rig.json's board.pitch_mm (or \
-         board.square_mm for a chessboard) and that the translation columns' unit, x_mm or \
-         x_m, is the one the numbers are in)"
+        let implied = implied_board_scale(a, b)
+            .map(|k| {
+                format!(
+                    "; the robot's motions imply a board about {k:.2} times rig.json's (its \
+                     pitch or square size times about {k:.2}; a rough figure from AX = ZB with \
+                     the scale free: rosi_10x10 as if printed at 0.8x gave 0.76; \
+                     --estimate-board-scale refines a scale within a few percent, not one this \
+                     far off)"
+                )
+            })
+            .unwrap_or_default();
+        format!(
+            " (the rotations agree, only the translations do not: the board's size and the \
+             robot's translations are on different scales; check rig.json's board.pitch_mm (or \
+             board.square_mm for a chessboard) and that the translation columns' unit, x_mm or \
+             x_m, is the one the numbers are in{implied})"
+        )
     } else {
-        ""
+        String::new()
     };
     QualityCheck::fail(
         "pairing",
