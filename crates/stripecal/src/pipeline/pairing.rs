@@ -279,10 +279,7 @@ fn break_message(
 fn implied_board_scale(a: &[Iso3], b: &[Iso3]) -> Option<f64> {
     // the linear steps only: the rotations from the rotations alone (the refinement
     // would bend them towards the translations a wrong scale spoils)
-    let linear = AxzbOptions {
-        refine: false,
-        ..Default::default()
-    };
+    let linear = AxzbOptions { refine: false };
     let sol = solve_axzb_with(a, b, &linear).ok()?;
     let rzm = sol.z.rotation.to_rotation_matrix();
     let n = a.len();
