@@ -220,6 +220,18 @@ def test_calibrate_cli_leave_one_out_no_worse_than_opencv(
     assert loo["median_board_rms_mm"] <= ref["median_board_rms_mm"]
 
 
+def _with_board(root: Path, ds: Path, board: Dict[str, Any]) -> Path:
+    """A copy of the real set `root` at `ds` whose rig.json's board has the keys `board`
+    changed (views.csv copied, the images linked, not copied)."""
+    ds.mkdir()
+    rig = json.loads((root / "rig.json").read_text())
+    rig["board"].update(board)
+    (ds / "rig.json").write_text(json.dumps(rig))
+    (ds / "views.csv").write_text((root / "views.csv").read_text())
+    (ds / "images").symlink_to(root / "images", target_is_directory=True)
+    return ds
+
+
 def test_board_scale_check_on_rosi_reports_the_scale_and_flags_the_sources_pitch(tmp_path: Path) -> None:
     """Issue 12, item 5 (DECISIONS 7): rosi_10x10's rig.json carries the corrected 25.0 mm
     pitch: the check reports a scale within 1 % of 1 with its sigma and stays silent. The
@@ -237,13 +249,7 @@ def test_board_scale_check_on_rosi_reports_the_scale_and_flags_the_sources_pitch
     assert not bs["disagrees"]
     assert not any("board scale" in w for w in cal.extra.get("warnings", []))
     # The source's config: 25.4 mm (the same images and poses, linked, not copied).
-    ds = tmp_path / "rosi_254"
-    ds.mkdir()
-    rig = json.loads((root / "rig.json").read_text())
-    rig["board"]["pitch_mm"] = 25.4
-    (ds / "rig.json").write_text(json.dumps(rig))
-    (ds / "views.csv").write_text((root / "views.csv").read_text())
-    (ds / "images").symlink_to(root / "images", target_is_directory=True)
+    ds = _with_board(root, tmp_path / "rosi_254", {"pitch_mm": 25.4})
     with pytest.raises(stripecal.CalibrationQualityError) as e:
         stripecal.calibrate(ds, leave_one_out=False)
     failed = {c["name"]: c["message"] for c in e.value.checks}
@@ -272,14 +278,9 @@ def test_a_board_printed_at_another_scale_is_refused_naming_the_implied_size(tmp
     root = REALDATA / "rosi_10x10"
     if not (root / "rig.json").exists():
         pytest.skip(f"real data set {root} not present")
-    ds = tmp_path / f"rosi_x{printed}"
-    ds.mkdir()
-    rig = json.loads((root / "rig.json").read_text())
-    for key in ["pitch_mm", "circle_diameter_mm", "marker_diameter_mm"]:
-        rig["board"][key] = rig["board"][key] / printed
-    (ds / "rig.json").write_text(json.dumps(rig))
-    (ds / "views.csv").write_text((root / "views.csv").read_text())
-    (ds / "images").symlink_to(root / "images", target_is_directory=True)
+    board = json.loads((root / "rig.json").read_text())["board"]
+    ds = _with_board(root, tmp_path / f"rosi_x{printed}",
+                     {k: board[k] / printed for k in ["pitch_mm", "circle_diameter_mm", "marker_diameter_mm"]})
     with pytest.raises(stripecal.CalibrationQualityError) as e:
         stripecal.calibrate(ds, leave_one_out=False)
     failed = {c["name"]: c["message"] for c in e.value.checks}

@@ -821,26 +821,29 @@ fn concurrent_atomic_writes_are_never_seen_half_written() {
 
 // ---------------------------------------------------------------- whole datasets
 
+/// A tiny twin (half-size camera, `poses` poses, no scan) written to a temporary
+/// folder: the folder and its calibration dataset.
+fn tiny_twin(poses: usize, seed: u64) -> (tempfile::TempDir, PathBuf) {
+    let dir = tempfile::tempdir().unwrap();
+    let cfg = stripecal_sim::SimConfig::hp3_paper()
+        .with_overrides(&serde_json::json!({
+            "camera": {"width": 384, "height": 288, "fu": 635.825, "fv": 661.26,
+                       "u0": 172.82, "v0": 131.05},
+            "poses": {"count": poses},
+            "seed": seed,
+            "scan": {"enabled": false}
+        }))
+        .unwrap();
+    let twin = stripecal_sim::Twin::new(cfg).unwrap();
+    twin.write(dir.path(), &mut |_, _, _| {}).unwrap();
+    let calib = dir.path().join("calib");
+    (dir, calib)
+}
+
 /// A tiny twin (half-size camera, 5 poses, no scan) rendered once per test binary.
 fn twin_dataset() -> &'static PathBuf {
     static DIR: OnceLock<(tempfile::TempDir, PathBuf)> = OnceLock::new();
-    &DIR.get_or_init(|| {
-        let dir = tempfile::tempdir().unwrap();
-        let cfg = stripecal_sim::SimConfig::hp3_paper()
-            .with_overrides(&serde_json::json!({
-                "camera": {"width": 384, "height": 288, "fu": 635.825, "fv": 661.26,
-                           "u0": 172.82, "v0": 131.05},
-                "poses": {"count": 5},
-                "seed": 7,
-                "scan": {"enabled": false}
-            }))
-            .unwrap();
-        let twin = stripecal_sim::Twin::new(cfg).unwrap();
-        twin.write(dir.path(), &mut |_, _, _| {}).unwrap();
-        let calib = dir.path().join("calib");
-        (dir, calib)
-    })
-    .1
+    &DIR.get_or_init(|| tiny_twin(5, 7)).1
 }
 
 fn copy_dir(from: &Path, to: &Path) {

@@ -22,7 +22,7 @@ use std::sync::OnceLock;
 
 use serde_json::Value;
 
-use super::{copy_dir, fix_png_crcs, png_with_size, twin_dataset};
+use super::{copy_dir, fix_png_crcs, png_with_size, tiny_twin, twin_dataset};
 use crate::fuzz_support::*;
 use stripecal::calib::joint::FreeBlocks;
 use stripecal::io;
@@ -807,23 +807,7 @@ fn laser_images_without_a_line_are_named() {
 /// An 8-view tiny twin, for the pairing tests that need more views than 5.
 fn twin8() -> &'static PathBuf {
     static DIR: OnceLock<(tempfile::TempDir, PathBuf)> = OnceLock::new();
-    &DIR.get_or_init(|| {
-        let dir = tempfile::tempdir().unwrap();
-        let cfg = stripecal_sim::SimConfig::hp3_paper()
-            .with_overrides(&serde_json::json!({
-                "camera": {"width": 384, "height": 288, "fu": 635.825, "fv": 661.26,
-                           "u0": 172.82, "v0": 131.05},
-                "poses": {"count": 8},
-                "seed": 11,
-                "scan": {"enabled": false}
-            }))
-            .unwrap();
-        let twin = stripecal_sim::Twin::new(cfg).unwrap();
-        twin.write(dir.path(), &mut |_, _, _| {}).unwrap();
-        let calib = dir.path().join("calib");
-        (dir, calib)
-    })
-    .1
+    &DIR.get_or_init(|| tiny_twin(8, 11)).1
 }
 
 /// A pose row deleted (the poses below it moved up a row, the last image's row dropped):
