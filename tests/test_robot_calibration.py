@@ -7,7 +7,7 @@ from __future__ import annotations
 
 import json
 from pathlib import Path
-from typing import Tuple
+from typing import List, Tuple
 
 import numpy as np
 import pytest
@@ -155,40 +155,40 @@ def test_robot_calibration_needs_a_robot_and_joint_readings(tmp_path: Path) -> N
     assert not out.exists()
 
 
-@pytest.mark.skipif(not (Path(__file__).parent.parent.parent / "shared" / "realdata" / "rosi_10x10").is_dir(),
-                    reason="../shared/realdata not present")
+ROSI = Path(__file__).resolve().parents[1].parent / "shared" / "realdata" / "rosi_10x10"
+
+
+def _rosi_with_views(data: Path, lines: List[str]) -> Path:
+    """rosi_10x10 at `data` with views.csv's `lines` (rig.json copied, the images linked)."""
+    data.mkdir()
+    (data / "rig.json").write_bytes((ROSI / "rig.json").read_bytes())
+    (data / "images").symlink_to(ROSI / "images")
+    (data / "views.csv").write_text("\n".join(lines) + "\n")
+    return data
+
+
+@pytest.mark.skipif(not ROSI.is_dir(), reason="../shared/realdata not present")
 def test_three_robot_views_are_refused_naming_the_minimum(tmp_path: Path) -> None:
     """Issue 39, fault 3: rosi_10x10 reduced to 3 views determined AX = ZB with nothing to
     spare (the pairing 'agreed', the hand-eye came out up to 3.5 stated sigmas from the
     15 views' result): refused, naming the minimum and the way out (--from)."""
-    src = Path(__file__).parent.parent.parent / "shared" / "realdata" / "rosi_10x10"
-    lines = (src / "views.csv").read_text().splitlines()
-    data = tmp_path / "rosi3"
-    data.mkdir()
-    (data / "rig.json").write_bytes((src / "rig.json").read_bytes())
-    (data / "images").symlink_to(src / "images")
-    (data / "views.csv").write_text("\n".join([lines[0], lines[6], lines[11], lines[15]]) + "\n")
+    lines = (ROSI / "views.csv").read_text().splitlines()
+    data = _rosi_with_views(tmp_path / "rosi3", [lines[0], lines[6], lines[11], lines[15]])
     with pytest.raises(stripecal.DegenerateError, match=r"only 3 views with a robot pose .* at least 4 .*--from"):
         stripecal.calibrate(data)
 
 
-@pytest.mark.skipif(not (Path(__file__).parent.parent.parent / "shared" / "realdata" / "rosi_10x10").is_dir(),
-                    reason="../shared/realdata not present")
+@pytest.mark.skipif(not ROSI.is_dir(), reason="../shared/realdata not present")
 def test_a_pose_typo_is_named_and_left_out(tmp_path: Path) -> None:
     """Issue 39, fault 2: rosi_10x10 with view 5's z off by 100 mm (a typo) was flagged but
     kept (the hand-eye moved 70 mm, 14 sigmas). The view is named and left out, and the
     rest stays within 3 stated sigmas of the clean calibration."""
-    src = Path(__file__).parent.parent.parent / "shared" / "realdata" / "rosi_10x10"
-    lines = (src / "views.csv").read_text().splitlines()
+    lines = (ROSI / "views.csv").read_text().splitlines()
     cells = lines[6].split(",")
     cells[4] = repr(float(cells[4]) + 0.1)  # z_m of view 5
     lines[6] = ",".join(cells)
-    data = tmp_path / "rosi_typo"
-    data.mkdir()
-    (data / "rig.json").write_bytes((src / "rig.json").read_bytes())
-    (data / "images").symlink_to(src / "images")
-    (data / "views.csv").write_text("\n".join(lines) + "\n")
-    clean = stripecal.calibrate(src, leave_one_out=False)
+    data = _rosi_with_views(tmp_path / "rosi_typo", lines)
+    clean = stripecal.calibrate(ROSI, leave_one_out=False)
     typo = stripecal.calibrate(data, leave_one_out=False)
     warnings = typo.extra.get("warnings", [])
     assert any(w.startswith("view 5: left out") for w in warnings), warnings

@@ -345,7 +345,7 @@ def _fmt_sigma(value: float, sigma: Optional[float]) -> str:
 
 def print_calibration(cal: stripecal.Calibration) -> None:
     """Prints a calibration's parameters with their one-sigma, residuals and views."""
-    from stripecal.report import parameter_rows  # plain Python; matplotlib only for figures
+    from stripecal.report import parameter_rows, stripe_extraction_cells  # plain Python; matplotlib only for figures
 
     cam = cal.camera
     extra = cal.extra
@@ -372,14 +372,7 @@ def print_calibration(cal: stripecal.Calibration) -> None:
             crms = v["circle_rms_px"]
             srms = v["stripe_rms_px"]
             off = v.get("stripe_off_plane")  # absent from files written before it existed
-            ex = v.get("stripe_extraction")
-            found = left = sat = ""
-            if ex is not None:
-                found = str(ex["found"])
-                lo = ex["left_out"]
-                left = str(lo["at_edge"] + lo["uneven_background"] + lo["oblique"])
-                share = ex["saturated_share"]
-                sat = "" if share is None else f"{100 * share:.0f}"
+            found, left, sat = stripe_extraction_cells(v)
             note = v["note"] or ("OUTLIER" if v["outlier"] else "")
             print(f"  {v['view']:>4}  {'yes' if v['used'] else 'no':>4}  {v['circles']:>7}  {found:>12}  {left:>8}"
                   f"  {'' if off is None else off:>9}  {v['stripe_points']:>10}  {sat:>5}"

@@ -27,7 +27,7 @@ import numpy as np
 import numpy.typing as npt
 
 import stripecal
-from stripecal.types import CalibrationQuality, CameraSigma, PlaneSigma, PoseSigma, ProfilerQuality
+from stripecal.types import CalibrationQuality, CalibrationView, CameraSigma, PlaneSigma, PoseSigma, ProfilerQuality
 
 _Path = Union[str, "os.PathLike[str]"]
 F64 = npt.NDArray[np.float64]
@@ -182,6 +182,19 @@ def _no_plane_reason(cal: stripecal.Calibration) -> str:
     return f"no laser line on the board in any of the {len(lasers)} laser images, see the warnings"
 
 
+def stripe_extraction_cells(v: CalibrationView) -> Tuple[str, str, str]:
+    """A view's stripe extraction as the views table shows it (CLI and report): points
+    found, points left out (at an edge, on an uneven background, oblique) and the
+    saturated share in percent; empty cells for a view without a record."""
+    ex = v.get("stripe_extraction")
+    if ex is None:
+        return "", "", ""
+    lo = ex["left_out"]
+    share = ex["saturated_share"]
+    return (str(ex["found"]), str(lo["at_edge"] + lo["uneven_background"] + lo["oblique"]),
+            "" if share is None else f"{100 * share:.0f}")
+
+
 def parameter_rows(cal: stripecal.Calibration, truth: Optional[stripecal.Truth]) -> List[Row]:
     """(name, value, one-sigma or None, true value or None) per estimated number."""
     u = cal.uncertainty
@@ -275,14 +288,7 @@ def write_report(
         def f4(x: Optional[float]) -> str:
             return "" if x is None else f"{x:.4f}"
         bad = ' style="color:#b00"' if v["outlier"] or not v["used"] else ""
-        ex = v.get("stripe_extraction")
-        found = left = sat = ""
-        if ex is not None:
-            found = str(ex["found"])
-            lo = ex["left_out"]
-            left = str(lo["at_edge"] + lo["uneven_background"] + lo["oblique"])
-            share = ex["saturated_share"]
-            sat = "" if share is None else f"{100 * share:.0f}"
+        found, left, sat = stripe_extraction_cells(v)
         off = v.get("stripe_off_plane")
         vr.append(f"<tr{bad}><td>{v['view']}</td><td>{'yes' if v['used'] else 'no'}</td><td>{v['circles']}</td>"
                   f"<td>{found}</td><td>{left}</td><td>{'' if off is None else off}</td><td>{sat}</td>"

@@ -73,8 +73,10 @@ pub(super) fn calibrate_bench(
         median(&mut d)
     };
     let mut first_pass = true;
-    let (plane, start, adj, views_gate) = loop {
-        let plane = laser_plane_stage(&used_obs, &used_poses, &camcal.camera, &mut warnings)?;
+    let (plane, start, adj, views_gate, plane_warnings) = loop {
+        // the plane stage's warnings of the last pass only (a refit repeats them)
+        let mut plane_warnings = Vec::new();
+        let plane = laser_plane_stage(&used_obs, &used_poses, &camcal.camera, &mut plane_warnings)?;
         let mut start = JointStart {
             camera: camcal.camera.clone(),
             plane: plane.as_ref().map(|p| p.plane),
@@ -89,7 +91,7 @@ pub(super) fn calibrate_bench(
         let kept_n = used_obs.len() - bad.len();
         let check = views_check(&bad, &msg, kept_n, total);
         if bad.is_empty() || !check.passed || !first_pass {
-            break (plane, start, adj, check);
+            break (plane, start, adj, check, plane_warnings);
         }
         first_pass = false;
         leave_out(
@@ -101,6 +103,7 @@ pub(super) fn calibrate_bench(
             &mut status,
         )?;
     };
+    warnings.extend(plane_warnings);
     warnings.extend(adj.warnings.iter().cloned());
     mark_used(&mut status, &used_obs);
     let leave_one_out = if opts.leave_one_out {

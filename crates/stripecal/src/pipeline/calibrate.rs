@@ -121,8 +121,10 @@ pub(super) fn calibrate_unjudged(
     // than the others' (the robot-pose test), are left out once when enough remain.
     let mut first_pass = true;
     let mut pose_left_out = Vec::new();
-    let (plane, start, adj, views_check) = loop {
-        let plane = laser_plane_stage(&used_obs, &used_poses, &camcal.camera, &mut warnings)?;
+    let (plane, start, adj, views_check, plane_warnings) = loop {
+        // the plane stage's warnings of the last pass only (a refit repeats them)
+        let mut plane_warnings = Vec::new();
+        let plane = laser_plane_stage(&used_obs, &used_poses, &camcal.camera, &mut plane_warnings)?;
         let mut start = JointStart {
             camera: camcal.camera.clone(),
             plane: plane.as_ref().map(|p| p.plane),
@@ -156,7 +158,7 @@ pub(super) fn calibrate_unjudged(
         let kept_n = used_obs.len() - bad.len();
         let check = views_check(&bad, &msg, kept_n, total);
         if bad.is_empty() || !check.passed || !first_pass {
-            break (plane, start, adj, check);
+            break (plane, start, adj, check, plane_warnings);
         }
         first_pass = false;
         pose_left_out = pose_bad;
@@ -169,6 +171,7 @@ pub(super) fn calibrate_unjudged(
             &mut status,
         )?;
     };
+    warnings.extend(plane_warnings);
     let (mut adj, used_obs, board_stripe) =
         correct_stripes(adj, used_obs, &used_poses, board, &jopts, opts)?;
     if let Some(Err(why)) = &board_stripe {

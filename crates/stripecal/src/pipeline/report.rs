@@ -124,11 +124,8 @@ pub(super) fn build_report(
     rig: &Rig,
     opts: &CalibrateOptions,
     status: Vec<ViewStatus>,
-    mut warnings: Vec<String>,
+    warnings: Vec<String>,
 ) -> CalibrationReport {
-    // A refit after views were left out repeats its stages' warnings: each is said once.
-    let mut seen = std::collections::HashSet::new();
-    warnings.retain(|w| seen.insert(w.clone()));
     let adj = &st.adjustment;
     let (camera, laser_plane, hand_cam, base_board) = match opts.method {
         Method::Paper => (
