@@ -20,7 +20,9 @@ use nalgebra::Vector3;
 
 use crate::model::geometry::Plane;
 
-use super::profile::{project_jac, sample_lines, PointProfile, Rig, Section, Surface};
+use super::profile::{
+    project_jac, sample_lines, PointProfile, Rig, Section, Surface, NEWTON_LAST_STEP_PX,
+};
 
 /// The board (camera frame) as the model sees it: its plane, the direction of its line
 /// with the sheet and `d p0 / d t`.
@@ -78,20 +80,22 @@ impl<'b> Board<'b> {
             if df.is_nan() || df.abs() <= 1e-12 {
                 return None;
             }
-            if f.abs() < 1e-10 || it == 29 {
-                if f.abs() > 1e-6 {
-                    return None;
-                }
+            if f.abs() < NEWTON_LAST_STEP_PX {
+                // The last step taken linearly (as the sphere's section does).
+                let last = -f / df;
                 let ds_dt = -jl.dot(&self.dp0_dt.transpose()) / df;
                 let da_dt = ja.dot(&(self.dp0_dt + self.e * ds_dt).transpose());
-                let slope = ja.dot(&self.e.transpose()) / df;
+                let da_ds = ja.dot(&self.e.transpose());
                 return Some(Section {
-                    phi: s,
-                    p,
-                    a: uv[al],
+                    phi: s + last,
+                    p: p + self.e * last,
+                    a: uv[al] + da_ds * last,
                     da_dt,
-                    slope,
+                    slope: da_ds / df,
                 });
+            }
+            if it == 29 {
+                return None;
             }
             s -= (f / df).clamp(-50.0, 50.0);
         }

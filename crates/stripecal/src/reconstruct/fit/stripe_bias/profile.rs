@@ -132,6 +132,10 @@ pub(crate) struct Section {
     pub slope: f64,
 }
 
+/// Newton's method on the scan line stops when the point is this close to it (px) and
+/// takes its last step linearly.
+pub(crate) const NEWTON_LAST_STEP_PX: f64 = 1e-6;
+
 pub(crate) fn section_point(
     rig: &Rig<'_>,
     c: &Vector3<f64>,
@@ -162,23 +166,25 @@ pub(crate) fn section_point(
         if df.is_nan() || df.abs() <= 1e-12 {
             return None;
         }
-        if f.abs() < 1e-10 || it == 29 {
-            if f.abs() > 1e-6 {
-                return None;
-            }
-            // dP/dt at fixed phi: n + (h / rho) radial; then d phi / dt from the line
-            // constraint.
+        if f.abs() < NEWTON_LAST_STEP_PX {
+            // The last Newton step taken linearly (its square is below 1e-12 px), the
+            // derivatives at this iterate. dP/dt at fixed phi: n + (h / rho) radial; then
+            // d phi / dt from the line constraint.
+            let last = -f / df;
             let dp_dt = rig.n + radial * (h / rho);
             let dphi_dt = -jl.dot(&dp_dt.transpose()) / df;
             let da_dt = ja.dot(&(dp_dt + dp_dphi * dphi_dt).transpose());
-            let slope = ja.dot(&dp_dphi.transpose()) / df;
+            let da_dphi = ja.dot(&dp_dphi.transpose());
             return Some(Section {
-                phi,
-                p,
-                a: uv[al],
+                phi: phi + last,
+                p: p + dp_dphi * last,
+                a: uv[al] + da_dphi * last,
                 da_dt,
-                slope,
+                slope: da_dphi / df,
             });
+        }
+        if it == 29 {
+            return None;
         }
         let step = (f / df).clamp(-0.2, 0.2);
         phi -= step;
