@@ -5,7 +5,7 @@
 # arrays (float64 unless noted). Shapes are given in the docstrings of the extension.
 
 import os
-from typing import Any, Callable, ClassVar, Dict, List, Optional, Sequence, Tuple, Union, final, overload
+from typing import Any, Callable, ClassVar, Dict, List, Literal, Optional, Sequence, Tuple, Union, final, overload
 
 import numpy as np
 import numpy.typing as npt
@@ -450,6 +450,10 @@ class Calibration:
     def uncertainty(self) -> CalibrationUncertainty: ...
     @property
     def extra(self) -> CalibrationExtra: ...
+    @property
+    def mount(self) -> Literal["robot", "bench"]: ...
+    @property
+    def warnings(self) -> List[str]: ...
     @property
     def views(self) -> List[CalibrationView]: ...
     @property

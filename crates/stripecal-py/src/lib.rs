@@ -25,6 +25,8 @@ mod results;
 mod rig;
 mod robot;
 mod sim;
+mod sphere_fit;
+mod truth;
 mod vision_circles;
 mod vision_stripe;
 mod vision_target;
@@ -34,9 +36,11 @@ use pyo3::prelude::*;
 pub use board::PyBoard;
 pub use camera::PyCamera;
 pub use errors::{map_err, map_err_at};
-pub use results::{PyCalibration, PySphereFit, PyTruth};
+pub use results::PyCalibration;
 pub use rig::{PyDataset, PyRig, PyScan};
 pub use robot::PyRobot;
+pub use sphere_fit::PySphereFit;
+pub use truth::PyTruth;
 
 #[pymodule]
 fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
