@@ -21,6 +21,7 @@ mod poses;
 mod profile_py;
 mod profile_start_py;
 mod reconstruct_py;
+mod record_keys;
 mod results;
 mod rig;
 mod robot;
@@ -61,6 +62,7 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<PyTruth>()?;
     m.add_class::<PySphereFit>()?;
 
+    m.add_function(wrap_pyfunction!(record_keys::record_keys, m)?)?;
     m.add_function(wrap_pyfunction!(files::load_rig, m)?)?;
     m.add_function(wrap_pyfunction!(files::save_rig, m)?)?;
     m.add_function(wrap_pyfunction!(files::load_dataset, m)?)?;
