@@ -53,7 +53,7 @@ fn quality_from_py(py: Python<'_>, d: Option<&Bound<'_, PyDict>>) -> PyResult<Qu
     for (k, v) in d.iter() {
         let key: String = k.extract()?;
         match key.as_str() {
-            "circle_rms_px" => q.circle_rms_px = v.extract()?,
+            "circle_rms_px" | "target_rms_px" => q.circle_rms_px = v.extract()?,
             "stripe_rms_px" => q.stripe_rms_px = v.extract()?,
             "views_used" => q.views_used = v.extract()?,
             "accepted_poor" => q.accepted_poor = v.extract()?,
@@ -67,7 +67,7 @@ fn quality_from_py(py: Python<'_>, d: Option<&Bound<'_, PyDict>>) -> PyResult<Qu
                 return Err(invalid_input(
                     py,
                     format!(
-                        "quality: unknown key {other:?} (expected circle_rms_px, stripe_rms_px, views_used, accepted_poor, checks)"
+                        "quality: unknown key {other:?} (expected target_rms_px (or circle_rms_px), stripe_rms_px, views_used, accepted_poor, checks)"
                     ),
                 ))
             }
@@ -79,6 +79,7 @@ fn quality_from_py(py: Python<'_>, d: Option<&Bound<'_, PyDict>>) -> PyResult<Qu
 fn quality_to_py<'py>(py: Python<'py>, q: &Quality) -> PyResult<Bound<'py, PyDict>> {
     let d = PyDict::new(py);
     d.set_item("circle_rms_px", q.circle_rms_px)?;
+    d.set_item("target_rms_px", q.circle_rms_px)?;
     d.set_item("stripe_rms_px", q.stripe_rms_px)?;
     d.set_item("views_used", q.views_used)?;
     d.set_item("accepted_poor", q.accepted_poor)?;
@@ -255,7 +256,9 @@ impl PyCalibration {
         self.inner.robot.clone().map(PyRobot::new_py)
     }
 
-    /// `{"circle_rms_px": float, "stripe_rms_px": float, "views_used": int}`.
+    /// `{"target_rms_px": float (circle centres or chessboard corners; also as the
+    /// contract's "circle_rms_px"), "stripe_rms_px": float, "views_used": int,
+    /// "accepted_poor": bool, "checks": [...]}`.
     #[getter]
     fn quality<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
         quality_to_py(py, &self.inner.quality)

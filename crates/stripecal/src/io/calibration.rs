@@ -1,5 +1,5 @@
-//! `calibration.json` (`stripecal/calibration@1`), `truth.json` (`stripecal/truth@1`)
-//! and sphere fit results.
+//! `calibration.json` (`stripecal/calibration@1`) and `truth.json`
+//! (`stripecal/truth@1`).
 
 use std::path::Path;
 
@@ -18,8 +18,7 @@ use crate::model::camera::Camera;
 use crate::model::geometry::{Iso3, Plane};
 use crate::model::kinematics::Robot;
 use crate::model::{
-    Calibration, Mount, NamedCovariance, Quality, QualityCheck, SensorKind, Sphere, SphereFit,
-    Truth,
+    Calibration, Mount, NamedCovariance, Quality, QualityCheck, SensorKind, Sphere, Truth,
 };
 
 /// The top-level key that marks a bench calibration or a bench twin's truth
@@ -57,8 +56,6 @@ const TRUTH_KEYS: [&str; 8] = [
     "sphere",
     "working_range_mm",
 ];
-
-const SPHERE_FIT_KEYS: [&str; 5] = ["diameter_mm", "center_mm", "rms_mm", "points", "outliers"];
 
 // ---------------------------------------------------------------- shared parts
 
@@ -357,7 +354,12 @@ pub fn calibration_from_json(path: &Path, text: &str) -> Result<Calibration> {
     let (c, bench) = common_or_bench(&root)?;
     let q = root.obj("quality")?;
     let quality = Quality {
-        circle_rms_px: q.nonneg_f64("circle_rms_px")?,
+        // the contract's name; `target_rms_px` (the same figure for any target) in a
+        // file that writes only that
+        circle_rms_px: match (q.opt("circle_rms_px"), q.opt("target_rms_px")) {
+            (None, Some(t)) => t.nonneg_f64()?,
+            _ => q.nonneg_f64("circle_rms_px")?,
+        },
         stripe_rms_px: q.nonneg_f64("stripe_rms_px")?,
         views_used: q.count("views_used")?,
         checks: quality_checks_from(&q)?,
@@ -424,6 +426,7 @@ pub fn calibration_to_json(c: &Calibration) -> String {
     );
     let mut q = Map::new();
     q.insert("circle_rms_px".into(), num(c.quality.circle_rms_px));
+    q.insert("target_rms_px".into(), num(c.quality.circle_rms_px));
     q.insert("stripe_rms_px".into(), num(c.quality.stripe_rms_px));
     q.insert("views_used".into(), Value::from(c.quality.views_used));
     q.insert("accepted_poor".into(), Value::from(c.quality.accepted_poor));
@@ -649,51 +652,4 @@ pub fn write_truth(p: impl AsRef<Path>, t: &Truth) -> Result<()> {
         }
     }
     write_atomic(p, truth_to_json(t).as_bytes())
-}
-
-// ---------------------------------------------------------------- sphere fit
-
-/// Reads a sphere fit `{"diameter_mm", "center_mm": [x, y, z], "rms_mm", "points",
-/// "outliers"}`; other keys are kept in `extra`.
-pub fn read_sphere_fit(p: impl AsRef<Path>) -> Result<SphereFit> {
-    let path = p.as_ref();
-    let text = read_text(path)?;
-    let doc = parse(path, &text)?;
-    let root = Obj::root(path, &doc)?;
-    Ok(SphereFit {
-        diameter_mm: root.positive_f64("diameter_mm")?,
-        center_mm: root.vec3("center_mm")?,
-        rms_mm: root.nonneg_f64("rms_mm")?,
-        points: root.count("points")?,
-        outliers: root.count("outliers")?,
-        extra: root.extra(&SPHERE_FIT_KEYS),
-    })
-}
-
-/// The sphere fit's JSON text (pretty-printed, final newline).
-pub fn sphere_fit_to_json(s: &SphereFit) -> String {
-    let mut m = Map::new();
-    m.insert("diameter_mm".into(), num(s.diameter_mm));
-    m.insert("center_mm".into(), vec3_value(&s.center_mm));
-    m.insert("rms_mm".into(), num(s.rms_mm));
-    m.insert("points".into(), Value::from(s.points));
-    m.insert("outliers".into(), Value::from(s.outliers));
-    append_extra(&mut m, &s.extra);
-    to_pretty(&Value::Object(m))
-}
-
-/// Writes a sphere fit atomically (values must be finite, the diameter positive).
-pub fn write_sphere_fit(p: impl AsRef<Path>, s: &SphereFit) -> Result<()> {
-    let ok = s.diameter_mm.is_finite()
-        && s.diameter_mm > 0.0
-        && s.center_mm.iter().all(|x| x.is_finite())
-        && s.rms_mm.is_finite()
-        && s.rms_mm >= 0.0;
-    if !ok {
-        return Err(Error::InvalidInput(format!(
-            "sphere fit: diameter {} / centre {:?} / rms {} must be finite (diameter > 0, rms >= 0)",
-            s.diameter_mm, s.center_mm, s.rms_mm
-        )));
-    }
-    write_atomic(p, sphere_fit_to_json(s).as_bytes())
 }

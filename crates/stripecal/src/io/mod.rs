@@ -32,13 +32,13 @@ mod records;
 mod records_read;
 mod rig;
 mod sensor;
+mod sphere_fit;
 
 pub use artefacts::read_artefacts;
 pub use atomic::{file_problem, write_atomic};
 pub use calibration::{
     calibration_extra_keys, calibration_from_json, calibration_to_json, read_calibration,
-    read_sphere_fit, read_truth, sphere_fit_to_json, truth_from_json, truth_to_json,
-    write_calibration, write_sphere_fit, write_truth, BENCH_KEY,
+    read_truth, truth_from_json, truth_to_json, write_calibration, write_truth, BENCH_KEY,
 };
 pub use csv::{
     read_scan_csv, read_views_csv, write_scan_csv, write_scan_csv_with, write_views_csv,
@@ -70,3 +70,4 @@ pub use records::{
 pub use records_read::{calibration_leave_one_out, calibration_robot_pose_noise};
 pub use rig::{read_rig, rig_from_json, rig_to_json, write_rig};
 pub use sensor::{calibration_sensor_kind, sensor_kind};
+pub use sphere_fit::{read_sphere_fit, sphere_fit_to_json, write_sphere_fit};

@@ -95,6 +95,8 @@ impl NamedCovariance {
 /// Quality figures of a calibration (calibration.json `quality`).
 #[derive(Debug, Clone, PartialEq, Default)]
 pub struct Quality {
+    /// RMS target-point residual, px (circle centres or chessboard corners): the
+    /// contract's `circle_rms_px`, written beside it as `target_rms_px` too.
     pub circle_rms_px: f64,
     pub stripe_rms_px: f64,
     pub views_used: usize,

@@ -151,9 +151,15 @@ fn differ(a: &Value, b: &Value, at: &str) -> Option<String> {
     }
 }
 
-/// Written back: the same keys with the same values (key order aside).
+/// Written back: the same keys with the same values (key order aside), and
+/// `quality.target_rms_px` beside the contract's `circle_rms_px`.
 fn check_written_back(j: &Value, c: &Calibration) {
-    let back: Value = serde_json::from_str(&calibration_to_json(c)).unwrap();
+    let mut back: Value = serde_json::from_str(&calibration_to_json(c)).unwrap();
+    let q = back["quality"].as_object_mut().unwrap();
+    assert_eq!(
+        q.shift_remove("target_rms_px"),
+        Some(q["circle_rms_px"].clone())
+    );
     if let Some(d) = differ(&back, j, "") {
         panic!("written back differs at {d}");
     }
