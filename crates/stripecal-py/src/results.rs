@@ -8,8 +8,8 @@ use pyo3::exceptions::PyTypeError;
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyList, PyTuple};
 use stripecal::io::{
-    board_scale_to_json, calibration_extra_keys, leave_one_out_to_json, robot_calibration_to_json,
-    robot_pose_noise_to_json, view_record_to_json,
+    board_scale_to_json, calibration_extra_keys, calibration_records_from, leave_one_out_to_json,
+    robot_calibration_to_json, robot_pose_noise_to_json, view_record_to_json,
 };
 use stripecal::io::{
     calibration_from_json, calibration_leave_one_out, calibration_to_json, write_calibration,
@@ -178,7 +178,11 @@ impl PyCalibration {
         uncertainty: Option<&Bound<'_, PyDict>>,
         extra: Option<&Bound<'_, PyDict>>,
     ) -> PyResult<Self> {
-        let mut extra = opt_dict_to_map(extra, "extra")?;
+        let robot = robot.map(|r| r.get().inner.clone());
+        // the records among `extra`'s keys, as a file's are read
+        let (records, mut extra) =
+            calibration_records_from(opt_dict_to_map(extra, "extra")?, robot.as_ref())
+                .py_err(py)?;
         // `extra={"bench": True}` (the file's flag) is the bench mount
         let bench = extra.get(BENCH_KEY) == Some(&serde_json::Value::Bool(true));
         if bench {
@@ -194,11 +198,11 @@ impl PyCalibration {
             mount: if bench { Mount::Bench } else { Mount::Robot },
             hand_cam: py_to_iso(hand_cam, "hand_cam")?,
             base_board: py_to_iso(base_board, "base_board")?,
-            robot: robot.map(|r| r.get().inner.clone()),
+            robot,
             quality: quality_from_py(py, quality)?,
             uncertainty: opt_dict_to_map(uncertainty, "uncertainty")?,
             covariance: None,
-            records: Default::default(),
+            records,
             extra,
         }))
     }

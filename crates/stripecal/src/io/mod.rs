@@ -67,7 +67,9 @@ pub use records::{
     robot_calibration_to_json, robot_pose_noise_extra, robot_pose_noise_to_json, robot_uncertainty,
     self_checks_extra, summary_to_json, uncertainty_to_json, view_record_to_json, warnings_to_json,
 };
-pub use records_read::{calibration_leave_one_out, calibration_robot_pose_noise};
+pub use records_read::{
+    calibration_leave_one_out, calibration_records_from, calibration_robot_pose_noise,
+};
 pub use rig::{read_rig, rig_from_json, rig_to_json, write_rig};
 pub use sensor::{calibration_sensor_kind, sensor_kind};
 pub use sphere_fit::{read_sphere_fit, sphere_fit_to_json, write_sphere_fit};

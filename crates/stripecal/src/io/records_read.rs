@@ -9,6 +9,8 @@
 //!   tools may use the name differently), except `robot_pose_noise`, which is an error
 //!   (uncertainty propagation reads it).
 
+use std::path::Path;
+
 use serde_json::{Map, Value};
 
 use super::calibration::{camera_from, plane_from};
@@ -109,6 +111,20 @@ pub(super) fn records_from(
     };
     let known: Vec<&str> = fixed.iter().copied().chain(read).collect();
     Ok((records, root.extra(&known)))
+}
+
+/// The records among keys beyond calibration.json's fixed ones (a caller's `extra`
+/// map, e.g. the Python constructor's), read as [`calibration_from_json`] reads them,
+/// and the keys left over. Errors name `extra.<key>` (a malformed `robot_pose_noise`).
+///
+/// [`calibration_from_json`]: super::calibration_from_json
+pub fn calibration_records_from(
+    extra: Map<String, Value>,
+    robot: Option<&Robot>,
+) -> Result<(CalibrationRecords, Map<String, Value>)> {
+    let v = Value::Object(extra);
+    let root = Obj::root(Path::new("extra"), &v)?;
+    records_from(&root, &[], robot)
 }
 
 /// An array of strings, `None` when it is not one.
