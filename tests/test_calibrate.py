@@ -181,7 +181,7 @@ def test_cli_calibrate_writes_json_and_prints_the_table(
     out = tmp_path / "cal.json"
     assert main(["calibrate", str(path), "-o", str(out), "--method", "paper"]) == 0
     text = capsys.readouterr().out
-    for s in ("fu (px)", "+-", "laser d (mm)", "X tx (mm)", "residual RMS: circles", "mm)"):
+    for s in ("fu (px)", "+-", "laser d (mm)", "X tx (mm)", "residual RMS: target points", "mm)"):
         assert s in text, s
     assert stripecal.load_calibration(out).extra["method"] == "paper"
     assert main(["calibrate", str(tmp_path / "nope"), "-o", str(tmp_path / "x.json")]) == 1

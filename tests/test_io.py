@@ -70,8 +70,8 @@ def test_calibration_round_trip(tmp_path: Path) -> None:
     stripecal.save_calibration(path, calib)
     back = stripecal.load_calibration(path)
     assert_same_geometry(back, calib)
-    assert back.quality == {"circle_rms_px": 0.05, "stripe_rms_px": 0.12, "views_used": 7,
-                            "accepted_poor": False, "checks": []}
+    assert back.quality == {"circle_rms_px": 0.05, "target_rms_px": 0.05, "stripe_rms_px": 0.12,
+                            "views_used": 7, "accepted_poor": False, "checks": []}
     assert back.uncertainty == calib.uncertainty
     assert back.extra["note"] == "made in a test"
     doc = json.loads(path.read_text())

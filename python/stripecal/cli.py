@@ -252,7 +252,7 @@ def _demo_tables(cal: stripecal.Calibration, truth: stripecal.Truth, m: SphereMe
         lines.append(f"{name:<20} {t:13.6f} {v:13.6f} {sig:>9} {v - t:+10.2g} {pap:>14}")
     q = cal.quality
     lines.append("")
-    lines.append(f"residual RMS: circles {q['circle_rms_px']:.4f} px, stripe {q['stripe_rms_px']:.4f} px "
+    lines.append(f"residual RMS: target points {q['target_rms_px']:.4f} px, stripe {q['stripe_rms_px']:.4f} px "
                  f"(paper: stripe re-projection 0.1364 +- 0.0849 px)")
     lines.append("")
     lines += sphere_lines(m, f"reference ball ({cloud_points} points), GUM budget (mm; U expanded, k = 2; "
@@ -358,7 +358,7 @@ def print_calibration(cal: stripecal.Calibration) -> None:
     smm = extra.get("stripe_rms_mm")
     stripe = (f", stripe {q['stripe_rms_px']:.4f} px ({smm:.4f} mm)" if cal.laser_plane is not None and smm is not None
               else " (no stripe points)")
-    print(f"\n  residual RMS: circles {q['circle_rms_px']:.4f} px{stripe}")
+    print(f"\n  residual RMS: target points {q['target_rms_px']:.4f} px{stripe}")
     channel = extra.get("stripe_channel")
     if isinstance(channel, str):
         scores = extra.get("stripe_channel_scores")
@@ -366,15 +366,15 @@ def print_calibration(cal: stripecal.Calibration) -> None:
         print(f"  stripe found in the {channel} channel ({how})")
     views = cal.views
     if views:
-        print("\n  view  used  circles  stripe found  left out  off plane  stripe pts  sat %"
-              "  circle RMS px  stripe RMS px  note")
+        print("\n  view  used  target points  stripe found  left out  off plane  stripe pts  sat %"
+              "  target RMS px  stripe RMS px  note")
         for v in views:
             crms = v["circle_rms_px"]
             srms = v["stripe_rms_px"]
             off = v.get("stripe_off_plane")  # absent from files written before it existed
             found, left, sat = stripe_extraction_cells(v)
             note = v["note"] or ("OUTLIER" if v["outlier"] else "")
-            print(f"  {v['view']:>4}  {'yes' if v['used'] else 'no':>4}  {v['circles']:>7}  {found:>12}  {left:>8}"
+            print(f"  {v['view']:>4}  {'yes' if v['used'] else 'no':>4}  {v['circles']:>13}  {found:>12}  {left:>8}"
                   f"  {'' if off is None else off:>9}  {v['stripe_points']:>10}  {sat:>5}"
                   f"  {'' if crms is None else f'{crms:.4f}':>13}  {'' if srms is None else f'{srms:.4f}':>13}  {note}")
     if cal.laser_plane is None:

@@ -39,6 +39,7 @@ from stripecal._core import ProfileDataset as ProfileDataset
 from stripecal._core import read_ply as read_ply
 from stripecal._core import read_profile as read_profile
 from stripecal._core import read_profiler_calibration as read_profiler_calibration
+from stripecal._core import record_keys as record_keys
 from stripecal._core import Rig as Rig
 from stripecal._core import save_calibration as save_calibration
 from stripecal._core import save_image as save_image
@@ -67,6 +68,7 @@ __all__ = [
     "read_ply",
     "read_profile",
     "read_profiler_calibration",
+    "record_keys",
     "Rig",
     "save_calibration",
     "save_image",

@@ -88,7 +88,7 @@ def _circle_figure(plt: Any, cal: stripecal.Calibration, out: Path) -> Optional[
         ax.set_title(f"view {v}: RMS {rms:.4f} px", fontsize=9)
     for ax in axes.ravel()[len(views):]:
         ax.axis("off")
-    fig.suptitle(f"circle residuals (predicted - detected), arrows x{scale:.0f}; largest {peak:.4f} px", fontsize=10)
+    fig.suptitle(f"target point residuals (predicted - detected), arrows x{scale:.0f}; largest {peak:.4f} px", fontsize=10)
     return _save(plt, fig, out, "circle_residuals.png")
 
 
@@ -118,7 +118,7 @@ def _rms_figure(plt: Any, cal: stripecal.Calibration, out: Path) -> Optional[str
     x = np.arange(len(views))
     c = [v["circle_rms_px"] or 0.0 for v in views]
     s = [v["stripe_rms_px"] or 0.0 for v in views]
-    ax.bar(x - 0.2, c, 0.4, label="circles (2D RMS)")
+    ax.bar(x - 0.2, c, 0.4, label="target points (2D RMS)")
     ax.bar(x + 0.2, s, 0.4, label="stripe (RMS distance)")
     for i, v in enumerate(views):
         if v["outlier"]:
@@ -140,7 +140,7 @@ def _hist_figure(plt: Any, cal: stripecal.Calibration, out: Path) -> Optional[st
     if cr.shape[0]:
         axes[0].hist([cr[:, 5], cr[:, 6]], bins=40, label=["du", "dv"], histtype="step")
         axes[0].legend(fontsize=8)
-    axes[0].set_title("circle residuals (px)", fontsize=10)
+    axes[0].set_title("target point residuals (px)", fontsize=10)
     if sr.shape[0]:
         axes[1].hist(sr[:, 3], bins=60, histtype="step", color="tab:green")
     axes[1].set_title("stripe residuals (px)", fontsize=10)
@@ -305,14 +305,14 @@ td,th{{border:1px solid #ccc;padding:2px 8px;text-align:right}} td:first-child{{
 img{{max-width:100%}} figure{{margin:1em 0}}</style></head><body>
 <h1>{html.escape(title)}</h1>
 <p>method <b>{html.escape(str(e.get('method', '?')))}</b>, camera model {html.escape(cal.camera.distortion_model)},
-{q['views_used']} views used. Residual RMS: circles <b>{q['circle_rms_px']:.4f} px</b>,
+{q['views_used']} views used. Residual RMS: target points <b>{q['target_rms_px']:.4f} px</b>,
 stripe <b>{q['stripe_rms_px']:.4f} px</b> ({float(e.get('stripe_rms_mm') or float('nan')):.4f} mm){'' if cal.laser_plane is not None else ' (laser plane not estimated: ' + _no_plane_reason(cal) + ')'}.</p>
 {checks_html(cal.quality)}
 {('<h2>Warnings</h2><ul>' + warn + '</ul>') if warn else ''}
 <h2>Parameters</h2>
 <table><tr><th>parameter</th><th>value</th><th>1 sigma</th><th>true</th><th>error</th></tr>{''.join(tr)}</table>
 <h2>Views</h2>
-<table><tr><th>view</th><th>used</th><th>circles</th><th>stripe found</th><th>left out</th><th>off plane</th><th>saturated %</th><th>stripe points used</th><th>circle RMS px</th><th>stripe RMS px</th><th>note</th></tr>{''.join(vr)}</table>
+<table><tr><th>view</th><th>used</th><th>target points</th><th>stripe found</th><th>left out</th><th>off plane</th><th>saturated %</th><th>stripe points used</th><th>target RMS px</th><th>stripe RMS px</th><th>note</th></tr>{''.join(vr)}</table>
 {_robot_pose_noise_html(cal)}
 {_robot_html(cal)}
 {loo_html}
@@ -433,7 +433,7 @@ def _leave_one_out_html(cal: stripecal.Calibration) -> str:
         verdict = "No view disagrees with the others (none beyond 3 times the median)."
     ms = loo["median_stripe_rms_mm"]
     how = (
-        "Each view's board pose fitted to its own circles with the camera of the calibration solved "
+        "Each view's board pose fitted to its own target points with the camera of the calibration solved "
         "without it (the fit's residuals), and its stripe points triangulated with that calibration's "
         "laser plane against that board plane (the bench: no robot pose)."
         if cal.is_bench else

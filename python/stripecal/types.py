@@ -182,8 +182,11 @@ class QualityCheck(TypedDict):
 class CalibrationQuality(TypedDict):
     """Quality figures of a calibration (``Calibration.quality``)."""
 
+    target_rms_px: float
+    """RMS target-point residual over the used views (circle centres or chessboard
+    corners), px."""
     circle_rms_px: float
-    """RMS target-point residual over the used views, px."""
+    """The same figure under calibration.json's contract name."""
     stripe_rms_px: float
     """RMS stripe-point distance from the predicted stripe line, px."""
     views_used: int
@@ -200,6 +203,7 @@ class CalibrationQualityInput(TypedDict, total=False):
     ``CalibrationQuality`` (missing ones are 0, False or empty; unknown keys are an
     error)."""
 
+    target_rms_px: float
     circle_rms_px: float
     stripe_rms_px: float
     views_used: int

@@ -32,7 +32,7 @@ use crate::profile_py::{PyProfileDataset, PyProfilerCalibration};
 use crate::results::PyCalibration;
 use crate::rig::PyDataset;
 use stripecal::io::is_profile_dataset;
-use stripecal::model::ProfileDataset;
+use stripecal::model::{Calibration, ProfileDataset};
 use stripecal::pipeline::profile::{calibrate_profile_dataset_loaded, ProfileCalibrateOptions};
 
 /// `(N, 4, 4)` rigid transforms.
@@ -269,48 +269,16 @@ pub fn calibrate(
             ("robot_pose_noise", !robot_pose_noise),
             ("board_stripe_bias", !board_stripe_bias),
         ];
-        if let Some((name, _)) = camera_only.iter().find(|(_, set)| *set) {
-            return Err(crate::errors::invalid_input(
-                py,
-                format!(
-                    "{name} is an option of a camera's calibration; this dataset is a line profiler's (rig.json sensor.kind = \"profiler\")"
-                ),
-            ));
-        }
         let opts = ProfileCalibrateOptions {
             robot: RobotMode::from_name(robot).py_err(py)?,
             leave_one_out,
             accept_poor,
         };
-        let result = py.detach_pool(|| calibrate_profile_dataset_loaded(&ds, &opts));
-        py.check_signals()?;
-        return match result {
-            Ok(rep) => Ok(Py::new(
-                py,
-                PyProfilerCalibration {
-                    inner: rep.calibration,
-                },
-            )?
-            .into_any()),
-            Err(stripecal::Error::Quality(f)) => Err(quality_error(py, &f, None)),
-            Err(e) => Err(map_err(py, e)),
-        };
+        return calibrate_profiler(py, &ds, &camera_only, &opts);
     }
-    let from = match from_calibration {
-        None => None,
-        Some(c) => Some(if let Ok(pc) = c.cast::<PyCalibration>() {
-            pc.get().inner.clone()
-        } else {
-            let path: PathBuf = c.extract().map_err(|_| {
-                pyo3::exceptions::PyTypeError::new_err(format!(
-                    "from_calibration must be a Calibration or a path, got {}",
-                    crate::convert::type_name(c)
-                ))
-            })?;
-            py.detach_pool(|| stripecal::io::read_calibration(&path))
-                .py_err(py)?
-        }),
-    };
+    let from = from_calibration
+        .map(|c| calibration_of(py, c))
+        .transpose()?;
     let mut free = if laser_only {
         FreeBlocks::laser_only()
     } else {
@@ -371,6 +339,52 @@ pub fn calibrate(
         }
         Err(e) => Err(map_err(py, e)),
     }
+}
+
+/// [`calibrate`] of a line profiler's dataset: refuses the camera's options set
+/// (`camera_only`: name, whether set), calibrates with `opts`.
+fn calibrate_profiler(
+    py: Python<'_>,
+    ds: &ProfileDataset,
+    camera_only: &[(&str, bool)],
+    opts: &ProfileCalibrateOptions,
+) -> PyResult<Py<PyAny>> {
+    if let Some((name, _)) = camera_only.iter().find(|(_, set)| *set) {
+        return Err(crate::errors::invalid_input(
+            py,
+            format!(
+                "{name} is an option of a camera's calibration; this dataset is a line profiler's (rig.json sensor.kind = \"profiler\")"
+            ),
+        ));
+    }
+    let result = py.detach_pool(|| calibrate_profile_dataset_loaded(ds, opts));
+    py.check_signals()?;
+    match result {
+        Ok(rep) => Ok(Py::new(
+            py,
+            PyProfilerCalibration {
+                inner: rep.calibration,
+            },
+        )?
+        .into_any()),
+        Err(stripecal::Error::Quality(f)) => Err(quality_error(py, &f, None)),
+        Err(e) => Err(map_err(py, e)),
+    }
+}
+
+/// `from_calibration`: a `Calibration`, or a calibration.json path read.
+fn calibration_of(py: Python<'_>, c: &Bound<'_, PyAny>) -> PyResult<Calibration> {
+    if let Ok(pc) = c.cast::<PyCalibration>() {
+        return Ok(pc.get().inner.clone());
+    }
+    let path: PathBuf = c.extract().map_err(|_| {
+        pyo3::exceptions::PyTypeError::new_err(format!(
+            "from_calibration must be a Calibration or a path, got {}",
+            crate::convert::type_name(c)
+        ))
+    })?;
+    py.detach_pool(|| stripecal::io::read_calibration(&path))
+        .py_err(py)
 }
 
 /// The profile dataset `dataset` names (a `ProfileDataset`, or a folder whose rig.json

@@ -18,9 +18,11 @@ use stripecal::model::{Cloud, Dataset, Scan};
 
 use crate::convert::{f64_array, fmt_shape, nd, rows_of};
 use crate::errors::{invalid_input, ResultExt};
-use crate::results::{PyCalibration, PySphereFit, PyTruth};
+use crate::results::PyCalibration;
 use crate::rig::{PyDataset, PyRig, PyScan};
 use crate::robot::PyRobot;
+use crate::sphere_fit::PySphereFit;
+use crate::truth::PyTruth;
 
 /// Reads rig.json.
 #[pyfunction]

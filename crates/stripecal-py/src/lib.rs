@@ -21,10 +21,13 @@ mod poses;
 mod profile_py;
 mod profile_start_py;
 mod reconstruct_py;
+mod record_keys;
 mod results;
 mod rig;
 mod robot;
 mod sim;
+mod sphere_fit;
+mod truth;
 mod vision_circles;
 mod vision_stripe;
 mod vision_target;
@@ -34,9 +37,11 @@ use pyo3::prelude::*;
 pub use board::PyBoard;
 pub use camera::PyCamera;
 pub use errors::{map_err, map_err_at};
-pub use results::{PyCalibration, PySphereFit, PyTruth};
+pub use results::PyCalibration;
 pub use rig::{PyDataset, PyRig, PyScan};
 pub use robot::PyRobot;
+pub use sphere_fit::PySphereFit;
+pub use truth::PyTruth;
 
 #[pymodule]
 fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
@@ -57,6 +62,7 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<PyTruth>()?;
     m.add_class::<PySphereFit>()?;
 
+    m.add_function(wrap_pyfunction!(record_keys::record_keys, m)?)?;
     m.add_function(wrap_pyfunction!(files::load_rig, m)?)?;
     m.add_function(wrap_pyfunction!(files::save_rig, m)?)?;
     m.add_function(wrap_pyfunction!(files::load_dataset, m)?)?;

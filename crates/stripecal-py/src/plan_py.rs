@@ -15,8 +15,9 @@ use stripecal::pipeline::{
 
 use crate::convert::{f64_array, fmt_shape, json_to_py, type_name};
 use crate::errors::{invalid_input, ResultExt};
-use crate::results::{PyCalibration, PyTruth};
+use crate::results::PyCalibration;
 use crate::rig::{PyDataset, PyRig};
+use crate::truth::PyTruth;
 
 fn rig_of(py: Python<'_>, obj: &Bound<'_, PyAny>) -> PyResult<Rig> {
     if let Ok(r) = obj.cast::<PyRig>() {

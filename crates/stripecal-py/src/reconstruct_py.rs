@@ -24,7 +24,8 @@ use crate::convert::{f64_array, fmt_shape, nd, progress_step, py_to_iso};
 use crate::errors::{invalid_input, ResultExt};
 use crate::imageview::image_from_py;
 use crate::profile_py::PyProfilerCalibration;
-use crate::results::{PyCalibration, PySphereFit};
+use crate::results::PyCalibration;
+use crate::sphere_fit::PySphereFit;
 
 /// Reconstructed points: `points` (M, 3) float64 mm in the robot base frame, and per
 /// point the frame index, the image position `u`, `v` (px) and the stripe `intensity`

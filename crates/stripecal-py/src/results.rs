@@ -1,4 +1,4 @@
-//! `stripecal.Calibration`, `stripecal.Truth`, `stripecal.SphereFit`.
+//! `stripecal.Calibration` (calibration.json).
 
 use crate::pool::Detach;
 use std::path::{Path, PathBuf};
@@ -8,13 +8,15 @@ use pyo3::exceptions::PyTypeError;
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyList, PyTuple};
 use stripecal::io::{
-    calibration_from_json, calibration_leave_one_out, calibration_to_json, truth_from_json,
-    truth_to_json, write_calibration, write_sphere_fit, write_truth,
+    board_scale_to_json, calibration_extra_keys, calibration_records_from, leave_one_out_to_json,
+    robot_calibration_to_json, robot_pose_noise_to_json, view_record_to_json,
+};
+use stripecal::io::{
+    calibration_from_json, calibration_leave_one_out, calibration_to_json, write_calibration,
+    BENCH_KEY,
 };
 use stripecal::model::geometry::Plane;
-use stripecal::model::{
-    Calibration, NamedCovariance, Quality, QualityCheck, Sphere, SphereFit, Truth,
-};
+use stripecal::model::{Calibration, Mount, NamedCovariance, Quality, QualityCheck};
 
 use crate::camera::PyCamera;
 use crate::convert::{
@@ -25,7 +27,7 @@ use crate::robot::PyRobot;
 use stripecal::pipeline::held_out_laser_board;
 
 /// `(normal, d_mm)` -> a plane (normalised, `d >= 0`).
-fn plane_from_py(py: Python<'_>, obj: &Bound<'_, PyAny>) -> PyResult<Plane> {
+pub(crate) fn plane_from_py(py: Python<'_>, obj: &Bound<'_, PyAny>) -> PyResult<Plane> {
     let t = obj
         .cast::<PyTuple>()
         .ok()
@@ -40,7 +42,7 @@ fn plane_from_py(py: Python<'_>, obj: &Bound<'_, PyAny>) -> PyResult<Plane> {
     Plane::new(Vector3::from(n), d).py_err(py)
 }
 
-fn plane_to_py<'py>(py: Python<'py>, p: &Plane) -> PyResult<Bound<'py, PyTuple>> {
+pub(crate) fn plane_to_py<'py>(py: Python<'py>, p: &Plane) -> PyResult<Bound<'py, PyTuple>> {
     let n = nd(py, &[3], vec![p.normal.x, p.normal.y, p.normal.z])?;
     PyTuple::new(py, [n, p.d.into_pyobject(py)?.into_any()])
 }
@@ -51,7 +53,7 @@ fn quality_from_py(py: Python<'_>, d: Option<&Bound<'_, PyDict>>) -> PyResult<Qu
     for (k, v) in d.iter() {
         let key: String = k.extract()?;
         match key.as_str() {
-            "circle_rms_px" => q.circle_rms_px = v.extract()?,
+            "circle_rms_px" | "target_rms_px" => q.circle_rms_px = v.extract()?,
             "stripe_rms_px" => q.stripe_rms_px = v.extract()?,
             "views_used" => q.views_used = v.extract()?,
             "accepted_poor" => q.accepted_poor = v.extract()?,
@@ -65,7 +67,7 @@ fn quality_from_py(py: Python<'_>, d: Option<&Bound<'_, PyDict>>) -> PyResult<Qu
                 return Err(invalid_input(
                     py,
                     format!(
-                        "quality: unknown key {other:?} (expected circle_rms_px, stripe_rms_px, views_used, accepted_poor, checks)"
+                        "quality: unknown key {other:?} (expected target_rms_px (or circle_rms_px), stripe_rms_px, views_used, accepted_poor, checks)"
                     ),
                 ))
             }
@@ -77,6 +79,7 @@ fn quality_from_py(py: Python<'_>, d: Option<&Bound<'_, PyDict>>) -> PyResult<Qu
 fn quality_to_py<'py>(py: Python<'py>, q: &Quality) -> PyResult<Bound<'py, PyDict>> {
     let d = PyDict::new(py);
     d.set_item("circle_rms_px", q.circle_rms_px)?;
+    d.set_item("target_rms_px", q.circle_rms_px)?;
     d.set_item("stripe_rms_px", q.stripe_rms_px)?;
     d.set_item("views_used", q.views_used)?;
     d.set_item("accepted_poor", q.accepted_poor)?;
@@ -175,6 +178,16 @@ impl PyCalibration {
         uncertainty: Option<&Bound<'_, PyDict>>,
         extra: Option<&Bound<'_, PyDict>>,
     ) -> PyResult<Self> {
+        let robot = robot.map(|r| r.get().inner.clone());
+        // the records among `extra`'s keys, as a file's are read
+        let (records, mut extra) =
+            calibration_records_from(opt_dict_to_map(extra, "extra")?, robot.as_ref())
+                .py_err(py)?;
+        // `extra={"bench": True}` (the file's flag) is the bench mount
+        let bench = extra.get(BENCH_KEY) == Some(&serde_json::Value::Bool(true));
+        if bench {
+            extra.shift_remove(BENCH_KEY);
+        }
         Ok(PyCalibration::from_inner(Calibration {
             camera: camera.get().inner.clone(),
             laser_plane: if laser_plane.is_none() {
@@ -182,13 +195,15 @@ impl PyCalibration {
             } else {
                 Some(plane_from_py(py, laser_plane)?)
             },
+            mount: if bench { Mount::Bench } else { Mount::Robot },
             hand_cam: py_to_iso(hand_cam, "hand_cam")?,
             base_board: py_to_iso(base_board, "base_board")?,
-            robot: robot.map(|r| r.get().inner.clone()),
+            robot,
             quality: quality_from_py(py, quality)?,
             uncertainty: opt_dict_to_map(uncertainty, "uncertainty")?,
             covariance: None,
-            extra: opt_dict_to_map(extra, "extra")?,
+            records,
+            extra,
         }))
     }
 
@@ -245,7 +260,9 @@ impl PyCalibration {
         self.inner.robot.clone().map(PyRobot::new_py)
     }
 
-    /// `{"circle_rms_px": float, "stripe_rms_px": float, "views_used": int}`.
+    /// `{"target_rms_px": float (circle centres or chessboard corners; also as the
+    /// contract's "circle_rms_px"), "stripe_rms_px": float, "views_used": int,
+    /// "accepted_poor": bool, "checks": [...]}`.
     #[getter]
     fn quality<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
         quality_to_py(py, &self.inner.quality)
@@ -257,10 +274,27 @@ impl PyCalibration {
         map_to_py(py, &self.inner.uncertainty)
     }
 
-    /// Other top-level keys of calibration.json (JSON-like dict).
+    /// Other top-level keys of calibration.json (JSON-like dict), as its file holds
+    /// them: the records (`method`, `views`, `warnings`, `leave_one_out`, ...), `bench`
+    /// and any key this version does not know.
     #[getter]
     fn extra<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
-        map_to_py(py, &self.inner.extra)
+        map_to_py(py, &calibration_extra_keys(&self.inner))
+    }
+
+    /// How the sensor was held: `"robot"` or `"bench"`.
+    #[getter]
+    fn mount(&self) -> &'static str {
+        match self.inner.mount {
+            Mount::Robot => "robot",
+            Mount::Bench => "bench",
+        }
+    }
+
+    /// What the user should know about the calibration (calibration.json `warnings`).
+    #[getter]
+    fn warnings(&self) -> Vec<String> {
+        self.inner.records.warnings.clone()
     }
 
     /// Per-view figures of the calibration (`extra["views"]`): a list of dicts with
@@ -268,10 +302,12 @@ impl PyCalibration {
     /// `outlier` and `note` (empty when the file has none).
     #[getter]
     fn views<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
-        match self.inner.extra.get("views") {
-            Some(v) => json_to_py(py, v),
-            None => Ok(pyo3::types::PyList::empty(py).into_any()),
+        let views = self.inner.records.views.as_deref().unwrap_or_default();
+        let list = PyList::empty(py);
+        for v in views {
+            list.append(json_to_py(py, &view_record_to_json(v))?)?;
         }
+        Ok(list.into_any())
     }
 
     /// The leave-one-view-out figures (`extra["leave_one_out"]`): `views` (per view:
@@ -280,9 +316,10 @@ impl PyCalibration {
     #[getter]
     fn leave_one_out<'py>(&self, py: Python<'py>) -> PyResult<Option<Bound<'py, PyAny>>> {
         self.inner
-            .extra
-            .get("leave_one_out")
-            .map(|v| json_to_py(py, v))
+            .records
+            .leave_one_out
+            .as_ref()
+            .map(|l| json_to_py(py, &leave_one_out_to_json(l)))
             .transpose()
     }
 
@@ -292,9 +329,10 @@ impl PyCalibration {
     #[getter]
     fn board_scale<'py>(&self, py: Python<'py>) -> PyResult<Option<Bound<'py, PyAny>>> {
         self.inner
-            .extra
-            .get("board_scale")
-            .map(|v| json_to_py(py, v))
+            .records
+            .board_scale
+            .as_ref()
+            .map(|b| json_to_py(py, &board_scale_to_json(b)))
             .transpose()
     }
 
@@ -309,9 +347,10 @@ impl PyCalibration {
     #[getter]
     fn robot_pose_noise<'py>(&self, py: Python<'py>) -> PyResult<Option<Bound<'py, PyAny>>> {
         self.inner
-            .extra
-            .get("robot_pose_noise")
-            .map(|v| json_to_py(py, v))
+            .records
+            .robot_pose_noise
+            .as_ref()
+            .map(|n| json_to_py(py, &robot_pose_noise_to_json(n)))
             .transpose()
     }
 
@@ -321,9 +360,10 @@ impl PyCalibration {
     #[getter]
     fn robot_calibration<'py>(&self, py: Python<'py>) -> PyResult<Option<Bound<'py, PyAny>>> {
         self.inner
-            .extra
-            .get("robot_calibration")
-            .map(|v| json_to_py(py, v))
+            .records
+            .robot_calibration
+            .as_ref()
+            .map(|r| json_to_py(py, &robot_calibration_to_json(r)))
             .transpose()
     }
 
@@ -428,277 +468,6 @@ impl PyCalibration {
                 .map_or("not estimated".to_string(), |p| format!("d_mm={:.3}", p.d)),
             c.quality.circle_rms_px,
             c.quality.views_used
-        )
-    }
-}
-
-fn sphere_from_py(py: Python<'_>, d: Option<&Bound<'_, PyDict>>) -> PyResult<Option<Sphere>> {
-    let Some(d) = d else { return Ok(None) };
-    let (Some(c), Some(dia)) = (d.get_item("center_mm")?, d.get_item("diameter_mm")?) else {
-        return Err(invalid_input(
-            py,
-            "sphere must be a dict {\"center_mm\": (3,), \"diameter_mm\": float}",
-        ));
-    };
-    if d.len() != 2 {
-        return Err(invalid_input(
-            py,
-            "sphere must have exactly the keys center_mm and diameter_mm",
-        ));
-    }
-    Ok(Some(Sphere {
-        center_mm: Vector3::from(fixed::<3>(&c, "sphere center_mm")?),
-        diameter_mm: dia.extract()?,
-    }))
-}
-
-fn sphere_to_py<'py>(py: Python<'py>, s: &Sphere) -> PyResult<Bound<'py, PyDict>> {
-    let d = PyDict::new(py);
-    d.set_item(
-        "center_mm",
-        nd(py, &[3], vec![s.center_mm.x, s.center_mm.y, s.center_mm.z])?,
-    )?;
-    d.set_item("diameter_mm", s.diameter_mm)?;
-    Ok(d)
-}
-
-/// Ground truth written by simulators (truth.json): the true camera, laser plane,
-/// `T_hand_cam`, `T_base_board`, robot, and for scans the sphere.
-#[pyclass(name = "Truth", module = "stripecal", frozen, eq)]
-#[derive(Debug, Clone, PartialEq)]
-pub struct PyTruth {
-    pub inner: Truth,
-}
-
-#[pymethods]
-impl PyTruth {
-    #[new]
-    #[pyo3(signature = (camera, laser_plane, hand_cam, base_board, robot = None, sphere = None, working_range_mm = None, extra = None))]
-    #[allow(clippy::too_many_arguments)]
-    fn new(
-        py: Python<'_>,
-        camera: &Bound<'_, PyCamera>,
-        laser_plane: &Bound<'_, PyAny>,
-        hand_cam: &Bound<'_, PyAny>,
-        base_board: &Bound<'_, PyAny>,
-        robot: Option<&Bound<'_, PyRobot>>,
-        sphere: Option<&Bound<'_, PyDict>>,
-        working_range_mm: Option<(f64, f64)>,
-        extra: Option<&Bound<'_, PyDict>>,
-    ) -> PyResult<Self> {
-        Ok(PyTruth {
-            inner: Truth {
-                camera: camera.get().inner.clone(),
-                laser_plane: plane_from_py(py, laser_plane)?,
-                hand_cam: py_to_iso(hand_cam, "hand_cam")?,
-                base_board: py_to_iso(base_board, "base_board")?,
-                robot: robot.map(|r| r.get().inner.clone()),
-                sphere: sphere_from_py(py, sphere)?,
-                working_range_mm: working_range_mm.map(|(a, b)| [a, b]),
-                extra: opt_dict_to_map(extra, "extra")?,
-            },
-        })
-    }
-
-    /// The true camera.
-    #[getter]
-    fn camera(&self) -> PyCamera {
-        PyCamera::new_py(self.inner.camera.clone())
-    }
-
-    /// `(normal (3,), d_mm)` in the camera frame.
-    #[getter]
-    fn laser_plane<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyTuple>> {
-        plane_to_py(py, &self.inner.laser_plane)
-    }
-
-    /// True `T_hand_cam`, shape (4, 4).
-    #[getter]
-    fn hand_cam<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
-        iso_to_py(py, &self.inner.hand_cam)
-    }
-
-    /// True `T_base_board`, shape (4, 4).
-    #[getter]
-    fn base_board<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
-        iso_to_py(py, &self.inner.base_board)
-    }
-
-    /// The robot's TRUE DH table, or None.
-    #[getter]
-    fn robot(&self) -> Option<PyRobot> {
-        self.inner.robot.clone().map(PyRobot::new_py)
-    }
-
-    /// `{"center_mm": (3,), "diameter_mm": float}` for scans, else None.
-    #[getter]
-    fn sphere<'py>(&self, py: Python<'py>) -> PyResult<Option<Bound<'py, PyDict>>> {
-        self.inner
-            .sphere
-            .as_ref()
-            .map(|s| sphere_to_py(py, s))
-            .transpose()
-    }
-
-    /// `(near, far)` stand-offs in mm the rig is meant for, or None.
-    #[getter]
-    fn working_range_mm(&self) -> Option<(f64, f64)> {
-        self.inner.working_range_mm.map(|[a, b]| (a, b))
-    }
-
-    /// Simulator-specific keys (JSON-like dict).
-    #[getter]
-    fn extra<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
-        map_to_py(py, &self.inner.extra)
-    }
-
-    /// Writes truth.json (atomically).
-    fn save(&self, py: Python<'_>, path: PathBuf) -> PyResult<()> {
-        let t = &self.inner;
-        py.detach_pool(|| write_truth(&path, t)).py_err(py)
-    }
-
-    /// The truth.json text.
-    fn to_json(&self) -> String {
-        truth_to_json(&self.inner)
-    }
-
-    /// Truth from truth.json text (errors name `<string>` as the file).
-    #[staticmethod]
-    fn from_json(py: Python<'_>, text: &str) -> PyResult<Self> {
-        truth_from_json(Path::new("<string>"), text)
-            .py_err(py)
-            .map(|inner| PyTruth { inner })
-    }
-
-    fn __repr__(&self) -> String {
-        let t = &self.inner;
-        format!(
-            "Truth(camera={}x{} fu={:.3} fv={:.3}, laser_plane d_mm={:.3}, sphere={})",
-            t.camera.width,
-            t.camera.height,
-            t.camera.fu,
-            t.camera.fv,
-            t.laser_plane.d,
-            t.sphere
-                .map(|s| format!("diameter_mm={:.4}", s.diameter_mm))
-                .unwrap_or_else(|| "None".into())
-        )
-    }
-}
-
-/// A sphere fit: diameter, centre, RMS residual (mm), inliers used and outliers.
-#[pyclass(name = "SphereFit", module = "stripecal", frozen, eq)]
-#[derive(Debug, Clone, PartialEq)]
-pub struct PySphereFit {
-    pub inner: SphereFit,
-}
-
-#[pymethods]
-impl PySphereFit {
-    #[new]
-    #[pyo3(signature = (diameter_mm, center_mm, rms_mm, points, outliers, extra = None))]
-    fn new(
-        diameter_mm: f64,
-        center_mm: &Bound<'_, PyAny>,
-        rms_mm: f64,
-        points: usize,
-        outliers: usize,
-        extra: Option<&Bound<'_, PyDict>>,
-    ) -> PyResult<Self> {
-        Ok(PySphereFit {
-            inner: SphereFit {
-                diameter_mm,
-                center_mm: Vector3::from(fixed::<3>(center_mm, "center_mm")?),
-                rms_mm,
-                points,
-                outliers,
-                extra: opt_dict_to_map(extra, "extra")?,
-            },
-        })
-    }
-
-    /// Fitted diameter, mm.
-    #[getter]
-    fn diameter_mm(&self) -> f64 {
-        self.inner.diameter_mm
-    }
-
-    /// Fitted centre, shape (3,), mm.
-    #[getter]
-    fn center_mm<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
-        let c = self.inner.center_mm;
-        nd(py, &[3], vec![c.x, c.y, c.z])
-    }
-
-    /// RMS of the radial residuals of the inliers, mm.
-    #[getter]
-    fn rms_mm(&self) -> f64 {
-        self.inner.rms_mm
-    }
-
-    /// Number of inliers the fit used.
-    #[getter]
-    fn points(&self) -> usize {
-        self.inner.points
-    }
-
-    /// Number of points rejected as outliers.
-    #[getter]
-    fn outliers(&self) -> usize {
-        self.inner.outliers
-    }
-
-    /// Other keys (JSON-like dict).
-    #[getter]
-    fn extra<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
-        map_to_py(py, &self.inner.extra)
-    }
-
-    /// The fit's one-sigma of the diameter, mm: its random part only (the points'
-    /// scatter; calibration and robot errors are not in it, `measure_sphere` has the
-    /// measurement's uncertainty). `extra["fit_diameter_sigma_mm"]`, or an older file's
-    /// `extra["diameter_sigma_mm"]`; None when absent.
-    #[getter]
-    fn fit_diameter_sigma_mm(&self) -> Option<f64> {
-        self.inner.fit_diameter_sigma_mm()
-    }
-
-    /// The fit's one-sigma of the centre, shape (3,), mm: its random part only (as
-    /// `fit_diameter_sigma_mm`). `extra["fit_center_sigma_mm"]`, or an older file's
-    /// `extra["center_sigma_mm"]`; None when absent.
-    #[getter]
-    fn fit_center_sigma_mm<'py>(&self, py: Python<'py>) -> PyResult<Option<Bound<'py, PyAny>>> {
-        match self.inner.fit_center_sigma_mm() {
-            Some(s) => Ok(Some(nd(py, &[3], s.to_vec())?)),
-            None => Ok(None),
-        }
-    }
-
-    /// The former name of `fit_diameter_sigma_mm` (the same value: the fit's random part
-    /// only).
-    #[getter]
-    fn diameter_sigma_mm(&self) -> Option<f64> {
-        self.inner.fit_diameter_sigma_mm()
-    }
-
-    /// The former name of `fit_center_sigma_mm` (the same value).
-    #[getter]
-    fn center_sigma_mm<'py>(&self, py: Python<'py>) -> PyResult<Option<Bound<'py, PyAny>>> {
-        self.fit_center_sigma_mm(py)
-    }
-
-    /// Writes the sphere fit JSON (atomically).
-    fn save(&self, py: Python<'_>, path: PathBuf) -> PyResult<()> {
-        let s = &self.inner;
-        py.detach_pool(|| write_sphere_fit(&path, s)).py_err(py)
-    }
-
-    fn __repr__(&self) -> String {
-        let s = &self.inner;
-        format!(
-            "SphereFit(diameter_mm={:?}, center_mm=[{:?}, {:?}, {:?}], rms_mm={:?}, points={}, outliers={})",
-            s.diameter_mm, s.center_mm.x, s.center_mm.y, s.center_mm.z, s.rms_mm, s.points, s.outliers
         )
     }
 }

@@ -725,12 +725,14 @@ impl Twin {
         Calibration {
             camera: self.camera.clone(),
             laser_plane: Some(self.laser_plane),
+            mount: stripecal::model::Mount::Robot,
             hand_cam: self.hand_cam,
             base_board: self.base_board,
             robot: Some(self.robot_true.clone()),
             quality: Default::default(),
             uncertainty: Default::default(),
             covariance: None,
+            records: Default::default(),
             extra: Default::default(),
         }
     }

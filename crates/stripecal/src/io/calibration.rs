@@ -1,7 +1,6 @@
-//! `calibration.json` (`stripecal/calibration@1`), `truth.json` (`stripecal/truth@1`)
-//! and sphere fit results.
+//! `calibration.json` (`stripecal/calibration@1`) and `truth.json`
+//! (`stripecal/truth@1`).
 
-use crate::pipeline::BENCH_KEY;
 use std::path::Path;
 
 use serde_json::{Map, Value};
@@ -10,6 +9,8 @@ use super::atomic::{read_text, write_atomic};
 use super::json::{
     append_extra, invalid_message, num, parse, pose_value, to_pretty, vec3_value, Obj,
 };
+use super::records::records_value;
+use super::records_read::records_from;
 use super::rig::{distortion_model_from, robot_from, robot_value};
 use super::sensor::sensor_kind_of;
 use crate::error::{Error, Result};
@@ -17,9 +18,12 @@ use crate::model::camera::Camera;
 use crate::model::geometry::{Iso3, Plane};
 use crate::model::kinematics::Robot;
 use crate::model::{
-    Calibration, LaserBoardFigure, LeaveOneOut, LooFold, LooView, NamedCovariance, Quality,
-    QualityCheck, RobotPoseNoise, RobotPoseView, SensorKind, Sphere, SphereFit, Truth,
+    Calibration, Mount, NamedCovariance, Quality, QualityCheck, SensorKind, Sphere, Truth,
 };
+
+/// The top-level key that marks a bench calibration or a bench twin's truth
+/// (`"bench": true`; such a file has no `hand_cam`, `base_board` or `robot`).
+pub const BENCH_KEY: &str = "bench";
 
 /// The `format` value of calibration.json.
 pub(super) const CALIBRATION_FORMAT: &str = "stripecal/calibration@1";
@@ -52,8 +56,6 @@ const TRUTH_KEYS: [&str; 8] = [
     "sphere",
     "working_range_mm",
 ];
-
-const SPHERE_FIT_KEYS: [&str; 5] = ["diameter_mm", "center_mm", "rms_mm", "points", "outliers"];
 
 // ---------------------------------------------------------------- shared parts
 
@@ -311,138 +313,6 @@ pub(super) fn covariance_value(c: &NamedCovariance) -> Value {
     Value::Object(m)
 }
 
-/// `robot_pose_noise` (see [`super::robot_pose_noise_extra`]); a `null` (or absent)
-/// number reads as NaN.
-fn robot_pose_noise_from(o: &Obj<'_>) -> Result<RobotPoseNoise> {
-    let num = |o: &Obj<'_>, key: &str| -> Result<f64> {
-        Ok(o.opt(key).map(|v| v.f64()).transpose()?.unwrap_or(f64::NAN))
-    };
-    let f = o.obj("at_floor")?;
-    let floor = o.opt_obj("floor")?;
-    let floor_num = |key: &str| floor.as_ref().map_or(Ok(f64::NAN), |f| num(f, key));
-    let read_views = |key: &str| -> Result<Vec<RobotPoseView>> {
-        let mut views = Vec::new();
-        let Some(list) = o.opt(key) else {
-            return Ok(views);
-        };
-        for item in list.arr()? {
-            let v = item.obj()?;
-            views.push(RobotPoseView {
-                view: v.count("view")?,
-                translation_mm: num(&v, "translation_mm")?,
-                rotation_deg: num(&v, "rotation_deg")?,
-                test: num(&v, "test")?,
-            });
-        }
-        Ok(views)
-    };
-    o.req("views")?;
-    let views = read_views("views")?;
-    let left_out = read_views("left_out")?;
-    Ok(RobotPoseNoise {
-        sigma_translation_mm: num(o, "translation_mm")?,
-        sigma_rotation_deg: num(o, "rotation_deg")?,
-        translation_at_floor: f.req("translation")?.bool()?,
-        rotation_at_floor: f.req("rotation")?.bool()?,
-        floor_translation_mm: floor_num("translation_mm")?,
-        floor_rotation_deg: floor_num("rotation_deg")?,
-        image_factor: match o.opt("image_factor") {
-            Some(v) if !v.is_null() => Some(v.f64()?),
-            _ => None,
-        },
-        kinematic_mm: match o.opt("kinematic_mm") {
-            Some(v) if !v.is_null() => Some(v.f64()?),
-            _ => None,
-        },
-        kinematic_deg: match o.opt("kinematic_deg") {
-            Some(v) if !v.is_null() => Some(v.f64()?),
-            _ => None,
-        },
-        image_factor_at_floor: match f.opt("image") {
-            Some(v) => v.bool()?,
-            None => false,
-        },
-        views,
-        left_out,
-    })
-}
-
-/// The robot-pose noise a calibration holds (its extra key `robot_pose_noise`), `None`
-/// when it has none (the paper's method, files written before it existed); an error
-/// when the key is malformed.
-pub fn calibration_robot_pose_noise(c: &Calibration) -> Result<Option<RobotPoseNoise>> {
-    let Some(v) = c.extra.get("robot_pose_noise") else {
-        return Ok(None);
-    };
-    let root = Obj::root(Path::new("calibration.json"), v)?;
-    robot_pose_noise_from(&root).map(Some)
-}
-
-/// `leave_one_out` (see [`super::self_checks_extra`]); a `null` number reads as NaN,
-/// a view without `fold` (files written before it existed) has none.
-fn leave_one_out_from(o: &Obj<'_>) -> Result<LeaveOneOut> {
-    let num = |o: &Obj<'_>, key: &str| -> Result<f64> {
-        Ok(o.opt(key).map(|v| v.f64()).transpose()?.unwrap_or(f64::NAN))
-    };
-    let opt_num = |o: &Obj<'_>, key: &str| -> Result<Option<f64>> {
-        Ok(o.opt(key)
-            .map(|v| v.f64())
-            .transpose()?
-            .filter(|x| x.is_finite()))
-    };
-    let mut views = Vec::new();
-    for item in o.req("views")?.arr()? {
-        let v = item.obj()?;
-        let fold = v
-            .opt_obj("fold")?
-            .map(|f| -> Result<LooFold> {
-                Ok(LooFold {
-                    camera: camera_from(&f.obj("camera")?)?,
-                    plane: plane_from(&f.obj("laser_plane")?)?,
-                    cam_board: f.obj("cam_board")?.pose()?,
-                })
-            })
-            .transpose()?;
-        views.push(LooView {
-            view: v.count("view")?,
-            points: v.count("points")?,
-            board_rms_px: num(&v, "board_rms_px")?,
-            board_rms_mm: num(&v, "board_rms_mm")?,
-            stripe_points: v.count("stripe_points")?,
-            stripe_rms_mm: opt_num(&v, "stripe_rms_mm")?,
-            disagrees: v.req("disagrees")?.bool()?,
-            fold,
-        });
-    }
-    let laser_board = o
-        .opt_obj("laser_board")?
-        .map(|l| -> Result<LaserBoardFigure> {
-            Ok(LaserBoardFigure {
-                median_mm: num(&l, "median_mm")?,
-                p95_mm: num(&l, "p95_mm")?,
-                points: l.count("points")?,
-            })
-        })
-        .transpose()?;
-    Ok(LeaveOneOut {
-        views,
-        median_board_rms_px: num(o, "median_board_rms_px")?,
-        median_board_rms_mm: num(o, "median_board_rms_mm")?,
-        median_stripe_rms_mm: opt_num(o, "median_stripe_rms_mm")?,
-        laser_board,
-    })
-}
-
-/// The leave-one-view-out figures a calibration holds (its extra key
-/// `leave_one_out`), `None` when it has none; an error when the key is malformed.
-pub fn calibration_leave_one_out(c: &Calibration) -> Result<Option<LeaveOneOut>> {
-    let Some(v) = c.extra.get("leave_one_out") else {
-        return Ok(None);
-    };
-    let root = Obj::root(Path::new("calibration.json"), v)?;
-    leave_one_out_from(&root).map(Some)
-}
-
 /// The common keys, or a bench file's (neither `hand_cam` nor `base_board`: read as
 /// identities, no robot); `true` for a bench file.
 fn common_or_bench(root: &Obj<'_>) -> Result<(Common, bool)> {
@@ -464,11 +334,11 @@ fn common_or_bench(root: &Obj<'_>) -> Result<(Common, bool)> {
 /// Required: `format`, `camera` (all of `width, height, fu, fv, u0, v0,
 /// distortion_model, distortion[5]`), `laser_plane` (`normal` of norm 1 within 1e-3,
 /// renormalised; `d_mm > 0`), `hand_cam`, `base_board`, `quality`. A bench
-/// calibration has neither `hand_cam` nor `base_board` (nor `robot`): both absent, it
-/// is read with the identity for them and the extra key `"bench": true`
-/// ([`Calibration::is_bench`]); one without the other is an error. Optional: `robot`,
-/// `uncertainty` (any object), `robot_pose_noise` (checked; kept in `extra` with the
-/// other top-level keys).
+/// calibration has neither `hand_cam` nor `base_board` (nor `robot`): both absent (or
+/// `"bench": true`), it is read as [`Mount::Bench`] with the identity for them; one
+/// without the other is an error. Optional: `robot`, `uncertainty` (any object), the
+/// records ([`super::records_read`]: `robot_pose_noise` is checked, another known key
+/// that does not read as its record stays in `extra` with the unknown top-level keys).
 pub fn calibration_from_json(path: &Path, text: &str) -> Result<Calibration> {
     let doc = parse(path, text)?;
     let root = Obj::root(path, &doc)?;
@@ -484,7 +354,12 @@ pub fn calibration_from_json(path: &Path, text: &str) -> Result<Calibration> {
     let (c, bench) = common_or_bench(&root)?;
     let q = root.obj("quality")?;
     let quality = Quality {
-        circle_rms_px: q.nonneg_f64("circle_rms_px")?,
+        // the contract's name; `target_rms_px` (the same figure for any target) in a
+        // file that writes only that
+        circle_rms_px: match (q.opt("circle_rms_px"), q.opt("target_rms_px")) {
+            (None, Some(t)) => t.nonneg_f64()?,
+            _ => q.nonneg_f64("circle_rms_px")?,
+        },
         stripe_rms_px: q.nonneg_f64("stripe_rms_px")?,
         views_used: q.count("views_used")?,
         checks: quality_checks_from(&q)?,
@@ -498,26 +373,42 @@ pub fn calibration_from_json(path: &Path, text: &str) -> Result<Calibration> {
         .opt_obj("covariance")?
         .map(|c| covariance_from(&c))
         .transpose()?;
-    if let Some(n) = root.opt_obj("robot_pose_noise")? {
-        robot_pose_noise_from(&n)?;
+    let (records, mut extra) = records_from(&root, &CALIBRATION_KEYS, c.robot.as_ref())?;
+    // the flag a writer adds to a bench file (read as the mount, not kept in `extra`)
+    let flagged = extra.get(BENCH_KEY) == Some(&Value::Bool(true));
+    if flagged {
+        extra.shift_remove(BENCH_KEY);
     }
     Ok(Calibration {
         camera: c.camera,
         laser_plane: c.laser_plane,
+        mount: if bench || flagged {
+            Mount::Bench
+        } else {
+            Mount::Robot
+        },
         hand_cam: c.hand_cam,
         base_board: c.base_board,
         robot: c.robot,
         quality,
         uncertainty,
         covariance,
-        extra: {
-            let mut e = root.extra(&CALIBRATION_KEYS);
-            if bench {
-                e.insert(BENCH_KEY.into(), Value::Bool(true));
-            }
-            e
-        },
+        records,
+        extra,
     })
+}
+
+/// calibration.json's keys beyond the contract's fixed ones, as the file holds them:
+/// the records (in [`super::records`]' order), `"bench": true` for a bench calibration,
+/// then `extra` (keys the records have are dropped from it).
+pub fn calibration_extra_keys(c: &Calibration) -> Map<String, Value> {
+    let mut m = Map::new();
+    records_value(&mut m, &c.records);
+    if c.is_bench() {
+        m.insert(BENCH_KEY.into(), Value::Bool(true));
+    }
+    append_extra(&mut m, &c.extra);
+    m
 }
 
 /// calibration.json text (pretty-printed, 2-space indent, final newline). Keys of
@@ -535,6 +426,7 @@ pub fn calibration_to_json(c: &Calibration) -> String {
     );
     let mut q = Map::new();
     q.insert("circle_rms_px".into(), num(c.quality.circle_rms_px));
+    q.insert("target_rms_px".into(), num(c.quality.circle_rms_px));
     q.insert("stripe_rms_px".into(), num(c.quality.stripe_rms_px));
     q.insert("views_used".into(), Value::from(c.quality.views_used));
     q.insert("accepted_poor".into(), Value::from(c.quality.accepted_poor));
@@ -546,7 +438,7 @@ pub fn calibration_to_json(c: &Calibration) -> String {
     if let Some(cov) = &c.covariance {
         m.insert("covariance".into(), covariance_value(cov));
     }
-    append_extra(&mut m, &c.extra);
+    append_extra(&mut m, &calibration_extra_keys(c));
     if c.is_bench() {
         for k in ["hand_cam", "base_board", "robot"] {
             m.remove(k);
@@ -760,51 +652,4 @@ pub fn write_truth(p: impl AsRef<Path>, t: &Truth) -> Result<()> {
         }
     }
     write_atomic(p, truth_to_json(t).as_bytes())
-}
-
-// ---------------------------------------------------------------- sphere fit
-
-/// Reads a sphere fit `{"diameter_mm", "center_mm": [x, y, z], "rms_mm", "points",
-/// "outliers"}`; other keys are kept in `extra`.
-pub fn read_sphere_fit(p: impl AsRef<Path>) -> Result<SphereFit> {
-    let path = p.as_ref();
-    let text = read_text(path)?;
-    let doc = parse(path, &text)?;
-    let root = Obj::root(path, &doc)?;
-    Ok(SphereFit {
-        diameter_mm: root.positive_f64("diameter_mm")?,
-        center_mm: root.vec3("center_mm")?,
-        rms_mm: root.nonneg_f64("rms_mm")?,
-        points: root.count("points")?,
-        outliers: root.count("outliers")?,
-        extra: root.extra(&SPHERE_FIT_KEYS),
-    })
-}
-
-/// The sphere fit's JSON text (pretty-printed, final newline).
-pub fn sphere_fit_to_json(s: &SphereFit) -> String {
-    let mut m = Map::new();
-    m.insert("diameter_mm".into(), num(s.diameter_mm));
-    m.insert("center_mm".into(), vec3_value(&s.center_mm));
-    m.insert("rms_mm".into(), num(s.rms_mm));
-    m.insert("points".into(), Value::from(s.points));
-    m.insert("outliers".into(), Value::from(s.outliers));
-    append_extra(&mut m, &s.extra);
-    to_pretty(&Value::Object(m))
-}
-
-/// Writes a sphere fit atomically (values must be finite, the diameter positive).
-pub fn write_sphere_fit(p: impl AsRef<Path>, s: &SphereFit) -> Result<()> {
-    let ok = s.diameter_mm.is_finite()
-        && s.diameter_mm > 0.0
-        && s.center_mm.iter().all(|x| x.is_finite())
-        && s.rms_mm.is_finite()
-        && s.rms_mm >= 0.0;
-    if !ok {
-        return Err(Error::InvalidInput(format!(
-            "sphere fit: diameter {} / centre {:?} / rms {} must be finite (diameter > 0, rms >= 0)",
-            s.diameter_mm, s.center_mm, s.rms_mm
-        )));
-    }
-    write_atomic(p, sphere_fit_to_json(s).as_bytes())
 }

@@ -29,15 +29,16 @@ mod profile_dataset;
 mod profile_rig;
 mod profiler_calibration;
 mod records;
+mod records_read;
 mod rig;
 mod sensor;
+mod sphere_fit;
 
 pub use artefacts::read_artefacts;
 pub use atomic::{file_problem, write_atomic};
 pub use calibration::{
-    calibration_from_json, calibration_leave_one_out, calibration_robot_pose_noise,
-    calibration_to_json, read_calibration, read_sphere_fit, read_truth, sphere_fit_to_json,
-    truth_from_json, truth_to_json, write_calibration, write_sphere_fit, write_truth,
+    calibration_extra_keys, calibration_from_json, calibration_to_json, read_calibration,
+    read_truth, truth_from_json, truth_to_json, write_calibration, write_truth, BENCH_KEY,
 };
 pub use csv::{
     read_scan_csv, read_views_csv, write_scan_csv, write_scan_csv_with, write_views_csv,
@@ -62,8 +63,13 @@ pub use profiler_calibration::{
     write_profiler_calibration,
 };
 pub use records::{
-    calibration_extra, robot_calibration_extra, robot_pose_noise_extra, robot_uncertainty,
-    self_checks_extra, uncertainty_to_json, view_record_to_json, warnings_to_json,
+    board_scale_to_json, calibration_extra, leave_one_out_to_json, robot_calibration_extra,
+    robot_calibration_to_json, robot_pose_noise_extra, robot_pose_noise_to_json, robot_uncertainty,
+    self_checks_extra, summary_to_json, uncertainty_to_json, view_record_to_json, warnings_to_json,
+};
+pub use records_read::{
+    calibration_leave_one_out, calibration_records_from, calibration_robot_pose_noise,
 };
 pub use rig::{read_rig, rig_from_json, rig_to_json, write_rig};
 pub use sensor::{calibration_sensor_kind, sensor_kind};
+pub use sphere_fit::{read_sphere_fit, sphere_fit_to_json, write_sphere_fit};

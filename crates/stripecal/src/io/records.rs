@@ -9,8 +9,8 @@
 use serde_json::{Map, Value};
 
 use crate::model::{
-    AdjustmentSummary, BoardScaleCheck, CameraSigma, LeaveOneOut, PlaneSigma, PoseSigma,
-    RobotCalibration, RobotPoseNoise, StripeExtraction, Uncertainty, ViewRecord,
+    AdjustmentSummary, BoardScaleCheck, CalibrationRecords, CameraSigma, LeaveOneOut, PlaneSigma,
+    PoseSigma, RobotCalibration, RobotPoseNoise, StripeExtraction, Uncertainty, ViewRecord,
 };
 
 /// A number, or `null` when it is not finite.
@@ -125,6 +125,20 @@ pub fn calibration_extra(
     views: &[ViewRecord],
     warnings: &[String],
 ) -> Map<String, Value> {
+    let mut m = summary_to_json(summary);
+    m.insert(
+        "views".into(),
+        Value::Array(views.iter().map(view_record_to_json).collect()),
+    );
+    if !warnings.is_empty() {
+        m.insert("warnings".into(), warnings_to_json(warnings));
+    }
+    m
+}
+
+/// The summary's keys: `method`, `centre_model`, `base_board_orientation` (when set),
+/// `stripe_rms_mm`, `residual_sigma_px` (`circle`, `stripe`), `stripe_off_plane`.
+pub fn summary_to_json(summary: &AdjustmentSummary) -> Map<String, Value> {
     let mut m = Map::new();
     m.insert("method".into(), Value::from(summary.method.as_str()));
     m.insert(
@@ -146,17 +160,40 @@ pub fn calibration_extra(
         "stripe_off_plane".into(),
         Value::from(summary.stripe_off_plane),
     );
-    m.insert(
-        "views".into(),
-        Value::Array(views.iter().map(view_record_to_json).collect()),
-    );
-    if !warnings.is_empty() {
-        m.insert("warnings".into(), warnings_to_json(warnings));
-    }
     m
 }
 
-/// The `warnings` array.
+/// Appends a calibration's records to calibration.json's root `m`, in this order: the
+/// summary, `views`, `warnings` (when any), `board_scale`, `leave_one_out`,
+/// `robot_pose_noise`, `robot_calibration`, `held_blocks` (each when present).
+pub(super) fn records_value(m: &mut Map<String, Value>, r: &CalibrationRecords) {
+    if let Some(s) = &r.summary {
+        m.extend(summary_to_json(s));
+    }
+    if let Some(v) = &r.views {
+        m.insert(
+            "views".into(),
+            Value::Array(v.iter().map(view_record_to_json).collect()),
+        );
+    }
+    if !r.warnings.is_empty() {
+        m.insert("warnings".into(), warnings_to_json(&r.warnings));
+    }
+    m.extend(self_checks_extra(
+        r.board_scale.as_ref(),
+        r.leave_one_out.as_ref(),
+    ));
+    if let Some(n) = &r.robot_pose_noise {
+        m.extend(robot_pose_noise_extra(n));
+    }
+    if let Some(rc) = &r.robot_calibration {
+        m.extend(robot_calibration_extra(rc));
+    }
+    if let Some(h) = &r.held_blocks {
+        m.insert("held_blocks".into(), Value::from(h.clone()));
+    }
+}
+
 /// calibration.json's `board_scale` and `leave_one_out` keys (extra keys) of the checks
 /// that ran.
 pub fn self_checks_extra(
@@ -165,64 +202,77 @@ pub fn self_checks_extra(
 ) -> Map<String, Value> {
     let mut m = Map::new();
     if let Some(c) = board_scale {
-        let mut b = Map::new();
-        b.insert("scale".into(), finite_or_null(c.scale));
-        b.insert("sigma".into(), finite_or_null(c.sigma));
-        b.insert("declared_mm".into(), finite_or_null(c.declared_mm));
-        b.insert("implied_mm".into(), finite_or_null(c.implied_mm));
-        b.insert("estimated".into(), Value::from(c.estimated));
-        b.insert("disagrees".into(), Value::from(c.disagrees));
-        b.insert("tolerance".into(), finite_or_null(c.tolerance));
-        m.insert("board_scale".into(), Value::Object(b));
+        m.insert("board_scale".into(), board_scale_to_json(c));
     }
     if let Some(l) = loo {
-        let opt = |x: Option<f64>| x.map_or(Value::Null, finite_or_null);
-        let views = l
-            .views
-            .iter()
-            .map(|v| {
-                let mut o = Map::new();
-                o.insert("view".into(), Value::from(v.view));
-                o.insert("points".into(), Value::from(v.points));
-                o.insert("board_rms_px".into(), finite_or_null(v.board_rms_px));
-                o.insert("board_rms_mm".into(), finite_or_null(v.board_rms_mm));
-                o.insert("stripe_points".into(), Value::from(v.stripe_points));
-                o.insert("stripe_rms_mm".into(), opt(v.stripe_rms_mm));
-                o.insert("disagrees".into(), Value::from(v.disagrees));
-                if let Some(f) = &v.fold {
-                    let mut fo = Map::new();
-                    fo.insert("camera".into(), super::calibration::camera_value(&f.camera));
-                    fo.insert(
-                        "laser_plane".into(),
-                        super::calibration::plane_value(&f.plane),
-                    );
-                    fo.insert("cam_board".into(), super::json::pose_value(&f.cam_board));
-                    o.insert("fold".into(), Value::Object(fo));
-                }
-                Value::Object(o)
-            })
-            .collect();
-        let mut o = Map::new();
-        o.insert("views".into(), Value::Array(views));
-        o.insert(
-            "median_board_rms_px".into(),
-            finite_or_null(l.median_board_rms_px),
-        );
-        o.insert(
-            "median_board_rms_mm".into(),
-            finite_or_null(l.median_board_rms_mm),
-        );
-        o.insert("median_stripe_rms_mm".into(), opt(l.median_stripe_rms_mm));
-        if let Some(f) = &l.laser_board {
-            let mut lb = Map::new();
-            lb.insert("median_mm".into(), finite_or_null(f.median_mm));
-            lb.insert("p95_mm".into(), finite_or_null(f.p95_mm));
-            lb.insert("points".into(), Value::from(f.points));
-            o.insert("laser_board".into(), Value::Object(lb));
-        }
-        m.insert("leave_one_out".into(), Value::Object(o));
+        m.insert("leave_one_out".into(), leave_one_out_to_json(l));
     }
     m
+}
+
+/// `board_scale`: `scale`, `sigma`, `declared_mm`, `implied_mm`, `estimated`,
+/// `disagrees`, `tolerance`.
+pub fn board_scale_to_json(c: &BoardScaleCheck) -> Value {
+    let mut b = Map::new();
+    b.insert("scale".into(), finite_or_null(c.scale));
+    b.insert("sigma".into(), finite_or_null(c.sigma));
+    b.insert("declared_mm".into(), finite_or_null(c.declared_mm));
+    b.insert("implied_mm".into(), finite_or_null(c.implied_mm));
+    b.insert("estimated".into(), Value::from(c.estimated));
+    b.insert("disagrees".into(), Value::from(c.disagrees));
+    b.insert("tolerance".into(), finite_or_null(c.tolerance));
+    Value::Object(b)
+}
+
+/// `leave_one_out`: per view `views` (`view`, `points`, `board_rms_px`, `board_rms_mm`,
+/// `stripe_points`, `stripe_rms_mm`, `disagrees`, `fold` when kept), the medians and
+/// `laser_board` when scored.
+pub fn leave_one_out_to_json(l: &LeaveOneOut) -> Value {
+    let opt = |x: Option<f64>| x.map_or(Value::Null, finite_or_null);
+    let views = l
+        .views
+        .iter()
+        .map(|v| {
+            let mut o = Map::new();
+            o.insert("view".into(), Value::from(v.view));
+            o.insert("points".into(), Value::from(v.points));
+            o.insert("board_rms_px".into(), finite_or_null(v.board_rms_px));
+            o.insert("board_rms_mm".into(), finite_or_null(v.board_rms_mm));
+            o.insert("stripe_points".into(), Value::from(v.stripe_points));
+            o.insert("stripe_rms_mm".into(), opt(v.stripe_rms_mm));
+            o.insert("disagrees".into(), Value::from(v.disagrees));
+            if let Some(f) = &v.fold {
+                let mut fo = Map::new();
+                fo.insert("camera".into(), super::calibration::camera_value(&f.camera));
+                fo.insert(
+                    "laser_plane".into(),
+                    super::calibration::plane_value(&f.plane),
+                );
+                fo.insert("cam_board".into(), super::json::pose_value(&f.cam_board));
+                o.insert("fold".into(), Value::Object(fo));
+            }
+            Value::Object(o)
+        })
+        .collect();
+    let mut o = Map::new();
+    o.insert("views".into(), Value::Array(views));
+    o.insert(
+        "median_board_rms_px".into(),
+        finite_or_null(l.median_board_rms_px),
+    );
+    o.insert(
+        "median_board_rms_mm".into(),
+        finite_or_null(l.median_board_rms_mm),
+    );
+    o.insert("median_stripe_rms_mm".into(), opt(l.median_stripe_rms_mm));
+    if let Some(f) = &l.laser_board {
+        let mut lb = Map::new();
+        lb.insert("median_mm".into(), finite_or_null(f.median_mm));
+        lb.insert("p95_mm".into(), finite_or_null(f.p95_mm));
+        lb.insert("points".into(), Value::from(f.points));
+        o.insert("laser_board".into(), Value::Object(lb));
+    }
+    Value::Object(o)
 }
 
 /// calibration.json's `robot_pose_noise` key (an extra key): `translation_mm` and
@@ -235,6 +285,13 @@ pub fn self_checks_extra(
 /// `null`), `left_out` (the same for the views left out by their test). Read back by
 /// [`super::calibration_robot_pose_noise`].
 pub fn robot_pose_noise_extra(n: &RobotPoseNoise) -> Map<String, Value> {
+    let mut m = Map::new();
+    m.insert("robot_pose_noise".into(), robot_pose_noise_to_json(n));
+    m
+}
+
+/// The value of `robot_pose_noise` (see [`robot_pose_noise_extra`]).
+pub fn robot_pose_noise_to_json(n: &RobotPoseNoise) -> Value {
     let mut o = Map::new();
     o.insert(
         "translation_mm".into(),
@@ -279,11 +336,10 @@ pub fn robot_pose_noise_extra(n: &RobotPoseNoise) -> Map<String, Value> {
     };
     o.insert("views".into(), Value::Array(views(&n.views)));
     o.insert("left_out".into(), Value::Array(views(&n.left_out)));
-    let mut m = Map::new();
-    m.insert("robot_pose_noise".into(), Value::Object(o));
-    m
+    Value::Object(o)
 }
 
+/// The `warnings` array.
 pub fn warnings_to_json(warnings: &[String]) -> Value {
     Value::Array(warnings.iter().map(|w| Value::from(w.as_str())).collect())
 }
@@ -293,6 +349,13 @@ pub fn warnings_to_json(warnings: &[String]) -> Value {
 /// covariance's (`robot.joints[i].theta0_deg`, 0-based rows), corrections the refined
 /// value minus rig.json's (deg or mm).
 pub fn robot_calibration_extra(rc: &RobotCalibration) -> Map<String, Value> {
+    let mut out = Map::new();
+    out.insert("robot_calibration".into(), robot_calibration_to_json(rc));
+    out
+}
+
+/// The value of `robot_calibration` (see [`robot_calibration_extra`]).
+pub fn robot_calibration_to_json(rc: &RobotCalibration) -> Value {
     let mut o = Map::new();
     o.insert("mode".into(), Value::from(rc.mode.clone()));
     let est = rc
@@ -318,9 +381,7 @@ pub fn robot_calibration_extra(rc: &RobotCalibration) -> Map<String, Value> {
         })
         .collect();
     o.insert("fixed".into(), Value::Array(fixed));
-    let mut out = Map::new();
-    out.insert("robot_calibration".into(), Value::Object(o));
-    out
+    Value::Object(o)
 }
 
 /// `uncertainty.robot`: `{"joints": [{"theta0_deg": sigma, ...}, ...]}`, one object per

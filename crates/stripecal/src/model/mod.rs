@@ -11,6 +11,7 @@ mod dataset;
 pub mod geometry;
 pub mod image;
 pub mod kinematics;
+mod mount;
 mod profile;
 mod quality;
 mod results;
@@ -22,6 +23,7 @@ pub use checks::{
 pub use dataset::{
     Dataset, Rig, RobotReading, Scan, ScanFrame, StripeChannel, StripeDirection, View,
 };
+pub use mount::Mount;
 pub use profile::{
     Profile, ProfileDataset, ProfileRig, ProfileScan, ProfileView, ProfilerCalibration,
     ProfilerQuality, SensorKind,
@@ -29,8 +31,8 @@ pub use profile::{
 pub use quality::{QualityCheck, QualityFailure};
 pub(crate) use results::calibration_number;
 pub use results::{
-    AdjustmentSummary, Calibration, CameraSigma, Cloud, DhCorrection, NamedCovariance, PlaneSigma,
-    PoseSigma, Quality, RobotCalibration, RobotPoseNoise, RobotPoseView, Sphere, SphereFit, Truth,
-    Uncertainty, ViewRecord, ROBOT_POSE_TEST_LIMIT,
+    AdjustmentSummary, Calibration, CalibrationRecords, CameraSigma, Cloud, DhCorrection,
+    NamedCovariance, PlaneSigma, PoseSigma, Quality, RobotCalibration, RobotPoseNoise,
+    RobotPoseView, Sphere, SphereFit, Truth, Uncertainty, ViewRecord, ROBOT_POSE_TEST_LIMIT,
 };
 pub use stripe_extraction::{RejectCounts, StripeExtraction};

@@ -6,6 +6,7 @@ use nalgebra::{DMatrix, Vector3};
 use crate::model::camera::Camera;
 use crate::model::geometry::{Iso3, Plane};
 use crate::model::kinematics::Robot;
+use crate::model::{BoardScaleCheck, LeaveOneOut, Mount};
 
 /// One of a calibration's numbers by its contract name (the names of
 /// [`NamedCovariance`]): the camera's, the laser plane's, and `hand_cam`'s and
@@ -94,6 +95,8 @@ impl NamedCovariance {
 /// Quality figures of a calibration (calibration.json `quality`).
 #[derive(Debug, Clone, PartialEq, Default)]
 pub struct Quality {
+    /// RMS target-point residual, px (circle centres or chessboard corners): the
+    /// contract's `circle_rms_px`, written beside it as `target_rms_px` too.
     pub circle_rms_px: f64,
     pub stripe_rms_px: f64,
     pub views_used: usize,
@@ -111,9 +114,12 @@ pub struct Calibration {
     /// `None`: not estimated (a calibration from views without laser images; written
     /// as `"laser_plane": null`, refused by reconstruction).
     pub laser_plane: Option<Plane>,
-    /// `T_hand_cam` (the paper's X).
+    /// How the sensor was held: on a robot (`hand_cam`, `base_board` estimated) or on
+    /// the bench (both the identity, absent from the file).
+    pub mount: Mount,
+    /// `T_hand_cam` (the paper's X; the identity on the bench).
     pub hand_cam: Iso3,
-    /// `T_base_board` (the paper's Z).
+    /// `T_base_board` (the paper's Z; the identity on the bench).
     pub base_board: Iso3,
     /// DH rows used (refined if the robot was calibrated); `None` for flange-pose rigs.
     pub robot: Option<Robot>,
@@ -123,17 +129,45 @@ pub struct Calibration {
     /// The full covariance of the estimated numbers (`None` in files written before
     /// the contract asked for it).
     pub covariance: Option<NamedCovariance>,
-    /// Any other top-level keys, kept on load and written back on save.
+    /// What the calibration did and checked (calibration.json's keys beyond the
+    /// contract's fixed ones that this version knows).
+    pub records: CalibrationRecords,
+    /// Any other top-level keys (those this version does not know, or a known key that
+    /// does not read as its record), kept on load and written back on save.
     pub extra: serde_json::Map<String, serde_json::Value>,
 }
 
 impl Calibration {
     /// A bench calibration (from a dataset without poses): camera and laser plane only,
     /// no `hand_cam`, `base_board` or `robot` in its file; `hand_cam` and `base_board`
-    /// hold the identity. Told by the extra key `"bench": true`.
+    /// hold the identity ([`Mount::Bench`]).
     pub fn is_bench(&self) -> bool {
-        self.extra.get("bench").and_then(|v| v.as_bool()) == Some(true)
+        self.mount == Mount::Bench
     }
+}
+
+/// calibration.json's records beyond the contract's fixed keys, each `None` (or empty)
+/// when the calibration did not make it (or a file does not hold it).
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct CalibrationRecords {
+    /// How the calibration was made (`method`, `centre_model`, ...).
+    pub summary: Option<AdjustmentSummary>,
+    /// What the calibration did with each view (`views`).
+    pub views: Option<Vec<ViewRecord>>,
+    /// What the user should know (`warnings`; empty: the file has none).
+    pub warnings: Vec<String>,
+    /// The board's scale against the robot (`board_scale`).
+    pub board_scale: Option<BoardScaleCheck>,
+    /// The leave-one-view-out figures (`leave_one_out`).
+    pub leave_one_out: Option<LeaveOneOut>,
+    /// The robot-pose noise (`robot_pose_noise`).
+    pub robot_pose_noise: Option<RobotPoseNoise>,
+    /// What the robot calibration did (`robot_calibration`; its `robot` is the
+    /// calibration's).
+    pub robot_calibration: Option<RobotCalibration>,
+    /// The blocks held at a prior calibration's values (`held_blocks`, `--from`; `None`:
+    /// none held).
+    pub held_blocks: Option<Vec<String>>,
 }
 
 /// A sphere (truth of a scan).

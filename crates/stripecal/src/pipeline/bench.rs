@@ -134,8 +134,7 @@ pub(super) fn calibrate_bench(
     let mut rep = build_report(stage, rig, opts, status, warnings);
     let c = &mut rep.calibration;
     c.robot = None;
-    c.extra
-        .insert(BENCH_KEY.into(), serde_json::Value::Bool(true));
+    c.mount = crate::model::Mount::Bench;
     c.extra
         .insert("board_flatness".into(), flatness_extra(&flatness));
     Ok((rep, gate_checks))

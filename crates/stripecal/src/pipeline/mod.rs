@@ -62,7 +62,6 @@ use crate::calib::joint::{FreeBlocks, JointResult};
 use crate::calib::laser_plane::LaserPlaneFit;
 use crate::calib::ViewObs;
 use crate::error::{Error, Result};
-use crate::io::warnings_to_json;
 use crate::model::camera::DistortionModel;
 use crate::model::{
     AdjustmentSummary, BoardScaleCheck, Calibration, Dataset, LeaveOneOut, ViewRecord,
@@ -339,9 +338,7 @@ pub fn calibrate_dataset_loaded(
     warnings.append(&mut rep.warnings);
     rep.warnings = warnings;
     if !rep.warnings.is_empty() {
-        rep.calibration
-            .extra
-            .insert("warnings".into(), warnings_to_json(&rep.warnings));
+        rep.calibration.records.warnings.clone_from(&rep.warnings);
     }
     gates::judge(rep, checks, opts)
 }

@@ -217,12 +217,14 @@ pub fn nominal_from_truth(t: Truth) -> Calibration {
     Calibration {
         camera: t.camera,
         laser_plane: Some(t.laser_plane),
+        mount: crate::model::Mount::Robot,
         hand_cam: t.hand_cam,
         base_board: t.base_board,
         robot: t.robot,
         quality: Default::default(),
         uncertainty: Default::default(),
         covariance: None,
+        records: Default::default(),
         extra: Default::default(),
     }
 }

@@ -143,7 +143,7 @@ pub(super) fn calibrate_with_prior(
     update_uncertainty(&mut rep.calibration.uncertainty, &named, &enames);
     rep.calibration.covariance = Some(named);
     let c = &mut rep.calibration;
-    c.extra.remove("held_blocks");
+    c.records.held_blocks = None;
     c.extra.insert(
         "prior".into(),
         json!({"blocks": blocks, "propagated_directions": directions,

@@ -7,13 +7,10 @@ use crate::calib::axzb::AxzbSolution;
 use crate::calib::camera::CameraCalibration;
 use crate::calib::joint::{JointResult, JointStart};
 use crate::calib::laser_plane::LaserPlaneFit;
-use crate::io::{
-    calibration_extra, robot_calibration_extra, robot_pose_noise_extra, robot_uncertainty,
-    self_checks_extra, uncertainty_to_json,
-};
+use crate::io::{robot_uncertainty, uncertainty_to_json};
 use crate::model::{
-    AdjustmentSummary, BoardScaleCheck, Calibration, CameraSigma, LeaveOneOut, PlaneSigma,
-    PoseSigma, Quality, Rig, Uncertainty, ViewRecord,
+    AdjustmentSummary, BoardScaleCheck, Calibration, CalibrationRecords, CameraSigma, LeaveOneOut,
+    Mount, PlaneSigma, PoseSigma, Quality, Rig, Uncertainty, ViewRecord,
 };
 
 /// What the calibration says about itself (see [`super::calibrate::self_checks`]).
@@ -146,11 +143,15 @@ pub(super) fn build_report(
     };
     let records = view_records(&status, adj);
     let mut unc = uncertainty_to_json(&uncertainty(&st, opts.method));
-    let mut extra = calibration_extra(&summary, &records, &warnings);
-    extra.extend(self_checks_extra(
-        st.checks.board_scale.as_ref(),
-        st.checks.leave_one_out.as_ref(),
-    ));
+    let mut extra = serde_json::Map::new();
+    let mut recs = CalibrationRecords {
+        summary: Some(summary.clone()),
+        views: Some(records.clone()),
+        warnings: warnings.clone(),
+        board_scale: st.checks.board_scale.clone(),
+        leave_one_out: st.checks.leave_one_out.clone(),
+        ..Default::default()
+    };
     match &st.board_stripe {
         Some(Ok(c)) => {
             extra.insert("board_stripe_bias".into(), board_stripe_extra(c));
@@ -164,11 +165,11 @@ pub(super) fn build_report(
         None => {}
     }
     if let (Method::OneStage, Some(n)) = (opts.method, &adj.robot_noise) {
-        extra.extend(robot_pose_noise_extra(n));
+        recs.robot_pose_noise = Some(n.clone());
     }
     let refined = match (opts.method, &adj.robot) {
         (Method::OneStage, Some(rc)) => {
-            extra.extend(robot_calibration_extra(rc));
+            recs.robot_calibration = Some(rc.clone());
             if !rc.estimated.is_empty() {
                 unc.insert("robot".into(), robot_uncertainty(rc));
             }
@@ -181,7 +182,7 @@ pub(super) fn build_report(
         (Method::OneStage, None) => Some(adj.named_covariance.clone()),
         (Method::OneStage, Some(h)) => {
             h.add_uncertainty(&mut unc);
-            extra.insert("held_blocks".into(), serde_json::Value::from(h.names()));
+            recs.held_blocks = Some(h.names().iter().map(|n| n.to_string()).collect());
             h.covariance(&adj.named_covariance)
         }
     };
@@ -193,6 +194,7 @@ pub(super) fn build_report(
     let calibration = Calibration {
         camera,
         laser_plane,
+        mount: Mount::Robot,
         hand_cam,
         base_board,
         robot,
@@ -208,6 +210,7 @@ pub(super) fn build_report(
         },
         uncertainty: unc,
         covariance,
+        records: recs,
         extra,
     };
     CalibrationReport {

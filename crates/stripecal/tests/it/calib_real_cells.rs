@@ -83,8 +83,8 @@ fn no_laser_then_laser_only_from_it_recovers_everything() {
     );
     assert!(cov2.index("laser_plane.d_mm").is_some());
     assert_eq!(
-        c2.extra.get("held_blocks"),
-        Some(&serde_json::json!(["camera", "hand_cam", "base_board"]))
+        c2.records.held_blocks.as_deref(),
+        Some(&["camera", "hand_cam", "base_board"].map(String::from)[..])
     );
     // 3. Holding blocks needs --from; --laser-only from a file without a plane is
     //    fine, holding the plane from it is not.
@@ -135,7 +135,7 @@ fn the_board_scale_check_finds_a_board_declared_2_percent_too_large() {
     println!("correct board: scale {:.6} +- {:.6}", c.scale, c.sigma);
     assert!(!c.disagrees && (c.scale - 1.0).abs() < 3.0 * c.sigma + 1e-9);
     assert!(!rep.warnings.iter().any(|w| w.contains("board scale")));
-    assert!(rep.calibration.extra.contains_key("board_scale"));
+    assert!(rep.calibration.records.board_scale.is_some());
     let gate = rep
         .calibration
         .quality

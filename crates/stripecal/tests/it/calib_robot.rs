@@ -276,8 +276,8 @@ fn the_fixed_robot_diagnosis_fires_only_when_the_robot_is_off() {
             };
             let rep = calibrate_observations(&views(&t, 3), &t.rig().unwrap(), &auto).unwrap();
             assert!(rep.calibration.quality.circle_rms_px < 2.0 * CIRCLE_PX);
-            let rc = rep.calibration.extra.get("robot_calibration").unwrap();
-            assert_eq!(rc["mode"], "auto");
+            let rc = rep.calibration.records.robot_calibration.as_ref().unwrap();
+            assert_eq!(rc.mode, "auto");
             assert!(rep.calibration.uncertainty.contains_key("robot"));
             let names = &rep.calibration.covariance.as_ref().unwrap().parameters;
             assert!(names.iter().any(|n| n.starts_with("robot.joints[")));

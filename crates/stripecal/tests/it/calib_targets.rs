@@ -38,7 +38,12 @@ fn calibrate(label: &str, preset: &str, over: serde_json::Value) {
     let mut e = errors(&t, &rep.calibration);
     // A symmetric board's frame is the first view's labelling: Z is compared with the
     // truth turned by the board's symmetries, whichever is nearest.
-    let frame = rep.calibration.extra.get("base_board_orientation");
+    let frame = rep
+        .calibration
+        .records
+        .summary
+        .as_ref()
+        .and_then(|s| s.base_board_orientation.as_ref());
     if frame.is_some() {
         for s in t.board.symmetries() {
             let m = symmetry_motion(&t.board, &s);

@@ -789,6 +789,7 @@ fn arb_calibration() -> impl Strategy<Value = Calibration> {
             |(camera, plane, hc, bb, robot, (c, s, n), cov, extra)| Calibration {
                 camera,
                 laser_plane: plane.map(|(n, d)| Plane::new(n, d).unwrap()),
+                mount: stripecal::model::Mount::Robot,
                 hand_cam: hc,
                 base_board: bb,
                 robot,
@@ -801,6 +802,7 @@ fn arb_calibration() -> impl Strategy<Value = Calibration> {
                 },
                 uncertainty: Map::new(),
                 covariance: cov,
+                records: Default::default(),
                 extra: extra.into_iter().collect(),
             },
         )

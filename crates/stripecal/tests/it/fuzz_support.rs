@@ -169,6 +169,7 @@ pub fn calibration() -> Calibration {
         laser_plane: Some(
             Plane::new(Vector3::new(0.629, -0.0492, 0.7759).normalize(), 79.87).unwrap(),
         ),
+        mount: stripecal::model::Mount::Robot,
         hand_cam: pose([-0.3087, 0.2362, 3.0369], [29.19, 5.37, 62.64]),
         base_board: pose([0.01, -0.02, 0.3], [400.0, -20.0, -300.0]),
         robot: Some(Robot::hp3()),
@@ -184,6 +185,7 @@ pub fn calibration() -> Calibration {
             parameters: names,
             matrix,
         }),
+        records: Default::default(),
         extra,
     }
 }

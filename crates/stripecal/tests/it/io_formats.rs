@@ -757,6 +757,7 @@ fn calibration() -> Calibration {
     Calibration {
         camera: camera(),
         laser_plane: Some(plane()),
+        mount: stripecal::model::Mount::Robot,
         hand_cam: pose([-0.3087, 0.2362, 3.0369], [29.19, 5.37, 62.64]),
         base_board: pose([0.01, -0.02, 1.5], [600.0, -20.0, -150.0]),
         robot: Some(Robot::hp3()),
@@ -775,6 +776,7 @@ fn calibration() -> Calibration {
             parameters: vec!["camera.fu".into(), "laser_plane.d_mm".into()],
             matrix: nalgebra::DMatrix::from_row_slice(2, 2, &[0.0625, -1.5e-3, -1.5e-3, 1e-4]),
         }),
+        records: Default::default(),
         extra,
     }
 }

@@ -20,6 +20,7 @@ mod fuzz_mutation;
 mod fuzz_public_api;
 mod fuzz_readers;
 mod fuzz_support;
+mod io_earlier_files;
 mod io_formats;
 mod io_poses;
 mod plan_poses;

@@ -35,6 +35,7 @@ fn calibration() -> Calibration {
         )
         .unwrap(),
         laser_plane: Some(Plane::new(Vector3::new(0.629, -0.0492, 0.7759), 79.87).unwrap()),
+        mount: stripecal::model::Mount::Robot,
         hand_cam: iso_from_rotvec(
             &Vector3::new(-0.3087, 0.2362, 3.0369),
             &Vector3::new(29.19, 5.37, 62.64),
@@ -44,6 +45,7 @@ fn calibration() -> Calibration {
         quality: Default::default(),
         uncertainty: Default::default(),
         covariance: None,
+        records: Default::default(),
         extra: Default::default(),
     }
 }

@@ -66,6 +66,7 @@ pub(crate) fn calibration() -> Calibration {
     Calibration {
         camera,
         laser_plane: Some(plane),
+        mount: crate::model::Mount::Robot,
         hand_cam,
         base_board: iso_from_rotvec(&Vector3::zeros(), &Vector3::new(400.0, 0.0, 0.0)),
         robot: Some(Robot::hp3()),
@@ -81,6 +82,7 @@ pub(crate) fn calibration() -> Calibration {
             parameters: names,
             matrix,
         }),
+        records: Default::default(),
         extra: Default::default(),
     }
 }
@@ -290,7 +292,7 @@ fn estimated_pose_noise_stands_in_for_missing_figures() {
         views: Vec::new(),
         left_out: Vec::new(),
     };
-    cal.extra.extend(crate::io::robot_pose_noise_extra(&noise));
+    cal.records.robot_pose_noise = Some(noise.clone());
     let base = UncertaintyOptions {
         calibration: false,
         stripe_sigma_px: Some(0.0),
@@ -311,13 +313,11 @@ fn estimated_pose_noise_stands_in_for_missing_figures() {
     // Without an estimate nothing changes; nor with one at its floors.
     assert_eq!(base.clone().with_pose_noise(&calibration()), base);
     let mut at_floor = calibration();
-    at_floor
-        .extra
-        .extend(crate::io::robot_pose_noise_extra(&RobotPoseNoise {
-            translation_at_floor: true,
-            rotation_at_floor: true,
-            ..noise.clone()
-        }));
+    at_floor.records.robot_pose_noise = Some(RobotPoseNoise {
+        translation_at_floor: true,
+        rotation_at_floor: true,
+        ..noise.clone()
+    });
     assert_eq!(base.clone().with_pose_noise(&at_floor), base);
     // The flange rotation's part: a Monte Carlo over iso flange rotations of 0.01 deg.
     let rot_only = UncertaintyOptions {

@@ -1,0 +1,200 @@
+//! `stripecal._core.record_keys()`: the keys calibration.json's records are written
+//! with, per record (named as `stripecal.types` names its TypedDict), taken from the
+//! core's writers on a sample of each record with every optional part present. The
+//! Python record types are checked against it (`tests/test_record_types.py`), so the
+//! two cannot drift.
+
+use std::collections::BTreeMap;
+
+use pyo3::prelude::*;
+use serde_json::{Map, Value};
+use stripecal::io::{
+    board_scale_to_json, calibration_extra_keys, leave_one_out_to_json, robot_calibration_to_json,
+    robot_pose_noise_to_json, summary_to_json, view_record_to_json,
+};
+use stripecal::model::camera::{Camera, DistortionModel};
+use stripecal::model::geometry::{Iso3, Plane};
+use stripecal::model::kinematics::Robot;
+use stripecal::model::{
+    AdjustmentSummary, BoardScaleCheck, Calibration, CalibrationRecords, DhCorrection,
+    LaserBoardFigure, LeaveOneOut, LooFold, LooView, Mount, RobotCalibration, RobotPoseNoise,
+    RobotPoseView, StripeExtraction, ViewRecord,
+};
+
+/// The keys of a JSON object (none for another value).
+fn keys(v: &Value) -> Vec<String> {
+    v.as_object()
+        .map_or_else(Vec::new, |m: &Map<String, Value>| {
+            m.keys().cloned().collect()
+        })
+}
+
+/// A calibration holding every record, each with its optional parts.
+fn sample() -> PyResult<Calibration> {
+    let camera = Camera::new(
+        64,
+        48,
+        100.0,
+        100.0,
+        32.0,
+        24.0,
+        DistortionModel::Radial1,
+        [0.0; 5],
+    )
+    .map_err(|e| pyo3::exceptions::PyValueError::new_err(e.to_string()))?;
+    let plane = Plane::new(nalgebra::Vector3::z(), 100.0)
+        .map_err(|e| pyo3::exceptions::PyValueError::new_err(e.to_string()))?;
+    let pose_view = RobotPoseView {
+        view: 0,
+        translation_mm: 0.0,
+        rotation_deg: 0.0,
+        test: 0.0,
+    };
+    let records = CalibrationRecords {
+        summary: Some(AdjustmentSummary {
+            method: "one-stage".into(),
+            centre_model: "conic-exact".into(),
+            base_board_orientation: Some("first view".into()),
+            stripe_rms_mm: 0.0,
+            residual_sigma_px: (0.0, 0.0),
+            stripe_off_plane: 0,
+        }),
+        views: Some(vec![ViewRecord {
+            view: 0,
+            used: true,
+            circles: 0,
+            stripe_points: 0,
+            stripe_off_plane: 0,
+            circle_rms_px: Some(0.0),
+            stripe_rms_px: Some(0.0),
+            outlier: Some(false),
+            note: Some(String::new()),
+            stripe_extraction: Some(StripeExtraction::default()),
+        }]),
+        warnings: vec![String::new()],
+        board_scale: Some(BoardScaleCheck {
+            scale: 1.0,
+            sigma: 0.0,
+            declared_mm: 1.0,
+            implied_mm: 1.0,
+            estimated: false,
+            disagrees: false,
+            tolerance: 0.01,
+        }),
+        leave_one_out: Some(LeaveOneOut {
+            views: vec![LooView {
+                view: 0,
+                points: 0,
+                board_rms_px: 0.0,
+                board_rms_mm: 0.0,
+                stripe_points: 0,
+                stripe_rms_mm: Some(0.0),
+                disagrees: false,
+                fold: Some(LooFold {
+                    camera: camera.clone(),
+                    plane,
+                    cam_board: Iso3::identity(),
+                }),
+            }],
+            median_board_rms_px: 0.0,
+            median_board_rms_mm: 0.0,
+            median_stripe_rms_mm: Some(0.0),
+            laser_board: Some(LaserBoardFigure {
+                median_mm: 0.0,
+                p95_mm: 0.0,
+                points: 0,
+            }),
+        }),
+        robot_pose_noise: Some(RobotPoseNoise {
+            sigma_translation_mm: 0.0,
+            sigma_rotation_deg: 0.0,
+            translation_at_floor: false,
+            rotation_at_floor: false,
+            floor_translation_mm: 0.0,
+            floor_rotation_deg: 0.0,
+            image_factor: Some(0.0),
+            image_factor_at_floor: false,
+            kinematic_mm: Some(0.0),
+            kinematic_deg: Some(0.0),
+            views: vec![pose_view],
+            left_out: vec![pose_view],
+        }),
+        robot_calibration: Some(RobotCalibration {
+            mode: "auto".into(),
+            robot: Robot::hp3(),
+            estimated: vec![DhCorrection {
+                name: String::new(),
+                correction: 0.0,
+                sigma: 0.0,
+            }],
+            fixed: vec![(String::new(), String::new())],
+        }),
+        held_blocks: Some(vec![String::new()]),
+    };
+    Ok(Calibration {
+        camera,
+        laser_plane: Some(plane),
+        mount: Mount::Robot,
+        hand_cam: Iso3::identity(),
+        base_board: Iso3::identity(),
+        robot: Some(Robot::hp3()),
+        quality: Default::default(),
+        uncertainty: Default::default(),
+        covariance: None,
+        records,
+        extra: Default::default(),
+    })
+}
+
+/// `{TypedDict name: [keys]}`: the keys the core writes each calibration.json record
+/// with (`CalibrationExtra`: the top-level keys of the records, a subset of the
+/// TypedDict's, which also names keys without a typed record).
+#[pyfunction]
+pub fn record_keys() -> PyResult<BTreeMap<&'static str, Vec<String>>> {
+    let c = sample()?;
+    let r = &c.records;
+    let mut out = BTreeMap::new();
+    let extra = Value::Object(calibration_extra_keys(&c));
+    out.insert("CalibrationExtra", keys(&extra));
+    if let Some(s) = &r.summary {
+        out.insert(
+            "ResidualSigma",
+            keys(&summary_to_json(s)["residual_sigma_px"]),
+        );
+    }
+    if let Some(v) = r.views.as_ref().and_then(|v| v.first()) {
+        let v = view_record_to_json(v);
+        out.insert("CalibrationView", keys(&v));
+        let e = &v["stripe_extraction"];
+        out.insert("StripeExtraction", keys(e));
+        out.insert("StripeLeftOut", keys(&e["left_out"]));
+        out.insert(
+            "ScanLinesWithoutPoint",
+            keys(&e["scan_lines_without_point"]),
+        );
+    }
+    if let Some(b) = &r.board_scale {
+        out.insert("BoardScaleCheck", keys(&board_scale_to_json(b)));
+    }
+    if let Some(l) = &r.leave_one_out {
+        let l = leave_one_out_to_json(l);
+        out.insert("LeaveOneOut", keys(&l));
+        out.insert("LeaveOneOutView", keys(&l["views"][0]));
+        out.insert("LeaveOneOutFold", keys(&l["views"][0]["fold"]));
+        out.insert("LaserBoardFigure", keys(&l["laser_board"]));
+    }
+    if let Some(n) = &r.robot_pose_noise {
+        let n = robot_pose_noise_to_json(n);
+        out.insert("RobotPoseNoise", keys(&n));
+        out.insert("RobotPoseAtFloor", keys(&n["at_floor"]));
+        out.insert("RobotPoseFloor", keys(&n["floor"]));
+        out.insert("RobotPoseNoiseView", keys(&n["views"][0]));
+    }
+    if let Some(rc) = &r.robot_calibration {
+        let rc = robot_calibration_to_json(rc);
+        out.insert("RobotCalibration", keys(&rc));
+        out.insert("DhCorrection", keys(&rc["estimated"][0]));
+        out.insert("DhFixed", keys(&rc["fixed"][0]));
+    }
+    Ok(out)
+}

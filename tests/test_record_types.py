@@ -1,0 +1,51 @@
+"""The Python record types of calibration.json (``stripecal.types``' TypedDicts) against
+the keys the core writes each record with (``stripecal._core.record_keys()``, taken
+from the Rust writers): a key added to or removed from a record on one side only
+fails here."""
+
+import typing
+from pathlib import Path
+
+import stripecal
+import stripecal.types as types
+from stripecal import _core
+
+
+def _keys(name: str) -> set:
+    return set(typing.get_type_hints(getattr(types, name)))
+
+
+def test_every_record_type_has_the_keys_the_core_writes() -> None:
+    described = _core.record_keys()
+    assert len(described) >= 15, sorted(described)
+    for name, keys in described.items():
+        if name == "CalibrationExtra":
+            # the TypedDict also names top-level keys without a typed record
+            missing = set(keys) - _keys(name)
+            assert not missing, f"{name} lacks {sorted(missing)}"
+        else:
+            assert set(keys) == _keys(name), (name, sorted(keys), sorted(_keys(name)))
+
+
+
+def test_a_calibration_built_from_another_keeps_its_records() -> None:
+    # a file written before the typed records, then Calibration(..., extra=its extra)
+    path = Path(__file__).parent.parent / "crates/stripecal/tests/data/held_v1.json"
+    c = stripecal.load_calibration(path)
+    assert c.mount == "robot" and c.views and c.leave_one_out and c.robot_pose_noise
+    d = stripecal.Calibration(c.camera, c.laser_plane, c.hand_cam, c.base_board, c.robot,
+                              c.quality, c.uncertainty, c.extra)
+    # the folds' laser planes are renormalised when read again (as from a file): to 1e-12
+    def folds_apart(x: dict) -> tuple:
+        views = [{k: v for k, v in w.items() if k != "fold"} for w in x["views"]]
+        return {**x, "views": views}, [w["fold"]["laser_plane"]["d_mm"] for w in x["views"]]
+
+    (dl, dd), (cl, cd) = folds_apart(d.extra["leave_one_out"]), folds_apart(c.extra["leave_one_out"])
+    assert dl == cl and all(abs(a - b) < 1e-12 * b for a, b in zip(dd, cd)) and len(dd) == len(cd)
+    others = {k: v for k, v in d.extra.items() if k != "leave_one_out"}
+    assert others == {k: v for k, v in c.extra.items() if k != "leave_one_out"}
+    assert d.views == c.views and d.warnings == c.warnings and d.warnings
+    assert d.leave_one_out is not None and d.board_scale == c.board_scale
+    assert d.robot_pose_noise == c.robot_pose_noise and d.robot_calibration is None
+    bench = stripecal.load_calibration(path.with_name("bench_v1.json"))
+    assert bench.mount == "bench" and bench.is_bench and bench.extra["bench"] is True
