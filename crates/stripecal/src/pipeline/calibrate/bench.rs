@@ -1,5 +1,5 @@
 //! The bench pipeline (a dataset without poses, spec/DATASET.md): the sensor calibrated
-//! on its own, the board moved by hand. The stages of [`super::calibrate`] without the
+//! on its own, the board moved by hand. The stages of [`super::stages`] without the
 //! robot's: camera (Zhang's per-view board poses), labellings (on the bench every view's
 //! labelling of a symmetric board is free: each view has its own board pose, so nothing
 //! is refused for it), stripe points on the board plane (points off it, e.g. the line
@@ -8,15 +8,15 @@
 //! free board pose per view), the leave-one-view-out figure, the report and the gates
 //! (`views`, `determined`, `converged`; no robot gate).
 
-use super::calibrate::{
-    camera_stage, check_usable, joint_options, laser_plane_stage, leave_out, mark_used,
-};
 use super::flat_views::{flatness_extra, leave_out_bent};
 use super::gates::{converged, determined, view_residuals, views_check};
 use super::held::Held;
 use super::labels::resolve_labellings;
 use super::loo::leave_one_out;
 use super::report::{build_report, SelfChecks, Stage};
+use super::stages::{
+    camera_stage, check_usable, joint_options, laser_plane_stage, leave_out, mark_used,
+};
 use super::stripe_select::select_stripes;
 use super::{CalibrateOptions, CalibrationReport, Method, ViewStatus};
 use crate::calib::joint::{bench_adjustment, JointStart};

@@ -16,7 +16,7 @@ use crate::model::{
     PoseSigma, Quality, Rig, Uncertainty, ViewRecord,
 };
 
-/// What the calibration says about itself (see [`super::calibrate::self_checks`]).
+/// What the calibration says about itself (see [`super::stages::self_checks`]).
 #[derive(Debug, Clone, Default)]
 pub(super) struct SelfChecks {
     pub board_scale: Option<BoardScaleCheck>,

@@ -46,7 +46,7 @@ pub fn calibrate_observations(
 }
 
 /// The pipeline without the final verdict: the calibration and the gates' checks.
-pub(super) fn calibrate_unjudged(
+pub(in crate::pipeline) fn calibrate_unjudged(
     views: &[ViewObs],
     rig: &Rig,
     opts: &CalibrateOptions,

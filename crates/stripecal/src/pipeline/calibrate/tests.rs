@@ -3,10 +3,10 @@
 
 use nalgebra::Vector3;
 
-use super::calibrate::{check_usable, grid_extent, kept};
 use super::labels::resolve_labellings;
 use super::pairing::check_pairing;
 use super::report::view_records_from;
+use super::stages::{check_usable, grid_extent, kept};
 use super::{CalibrateOptions, ViewStatus};
 use crate::calib::{CircleObs, ViewObs};
 use crate::model::board::Board;

@@ -40,7 +40,7 @@ use crate::reconstruct::{
     ProfileReconstructOptions, ReconstructOptions, ScanPoints, UncertaintyModel,
 };
 
-use super::measure::{
+use super::{
     budget_to_json, measure_scan_ball_bar, measure_scan_plane, measure_scan_sphere,
     profiler_uncertainty_model, scan_readings, scan_uncertainty_model, MeasureOptions,
     SphereReport,
