@@ -8,8 +8,9 @@
 use super::held::Held;
 use super::labels::{relabel, Labelled};
 use super::report::{build_report, Stage};
-use super::stages::{joint_options, mark_used, self_checks};
+use super::stages::{joint_options, self_checks};
 use super::stripe_select::select_stripes;
+use super::views::mark_used;
 use super::{CalibrateOptions, CalibrationReport, ViewStatus};
 use crate::calib::conic::predict_centre;
 use crate::calib::joint::{joint_adjustment, JointStart};

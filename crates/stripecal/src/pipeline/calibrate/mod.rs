@@ -9,27 +9,31 @@ use super::{emitter_carry, CalibrateOptions, CalibrationReport, Method, Stages, 
 mod bench;
 mod board_scale;
 pub mod board_stripe;
+mod dispatch;
 mod flat_views;
 pub mod gates;
 mod held;
 mod kinematics;
 mod labels;
 mod laser_only;
+mod leave_out;
 mod loo;
 mod observe;
 mod pairing;
 mod prior;
 mod report;
+mod robot;
 mod stages;
 pub mod stripe_select;
 #[cfg(test)]
 mod tests;
+mod views;
 
 pub use bench::BENCH_KEY;
+pub use dispatch::calibrate_observations;
+pub(super) use dispatch::calibrate_unjudged;
 pub(super) use held::check_from_size;
 pub use loo::held_out_laser_board;
 pub(crate) use observe::decide_channel_lenient;
 pub use observe::{dataset_channel, observe_dataset};
 pub(super) use observe::{observe, Observed};
-pub use stages::calibrate_observations;
-pub(super) use stages::calibrate_unjudged;

@@ -28,7 +28,7 @@
 use nalgebra::{DMatrix, DVector, SymmetricEigen};
 use serde_json::{json, Value};
 
-use super::stages::calibrate_unjudged;
+use super::dispatch::calibrate_unjudged;
 use super::{CalibrateOptions, CalibrationReport};
 use crate::calib::joint::DhParam;
 use crate::calib::ViewObs;

@@ -64,6 +64,10 @@
 //! The covariance of the DH corrections (robot calibration) is not augmented (their part
 //! of the changes is not read).
 
+mod readjust;
+
+pub(super) use readjust::correct_stripes;
+
 use nalgebra::{Matrix2, Vector2, Vector3};
 use rayon::prelude::*;
 
