@@ -41,7 +41,9 @@ pub(in crate::pipeline) fn calibrate_unjudged(
         .as_ref()
         .filter(|_| super::held::holds_nothing(opts) && !super::bench::is_bench(views))
     {
-        return super::prior::calibrate_with_prior(views, rig, opts, from);
+        return super::prior::calibrate_with_prior(opts, from, |held| {
+            calibrate_unjudged(views, rig, held)
+        });
     }
     let held = held(opts)?;
     if super::bench::is_bench(views) {
