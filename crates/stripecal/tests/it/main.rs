@@ -22,6 +22,7 @@ mod fuzz_readers;
 mod fuzz_support;
 mod io_formats;
 mod io_poses;
+mod layers;
 mod plan_poses;
 mod reconstruct;
 mod reconstruct_errors;
