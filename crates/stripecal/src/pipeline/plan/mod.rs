@@ -18,23 +18,28 @@
 //! implicit-function Jacobian of `project(P) = uv, n . P = d`), in the camera frame and,
 //! through the nominal `X` at the median pose, in the base frame.
 
+mod figures;
+mod noise;
+mod observe;
+mod point;
+
 use std::path::Path;
 
-use nalgebra::{Matrix3, Vector2, Vector3};
+use nalgebra::Vector3;
 use serde::Serialize;
 
-use crate::calib::conic::predict_centre;
 use crate::calib::joint::{
-    camera_name, dh_point_gradients, predicted_covariance, FreeBlocks, JointOptions, JointStart,
-    RobotMode, RobotOptions, IMAGE_FACTOR_FLOOR, POSE_NOISE_FLOOR,
+    dh_point_gradients, predicted_covariance, FreeBlocks, JointOptions, JointStart, RobotMode,
 };
-use crate::calib::laser_plane::stripe_line_in_view;
-use crate::calib::{CircleObs, ViewObs};
 use crate::error::{Error, Result};
-use crate::model::board::{Board, BoardKind};
 use crate::model::camera::Camera;
-use crate::model::geometry::{iso_from_rotvec, iso_to_rotvec, Iso3, Plane};
-use crate::model::{Calibration, NamedCovariance, Rig, RobotReading, Truth};
+use crate::model::geometry::{Iso3, Plane};
+use crate::model::kinematics::Robot;
+use crate::model::{Calibration, Rig, Truth};
+use figures::parameter_figures;
+use noise::adjustment_options;
+use observe::{predict_poses, PredictedPoses};
+use point::point_sigma;
 
 /// Options of [`plan_poses`].
 #[derive(Debug, Clone, PartialEq)]
@@ -227,248 +232,13 @@ pub fn nominal_from_truth(t: Truth) -> Calibration {
     }
 }
 
-/// What a perfect sensor would observe at one pose.
-struct Predicted {
-    circles: Vec<CircleObs>,
-    stripe: Vec<[f64; 2]>,
-    standoff_mm: Option<f64>,
-    tilt_deg: Option<f64>,
-    reason: Option<String>,
-}
-
-/// The target points' bounding box grown by `margin` (board frame, mm).
-fn plate(board: &Board, margin: f64) -> [f64; 4] {
-    let last = board.center(board.rows - 1, board.cols - 1);
-    let mut x1 = last.x;
-    if board.kind == BoardKind::AsymmetricCircles && board.rows > 1 {
-        x1 = x1.max(board.center(1, board.cols - 1).x);
-    }
-    [-margin, x1 + margin, -margin, last.y + margin]
-}
-
-fn predict_view(
-    cam: &Camera,
-    board: &Board,
-    plane: Option<&Plane>,
-    cb: &Iso3,
-    opts: &PlanOptions,
-) -> Predicted {
-    let nb = cb.rotation * Vector3::z();
-    let ob = cb.translation.vector;
-    let standoff_mm = (nb.z.abs() > 1e-9)
-        .then(|| nb.dot(&ob) / nb.z)
-        .filter(|s| *s > 0.0);
-    let tilt_deg = Some(nb.z.abs().min(1.0).acos().to_degrees());
-    let mut out = Predicted {
-        circles: Vec::new(),
-        stripe: Vec::new(),
-        standoff_mm,
-        tilt_deg,
-        reason: None,
-    };
-    // The printed side faces the camera: the board's z axis points away from it.
-    if nb.dot(&ob) <= 0.0 {
-        out.reason = Some("the camera sees the board from behind or edge-on".into());
-        return out;
-    }
-    let model = opts.adjustment.centre_model;
-    for (r, c) in board.indices() {
-        let ctr = board.center(r, c);
-        if (cb * nalgebra::Point3::from(ctr)).z <= 1e-3 {
-            continue;
-        }
-        let Ok(uv) = predict_centre(cam, cb, &ctr, 0.5 * board.diameter(r, c), model) else {
-            continue;
-        };
-        if uv.iter().all(|x| x.is_finite()) && cam.contains(&uv, opts.margin_px) {
-            out.circles.push(CircleObs {
-                row: r,
-                col: c,
-                u: uv.x,
-                v: uv.y,
-            });
-        }
-    }
-    if let Some(pl) = plane {
-        out.stripe = stripe_points(cam, board, pl, cb, opts);
-    }
-    if out.circles.len() < opts.min_points {
-        out.reason = Some(format!(
-            "{} target points in the image (at least {} needed)",
-            out.circles.len(),
-            opts.min_points
-        ));
-    }
-    out
-}
-
-/// The laser line on the plate, one point every `stripe_step_px` along its major image
-/// axis (module docs).
-fn stripe_points(
-    cam: &Camera,
-    board: &Board,
-    pl: &Plane,
-    cb: &Iso3,
-    opts: &PlanOptions,
-) -> Vec<[f64; 2]> {
-    let Ok(line) = stripe_line_in_view(pl, cb, cam) else {
-        return Vec::new();
-    };
-    let margin = opts.plate_margin_mm.unwrap_or(board.pitch_mm);
-    let [x0, x1, y0, y1] = plate(board, margin);
-    let (p, d) = (line.point_board, line.direction_board);
-    // Clip p + t d to the plate (slabs).
-    let (mut t0, mut t1) = (f64::NEG_INFINITY, f64::INFINITY);
-    for (pk, dk, lo, hi) in [(p.x, d.x, x0, x1), (p.y, d.y, y0, y1)] {
-        if dk.abs() < 1e-12 {
-            if pk < lo || pk > hi {
-                return Vec::new();
-            }
-            continue;
-        }
-        let (a, b) = ((lo - pk) / dk, (hi - pk) / dk);
-        t0 = t0.max(a.min(b));
-        t1 = t1.min(a.max(b));
-    }
-    if t0.partial_cmp(&t1) != Some(std::cmp::Ordering::Less) {
-        return Vec::new();
-    }
-    let samples = 4 * (cam.width + cam.height) as usize;
-    let pts: Vec<Vector2<f64>> = (0..=samples)
-        .filter_map(|k| {
-            let t = t0 + (t1 - t0) * k as f64 / samples as f64;
-            let q = p + d * t;
-            let pc = cb * nalgebra::Point3::new(q.x, q.y, 0.0);
-            if pc.z <= 1e-3 {
-                return None;
-            }
-            cam.project(&pc.coords)
-                .ok()
-                .filter(|uv| cam.contains(uv, opts.margin_px))
-        })
-        .collect();
-    if pts.len() < 2 {
-        return Vec::new();
-    }
-    let (first, last) = (pts[0], pts[pts.len() - 1]);
-    let axis = usize::from((last.y - first.y).abs() > (last.x - first.x).abs());
-    let step = opts.stripe_step_px.max(1e-3);
-    let mut out = vec![[first.x, first.y]];
-    let mut at = first[axis];
-    for uv in &pts[1..] {
-        if (uv[axis] - at).abs() >= step {
-            out.push([uv.x, uv.y]);
-            at = uv[axis];
-        }
-    }
-    out
-}
-
-/// The point where the pixel `uv`'s ray meets the plane `n . P = d` (`n` need not be
-/// unit length: the derivatives w.r.t. its components are taken that way).
-pub(crate) fn triangulate_raw(
-    cam: &Camera,
-    n: &Vector3<f64>,
-    d: f64,
-    uv: &Vector2<f64>,
-) -> Result<Vector3<f64>> {
-    let ray = cam.unproject(uv)?;
-    let den = n.dot(&ray);
-    if den.abs() < 1e-12 {
-        return Err(Error::Degenerate(
-            "the ray is parallel to the laser plane".into(),
-        ));
-    }
-    Ok(ray * (d / den))
-}
-
-/// The point triangulated from `uv` on `plane` (camera frame) and in the base frame
-/// through `a x` (`T_base_hand T_hand_cam`), with the derivatives of both w.r.t. the
-/// numbers of calibration.json they depend on: `(name, d P_cam, d P_base)`. Camera and
-/// plane: the implicit-function Jacobian of `project(P) = uv, n . P = d`; `X`'s rotation
-/// vector: central differences (step 1e-6 rad); its translation: `R_A`.
-#[allow(clippy::type_complexity)]
-pub(crate) fn point_jacobian(
-    cam: &Camera,
-    plane: &Plane,
-    x: &Iso3,
-    a: &Iso3,
-    uv: &Vector2<f64>,
-) -> Result<(
-    Vector3<f64>,
-    Vector3<f64>,
-    Vec<(String, Vector3<f64>, Vector3<f64>)>,
-)> {
-    let p = triangulate_raw(cam, &plane.normal, plane.d, uv)?;
-    let (_, jp, jc) = cam.project_with_jacobians(&p)?;
-    let m = Matrix3::from_rows(&[
-        jp.row(0).into_owned(),
-        jp.row(1).into_owned(),
-        plane.normal.transpose(),
-    ]);
-    let mi = m
-        .try_inverse()
-        .ok_or_else(|| Error::Degenerate("the viewing ray is tangent to the laser plane".into()))?;
-    let ra = a.rotation.to_rotation_matrix().into_inner();
-    let rx = x.rotation.to_rotation_matrix().into_inner();
-    let to_base = ra * rx;
-    let mut out = Vec::new();
-    for i in 0..9 {
-        let dp = mi * Vector3::new(-jc[(0, i)], -jc[(1, i)], 0.0);
-        out.push((camera_name(i), dp, to_base * dp));
-    }
-    for k in 0..3 {
-        let dp = mi * Vector3::new(0.0, 0.0, -p[k]);
-        out.push((format!("laser_plane.normal[{k}]"), dp, to_base * dp));
-    }
-    let dp = mi * Vector3::new(0.0, 0.0, 1.0);
-    out.push(("laser_plane.d_mm".into(), dp, to_base * dp));
-    let (rv, tv) = iso_to_rotvec(x);
-    let h = 1e-6;
-    for k in 0..3 {
-        let mut e = Vector3::zeros();
-        e[k] = h;
-        let xp = iso_from_rotvec(&(rv + e), &tv);
-        let xm = iso_from_rotvec(&(rv - e), &tv);
-        let db = ra * (xp.rotation * p - xm.rotation * p) / (2.0 * h);
-        out.push((
-            format!("hand_cam.rotation_vector[{k}]"),
-            Vector3::zeros(),
-            db,
-        ));
-    }
-    for k in 0..3 {
-        out.push((
-            format!("hand_cam.translation_mm[{k}]"),
-            Vector3::zeros(),
-            ra.column(k).into_owned(),
-        ));
-    }
-    let pb = a * (x * nalgebra::Point3::from(p));
-    Ok((p, pb.coords, out))
-}
-
-/// The covariance `G C G^T` of a 3-vector whose derivatives w.r.t. named numbers are
-/// `grads` (numbers not in `cov` are held: no contribution).
-fn propagate(cov: &NamedCovariance, grads: &[(String, Vector3<f64>)]) -> Matrix3<f64> {
-    let idx: Vec<(usize, Vector3<f64>)> = grads
-        .iter()
-        .filter_map(|(n, g)| cov.index(n).map(|i| (i, *g)))
-        .collect();
-    let mut c = Matrix3::zeros();
-    for (i, gi) in &idx {
-        for (j, gj) in &idx {
-            c += gi * gj.transpose() * cov.matrix[(*i, *j)];
-        }
-    }
-    c
-}
-
-fn sigmas(c: &Matrix3<f64>) -> ([f64; 3], f64) {
-    (
-        [0, 1, 2].map(|k| c[(k, k)].max(0.0).sqrt()),
-        c.trace().max(0.0).sqrt(),
-    )
+/// The nominal sensor a plan is predicted around: its camera, laser plane,
+/// `X = T_hand_cam` and `Z = T_base_board`.
+struct Nominal<'a> {
+    camera: &'a Camera,
+    plane: Option<&'a Plane>,
+    hand_cam: Iso3,
+    base_board: Iso3,
 }
 
 /// Predicts the calibration's uncertainty for the robot poses `joints` (degrees, one
@@ -484,69 +254,21 @@ pub fn plan_poses(
     joints: &[Vec<f64>],
     opts: &PlanOptions,
 ) -> Result<PosePlan> {
-    let robot = rig
-        .robot
-        .as_ref()
-        .or(nominal.robot.as_ref())
-        .ok_or_else(|| {
-            Error::InvalidInput("pose planning needs a robot: the rig has none".into())
-        })?;
-    if !(opts.margin_px.is_finite() && opts.margin_px >= 0.0) {
-        return Err(Error::InvalidInput(format!(
-            "the image margin must be a non-negative number of pixels, got {}",
-            opts.margin_px
-        )));
-    }
+    let (robot, mut warnings) = checked_inputs(rig, nominal, opts)?;
     let cam = &nominal.camera;
-    cam.validate()?;
-    rig.board.validate()?;
-    let mut warnings = Vec::new();
-    if (cam.width, cam.height) != (rig.width, rig.height) {
-        warnings.push(format!(
-            "the nominal camera is {}x{} px, the rig's {}x{}: the nominal's is used",
-            cam.width, cam.height, rig.width, rig.height
-        ));
-    }
     let (x, z) = (nominal.hand_cam, nominal.base_board);
     let plane = nominal.laser_plane.as_ref();
-    let mut poses = Vec::new();
-    let mut views = Vec::new();
-    let mut flange = Vec::new();
-    for (i, q) in joints.iter().enumerate() {
-        if q.len() != robot.dof() || q.iter().any(|v| !v.is_finite()) {
-            return Err(Error::InvalidInput(format!(
-                "pose {i}: expected {} finite joint values (degrees), got {:?}",
-                robot.dof(),
-                q
-            )));
-        }
-        let a = robot.forward(q)?;
-        let cb = (a * x).inverse() * z;
-        let pr = predict_view(cam, &rig.board, plane, &cb, opts);
-        let usable = pr.reason.is_none();
-        poses.push(PlannedPose {
-            pose: i,
-            joints_deg: q.clone(),
-            usable,
-            reason: pr.reason,
-            points: pr.circles.len(),
-            stripe_points: pr.stripe.len(),
-            standoff_mm: pr.standoff_mm,
-            tilt_deg: pr.tilt_deg,
-        });
-        flange.push(a);
-        if usable {
-            views.push(ViewObs {
-                view: i,
-                circles: pr.circles,
-                stripe: pr.stripe,
-                reading: Some(RobotReading::Joints(joints[i].clone())),
-                base_hand: Some(a),
-                alternatives: Vec::new(),
-                stripe_shape: None,
-            });
-        }
-    }
+    let nominal_chain = Nominal {
+        camera: cam,
+        plane,
+        hand_cam: x,
+        base_board: z,
+    };
+    let PredictedPoses {
+        poses,
+        views,
+        flange,
+    } = predict_poses(&nominal_chain, robot, &rig.board, joints, opts)?;
     if views.len() < 3 {
         let why: Vec<String> = poses
             .iter()
@@ -566,78 +288,11 @@ pub fn plan_poses(
         hand_cam: x,
         base_board: z,
     };
-    let mut jopts = JointOptions {
-        free: opts.free,
-        ..opts.adjustment.clone()
-    };
-    // The calibration's noise model: the robot-pose noise as planned, never below
-    // rig.json's figures; the images' own part at its floor. Without any figure the
-    // robot is planned exact (the poses without corrections: what an exact robot's
-    // calibration, its pose noise at the floors, gives).
-    let floors = rig
-        .robot
-        .as_ref()
-        .map_or((None, None), |r| r.pose_noise_floor());
-    let planned = opts
-        .pose_noise
-        .or_else(|| {
-            crate::io::calibration_robot_pose_noise(nominal)
-                .ok()
-                .flatten()
-                .map(|n| (n.sigma_translation_mm, n.sigma_rotation_deg))
-                .filter(|(t, r)| t.is_finite() && r.is_finite())
-        })
-        .or_else(|| {
-            (floors.0.is_some() || floors.1.is_some())
-                .then(|| (floors.0.unwrap_or(0.0), floors.1.unwrap_or(0.0)))
-        });
-    let pose_noise = planned.map(|p| {
-        (
-            p.0.max(floors.0.unwrap_or(0.0)).max(POSE_NOISE_FLOOR.0),
-            p.1.max(floors.1.unwrap_or(0.0)).max(POSE_NOISE_FLOOR.1),
-        )
-    });
-    match pose_noise {
-        Some(p) if jopts.robot_noise => {
-            jopts.robot_floor = floors;
-            jopts.initial_robot_sigma = p;
-            jopts.initial_image_factor = IMAGE_FACTOR_FLOOR;
-        }
-        _ => jopts.robot_noise = false,
-    }
-    if opts.robot != RobotMode::Fixed {
-        let nominal = rig.robot.clone().ok_or_else(|| {
-            Error::InvalidInput("planning a robot calibration needs rig.json's robot".into())
-        })?;
-        jopts.robot = Some(RobotOptions {
-            nominal,
-            mode: opts.robot,
-        });
-    }
+    let (jopts, pose_noise) = adjustment_options(rig, nominal, opts)?;
     let pred = predicted_covariance(&views, &rig.board, &start, &jopts, opts.sigma_px)?;
     warnings.extend(pred.warnings.iter().cloned());
+    let (parameters, covariance, state) = parameter_figures(&pred);
     let named = &pred.named_covariance;
-    let parameters = named
-        .parameters
-        .iter()
-        .enumerate()
-        .map(|(i, n)| SigmaEntry {
-            name: n.clone(),
-            sigma: named.matrix[(i, i)].max(0.0).sqrt(),
-        })
-        .collect();
-    let covariance = (0..named.matrix.nrows())
-        .map(|r| named.matrix.row(r).iter().copied().collect())
-        .collect();
-    let state = pred
-        .param_names
-        .iter()
-        .enumerate()
-        .map(|(i, n)| SigmaEntry {
-            name: n.clone(),
-            sigma: pred.covariance[(i, i)].max(0.0).sqrt(),
-        })
-        .collect();
     // The usable poses by stand-off; the median one.
     let mut usable: Vec<(f64, usize)> = poses
         .iter()
@@ -661,7 +316,14 @@ pub fn plan_poses(
                     _ => Vec::new(),
                 }
             };
-            match point_sigma(cam, pl, &x, &z, base.map(|i| (i, flange[i])), s, named, &dh) {
+            match point_sigma(
+                &nominal_chain,
+                pl,
+                base.map(|i| (i, flange[i])),
+                s,
+                named,
+                &dh,
+            ) {
                 Ok(p) => Some(p),
                 Err(e) => {
                     warnings.push(format!("no point sigma at {s:.1} mm: {e}"));
@@ -694,193 +356,36 @@ pub fn plan_poses(
     })
 }
 
-/// The point on the laser plane at depth `s` nearest the optical axis, and its sigma.
-/// The base-frame point's derivatives per DH correction, from its flange-frame position.
-type DhGradients<'a> = dyn Fn(&Vector3<f64>) -> Vec<(String, Vector3<f64>)> + 'a;
-
-#[allow(clippy::too_many_arguments)]
-fn point_sigma(
-    cam: &Camera,
-    pl: &Plane,
-    x: &Iso3,
-    z: &Iso3,
-    base: Option<(usize, Iso3)>,
-    s: f64,
-    cov: &NamedCovariance,
-    dh: &DhGradients<'_>,
-) -> Result<PointSigma> {
-    let n = pl.normal;
-    let h2 = n.x * n.x + n.y * n.y;
-    if !(s.is_finite() && s > 0.0) {
+/// The robot the poses are planned for (the rig's, else the nominal calibration's), and
+/// a warning when the nominal camera's size is not the rig's; an error for no robot, a
+/// bad margin, an invalid camera or board.
+fn checked_inputs<'a>(
+    rig: &'a Rig,
+    nominal: &'a Calibration,
+    opts: &PlanOptions,
+) -> Result<(&'a Robot, Vec<String>)> {
+    let robot = rig
+        .robot
+        .as_ref()
+        .or(nominal.robot.as_ref())
+        .ok_or_else(|| {
+            Error::InvalidInput("pose planning needs a robot: the rig has none".into())
+        })?;
+    if !(opts.margin_px.is_finite() && opts.margin_px >= 0.0) {
         return Err(Error::InvalidInput(format!(
-            "the stand-off must be positive, got {s}"
+            "the image margin must be a non-negative number of pixels, got {}",
+            opts.margin_px
         )));
     }
-    if h2 < 1e-12 {
-        return Err(Error::Degenerate(
-            "the laser plane is perpendicular to the optical axis".into(),
+    let cam = &nominal.camera;
+    cam.validate()?;
+    rig.board.validate()?;
+    let mut warnings = Vec::new();
+    if (cam.width, cam.height) != (rig.width, rig.height) {
+        warnings.push(format!(
+            "the nominal camera is {}x{} px, the rig's {}x{}: the nominal's is used",
+            cam.width, cam.height, rig.width, rig.height
         ));
     }
-    let k = (pl.d - n.z * s) / h2;
-    let p0 = Vector3::new(n.x * k, n.y * k, s);
-    let uv = cam.project(&p0)?;
-    let a = base.map_or(Iso3::identity(), |b| b.1);
-    let (p, pb, grads) = point_jacobian(cam, pl, x, &a, &uv)?;
-    let gc: Vec<(String, Vector3<f64>)> = grads.iter().map(|(n, c, _)| (n.clone(), *c)).collect();
-    let (sc, nc) = sigmas(&propagate(cov, &gc));
-    let (base_mm, sigma_base_mm, sigma_base_norm_mm, gz) = if base.is_some() {
-        let mut gb: Vec<(String, Vector3<f64>)> =
-            grads.iter().map(|(n, _, b)| (n.clone(), *b)).collect();
-        gb.extend(dh(&(x * nalgebra::Point3::from(p)).coords));
-        let (sb, nb) = sigmas(&propagate(cov, &gb));
-        (
-            Some([pb.x, pb.y, pb.z]),
-            Some(sb),
-            Some(nb),
-            Some(board_frame(z, &pb, &gb)),
-        )
-    } else {
-        (None, None, None, None)
-    };
-    let (board_mm, sigma_board_mm, sigma_board_norm_mm) = match gz {
-        Some((pz, g)) => {
-            let (s, n) = sigmas(&propagate(cov, &g));
-            (Some([pz.x, pz.y, pz.z]), Some(s), Some(n))
-        }
-        None => (None, None, None),
-    };
-    Ok(PointSigma {
-        standoff_mm: s,
-        pixel: [uv.x, uv.y],
-        camera_mm: [p.x, p.y, p.z],
-        sigma_camera_mm: sc,
-        sigma_camera_norm_mm: nc,
-        base_pose: base.map(|b| b.0),
-        base_mm,
-        sigma_base_mm,
-        sigma_base_norm_mm,
-        board_mm,
-        sigma_board_mm,
-        sigma_board_norm_mm,
-    })
-}
-
-/// The board-frame point `Z^-1 p_b` and its derivatives: the base point's rotated by
-/// `R_Z^T`, and `Z`'s own (its rotation vector by central differences, its translation
-/// `-R_Z^T e_k`).
-fn board_frame(
-    z: &Iso3,
-    pb: &Vector3<f64>,
-    gb: &[(String, Vector3<f64>)],
-) -> (Vector3<f64>, Vec<(String, Vector3<f64>)>) {
-    let rzt = z.rotation.to_rotation_matrix().into_inner().transpose();
-    let at = |zz: &Iso3| (zz.inverse() * nalgebra::Point3::from(*pb)).coords;
-    let mut g: Vec<(String, Vector3<f64>)> = gb.iter().map(|(n, v)| (n.clone(), rzt * v)).collect();
-    let (rv, tv) = iso_to_rotvec(z);
-    let h = 1e-6;
-    for k in 0..3 {
-        let mut e = Vector3::zeros();
-        e[k] = h;
-        let d = (at(&iso_from_rotvec(&(rv + e), &tv)) - at(&iso_from_rotvec(&(rv - e), &tv)))
-            / (2.0 * h);
-        g.push((format!("base_board.rotation_vector[{k}]"), d));
-    }
-    for k in 0..3 {
-        g.push((
-            format!("base_board.translation_mm[{k}]"),
-            -rzt.column(k).into_owned(),
-        ));
-    }
-    (at(z), g)
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-    use crate::model::camera::DistortionModel;
-
-    /// The triangulation's Jacobian against central differences of the whole map
-    /// (unprojection with undistortion, intersection, `A X`), every named number.
-    #[test]
-    fn point_jacobian_matches_central_differences() {
-        let cam = Camera::new(
-            1024,
-            768,
-            1500.0,
-            1490.0,
-            515.0,
-            380.0,
-            DistortionModel::OpenCv5,
-            [-0.2, 0.1, 1e-3, -1e-3, 0.02],
-        )
-        .unwrap();
-        let plane = Plane::new(Vector3::new(0.6, -0.05, 0.78), 80.0).unwrap();
-        let x = iso_from_rotvec(
-            &Vector3::new(-0.3, 0.24, 2.9),
-            &Vector3::new(29.0, 5.0, 62.0),
-        );
-        let a = iso_from_rotvec(
-            &Vector3::new(0.1, 3.0, 0.2),
-            &Vector3::new(480.0, 20.0, 300.0),
-        );
-        let uv = Vector2::new(640.0, 300.0);
-        let (p, pb, grads) = point_jacobian(&cam, &plane, &x, &a, &uv).unwrap();
-        // value: the pixel reprojects, the point is on the plane
-        assert!((cam.project(&p).unwrap() - uv).norm() < 1e-8);
-        assert!(plane.signed_distance(&p).abs() < 1e-9);
-        let eval = |name: &str, h: f64| -> (Vector3<f64>, Vector3<f64>) {
-            let mut cp = cam.params();
-            let (mut n, mut d) = (plane.normal, plane.d);
-            let (mut rv, mut tv) = iso_to_rotvec(&x);
-            if let Some(i) = (0..9).find(|&i| camera_name(i) == name) {
-                cp[i] += h;
-            } else if let Some(k) = (0..3).find(|&k| name == format!("laser_plane.normal[{k}]")) {
-                n[k] += h;
-            } else if name == "laser_plane.d_mm" {
-                d += h;
-            } else if let Some(k) =
-                (0..3).find(|&k| name == format!("hand_cam.rotation_vector[{k}]"))
-            {
-                rv[k] += h;
-            } else if let Some(k) =
-                (0..3).find(|&k| name == format!("hand_cam.translation_mm[{k}]"))
-            {
-                tv[k] += h;
-            } else {
-                panic!("{name}");
-            }
-            let c = cam.with_params(&cp);
-            let q = triangulate_raw(&c, &n, d, &uv).unwrap();
-            let xx = iso_from_rotvec(&rv, &tv);
-            // The base point less the nominal one (the same derivative, no cancellation
-            // against the flange's metres).
-            let rel = (xx * nalgebra::Point3::from(q)) - (x * nalgebra::Point3::from(p));
-            (q, a.rotation * rel)
-        };
-        let mut worst = 0.0f64;
-        for (name, gc, gb) in &grads {
-            let h = if name.starts_with("camera.distortion") || name.contains("normal") {
-                1e-5
-            } else if name.contains("rotation_vector") {
-                1e-6
-            } else {
-                1e-3
-            };
-            let (cp, bp) = eval(name, h);
-            let (cm, bm) = eval(name, -h);
-            let (fc, fb) = ((cp - cm) / (2.0 * h), (bp - bm) / (2.0 * h));
-            let scale = fc.norm().max(fb.norm()).max(1e-3);
-            let err = (fc - gc).norm().max((fb - gb).norm()) / scale;
-            println!(
-                "{name:32} |dP_cam| {:10.4e} |dP_base| {:10.4e} rel. FD diff {err:.1e}",
-                gc.norm(),
-                gb.norm()
-            );
-            assert!(err < 1e-5, "{name}: {gc:?} {gb:?} vs {fc:?} {fb:?}");
-            worst = worst.max(err);
-        }
-        assert_eq!(grads.len(), 19);
-        assert!(pb.iter().all(|v| v.is_finite()));
-        println!("largest relative FD difference {worst:.1e}");
-    }
+    Ok((robot, warnings))
 }
