@@ -16,7 +16,7 @@
 //!    views, wherever it lies on that plane (the printed pattern, the sheet or plate
 //!    around it); points off the plane (beyond a depth step where the sheet ends, on
 //!    something behind) are rejected and counted per view.
-//! 4. Robot poses against images ([`calibrate::pairing`], by the consensus of
+//! 4. Robot poses against images (`calibrate/pairing.rs`, by the consensus of
 //!    [`crate::calib::consensus::pairing`]): views whose robot pose does not fit their
 //!    image (a swapped pair, a mistyped joint reading) are named and left out when the
 //!    rest is consistent and large enough; `AX = ZB` ([`crate::calib::axzb`]) from the
@@ -25,6 +25,15 @@
 //!    [`crate::calib::joint`] from these values.
 //! 6. The quality gates ([`gates`]): a calibration that fails one is an
 //!    [`Error::Quality`] (unless [`CalibrateOptions::accept_poor`]).
+//!
+//! ## Folders
+//!
+//! `calibrate/` the calibration (`dispatch.rs` chooses the prior, bench, laser-only or
+//! robot pipeline; one file per stage), `measure/` scans measured with full budgets and
+//! the acceptance test (`verify`), `plan/` pose plans, `profile/` a profiler's
+//! calibration; `emitter_carry` carries the emitter found on a measured sphere back into
+//! the calibration. The public paths (`pipeline::gates`, `pipeline::verify`, ...) are
+//! re-exported here.
 
 mod calibrate;
 pub mod emitter_carry;
@@ -143,7 +152,7 @@ pub struct CalibrateOptions {
     /// ([`board_stripe`]; default true; one-stage method only).
     pub board_stripe_bias: bool,
     /// On the bench: views whose board sags by more than this (mm, and by more than 3
-    /// sigma) are named and left out ([`flat_views`]; default 0.02).
+    /// sigma) are named and left out (`calibrate/flat_views.rs`; default 0.02).
     pub max_board_sag_mm: f64,
 }
 

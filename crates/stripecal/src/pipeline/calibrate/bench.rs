@@ -1,10 +1,10 @@
 //! The bench pipeline (a dataset without poses, spec/DATASET.md): the sensor calibrated
-//! on its own, the board moved by hand. The stages of [`super::stages`] without the
-//! robot's: camera (Zhang's per-view board poses), labellings (on the bench every view's
-//! labelling of a symmetric board is free: each view has its own board pose, so nothing
-//! is refused for it), stripe points on the board plane (points off it, e.g. the line
-//! continuing onto the floor under a standing board, rejected and counted), laser plane,
-//! the bench adjustment ([`crate::calib::joint::bench_adjustment`]: camera, plane and a
+//! on its own, the board moved by hand. The stages of the robot pipeline
+//! ([`super::robot`]) without the robot's: camera (Zhang's per-view board poses),
+//! labellings (on the bench every view's labelling of a symmetric board is free: each
+//! view has its own board pose, so nothing is refused for it), stripe points on the board
+//! plane (points off it, e.g. the line continuing onto the floor under a standing board,
+//! rejected and counted), laser plane, the bench adjustment ([`crate::calib::joint::bench_adjustment`]: camera, plane and a
 //! free board pose per view), the leave-one-view-out figure, the report and the gates
 //! (`views`, `determined`, `converged`; no robot gate).
 

@@ -24,8 +24,9 @@
 //!    s^2 g^2 + b^2 (1 + m^2)` by linear least squares over the points (the board's tilt
 //!    differs between views, so `g` varies and the two separate; refused, and nothing
 //!    corrected, when it does not: `s^2 <= 0` or fewer than [`MIN_POINTS`] points);
-//! 2. per stripe point, the profile the camera sees ([`board_point_profile`]) and the
-//!    extractor's own centroid on it: the predicted bias `delta` px along the scan line;
+//! 2. per stripe point, the profile the camera sees (the stripe-bias model's
+//!    `board_point_profile`, [`bias::predicted_biases`]) and the extractor's own
+//!    centroid on it: the predicted bias `delta` px along the scan line;
 //!    the point is moved to `a - delta` (points the model cannot follow are left out and
 //!    counted);
 //! 3. the adjustment is run again from its own solution on the corrected points.
@@ -42,7 +43,7 @@
 //!
 //! The correction moves the calibration's numbers by `D` (corrected minus uncorrected).
 //! What the model leaves is a systematic error shared by all views, added to the
-//! covariance in two parts ([`crate::pipeline`]'s `correct_stripes`):
+//! covariance in two parts (`readjust.rs`):
 //! - the model's neglected terms: `u^2 D D^T` (rank one, the same direction as the
 //!   correction), `u` uniform within +-[`BOARD_NEGLECTED_FRACTION`] (10 %) of the
 //!   correction (`0.058`; on the twin the correction leaves ~5 % of the hand-eye's bias,
