@@ -16,7 +16,7 @@
 //!    views, wherever it lies on that plane (the printed pattern, the sheet or plate
 //!    around it); points off the plane (beyond a depth step where the sheet ends, on
 //!    something behind) are rejected and counted per view.
-//! 4. Robot poses against images ([`pairing`], by the consensus of
+//! 4. Robot poses against images (`calibrate/pairing.rs`, by the consensus of
 //!    [`crate::calib::consensus::pairing`]): views whose robot pose does not fit their
 //!    image (a swapped pair, a mistyped joint reading) are named and left out when the
 //!    rest is consistent and large enough; `AX = ZB` ([`crate::calib::axzb`]) from the
@@ -25,33 +25,24 @@
 //!    [`crate::calib::joint`] from these values.
 //! 6. The quality gates ([`gates`]): a calibration that fails one is an
 //!    [`Error::Quality`] (unless [`CalibrateOptions::accept_poor`]).
+//!
+//! ## Folders
+//!
+//! `calibrate/` the calibration (`dispatch.rs` chooses the prior, bench, laser-only or
+//! robot pipeline; one file per stage), `measure/` scans measured with full budgets and
+//! the acceptance test (`verify`), `plan/` pose plans, `profile/` a profiler's
+//! calibration; `emitter_carry` carries the emitter found on a measured sphere back into
+//! the calibration. The public paths (`pipeline::gates`, `pipeline::verify`, ...) are
+//! re-exported here.
 
-mod bench;
-mod board_scale;
-pub mod board_stripe;
 mod calibrate;
 pub mod emitter_carry;
-mod flat_views;
-pub mod gates;
-mod held;
-mod kinematics;
-mod labels;
-mod laser_only;
-mod loo;
-pub use loo::held_out_laser_board;
 pub mod measure;
-#[cfg(test)]
-mod measure_profiler_tests;
-mod observe;
-mod pairing;
 mod plan;
-mod prior;
 pub mod profile;
-mod report;
-pub mod stripe_select;
-#[cfg(test)]
-mod tests;
-pub mod verify;
+
+pub use calibrate::{board_stripe, gates, stripe_select};
+pub use measure::verify;
 
 use std::path::Path;
 
@@ -69,11 +60,12 @@ use crate::model::{
 use crate::vision::stripe::{EdgeOptions, StripeOptions};
 use crate::vision::target::TargetOptions;
 
-pub use bench::BENCH_KEY;
 pub use calibrate::calibrate_observations;
-pub(crate) use observe::decide_channel_lenient;
-pub use observe::{dataset_channel, observe_dataset};
-use observe::{observe, Observed};
+pub(crate) use calibrate::decide_channel_lenient;
+pub use calibrate::held_out_laser_board;
+pub use calibrate::BENCH_KEY;
+pub use calibrate::{dataset_channel, observe_dataset};
+use calibrate::{observe, Observed};
 pub use plan::{
     nominal_from_truth, plan_poses, read_nominal, read_plan_rig, PlanOptions, PlannedPose,
     PointSigma, PosePlan, SigmaEntry,
@@ -159,7 +151,7 @@ pub struct CalibrateOptions {
     /// ([`board_stripe`]; default true; one-stage method only).
     pub board_stripe_bias: bool,
     /// On the bench: views whose board sags by more than this (mm, and by more than 3
-    /// sigma) are named and left out ([`flat_views`]; default 0.02).
+    /// sigma) are named and left out (`calibrate/flat_views.rs`; default 0.02).
     pub max_board_sag_mm: f64,
 }
 
@@ -286,7 +278,7 @@ pub fn calibrate_dataset_loaded(
     opts: &CalibrateOptions,
 ) -> Result<CalibrationReport> {
     // before the images are looked at: a --from of another camera is refused at once
-    held::check_from_size(&ds.rig, opts)?;
+    calibrate::check_from_size(&ds.rig, opts)?;
     let Observed {
         obs,
         mut warnings,

@@ -23,6 +23,7 @@ mod fuzz_support;
 mod io_earlier_files;
 mod io_formats;
 mod io_poses;
+mod layers;
 mod plan_poses;
 mod reconstruct;
 mod reconstruct_errors;

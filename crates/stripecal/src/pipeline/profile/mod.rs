@@ -188,9 +188,11 @@ pub fn calibrate_profiles(
         &fit,
         &status,
         &checks_out,
-        &mirror,
-        diameter_check.as_ref(),
-        leave_one_out.as_ref(),
+        record::SelfChecks {
+            mirror: &mirror,
+            diameter: diameter_check.as_ref(),
+            loo: leave_one_out.as_ref(),
+        },
         &warnings,
         opts.accept_poor && !failed.is_empty(),
     );

@@ -36,19 +36,29 @@ pub(super) fn fill_status(
     }
 }
 
+/// What a profiler calibration reports about itself besides its gates' checks: the
+/// mirror test, the diameter check and the leave-one-view-out figure.
+pub(super) struct SelfChecks<'a> {
+    pub mirror: &'a MirrorTest,
+    pub diameter: Option<&'a DiameterCheck>,
+    pub loo: Option<&'a ProfileLoo>,
+}
+
 /// The calibration.json record of a profiler (module docs).
-#[allow(clippy::too_many_arguments)]
 pub(super) fn calibration(
     rig: &ProfileRig,
     fit: &ProfileFit,
     status: &[ProfileViewStatus],
     checks: &[QualityCheck],
-    mirror: &MirrorTest,
-    diameter: Option<&DiameterCheck>,
-    loo: Option<&ProfileLoo>,
+    self_checks: SelfChecks<'_>,
     warnings: &[String],
     accepted_poor: bool,
 ) -> ProfilerCalibration {
+    let SelfChecks {
+        mirror,
+        diameter,
+        loo,
+    } = self_checks;
     let cov = &fit.covariance;
     let sd = |n: &str| cov.sigma(n).unwrap_or(0.0);
     let v3 = |p: &str| Value::Array((0..3).map(|k| num(sd(&format!("{p}[{k}]")))).collect());

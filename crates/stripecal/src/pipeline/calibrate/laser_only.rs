@@ -5,11 +5,12 @@
 //! pose images closest to the detections. The laser plane starts from its fit on these
 //! poses and is refined by the adjustment with everything else held.
 
-use super::calibrate::{joint_options, mark_used, self_checks};
 use super::held::Held;
 use super::labels::{relabel, Labelled};
 use super::report::{build_report, Stage};
+use super::stages::{joint_options, self_checks};
 use super::stripe_select::select_stripes;
+use super::views::mark_used;
 use super::{CalibrateOptions, CalibrationReport, ViewStatus};
 use crate::calib::conic::predict_centre;
 use crate::calib::joint::{joint_adjustment, JointStart};
@@ -52,7 +53,7 @@ pub(super) fn calibrate_held_chain(
         .collect();
     if pv.len() < 2 {
         let why = if pv.is_empty() {
-            format!(": {}", super::calibrate::no_stripe_reason(&obs))
+            format!(": {}", super::stages::no_stripe_reason(&obs))
         } else {
             String::new()
         };

@@ -55,7 +55,7 @@ pub(super) fn held(opts: &CalibrateOptions) -> Result<Option<Held<'_>>> {
 /// size (another camera, binning, a crop) held or used as a prior would give a confident
 /// wrong result (a laser plane at 31 mm instead of 80), so it is refused, naming both
 /// sizes, whatever is held (`--fix`, `--laser-only`, or nothing: the prior).
-pub(super) fn check_from_size(rig: &Rig, opts: &CalibrateOptions) -> Result<()> {
+pub(in crate::pipeline) fn check_from_size(rig: &Rig, opts: &CalibrateOptions) -> Result<()> {
     let Some(from) = &opts.from else {
         return Ok(());
     };

@@ -32,7 +32,7 @@ use serde_json::{json, Value};
 
 use crate::error::{Error, Result};
 use crate::io::read_artefacts;
-use crate::model::artefacts::Artefacts;
+use crate::model::artefacts::{ArtefactSphere, Artefacts, BallBar, CertificateUncertainty};
 use crate::model::{Calibration, ProfilerCalibration, RobotReading};
 use crate::reconstruct::fit::Budget;
 use crate::reconstruct::{
@@ -40,10 +40,10 @@ use crate::reconstruct::{
     ProfileReconstructOptions, ReconstructOptions, ScanPoints, UncertaintyModel,
 };
 
-use super::measure::{
+use super::{
     budget_to_json, measure_scan_ball_bar, measure_scan_plane, measure_scan_sphere,
-    profiler_uncertainty_model, scan_readings, scan_uncertainty_model, MeasureOptions,
-    SphereReport,
+    profiler_uncertainty_model, scan_readings, scan_uncertainty_model, BallBarReport,
+    MeasureOptions, SphereReport,
 };
 
 /// The four characteristics.
@@ -338,30 +338,13 @@ fn verify_scans(
             );
             mo.fit.diameter_range_mm = Some([0.8 * lo, 1.2 * hi]);
             let m = measure_scan_ball_bar(&model, &readings, &points, &mo).map_err(tag)?;
-            // Match the found spheres to the certificates by diameter.
-            let d = |i: usize| m.spheres[i].fit.diameter_mm;
-            let swap = (d(0) - cert[1].diameter_mm).abs() + (d(1) - cert[0].diameter_mm).abs()
-                < (d(0) - cert[0].diameter_mm).abs() + (d(1) - cert[1].diameter_mm).abs();
-            let order = if swap { [1, 0] } else { [0, 1] };
-            for (c, &i) in cert.iter().zip(&order) {
-                let s = &m.spheres[i];
-                let what = format!("{}/{}", bar.name, c.name);
-                rows.push(row(
-                    Characteristic::ProbingForm,
-                    what.clone(),
-                    s.measurement.form,
-                ));
-                let ps = s.measurement.diameter.with_systematic(
-                    s.measurement.diameter.value - c.diameter_mm,
-                    0.5 * unc.diameter,
-                );
-                rows.push(row(Characteristic::ProbingSize, what, ps));
-                spheres.push((scan_name.clone(), c.name.clone(), s.clone()));
-            }
-            let sd = m
-                .distance
-                .with_systematic(m.distance.value - bar.length_mm, 0.5 * unc.length);
-            rows.push(row(Characteristic::SphereSpacing, bar.name.clone(), sd));
+            let (bar_rows, bar_spheres) = ball_bar_rows(bar, cert, &m, &unc);
+            rows.extend(bar_rows.into_iter().map(|(c, what, b)| row(c, what, b)));
+            spheres.extend(
+                bar_spheres
+                    .into_iter()
+                    .map(|(name, s)| (scan_name.clone(), name, s)),
+            );
         } else if let Some(p) = artefacts.planes.iter().find(|p| &p.name == art) {
             let m = measure_scan_plane(&model, &readings, &points, &opts.measure).map_err(tag)?;
             let f = m.measurement.flatness;
@@ -401,4 +384,47 @@ fn verify_scans(
         rows,
         spheres,
     })
+}
+
+/// A row's figure before its scan and MPE are attached: `(characteristic, artefact,
+/// budget)`.
+type RowFigure = (Characteristic, String, Budget);
+
+/// A measured ball bar's rows against its certificates `cert` (`bar.spheres`' order):
+/// each sphere's form and size (the found spheres matched to the certificates by
+/// diameter) and their spacing against the bar's length; and the spheres by
+/// certificate name.
+fn ball_bar_rows(
+    bar: &BallBar,
+    cert: [&ArtefactSphere; 2],
+    m: &BallBarReport,
+    unc: &CertificateUncertainty,
+) -> (Vec<RowFigure>, Vec<(String, SphereReport)>) {
+    let mut rows = Vec::new();
+    let mut spheres = Vec::new();
+    // Match the found spheres to the certificates by diameter.
+    let d = |i: usize| m.spheres[i].fit.diameter_mm;
+    let swap = (d(0) - cert[1].diameter_mm).abs() + (d(1) - cert[0].diameter_mm).abs()
+        < (d(0) - cert[0].diameter_mm).abs() + (d(1) - cert[1].diameter_mm).abs();
+    let order = if swap { [1, 0] } else { [0, 1] };
+    for (c, &i) in cert.iter().zip(&order) {
+        let s = &m.spheres[i];
+        let what = format!("{}/{}", bar.name, c.name);
+        rows.push((
+            Characteristic::ProbingForm,
+            what.clone(),
+            s.measurement.form,
+        ));
+        let ps = s.measurement.diameter.with_systematic(
+            s.measurement.diameter.value - c.diameter_mm,
+            0.5 * unc.diameter,
+        );
+        rows.push((Characteristic::ProbingSize, what, ps));
+        spheres.push((c.name.clone(), s.clone()));
+    }
+    let sd = m
+        .distance
+        .with_systematic(m.distance.value - bar.length_mm, 0.5 * unc.length);
+    rows.push((Characteristic::SphereSpacing, bar.name.clone(), sd));
+    (rows, spheres)
 }

@@ -10,7 +10,7 @@
 
 use nalgebra::{DMatrix, Matrix3, Point3, Vector3};
 
-use super::measure::{measure_scan_sphere, profiler_uncertainty_model, MeasureOptions};
+use super::{measure_scan_sphere, profiler_uncertainty_model, MeasureOptions};
 use crate::model::geometry::{iso_from_rotvec, Iso3};
 use crate::model::{NamedCovariance, Profile, ProfilerCalibration, ProfilerQuality, RobotReading};
 use crate::numerics::rng::SplitMix64;

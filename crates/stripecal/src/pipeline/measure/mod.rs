@@ -22,6 +22,10 @@
 //! profiler's model [`MeasureOptions::correct_bias`] is ignored: no correction, no
 //! systematic part, `bias: None` (`stripe_bias: null` in the JSON).
 
+#[cfg(test)]
+mod profiler_tests;
+pub mod verify;
+
 use nalgebra::{DMatrix, Vector3};
 use serde_json::{json, Value};
 

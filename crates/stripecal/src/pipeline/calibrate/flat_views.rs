@@ -11,7 +11,7 @@
 //! On a robot dataset the board is one fixed object seen in every view, so a bend would
 //! be the same in all of them: the check is the bench's.
 
-use super::calibrate::camera_stage;
+use super::stages::camera_stage;
 use super::{CalibrateOptions, ViewStatus};
 use crate::calib::camera::CameraCalibration;
 use crate::calib::flatness::{view_flatness, Flatness, FlatnessOptions};

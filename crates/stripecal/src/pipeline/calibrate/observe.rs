@@ -24,7 +24,7 @@ use crate::vision::target::detect_target;
 
 /// The observations of a dataset: the views whose board was found, warnings, and the
 /// views left out with the reason.
-pub(super) struct Observed {
+pub(in crate::pipeline) struct Observed {
     pub obs: Vec<ViewObs>,
     pub warnings: Vec<String>,
     /// `(view, why)` for each view whose board was not found.
@@ -102,7 +102,7 @@ pub fn observe_dataset(
 }
 
 /// [`observe_dataset`] with the left-out views kept apart.
-pub(super) fn observe(ds: &Dataset, opts: &CalibrateOptions) -> Result<Observed> {
+pub(in crate::pipeline) fn observe(ds: &Dataset, opts: &CalibrateOptions) -> Result<Observed> {
     check_image_sizes(ds)?;
     let lossy = AtomicUsize::new(0);
     let mut stripe_opts = opts.stripe.clone();

@@ -13,7 +13,7 @@ use crate::model::{
     Mount, PlaneSigma, PoseSigma, Quality, Rig, Uncertainty, ViewRecord,
 };
 
-/// What the calibration says about itself (see [`super::calibrate::self_checks`]).
+/// What the calibration says about itself (see [`super::stages::self_checks`]).
 #[derive(Debug, Clone, Default)]
 pub(super) struct SelfChecks {
     pub board_scale: Option<BoardScaleCheck>,

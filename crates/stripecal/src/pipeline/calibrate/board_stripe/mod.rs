@@ -24,8 +24,9 @@
 //!    s^2 g^2 + b^2 (1 + m^2)` by linear least squares over the points (the board's tilt
 //!    differs between views, so `g` varies and the two separate; refused, and nothing
 //!    corrected, when it does not: `s^2 <= 0` or fewer than [`MIN_POINTS`] points);
-//! 2. per stripe point, the profile the camera sees ([`board_point_profile`]) and the
-//!    extractor's own centroid on it: the predicted bias `delta` px along the scan line;
+//! 2. per stripe point, the profile the camera sees (the stripe-bias model's
+//!    `board_point_profile`, [`bias::predicted_biases`]) and the extractor's own
+//!    centroid on it: the predicted bias `delta` px along the scan line;
 //!    the point is moved to `a - delta` (points the model cannot follow are left out and
 //!    counted);
 //! 3. the adjustment is run again from its own solution on the corrected points.
@@ -42,7 +43,7 @@
 //!
 //! The correction moves the calibration's numbers by `D` (corrected minus uncorrected).
 //! What the model leaves is a systematic error shared by all views, added to the
-//! covariance in two parts ([`crate::pipeline`]'s `correct_stripes`):
+//! covariance in two parts (`readjust.rs`):
 //! - the model's neglected terms: `u^2 D D^T` (rank one, the same direction as the
 //!   correction), `u` uniform within +-[`BOARD_NEGLECTED_FRACTION`] (10 %) of the
 //!   correction (`0.058`; on the twin the correction leaves ~5 % of the hand-eye's bias,
@@ -64,19 +65,28 @@
 //! The covariance of the DH corrections (robot calibration) is not augmented (their part
 //! of the changes is not read).
 
-use nalgebra::{Matrix2, Vector2, Vector3};
-use rayon::prelude::*;
+mod readjust;
 
-use crate::calib::laser_plane::backproject_to_board;
-use crate::calib::{kept, ViewObs};
+pub(super) use readjust::correct_stripes;
+
+mod applicable;
+mod bias;
+mod moved;
+mod points;
+mod sheet;
+
+use nalgebra::Vector3;
+
+use crate::calib::ViewObs;
 use crate::model::camera::Camera;
 use crate::model::geometry::{Iso3, Plane};
-use crate::model::StripeDirection;
-use crate::reconstruct::fit::stripe_bias::{
-    board_point_profile, board_point_scale, extractor_response, neglected_share, BoardSurface,
-    PointProfile, Rig,
-};
+use crate::reconstruct::fit::stripe_bias::{neglected_share, Rig};
 use crate::vision::stripe::StripeOptions;
+use applicable::modelled_direction;
+use bias::predicted_biases;
+use moved::moved_views;
+use points::{board_planes, stripe_points, surfaces};
+use sheet::sheet_sigmas;
 
 /// Fewest stripe points with a width for the sheet's sigma.
 pub const MIN_POINTS: usize = 50;
@@ -159,38 +169,7 @@ pub fn correct_board_stripes(
     plane: &Plane,
     stripe: &StripeOptions,
 ) -> std::result::Result<BoardStripeViews, String> {
-    let direction = views
-        .iter()
-        .find_map(|v| v.stripe_shape.as_ref().map(|s| s.direction))
-        .ok_or("no stripe widths were recorded")?;
-    if direction == StripeDirection::Auto
-        || views.iter().any(|v| {
-            v.stripe_shape
-                .as_ref()
-                .is_some_and(|s| s.direction != direction)
-        })
-    {
-        return Err("the views' stripes were extracted in different scan directions".into());
-    }
-    let shapes = || views.iter().filter_map(|v| v.stripe_shape.as_ref());
-    let n_all: usize = shapes().map(|s| s.saturated.len()).sum();
-    let n_sat: usize = shapes()
-        .map(|s| s.saturated.iter().filter(|x| **x).count())
-        .sum();
-    if n_all > 0 && n_sat as f64 > MAX_SATURATED_SHARE * n_all as f64 {
-        return Err(format!(
-            "{:.0} % of the stripe points are saturated (the model is an unsaturated \
-             Gaussian sheet; lower the exposure or the laser power to use it)",
-            100.0 * n_sat as f64 / n_all as f64
-        ));
-    }
-    let smoothed = shapes().filter(|s| s.along_line > 1).count();
-    if smoothed > 0 {
-        return Err(format!(
-            "the stripes of {smoothed} view(s) were smoothed along the line for speckle \
-             (the model describes a single scan line's profile of a clean Gaussian sheet)"
-        ));
-    }
+    let direction = modelled_direction(views)?;
     let mut sopts = stripe.clone();
     sopts.direction = direction;
     let rig = Rig::new(
@@ -202,45 +181,8 @@ pub fn correct_board_stripes(
         MAX_INCIDENCE_DEG,
     );
     let along = rig.along;
-    // The views' board planes in the camera frame.
-    let boards: Vec<Plane> = cam_board
-        .iter()
-        .map(|cb| {
-            let n = cb.rotation * Vector3::z();
-            Plane {
-                normal: n,
-                d: n.dot(&cb.translation.vector),
-            }
-        })
-        .collect();
-    // The boards as the model sees them for a rig (`None`: the sheet parallel to one).
-    let surfaces_of = |rig: &Rig<'_>| -> Vec<Option<BoardSurface<'_>>> {
-        boards.iter().map(|b| BoardSurface::new(rig, b)).collect()
-    };
-    let mut pts = Vec::new();
-    for (vi, (v, cb)) in views.iter().zip(cam_board).enumerate() {
-        let Some(shape) = v.stripe_shape.as_ref() else {
-            continue;
-        };
-        if shape.width_px.len() != v.stripe.len() || shape.saturated.len() != v.stripe.len() {
-            continue;
-        }
-        let each = v.stripe.iter().zip(&shape.width_px).zip(&shape.saturated);
-        for (k, ((uv, w), sat)) in each.enumerate() {
-            let Ok(p) = backproject_to_board(camera, cb, uv) else {
-                continue;
-            };
-            pts.push(Pt {
-                view: vi,
-                idx: k,
-                p,
-                line: uv[1 - along],
-                a: uv[along],
-                width: *w,
-                saturated: *sat,
-            });
-        }
-    }
+    let boards = board_planes(cam_board);
+    let pts = stripe_points(views, cam_board, camera, along);
     // Saturated points are kept as measured and not modelled (module docs).
     let clear: Vec<&Pt> = pts.iter().filter(|q| !q.saturated).collect();
     if clear.len() < MIN_POINTS {
@@ -249,63 +191,10 @@ pub fn correct_board_stripes(
             clear.len()
         ));
     }
-    let surfaces = surfaces_of(&rig);
     // 1. Sheet and PSF sigmas from the widths (g and the slope do not depend on them).
-    let step = clear.len().div_ceil(WIDTH_POINTS).max(1);
-    let sub: Vec<&Pt> = clear.iter().step_by(step).copied().collect();
-    let geo: Vec<Option<(f64, f64)>> = sub
-        .iter()
-        .map(|q| board_point_scale(&rig, surfaces[q.view].as_ref()?, q.line, &q.p))
-        .collect();
-    let (mut a, mut r) = (Matrix2::<f64>::zeros(), Vector2::<f64>::zeros());
-    let mut used = 0;
-    for (q, g) in sub.iter().zip(&geo) {
-        let Some((g, m)) = *g else { continue };
-        let k = 1.0 + m * m;
-        let y = (q.width / 2.3548).powi(2) - k / 12.0;
-        let x = Vector2::new(g * g, k);
-        a += x * x.transpose();
-        r += x * y;
-        used += 1;
-    }
-    let undetermined = || {
-        "the stripe widths do not determine the sheet's thickness (the boards' tilts \
-         are too alike)"
-            .to_string()
-    };
-    if used < MIN_POINTS {
-        return Err(undetermined());
-    }
-    let sol = a.lu().solve(&r).ok_or_else(undetermined)?;
-    let (s2, b2) = if sol[1] < 0.0 {
-        // No PSF term: the sheet alone.
-        (r[0] / a[(0, 0)], 0.0)
-    } else {
-        (sol[0], sol[1])
-    };
-    if !(s2.is_finite() && s2 > 0.0) {
-        return Err(undetermined());
-    }
-    let (sigma, psf) = (s2.sqrt(), b2.sqrt());
+    let (sigma, psf) = sheet_sigmas(&rig, &surfaces(&rig, &boards), &clear)?;
     // 2. The predicted bias per point, for the emitter at `n d` and moved.
-    let deltas = |emitter: Vector3<f64>| -> Vec<Option<f64>> {
-        let mut r2 = rig.clone();
-        r2.emitter = emitter;
-        let surf = surfaces_of(&r2);
-        clear
-            .par_iter()
-            .map_init(
-                || (PointProfile::default(), Vec::new()),
-                |(prof, buf), q| {
-                    let s = surf[q.view].as_ref()?;
-                    if !board_point_profile(&r2, s, q.line, &q.p, sigma, psf, prof) {
-                        return None;
-                    }
-                    extractor_response(prof, psf, r2.stripe, buf).map(|x| x.0)
-                },
-            )
-            .collect()
-    };
+    let deltas = |emitter| predicted_biases(&rig, &boards, &clear, sigma, psf, emitter);
     let delta = deltas(rig.emitter);
     // 3. The corrected views: points the model cannot follow left out, the others moved.
     let keep: Vec<bool> = delta.iter().map(Option::is_some).collect();
@@ -316,27 +205,7 @@ pub fn correct_board_stripes(
         ));
     }
     // The views with every kept point moved by `d[k]` (the points of `clear` in order).
-    let moved = |d: &[Option<f64>]| -> Vec<ViewObs> {
-        let mut out: Vec<ViewObs> = views.to_vec();
-        let mut kept_pts: Vec<Vec<bool>> =
-            views.iter().map(|v| vec![true; v.stripe.len()]).collect();
-        for ((q, k), dk) in clear.iter().zip(&keep).zip(d) {
-            match (k, dk) {
-                (true, Some(dk)) => out[q.view].stripe[q.idx][along] = q.a - dk,
-                _ => kept_pts[q.view][q.idx] = false,
-            }
-        }
-        for (v, k) in out.iter_mut().zip(&kept_pts) {
-            if k.iter().all(|x| *x) {
-                continue;
-            }
-            v.stripe = kept(&v.stripe, k);
-            if let Some(sh) = v.stripe_shape.as_mut() {
-                *sh = sh.subset(k);
-            }
-        }
-        out
-    };
+    let moved = |d: &[Option<f64>]| moved_views(views, &clear, &keep, d, along);
     // The emitter moved by +-EMITTER_RANGE_MM along the plane's two in-plane axes: the
     // same points moved by the biases predicted there (the nominal bias where the moved
     // emitter's model fails on a point, so that only the biases differ).

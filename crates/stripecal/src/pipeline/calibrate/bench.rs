@@ -1,29 +1,28 @@
 //! The bench pipeline (a dataset without poses, spec/DATASET.md): the sensor calibrated
-//! on its own, the board moved by hand. The stages of [`super::calibrate`] without the
-//! robot's: camera (Zhang's per-view board poses), labellings (on the bench every view's
-//! labelling of a symmetric board is free: each view has its own board pose, so nothing
-//! is refused for it), stripe points on the board plane (points off it, e.g. the line
-//! continuing onto the floor under a standing board, rejected and counted), laser plane,
-//! the bench adjustment ([`crate::calib::joint::bench_adjustment`]: camera, plane and a
+//! on its own, the board moved by hand. The stages of the robot pipeline
+//! ([`super::robot`]) without the robot's: camera (Zhang's per-view board poses),
+//! labellings (on the bench every view's labelling of a symmetric board is free: each
+//! view has its own board pose, so nothing is refused for it), stripe points on the board
+//! plane (points off it, e.g. the line continuing onto the floor under a standing board,
+//! rejected and counted), laser plane, the bench adjustment ([`crate::calib::joint::bench_adjustment`]: camera, plane and a
 //! free board pose per view), the leave-one-view-out figure, the report and the gates
 //! (`views`, `determined`, `converged`; no robot gate).
 
-use super::calibrate::{
-    camera_stage, check_usable, joint_options, laser_plane_stage, leave_out, mark_used,
-};
 use super::flat_views::{flatness_extra, leave_out_bent};
-use super::gates::{converged, determined, view_residuals, views_check};
+use super::gates::{converged, determined, view_residuals};
 use super::held::Held;
 use super::labels::resolve_labellings;
+use super::leave_out::{adjust_leaving_out_once, Adjusted, UsedViews};
 use super::loo::leave_one_out;
 use super::report::{build_report, SelfChecks, Stage};
+use super::stages::{camera_stage, joint_options};
 use super::stripe_select::select_stripes;
+use super::views::{check_usable, mark_used, median_standoff};
 use super::{CalibrateOptions, CalibrationReport, Method, ViewStatus};
 use crate::calib::joint::{bench_adjustment, JointStart};
 use crate::calib::ViewObs;
 use crate::error::{Error, Result};
 use crate::model::{QualityCheck, Rig};
-use crate::numerics::robust::median;
 
 /// The extra key of a bench calibration (`"bench": true`): calibration.json then has no
 /// `hand_cam`, `base_board` or `robot` (spec/DATASET.md).
@@ -60,50 +59,41 @@ pub(super) fn calibrate_bench(
     let (labelled, _) = resolve_labellings(views, &camcal.poses, board, &mut warnings);
     let (obs, poses) = select_stripes(&labelled, &camcal.camera, &mut status)?;
     let total = obs.len();
-    let (mut used_obs, mut used_poses) = (obs, poses);
-    check_usable(&used_obs, &warnings)?;
+    let mut used = UsedViews { obs, poses };
+    check_usable(&used.obs, &warnings)?;
     let mut jopts = joint_options(opts, rig);
     jopts.robot = None;
     jopts.robot_noise = false;
-    let standoff = {
-        let mut d: Vec<f64> = used_poses
-            .iter()
-            .map(|p| p.translation.vector.norm())
-            .collect();
-        median(&mut d)
-    };
-    let mut first_pass = true;
-    let (plane, start, adj, views_gate, plane_warnings) = loop {
-        // the plane stage's warnings of the last pass only (a refit repeats them)
-        let mut plane_warnings = Vec::new();
-        let plane = laser_plane_stage(&used_obs, &used_poses, &camcal.camera, &mut plane_warnings)?;
+    let standoff = median_standoff(&used.poses);
+    let adjust = |used: &UsedViews, plane| {
         let mut start = JointStart {
             camera: camcal.camera.clone(),
-            plane: plane.as_ref().map(|p| p.plane),
+            plane,
             hand_cam: nalgebra::Isometry3::identity(),
             base_board: nalgebra::Isometry3::identity(),
         };
         if let Some(h) = held {
             h.apply(&mut start);
         }
-        let adj = bench_adjustment(&used_obs, board, &start, &used_poses, &jopts)?;
-        let (bad, msg) = view_residuals(&adj, camcal.rms_px);
-        let kept_n = used_obs.len() - bad.len();
-        let check = views_check(&bad, &msg, kept_n, total);
-        if bad.is_empty() || !check.passed || !first_pass {
-            break (plane, start, adj, check, plane_warnings);
-        }
-        first_pass = false;
-        leave_out(
-            &bad,
-            &msg,
-            &mut used_obs,
-            &mut used_poses,
-            &mut warnings,
-            &mut status,
-        )?;
+        let adj = bench_adjustment(&used.obs, board, &start, &used.poses, &jopts)?;
+        Ok((start, adj))
     };
-    warnings.extend(plane_warnings);
+    let Adjusted {
+        plane,
+        start,
+        adjustment: adj,
+        views_check: views_gate,
+        ..
+    } = adjust_leaving_out_once(
+        &mut used,
+        &camcal.camera,
+        total,
+        &mut warnings,
+        &mut status,
+        adjust,
+        |adj, _, _| view_residuals(adj, camcal.rms_px),
+    )?;
+    let used_obs = used.obs;
     warnings.extend(adj.warnings.iter().cloned());
     mark_used(&mut status, &used_obs);
     let leave_one_out = if opts.leave_one_out {

@@ -28,24 +28,22 @@
 use nalgebra::{DMatrix, DVector, SymmetricEigen};
 use serde_json::{json, Value};
 
-use super::calibrate::calibrate_unjudged;
 use super::{CalibrateOptions, CalibrationReport};
 use crate::calib::joint::DhParam;
-use crate::calib::ViewObs;
 use crate::error::{Error, Result};
 use crate::model::calibration_number;
-use crate::model::{Calibration, NamedCovariance, QualityCheck, Rig};
+use crate::model::{Calibration, NamedCovariance, QualityCheck};
 use crate::reconstruct::uncertainty::perturbed_calibration;
 
 /// Principal directions of `C_h` below this fraction of the largest are not propagated.
 const MIN_EIGEN_FRACTION: f64 = 1e-12;
 
-/// The pipeline with the file's camera and plane as a prior (module docs).
+/// The pipeline with the file's camera and plane as a prior (module docs); `calibrate`
+/// runs the pipeline (without its verdict) with the options given, the blocks held.
 pub(super) fn calibrate_with_prior(
-    views: &[ViewObs],
-    rig: &Rig,
     opts: &CalibrateOptions,
     from: &Calibration,
+    calibrate: impl Fn(&CalibrateOptions) -> Result<(CalibrationReport, Vec<QualityCheck>)>,
 ) -> Result<(CalibrationReport, Vec<QualityCheck>)> {
     let Some(fc) = from.covariance.as_ref() else {
         return Err(Error::InvalidInput(
@@ -62,7 +60,7 @@ pub(super) fn calibrate_with_prior(
         held.free.laser_plane = false;
         blocks.push("laser_plane");
     }
-    let (mut rep, checks) = calibrate_unjudged(views, rig, &held)?;
+    let (mut rep, checks) = calibrate(&held)?;
     // The held blocks' covariance, with its correlations.
     let hidx: Vec<usize> = (0..fc.parameters.len())
         .filter(|&i| {
@@ -104,7 +102,7 @@ pub(super) fn calibrate_with_prior(
                 from: Some(moved),
                 ..quiet.clone()
             };
-            let (r, _) = calibrate_unjudged(views, rig, &o)?;
+            let (r, _) = calibrate(&o)?;
             x.push(
                 enames
                     .iter()

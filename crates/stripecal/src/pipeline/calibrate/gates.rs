@@ -254,7 +254,7 @@ pub fn converged(adj: &JointResult, method: Method) -> QualityCheck {
 /// Applies the gates: records every verdict in `quality.checks`; a failed one makes the
 /// calibration an [`Error::Quality`] unless `opts.accept_poor` (then it is returned
 /// marked `quality.accepted_poor`).
-pub(super) fn judge(
+pub(in crate::pipeline) fn judge(
     mut rep: CalibrationReport,
     checks: Vec<QualityCheck>,
     opts: &CalibrateOptions,

@@ -3,10 +3,10 @@
 
 use nalgebra::Vector3;
 
-use super::calibrate::{check_usable, grid_extent, kept};
 use super::labels::resolve_labellings;
 use super::pairing::check_pairing;
 use super::report::view_records_from;
+use super::views::{check_usable, kept};
 use super::{CalibrateOptions, ViewStatus};
 use crate::calib::{CircleObs, ViewObs};
 use crate::model::board::Board;
@@ -181,4 +181,27 @@ fn view_records_carry_status_and_finite_figures() {
     assert_eq!(r[1].outlier, Some(true));
     assert_eq!((r[2].outlier, r[2].circle_rms_px), (None, None));
     assert_eq!(r[2].note.as_deref(), Some("left out: why"));
+}
+
+/// The board-frame rectangle the stripe points had to fall in before the selection by
+/// the board plane ([`super::stripe_select`]): a circle grid's centres grown by half a
+/// pitch, a chessboard's squares.
+fn grid_extent(board: &Board) -> (nalgebra::Vector2<f64>, nalgebra::Vector2<f64>) {
+    use crate::model::board::BoardKind;
+    use nalgebra::Vector2;
+    if board.kind == BoardKind::Chessboard {
+        let e = board.pattern_extent();
+        return (Vector2::new(e[0], e[2]), Vector2::new(e[1], e[3]));
+    }
+    let (mut lo, mut hi) = (
+        Vector2::new(f64::INFINITY, f64::INFINITY),
+        Vector2::new(f64::NEG_INFINITY, f64::NEG_INFINITY),
+    );
+    for (r, c) in board.indices() {
+        let p = board.center(r, c);
+        lo = lo.inf(&Vector2::new(p.x, p.y));
+        hi = hi.sup(&Vector2::new(p.x, p.y));
+    }
+    let m = 0.5 * board.pitch_mm;
+    (lo.add_scalar(-m), hi.add_scalar(m))
 }
