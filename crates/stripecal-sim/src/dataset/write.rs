@@ -52,62 +52,8 @@ impl Twin {
         let poses = self.calibration_poses()?;
         let rig = self.rig()?;
         let pose_columns = self.cfg.pose_columns_model()?.unwrap_or_default();
-        // --- calibration dataset
-        let calib_dir = out.join("calib");
-        let tmp = staging_dir(out, "calib")?;
-        let mut views = Vec::new();
-        let mut per_image = Vec::new();
-        let mut view_circles = Vec::new();
-        let mut view_stripe = Vec::new();
-        for (i, pose) in poses.iter().enumerate() {
-            progress("calibration views", i, poses.len());
-            let r = self.render_view(&pose.q_deg, i)?;
-            let board_name = format!("images/view_{i:03}_board.png");
-            let laser_name = if self.cfg.imaging.single_image {
-                board_name.clone()
-            } else {
-                format!("images/view_{i:03}_laser.png")
-            };
-            match (&r.board_rgb, &r.board_image) {
-                (Some(c), _) => io::save_rgb_png(tmp.join(&board_name), c)?,
-                (None, Some(b)) => io::save_gray_png(tmp.join(&board_name), b)?,
-                (None, None) => {}
-            }
-            match (&r.laser_rgb, &r.laser_image) {
-                (Some(c), _) => io::save_rgb_png(tmp.join(&laser_name), c)?,
-                (None, Some(l)) => io::save_gray_png(tmp.join(&laser_name), l)?,
-                (None, None) => {}
-            }
-            views.push(View {
-                line: i + 2,
-                board_image: board_name.clone().into(),
-                laser_image: Some(laser_name.clone().into()),
-                reading: self.reading(&self.reported_q(i, &pose.q_deg))?,
-            });
-            view_circles.push(r.circles.len());
-            view_stripe.push(r.stripe.iter().filter(|p| p.surface == "board").count());
-            let mut entry = json!({
-                "board_image": board_name,
-                "laser_image": laser_name,
-                "q_deg": pose.q_deg,
-                "standoff_mm": pose.standoff_mm,
-                "tilt_deg": pose.tilt_deg,
-                "base_cam": pose_cfg(&r.base_cam),
-                "circles": r.circles,
-                "stripe": stripe_json(&r.stripe, self.direction, false),
-            });
-            if self.cfg.poses.reading_noise_deg > 0.0 {
-                entry["q_reading_deg"] = json!(self.reported_q(i, &pose.q_deg));
-            }
-            per_image.push(entry);
-        }
-        progress("calibration views", poses.len(), poses.len());
-        io::write_rig(tmp.join("rig.json"), &rig)?;
-        io::write_views_csv_with(tmp.join("views.csv"), &views, &pose_columns)?;
-        let mut truth = self.truth(false);
-        truth.extra.insert("images".into(), Value::Array(per_image));
-        io::write_truth(tmp.join("truth.json"), &truth)?;
-        replace_dir(&tmp, &calib_dir)?;
+        let (calib_dir, view_circles, view_stripe) =
+            self.write_calibration(out, &poses, &rig, &pose_columns, progress)?;
         // --- scan
         let mut scan_dir = None;
         let mut frames_n = 0;
@@ -169,6 +115,75 @@ impl Twin {
             direction: self.direction,
             profiler: None,
         })
+    }
+
+    /// Writes `out/calib` (rendered view by view, staged and renamed when complete);
+    /// returns the folder and per view the target points imaged and the stripe truth
+    /// points on the board.
+    fn write_calibration(
+        &self,
+        out: &Path,
+        poses: &[PoseInfo],
+        rig: &Rig,
+        pose_columns: &io::PoseColumns,
+        progress: &mut dyn FnMut(&str, usize, usize),
+    ) -> Result<(PathBuf, Vec<usize>, Vec<usize>), SimError> {
+        let calib_dir = out.join("calib");
+        let tmp = staging_dir(out, "calib")?;
+        let mut views = Vec::new();
+        let mut per_image = Vec::new();
+        let mut view_circles = Vec::new();
+        let mut view_stripe = Vec::new();
+        for (i, pose) in poses.iter().enumerate() {
+            progress("calibration views", i, poses.len());
+            let r = self.render_view(&pose.q_deg, i)?;
+            let board_name = format!("images/view_{i:03}_board.png");
+            let laser_name = if self.cfg.imaging.single_image {
+                board_name.clone()
+            } else {
+                format!("images/view_{i:03}_laser.png")
+            };
+            match (&r.board_rgb, &r.board_image) {
+                (Some(c), _) => io::save_rgb_png(tmp.join(&board_name), c)?,
+                (None, Some(b)) => io::save_gray_png(tmp.join(&board_name), b)?,
+                (None, None) => {}
+            }
+            match (&r.laser_rgb, &r.laser_image) {
+                (Some(c), _) => io::save_rgb_png(tmp.join(&laser_name), c)?,
+                (None, Some(l)) => io::save_gray_png(tmp.join(&laser_name), l)?,
+                (None, None) => {}
+            }
+            views.push(View {
+                line: i + 2,
+                board_image: board_name.clone().into(),
+                laser_image: Some(laser_name.clone().into()),
+                reading: self.reading(&self.reported_q(i, &pose.q_deg))?,
+            });
+            view_circles.push(r.circles.len());
+            view_stripe.push(r.stripe.iter().filter(|p| p.surface == "board").count());
+            let mut entry = json!({
+                "board_image": board_name,
+                "laser_image": laser_name,
+                "q_deg": pose.q_deg,
+                "standoff_mm": pose.standoff_mm,
+                "tilt_deg": pose.tilt_deg,
+                "base_cam": pose_cfg(&r.base_cam),
+                "circles": r.circles,
+                "stripe": stripe_json(&r.stripe, self.direction, false),
+            });
+            if self.cfg.poses.reading_noise_deg > 0.0 {
+                entry["q_reading_deg"] = json!(self.reported_q(i, &pose.q_deg));
+            }
+            per_image.push(entry);
+        }
+        progress("calibration views", poses.len(), poses.len());
+        io::write_rig(tmp.join("rig.json"), rig)?;
+        io::write_views_csv_with(tmp.join("views.csv"), &views, pose_columns)?;
+        let mut truth = self.truth(false);
+        truth.extra.insert("images".into(), Value::Array(per_image));
+        io::write_truth(tmp.join("truth.json"), &truth)?;
+        replace_dir(&tmp, &calib_dir)?;
+        Ok((calib_dir, view_circles, view_stripe))
     }
 
     /// Writes `out/verify`: one scan folder per position of [`Twin::verify_scans`]
