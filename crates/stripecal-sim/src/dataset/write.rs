@@ -30,6 +30,15 @@ pub struct DatasetSummary {
     pub profiler: Option<crate::profiler_write::ProfilerSummary>,
 }
 
+/// One sweep to write as a scan folder: the folder's name, the sweep's poses (encoder
+/// readings), the truth.json it starts from and how frame `k` at pose `q` is rendered.
+struct Sweep<'a, R> {
+    name: &'a str,
+    qs: &'a [Vec<f64>],
+    truth: Truth,
+    render: R,
+}
+
 impl Twin {
     /// Renders and writes `out/calib` (and `out/scan` when scans are enabled,
     /// `out/scan_table` with `scan.table`, `out/verify` with `verify.enabled`).
@@ -60,16 +69,13 @@ impl Twin {
         let mut sphere_pts = 0;
         if self.sphere.is_some() {
             let qs = self.scan_poses()?;
-            let (dir, pts) = self.write_sweep(
-                out,
-                "scan",
-                &qs,
-                &rig,
-                &pose_columns,
-                progress,
-                self.truth(true),
-                |q, k| self.render_scan_frame(q, k),
-            )?;
+            let sweep = Sweep {
+                name: "scan",
+                qs: &qs,
+                truth: self.truth(true),
+                render: |q: &[f64], k| self.render_scan_frame(q, k),
+            };
+            let (dir, pts) = self.write_sweep(out, sweep, &rig, &pose_columns, progress)?;
             frames_n = qs.len();
             sphere_pts = pts;
             scan_dir = Some(dir);
@@ -79,16 +85,13 @@ impl Twin {
         let mut table_frames = 0;
         if self.cfg.scan.table {
             let qs = self.table_scan_poses()?;
-            let (dir, _) = self.write_sweep(
-                out,
-                "scan_table",
-                &qs,
-                &rig,
-                &pose_columns,
-                progress,
-                self.truth(true),
-                |q, k| self.render_table_frame(q, k),
-            )?;
+            let sweep = Sweep {
+                name: "scan_table",
+                qs: &qs,
+                truth: self.truth(true),
+                render: |q: &[f64], k| self.render_table_frame(q, k),
+            };
+            let (dir, _) = self.write_sweep(out, sweep, &rig, &pose_columns, progress)?;
             table_frames = qs.len();
             table_dir = Some(dir);
         }
@@ -207,16 +210,13 @@ impl Twin {
         let mut frames = 0;
         let mut manifest = String::from("scan,artefact\n");
         for (i, scan) in scans.iter().enumerate() {
-            self.write_sweep(
-                &tmp,
-                &scan.name,
-                &scan.poses,
-                rig,
-                pose_columns,
-                progress,
-                self.verify_truth(scan),
-                |q, k| self.render_verify_frame(scan, i, q, k),
-            )?;
+            let sweep = Sweep {
+                name: &scan.name,
+                qs: &scan.poses,
+                truth: self.verify_truth(scan),
+                render: |q: &[f64], k| self.render_verify_frame(scan, i, q, k),
+            };
+            self.write_sweep(&tmp, sweep, rig, pose_columns, progress)?;
             frames += scan.poses.len();
             manifest.push_str(&format!("{},{}\n", scan.name, scan.artefact));
         }
@@ -234,18 +234,20 @@ impl Twin {
     /// Writes the sweep `qs` as the scan folder `out/name` (rig.json, scan.csv,
     /// images/, `truth` with the per-image stripe truth added); returns the folder and
     /// the stripe points on spheres.
-    #[allow(clippy::too_many_arguments)]
     fn write_sweep(
         &self,
         out: &Path,
-        name: &str,
-        qs: &[Vec<f64>],
+        sweep: Sweep<impl Fn(&[f64], usize) -> Result<ViewRender, SimError>>,
         rig: &Rig,
         pose_columns: &io::PoseColumns,
         progress: &mut dyn FnMut(&str, usize, usize),
-        mut truth: Truth,
-        render: impl Fn(&[f64], usize) -> Result<ViewRender, SimError>,
     ) -> Result<(PathBuf, usize), SimError> {
+        let Sweep {
+            name,
+            qs,
+            mut truth,
+            render,
+        } = sweep;
         let verify_stage;
         let stage = match name {
             "scan" => "scan frames",
