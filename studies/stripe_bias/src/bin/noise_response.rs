@@ -1,7 +1,7 @@
 //! The real extractor's mean response to the image noise on the ball's stripe: every
-//! `--every`-th frame (default 4) of the ball scan of `--preset` (default hp3-wide, seed
-//! 1) rendered noise-free and `--draws` times (default 12) with `noise_gray` 2 (the same
-//! geometry, other noise), `--bits` (8) bits deep (16: the noise-free image is not
+//! `--every`-th frame (default 4) of the ball scan of `--preset` (default hp3-wide,
+//! seed 1) rendered noise-free and `--draws` times (default 12) with `noise_gray` 2
+//! (the same geometry, other noise), `--bits` (8) bits deep (16: the noise-free image is not
 //! rounded to the 8-bit levels), with the overrides `--overrides JSON` on top. Per row
 //! the mean noisy centre minus the noise-free one; printed in bins of the true view
 //! angle (mean and its standard error over the rows, the share of rows found) and
