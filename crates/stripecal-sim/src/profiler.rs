@@ -214,7 +214,17 @@ impl ProfilerCfg {
 
     /// Checks the knobs; errors name them.
     pub fn validate(&self) -> Result<(), SimError> {
-        let bad = |k: &str, m: String| Err(SimError::Config(format!("profiler.{k}: {m}")));
+        self.validate_numbers()?;
+        self.validate_line()?;
+        self.validate_sphere()?;
+        self.validate_poses()?;
+        self.pose_columns_model()?;
+        Ok(())
+    }
+
+    /// The lengths and steps that must be positive, the noise, sizes and angles that
+    /// must not be negative.
+    fn validate_numbers(&self) -> Result<(), SimError> {
         for (k, v) in [
             ("line_length_mm", self.line_length_mm),
             ("spacing_mm", self.spacing_mm),
@@ -239,6 +249,12 @@ impl ProfilerCfg {
                 return bad(k, format!("{v} must be finite and >= 0"));
             }
         }
+        Ok(())
+    }
+
+    /// The line's sampling, the measuring range and the faults (gaps, spikes, the
+    /// invalid-z marker).
+    fn validate_line(&self) -> Result<(), SimError> {
         let n = self.samples();
         if !(2..=1_000_000).contains(&n) {
             return bad(
@@ -277,6 +293,11 @@ impl ProfilerCfg {
                 );
             }
         }
+        Ok(())
+    }
+
+    /// The sphere, its stand and the declared diameter.
+    fn validate_sphere(&self) -> Result<(), SimError> {
         if self.sphere_center_mm.iter().any(|x| !x.is_finite()) {
             return bad("sphere_center_mm", "must be finite".into());
         }
@@ -294,6 +315,11 @@ impl ProfilerCfg {
                 return bad("diameter_declared", format!("{d} must be > 0"));
             }
         }
+        Ok(())
+    }
+
+    /// The hand-eye, the views' poses and the scan's frames.
+    fn validate_poses(&self) -> Result<(), SimError> {
         let h = &self.hand_sensor;
         if h.rotation_vector
             .iter()
@@ -366,9 +392,13 @@ impl ProfilerCfg {
                 format!("{} > {MAX_SCAN_FRAMES}", self.scan_frames),
             );
         }
-        self.pose_columns_model()?;
         Ok(())
     }
+}
+
+/// The error of a bad knob of the profiler section: its name and what is wrong.
+fn bad<T>(k: &str, m: String) -> Result<T, SimError> {
+    Err(SimError::Config(format!("profiler.{k}: {m}")))
 }
 
 /// What a profile ray hits.

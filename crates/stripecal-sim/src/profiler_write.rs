@@ -166,6 +166,36 @@ fn replace(tmp: &Path, target: &Path) -> Result<(), SimError> {
     Ok(())
 }
 
+/// A profile folder's names: the folder, its table (views.csv or scan.csv), the
+/// profiles' file stem, truth.json's key of the per-pose entries, and the first noise
+/// stream of its profiles.
+#[derive(Clone, Copy)]
+struct ProfileFolder {
+    name: &'static str,
+    csv: &'static str,
+    stem: &'static str,
+    key: &'static str,
+    stream: u64,
+}
+
+/// The calibration folder `calib`.
+const CALIB_FOLDER: ProfileFolder = ProfileFolder {
+    name: "calib",
+    csv: "views.csv",
+    stem: "view",
+    key: "views",
+    stream: VIEW_STREAM,
+};
+
+/// The scan folder `scan`.
+const SCAN_FOLDER: ProfileFolder = ProfileFolder {
+    name: "scan",
+    csv: "scan.csv",
+    stem: "scan",
+    key: "frames",
+    stream: SCAN_STREAM,
+};
+
 impl Twin {
     /// rig.json of the profiler mode (module docs).
     pub fn profiler_rig_json(&self) -> Value {
@@ -242,19 +272,21 @@ impl Twin {
 
     /// Writes the poses `views` as the folder `out/name`: `csv` (views.csv or scan.csv),
     /// `profiles/<stem>_NNN.csv`, rig.json and truth.json with per pose entries under
-    /// `key`; returns the folder and the counts.
-    #[allow(clippy::too_many_arguments)]
+    /// `key` (the names of `folder`); returns the folder and the counts.
     fn write_profiles(
         &self,
         out: &Path,
-        name: &str,
-        csv: &str,
-        stem: &str,
-        key: &str,
-        stream: u64,
+        folder: &ProfileFolder,
         views: &[ProfilerView],
         progress: &mut dyn FnMut(&str, usize, usize),
     ) -> Result<(PathBuf, Vec<ProfileCounts>), SimError> {
+        let ProfileFolder {
+            name,
+            csv,
+            stem,
+            key,
+            stream,
+        } = *folder;
         let stage = format!("profiler {name}");
         let tmp = staging(out, name)?;
         let cols = self.profiler_columns()?;
@@ -304,16 +336,7 @@ impl Twin {
     ) -> Result<DatasetSummary, SimError> {
         std::fs::create_dir_all(out).map_err(|e| stripecal::Error::io(out, e))?;
         let views = self.profiler_views()?;
-        let (calib_dir, counts) = self.write_profiles(
-            out,
-            "calib",
-            "views.csv",
-            "view",
-            "views",
-            VIEW_STREAM,
-            &views,
-            progress,
-        )?;
+        let (calib_dir, counts) = self.write_profiles(out, &CALIB_FOLDER, &views, progress)?;
         let r = self.cfg.profiler.radius();
         let infos = views
             .iter()
@@ -328,16 +351,7 @@ impl Twin {
         let (scan_dir, scan_counts) = if scan.is_empty() {
             (None, vec![])
         } else {
-            let (d, c) = self.write_profiles(
-                out,
-                "scan",
-                "scan.csv",
-                "scan",
-                "frames",
-                SCAN_STREAM,
-                &scan,
-                progress,
-            )?;
+            let (d, c) = self.write_profiles(out, &SCAN_FOLDER, &scan, progress)?;
             (Some(d), c)
         };
         Ok(DatasetSummary {

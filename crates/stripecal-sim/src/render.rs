@@ -148,9 +148,16 @@ impl Renderer {
                         jinv[(1, 0)] as f32,
                         jinv[(1, 1)] as f32,
                     ]);
+                    let centre = PixelCentre {
+                        xd,
+                        yd,
+                        xn,
+                        yn,
+                        jinv,
+                    };
                     for &dv in &offs {
                         for &du in &offs {
-                            let (sx, sy) = sub_ray(camera, xd, yd, xn, yn, &jinv, du, dv);
+                            let (sx, sy) = sub_ray(camera, &centre, du, dv);
                             d.push([(sx - xn) as f32, (sy - yn) as f32]);
                         }
                     }
@@ -253,8 +260,15 @@ impl Renderer {
                         } else {
                             &fine_offs
                         };
+                        let centre = PixelCentre {
+                            xd,
+                            yd,
+                            xn: xc,
+                            yn: yc,
+                            jinv,
+                        };
                         for &(du, dv) in offs {
-                            let (sx, sy) = sub_ray(&self.camera, xd, yd, xc, yc, &jinv, du, dv);
+                            let (sx, sy) = sub_ray(&self.camera, &centre, du, dv);
                             let hit = scene.shade(&Vector3::new(sx, sy, 1.0));
                             sum_a += hit.reflectance;
                             sum_l += hit.laser;
@@ -277,20 +291,28 @@ impl Renderer {
     }
 }
 
-/// Undistorted normalised coordinates of the sub-pixel position `(du, dv)` px from a
-/// pixel centre whose distorted / undistorted coordinates are `(xd, yd)` / `(xn, yn)`.
-#[allow(clippy::too_many_arguments)]
-#[inline]
-fn sub_ray(
-    cam: &Camera,
+/// A pixel centre: its distorted / undistorted normalised coordinates `(xd, yd)` /
+/// `(xn, yn)` and the inverse of the distortion's Jacobian at `(xn, yn)`.
+#[derive(Clone, Copy)]
+struct PixelCentre {
     xd: f64,
     yd: f64,
     xn: f64,
     yn: f64,
-    jinv: &Matrix2<f64>,
-    du: f64,
-    dv: f64,
-) -> (f64, f64) {
+    jinv: Matrix2<f64>,
+}
+
+/// Undistorted normalised coordinates of the sub-pixel position `(du, dv)` px from a
+/// pixel centre `c`.
+#[inline]
+fn sub_ray(cam: &Camera, c: &PixelCentre, du: f64, dv: f64) -> (f64, f64) {
+    let PixelCentre {
+        xd,
+        yd,
+        xn,
+        yn,
+        jinv,
+    } = *c;
     let tx = xd + du / cam.fu;
     let ty = yd + dv / cam.fv;
     let (dx, dy) = (tx - xd, ty - yd);

@@ -178,6 +178,11 @@ pub fn stripe_truth(
     let mut out = Vec::new();
     let laser = scene.laser.plane;
     let per_row = direction != StripeDirection::Rows;
+    let tr = Tracing {
+        scene,
+        cam,
+        per_row,
+    };
     // Plate, table and the free plate: lines.
     let mut planes = Vec::with_capacity(3);
     if scene.has_table() {
@@ -202,9 +207,11 @@ pub fn stripe_truth(
         let c2 = (d2 - d1 * n1n2) / det;
         let p0 = n1 * c1 + pn * c2;
         let curve = |t: f64| p0 + dir * t;
-        trace(
-            scene, cam, surface, &curve, -1000.0, 1000.0, 200_000, per_row, &mut out,
-        );
+        let c = StripeCurve {
+            surface,
+            curve: &curve,
+        };
+        trace(tr, c, -1000.0, 1000.0, 200_000, &mut out);
     }
     for &(c, r) in scene.spheres() {
         let dist = laser.signed_distance(&c);
@@ -214,17 +221,11 @@ pub fn stripe_truth(
             let e1 = laser.normal.cross(&Vector3::z()).normalize();
             let e2 = laser.normal.cross(&e1);
             let curve = |t: f64| center + (e1 * t.cos() + e2 * t.sin()) * rho;
-            trace(
-                scene,
-                cam,
-                SURF_SPHERE,
-                &curve,
-                0.0,
-                std::f64::consts::TAU,
-                20_000,
-                per_row,
-                &mut out,
-            );
+            let c = StripeCurve {
+                surface: SURF_SPHERE,
+                curve: &curve,
+            };
+            trace(tr, c, 0.0, std::f64::consts::TAU, 20_000, &mut out);
         }
     }
     out.sort_by(|a, b| {
@@ -234,18 +235,35 @@ pub fn stripe_truth(
     out
 }
 
-#[allow(clippy::too_many_arguments)]
-fn trace(
-    scene: &ImageScene,
-    cam: &Camera,
+/// What stripes are traced in: the scene, its camera and whether a point is found per
+/// image row (`true`) or per column.
+#[derive(Clone, Copy)]
+struct Tracing<'a> {
+    scene: &'a ImageScene,
+    cam: &'a Camera,
+    per_row: bool,
+}
+
+/// One surface's stripe: the surface and the stripe's points (camera frame) by a
+/// curve parameter.
+#[derive(Clone, Copy)]
+struct StripeCurve<'c> {
     surface: u32,
-    curve: &dyn Fn(f64) -> Vector3<f64>,
+    curve: &'c dyn Fn(f64) -> Vector3<f64>,
+}
+
+/// Pushes onto `out` the stripe points of `c` where it crosses a scan line, the curve
+/// sampled at `samples` steps over `[t0, t1]`.
+fn trace(
+    tr: Tracing,
+    c: StripeCurve,
     t0: f64,
     t1: f64,
     samples: usize,
-    per_row: bool,
     out: &mut Vec<StripePointTruth>,
 ) {
+    let Tracing { cam, per_row, .. } = tr;
+    let curve = c.curve;
     let scan = |t: f64| -> Option<f64> {
         let p = curve(t);
         if p.z <= 1e-6 {
@@ -268,9 +286,7 @@ fn trace(
             let mut line = lo.floor() + 1.0;
             while line <= hi {
                 if line >= 0.0 && line < n_lines {
-                    if let Some(pt) =
-                        refine(scene, cam, surface, curve, &scan, ta, tb, sa, line, per_row)
-                    {
+                    if let Some(pt) = refine(tr, c, &scan, ta, tb, sa, line) {
                         out.push(pt);
                     }
                 }
@@ -281,19 +297,23 @@ fn trace(
     }
 }
 
-#[allow(clippy::too_many_arguments)]
+/// The point of `c` on scan line `line`, bisected between the curve parameters `ta`
+/// and `tb` (`sa`: the scan coordinate at `ta`), when the camera sees it lit.
 fn refine(
-    scene: &ImageScene,
-    cam: &Camera,
-    surface: u32,
-    curve: &dyn Fn(f64) -> Vector3<f64>,
+    tr: Tracing,
+    c: StripeCurve,
     scan: &dyn Fn(f64) -> Option<f64>,
     ta: f64,
     tb: f64,
     sa: f64,
     line: f64,
-    per_row: bool,
 ) -> Option<StripePointTruth> {
+    let Tracing {
+        scene,
+        cam,
+        per_row,
+    } = tr;
+    let StripeCurve { surface, curve } = c;
     let (mut a, mut b) = (ta, tb);
     let mut fa = sa - line;
     for _ in 0..80 {

@@ -30,6 +30,15 @@ pub struct DatasetSummary {
     pub profiler: Option<crate::profiler_write::ProfilerSummary>,
 }
 
+/// One sweep to write as a scan folder: the folder's name, the sweep's poses (encoder
+/// readings), the truth.json it starts from and how frame `k` at pose `q` is rendered.
+struct Sweep<'a, R> {
+    name: &'a str,
+    qs: &'a [Vec<f64>],
+    truth: Truth,
+    render: R,
+}
+
 impl Twin {
     /// Renders and writes `out/calib` (and `out/scan` when scans are enabled,
     /// `out/scan_table` with `scan.table`, `out/verify` with `verify.enabled`).
@@ -52,7 +61,76 @@ impl Twin {
         let poses = self.calibration_poses()?;
         let rig = self.rig()?;
         let pose_columns = self.cfg.pose_columns_model()?.unwrap_or_default();
-        // --- calibration dataset
+        let (calib_dir, view_circles, view_stripe) =
+            self.write_calibration(out, &poses, &rig, &pose_columns, progress)?;
+        // --- scan
+        let mut scan_dir = None;
+        let mut frames_n = 0;
+        let mut sphere_pts = 0;
+        if self.sphere.is_some() {
+            let qs = self.scan_poses()?;
+            let sweep = Sweep {
+                name: "scan",
+                qs: &qs,
+                truth: self.truth(true),
+                render: |q: &[f64], k| self.render_scan_frame(q, k),
+            };
+            let (dir, pts) = self.write_sweep(out, sweep, &rig, &pose_columns, progress)?;
+            frames_n = qs.len();
+            sphere_pts = pts;
+            scan_dir = Some(dir);
+        }
+        // --- the bare table
+        let mut table_dir = None;
+        let mut table_frames = 0;
+        if self.cfg.scan.table {
+            let qs = self.table_scan_poses()?;
+            let sweep = Sweep {
+                name: "scan_table",
+                qs: &qs,
+                truth: self.truth(true),
+                render: |q: &[f64], k| self.render_table_frame(q, k),
+            };
+            let (dir, _) = self.write_sweep(out, sweep, &rig, &pose_columns, progress)?;
+            table_frames = qs.len();
+            table_dir = Some(dir);
+        }
+        // --- verification artefacts
+        let mut verify_dir = None;
+        let mut verify_frames = 0;
+        if self.cfg.verify.enabled {
+            let (dir, n) = self.write_verify(out, &rig, &pose_columns, progress)?;
+            verify_dir = Some(dir);
+            verify_frames = n;
+        }
+        Ok(DatasetSummary {
+            calib_dir,
+            scan_dir,
+            views: poses,
+            view_circles,
+            view_stripe_points: view_stripe,
+            scan_frames: frames_n,
+            scan_sphere_points: sphere_pts,
+            table_dir,
+            table_frames,
+            verify_dir,
+            verify_frames,
+            direction: self.direction,
+            profiler: None,
+        })
+    }
+
+    /// Writes `out/calib` (rendered view by view, staged and renamed when complete);
+    /// returns the folder and per view the target points imaged and the stripe truth
+    /// points on the board.
+    fn write_calibration(
+        &self,
+        out: &Path,
+        poses: &[PoseInfo],
+        rig: &Rig,
+        pose_columns: &io::PoseColumns,
+        progress: &mut dyn FnMut(&str, usize, usize),
+    ) -> Result<(PathBuf, Vec<usize>, Vec<usize>), SimError> {
         let calib_dir = out.join("calib");
         let tmp = staging_dir(out, "calib")?;
         let mut views = Vec::new();
@@ -102,73 +180,13 @@ impl Twin {
             per_image.push(entry);
         }
         progress("calibration views", poses.len(), poses.len());
-        io::write_rig(tmp.join("rig.json"), &rig)?;
-        io::write_views_csv_with(tmp.join("views.csv"), &views, &pose_columns)?;
+        io::write_rig(tmp.join("rig.json"), rig)?;
+        io::write_views_csv_with(tmp.join("views.csv"), &views, pose_columns)?;
         let mut truth = self.truth(false);
         truth.extra.insert("images".into(), Value::Array(per_image));
         io::write_truth(tmp.join("truth.json"), &truth)?;
         replace_dir(&tmp, &calib_dir)?;
-        // --- scan
-        let mut scan_dir = None;
-        let mut frames_n = 0;
-        let mut sphere_pts = 0;
-        if self.sphere.is_some() {
-            let qs = self.scan_poses()?;
-            let (dir, pts) = self.write_sweep(
-                out,
-                "scan",
-                &qs,
-                &rig,
-                &pose_columns,
-                progress,
-                self.truth(true),
-                |q, k| self.render_scan_frame(q, k),
-            )?;
-            frames_n = qs.len();
-            sphere_pts = pts;
-            scan_dir = Some(dir);
-        }
-        // --- the bare table
-        let mut table_dir = None;
-        let mut table_frames = 0;
-        if self.cfg.scan.table {
-            let qs = self.table_scan_poses()?;
-            let (dir, _) = self.write_sweep(
-                out,
-                "scan_table",
-                &qs,
-                &rig,
-                &pose_columns,
-                progress,
-                self.truth(true),
-                |q, k| self.render_table_frame(q, k),
-            )?;
-            table_frames = qs.len();
-            table_dir = Some(dir);
-        }
-        // --- verification artefacts
-        let mut verify_dir = None;
-        let mut verify_frames = 0;
-        if self.cfg.verify.enabled {
-            let (dir, n) = self.write_verify(out, &rig, &pose_columns, progress)?;
-            verify_dir = Some(dir);
-            verify_frames = n;
-        }
-        Ok(DatasetSummary {
-            calib_dir,
-            scan_dir,
-            views: poses,
-            view_circles,
-            view_stripe_points: view_stripe,
-            scan_frames: frames_n,
-            scan_sphere_points: sphere_pts,
-            table_dir,
-            table_frames,
-            verify_dir,
-            verify_frames,
-            direction: self.direction,
-            profiler: None,
-        })
+        Ok((calib_dir, view_circles, view_stripe))
     }
 
     /// Writes `out/verify`: one scan folder per position of [`Twin::verify_scans`]
@@ -192,16 +210,13 @@ impl Twin {
         let mut frames = 0;
         let mut manifest = String::from("scan,artefact\n");
         for (i, scan) in scans.iter().enumerate() {
-            self.write_sweep(
-                &tmp,
-                &scan.name,
-                &scan.poses,
-                rig,
-                pose_columns,
-                progress,
-                self.verify_truth(scan),
-                |q, k| self.render_verify_frame(scan, i, q, k),
-            )?;
+            let sweep = Sweep {
+                name: &scan.name,
+                qs: &scan.poses,
+                truth: self.verify_truth(scan),
+                render: |q: &[f64], k| self.render_verify_frame(scan, i, q, k),
+            };
+            self.write_sweep(&tmp, sweep, rig, pose_columns, progress)?;
             frames += scan.poses.len();
             manifest.push_str(&format!("{},{}\n", scan.name, scan.artefact));
         }
@@ -219,18 +234,20 @@ impl Twin {
     /// Writes the sweep `qs` as the scan folder `out/name` (rig.json, scan.csv,
     /// images/, `truth` with the per-image stripe truth added); returns the folder and
     /// the stripe points on spheres.
-    #[allow(clippy::too_many_arguments)]
     fn write_sweep(
         &self,
         out: &Path,
-        name: &str,
-        qs: &[Vec<f64>],
+        sweep: Sweep<impl Fn(&[f64], usize) -> Result<ViewRender, SimError>>,
         rig: &Rig,
         pose_columns: &io::PoseColumns,
         progress: &mut dyn FnMut(&str, usize, usize),
-        mut truth: Truth,
-        render: impl Fn(&[f64], usize) -> Result<ViewRender, SimError>,
     ) -> Result<(PathBuf, usize), SimError> {
+        let Sweep {
+            name,
+            qs,
+            mut truth,
+            render,
+        } = sweep;
         let verify_stage;
         let stage = match name {
             "scan" => "scan frames",

@@ -140,35 +140,13 @@ fn random_views_are_never_misordered() {
     }
     .sample(&twin)
     .unwrap();
-    // STRIPECAL_VIEWS=3,17 renders only those views (debugging).
-    let only: Option<Vec<usize>> = std::env::var("STRIPECAL_VIEWS")
-        .ok()
-        .map(|s| s.split(',').filter_map(|x| x.trim().parse().ok()).collect());
     let start = std::time::Instant::now();
     let results: Vec<ViewResult> = views
         .par_iter()
         .enumerate()
-        .filter(|(k, _)| only.as_ref().is_none_or(|o| o.contains(k)))
         .map(|(k, view)| {
             let truth = &view.truth;
-            let t0 = std::time::Instant::now();
             let img = view.render(&twin, k as u64).unwrap();
-            let t1 = std::time::Instant::now();
-            if only.is_some() {
-                let _ = detect(&img, &board, CentreMethod::default());
-                eprintln!(
-                    "view {k}: render {:.3} s, detect {:.4} s",
-                    (t1 - t0).as_secs_f64(),
-                    t1.elapsed().as_secs_f64()
-                );
-            }
-            if only.is_some() {
-                let path = std::env::temp_dir().join(format!("view_{k}.png"));
-                stripecal::io::save_gray_png(&path, &img).unwrap();
-                for t in truth.iter().filter(|t| t.row < 2 && t.col < 3) {
-                    eprintln!("truth ({}, {}) at ({:.1}, {:.1})", t.row, t.col, t.u, t.v);
-                }
-            }
             let markers_in = board
                 .markers
                 .iter()
@@ -218,9 +196,6 @@ fn random_views_are_never_misordered() {
         st.rms(),
         st.max
     );
-    if only.is_some() {
-        return;
-    }
     assert_eq!(ok + failed, views.len());
     // Views that show every marker must (nearly) all be detected: at most 2 % of them.
     assert!(

@@ -149,12 +149,6 @@ fn compare(stripe: &Stripe, truth: &[StripePointTruth], surface: &str, transpose
             continue;
         }
         let e = (pos - t.1).abs();
-        if e > 2.0 && std::env::var("DBGPTS").is_ok() {
-            eprintln!(
-                "     BAD line {line} pos {pos:.2} truth {:.2} peak {} w {} flags {}",
-                t.1, p.peak, p.width_px, p.flags
-            );
-        }
         s.n += 1;
         s.sum_sq += e * e;
         s.max_trusted = s.max_trusted.max(e);

@@ -4,8 +4,6 @@
 use nalgebra::{Point3, Vector3};
 
 use super::*;
-use crate::calib::joint::profile::ProfileViewObs;
-use crate::calib::profile::arc::find_arc;
 use crate::model::geometry::{iso_from_parts, iso_from_rotvec, rotvec_to_matrix, Iso3};
 use crate::numerics::rng::SplitMix64;
 
@@ -206,113 +204,6 @@ fn a_wrong_declared_diameter_is_reported() {
     assert!(rep.warnings.iter().any(|w| w.contains("declared diameter")));
     let ok = calibrate_profiles(&s.inputs, &rig(Some(80.0)), &Default::default()).unwrap();
     assert!(!ok.diameter_check.unwrap().disagrees);
-}
-
-/// Timing probe (ignored): `cargo test --release ... -- --ignored --nocapture`.
-#[test]
-#[ignore]
-fn timing_probe() {
-    let s = scene(15, 1, 0.01, None);
-    let n: usize = s.inputs.iter().map(|i| i.profile.points.len()).sum();
-    let opts = ProfileCalibrateOptions {
-        leave_one_out: false,
-        ..Default::default()
-    };
-    let t = std::time::Instant::now();
-    let reps = 20;
-    for _ in 0..reps {
-        calibrate_profiles(&s.inputs, &rig(Some(80.0)), &opts).unwrap();
-    }
-    eprintln!(
-        "{n} points: {:.2} ms per calibration",
-        t.elapsed().as_secs_f64() * 1e3 / reps as f64
-    );
-}
-
-/// Timing probe of the parts (ignored).
-#[test]
-#[ignore]
-fn timing_parts() {
-    use crate::calib::joint::profile::{profile_adjustment, ProfileOptions, ProfileStart};
-    let s = scene(15, 1, 0.01, None);
-    let reps = 20;
-    let t = std::time::Instant::now();
-    let mut arcs = Vec::new();
-    for _ in 0..reps {
-        arcs = s
-            .inputs
-            .iter()
-            .map(|i| find_arc(&i.profile.points, &arc_options(&rig(Some(80.0))), 1).unwrap())
-            .collect();
-    }
-    eprintln!(
-        "arcs {:.2} ms",
-        t.elapsed().as_secs_f64() * 1e3 / reps as f64
-    );
-    let obs: Vec<ProfileViewObs> = s
-        .inputs
-        .iter()
-        .zip(&arcs)
-        .map(|(i, a)| ProfileViewObs {
-            view: i.view,
-            a: i.reading.base_hand(None).unwrap(),
-            q: None,
-            points: i.profile.points.clone(),
-            arc: a.inliers.clone(),
-        })
-        .collect();
-    let t = std::time::Instant::now();
-    let mut cons = None;
-    for _ in 0..reps {
-        cons = Some(consensus::consensus(&obs, &arcs, Some(40.0)).unwrap());
-    }
-    eprintln!(
-        "start {:.2} ms",
-        t.elapsed().as_secs_f64() * 1e3 / reps as f64
-    );
-    let st = cons.unwrap().starts.chosen;
-    let start = ProfileStart {
-        hand_sensor: st.hand_sensor,
-        centre: st.centre,
-        diameter: 80.0,
-        diameter_free: false,
-    };
-    let t = std::time::Instant::now();
-    let mut fit = None;
-    for _ in 0..reps {
-        fit = Some(profile_adjustment(&obs, &start, &ProfileOptions::default()).unwrap());
-    }
-    let fit = fit.unwrap();
-    eprintln!(
-        "adjustment {:.2} ms ({} iterations)",
-        t.elapsed().as_secs_f64() * 1e3 / reps as f64,
-        fit.iterations
-    );
-}
-
-/// Coverage probe (ignored): the hand-eye's errors in units of its sigma over seeds.
-#[test]
-#[ignore]
-fn coverage_probe() {
-    use crate::model::geometry::iso_to_rotvec;
-    let mut z = Vec::new();
-    for seed in 1..=20 {
-        let s = scene(15, 100 + seed, 0.01, None);
-        let rep = calibrate_profiles(&s.inputs, &rig(Some(80.0)), &Default::default()).unwrap();
-        let c = &rep.calibration;
-        let (_, t) = iso_to_rotvec(&c.hand_sensor);
-        let cov = c.covariance.as_ref().unwrap();
-        for k in 0..3 {
-            let sd = cov.sigma(&format!("hand_cam.translation_mm[{k}]")).unwrap();
-            z.push((t[k] - s.x.translation.vector[k]) / sd);
-            let sd = cov.sigma(&format!("sphere.center_mm[{k}]")).unwrap();
-            z.push((c.sphere_center_mm[k] - s.centre[k]) / sd);
-        }
-        eprintln!("seed {seed}: k {:.2}", rep.fit.view_variance_factor);
-    }
-    let inside = z.iter().filter(|x| x.abs() < 3.0).count();
-    let rms = (z.iter().map(|x| x * x).sum::<f64>() / z.len() as f64).sqrt();
-    eprintln!("{inside}/{} inside 3 sigma, rms z {rms:.2}", z.len());
 }
 
 /// A vendor whose z counts towards the sensor (the contract allows it): the same

@@ -4,15 +4,14 @@ the twin's ball scans, reconstructed with the TRUE calibration and corrected, ov
 several seeds per condition; the remainder of each quantity as a percentage of its
 correction, mean over the seeds and its standard error.
 
-    python scripts/stripe_bias_remainders.py runs --seeds 1-6 > runs.json
-    STRIPE_BIAS_RUNS="$(cat runs.json)" cargo test --release --test it stripe_bias::sweep \\
-        -- --ignored --nocapture 2> sweep.log          # ~25-40 s a scan on two cores
-    python scripts/stripe_bias_remainders.py table sweep.log
+    python studies/stripe_bias/remainders.py runs --seeds 1-6 > runs.json
+    cargo run --release --manifest-path studies/stripe_bias/Cargo.toml --bin sweep \\
+        -- runs.json > sweep.log                        # ~25-40 s a scan on two cores
+    python studies/stripe_bias/remainders.py table sweep.log
 
-The runs print one ``SWEEP {json}`` line each (the sweep test in
-crates/stripecal-sim/tests/it/stripe_bias.rs). With ``STRIPE_BIAS_TRUE_MODEL=1`` in the
-test's environment the correction takes the twin's true sheet sigma, PSF sigma and
-emitter instead of estimating them: the remainder is then the model's own.
+The runs print one ``SWEEP {json}`` line each (src/bin/sweep.rs). With ``--true-model``
+after ``--`` the correction takes the twin's true sheet sigma, PSF sigma and emitter
+instead of estimating them: the remainder is then the model's own.
 """
 
 from __future__ import annotations
@@ -77,7 +76,7 @@ def table(a: argparse.Namespace) -> None:
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     sub = ap.add_subparsers(dest="cmd", required=True)
-    r = sub.add_parser("runs", help="print STRIPE_BIAS_RUNS for the conditions")
+    r = sub.add_parser("runs", help="print the sweep's runs (JSON) for the conditions")
     r.add_argument("--seeds", default="1-6", help="first-last")
     r.add_argument("--only", nargs="*", choices=list(CONDITIONS), help="these conditions only")
     t = sub.add_parser("table", help="the remainders from sweep logs")
