@@ -57,9 +57,10 @@
 //!
 //! ## Files
 //!
-//! - `layout.rs`: the parameter vector (`ParamLayout`: blocks, slots, names,
-//!   decoding, retraction);
-//! - `residuals.rs`: the circle and stripe terms and their Jacobian rows;
+//! - `layout/`: the parameter vector (`ParamLayout`: blocks, slots, names,
+//!   decoding, retraction; `build.rs` registers the blocks);
+//! - `residuals/`: the circle and stripe terms, their values and Jacobian rows, the
+//!   groups' weights (one file each);
 //! - `robot_noise.rs`: the per-view robot-pose correction, its prior rows, floors and
 //!   per-view test;
 //! - `bench.rs`: the bench (no robot): each view's board pose a free per-view block;
