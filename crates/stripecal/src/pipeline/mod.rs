@@ -72,7 +72,6 @@ use crate::vision::target::TargetOptions;
 
 pub use bench::BENCH_KEY;
 pub use calibrate::calibrate_observations;
-pub(crate) use observe::decide_channel_lenient;
 pub use observe::{dataset_channel, observe_dataset};
 use observe::{observe, Observed};
 pub use plan::{
