@@ -447,7 +447,6 @@ fn widened_camera_sigma(problem: &CamProblem<'_>, res: &LmResult) -> Option<Vec<
 
 /// The calibration of the solution `res` (giving `camera`): poses, sigmas, RMS values
 /// and unobservable names.
-#[allow(clippy::too_many_arguments)]
 fn collect_result(
     problem: &CamProblem<'_>,
     res: &LmResult,

@@ -61,7 +61,6 @@ use crate::vision::stripe::{EdgeOptions, StripeOptions};
 use crate::vision::target::TargetOptions;
 
 pub use calibrate::calibrate_observations;
-pub(crate) use calibrate::decide_channel_lenient;
 pub use calibrate::held_out_laser_board;
 pub use calibrate::BENCH_KEY;
 pub use calibrate::{dataset_channel, observe_dataset};

@@ -9,8 +9,8 @@ use rayon::prelude::*;
 use crate::error::{BadFrame, Error, Result};
 use crate::model::image::{AnyImage, AnyView};
 use crate::model::{Calibration, RobotReading, Scan, ScanFrame, StripeChannel, StripeDirection};
-use crate::vision::stripe::colour::auto_sample;
-use crate::vision::stripe::stripe_signal_of_file;
+use crate::vision::stripe::colour::{auto_sample, decide_channel_lenient};
+use crate::vision::stripe::{stripe_signal_of_file, StripeOptions};
 
 use super::{BadImage, DropCounts, ReconstructOptions, Reconstructor, ScanPoints};
 
@@ -104,25 +104,7 @@ pub fn reconstruct_scan(
     }
     let proto = Reconstructor::new(calibration, &opts)?;
     let (width, height) = (calibration.camera.width, calibration.camera.height);
-    let mut channel = opts
-        .channel
-        .or_else(|| scan.rig.as_ref().map(|r| r.stripe_channel))
-        .unwrap_or_default();
-    if channel == StripeChannel::Auto {
-        // decided from frames that can be read and are the camera's size by their
-        // header (never decoding a huge one; a bad frame is reported below)
-        let readable: Vec<std::path::PathBuf> = scan
-            .frames
-            .iter()
-            .map(|f| scan.image_path(&f.image))
-            .filter(|p| p.is_file() && crate::io::image_size(p).ok() == Some((width, height)))
-            .collect();
-        let paths: Vec<std::path::PathBuf> = auto_sample(readable.len())
-            .into_iter()
-            .map(|i| readable[i].clone())
-            .collect();
-        channel = crate::pipeline::decide_channel_lenient(&paths, &opts.stripe);
-    }
+    let channel = scan_channel(scan, &opts, (width, height));
     let skip = opts.on_bad_image == BadImage::Skip;
     let bad = |i: usize, f: &ScanFrame, reason: String| BadFrame {
         frame: i,
@@ -138,6 +120,12 @@ pub fn reconstruct_scan(
             }
         }
     }
+    let source = FrameSource {
+        scan,
+        size: (width, height),
+        channel,
+        stripe: &opts.stripe,
+    };
     let n = scan.frames.len();
     let chunk = (2 * rayon::current_num_threads()).max(2);
     let mut out = ScanPoints::default();
@@ -149,37 +137,12 @@ pub fn reconstruct_scan(
     }
     let mut done = 0;
     for (c, frames) in scan.frames.chunks(chunk).enumerate() {
-        // Per frame: its points and bit depth, or why its image cannot be used.
-        type Part = std::result::Result<(ScanPoints, u8), String>;
-        let parts: Vec<Result<Part>> = frames
+        let parts: Vec<Result<FramePart>> = frames
             .par_iter()
             .enumerate()
             .map_init(
                 || proto.clone(),
-                |rec, (k, f)| {
-                    let i = c * chunk + k;
-                    let path = scan.image_path(&f.image);
-                    let img = match frame_image(&path, width, height) {
-                        Ok(img) => img,
-                        Err(reason) => return Ok(Err(reason)),
-                    };
-                    let signal = stripe_signal_of_file(&path, &img, channel, &opts.stripe)?;
-                    let view = match signal.view() {
-                        Ok(v) => v,
-                        Err(e) => return Ok(Err(e.to_string())),
-                    };
-                    let mut sp = ScanPoints::default();
-                    rec.frame_reading(view, &f.reading, i as u32, &mut sp)
-                        .map_err(|e| match e {
-                            Error::InvalidInput(m) => Error::InvalidInput(format!(
-                                "{m} (scan.csv line {}, image {})",
-                                f.line,
-                                path.display()
-                            )),
-                            other => other,
-                        })?;
-                    Ok(Ok((sp, img.bit_depth())))
-                },
+                |rec, (k, f)| frame_points(rec, &source, f, c * chunk + k),
             )
             .collect();
         for (k, part) in parts.into_iter().enumerate() {
@@ -199,13 +162,7 @@ pub fn reconstruct_scan(
         }
     }
 
-    // Bit depth: the one most frames have (a tie: the first frame's).
-    let deep = kept.iter().filter(|k| k.1 == 16).count();
-    let scan_depth = match (2 * deep).cmp(&kept.len()) {
-        std::cmp::Ordering::Greater => 16,
-        std::cmp::Ordering::Less => 8,
-        std::cmp::Ordering::Equal => kept.first().map_or(8, |k| k.1),
-    };
+    let scan_depth = majority_depth(&kept);
     let same = kept.iter().filter(|k| k.1 == scan_depth).count();
     let odd: Vec<(usize, u8)> = kept
         .iter()
@@ -236,6 +193,91 @@ pub fn reconstruct_scan(
     out.skipped = skipped;
     out.camera_frame = scan.is_fixed();
     Ok(out)
+}
+
+/// The signal a scan's stripes are found in: `opts.channel`, else the scan's rig.json
+/// `stripe.channel` (gray without one); `auto` decided from at most
+/// [`crate::vision::stripe::colour::AUTO_IMAGES`] of its frames.
+fn scan_channel(
+    scan: &Scan,
+    opts: &ReconstructOptions,
+    (width, height): (u32, u32),
+) -> StripeChannel {
+    let mut channel = opts
+        .channel
+        .or_else(|| scan.rig.as_ref().map(|r| r.stripe_channel))
+        .unwrap_or_default();
+    if channel == StripeChannel::Auto {
+        // decided from frames that can be read and are the camera's size by their
+        // header (never decoding a huge one; a bad frame is reported below)
+        let readable: Vec<std::path::PathBuf> = scan
+            .frames
+            .iter()
+            .map(|f| scan.image_path(&f.image))
+            .filter(|p| p.is_file() && crate::io::image_size(p).ok() == Some((width, height)))
+            .collect();
+        let paths: Vec<std::path::PathBuf> = auto_sample(readable.len())
+            .into_iter()
+            .map(|i| readable[i].clone())
+            .collect();
+        let load = |p: &Path| Some(crate::io::load_image_info(p).ok()?.0);
+        channel = decide_channel_lenient(&paths, load, &opts.stripe);
+    }
+    channel
+}
+
+/// What every frame of a scan is read with: the scan, the camera's size, the stripe's
+/// signal and the extractor's options.
+struct FrameSource<'a> {
+    scan: &'a Scan,
+    size: (u32, u32),
+    channel: StripeChannel,
+    stripe: &'a StripeOptions,
+}
+
+/// A frame's points and its image's bit depth, or why its image cannot be used.
+type FramePart = std::result::Result<(ScanPoints, u8), String>;
+
+/// Frame `i` (`f`) reconstructed with `rec`: its points and bit depth, or why its image
+/// cannot be used; errors (naming the frame's scan.csv line and image) stop the run.
+fn frame_points(
+    rec: &mut Reconstructor,
+    source: &FrameSource<'_>,
+    f: &ScanFrame,
+    i: usize,
+) -> Result<FramePart> {
+    let path = source.scan.image_path(&f.image);
+    let img = match frame_image(&path, source.size.0, source.size.1) {
+        Ok(img) => img,
+        Err(reason) => return Ok(Err(reason)),
+    };
+    let signal = stripe_signal_of_file(&path, &img, source.channel, source.stripe)?;
+    let view = match signal.view() {
+        Ok(v) => v,
+        Err(e) => return Ok(Err(e.to_string())),
+    };
+    let mut sp = ScanPoints::default();
+    rec.frame_reading(view, &f.reading, i as u32, &mut sp)
+        .map_err(|e| match e {
+            Error::InvalidInput(m) => Error::InvalidInput(format!(
+                "{m} (scan.csv line {}, image {})",
+                f.line,
+                path.display()
+            )),
+            other => other,
+        })?;
+    Ok(Ok((sp, img.bit_depth())))
+}
+
+/// The bit depth most of the `kept` frames `(index, depth, drops)` have (a tie: the first
+/// frame's).
+fn majority_depth(kept: &[(usize, u8, DropCounts)]) -> u8 {
+    let deep = kept.iter().filter(|k| k.1 == 16).count();
+    match (2 * deep).cmp(&kept.len()) {
+        std::cmp::Ordering::Greater => 16,
+        std::cmp::Ordering::Less => 8,
+        std::cmp::Ordering::Equal => kept.first().map_or(8, |k| k.1),
+    }
 }
 
 /// Why a frame's image file cannot be opened, if it cannot: it is missing, a folder, a

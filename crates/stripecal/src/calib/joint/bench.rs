@@ -14,9 +14,10 @@
 //! the contract's names, the board poses estimated alongside) and the per-view report
 //! are the adjustment's own.
 
+use super::finish::{finish, FinalSolve};
 use super::layout::ParamLayout;
 use super::residuals::{JointProblem, Terms};
-use super::{finish, free_blocks, solve, JointOptions, JointResult, JointStart};
+use super::{free_blocks, solve, JointOptions, JointResult, JointStart};
 use crate::calib::ViewObs;
 use crate::error::{Error, Result};
 use crate::model::board::Board;
@@ -100,9 +101,13 @@ pub fn bench_adjustment(
     let layout = ParamLayout::bench(&start, &free, &terms.used, &poses);
     let mut problem = JointProblem::new(&start.camera, &layout, terms, &opts);
     let (res, iterations) = solve(&mut problem, layout.encode(), &opts, false)?;
-    finish(
-        &start, free, &opts, &layout, &problem, res, iterations, warnings, None,
-    )
+    let solved = FinalSolve {
+        layout: &layout,
+        problem: &problem,
+        res,
+        iterations,
+    };
+    finish(&start, free, &opts, solved, warnings, None)
 }
 
 #[cfg(test)]

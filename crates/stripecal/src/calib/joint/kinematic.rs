@@ -26,13 +26,14 @@
 //! diag(s_j^2) K_g^T`. A DH number already estimated (`--robot`) is left out
 //! (its uncertainty is in the covariance).
 
-use nalgebra::{DMatrix, DVector, Vector3};
+use nalgebra::{DMatrix, DVector, Matrix3, Vector3};
 
 use super::layout::{Block, JointParams, ParamLayout};
 use super::residuals::JointProblem;
-use super::robot::{candidates, flange_twists, DhKind, RobotMode};
+use super::robot::{candidates, flange_twists, DhKind, DhParam, RobotMode};
 use super::JointOptions;
 use crate::error::Result;
+use crate::model::kinematics::Robot;
 use crate::numerics::lm::LmResult;
 
 /// The covariance term of the global numbers and the DH sigmas `(lengths mm, angles
@@ -82,22 +83,7 @@ pub(super) fn term(
         return Ok(None);
     }
     // Each view's flange motion per DH number, in its correction's frame.
-    let twists: Vec<Vec<[f64; 6]>> = readings
-        .iter()
-        .zip(&s.corrections)
-        .map(|(q, (rd, td))| {
-            flange_twists(&robot, q, &params)
-                .into_iter()
-                .map(|c| {
-                    let w = Vector3::new(c[0], c[1], c[2]);
-                    let v = Vector3::new(c[3], c[4], c[5]);
-                    let (wf, vf): (Vector3<f64>, Vector3<f64>) =
-                        (rd.transpose() * w, rd.transpose() * (v + w.cross(td)));
-                    [wf.x, wf.y, wf.z, vf.x, vf.y, vf.z]
-                })
-                .collect()
-        })
-        .collect();
+    let twists = view_twists(&robot, &readings, &s.corrections, &params);
     let Some(g) = problem.flange_response(&res.params, &twists)? else {
         return Ok(None);
     };
@@ -105,43 +91,12 @@ pub(super) fn term(
     if k.iter().any(|x| !x.is_finite()) {
         return Ok(None);
     }
-    // The weights and the robot rows' values at the solution.
-    let w = problem.robot_weights();
-    let wk = [
-        w.rotation,
-        w.rotation,
-        w.rotation,
-        w.translation,
-        w.translation,
-        w.translation,
-    ];
-    let values = super::robot_noise::prior_values(s);
-    // The robot rows' weighted values `y` and their responses per DH number, rotation
-    // rows and translation rows apart.
+    let Some((y, resp)) = robot_rows(problem, layout, s, &k, params.len()) else {
+        return Ok(None);
+    };
     let is_length = |kind: DhKind| matches!(kind, DhKind::D | DhKind::A);
-    let nv = values.len();
     let (lengths, angles): (Vec<usize>, Vec<usize>) =
         (0..params.len()).partition(|&j| is_length(params[j].kind));
-    let mut y = [DVector::zeros(3 * nv), DVector::zeros(3 * nv)];
-    let mut resp = [
-        DMatrix::zeros(3 * nv, params.len()),
-        DMatrix::zeros(3 * nv, params.len()),
-    ];
-    for (i, d) in values.iter().enumerate() {
-        let e = s.image_pose.get(i).copied().unwrap_or([0.0; 6]);
-        let Some(c) = layout.view_columns(Block::RobotPose, i) else {
-            return Ok(None);
-        };
-        let ce = layout.view_columns(Block::ImagePose, i);
-        for q in 0..6 {
-            let (g, row) = (q / 3, 3 * i + q % 3);
-            y[g][row] = wk[q] * (d[q] - e[q]);
-            for j in 0..params.len() {
-                let de = ce.as_ref().map_or(0.0, |ce| k[(ce.start + q, j)]);
-                resp[g][(row, j)] = wk[q] * (k[(c.start + q, j)] - de);
-            }
-        }
-    }
     let cols = |m: &DMatrix<f64>, js: &[usize]| {
         DMatrix::from_fn(m.nrows(), js.len(), |r, c| m[(r, js[c])])
     };
@@ -170,6 +125,76 @@ pub(super) fn term(
     Ok(t.iter()
         .all(|x| x.is_finite())
         .then(|| (t, (s2_length.sqrt(), s2_angle.sqrt()))))
+}
+
+/// Each view's flange motion per DH number of `params` (its joint readings `readings`),
+/// in its correction's frame (`corrections`).
+fn view_twists(
+    robot: &Robot,
+    readings: &[Vec<f64>],
+    corrections: &[(Matrix3<f64>, Vector3<f64>)],
+    params: &[DhParam],
+) -> Vec<Vec<[f64; 6]>> {
+    readings
+        .iter()
+        .zip(corrections)
+        .map(|(q, (rd, td))| {
+            flange_twists(robot, q, params)
+                .into_iter()
+                .map(|c| {
+                    let w = Vector3::new(c[0], c[1], c[2]);
+                    let v = Vector3::new(c[3], c[4], c[5]);
+                    let (wf, vf): (Vector3<f64>, Vector3<f64>) =
+                        (rd.transpose() * w, rd.transpose() * (v + w.cross(td)));
+                    [wf.x, wf.y, wf.z, vf.x, vf.y, vf.z]
+                })
+                .collect()
+        })
+        .collect()
+}
+
+/// The robot rows' weighted values (rotation rows, translation rows) and their responses
+/// per DH number (rows x DH numbers).
+type RobotRows = ([DVector<f64>; 2], [DMatrix<f64>; 2]);
+
+/// The robot rows' weighted values `y` and their responses per DH number (`np` of
+/// them; `k` the solution's response to each), rotation rows and translation rows
+/// apart; `None` when a view has no correction columns.
+fn robot_rows(
+    problem: &JointProblem<'_>,
+    layout: &ParamLayout,
+    s: &JointParams,
+    k: &DMatrix<f64>,
+    np: usize,
+) -> Option<RobotRows> {
+    // The weights and the robot rows' values at the solution.
+    let w = problem.robot_weights();
+    let wk = [
+        w.rotation,
+        w.rotation,
+        w.rotation,
+        w.translation,
+        w.translation,
+        w.translation,
+    ];
+    let values = super::robot_noise::prior_values(s);
+    let nv = values.len();
+    let mut y = [DVector::zeros(3 * nv), DVector::zeros(3 * nv)];
+    let mut resp = [DMatrix::zeros(3 * nv, np), DMatrix::zeros(3 * nv, np)];
+    for (i, d) in values.iter().enumerate() {
+        let e = s.image_pose.get(i).copied().unwrap_or([0.0; 6]);
+        let c = layout.view_columns(Block::RobotPose, i)?;
+        let ce = layout.view_columns(Block::ImagePose, i);
+        for q in 0..6 {
+            let (g, row) = (q / 3, 3 * i + q % 3);
+            y[g][row] = wk[q] * (d[q] - e[q]);
+            for j in 0..np {
+                let de = ce.as_ref().map_or(0.0, |ce| k[(ce.start + q, j)]);
+                resp[g][(row, j)] = wk[q] * (k[(c.start + q, j)] - de);
+            }
+        }
+    }
+    Some((y, resp))
 }
 
 /// The variance per unit of the DH numbers whose responses are the columns of `a` in the

@@ -57,21 +57,24 @@
 //!
 //! ## Files
 //!
-//! - `layout.rs`: the parameter vector (`ParamLayout`: blocks, slots, names,
-//!   decoding, retraction);
-//! - `residuals.rs`: the circle and stripe terms and their Jacobian rows;
+//! - `layout/`: the parameter vector (`ParamLayout`: blocks, slots, names,
+//!   decoding, retraction; `build.rs` registers the blocks);
+//! - `residuals/`: the circle and stripe terms, their values and Jacobian rows, the
+//!   groups' weights (one file each);
 //! - `robot_noise.rs`: the per-view robot-pose correction, its prior rows, floors and
 //!   per-view test;
 //! - `bench.rs`: the bench (no robot): each view's board pose a free per-view block;
 //! - `profile.rs`, `profile_problem.rs`: a line profiler's adjustment (the sphere's
 //!   blocks) and its problem (rows, normal equations formed without the Jacobian);
 //! - `covariance.rs`: sigmas of the estimated numbers;
+//! - `finish.rs`: the result from the final solve (its covariance widened, reports);
 //! - `report.rs`: per-view figures;
 //! - here: the public API and the solve schedule.
 
 mod bench;
 mod chain;
 mod covariance;
+mod finish;
 mod kinematic;
 mod layout;
 mod predict;
@@ -96,6 +99,7 @@ use nalgebra::{DMatrix, Vector3};
 
 pub use self::predict::{predicted_covariance, Prediction};
 
+use self::finish::{finish, FinalSolve};
 use self::layout::{Block, ParamLayout};
 use self::residuals::{JointProblem, Terms};
 use crate::calib::conic::CentreModel;
@@ -103,7 +107,7 @@ use crate::calib::ViewObs;
 use crate::error::{Error, Result};
 use crate::model::board::Board;
 use crate::model::camera::Camera;
-use crate::model::geometry::{iso_from_parts, Iso3, Plane};
+use crate::model::geometry::{Iso3, Plane};
 use crate::model::{NamedCovariance, RobotCalibration, RobotPoseNoise};
 use crate::numerics::lm::{levenberg_marquardt, LmOptions, LmResult, StopReason};
 
@@ -494,161 +498,22 @@ pub fn joint_adjustment(
             let mut pr = JointProblem::new(&start.camera, &lr, terms.clone(), opts);
             pr.set_all_weights(&out.weights);
             let (r, it) = solve(&mut pr, p0, opts, false)?;
-            return finish(
-                start,
-                free,
-                opts,
-                &lr,
-                &pr,
-                r,
-                iterations + it,
-                warnings,
-                outcome.as_ref(),
-            );
+            let solved = FinalSolve {
+                layout: &lr,
+                problem: &pr,
+                res: r,
+                iterations: iterations + it,
+            };
+            return finish(start, free, opts, solved, warnings, outcome.as_ref());
         }
     }
-    finish(
-        start,
-        free,
-        opts,
-        &layout,
-        &problem,
+    let solved = FinalSolve {
+        layout: &layout,
+        problem: &problem,
         res,
         iterations,
-        warnings,
-        outcome.as_ref(),
-    )
-}
-
-/// The result of the final solve `res` of `problem` (`layout`), with the robot rounds'
-/// outcome when the robot was calibrated.
-#[allow(clippy::too_many_arguments)]
-fn finish(
-    start: &JointStart,
-    free: FreeBlocks,
-    opts: &JointOptions,
-    layout: &ParamLayout,
-    problem: &JointProblem<'_>,
-    res: LmResult,
-    iterations: usize,
-    mut warnings: Vec<String>,
-    robot: Option<&robot_solve::RobotOutcome>,
-) -> Result<JointResult> {
-    let s = layout.decode(&res.params);
-    let camera = start.camera.with_params(&s.cam);
-    camera.validate()?;
-    let plane = if free.laser_plane {
-        Some(Plane::new(s.plane_n, s.plane_d)?)
-    } else {
-        start.plane
     };
-    if !(s.scale.is_finite() && s.scale > 0.0) {
-        return Err(Error::Degenerate(format!(
-            "the board scale went to {} in the adjustment",
-            s.scale
-        )));
-    }
-    let plane_sign = plane.map_or(1.0, |pl| pl.normal.dot(&s.plane_n).signum());
-    let ng = layout.num_global();
-    // The model's covariance widened to the views' own scatter (covariance module docs).
-    let mut cov = res.covariance.clone();
-    let mut view_scatter = None;
-    if opts.clustered_covariance && res.unobservable.is_empty() && ng > 0 {
-        let shares = problem.view_shares(&res.params)?;
-        let model = res.covariance.view((0, 0), (ng, ng)).into_owned();
-        if let Some((wide, ratio)) = shares
-            .as_deref()
-            .and_then(|s| crate::calib::clustered::widened(&model, s))
-        {
-            cov.view_mut((0, 0), (ng, ng)).copy_from(&wide);
-            view_scatter = Some(ratio);
-        }
-    }
-    let mut kinematic_sigma = None;
-    if let Some((term, sigma)) = kinematic::term(problem, layout, &res, &s, opts)? {
-        let mut g = cov.view_mut((0, 0), (ng, ng));
-        g += term;
-        kinematic_sigma = Some(sigma);
-    }
-    let named = covariance::named_covariance(layout, &res.params, &s, &cov, plane_sign);
-    let sigma = covariance::joint_sigma(&named);
-    let n_image = res.residuals.len() - problem.prior_rows_per_view() * s.corrections.len();
-    let reports = report::build(
-        problem,
-        &s,
-        &res.residuals[..n_image],
-        opts.outlier_sigmas,
-        &mut warnings,
-    );
-    let robot = robot.map(|out| robot_solve::report(out, layout, &res.params, &res.covariance));
-    let robot_noise = problem.robot_noise().then(|| {
-        let mut n = robot_noise::report(
-            layout,
-            &s,
-            &res.covariance,
-            res.sigma2,
-            &problem.robot_weights(),
-            &problem.robot_state(),
-            &problem.terms.used,
-        );
-        n.kinematic_mm = kinematic_sigma.map(|k| k.0);
-        n.kinematic_deg = kinematic_sigma.map(|k| k.1);
-        n
-    });
-    let all_names = layout.names();
-    let unobservable = res
-        .unobservable
-        .iter()
-        .map(|&i| all_names[i].clone())
-        .collect::<Vec<_>>();
-    let param_names = all_names[..ng].to_vec();
-    if !unobservable.is_empty() {
-        warnings.push(format!(
-            "unobservable parameters (their sigma is NaN): {}",
-            unobservable.join(", ")
-        ));
-    }
-    // Held transforms are returned as given (not through their rotation vectors).
-    let transform = |free: bool, block: Block, held: &Iso3| {
-        if free {
-            layout.transform(&res.params, block)
-        } else {
-            *held
-        }
-    };
-    Ok(JointResult {
-        camera,
-        plane,
-        hand_cam: transform(free.hand_cam, Block::HandCam, &start.hand_cam),
-        base_board: transform(free.base_board, Block::BaseBoard, &start.base_board),
-        board_scale: s.scale,
-        free,
-        sigma,
-        circle_rms_px: reports.circle_rms_px,
-        stripe_rms_px: reports.stripe_rms_px,
-        stripe_rms_mm: reports.stripe_rms_mm,
-        sigma_px: reports.sigma_px,
-        robot_noise,
-        robot,
-        views: reports.views,
-        param_names,
-        covariance: cov.view((0, 0), (ng, ng)).into_owned(),
-        named_covariance: named,
-        view_scatter,
-        iterations,
-        stop_reason: res.reason,
-        unobservable,
-        circle_residuals: reports.circle_residuals,
-        stripe_residuals: reports.stripe_residuals,
-        board_poses: problem
-            .terms
-            .used
-            .iter()
-            .zip(&s.board_poses)
-            .map(|(&v, (r, t))| (v, iso_from_parts(r, t)))
-            .collect(),
-        warnings,
-    })
+    finish(start, free, opts, solved, warnings, outcome.as_ref())
 }
 
 /// The blocks estimated: the options', with the laser plane held when there is no

@@ -276,154 +276,26 @@ pub(super) fn adjust(
         diameter: start.diameter,
         diameter_free: start.diameter_free,
     };
-    let mut layout = ParamLayout::profiler(&start.hand_sensor, true, sphere, &ids, None);
-    let mut p = layout.encode();
-    let mut selected: Vec<Vec<usize>> = views.iter().map(|v| v.arc.clone()).collect();
-    let mut iterations = 0;
-    let rounds = if opts.keep_selection {
-        1
-    } else {
-        SELECTION_ROUNDS
-    };
+    let layout = ParamLayout::profiler(&start.hand_sensor, true, sphere, &ids, None);
     // a solve after a re-selection starts at the last minimum: Gauss-Newton's step
     let warm = LmOptions {
         initial_lambda: 1e-9,
         ..opts.lm.clone()
     };
-    // From the closed-form start, first over every k-th point (module docs, "Points on
-    // the sphere"): its minimum is within a few sigmas of the full one, where the
-    // selection settles over one set of normal equations (`profile_rounds`).
-    let total: usize = selected.iter().map(|s| s.len()).sum();
-    let stride = total.div_ceil(COARSE_POINTS);
-    let mut settled = None;
-    let mut first = &opts.lm;
-    if !opts.keep_selection && stride > 1 {
-        let coarse: Vec<Vec<usize>> = selected
-            .iter()
-            .map(|s| s.iter().step_by(stride).copied().collect())
-            .collect();
-        let (r0, _) = solve(&layout, &p, views, &a, &coarse, &opts.lm)?;
-        iterations += r0.iterations;
-        p = r0.params;
-        selected = reselect(&all_residuals(&layout, &p, views, &a), &coarse);
-        if settle_first {
-            settled = settle(&layout, &p, views, &a, &selected, rounds, &opts.lm)?;
-        }
-        first = &warm;
-    } else if opts.keep_selection && settle_first {
-        // a refit from near its minimum (the checks'), its selection kept
-        settled = settle(&layout, &p, views, &a, &selected, 0, &opts.lm)?;
-    }
-    let (mut res, mut grads) = match settled {
-        Some(s) => {
-            iterations += s.rounds;
-            selected = s.selected;
-            p.clone_from(&s.result.params);
-            (s.result, s.gradients)
-        }
-        None => {
-            let (mut res, mut grads) = solve(&layout, &p, views, &a, &selected, first)?;
-            for round in 0..rounds {
-                if round > 0 {
-                    (res, grads) = solve(&layout, &p, views, &a, &selected, &warm)?;
-                }
-                iterations += res.iterations;
-                p.clone_from(&res.params);
-                if opts.keep_selection {
-                    break;
-                }
-                let next = reselect(&all_residuals(&layout, &p, views, &a), &selected);
-                // the selection the last solve used stays with its result
-                if next == selected || round + 1 == rounds {
-                    break;
-                }
-                selected = next;
-            }
-            (res, grads)
-        }
-    };
+    let mut st = fit_selection(views, &a, layout, opts, settle_first, &warm)?;
     // The robot's DH corrections.
     let mut outcome: Option<RobotOutcome> = None;
     if let Some(ro) = opts.robot.as_ref().filter(|r| r.mode != RobotMode::Fixed) {
-        let readings: Vec<Vec<f64>> = views
-            .iter()
-            .map(|v| {
-                v.q.clone().ok_or_else(|| {
-                    Error::InvalidInput(format!(
-                        "view {}: robot calibration (--robot {}) needs joint readings; the \
-                         view gives a flange pose",
-                        v.view,
-                        ro.mode.name()
-                    ))
-                })
-            })
-            .collect::<Result<_>>()?;
-        let cands = candidates(&ro.nominal, ro.mode);
-        let mut reference = ro.nominal.clone();
-        let mut chosen: Vec<usize> = Vec::new();
-        let mut fixed = Vec::new();
-        let rounds = if ro.mode == RobotMode::Auto {
-            ROBOT_ROUNDS
-        } else {
-            1
-        };
-        let hs = layout.transform(&p, Block::HandCam);
-        let sp = |p: &[f64], l: &ParamLayout| SphereStart {
-            centre: l.sphere_centre(p),
-            diameter: l.sphere_diameter(p),
-            diameter_free: start.diameter_free,
-        };
-        let mut cur = (hs, sp(&p, &layout));
-        for _ in 0..rounds {
-            let block = RobotBlock {
-                reference: reference.clone(),
-                params: cands.clone(),
-                readings: readings.clone(),
-            };
-            let lc = ParamLayout::profiler(&cur.0, true, cur.1, &ids, Some(block));
-            let terms = Terms::of(views, &selected, &a);
-            let prob = ProfileProblem::new(&lc, &terms);
-            let info = information(&prob, &lc.encode())?;
-            let sel = select(&info, &lc, &cands, ro.mode, &chosen)?;
-            let added = sel.chosen.len() > chosen.len();
-            chosen = sel.chosen;
-            fixed = sel.fixed;
-            let block = RobotBlock {
-                reference: reference.clone(),
-                params: chosen.iter().map(|&i| cands[i]).collect(),
-                readings: readings.clone(),
-            };
-            let lk = ParamLayout::profiler(&cur.0, true, cur.1, &ids, Some(block.clone()));
-            let pk = lk.encode();
-            let (r, _) = solve(&lk, &pk, views, &a, &selected, &opts.lm)?;
-            iterations += r.iterations;
-            cur = (lk.transform(&r.params, Block::HandCam), sp(&r.params, &lk));
-            if !opts.keep_selection {
-                let flanges = block.flanges(&r.params[lk.robot_columns()]);
-                selected = reselect(&all_residuals(&lk, &r.params, views, &flanges), &selected);
-            }
-            let done = !added || rounds == 1;
-            if !done {
-                reference = block.corrected(&r.params[lk.robot_columns()]);
-            } else {
-                layout = lk;
-                p = r.params;
-                (res, grads) = solve(&layout, &p, views, &a, &selected, &warm)?;
-                iterations += res.iterations;
-                p.clone_from(&res.params);
-                break;
-            }
-        }
-        outcome = Some(RobotOutcome {
-            block: layout.robot.clone(),
-            nominal: ro.nominal.clone(),
-            mode: ro.mode,
-            fixed: fixed.into_iter().map(|(i, why)| (cands[i], why)).collect(),
-            layout: layout.clone(),
-            p: p.clone(),
-            weights: [1.0; super::residuals::GROUPS],
-        });
+        outcome = Some(calibrate_robot(&mut st, views, &a, start, opts, ro, &warm)?);
     }
+    let Adjusted {
+        layout,
+        p,
+        res,
+        grads,
+        selected,
+        iterations,
+    } = st;
     let s = layout.decode(&p);
     let view_factor = view_variance_factor(&res, &grads);
     let covariance = named_covariance(&layout, &p, &s, &(&res.covariance * view_factor), 1.0);
@@ -459,6 +331,200 @@ pub(super) fn adjust(
         view_rms_mm,
         iterations,
         converged,
+    })
+}
+
+/// Where a profiler's adjustment is between its phases: the layout, the vector, the
+/// last solve's result and per-view gradients, the points selected, the iterations so
+/// far.
+struct Adjusted {
+    layout: ParamLayout,
+    p: Vec<f64>,
+    res: LmResult,
+    grads: Vec<DVector<f64>>,
+    selected: Vec<Vec<usize>>,
+    iterations: usize,
+}
+
+/// The points' selection settled from the closed-form start: first over every k-th
+/// point, then re-selected and re-solved (`warm`: a solve from the last minimum),
+/// or settled over one set of normal equations when `settle_first`.
+fn fit_selection(
+    views: &[ProfileViewObs],
+    a: &[Iso3],
+    layout: ParamLayout,
+    opts: &ProfileOptions,
+    settle_first: bool,
+    warm: &LmOptions,
+) -> Result<Adjusted> {
+    let mut p = layout.encode();
+    let mut selected: Vec<Vec<usize>> = views.iter().map(|v| v.arc.clone()).collect();
+    let mut iterations = 0;
+    let rounds = if opts.keep_selection {
+        1
+    } else {
+        SELECTION_ROUNDS
+    };
+    // From the closed-form start, first over every k-th point (module docs, "Points on
+    // the sphere"): its minimum is within a few sigmas of the full one, where the
+    // selection settles over one set of normal equations (`profile_rounds`).
+    let total: usize = selected.iter().map(|s| s.len()).sum();
+    let stride = total.div_ceil(COARSE_POINTS);
+    let mut settled = None;
+    let mut first = &opts.lm;
+    if !opts.keep_selection && stride > 1 {
+        let coarse: Vec<Vec<usize>> = selected
+            .iter()
+            .map(|s| s.iter().step_by(stride).copied().collect())
+            .collect();
+        let (r0, _) = solve(&layout, &p, views, a, &coarse, &opts.lm)?;
+        iterations += r0.iterations;
+        p = r0.params;
+        selected = reselect(&all_residuals(&layout, &p, views, a), &coarse);
+        if settle_first {
+            settled = settle(&layout, &p, views, a, &selected, rounds, &opts.lm)?;
+        }
+        first = warm;
+    } else if opts.keep_selection && settle_first {
+        // a refit from near its minimum (the checks'), its selection kept
+        settled = settle(&layout, &p, views, a, &selected, 0, &opts.lm)?;
+    }
+    let (res, grads) = match settled {
+        Some(s) => {
+            iterations += s.rounds;
+            selected = s.selected;
+            p.clone_from(&s.result.params);
+            (s.result, s.gradients)
+        }
+        None => {
+            let (mut res, mut grads) = solve(&layout, &p, views, a, &selected, first)?;
+            for round in 0..rounds {
+                if round > 0 {
+                    (res, grads) = solve(&layout, &p, views, a, &selected, warm)?;
+                }
+                iterations += res.iterations;
+                p.clone_from(&res.params);
+                if opts.keep_selection {
+                    break;
+                }
+                let next = reselect(&all_residuals(&layout, &p, views, a), &selected);
+                // the selection the last solve used stays with its result
+                if next == selected || round + 1 == rounds {
+                    break;
+                }
+                selected = next;
+            }
+            (res, grads)
+        }
+    };
+    Ok(Adjusted {
+        layout,
+        p,
+        res,
+        grads,
+        selected,
+        iterations,
+    })
+}
+
+/// The robot's DH corrections estimated with the profiler's (`ro`, not fixed): the
+/// corrections selected round by round (`--robot auto`) or at once, the last solve
+/// over the layout with the robot block.
+fn calibrate_robot(
+    st: &mut Adjusted,
+    views: &[ProfileViewObs],
+    a: &[Iso3],
+    start: &ProfileStart,
+    opts: &ProfileOptions,
+    ro: &RobotOptions,
+    warm: &LmOptions,
+) -> Result<RobotOutcome> {
+    let Adjusted {
+        layout,
+        p,
+        res,
+        grads,
+        selected,
+        iterations,
+    } = st;
+    let ids: Vec<usize> = views.iter().map(|v| v.view).collect();
+    let readings: Vec<Vec<f64>> = views
+        .iter()
+        .map(|v| {
+            v.q.clone().ok_or_else(|| {
+                Error::InvalidInput(format!(
+                    "view {}: robot calibration (--robot {}) needs joint readings; the \
+                     view gives a flange pose",
+                    v.view,
+                    ro.mode.name()
+                ))
+            })
+        })
+        .collect::<Result<_>>()?;
+    let cands = candidates(&ro.nominal, ro.mode);
+    let mut reference = ro.nominal.clone();
+    let mut chosen: Vec<usize> = Vec::new();
+    let mut fixed = Vec::new();
+    let rounds = if ro.mode == RobotMode::Auto {
+        ROBOT_ROUNDS
+    } else {
+        1
+    };
+    let hs = layout.transform(p, Block::HandCam);
+    let sp = |p: &[f64], l: &ParamLayout| SphereStart {
+        centre: l.sphere_centre(p),
+        diameter: l.sphere_diameter(p),
+        diameter_free: start.diameter_free,
+    };
+    let mut cur = (hs, sp(p, layout));
+    for _ in 0..rounds {
+        let block = RobotBlock {
+            reference: reference.clone(),
+            params: cands.clone(),
+            readings: readings.clone(),
+        };
+        let lc = ParamLayout::profiler(&cur.0, true, cur.1, &ids, Some(block));
+        let terms = Terms::of(views, selected, a);
+        let prob = ProfileProblem::new(&lc, &terms);
+        let info = information(&prob, &lc.encode())?;
+        let sel = select(&info, &lc, &cands, ro.mode, &chosen)?;
+        let added = sel.chosen.len() > chosen.len();
+        chosen = sel.chosen;
+        fixed = sel.fixed;
+        let block = RobotBlock {
+            reference: reference.clone(),
+            params: chosen.iter().map(|&i| cands[i]).collect(),
+            readings: readings.clone(),
+        };
+        let lk = ParamLayout::profiler(&cur.0, true, cur.1, &ids, Some(block.clone()));
+        let pk = lk.encode();
+        let (r, _) = solve(&lk, &pk, views, a, selected, &opts.lm)?;
+        *iterations += r.iterations;
+        cur = (lk.transform(&r.params, Block::HandCam), sp(&r.params, &lk));
+        if !opts.keep_selection {
+            let flanges = block.flanges(&r.params[lk.robot_columns()]);
+            *selected = reselect(&all_residuals(&lk, &r.params, views, &flanges), selected);
+        }
+        let done = !added || rounds == 1;
+        if !done {
+            reference = block.corrected(&r.params[lk.robot_columns()]);
+        } else {
+            *layout = lk;
+            *p = r.params;
+            (*res, *grads) = solve(layout, p, views, a, selected, warm)?;
+            *iterations += res.iterations;
+            p.clone_from(&res.params);
+            break;
+        }
+    }
+    Ok(RobotOutcome {
+        block: layout.robot.clone(),
+        nominal: ro.nominal.clone(),
+        mode: ro.mode,
+        fixed: fixed.into_iter().map(|(i, why)| (cands[i], why)).collect(),
+        layout: layout.clone(),
+        p: p.clone(),
+        weights: [1.0; super::residuals::GROUPS],
     })
 }
 

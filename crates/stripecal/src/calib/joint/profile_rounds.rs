@@ -86,13 +86,7 @@ pub(super) fn settle(
     // the per-view normal equations at p0 (the metric) and the exact gradients and
     // costs at the current point
     let mut r = vec![0.0; terms.len()];
-    let normals = ProfileProblem::new(layout, &terms).view_normals(p0, &mut r);
-    let mut nv: Vec<DMatrix<f64>> = Vec::with_capacity(normals.len());
-    let mut gc: Vec<(DVector<f64>, f64)> = Vec::with_capacity(normals.len());
-    for (v, g) in normals.into_iter().zip(&terms.ranges) {
-        nv.push(v.jtj);
-        gc.push((v.g, 0.5 * r[g.clone()].iter().map(|x| x * x).sum::<f64>()));
-    }
+    let (mut nv, mut gc) = normals_at(layout, p0, &terms, &mut r);
     let mut p = p0.to_vec();
     // whether gc's gradients are p's own (else the quadratic model's)
     let mut exact = true;
@@ -103,14 +97,7 @@ pub(super) fn settle(
         if m <= n {
             return Ok(None);
         }
-        let big_n = nv
-            .iter()
-            .fold(DMatrix::<f64>::zeros(n, n), |acc, v| acc + v);
-        let big_n = (&big_n + big_n.transpose()) * 0.5;
-        let g = gc
-            .iter()
-            .fold(DVector::<f64>::zeros(n), |acc, v| acc + &v.0);
-        let cost: f64 = gc.iter().map(|v| v.1).sum();
+        let (big_n, g, cost) = summed(&nv, &gc, n);
         let Some(chol) = big_n.clone().cholesky() else {
             return Ok(None);
         };
@@ -197,6 +184,44 @@ pub(super) fn settle(
         );
     }
     Ok(None)
+}
+
+/// A view's gradient `g_v` and half sum of squares.
+type GradCost = (DVector<f64>, f64);
+
+/// Each view's normal matrix `N_v` at `p`, and its gradient `g_v` with its half sum
+/// of squares (the residuals left in `r`).
+fn normals_at(
+    layout: &ParamLayout,
+    p: &[f64],
+    terms: &Terms,
+    r: &mut [f64],
+) -> (Vec<DMatrix<f64>>, Vec<GradCost>) {
+    let normals = ProfileProblem::new(layout, terms).view_normals(p, r);
+    let mut nv: Vec<DMatrix<f64>> = Vec::with_capacity(normals.len());
+    let mut gc: Vec<(DVector<f64>, f64)> = Vec::with_capacity(normals.len());
+    for (v, g) in normals.into_iter().zip(&terms.ranges) {
+        nv.push(v.jtj);
+        gc.push((v.g, 0.5 * r[g.clone()].iter().map(|x| x * x).sum::<f64>()));
+    }
+    (nv, gc)
+}
+
+/// The views' normal equations summed: `N` (symmetrised), `g` and the cost.
+fn summed(
+    nv: &[DMatrix<f64>],
+    gc: &[(DVector<f64>, f64)],
+    n: usize,
+) -> (DMatrix<f64>, DVector<f64>, f64) {
+    let big_n = nv
+        .iter()
+        .fold(DMatrix::<f64>::zeros(n, n), |acc, v| acc + v);
+    let big_n = (&big_n + big_n.transpose()) * 0.5;
+    let g = gc
+        .iter()
+        .fold(DVector::<f64>::zeros(n), |acc, v| acc + &v.0);
+    let cost: f64 = gc.iter().map(|v| v.1).sum();
+    (big_n, g, cost)
 }
 
 /// The selection `sel` becomes `next`: the points that joined or left change `N_v`,

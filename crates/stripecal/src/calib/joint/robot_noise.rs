@@ -351,7 +351,6 @@ pub(super) fn chi2_to_normal(t: f64, k: usize) -> f64 {
 /// The report of the solution `s` (parameter covariance `cov`, variance factor `s2`,
 /// final weights `w`, the image part's factors `u`) over the views used (dataset rows
 /// `used`).
-#[allow(clippy::too_many_arguments)]
 pub(super) fn report(
     layout: &ParamLayout,
     s: &JointParams,

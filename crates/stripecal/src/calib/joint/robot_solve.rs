@@ -58,7 +58,6 @@ pub(super) fn transfer(from: &ParamLayout, p: &[f64], to: &ParamLayout) -> Vec<f
 
 /// The rounds (module docs) from the robot-held solution `p0` of `layout0`; `None`
 /// when the robot is not calibrated.
-#[allow(clippy::too_many_arguments)]
 pub(super) fn robot_rounds(
     start: &JointStart,
     free: &FreeBlocks,

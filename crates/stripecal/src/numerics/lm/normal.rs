@@ -189,52 +189,9 @@ impl Work {
                     };
                     dense_t = Some(faer::MatRef::from_column_major_slice(vals, n, m));
                 } else {
-                    // Runs of rows with the same columns (a view's) are one small
-                    // product each: their values are the run's J^T stored column-major
-                    // (w x len); the w x w block is scattered into the n x n matrix.
-                    let acc = jtj.as_mut_slice();
-                    let mut block = Mat::<f64>::zeros(w, w);
-                    let mut gb = Mat::<f64>::zeros(w, 1);
-                    for &(i0, i1) in &self.runs {
-                        let len = i1 - i0;
-                        let raw = &rows.vals[i0 * w..i1 * w];
-                        let vals: &[f64] = if huber.is_some() {
-                            self.scratch.clear();
-                            self.scratch.extend_from_slice(raw);
-                            for (v, s) in self.scratch.chunks_exact_mut(w).zip(&sw[i0..i1]) {
-                                v.iter_mut().for_each(|x| *x *= s);
-                            }
-                            &self.scratch
-                        } else {
-                            raw
-                        };
-                        let jt = faer::MatRef::from_column_major_slice(vals, w, len);
-                        let rv = faer::MatRef::from_column_major_slice(&rw[i0..i1], len, 1);
-                        faer::linalg::matmul::matmul(
-                            block.as_mut(),
-                            Accum::Replace,
-                            jt,
-                            jt.transpose(),
-                            1.0,
-                            Par::Seq,
-                        );
-                        faer::linalg::matmul::matmul(
-                            gb.as_mut(),
-                            Accum::Replace,
-                            jt,
-                            rv,
-                            1.0,
-                            Par::Seq,
-                        );
-                        let cols = rows.row(i0).0;
-                        for (a, &ca) in cols.iter().enumerate() {
-                            g[ca] += gb[(a, 0)];
-                            let col = &mut acc[ca * n..(ca + 1) * n];
-                            for (b, &cb) in cols.iter().enumerate() {
-                                col[cb] += block[(a, b)];
-                            }
-                        }
-                    }
+                    let (sw, rw) = (&sw[..], &rw[..]);
+                    let out = (&mut jtj, &mut g);
+                    accumulate_runs(rows, &self.runs, (sw, rw), huber, &mut self.scratch, out);
                     dense_t = None;
                 }
             }
@@ -393,5 +350,59 @@ fn dot(a: faer::ColRef<'_, f64>, b: faer::ColRef<'_, f64>) -> f64 {
             .map(|(x, y)| x * y)
             .sum(),
         _ => a.iter().zip(b.iter()).map(|(x, y)| x * y).sum(),
+    }
+}
+
+/// Sparse rows' share of the normal equations added to `(jtj, g)`: runs of rows with
+/// the same columns (a view's) are one small product each, `sqrt(W) J` from the
+/// weights' square roots `sw` (applied when `huber`), `sqrt(W) r` given as `rw`.
+fn accumulate_runs(
+    rows: &JacobianRows,
+    runs: &[(usize, usize)],
+    (sw, rw): (&[f64], &[f64]),
+    huber: Option<f64>,
+    scratch: &mut Vec<f64>,
+    (jtj, g): (&mut DMatrix<f64>, &mut DVector<f64>),
+) {
+    let w = rows.width;
+    // Runs of rows with the same columns (a view's) are one small product each: their
+    // values are the run's J^T stored column-major (w x len); the w x w block is
+    // scattered into the n x n matrix.
+    let n = g.len();
+    let acc = jtj.as_mut_slice();
+    let mut block = Mat::<f64>::zeros(w, w);
+    let mut gb = Mat::<f64>::zeros(w, 1);
+    for &(i0, i1) in runs {
+        let len = i1 - i0;
+        let raw = &rows.vals[i0 * w..i1 * w];
+        let vals: &[f64] = if huber.is_some() {
+            scratch.clear();
+            scratch.extend_from_slice(raw);
+            for (v, s) in scratch.chunks_exact_mut(w).zip(&sw[i0..i1]) {
+                v.iter_mut().for_each(|x| *x *= s);
+            }
+            scratch
+        } else {
+            raw
+        };
+        let jt = faer::MatRef::from_column_major_slice(vals, w, len);
+        let rv = faer::MatRef::from_column_major_slice(&rw[i0..i1], len, 1);
+        faer::linalg::matmul::matmul(
+            block.as_mut(),
+            Accum::Replace,
+            jt,
+            jt.transpose(),
+            1.0,
+            Par::Seq,
+        );
+        faer::linalg::matmul::matmul(gb.as_mut(), Accum::Replace, jt, rv, 1.0, Par::Seq);
+        let cols = rows.row(i0).0;
+        for (a, &ca) in cols.iter().enumerate() {
+            g[ca] += gb[(a, 0)];
+            let col = &mut acc[ca * n..(ca + 1) * n];
+            for (b, &cb) in cols.iter().enumerate() {
+                col[cb] += block[(a, b)];
+            }
+        }
     }
 }

@@ -34,6 +34,5 @@ pub use dispatch::calibrate_observations;
 pub(super) use dispatch::calibrate_unjudged;
 pub(super) use held::check_from_size;
 pub use loo::held_out_laser_board;
-pub(crate) use observe::decide_channel_lenient;
 pub use observe::{dataset_channel, observe_dataset};
 pub(super) use observe::{observe, Observed};

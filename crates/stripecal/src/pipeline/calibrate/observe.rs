@@ -76,19 +76,6 @@ pub(crate) fn decide_channel(
     Ok((choose_channel(&scores), Some(sum)))
 }
 
-/// The `auto` choice from the laser images at `paths`, those that cannot be read or
-/// decoded left out (a scan's bad frames are reported by the reconstruction itself).
-pub(crate) fn decide_channel_lenient(
-    paths: &[std::path::PathBuf],
-    opts: &StripeOptions,
-) -> StripeChannel {
-    let scores: Vec<[f64; 4]> = paths
-        .par_iter()
-        .filter_map(|p| channel_scores(&load_image_info(p).ok()?.0, opts).ok())
-        .collect();
-    choose_channel(&scores)
-}
-
 /// Detects circles and stripes of every view of a dataset (in parallel over views).
 ///
 /// Returns the observations of the views whose board was found, and warnings naming the

@@ -105,18 +105,7 @@ pub(super) fn estimate_sheet_sigma(
     sheet_sigma_mm: Option<f64>,
     psf_sigma_px: Option<f64>,
 ) -> Result<SheetSigmaEstimate> {
-    for (k, v) in [
-        ("sheet_sigma_mm", sheet_sigma_mm),
-        ("psf_sigma_px", psf_sigma_px),
-    ] {
-        if let Some(v) = v {
-            if !(v.is_finite() && v >= 0.0) || (k == "sheet_sigma_mm" && v <= 0.0) {
-                return Err(Error::InvalidInput(format!(
-                    "{k} = {v} must be finite and > 0"
-                )));
-            }
-        }
-    }
+    check_given(sheet_sigma_mm, psf_sigma_px)?;
     if let (Some(s), Some(b)) = (sheet_sigma_mm, psf_sigma_px) {
         return Ok(SheetSigmaEstimate {
             sheet_sigma_mm: s,
@@ -129,6 +118,84 @@ pub(super) fn estimate_sheet_sigma(
             g_range: [0.0, 0.0],
         });
     }
+    let pts = width_points(rig, points, geo, cam_base, sphere)?;
+    if pts.len() < 30 {
+        return Err(refusal(format!(
+            "{} points with widths (30 needed)",
+            pts.len()
+        )));
+    }
+    let g_range = pts.iter().fold([f64::INFINITY, 0.0f64], |a, q| {
+        [a[0].min(q.g), a[1].max(q.g)]
+    });
+    let (x, psf_free) = linear_start(&pts, sheet_sigma_mm, psf_sigma_px);
+    let s_lin = sheet_sigma_mm.unwrap_or_else(|| x[0].max(0.0).sqrt());
+    if s_lin.is_nan() || s_lin <= 0.0 {
+        return Err(refusal("the widths do not grow with g (s^2 <= 0)".into()));
+    }
+    let b = psf_sigma_px.unwrap_or_else(|| x[1].max(0.0).sqrt());
+    let sheet_free = sheet_sigma_mm.is_none();
+    let WidthFit {
+        s,
+        b,
+        cov,
+        rms,
+        used,
+    } = gauss_newton(rig, sphere.1, &pts, (s_lin, b), (sheet_free, psf_free))?;
+    let sd_s = if sheet_free {
+        cov[(0, 0)].max(0.0).sqrt()
+    } else {
+        0.0
+    };
+    let sd_b = if psf_free {
+        cov[(1, 1)].max(0.0).sqrt()
+    } else {
+        0.0
+    };
+    if sheet_free && sd_s > 0.3 * s {
+        return Err(refusal(format!(
+            "s = {s:.4} +- {sd_s:.4} mm is not resolved (g from {:.2} to {:.2} px/mm)",
+            g_range[0], g_range[1]
+        )));
+    }
+    Ok(SheetSigmaEstimate {
+        sheet_sigma_mm: s,
+        sheet_sigma_sd_mm: sd_s,
+        psf_sigma_px: b,
+        psf_sigma_sd_px: sd_b,
+        sheet_sigma_linear_mm: s_lin,
+        points: used,
+        width_rms_px: rms,
+        g_range,
+    })
+}
+
+/// Errors unless each given sigma is finite and >= 0 (the sheet's > 0).
+fn check_given(sheet_sigma_mm: Option<f64>, psf_sigma_px: Option<f64>) -> Result<()> {
+    for (k, v) in [
+        ("sheet_sigma_mm", sheet_sigma_mm),
+        ("psf_sigma_px", psf_sigma_px),
+    ] {
+        if let Some(v) = v {
+            if !(v.is_finite() && v >= 0.0) || (k == "sheet_sigma_mm" && v <= 0.0) {
+                return Err(Error::InvalidInput(format!(
+                    "{k} = {v} must be finite and > 0"
+                )));
+            }
+        }
+    }
+    Ok(())
+}
+
+/// The width fit's points: every `n / WIDTH_POINTS`-th point of `points` with a width
+/// and not saturated, with its geometry's profile on the sphere `(centre, radius)`.
+fn width_points(
+    rig: &Rig<'_>,
+    points: &ScanPoints,
+    geo: &[(Vector3<f64>, f64, usize)],
+    cam_base: &[Iso3],
+    sphere: (&Vector3<f64>, f64),
+) -> Result<Vec<WidthPoint>> {
     let n = points.len();
     if points.width_px.len() != n {
         return Err(Error::InvalidInput(
@@ -160,21 +227,26 @@ pub(super) fn estimate_sheet_sigma(
             m: prof.slope,
         });
     }
-    let refuse = |m: String| {
-        Err(Error::Degenerate(format!(
-            "sheet thickness: {m}; give StripeBiasOptions::sheet_sigma_mm"
-        )))
-    };
-    if pts.len() < 30 {
-        return refuse(format!("{} points with widths (30 needed)", pts.len()));
-    }
-    let g_range = pts.iter().fold([f64::INFINITY, 0.0f64], |a, q| {
-        [a[0].min(q.g), a[1].max(q.g)]
-    });
-    // Linear start.
+    Ok(pts)
+}
+
+/// The refusal to estimate the sheet thickness, saying why (`m`).
+fn refusal(m: String) -> Error {
+    Error::Degenerate(format!(
+        "sheet thickness: {m}; give StripeBiasOptions::sheet_sigma_mm"
+    ))
+}
+
+/// The linear (Gaussian-width) start `(s^2, b^2)` of the sigmas not given, and whether
+/// the PSF sigma stays free (not given, and resolved: `b^2 >= 0`).
+fn linear_start(
+    pts: &[WidthPoint],
+    sheet_sigma_mm: Option<f64>,
+    psf_sigma_px: Option<f64>,
+) -> (Vector2<f64>, bool) {
     let mut ata = Matrix2::zeros();
     let mut atb = Vector2::zeros();
-    for q in &pts {
+    for q in pts {
         let k = 1.0 + q.m * q.m;
         let y = (q.w / 2.3548).powi(2) - k / 12.0;
         let (a0, a1) = (
@@ -192,19 +264,6 @@ pub(super) fn estimate_sheet_sigma(
         ata += a * a.transpose();
         atb += a * y;
     }
-    let solve = |ata: &Matrix2<f64>, atb: &Vector2<f64>| -> Vector2<f64> {
-        let mut m = *ata;
-        let mut v = *atb;
-        for k in 0..2 {
-            if m[(k, k)] == 0.0 {
-                m[(k, k)] = 1.0;
-                v[k] = 0.0;
-            }
-        }
-        m.try_inverse()
-            .map(|i| i * v)
-            .unwrap_or_else(Vector2::zeros)
-    };
     let mut x = solve(&ata, &atb);
     let mut psf_free = psf_sigma_px.is_none();
     if psf_free && x[1] < 0.0 {
@@ -219,29 +278,60 @@ pub(super) fn estimate_sheet_sigma(
         x = solve(&a2, &b2);
         x[1] = 0.0;
     }
-    let s_lin = sheet_sigma_mm.unwrap_or_else(|| x[0].max(0.0).sqrt());
-    if s_lin.is_nan() || s_lin <= 0.0 {
-        return refuse("the widths do not grow with g (s^2 <= 0)".into());
+    (x, psf_free)
+}
+
+/// `ata^-1 atb` with the unknowns whose diagonal is 0 (held) set to 0; zeros when
+/// singular.
+fn solve(ata: &Matrix2<f64>, atb: &Vector2<f64>) -> Vector2<f64> {
+    let mut m = *ata;
+    let mut v = *atb;
+    for k in 0..2 {
+        if m[(k, k)] == 0.0 {
+            m[(k, k)] = 1.0;
+            v[k] = 0.0;
+        }
     }
-    let mut s = s_lin;
-    let mut b = psf_sigma_px.unwrap_or_else(|| x[1].max(0.0).sqrt());
-    let sheet_free = sheet_sigma_mm.is_none();
-    // Gauss-Newton on the extractor's widths.
+    m.try_inverse()
+        .map(|i| i * v)
+        .unwrap_or_else(Vector2::zeros)
+}
+
+/// The Gauss-Newton fit's result: the sigmas, their covariance, the RMS of the width
+/// residuals (px) and the points used.
+struct WidthFit {
+    s: f64,
+    b: f64,
+    cov: Matrix2<f64>,
+    rms: f64,
+    used: usize,
+}
+
+/// Gauss-Newton on the extractor's widths of `pts` on the sphere of radius `r` from
+/// `(s, b)`, the free ones `(sheet_free, psf_free)` estimated (gross outliers dropped
+/// once, at the second iteration).
+fn gauss_newton(
+    rig: &Rig<'_>,
+    r: f64,
+    pts: &[WidthPoint],
+    (mut s, mut b): (f64, f64),
+    (sheet_free, psf_free): (bool, bool),
+) -> Result<WidthFit> {
     let mut keep: Vec<bool> = vec![true; pts.len()];
     let mut cov = Matrix2::zeros();
     let mut rms = 0.0;
     let mut used = 0;
     for it in 0..GN_ITERATIONS {
-        let w0 = model_widths(rig, r, &pts, s, b);
+        let w0 = model_widths(rig, r, pts, s, b);
         let hs = 0.01 * s;
         let hb = 0.01 * b.max(0.1);
         let ws = if sheet_free {
-            model_widths(rig, r, &pts, s + hs, b)
+            model_widths(rig, r, pts, s + hs, b)
         } else {
             vec![None; pts.len()]
         };
         let wb = if psf_free {
-            model_widths(rig, r, &pts, s, b + hb)
+            model_widths(rig, r, pts, s, b + hb)
         } else {
             vec![None; pts.len()]
         };
@@ -286,7 +376,9 @@ pub(super) fn estimate_sheet_sigma(
             k += 1;
         }
         if k < 30 {
-            return refuse(format!("{k} points with modelled widths (30 needed)"));
+            return Err(refusal(format!(
+                "{k} points with modelled widths (30 needed)"
+            )));
         }
         let dx = solve(&jtj, &jtr);
         rms = (ss / k as f64).sqrt();
@@ -306,30 +398,11 @@ pub(super) fn estimate_sheet_sigma(
             break;
         }
     }
-    let sd_s = if sheet_free {
-        cov[(0, 0)].max(0.0).sqrt()
-    } else {
-        0.0
-    };
-    let sd_b = if psf_free {
-        cov[(1, 1)].max(0.0).sqrt()
-    } else {
-        0.0
-    };
-    if sheet_free && sd_s > 0.3 * s {
-        return refuse(format!(
-            "s = {s:.4} +- {sd_s:.4} mm is not resolved (g from {:.2} to {:.2} px/mm)",
-            g_range[0], g_range[1]
-        ));
-    }
-    Ok(SheetSigmaEstimate {
-        sheet_sigma_mm: s,
-        sheet_sigma_sd_mm: sd_s,
-        psf_sigma_px: b,
-        psf_sigma_sd_px: sd_b,
-        sheet_sigma_linear_mm: s_lin,
-        points: used,
-        width_rms_px: rms,
-        g_range,
+    Ok(WidthFit {
+        s,
+        b,
+        cov,
+        rms,
+        used,
     })
 }

@@ -49,6 +49,8 @@
 
 use std::borrow::Cow;
 
+use rayon::prelude::*;
+
 use super::{extract_stripe, StripeOptions};
 use crate::error::{Error, Result};
 use crate::model::image::{AnyGray, AnyImage, Pixel};
@@ -204,6 +206,21 @@ pub fn channel_scores(img: &AnyImage, opts: &StripeOptions) -> Result<[f64; 4]> 
         };
     }
     Ok(out)
+}
+
+/// The `auto` choice from the laser images `load` gives for `paths` (in parallel),
+/// those it cannot read or decode (`None`) and those that cannot be scored left out
+/// (a scan's bad frames are reported by the reconstruction itself).
+pub fn decide_channel_lenient(
+    paths: &[std::path::PathBuf],
+    load: impl Fn(&std::path::Path) -> Option<AnyImage> + Sync,
+    opts: &StripeOptions,
+) -> StripeChannel {
+    let scores: Vec<[f64; 4]> = paths
+        .par_iter()
+        .filter_map(|p| channel_scores(&load(p)?, opts).ok())
+        .collect();
+    choose_channel(&scores)
 }
 
 /// The `auto` choice from the scores of some laser images ([`channel_scores`]): the

@@ -215,6 +215,7 @@
 //!   beyond its limit, the extractor's support near the outline, a saturated stripe) are
 //!   left out of the corrected fit ([`SphereBiasCorrection::modelled`]).
 
+mod correct;
 mod noise;
 mod plane;
 mod points;
@@ -225,22 +226,18 @@ use nalgebra::Vector3;
 
 use crate::error::{Error, Result};
 use crate::model::camera::Camera;
-use crate::model::geometry::{Iso3, Plane};
-use crate::model::StripeDirection;
-use crate::reconstruct::triangulate::Triangulator;
-use crate::reconstruct::{stripe_direction_from_plane, ScanPoints};
+use crate::model::geometry::Plane;
 use crate::vision::stripe::StripeOptions;
 
-use super::emitter::{estimate_emitter, EmitterEstimate};
-use super::sheet_sigma::{estimate_sheet_sigma, SheetSigmaEstimate};
-use super::{fit_sphere, FitOptions, SphereFitResult};
+use super::emitter::EmitterEstimate;
+use super::sheet_sigma::SheetSigmaEstimate;
+use super::{FitOptions, SphereFitResult};
 
+pub use correct::correct_sphere_bias;
 pub use noise::{predicted_noise_shift_px, NoiseShift};
 pub(crate) use plane::{board_point_profile, board_point_scale, Board as BoardSurface};
 pub use points::predicted_bias_px;
-use points::{corrected_points, corrections, point_geo};
 pub(crate) use profile::{extractor_response, plane_basis, point_profile, PointProfile, Rig};
-use systematic::{assumed_emitter_part, estimate_part, model_part, rss};
 pub use systematic::{SystematicKind, SystematicPart};
 
 /// Sheet offsets sampled on each side of the plane, at least (`2 M + 1` samples over
@@ -301,35 +298,6 @@ fn sphere_rig<'a>(
     rig.outline_margin_px = Some(margin);
     Ok(rig)
 }
-
-/// The points within [`CANDIDATE_SIGMAS`] robust sigmas of the uncorrected sphere (at least
-/// its inliers).
-fn candidates(points: &[[f64; 3]], fit: &SphereFitResult) -> Vec<usize> {
-    let lim = CANDIDATE_SIGMAS * fit.robust_sigma_mm;
-    let r = 0.5 * fit.diameter_mm;
-    (0..points.len())
-        .filter(|&i| {
-            fit.inlier[i] || ((Vector3::from(points[i]) - fit.center_mm).norm() - r).abs() <= lim
-        })
-        .collect()
-}
-
-/// What an error adds when points were left out as saturated.
-fn saturated_hint(saturated: usize) -> String {
-    if saturated == 0 {
-        return String::new();
-    }
-    format!(
-        " ({saturated} points left out as saturated: the model has no clipping; lower the \
-         laser power or the exposure)"
-    )
-}
-
-/// Fewest modelled points the corrected fit is made on.
-const MIN_MODELLED: usize = 10;
-
-/// Largest number of correct-and-refit rounds.
-const MAX_ROUNDS: usize = 8;
 
 /// Options of [`correct_sphere_bias`].
 #[derive(Debug, Clone, PartialEq)]
@@ -423,284 +391,6 @@ pub struct SphereBiasCorrection {
     pub systematic_parts: Vec<SystematicPart>,
     /// Correct-and-refit rounds made.
     pub rounds: usize,
-}
-
-/// The curved-surface bias correction of a sphere scan (module docs).
-///
-/// `points`: the stripe points of the sphere (e.g. a first fit's inliers), with their
-/// pixels and frames; `base_cam[f]`: `T_base_cam` of frame `f` (`T_base_hand(reading) *
-/// T_hand_cam`); `camera` and `plane`: the calibration the points were triangulated
-/// with. Errors: too few points, frames without a pose, a sheet thickness that cannot
-/// be estimated ([`super::sheet_sigma`]), a model that fails on most points, fewer than 10
-/// points that are not saturated.
-pub fn correct_sphere_bias(
-    points: &ScanPoints,
-    base_cam: &[Iso3],
-    camera: &Camera,
-    plane: &Plane,
-    opts: &StripeBiasOptions,
-) -> Result<SphereBiasCorrection> {
-    let n = points.len();
-    if points.u_px.len() != n || points.v_px.len() != n || points.frame.len() != n {
-        return Err(Error::InvalidInput(
-            "ScanPoints vectors of different lengths".into(),
-        ));
-    }
-    let mut stripe = opts.stripe.clone();
-    stripe.validate()?;
-    if stripe.direction == StripeDirection::Auto {
-        stripe.direction = stripe_direction_from_plane(camera, plane);
-    }
-    if !(opts.emitter_range_mm.is_finite() && opts.emitter_range_mm >= 0.0) {
-        return Err(Error::InvalidInput(format!(
-            "emitter_range_mm = {} must be finite and >= 0",
-            opts.emitter_range_mm
-        )));
-    }
-    let mut rig = sphere_rig(camera, plane, &stripe, opts)?;
-    let tri = Triangulator::new(camera, plane, &Iso3::identity(), 0.0)?;
-    let cam_base: Vec<Iso3> = base_cam.iter().map(|t| t.inverse()).collect();
-    let geo = (0..n)
-        .map(|i| point_geo(points, &cam_base, rig.along, i))
-        .collect::<Result<Vec<_>>>()?;
-    let saturated = geo.iter().filter(|(g, _)| g.saturated).count();
-    if n - saturated < MIN_MODELLED {
-        return Err(Error::Degenerate(format!(
-            "stripe bias: {} of {n} points are not saturated{}",
-            n - saturated,
-            saturated_hint(saturated)
-        )));
-    }
-    let uncorrected = fit_sphere(&points.points_mm, &opts.fit)?;
-    // Which points are corrected and which fitted (module docs): the candidates are the
-    // points near the uncorrected sphere, the fit trims the corrected residuals.
-    let cand = candidates(&points.points_mm, &uncorrected);
-    // The model's sanity check counts the uncorrected fit's inliers (the band's extra
-    // points lie at the rim, where the model's limits leave many out).
-    let inliers_unsaturated = (0..n)
-        .filter(|&i| uncorrected.inlier[i] && !geo[i].0.saturated)
-        .count();
-    // Refits of the corrected points: trimmed as the caller's fit is (on the corrected
-    // residuals), started from the algebraic fit; the sensitivity fits of the same
-    // points untrimmed.
-    let refit_opts = FitOptions {
-        robust_start: false,
-        ..opts.fit
-    };
-    let sens_opts = FitOptions {
-        trim_sigma: 0.0,
-        ..refit_opts
-    };
-    // The sheet and PSF sigmas and the emitter: from the uncorrected fit's inliers.
-    let est: Vec<usize> = (0..n).filter(|&i| uncorrected.inlier[i]).collect();
-    let est_points = points.subset(&est);
-    let geo3: Vec<(Vector3<f64>, f64, usize)> = est
-        .iter()
-        .map(|&i| (geo[i].0.p_cam, geo[i].0.line, geo[i].1))
-        .collect();
-    let sphere0 = (&uncorrected.center_mm, 0.5 * uncorrected.diameter_mm);
-    // The sheet and PSF sigmas (widths) and the emitter (brightness) depend on each
-    // other a little: two passes, the second with the first's emitter.
-    let estimate_e = opts.emitter_cam_mm.is_none() && opts.estimate_emitter;
-    let mut emitter_estimate = None;
-    let mut sheet;
-    let mut pass = 0;
-    loop {
-        sheet = estimate_sheet_sigma(
-            &rig,
-            &est_points,
-            &geo3,
-            &cam_base,
-            sphere0,
-            opts.sheet_sigma_mm,
-            opts.psf_sigma_px,
-        )
-        .map_err(|e| match e {
-            Error::Degenerate(m) => Error::Degenerate(format!("{m}{}", saturated_hint(saturated))),
-            other => other,
-        })?;
-        pass += 1;
-        if !estimate_e || pass > 2 {
-            break;
-        }
-        let (sigma, psf) = (sheet.sheet_sigma_mm, sheet.psf_sigma_px);
-        emitter_estimate =
-            estimate_emitter(&rig, &est_points, &geo3, &cam_base, sphere0, sigma, psf);
-        match &emitter_estimate {
-            Some(e) => rig.emitter = e.emitter_cam_mm,
-            None => break,
-        }
-        if pass == 2 {
-            break;
-        }
-    }
-    let (sigma, psf) = (sheet.sheet_sigma_mm, sheet.psf_sigma_px);
-    let emitter = rig.emitter;
-    // Correct, refit, repeat.
-    let mut sphere = (uncorrected.center_mm, 0.5 * uncorrected.diameter_mm);
-    let mut fit = uncorrected.clone();
-    let mut corr = Vec::new();
-    let mut used = vec![false; n];
-    let mut rounds = 0;
-    while rounds < MAX_ROUNDS {
-        rounds += 1;
-        corr = corrections(
-            &rig,
-            &tri,
-            &geo,
-            &cam_base,
-            &cand,
-            (&sphere.0, sphere.1),
-            sigma,
-            psf,
-        );
-        let good: Vec<usize> = cand
-            .iter()
-            .zip(&corr)
-            .filter_map(|(&i, c)| c.map(|_| i))
-            .collect();
-        let good_inliers = good.iter().filter(|&&i| uncorrected.inlier[i]).count();
-        if good_inliers < inliers_unsaturated / 2 || good.len() < MIN_MODELLED {
-            return Err(Error::Degenerate(format!(
-                "stripe bias: the model holds for {good_inliers} of the uncorrected fit's {} \
-                 inliers only{}",
-                uncorrected.points,
-                saturated_hint(saturated)
-            )));
-        }
-        fit = fit_sphere(&corrected_points(points, &cand, &corr), &refit_opts)?;
-        used.fill(false);
-        for (&i, &k) in good.iter().zip(&fit.inlier) {
-            used[i] = k;
-        }
-        let moved = (fit.diameter_mm - 2.0 * sphere.1)
-            .abs()
-            .max((fit.center_mm - sphere.0).norm());
-        sphere = (fit.center_mm, 0.5 * fit.diameter_mm);
-        if moved < 1e-5 {
-            break;
-        }
-    }
-    // Systematic parts on a subsample, as differences from the nominal model on the
-    // points both model.
-    let fitted: Vec<usize> = (0..n).filter(|&i| used[i]).collect();
-    let step = fitted.len().div_ceil(SENSITIVITY_POINTS).max(1);
-    let sub: Vec<usize> = fitted.into_iter().step_by(step).collect();
-    let corr_sub = |rig: &Rig<'_>, sigma: f64, psf: f64| {
-        corrections(
-            rig,
-            &tri,
-            &geo,
-            &cam_base,
-            &sub,
-            (&sphere.0, sphere.1),
-            sigma,
-            psf,
-        )
-    };
-    let nominal = corr_sub(&rig, sigma, psf);
-    // (diameter, centre) of the alternative minus the nominal.
-    let compare = |alt: &[Option<[f64; 3]>]| -> Option<(f64, Vector3<f64>)> {
-        let (mut pa, mut pb) = (Vec::new(), Vec::new());
-        for ((&i, a), b) in sub.iter().zip(&nominal).zip(alt) {
-            if let (Some(a), Some(b)) = (a, b) {
-                let p = points.points_mm[i];
-                pa.push([p[0] - a[0], p[1] - a[1], p[2] - a[2]]);
-                pb.push([p[0] - b[0], p[1] - b[1], p[2] - b[2]]);
-            }
-        }
-        let fa = fit_sphere(&pa, &sens_opts).ok()?;
-        let fb = fit_sphere(&pb, &sens_opts).ok()?;
-        Some((fb.diameter_mm - fa.diameter_mm, fb.center_mm - fa.center_mm))
-    };
-    // The systematic parts, signed, one per source ([`systematic`]).
-    let mut parts = Vec::new();
-    let axes = [rig.e1, rig.e2];
-    match &emitter_estimate {
-        // Assumed: the two ends of +-range along each axis.
-        None => {
-            for (k, dir) in axes.iter().enumerate() {
-                let at = |s: f64| {
-                    let mut r2 = rig.clone();
-                    r2.emitter = emitter + dir * (s * opts.emitter_range_mm);
-                    compare(&corr_sub(&r2, sigma, psf))
-                };
-                parts.extend(assumed_emitter_part(k as u32, at(1.0), at(-1.0)));
-            }
-        }
-        // Estimated: +-1 standard uncertainty along each axis.
-        Some(e) => {
-            for (k, (dir, sd)) in axes.iter().zip(e.sd_mm).enumerate() {
-                let at = |s: f64| {
-                    let mut r2 = rig.clone();
-                    r2.emitter = emitter + dir * (s * sd);
-                    compare(&corr_sub(&r2, sigma, psf))
-                };
-                parts.extend(estimate_part(k as u32, at(1.0), at(-1.0)));
-            }
-        }
-    }
-    // Sheet and PSF sigmas: +-1 standard uncertainty each.
-    for (k, (ds, dp)) in [(sheet.sheet_sigma_sd_mm, 0.0), (0.0, sheet.psf_sigma_sd_px)]
-        .into_iter()
-        .enumerate()
-    {
-        if ds == 0.0 && dp == 0.0 {
-            continue;
-        }
-        let a = compare(&corr_sub(&rig, sigma + ds, psf + dp));
-        let b = compare(&corr_sub(&rig, (sigma - ds).max(1e-6), (psf - dp).max(0.0)));
-        parts.extend(estimate_part(2 + k as u32, a, b));
-    }
-    let diameter_change_mm = fit.diameter_mm - uncorrected.diameter_mm;
-    let center_change_mm = fit.center_mm - uncorrected.center_mm;
-    parts.push(model_part(
-        neglected_share(NEGLECTED_FRACTION),
-        diameter_change_mm,
-        &center_change_mm,
-    ));
-    let is_emitter = |k: &SystematicKind| {
-        matches!(
-            k,
-            SystematicKind::AssumedEmitter(_) | SystematicKind::Estimate(0 | 1)
-        )
-    };
-    let is_sigma = |k: &SystematicKind| matches!(k, SystematicKind::Estimate(2 | 3));
-    let diameter = |p: &SystematicPart| p.diameter_mm;
-    let diameter_systematic_mm = rss(&parts, |_| true, diameter);
-    let center_systematic_mm =
-        Vector3::from_fn(|k, _| rss(&parts, |_| true, |p: &SystematicPart| p.center_mm[k]));
-    let diameter_systematic_parts_mm = [
-        rss(&parts, is_emitter, diameter),
-        rss(&parts, is_sigma, diameter),
-        rss(&parts, |k| *k == SystematicKind::Model, diameter),
-    ];
-    let mut modelled = vec![false; n];
-    let mut corrections_mm = vec![[0.0; 3]; n];
-    for (&i, c) in cand.iter().zip(&corr) {
-        if let Some(c) = c {
-            modelled[i] = true;
-            corrections_mm[i] = *c;
-        }
-    }
-    Ok(SphereBiasCorrection {
-        fit,
-        uncorrected,
-        corrections_mm,
-        modelled,
-        used,
-        saturated,
-        sheet,
-        emitter_cam_mm: emitter,
-        emitter_estimate,
-        diameter_change_mm,
-        center_change_mm,
-        diameter_systematic_mm,
-        center_systematic_mm,
-        diameter_systematic_parts_mm,
-        systematic_parts: parts,
-        rounds,
-    })
 }
 
 #[cfg(test)]

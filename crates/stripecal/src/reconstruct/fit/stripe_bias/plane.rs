@@ -142,7 +142,6 @@ pub(crate) fn board_point_scale(
 /// The samples of one stripe point of a board ([`super::profile::point_profile`]'s
 /// counterpart): scan line `line`, near the camera-frame point `p_near`, sheet sigma
 /// `sigma` (mm), PSF sigma `psf` (px). `false` when the scan line cannot be modelled.
-#[allow(clippy::too_many_arguments)]
 pub(crate) fn board_point_profile(
     rig: &Rig<'_>,
     board: &Board<'_>,

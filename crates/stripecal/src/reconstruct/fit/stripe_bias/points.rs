@@ -51,19 +51,25 @@ pub(crate) fn point_geo(
     ))
 }
 
+/// What a scan's points are corrected with besides the model: the triangulator, each
+/// point's geometry and frame ([`point_geo`]), each frame's `T_cam_base`.
+pub(crate) struct ScanGeometry<'a> {
+    pub tri: &'a Triangulator,
+    pub geo: &'a [(PointGeo, usize)],
+    pub cam_base: &'a [Iso3],
+}
+
 /// The 3D corrections (base frame) of the points `idx` for a sphere (base frame) and
 /// model parameters; `None` per point where the model fails.
-#[allow(clippy::too_many_arguments)]
 pub(crate) fn corrections(
     rig: &Rig<'_>,
-    tri: &Triangulator,
-    geo: &[(PointGeo, usize)],
-    cam_base: &[Iso3],
+    scan: &ScanGeometry<'_>,
     idx: &[usize],
     sphere: (&Vector3<f64>, f64),
     sigma: f64,
     psf: f64,
 ) -> Vec<Option<[f64; 3]>> {
+    let (tri, geo, cam_base) = (scan.tri, scan.geo, scan.cam_base);
     idx.par_iter()
         .map_init(
             || (PointProfile::default(), Vec::new()),

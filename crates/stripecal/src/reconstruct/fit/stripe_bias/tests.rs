@@ -2,7 +2,11 @@
 
 use super::profile::*;
 use super::*;
+use crate::model::geometry::Iso3;
+use crate::model::StripeDirection;
 use crate::reconstruct::triangulate::tests::camera;
+use crate::reconstruct::triangulate::Triangulator;
+use crate::reconstruct::ScanPoints;
 use crate::vision::stripe::profile_centre;
 use crate::vision::stripe::FLAG_SATURATED;
 

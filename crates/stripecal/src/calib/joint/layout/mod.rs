@@ -42,7 +42,7 @@
 //! Jacobian run over all [`SLOTS`] of them); a *column* is a position in the solver's
 //! vector: the estimated global slots packed in block order, then each view's estimated
 //! per-view values (view after view, blocks in registration order). A block that is not
-//! estimated ([`FreeBlocks`]) has no columns: its slots keep the starting values
+//! estimated ([`FreeBlocks`](super::FreeBlocks)) has no columns: its slots keep the starting values
 //! (`base`), a per-view block's values the identity. Per-view blocks have no slots: a
 //! view's residuals reach them through the slots of the global block they perturb (the
 //! robot-pose correction through `X`'s, [`super::robot_noise`]). The laser plane's unit
@@ -51,17 +51,25 @@
 //!
 //! A new block is one [`BlockKind`] (its size, names, update and decoding) plus its
 //! registration in [`ParamLayout::new`], global or per view.
+//!
+//! Here the blocks and the layout's queries, encoding, decoding and retraction;
+//! [`build`] registers the blocks, [`chart`] is the plane's chart, [`params`] the
+//! decoded values.
+
+mod build;
+mod chart;
+mod params;
+
+pub(super) use chart::PlaneChart;
+pub(super) use params::JointParams;
 
 use std::ops::Range;
 
 use nalgebra::{Matrix3, Vector3};
 
 use crate::calib::joint::robot::RobotBlock;
-use crate::calib::joint::{FreeBlocks, JointOptions, JointStart};
-use crate::model::camera::PARAM_NAMES;
-use crate::model::geometry::{
-    iso_from_parts, iso_from_rotvec, iso_to_rotvec, matrix_to_rotvec, rotvec_to_matrix, Iso3,
-};
+use crate::calib::joint::JointOptions;
+use crate::model::geometry::{iso_from_rotvec, matrix_to_rotvec, rotvec_to_matrix, Iso3};
 
 /// Number of slots (the dual-number width of the Jacobian): camera 9, plane 3, X 6, Z 6,
 /// board scale 1.
@@ -70,7 +78,7 @@ pub(super) const SLOTS: usize = 25;
 /// The blocks of the parameter vector, in slot (and column) order.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub(super) enum Block {
-    /// The camera parameters ([`PARAM_NAMES`] order).
+    /// The camera parameters ([`PARAM_NAMES`](crate::model::camera::PARAM_NAMES) order).
     Camera,
     /// The laser plane's chart coordinates `a, b` and offset `d`, mm.
     Plane,
@@ -170,66 +178,6 @@ impl BlockDef {
     }
 }
 
-/// The local chart of the laser plane's normal: `n = normalize(n0 + a e1 + b e2)`.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub(super) struct PlaneChart {
-    pub n0: Vector3<f64>,
-    pub e1: Vector3<f64>,
-    pub e2: Vector3<f64>,
-}
-
-impl PlaneChart {
-    /// The chart around the unit normal `n0`.
-    pub fn around(n0: Vector3<f64>) -> PlaneChart {
-        let (e1, e2) = tangent_basis(&n0);
-        PlaneChart { n0, e1, e2 }
-    }
-
-    /// The raw (unnormalised) normal `n0 + a e1 + b e2`.
-    pub fn raw_normal(&self, a: f64, b: f64) -> Vector3<f64> {
-        self.n0 + self.e1 * a + self.e2 * b
-    }
-}
-
-/// Two unit vectors completing `n` to an orthonormal basis.
-fn tangent_basis(n: &Vector3<f64>) -> (Vector3<f64>, Vector3<f64>) {
-    let helper = if n.x.abs() < 0.6 {
-        Vector3::x()
-    } else {
-        Vector3::y()
-    };
-    let e1 = n.cross(&helper).normalize();
-    let e2 = n.cross(&e1);
-    (e1, e2)
-}
-
-/// The values of a parameter vector decoded.
-#[derive(Debug, Clone)]
-pub(super) struct JointParams {
-    /// Camera parameters, [`PARAM_NAMES`] order (fixed ones from the base camera).
-    pub cam: [f64; 9],
-    pub plane_n: Vector3<f64>,
-    pub plane_d: f64,
-    pub x_rot: Matrix3<f64>,
-    pub x_t: Vector3<f64>,
-    pub z_rot: Matrix3<f64>,
-    pub z_t: Vector3<f64>,
-    /// The board's scale.
-    pub scale: f64,
-    /// Per view used: the robot-pose correction `D_i = (R, t)` (empty when not
-    /// estimated: the robot poses are taken as exact).
-    pub corrections: Vec<(Matrix3<f64>, Vector3<f64>)>,
-    /// Per view used: the image-pose part `e_i` of the correction (rotation rad, then
-    /// translation mm; empty when not estimated).
-    pub image_pose: Vec<[f64; 6]>,
-    /// Per view used, on the bench: the board pose `T_cam_board(i) = (R, t)` (empty
-    /// with a robot: the board poses follow from the chain).
-    pub board_poses: Vec<(Matrix3<f64>, Vector3<f64>)>,
-    /// The DH corrections ([`super::robot::RobotBlock::params`]; empty without a robot
-    /// block).
-    pub robot: Vec<f64>,
-}
-
 /// A profiler's sphere at the start of its adjustment, and whether its diameter is
 /// estimated (the centre always is).
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -291,237 +239,7 @@ impl PoseNoise {
     }
 }
 
-/// What [`ParamLayout::build`] registers: each block's estimated values and the start.
-struct BuildSpec<'a> {
-    cam_free: Vec<bool>,
-    plane_free: bool,
-    free: FreeBlocks,
-    robot_noise: bool,
-    image_pose: bool,
-    robot: Option<RobotBlock>,
-    board_poses: Option<&'a [Iso3]>,
-    sphere: Option<SphereStart>,
-    /// The slots' values at the start, and the plane's normal there.
-    base: [f64; SLOTS],
-    n0: Vector3<f64>,
-}
-
 impl ParamLayout {
-    /// The layout around `start`: the camera's four intrinsics and its model's free
-    /// distortion coefficients, the laser plane charted around the starting normal, `X`,
-    /// `Z` and the board scale (held at `scale` unless estimated), each estimated as
-    /// `free` says; per view of `view_ids` (dataset rows) a robot-pose correction,
-    /// estimated when `noise` is not [`PoseNoise::Off`], and its image-pose part with
-    /// [`PoseNoise::RobotAndImage`]. Without a starting plane the plane block is held
-    /// (it has no observations then).
-    pub fn new(
-        start: &JointStart,
-        free: &FreeBlocks,
-        scale: f64,
-        view_ids: &[usize],
-        noise: PoseNoise,
-        robot: Option<RobotBlock>,
-    ) -> ParamLayout {
-        let spec = BuildSpec::camera(start, free, scale, noise, robot, None);
-        Self::build(spec, view_ids)
-    }
-
-    /// The bench's layout ([`super::bench`]): the camera and the laser plane as `free`
-    /// says, `X`, `Z` and the board scale held (at the identity and 1), and per view of
-    /// `view_ids` its board pose, free, starting at `board_poses` (`T_cam_board`).
-    pub fn bench(
-        start: &JointStart,
-        free: &FreeBlocks,
-        view_ids: &[usize],
-        board_poses: &[Iso3],
-    ) -> ParamLayout {
-        let free = FreeBlocks {
-            hand_cam: false,
-            base_board: false,
-            board_scale: false,
-            ..*free
-        };
-        let spec = BuildSpec::camera(start, &free, 1.0, PoseNoise::Off, None, Some(board_poses));
-        Self::build(spec, view_ids)
-    }
-
-    /// A profiler's layout ([`super::profile`]): `X = T_hand_sensor` (estimated when
-    /// `hand_free`), the sphere's centre and (when `sphere.diameter_free`) its diameter,
-    /// the robot block; every camera block held.
-    pub fn profiler(
-        hand_sensor: &Iso3,
-        hand_free: bool,
-        sphere: SphereStart,
-        view_ids: &[usize],
-        robot: Option<RobotBlock>,
-    ) -> ParamLayout {
-        let mut base = [0.0; SLOTS];
-        let (rv, tr) = iso_to_rotvec(hand_sensor);
-        // the camera's slots are never read; the board scale is 1
-        base[9 + 3..9 + 3 + 6].copy_from_slice(&[rv.x, rv.y, rv.z, tr.x, tr.y, tr.z]);
-        base[SLOTS - 1] = 1.0;
-        let spec = BuildSpec {
-            cam_free: vec![false; 9],
-            plane_free: false,
-            free: FreeBlocks {
-                camera: false,
-                laser_plane: false,
-                hand_cam: hand_free,
-                base_board: false,
-                board_scale: false,
-            },
-            robot_noise: false,
-            image_pose: false,
-            robot,
-            board_poses: None,
-            sphere: Some(sphere),
-            base,
-            n0: Vector3::z(),
-        };
-        let layout = Self::build(spec, view_ids);
-        debug_assert_eq!(layout.slots(Block::HandCam).start, 12);
-        layout
-    }
-
-    fn build(spec: BuildSpec<'_>, view_ids: &[usize]) -> ParamLayout {
-        let BuildSpec {
-            cam_free,
-            plane_free,
-            free,
-            robot_noise,
-            image_pose,
-            robot,
-            board_poses,
-            sphere,
-            base,
-            n0,
-        } = spec;
-        let blocks = vec![
-            BlockDef {
-                block: Block::Camera,
-                kind: BlockKind::Euclidean,
-                names: PARAM_NAMES.iter().map(|s| s.to_string()).collect(),
-                free: cam_free,
-                per_view: false,
-                slotless: false,
-            },
-            BlockDef::euclidean(
-                Block::Plane,
-                &["plane_a", "plane_b", "plane_d_mm"],
-                vec![plane_free; 3],
-            ),
-            BlockDef::transform(Block::HandCam, "hand_cam", free.hand_cam),
-            BlockDef::transform(Block::BaseBoard, "base_board", free.base_board),
-            BlockDef::euclidean(Block::BoardScale, &["board_scale"], vec![free.board_scale]),
-            BlockDef::transform(Block::RobotPose, "robot", robot_noise).per_view(),
-            BlockDef::euclidean(
-                Block::ImagePose,
-                &[
-                    "image_wx",
-                    "image_wy",
-                    "image_wz",
-                    "image_tx_mm",
-                    "image_ty_mm",
-                    "image_tz_mm",
-                ],
-                vec![robot_noise && image_pose; 6],
-            )
-            .per_view(),
-            BlockDef::transform(Block::BoardPose, "board", board_poses.is_some()).per_view(),
-            BlockDef::euclidean(
-                Block::SphereCentre,
-                &["sphere_cx_mm", "sphere_cy_mm", "sphere_cz_mm"],
-                vec![sphere.is_some(); 3],
-            )
-            .slotless(),
-            BlockDef::euclidean(
-                Block::SphereDiameter,
-                &["sphere_diameter_mm"],
-                vec![sphere.is_some_and(|s| s.diameter_free)],
-            )
-            .slotless(),
-            BlockDef {
-                block: Block::Robot,
-                kind: BlockKind::Euclidean,
-                names: robot
-                    .iter()
-                    .flat_map(|r| r.params.iter().map(|p| p.name()))
-                    .collect(),
-                free: robot
-                    .as_ref()
-                    .map_or(vec![], |r| vec![true; r.params.len()]),
-                per_view: false,
-                slotless: true,
-            },
-        ];
-        let (mut slot0, mut col0, mut col_of_slot) = (Vec::new(), Vec::new(), Vec::new());
-        let (mut col, mut view_col) = (0, 0);
-        for b in &blocks {
-            slot0.push(col_of_slot.len());
-            if b.per_view {
-                col0.push(view_col);
-                view_col += b.estimated();
-                continue;
-            }
-            if b.slotless {
-                col0.push(col);
-                col += b.estimated();
-                continue;
-            }
-            col0.push(col);
-            for &f in &b.free {
-                col_of_slot.push(f.then_some(col));
-                col += usize::from(f);
-            }
-        }
-        debug_assert_eq!(col_of_slot.len(), SLOTS);
-        let mut view_base = vec![0.0; view_ids.len() * view_col];
-        if let Some(poses) = board_poses {
-            let c = col0[blocks
-                .iter()
-                .position(|b| b.block == Block::BoardPose)
-                .unwrap_or(0)];
-            for (v, t) in poses.iter().enumerate().take(view_ids.len()) {
-                let (rv, tr) = iso_to_rotvec(t);
-                let b = v * view_col + c;
-                view_base[b..b + 6].copy_from_slice(&[rv.x, rv.y, rv.z, tr.x, tr.y, tr.z]);
-            }
-        }
-        ParamLayout {
-            view_base,
-            blocks,
-            slot0,
-            col0,
-            col_of_slot,
-            base,
-            n_global: col,
-            view_ids: view_ids.to_vec(),
-            per_view_cols: view_col,
-            chart: PlaneChart::around(n0),
-            robot,
-            sphere,
-        }
-    }
-
-    /// The layout of an adjustment with options `opts` over the views `used` (dataset
-    /// rows): [`Self::new`] with their board scale and robot-pose noise.
-    pub fn of(
-        start: &JointStart,
-        free: &FreeBlocks,
-        opts: &JointOptions,
-        used: &[usize],
-        robot: Option<RobotBlock>,
-    ) -> ParamLayout {
-        ParamLayout::new(
-            start,
-            free,
-            opts.board_scale,
-            used,
-            PoseNoise::of(opts),
-            robot,
-        )
-    }
-
     fn index(&self, block: Block) -> usize {
         self.blocks
             .iter()
@@ -744,57 +462,6 @@ impl ParamLayout {
     }
 }
 
-impl BuildSpec<'_> {
-    /// A camera's blocks: the camera's four intrinsics and its model's free distortion
-    /// coefficients, the plane (held without a starting plane), `X`, `Z` and the board
-    /// scale as `free` says.
-    fn camera<'a>(
-        start: &JointStart,
-        free: &FreeBlocks,
-        scale: f64,
-        noise: PoseNoise,
-        robot: Option<RobotBlock>,
-        board_poses: Option<&'a [Iso3]>,
-    ) -> BuildSpec<'a> {
-        let mut cam_free = vec![free.camera; 4];
-        cam_free.extend(
-            start
-                .camera
-                .model
-                .free_coefficients()
-                .iter()
-                .map(|&f| f && free.camera),
-        );
-        BuildSpec {
-            cam_free,
-            plane_free: free.laser_plane && start.plane.is_some(),
-            free: *free,
-            robot_noise: noise != PoseNoise::Off,
-            image_pose: noise == PoseNoise::RobotAndImage,
-            robot,
-            board_poses,
-            sphere: None,
-            base: slot_values(start, scale),
-            n0: start.plane.map_or(Vector3::z(), |p| p.normal),
-        }
-    }
-}
-
-/// Every slot's value at `start`: the camera's parameters (slots 0..9), the plane's
-/// chart coordinates (0, 0) and offset (9..12), `X` (12..18) and `Z` (18..24) as
-/// rotation vector and translation, the board scale (24).
-fn slot_values(start: &JointStart, scale: f64) -> [f64; SLOTS] {
-    let mut v = [0.0; SLOTS];
-    v[0..9].copy_from_slice(&start.camera.params());
-    v[11] = start.plane.map_or(0.0, |p| p.d);
-    for (s, t) in [(12, &start.hand_cam), (18, &start.base_board)] {
-        let (rv, tr) = iso_to_rotvec(t);
-        v[s..s + 6].copy_from_slice(&[rv.x, rv.y, rv.z, tr.x, tr.y, tr.z]);
-    }
-    v[24] = scale;
-    v
-}
-
 /// The update of one block's columns `r`.
 fn retract_block(kind: BlockKind, r: Range<usize>, p: &[f64], dp: &[f64], out: &mut [f64]) {
     match kind {
@@ -816,58 +483,10 @@ fn retract_block(kind: BlockKind, r: Range<usize>, p: &[f64], dp: &[f64], out: &
     }
 }
 
-impl JointParams {
-    /// The flange poses the views are imaged from: the robot poses `a` corrected,
-    /// `A_i D_i` (as given when the corrections are not estimated).
-    pub fn flange_poses(&self, a: &[Iso3]) -> Vec<Iso3> {
-        if self.corrections.is_empty() {
-            return a.to_vec();
-        }
-        a.iter()
-            .zip(&self.corrections)
-            .map(|(a, (r, t))| {
-                let ra = a.rotation.to_rotation_matrix().into_inner();
-                iso_from_parts(&(ra * r), &(ra * t + a.translation.vector))
-            })
-            .collect()
-    }
-
-    /// `T_cam_board` of each view, `(R, t)`, from the robot poses `a` (corrected,
-    /// [`Self::flange_poses`]); on the bench the board poses themselves.
-    pub fn view_poses(&self, a: &[Iso3]) -> Vec<([[f64; 3]; 3], [f64; 3])> {
-        use crate::numerics::mat3::m3;
-        if !self.board_poses.is_empty() {
-            return self
-                .board_poses
-                .iter()
-                .map(|(r, t)| (m3(r), [t.x, t.y, t.z]))
-                .collect();
-        }
-        let xr: [[f64; 3]; 3] = m3(&self.x_rot);
-        let zr: [[f64; 3]; 3] = m3(&self.z_rot);
-        let xt = [self.x_t.x, self.x_t.y, self.x_t.z];
-        let zt = [self.z_t.x, self.z_t.y, self.z_t.z];
-        self.flange_poses(a)
-            .iter()
-            .map(|a| super::chain::cam_board(a, &xr, &xt, &zr, &zt))
-            .collect()
-    }
-
-    /// The poses the board's points are imaged with: `(R, t / s)` of each
-    /// [`Self::view_poses`] (a board `s` times larger at `t` images like rig.json's board
-    /// at `t / s`: the central projection is scale-invariant).
-    pub fn circle_poses(&self, a: &[Iso3]) -> Vec<([[f64; 3]; 3], [f64; 3])> {
-        let k = 1.0 / self.scale;
-        self.view_poses(a)
-            .into_iter()
-            .map(|(r, t)| (r, [t[0] * k, t[1] * k, t[2] * k]))
-            .collect()
-    }
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::calib::joint::{FreeBlocks, JointStart};
     use crate::model::camera::{Camera, DistortionModel};
     use crate::model::geometry::Plane;
 

@@ -1,0 +1,91 @@
+//! What the adjustment's normal equations say per view: each view's share reduced to
+//! the global columns, and the image rows' response to flange motions.
+
+use nalgebra::DMatrix;
+
+use super::{JointProblem, ReducedShare};
+use crate::calib::clustered::ViewShare;
+use crate::error::Result;
+use crate::numerics::lm::{JacobianRows, LeastSquares};
+
+impl JointProblem<'_> {
+    /// Each view's share of the normal equations at `p`, reduced to the global columns
+    /// by eliminating its own per-view columns: `(M_v, s_v)` with `M_v = A_gg - A_gd
+    /// A_dd^-1 A_dg` and `s_v = g_g - A_gd A_dd^-1 g_d` over its rows (its image rows
+    /// and prior rows, weighted; `A = J^T J`, `g = J^T r`). Their sums are the reduced
+    /// normal equations; `None` when a view's own block is singular.
+    pub fn view_shares(&self, p: &[f64]) -> Result<Option<Vec<ReducedShare>>> {
+        let (n, m) = (self.num_params(), self.num_residuals());
+        let ng = self.layout.num_global();
+        let pv = self.layout.per_view_len();
+        let w = self.row_width();
+        let mut r = vec![0.0; m];
+        let mut rows = JacobianRows::new(m, w, n);
+        self.residuals_and_jacobian_rows(p, &mut r, &mut rows)?;
+        let nv = self.terms.a.len();
+        let mut acc: Vec<ViewShare> = (0..nv)
+            .map(|v| ViewShare::new(ng, ng + v * pv..ng + (v + 1) * pv))
+            .collect();
+        for &(view, i0, i1) in &self.view_runs {
+            for (i, ri) in r.iter().enumerate().take(i1).skip(i0) {
+                let (cols, vals) = rows.row(i);
+                acc[view].add_row(cols, vals, *ri);
+            }
+        }
+        Ok(acc.into_iter().map(ViewShare::reduced).collect())
+    }
+
+    /// `J^T J_k` (n x p) at `p`: the gradient of the weighted image rows' sum of squares'
+    /// linear term along each of `p` flange motions, `twists[view][k]` the view's flange
+    /// perturbation `(w, v)` per unit of motion `k` in its correction's frame (the image
+    /// rows reach them through the view's correction columns). `None` without the
+    /// robot-pose corrections.
+    pub fn flange_response(
+        &self,
+        p: &[f64],
+        twists: &[Vec<[f64; 6]>],
+    ) -> Result<Option<DMatrix<f64>>> {
+        if !self.robot {
+            return Ok(None);
+        }
+        let (n, m) = (self.num_params(), self.num_residuals());
+        let ng = self.layout.num_global();
+        let pv = self.layout.per_view_len();
+        let w = self.row_width();
+        let k = twists.first().map_or(0, |t| t.len());
+        let mut r = vec![0.0; m];
+        let mut rows = JacobianRows::new(m, w, n);
+        self.residuals_and_jacobian_rows(p, &mut r, &mut rows)?;
+        let mut g = DMatrix::zeros(n, k);
+        let po = self.prior_offset();
+        for &(view, i0, i1) in self.view_runs.iter().filter(|r| r.1 < po) {
+            let Some(tw) = twists.get(view) else { continue };
+            let own = ng + view * pv;
+            for i in i0..i1 {
+                let (cols, vals) = rows.row(i);
+                // The row's value along each motion: its correction columns times the
+                // motion's twist.
+                let dcols: Vec<usize> = (0..6).map(|q| own + q).collect();
+                let along: Vec<f64> = (0..k)
+                    .map(|j| {
+                        cols.iter()
+                            .zip(vals)
+                            .filter_map(|(c, v)| {
+                                dcols.iter().position(|d| d == c).map(|q| v * tw[j][q])
+                            })
+                            .sum()
+                    })
+                    .collect();
+                for (c, v) in cols.iter().zip(vals) {
+                    if *v == 0.0 {
+                        continue;
+                    }
+                    for (j, a) in along.iter().enumerate() {
+                        g[(*c, j)] += v * a;
+                    }
+                }
+            }
+        }
+        Ok(Some(g))
+    }
+}
