@@ -331,8 +331,8 @@ pub fn calibrate(
     match result {
         Ok(rep) => Ok(Py::new(py, report_to_py(rep))?.into_any()),
         Err(stripecal::Error::Quality(f)) => {
-            let cal = match &f.report {
-                Some(rep) => Some(Py::new(py, report_to_py((**rep).clone()))?.into_any()),
+            let cal = match f.report() {
+                Some(rep) => Some(Py::new(py, report_to_py(rep.clone()))?.into_any()),
                 None => None,
             };
             Err(quality_error(py, &f, cal))

@@ -2,7 +2,9 @@
 //! trusted (calibration.json `quality.checks`), and the failure that carries a
 //! calibration nobody should use.
 
+use std::any::Any;
 use std::fmt;
+use std::sync::Arc;
 
 /// One quality gate and its verdict.
 #[derive(Debug, Clone, PartialEq)]
@@ -44,10 +46,43 @@ impl QualityCheck {
 /// calibration could still be computed (from the views that agree), that calibration
 /// for inspection. Returned as [`crate::Error::Quality`]; with
 /// `CalibrateOptions::accept_poor` the calibration is returned instead, marked.
+///
+/// The crate's one error type sits below the layer that calibrates, so the calibration
+/// to inspect is held without naming its type here; the layer that made it reads it
+/// back typed (the pipeline's `QualityFailure::report`, a `CalibrationReport`).
 #[derive(Debug, Clone)]
 pub struct QualityFailure {
     pub failed: Vec<QualityCheck>,
-    pub report: Option<Box<crate::pipeline::CalibrationReport>>,
+    inspection: Option<Arc<dyn Any + Send + Sync>>,
+}
+
+impl QualityFailure {
+    /// A failure with nothing to inspect (no calibration could be computed).
+    pub fn new(failed: Vec<QualityCheck>) -> Self {
+        QualityFailure {
+            failed,
+            inspection: None,
+        }
+    }
+
+    /// A failure with the calibration of the views that agree, for inspection.
+    pub fn with_inspection<T: Any + Send + Sync>(failed: Vec<QualityCheck>, result: T) -> Self {
+        QualityFailure {
+            failed,
+            inspection: Some(Arc::new(result)),
+        }
+    }
+
+    /// The calibration to inspect, as the type that made it (`None`: none, or another
+    /// type).
+    pub fn inspection<T: Any>(&self) -> Option<&T> {
+        self.inspection.as_deref()?.downcast_ref()
+    }
+
+    /// Whether a calibration could still be computed.
+    pub fn has_inspection(&self) -> bool {
+        self.inspection.is_some()
+    }
 }
 
 impl fmt::Display for QualityFailure {
@@ -56,7 +91,7 @@ impl fmt::Display for QualityFailure {
         for c in &self.failed {
             write!(f, "; {}: {}", c.name, c.message)?;
         }
-        if self.report.is_none() {
+        if !self.has_inspection() {
             write!(f, " (no calibration could be computed)")?;
         }
         Ok(())

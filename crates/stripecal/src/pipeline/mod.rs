@@ -261,6 +261,14 @@ pub struct CalibrationReport {
     pub warnings: Vec<String>,
 }
 
+impl crate::model::QualityFailure {
+    /// The calibration of the views that agree, for inspection, when the pipeline could
+    /// still compute one.
+    pub fn report(&self) -> Option<&CalibrationReport> {
+        self.inspection()
+    }
+}
+
 /// Loads a dataset folder, observes it and calibrates it ([`calibrate_dataset_loaded`]).
 pub fn calibrate_dataset(
     root: impl AsRef<Path>,

@@ -160,8 +160,9 @@ fn the_board_scale_check_finds_a_board_declared_2_percent_too_large() {
         msg.contains("implies 5.000 mm") && msg.contains("--estimate-board-scale"),
         "{msg}"
     );
-    let rep = *failure
-        .report
+    let rep = failure
+        .report()
+        .cloned()
         .expect("the failed calibration for inspection");
     let c = rep.board_scale.clone().unwrap();
     let truth = 1.0 / k;

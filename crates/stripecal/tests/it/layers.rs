@@ -21,16 +21,6 @@ const RANKS: &[(&str, u32)] = &[
     ("pipeline", 5),
 ];
 
-/// TEMPORARY (issue 40): the files whose upward imports are being removed on other
-/// branches (`records`: model/quality.rs and io/calibration.rs, `split`:
-/// reconstruct/scan.rs). Their upward imports are not reported; empty this list when
-/// those branches are merged.
-const KNOWN: &[&str] = &[
-    "model/quality.rs",
-    "io/calibration.rs",
-    "reconstruct/scan.rs",
-];
-
 /// Circles the doc allows: `error.rs` and `model/` share the base, the error type
 /// carries the model's `QualityFailure` and the model returns the crate's `Result`.
 const BASE_CIRCLES: &[(&str, &str)] = &[("error", "model")];
@@ -248,18 +238,15 @@ fn no_layer_imports_a_layer_above_it_and_no_folders_import_each_other() {
                 ));
                 continue;
             };
-            let exempt = KNOWN.contains(&r.file.as_str());
-            if theirs > own && !exempt {
+            if theirs > own {
                 problems.push(format!(
                     "{}:{}: `{layer}` (rank {own}) imports `{}` (rank {theirs}), a layer above it",
                     r.file, r.line, r.target
                 ));
             }
-            if !exempt {
-                edges
-                    .entry((layer.clone(), r.target.clone()))
-                    .or_insert_with(|| format!("{}:{}", r.file, r.line));
-            }
+            edges
+                .entry((layer.clone(), r.target.clone()))
+                .or_insert_with(|| format!("{}:{}", r.file, r.line));
         }
     }
     let allowed: BTreeSet<(&str, &str)> = BASE_CIRCLES

@@ -268,8 +268,7 @@ pub(in crate::pipeline) fn judge(
         rep.calibration.quality.accepted_poor = true;
         return Ok(rep);
     }
-    Err(Error::Quality(Box::new(QualityFailure {
-        failed,
-        report: Some(Box::new(rep)),
-    })))
+    Err(Error::Quality(Box::new(QualityFailure::with_inspection(
+        failed, rep,
+    ))))
 }

@@ -101,10 +101,7 @@ pub(super) fn check_pairing(
     let c = consensus::find_consensus(&a, &b, &popts)?;
     if !c.coherent && a.len() >= 4 {
         let check = incoherent(&c, &rows, &a, &b, &popts);
-        return Err(Error::Quality(Box::new(QualityFailure {
-            failed: vec![check],
-            report: None,
-        })));
+        return Err(Error::Quality(Box::new(QualityFailure::new(vec![check]))));
     }
     let out: Vec<usize> = c.outliers();
     let total = a.len() + earlier.len();

@@ -197,10 +197,7 @@ pub fn calibrate_profiles(
         opts.accept_poor && !failed.is_empty(),
     );
     if !failed.is_empty() && !opts.accept_poor {
-        return Err(Error::Quality(Box::new(QualityFailure {
-            failed,
-            report: None,
-        })));
+        return Err(Error::Quality(Box::new(QualityFailure::new(failed))));
     }
     Ok(ProfileReport {
         calibration,
