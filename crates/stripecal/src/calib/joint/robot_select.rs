@@ -174,32 +174,39 @@ pub(super) fn select(
         }
     }
     let inv = sub_inverse(&c, &chosen);
+    let sel = Chosen {
+        c: &c,
+        cg: &cg,
+        chosen: &chosen,
+        inv: &inv,
+    };
     let fixed = (0..k)
         .filter(|i| !chosen.contains(i))
-        .map(|i| {
-            (
-                i,
-                reason(info, layout, &robot, &c, &cg, &chosen, &inv, i, cands, mode),
-            )
-        })
+        .map(|i| (i, reason(info, layout, &robot, &sel, i, cands, mode)))
         .collect();
     Ok(Selection { chosen, fixed })
 }
 
+/// The outcome of the selection: the robot columns' scaled reduced system `c`, `cg`
+/// (module docs), the `chosen` candidates and the inverse `inv` of `c` restricted to them.
+struct Chosen<'a> {
+    c: &'a DMatrix<f64>,
+    cg: &'a DVector<f64>,
+    chosen: &'a [usize],
+    inv: &'a DMatrix<f64>,
+}
+
 /// Why candidate `i` stays fixed.
-#[allow(clippy::too_many_arguments)]
 fn reason(
     info: &Information,
     layout: &ParamLayout,
     robot: &[usize],
-    c: &DMatrix<f64>,
-    cg: &DVector<f64>,
-    chosen: &[usize],
-    inv: &DMatrix<f64>,
+    sel: &Chosen<'_>,
     i: usize,
     cands: &[DhParam],
     mode: RobotMode,
 ) -> String {
+    let Chosen { c, cg, chosen, inv } = *sel;
     let nn = info.n[(robot[i], robot[i])];
     if nn <= 0.0 {
         return "no observation depends on it".into();

@@ -155,9 +155,18 @@ pub fn measure_sphere(
         }
     }
     // Probing form: the range of the radial residuals.
-    let form = range_form(frames, &sens, points, &idx, &res, id, s2, |k| {
-        (normals[k].0, &normals[k].1[..])
-    })?;
+    let form = range_form(
+        frames,
+        &sens,
+        points,
+        &Residuals {
+            idx: &idx,
+            res: &res,
+            s2,
+        },
+        id,
+        |k| (normals[k].0, &normals[k].1[..]),
+    )?;
     let cov = frames.model().covariance().clone();
     let mut diameter_form = LinearForm::default();
     diameter_form.add_scaled(&sens.params[3], 2.0);
@@ -254,9 +263,18 @@ pub fn measure_plane(
     let s2 = res.iter().map(|x| x * x).sum::<f64>() / (idx.len() - 3) as f64;
     let random = sandwich(&sens.ninv, jrows.iter().map(|x| &x[..]).zip(&res));
     add_random(&mut sens.params, &random, id);
-    let form = range_form(frames, &sens, points, &idx, &res, id, s2, |k| {
-        (nrm, &jrows[k][..])
-    })?;
+    let form = range_form(
+        frames,
+        &sens,
+        points,
+        &Residuals {
+            idx: &idx,
+            res: &res,
+            s2,
+        },
+        id,
+        |k| (nrm, &jrows[k][..]),
+    )?;
     let cov = frames.model().covariance().clone();
     let deg = |f: &LinearForm| {
         let mut out = LinearForm::default();
@@ -273,20 +291,26 @@ pub fn measure_plane(
     })
 }
 
+/// The residuals of a fit: `idx` its inliers (indices into the points), `res` their
+/// residuals and `s2` the residual variance.
+struct Residuals<'a> {
+    idx: &'a [usize],
+    res: &'a [f64],
+    s2: f64,
+}
+
 /// The form and value of a range of residuals (largest minus smallest): first order in
 /// its two extreme points, its random part the extremes' scatter ([`range_random_sigma`]).
 /// `row(k)`: inlier `k`'s `(a, J)`.
-#[allow(clippy::too_many_arguments)]
 fn range_form<'r>(
     frames: &mut ScanFrames<'_>,
     sens: &Sensitivity,
     points: &ScanPoints,
-    idx: &[usize],
-    res: &[f64],
+    resid: &Residuals<'_>,
     id: u64,
-    s2: f64,
     row: impl Fn(usize) -> (Vector3<f64>, &'r [f64]),
 ) -> Result<(LinearForm, f64)> {
+    let Residuals { idx, res, s2 } = *resid;
     let (imax, imin) = extremes(res);
     let mut form = LinearForm::default();
     for (k, sign) in [(imax, 1.0), (imin, -1.0)] {

@@ -63,21 +63,22 @@ pub(crate) enum Check {
     Unknown,
 }
 
-/// Checks the link between sites `a` (at image `pa`) and `b` (at `pb`): the cells on
-/// either side must have the colours of phase `phase`, the dark one darker than the
-/// light one by at least `thr`. `perp` is the image vector of one lattice step along
-/// the axis perpendicular to the link, in the direction of increasing coordinate.
-#[allow(clippy::too_many_arguments)]
-pub(crate) fn check_link(
-    g: &Gray,
-    a: Coord,
-    b: Coord,
-    pa: [f64; 2],
-    pb: [f64; 2],
-    perp: [f64; 2],
-    phase: u8,
-    thr: f32,
-) -> Check {
+/// A link between neighbouring sites `a` (at image `pa`) and `b` (at `pb`). `perp` is
+/// the image vector of one lattice step along the axis perpendicular to the link, in
+/// the direction of increasing coordinate.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct Link {
+    pub a: Coord,
+    pub b: Coord,
+    pub pa: [f64; 2],
+    pub pb: [f64; 2],
+    pub perp: [f64; 2],
+}
+
+/// Checks the link `link`: the cells on either side must have the colours of phase
+/// `phase`, the dark one darker than the light one by at least `thr`.
+pub(crate) fn check_link(g: &Gray, link: &Link, phase: u8, thr: f32) -> Check {
+    let Link { a, b, pa, pb, perp } = *link;
     let (plus, _) = link_cells(a, b);
     let mid = [0.5 * (pa[0] + pb[0]), 0.5 * (pa[1] + pb[1])];
     let along = [pb[0] - pa[0], pb[1] - pa[1]];
@@ -136,7 +137,7 @@ pub(crate) fn phase_of(
                 _ => continue,
             };
             let t = thr(ka, kb);
-            match check_link(g, a, b, pa, pb, perp, 0, t) {
+            match check_link(g, &Link { a, b, pa, pb, perp }, 0, t) {
                 Check::Pass => votes0 += 1,
                 Check::Fail => votes1 += 1,
                 Check::Unknown => {}

@@ -2,7 +2,7 @@
 //! the fitted model's parameters and its residuals sector by sector.
 
 use super::image::Gray;
-use super::lattice::norm;
+use super::lattice::{norm, Local};
 use super::model::{Model, Vec11};
 use super::refine::{Fail, Settings};
 
@@ -93,19 +93,18 @@ pub(crate) fn worst_sector(th: &Vec11, px: &[[f64; 4]], r: f64) -> f64 {
         .fold(0.0, f64::max)
 }
 
-/// Checks the fitted model: position, contrast, blur, edge directions, polarity.
-#[allow(clippy::too_many_arguments)]
+/// Checks the fitted model: position (within `tol` of the start `l.p`), contrast, blur,
+/// edge directions, polarity (from the lattice steps `l.di`, `l.dj`).
 pub(crate) fn validate(
     th: &Vec11,
-    start: [f64; 2],
+    l: &Local,
     angles: [f64; 2],
     r: f64,
     tol: f64,
     light_ij: Option<bool>,
     s: &Settings,
-    di: [f64; 2],
-    dj: [f64; 2],
 ) -> Result<(), Fail> {
+    let (start, di, dj) = (l.p, l.di, l.dj);
     let c = [th[0], th[1]];
     if norm([c[0] - start[0], c[1] - start[1]]) > tol {
         return Err(Fail::NotCorner(

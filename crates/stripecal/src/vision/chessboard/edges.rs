@@ -42,7 +42,6 @@ pub(crate) const OUTWARD: [Coord; 4] = [(-1, 0), (1, 0), (0, -1), (0, 1)];
 /// Median of samples of `g` at `h(lattice point)` for points on an `na x nb` grid over
 /// `[a0, a1] x [b0, b1]` in side coordinates (`t = a n + b e`); `None` when any sample
 /// falls outside the image.
-#[allow(clippy::too_many_arguments)]
 fn band_median(
     g: &Gray,
     h: &nalgebra::Matrix3<f64>,

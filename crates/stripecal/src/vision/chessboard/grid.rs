@@ -19,7 +19,7 @@
 use std::collections::HashMap;
 
 use super::candidates::Cand;
-use super::cells::{check_link, patch_median, Check};
+use super::cells::{check_link, patch_median, Check, Link};
 use super::image::Gray;
 use super::lattice::{extent, norm, predict_any, Buckets, Coord};
 
@@ -261,16 +261,14 @@ fn accepts(ctx: &Ctx, at: &HashMap<Coord, usize>, phase: u8, t: Coord, k: usize)
             (None, Some(&q)) => [ctx.pos[n][0] - ctx.pos[q][0], ctx.pos[n][1] - ctx.pos[q][1]],
             _ => continue,
         };
-        match check_link(
-            ctx.g,
-            t,
-            nb,
-            ctx.pos[k],
-            ctx.pos[n],
+        let link = Link {
+            a: t,
+            b: nb,
+            pa: ctx.pos[k],
+            pb: ctx.pos[n],
             perp,
-            phase,
-            ctx.thr(k, n),
-        ) {
+        };
+        match check_link(ctx.g, &link, phase, ctx.thr(k, n)) {
             Check::Pass => pass += 1,
             Check::Fail => return false,
             Check::Unknown => {}

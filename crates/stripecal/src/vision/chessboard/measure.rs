@@ -80,15 +80,13 @@ impl Measured {
     }
 }
 
-/// Refines site `t` starting at `start` with the local lattice `l`; the contrast must
-/// be at least 40 % of the median of the measured sites within two steps (a corner of
-/// the same board under nearly the same light).
-#[allow(clippy::too_many_arguments)]
+/// Refines site `t` starting at `l.p` with the local lattice steps `l.di`, `l.dj`; the
+/// contrast must be at least 40 % of the median of the measured sites within two steps
+/// (a corner of the same board under nearly the same light).
 pub(crate) fn measure_site(
     g: &Gray,
     m: &Measured,
     t: Coord,
-    start: [f64; 2],
     l: &Local,
     phase: u8,
     strict: bool,
@@ -96,7 +94,7 @@ pub(crate) fn measure_site(
 ) -> Result<Saddle, Fail> {
     let sd = refine(
         g,
-        start,
+        l.p,
         l.di,
         l.dj,
         Some(!cell_dark(t.0, t.1, phase)),
@@ -149,7 +147,7 @@ pub(crate) fn measure_grid(
         let Some(l) = predict_any(&cat, &cpos, t) else {
             continue;
         };
-        match measure_site(g, &m, t, cpos[k], &l, phase, false, s) {
+        match measure_site(g, &m, t, &Local { p: cpos[k], ..l }, phase, false, s) {
             Ok(sd) => m.insert(t, sd),
             Err(f) => {
                 m.failed.insert(t, (f, cpos[k]));
@@ -200,7 +198,7 @@ fn extend(g: &Gray, m: &mut Measured, phase: u8, s: &Settings, cap: i32) {
             if !inside(g, l.p) {
                 continue;
             }
-            match measure_site(g, m, t, l.p, &l, phase, true, s) {
+            match measure_site(g, m, t, &l, phase, true, s) {
                 Ok(sd) => {
                     m.insert(t, sd);
                     added += 1;
@@ -227,7 +225,7 @@ pub(crate) fn fill(g: &Gray, m: &mut Measured, sites: &[Coord], phase: u8, s: &S
         if !inside(g, l.p) {
             continue;
         }
-        match measure_site(g, m, t, l.p, &l, phase, true, s) {
+        match measure_site(g, m, t, &l, phase, true, s) {
             Ok(sd) => m.insert(t, sd),
             Err(f) => {
                 m.failed.insert(t, (f, l.p));

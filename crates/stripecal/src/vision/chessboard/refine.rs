@@ -54,7 +54,7 @@ use std::collections::HashSet;
 
 use super::checks::{quadrants, validate, worst_sector};
 use super::image::Gray;
-use super::lattice::{cross, norm};
+use super::lattice::{cross, norm, Local};
 use super::model::{cost_of, normal, window, Mat, Vec11, NP};
 use super::stripe::{dark_sector_stripe, faint_line, residual_stripe, stripe_mask};
 
@@ -293,7 +293,7 @@ pub(crate) fn refine(
         ));
     }
     shrink(c0, &mut r)?;
-    let on_dark = dark_sector_stripe(g, c0, r, di, dj, light_ij, light, dark);
+    let on_dark = dark_sector_stripe(g, &Local { p: c0, di, dj }, r, light_ij, light, dark);
     let stripe = stripe || !on_dark.is_empty();
     if stripe && !s.keep_stripe {
         return Err(Fail::Stripe);
@@ -314,7 +314,15 @@ pub(crate) fn refine(
         let all: HashSet<(i32, i32)> = mask.union(&more).copied().collect();
         (th, px, h, cost, wsum) = fit(g, c0, angles, r, &all).ok_or(Fail::Stripe)?;
     }
-    validate(&th, start, angles, r, tol, light_ij, s, di, dj)?;
+    validate(
+        &th,
+        &Local { p: start, di, dj },
+        angles,
+        r,
+        tol,
+        light_ij,
+        s,
+    )?;
     if worst_sector(&th, &px, r) > 0.25 * 2.0 * th[6].abs() {
         return Err(Fail::NotCorner(
             "one of its four squares does not fit a corner model",

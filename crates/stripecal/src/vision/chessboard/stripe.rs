@@ -5,7 +5,7 @@
 use std::collections::HashSet;
 
 use super::image::Gray;
-use super::lattice::{cross, norm};
+use super::lattice::{cross, norm, Local};
 use super::model::{window, Model, Vec11};
 
 /// The image pixels of the window samples `px` (offsets `[dx, dy, value, ..]` from `c`)
@@ -47,22 +47,20 @@ pub(crate) fn stripe_mask(
     stripe_of(bright, r)
 }
 
-/// A stripe over the dark squares: pixels of the window around `c` inside a dark
-/// sector (more than 3.5 px from the edges along the lattice directions `di`, `dj`)
+/// A stripe over the dark squares: pixels of the window around `l.p` inside a dark
+/// sector (more than 3.5 px from the edges along the lattice directions `l.di`, `l.dj`)
 /// brighter than the middle of the dark and light levels, see [`stripe_of`]. The dark
 /// squares are the quietest part of the window (no grain, no glare reaches half the
 /// contrast there), so a stripe no brighter than the light squares shows here.
-#[allow(clippy::too_many_arguments)]
 pub(crate) fn dark_sector_stripe(
     g: &Gray,
-    c: [f64; 2],
+    l: &Local,
     r: f64,
-    di: [f64; 2],
-    dj: [f64; 2],
     light_ij: Option<bool>,
     light: f64,
     dark: f64,
 ) -> HashSet<(i32, i32)> {
+    let (c, di, dj) = (l.p, l.di, l.dj);
     let det = cross(di, dj);
     let (Some(light_ij), true) = (
         light_ij,

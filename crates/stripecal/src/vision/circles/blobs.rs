@@ -129,7 +129,6 @@ pub(crate) struct Blobs {
 /// quarter of those may fail to be brighter than the midpoint between the blob's centre
 /// and the samples' median (a neighbouring circle close to a large marker, a cable), and
 /// the centre must be darker than `k` times that median.
-#[allow(clippy::too_many_arguments)]
 fn surrounded<T: Pixel>(
     img: &Img<'_, T>,
     dv: &dyn Fn(f32) -> f32,
