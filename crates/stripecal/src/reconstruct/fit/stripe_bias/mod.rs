@@ -217,9 +217,7 @@
 
 mod correct;
 mod noise;
-mod plane;
 mod points;
-mod profile;
 mod systematic;
 
 use nalgebra::Vector3;
@@ -227,6 +225,7 @@ use nalgebra::Vector3;
 use crate::error::{Error, Result};
 use crate::model::camera::Camera;
 use crate::model::geometry::Plane;
+use crate::stripe_model::Rig;
 use crate::vision::stripe::StripeOptions;
 
 use super::emitter::EmitterEstimate;
@@ -235,15 +234,10 @@ use super::{FitOptions, SphereFitResult};
 
 pub use correct::correct_sphere_bias;
 pub use noise::{predicted_noise_shift_px, NoiseShift};
-pub(crate) use plane::{board_point_profile, board_point_scale, Board as BoardSurface};
 pub use points::predicted_bias_px;
-pub(crate) use profile::{extractor_response, plane_basis, point_profile, PointProfile, Rig};
 pub use systematic::{SystematicKind, SystematicPart};
 
-/// Sheet offsets sampled on each side of the plane, at least (`2 M + 1` samples over
-/// `+-4 sigma`; more where they would lie more than half the pixel kernel's sigma apart
-/// in the image).
-pub const HALF_SAMPLES: usize = 10;
+pub use crate::stripe_model::{neglected_share, HALF_SAMPLES};
 /// Points used for the sensitivity (systematic) terms, at most.
 pub const SENSITIVITY_POINTS: usize = 4000;
 /// The points corrected: those within this many of the uncorrected fit's robust sigmas of
@@ -255,13 +249,6 @@ pub const OUTLINE_MARGIN_PX: f64 = 8.0;
 /// a fraction of the correction.
 pub const NEGLECTED_FRACTION: f64 = 0.08;
 
-/// The standard uncertainty of neglected terms per unit correction when they are
-/// uniform within `+-fraction` of it: the sphere's is `neglected_share(NEGLECTED_FRACTION)`,
-/// the board's `neglected_share(BOARD_NEGLECTED_FRACTION)`
-/// ([`crate::pipeline::board_stripe`]).
-pub fn neglected_share(fraction: f64) -> f64 {
-    fraction / 3f64.sqrt()
-}
 /// The sphere model's rig for `opts`: the emitter given or `n d`, the incidence and
 /// view limits (`max_view_deg` checked: within 0..=90); `stripe` with its direction
 /// resolved.

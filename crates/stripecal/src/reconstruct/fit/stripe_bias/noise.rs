@@ -21,8 +21,8 @@ use crate::reconstruct::ScanPoints;
 use crate::vision::stripe::profile_centre;
 
 use super::points::per_modelled_point;
-use super::profile::scan_line_values;
 use super::StripeBiasOptions;
+use crate::stripe_model::profile::scan_line_values;
 
 /// The model's mean noise-induced centre shift per point (px along the scan line), for
 /// white Gaussian noise of `noise_gray` (standard deviation, in the units of

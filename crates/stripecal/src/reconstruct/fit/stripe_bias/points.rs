@@ -11,8 +11,8 @@ use crate::model::StripeDirection;
 use crate::reconstruct::triangulate::Triangulator;
 use crate::reconstruct::{stripe_direction_from_plane, ScanPoints};
 
-use super::profile::{extractor_response, point_profile, PointProfile, Rig};
 use super::StripeBiasOptions;
+use crate::stripe_model::{extractor_response, point_profile, PointProfile, Rig};
 
 /// Everything per point the correction needs: the camera-frame point, the scan line,
 /// the measured along-line coordinate, and whether its stripe profile holds a saturated

@@ -1,12 +1,12 @@
 //! The model against brute-force integration, flat surfaces, and its sigma scaling.
 
-use super::profile::*;
 use super::*;
 use crate::model::geometry::Iso3;
 use crate::model::StripeDirection;
 use crate::reconstruct::triangulate::tests::camera;
 use crate::reconstruct::triangulate::Triangulator;
 use crate::reconstruct::ScanPoints;
+use crate::stripe_model::profile::*;
 use crate::vision::stripe::profile_centre;
 use crate::vision::stripe::FLAG_SATURATED;
 
