@@ -133,8 +133,8 @@
 //! mean response to the noise on the modelled rows is nil on the same scans: the
 //! rendered rows' mean noisy-minus-clean centre is -0.0014 to +0.0007 px per 10-degree
 //! bin of view angle, and the model's profiles with the same noise give -0.0001 to
-//! +0.0008 px, their medians +0.001 to +0.005 px alike (the `noise_response` test of
-//! `crates/stripecal-sim/tests/it/stripe_bias.rs`; [`predicted_noise_shift_px`]).
+//! +0.0008 px, their medians +0.001 to +0.005 px alike (the `noise_response` study of
+//! `studies/stripe_bias`; the model's side, `noise.rs`, is now crate-private).
 //!
 //! ## Saturated points
 //!
@@ -181,7 +181,8 @@
 //!   x: -4.0 +- 0.2 with the 0.2 mm sheet, -3.0 +- 0.3 on the paper's rig at noise 1. The
 //!   bound covers every mean by two standard errors (at most 7.1 %); single seeds reach
 //!   9.9 % (z, noise 2) and 8.9 % (diameter, the 25.4 mm ball), random error included
-//!   (`scripts/stripe_bias_remainders.py` runs these scans and prints the table).
+//!   (`studies/stripe_bias`'s `sweep` and `remainders.py` run these scans and print the
+//!   table).
 //!   The centre's y coordinate, which the correction hardly moves (0.44 um at most),
 //!   keeps up to 0.11 um (one seed; 0.05 um on average): far below its random and
 //!   calibration parts, but not within 8 % of its own correction.
@@ -216,6 +217,9 @@
 //!   left out of the corrected fit ([`SphereBiasCorrection::modelled`]).
 
 mod correct;
+#[cfg(test)]
+mod diagnostics;
+#[cfg(test)]
 mod noise;
 mod points;
 mod systematic;
@@ -233,8 +237,10 @@ use super::sheet_sigma::SheetSigmaEstimate;
 use super::{FitOptions, SphereFitResult};
 
 pub use correct::correct_sphere_bias;
-pub use noise::{predicted_noise_shift_px, NoiseShift};
-pub use points::predicted_bias_px;
+#[cfg(test)]
+pub(crate) use diagnostics::predicted_bias_px;
+#[cfg(test)]
+pub(crate) use noise::{predicted_noise_shift_px, NoiseShift};
 pub use systematic::{SystematicKind, SystematicPart};
 
 pub use crate::stripe_model::{neglected_share, HALF_SAMPLES};
