@@ -29,6 +29,7 @@ pub mod model;
 pub mod numerics;
 pub mod pipeline;
 pub mod reconstruct;
+pub(crate) mod stripe_model;
 pub mod vision;
 
 pub use error::{BadFrame, Error, Result};

@@ -67,9 +67,8 @@ mod triangulate;
 pub mod uncertainty;
 
 pub use fit::{
-    correct_sphere_bias, fit_plane, fit_sphere, predicted_bias_px, predicted_noise_shift_px,
-    FitOptions, NoiseShift, PlaneFit, SheetSigmaEstimate, SphereBiasCorrection, SphereFitResult,
-    StripeBiasOptions,
+    correct_sphere_bias, fit_plane, fit_sphere, FitOptions, PlaneFit, SheetSigmaEstimate,
+    SphereBiasCorrection, SphereFitResult, StripeBiasOptions,
 };
 pub use frame::Reconstructor;
 pub use options::{

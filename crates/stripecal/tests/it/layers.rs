@@ -17,6 +17,7 @@ const RANKS: &[(&str, u32)] = &[
     ("io", 1),
     ("vision", 2),
     ("calib", 3),
+    ("stripe_model", 3),
     ("reconstruct", 4),
     ("pipeline", 5),
 ];

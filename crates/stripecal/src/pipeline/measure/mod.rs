@@ -32,13 +32,14 @@ use serde_json::{json, Value};
 use super::emitter_carry::{CarryInfo, EmitterResponse, EmitterSample};
 use crate::error::{Error, Result};
 use crate::model::{Calibration, ProfilerCalibration, RobotReading, Scan, StripeDirection};
-use crate::reconstruct::fit::stripe_bias::{correct_sphere_bias, plane_basis, StripeBiasOptions};
+use crate::reconstruct::fit::stripe_bias::{correct_sphere_bias, StripeBiasOptions};
 use crate::reconstruct::fit::{
     assumed_emitter_source, fit_plane, fit_sphere, measure_plane, measure_sphere, new_source_id,
     sphere_distance, Budget, FitOptions, PlaneFit, PlaneMeasurement, ScanFrames, SphereFitResult,
     SphereMeasurement, SphereSystematic, SystematicKind, SystematicSource, MODEL_SOURCE,
 };
 use crate::reconstruct::{ScanPoints, UncertaintyModel, UncertaintyOptions};
+use crate::stripe_model::plane_basis;
 
 /// Options of a measurement.
 #[derive(Debug, Clone, PartialEq)]

@@ -24,7 +24,7 @@ use rayon::prelude::*;
 use crate::model::geometry::Iso3;
 use crate::reconstruct::ScanPoints;
 
-use super::stripe_bias::{extractor_response, point_profile, PointProfile, Rig};
+use crate::stripe_model::{extractor_response, point_profile, PointProfile, Rig};
 
 /// Points used for the emitter fit, at most.
 pub const EMITTER_POINTS: usize = 1500;
@@ -90,7 +90,7 @@ pub(super) fn estimate_emitter(
         obs.push(li);
     }
     let e0 = rig.emitter;
-    let (e1, e2) = super::stripe_bias::plane_basis(&rig.n);
+    let (e1, e2) = crate::stripe_model::plane_basis(&rig.n);
     let at = |x: &Vector2<f64>| {
         let mut r2 = rig.clone();
         r2.emitter = e0 + e1 * x[0] + e2 * x[1];

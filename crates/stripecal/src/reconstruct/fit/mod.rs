@@ -63,8 +63,7 @@ pub use plane::{fit_plane, PlaneFit};
 pub use sheet_sigma::SheetSigmaEstimate;
 pub use sphere::{fit_sphere, SphereFitResult};
 pub use stripe_bias::{
-    correct_sphere_bias, predicted_bias_px, predicted_noise_shift_px, NoiseShift,
-    SphereBiasCorrection, StripeBiasOptions, SystematicKind, SystematicPart,
+    correct_sphere_bias, SphereBiasCorrection, StripeBiasOptions, SystematicKind, SystematicPart,
 };
 
 /// Options of the fits.

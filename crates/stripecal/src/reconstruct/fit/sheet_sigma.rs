@@ -39,7 +39,7 @@ use crate::error::{Error, Result};
 use crate::model::geometry::Iso3;
 use crate::reconstruct::ScanPoints;
 
-use super::stripe_bias::{extractor_response, point_profile, PointProfile, Rig};
+use crate::stripe_model::{extractor_response, point_profile, PointProfile, Rig};
 
 /// Points used for the width fit, at most.
 pub const WIDTH_POINTS: usize = 2500;

@@ -7,9 +7,7 @@ use rayon::prelude::*;
 use super::points::surfaces;
 use super::Pt;
 use crate::model::geometry::Plane;
-use crate::reconstruct::fit::stripe_bias::{
-    board_point_profile, extractor_response, PointProfile, Rig,
-};
+use crate::stripe_model::{board_point_profile, extractor_response, PointProfile, Rig};
 
 /// The predicted bias of each of the `clear` points (`None`: a point the model cannot
 /// follow) with the emitter at `emitter` (camera frame).

@@ -80,7 +80,7 @@ use nalgebra::Vector3;
 use crate::calib::ViewObs;
 use crate::model::camera::Camera;
 use crate::model::geometry::{Iso3, Plane};
-use crate::reconstruct::fit::stripe_bias::{neglected_share, Rig};
+use crate::stripe_model::{neglected_share, Rig};
 use crate::vision::stripe::StripeOptions;
 use applicable::modelled_direction;
 use bias::predicted_biases;

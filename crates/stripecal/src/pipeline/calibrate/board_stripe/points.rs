@@ -8,7 +8,7 @@ use crate::calib::laser_plane::backproject_to_board;
 use crate::calib::ViewObs;
 use crate::model::camera::Camera;
 use crate::model::geometry::{Iso3, Plane};
-use crate::reconstruct::fit::stripe_bias::{BoardSurface, Rig};
+use crate::stripe_model::{BoardSurface, Rig};
 
 /// The views' board planes in the camera frame.
 pub(super) fn board_planes(cam_board: &[Iso3]) -> Vec<Plane> {

@@ -4,7 +4,7 @@
 use nalgebra::{Matrix2, Vector2};
 
 use super::{Pt, MIN_POINTS, WIDTH_POINTS};
-use crate::reconstruct::fit::stripe_bias::{board_point_scale, BoardSurface, Rig};
+use crate::stripe_model::{board_point_scale, BoardSurface, Rig};
 
 /// The sheet's sigma (mm) and the PSF's (px) from the widths of at most
 /// [`WIDTH_POINTS`] of the `clear` points (`g` and the slope do not depend on them);

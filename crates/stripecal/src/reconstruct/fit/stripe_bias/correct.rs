@@ -5,7 +5,6 @@
 use nalgebra::Vector3;
 
 use super::points::{corrected_points, corrections, point_geo, ScanGeometry};
-use super::profile::Rig;
 use super::systematic::{assumed_emitter_part, estimate_part, model_part, rss};
 use super::{
     neglected_share, sphere_rig, SphereBiasCorrection, StripeBiasOptions, SystematicKind,
@@ -20,6 +19,7 @@ use crate::reconstruct::fit::sheet_sigma::{estimate_sheet_sigma, SheetSigmaEstim
 use crate::reconstruct::fit::{fit_sphere, FitOptions, SphereFitResult};
 use crate::reconstruct::triangulate::Triangulator;
 use crate::reconstruct::{stripe_direction_from_plane, ScanPoints};
+use crate::stripe_model::Rig;
 use crate::vision::stripe::StripeOptions;
 
 /// Fewest modelled points the corrected fit is made on.

@@ -133,8 +133,8 @@
 //! mean response to the noise on the modelled rows is nil on the same scans: the
 //! rendered rows' mean noisy-minus-clean centre is -0.0014 to +0.0007 px per 10-degree
 //! bin of view angle, and the model's profiles with the same noise give -0.0001 to
-//! +0.0008 px, their medians +0.001 to +0.005 px alike (the `noise_response` test of
-//! `crates/stripecal-sim/tests/it/stripe_bias.rs`; [`predicted_noise_shift_px`]).
+//! +0.0008 px, their medians +0.001 to +0.005 px alike (the `noise_response` study of
+//! `studies/stripe_bias`; the model's side, `noise.rs`, is now crate-private).
 //!
 //! ## Saturated points
 //!
@@ -181,7 +181,8 @@
 //!   x: -4.0 +- 0.2 with the 0.2 mm sheet, -3.0 +- 0.3 on the paper's rig at noise 1. The
 //!   bound covers every mean by two standard errors (at most 7.1 %); single seeds reach
 //!   9.9 % (z, noise 2) and 8.9 % (diameter, the 25.4 mm ball), random error included
-//!   (`scripts/stripe_bias_remainders.py` runs these scans and prints the table).
+//!   (`studies/stripe_bias`'s `sweep` and `remainders.py` run these scans and print the
+//!   table).
 //!   The centre's y coordinate, which the correction hardly moves (0.44 um at most),
 //!   keeps up to 0.11 um (one seed; 0.05 um on average): far below its random and
 //!   calibration parts, but not within 8 % of its own correction.
@@ -216,10 +217,11 @@
 //!   left out of the corrected fit ([`SphereBiasCorrection::modelled`]).
 
 mod correct;
+#[cfg(test)]
+mod diagnostics;
+#[cfg(test)]
 mod noise;
-mod plane;
 mod points;
-mod profile;
 mod systematic;
 
 use nalgebra::Vector3;
@@ -227,6 +229,7 @@ use nalgebra::Vector3;
 use crate::error::{Error, Result};
 use crate::model::camera::Camera;
 use crate::model::geometry::Plane;
+use crate::stripe_model::Rig;
 use crate::vision::stripe::StripeOptions;
 
 use super::emitter::EmitterEstimate;
@@ -234,16 +237,13 @@ use super::sheet_sigma::SheetSigmaEstimate;
 use super::{FitOptions, SphereFitResult};
 
 pub use correct::correct_sphere_bias;
-pub use noise::{predicted_noise_shift_px, NoiseShift};
-pub(crate) use plane::{board_point_profile, board_point_scale, Board as BoardSurface};
-pub use points::predicted_bias_px;
-pub(crate) use profile::{extractor_response, plane_basis, point_profile, PointProfile, Rig};
+#[cfg(test)]
+pub(crate) use diagnostics::predicted_bias_px;
+#[cfg(test)]
+pub(crate) use noise::{predicted_noise_shift_px, NoiseShift};
 pub use systematic::{SystematicKind, SystematicPart};
 
-/// Sheet offsets sampled on each side of the plane, at least (`2 M + 1` samples over
-/// `+-4 sigma`; more where they would lie more than half the pixel kernel's sigma apart
-/// in the image).
-pub const HALF_SAMPLES: usize = 10;
+pub use crate::stripe_model::{neglected_share, HALF_SAMPLES};
 /// Points used for the sensitivity (systematic) terms, at most.
 pub const SENSITIVITY_POINTS: usize = 4000;
 /// The points corrected: those within this many of the uncorrected fit's robust sigmas of
@@ -255,13 +255,6 @@ pub const OUTLINE_MARGIN_PX: f64 = 8.0;
 /// a fraction of the correction.
 pub const NEGLECTED_FRACTION: f64 = 0.08;
 
-/// The standard uncertainty of neglected terms per unit correction when they are
-/// uniform within `+-fraction` of it: the sphere's is `neglected_share(NEGLECTED_FRACTION)`,
-/// the board's `neglected_share(BOARD_NEGLECTED_FRACTION)`
-/// ([`crate::pipeline::board_stripe`]).
-pub fn neglected_share(fraction: f64) -> f64 {
-    fraction / 3f64.sqrt()
-}
 /// The sphere model's rig for `opts`: the emitter given or `n d`, the incidence and
 /// view limits (`max_view_deg` checked: within 0..=90); `stripe` with its direction
 /// resolved.

@@ -20,17 +20,17 @@ use crate::numerics::rng::SplitMix64;
 use crate::reconstruct::ScanPoints;
 use crate::vision::stripe::profile_centre;
 
-use super::points::per_modelled_point;
-use super::profile::scan_line_values;
+use super::diagnostics::per_modelled_point;
 use super::StripeBiasOptions;
+use crate::stripe_model::profile::scan_line_values;
 
 /// The model's mean noise-induced centre shift per point (px along the scan line), for
 /// white Gaussian noise of `noise_gray` (standard deviation, in the units of
 /// [`ScanPoints::intensity`]) over `pairs` antithetic pairs seeded by `seed`; `None`
 /// where the model fails or the extractor rejects every noisy copy. The sphere and the
-/// other arguments as [`super::predicted_bias_px`].
+/// other arguments as [`super::diagnostics::predicted_bias_px`].
 #[allow(clippy::too_many_arguments)]
-pub fn predicted_noise_shift_px(
+pub(crate) fn predicted_noise_shift_px(
     points: &ScanPoints,
     base_cam: &[Iso3],
     camera: &Camera,
@@ -80,7 +80,7 @@ pub fn predicted_noise_shift_px(
 /// three robust sigmas (`1.4826` median absolute deviations) of the median, as a robust
 /// fit that trims its residuals keeps them.
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub struct NoiseShift {
+pub(crate) struct NoiseShift {
     pub mean: f64,
     pub median: f64,
     pub trimmed: f64,

@@ -1,12 +1,12 @@
 //! The model against brute-force integration, flat surfaces, and its sigma scaling.
 
-use super::profile::*;
 use super::*;
 use crate::model::geometry::Iso3;
 use crate::model::StripeDirection;
 use crate::reconstruct::triangulate::tests::camera;
 use crate::reconstruct::triangulate::Triangulator;
 use crate::reconstruct::ScanPoints;
+use crate::stripe_model::profile::*;
 use crate::vision::stripe::profile_centre;
 use crate::vision::stripe::FLAG_SATURATED;
 
@@ -169,6 +169,16 @@ fn scan_bias_has_a_part_independent_of_the_sheet() {
 /// plane normal), each row's stripe point at the t = 0 image plus the model's bias,
 /// triangulated. Returns the points, the frame poses, the sphere centre and radius.
 fn synthetic_scan(r: f64, s: f64, b: f64) -> (ScanPoints, Vec<Iso3>, Vector3<f64>) {
+    let (sp, poses, c, _) = synthetic_scan_with_bias(r, s, b);
+    (sp, poses, c)
+}
+
+/// [`synthetic_scan`] with each point's bias put in (px along its row).
+fn synthetic_scan_with_bias(
+    r: f64,
+    s: f64,
+    b: f64,
+) -> (ScanPoints, Vec<Iso3>, Vector3<f64>, Vec<f64>) {
     let cam = camera([0.0; 5]);
     let pl = plane();
     let so = StripeOptions::default();
@@ -185,6 +195,7 @@ fn synthetic_scan(r: f64, s: f64, b: f64) -> (ScanPoints, Vec<Iso3>, Vector3<f64
     let h_mid = pl.normal.dot(&c_mid) - pl.d;
     let mut sp = ScanPoints::default();
     let mut poses = Vec::new();
+    let mut biases = Vec::new();
     let (mut prof, mut buf) = (PointProfile::default(), Vec::new());
     for k in 0..15 {
         let shift = -h_mid + (k as f64 / 14.0 * 1.8 - 0.9) * r;
@@ -221,6 +232,7 @@ fn synthetic_scan(r: f64, s: f64, b: f64) -> (ScanPoints, Vec<Iso3>, Vector3<f64
                             sp.intensity.push((1e4 * peak) as f32);
                             sp.width_px.push(w as f32);
                             sp.flags.push(0);
+                            biases.push(d);
                         }
                     }
                 }
@@ -228,7 +240,7 @@ fn synthetic_scan(r: f64, s: f64, b: f64) -> (ScanPoints, Vec<Iso3>, Vector3<f64
             prev = seen.then_some((v, phi));
         }
     }
-    (sp, poses, c_mid)
+    (sp, poses, c_mid, biases)
 }
 
 /// The corrected fit trims the CORRECTED residuals (module docs, "Which points are
@@ -492,4 +504,39 @@ fn saturated_points_are_left_out_and_counted() {
         Err(Error::Degenerate(m)) => assert!(m.contains("saturated"), "{m}"),
         other => panic!("expected Degenerate, got {other:?}"),
     }
+}
+
+/// The model's diagnostics recover what the synthetic scan put in: each point was
+/// placed at the t = 0 image plus the model's bias, so the predicted bias at the true
+/// sphere and sigmas is that shift; with no image noise every noisy copy is the clean
+/// profile, so the noise shift is exactly zero.
+#[test]
+fn the_diagnostics_recover_the_synthetic_bias() {
+    let (r, s, b) = (22.43, 0.12, 0.7);
+    let (sp, poses, c, put) = synthetic_scan_with_bias(r, s, b);
+    let cam = camera([0.0; 5]);
+    let pl = plane();
+    let opts = StripeBiasOptions {
+        emitter_cam_mm: Some((pl.normal * pl.d).into()),
+        ..Default::default()
+    };
+    let pred = predicted_bias_px(&sp, &poses, &cam, &pl, (&c, r), s, b, &opts).unwrap();
+    let mut n = 0;
+    for (i, d) in pred.iter().enumerate() {
+        let Some(d) = d else { continue };
+        assert!((d - put[i]).abs() < 1e-6, "point {i}: {d} vs {}", put[i]);
+        n += 1;
+    }
+    assert!(n > sp.len() / 2, "{n} of {} modelled", sp.len());
+    let shifts =
+        predicted_noise_shift_px(&sp, &poses, &cam, &pl, (&c, r), s, b, &opts, 0.0, 2, 1).unwrap();
+    let m = shifts.iter().flatten().count();
+    assert!(m > sp.len() / 2, "{m} of {}", sp.len());
+    for x in shifts.iter().flatten() {
+        assert_eq!((x.mean, x.median, x.trimmed, x.sd), (0.0, 0.0, 0.0, 0.0));
+    }
+    let mut d = [3.0, -1.0, 1.0, 100.0];
+    let f = NoiseShift::of(&mut d).unwrap();
+    assert_eq!((f.mean, f.median), (25.75, 3.0));
+    assert!(NoiseShift::of(&mut []).is_none());
 }
