@@ -33,7 +33,7 @@ impl Args {
 }
 
 /// The middle value of `v` (sorted in place; not empty; the upper one of an even count,
-/// as `stripecal::reconstruct::NoiseShift::of` takes it).
+/// as the crate-private `NoiseShift::of` of `reconstruct/fit/stripe_bias/noise.rs` takes it).
 fn median(v: &mut [f64]) -> f64 {
     v.sort_by(f64::total_cmp);
     v[v.len() / 2]
