@@ -1,4 +1,4 @@
-"""What the board's stripe-bias correction costs (pipeline/board_stripe.rs): the twin's
+"""What the board's stripe-bias correction costs (pipeline/calibrate/board_stripe/): the twin's
 calibration folder (hp3-paper, noise 1, PSF 0.7, N poses), `stripecal.calibrate` with
 `board_stripe_bias=True` (default) and False, alternating, median of R runs each.
 
