@@ -12,8 +12,8 @@ use stripecal::io::{
     robot_calibration_to_json, robot_pose_noise_to_json, view_record_to_json,
 };
 use stripecal::io::{
-    calibration_from_json, calibration_leave_one_out, calibration_to_json, write_calibration,
-    BENCH_KEY,
+    calibration_from_json, calibration_leave_one_out, calibration_to_json, take_bench_flag,
+    write_calibration,
 };
 use stripecal::model::geometry::Plane;
 use stripecal::model::{Calibration, Mount, NamedCovariance, Quality, QualityCheck};
@@ -184,10 +184,7 @@ impl PyCalibration {
             calibration_records_from(opt_dict_to_map(extra, "extra")?, robot.as_ref())
                 .py_err(py)?;
         // `extra={"bench": True}` (the file's flag) is the bench mount
-        let bench = extra.get(BENCH_KEY) == Some(&serde_json::Value::Bool(true));
-        if bench {
-            extra.shift_remove(BENCH_KEY);
-        }
+        let bench = take_bench_flag(&mut extra);
         Ok(PyCalibration::from_inner(Calibration {
             camera: camera.get().inner.clone(),
             laser_plane: if laser_plane.is_none() {

@@ -25,6 +25,16 @@ use crate::model::{
 /// (`"bench": true`; such a file has no `hand_cam`, `base_board` or `robot`).
 pub const BENCH_KEY: &str = "bench";
 
+/// Takes the bench flag out of a calibration's unknown keys: `true` when `extra` held
+/// `"bench": true` (the flag a writer adds to a bench file, read as the mount).
+pub fn take_bench_flag(extra: &mut serde_json::Map<String, Value>) -> bool {
+    let flagged = extra.get(BENCH_KEY) == Some(&Value::Bool(true));
+    if flagged {
+        extra.shift_remove(BENCH_KEY);
+    }
+    flagged
+}
+
 /// The `format` value of calibration.json.
 pub(super) const CALIBRATION_FORMAT: &str = "stripecal/calibration@1";
 /// The `format` value of truth.json.
@@ -374,11 +384,7 @@ pub fn calibration_from_json(path: &Path, text: &str) -> Result<Calibration> {
         .map(|c| covariance_from(&c))
         .transpose()?;
     let (records, mut extra) = records_from(&root, &CALIBRATION_KEYS, c.robot.as_ref())?;
-    // the flag a writer adds to a bench file (read as the mount, not kept in `extra`)
-    let flagged = extra.get(BENCH_KEY) == Some(&Value::Bool(true));
-    if flagged {
-        extra.shift_remove(BENCH_KEY);
-    }
+    let flagged = take_bench_flag(&mut extra);
     Ok(Calibration {
         camera: c.camera,
         laser_plane: c.laser_plane,

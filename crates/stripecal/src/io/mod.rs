@@ -38,7 +38,8 @@ pub use artefacts::read_artefacts;
 pub use atomic::{file_problem, write_atomic};
 pub use calibration::{
     calibration_extra_keys, calibration_from_json, calibration_to_json, read_calibration,
-    read_truth, truth_from_json, truth_to_json, write_calibration, write_truth, BENCH_KEY,
+    read_truth, take_bench_flag, truth_from_json, truth_to_json, write_calibration, write_truth,
+    BENCH_KEY,
 };
 pub use csv::{
     read_scan_csv, read_views_csv, write_scan_csv, write_scan_csv_with, write_views_csv,

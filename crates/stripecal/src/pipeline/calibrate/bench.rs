@@ -25,8 +25,8 @@ use crate::error::{Error, Result};
 use crate::model::{QualityCheck, Rig};
 
 /// The extra key of a bench calibration (`"bench": true`): calibration.json then has no
-/// `hand_cam`, `base_board` or `robot` (spec/DATASET.md).
-pub const BENCH_KEY: &str = "bench";
+/// `hand_cam`, `base_board` or `robot` (spec/DATASET.md); io's, which reads and writes it.
+pub use crate::io::BENCH_KEY;
 
 /// Whether `views` are bench views: none has a robot pose.
 pub(super) fn is_bench(views: &[ViewObs]) -> bool {
