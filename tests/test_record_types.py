@@ -49,3 +49,29 @@ def test_a_calibration_built_from_another_keeps_its_records() -> None:
     assert d.robot_pose_noise == c.robot_pose_noise and d.robot_calibration is None
     bench = stripecal.load_calibration(path.with_name("bench_v1.json"))
     assert bench.mount == "bench" and bench.is_bench and bench.extra["bench"] is True
+
+
+def test_many_keyword_callables_keep_their_python_signatures() -> None:
+    import inspect
+
+    import pytest
+
+    sig = inspect.signature(stripecal.calibrate)
+    assert list(sig.parameters)[:3] == ["dataset", "distortion", "method"]
+    assert sig.parameters["method"].default == "one-stage"
+    assert sig.parameters["distortion"].kind is inspect.Parameter.KEYWORD_ONLY
+    with pytest.raises(TypeError, match=r"calibrate\(\) got an unexpected keyword argument 'robots'"):
+        stripecal.calibrate("nowhere", robots="fixed")  # type: ignore[call-arg]
+    with pytest.raises(TypeError, match=r"calibrate\(\) takes at most 1 positional"):
+        stripecal.calibrate("nowhere", None)  # type: ignore[misc]
+    with pytest.raises(TypeError, match=r"calibrate\(\) argument 'robust'"):
+        stripecal.calibrate("nowhere", robust="yes")  # type: ignore[arg-type]
+    with pytest.raises(TypeError, match=r"Board\(\) missing required argument 'circle_diameter_mm'"):
+        stripecal.Board(4, 5, 10.0)  # type: ignore[call-arg]
+    with pytest.raises(TypeError, match=r"Board\(\) got multiple values for argument 'rows'"):
+        stripecal.Board(4, 5, 10.0, 5.0, rows=4)  # type: ignore[misc]
+    b = stripecal.Board(4, 5, 10.0, 5.0, None, [], True, "circles")
+    assert b == stripecal.Board(rows=4, cols=5, pitch_mm=10.0, circle_diameter_mm=5.0, markers=[])
+    with pytest.raises(OverflowError):
+        stripecal.reconstruct_scan("nowhere", "nowhere", drop_flags=300)
+

@@ -1,6 +1,9 @@
 //! `stripecal.Board`.
 
 use pyo3::prelude::*;
+use pyo3::types::{PyDict, PyTuple};
+
+use crate::args::{bind_as, Params};
 use stripecal::model::board::{Board, BoardKind};
 
 use crate::convert::{nd, non_negative};
@@ -29,23 +32,65 @@ fn kind_name(k: BoardKind) -> &'static str {
     k.name()
 }
 
+/// `Board`'s parameters (see [`bind_as`]).
+const BOARD: Params = Params {
+    name: "Board",
+    positional: &[
+        "rows",
+        "cols",
+        "pitch_mm",
+        "circle_diameter_mm",
+        "marker_diameter_mm",
+        "markers",
+        "dark_circles",
+        "kind",
+        "square_mm",
+    ],
+    required: 4,
+    keyword: &[],
+};
+
+/// `Board`'s arguments, with their defaults.
+#[derive(FromPyObject)]
+#[pyo3(from_item_all)]
+struct BoardArgs {
+    rows: i64,
+    cols: i64,
+    pitch_mm: f64,
+    circle_diameter_mm: f64,
+    #[pyo3(default)]
+    marker_diameter_mm: Option<f64>,
+    #[pyo3(default)]
+    markers: Option<Vec<(i64, i64)>>,
+    #[pyo3(default = true)]
+    dark_circles: bool,
+    #[pyo3(default = "circles".into())]
+    kind: String,
+    #[pyo3(default)]
+    square_mm: Option<f64>,
+}
+
 #[pymethods]
 impl PyBoard {
     #[new]
-    #[pyo3(signature = (rows, cols, pitch_mm, circle_diameter_mm, marker_diameter_mm = None, markers = None, dark_circles = true, kind = "circles", square_mm = None))]
-    #[allow(clippy::too_many_arguments)]
+    #[pyo3(signature = (*args, **kwargs), text_signature = "(rows, cols, pitch_mm, circle_diameter_mm, marker_diameter_mm=None, markers=None, dark_circles=True, kind=\"circles\", square_mm=None)")]
     fn new(
         py: Python<'_>,
-        rows: i64,
-        cols: i64,
-        pitch_mm: f64,
-        circle_diameter_mm: f64,
-        marker_diameter_mm: Option<f64>,
-        markers: Option<Vec<(i64, i64)>>,
-        dark_circles: bool,
-        kind: &str,
-        square_mm: Option<f64>,
+        args: &Bound<'_, PyTuple>,
+        kwargs: Option<&Bound<'_, PyDict>>,
     ) -> PyResult<Self> {
+        let BoardArgs {
+            rows,
+            cols,
+            pitch_mm,
+            circle_diameter_mm,
+            marker_diameter_mm,
+            markers,
+            dark_circles,
+            kind,
+            square_mm,
+        } = bind_as(&BOARD, args, kwargs)?;
+        let kind = kind.as_str();
         let kind = BoardKind::from_name(kind).map_err(|e| invalid_input(py, e.to_string()))?;
         let markers = match markers {
             None if kind == BoardKind::Circles => Board::default_markers(),

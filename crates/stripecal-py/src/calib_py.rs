@@ -7,7 +7,9 @@
 use crate::pool::Detach;
 use nalgebra::Matrix4;
 use pyo3::prelude::*;
-use pyo3::types::{PyDict, PyList, PySequence};
+use pyo3::types::{PyDict, PyList, PySequence, PyTuple};
+
+use crate::args::{bind_as, Params};
 
 use stripecal::calib::axzb::{solve_axzb_with, AxzbOptions, AxzbSolution};
 use stripecal::calib::laser_plane::fit_laser_plane as core_fit_laser_plane;
@@ -189,6 +191,63 @@ fn parse_distortion(py: Python<'_>, s: Option<&str>) -> PyResult<Option<Distorti
     s.map(|s| DistortionModel::from_name(s).py_err(py))
         .transpose()
 }
+/// `calibrate`'s parameters (see [`bind_as`]).
+const CALIBRATE: Params = Params {
+    name: "calibrate",
+    positional: &["dataset"],
+    required: 1,
+    keyword: &[
+        "distortion",
+        "method",
+        "robust",
+        "centre_model",
+        "from_calibration",
+        "fix",
+        "laser_only",
+        "estimate_board_scale",
+        "board_scale_tolerance",
+        "leave_one_out",
+        "accept_poor",
+        "robot_pose_noise",
+        "robot",
+        "board_stripe_bias",
+    ],
+};
+
+/// `calibrate`'s arguments, with their defaults.
+#[derive(FromPyObject)]
+#[pyo3(from_item_all)]
+struct CalibrateArgs<'py> {
+    dataset: Bound<'py, PyAny>,
+    #[pyo3(default)]
+    distortion: Option<String>,
+    #[pyo3(default = "one-stage".into())]
+    method: String,
+    #[pyo3(default)]
+    robust: bool,
+    #[pyo3(default = "conic-exact".into())]
+    centre_model: String,
+    #[pyo3(default)]
+    from_calibration: Option<Bound<'py, PyAny>>,
+    #[pyo3(default)]
+    fix: Vec<String>,
+    #[pyo3(default)]
+    laser_only: bool,
+    #[pyo3(default)]
+    estimate_board_scale: bool,
+    #[pyo3(default = 0.01)]
+    board_scale_tolerance: f64,
+    #[pyo3(default = true)]
+    leave_one_out: bool,
+    #[pyo3(default)]
+    accept_poor: bool,
+    #[pyo3(default = true)]
+    robot_pose_noise: bool,
+    #[pyo3(default = "fixed".into())]
+    robot: String,
+    #[pyo3(default = true)]
+    board_stripe_bias: bool,
+}
 
 /// Calibrates a dataset folder (or a loaded `Dataset`): circles and stripes detected in
 /// every view, then the camera, the laser plane, `X = T_hand_cam` and `Z = T_base_board`.
@@ -234,26 +293,37 @@ fn parse_distortion(py: Python<'_>, s: Option<&str>) -> PyResult<Option<Distorti
 /// released while it runs; a Ctrl-C (SIGINT) during the run raises `KeyboardInterrupt`
 /// when the core returns (the result is dropped), not at once.
 #[pyfunction]
-#[pyo3(signature = (dataset, *, distortion = None, method = "one-stage", robust = false, centre_model = "conic-exact", from_calibration = None, fix = Vec::new(), laser_only = false, estimate_board_scale = false, board_scale_tolerance = 0.01, leave_one_out = true, accept_poor = false, robot_pose_noise = true, robot = "fixed", board_stripe_bias = true))]
-#[allow(clippy::too_many_arguments)]
+#[pyo3(signature = (*args, **kwargs), text_signature = "(dataset, *, distortion=None, method=\"one-stage\", robust=False, centre_model=\"conic-exact\", from_calibration=None, fix=..., laser_only=False, estimate_board_scale=False, board_scale_tolerance=0.01, leave_one_out=True, accept_poor=False, robot_pose_noise=True, robot=\"fixed\", board_stripe_bias=True)")]
 pub fn calibrate(
     py: Python<'_>,
-    dataset: &Bound<'_, PyAny>,
-    distortion: Option<&str>,
-    method: &str,
-    robust: bool,
-    centre_model: &str,
-    from_calibration: Option<&Bound<'_, PyAny>>,
-    fix: Vec<String>,
-    laser_only: bool,
-    estimate_board_scale: bool,
-    board_scale_tolerance: f64,
-    leave_one_out: bool,
-    accept_poor: bool,
-    robot_pose_noise: bool,
-    robot: &str,
-    board_stripe_bias: bool,
+    args: &Bound<'_, PyTuple>,
+    kwargs: Option<&Bound<'_, PyDict>>,
 ) -> PyResult<Py<PyAny>> {
+    let CalibrateArgs {
+        dataset,
+        distortion,
+        method,
+        robust,
+        centre_model,
+        from_calibration,
+        fix,
+        laser_only,
+        estimate_board_scale,
+        board_scale_tolerance,
+        leave_one_out,
+        accept_poor,
+        robot_pose_noise,
+        robot,
+        board_stripe_bias,
+    } = bind_as(&CALIBRATE, args, kwargs)?;
+    let (dataset, distortion, method, centre_model, from_calibration, robot) = (
+        &dataset,
+        distortion.as_deref(),
+        method.as_str(),
+        centre_model.as_str(),
+        from_calibration.as_ref(),
+        robot.as_str(),
+    );
     if let Some(ds) = profile_dataset(py, dataset)? {
         // A line profiler's dataset (rig.json sensor.kind = "profiler"): the camera's
         // options do not apply to it.

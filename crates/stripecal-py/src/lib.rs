@@ -5,6 +5,7 @@
 //! GIL is released); array results are new float64 numpy arrays. Core errors map to
 //! Python exceptions as described in [`errors`].
 
+mod args;
 mod board;
 mod calib_py;
 mod camera;

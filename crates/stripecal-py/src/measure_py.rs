@@ -8,6 +8,9 @@ use std::ops::ControlFlow;
 use std::path::PathBuf;
 
 use pyo3::prelude::*;
+use pyo3::types::{PyDict, PyTuple};
+
+use crate::args::{bind_as, Params};
 
 use serde_json::Value;
 use stripecal::model::{Calibration, ProfilerCalibration, RobotReading};
@@ -36,9 +39,33 @@ enum Shape {
     Plane,
 }
 
-#[allow(clippy::too_many_arguments)]
-fn options(
-    py: Python<'_>,
+/// The arguments of `measure_sphere`, `measure_ball_bar` and `measure_plane` (the
+/// keywords a function lacks keep their defaults).
+#[derive(FromPyObject)]
+#[pyo3(from_item_all)]
+struct MeasureArgs<'py> {
+    calibration: Bound<'py, PyAny>,
+    scan_dir: PathBuf,
+    #[pyo3(default)]
+    cloud: Option<Bound<'py, PyCloud>>,
+    #[pyo3(default)]
+    diameter_range_mm: Option<(f64, f64)>,
+    #[pyo3(default = true)]
+    correct_bias: bool,
+    #[pyo3(default = true)]
+    calibration_part: bool,
+    #[pyo3(default)]
+    stripe_sigma_px: Option<f64>,
+    #[pyo3(default)]
+    repeatability_mm: Option<f64>,
+    #[pyo3(default)]
+    encoder_sigma_deg: Option<f64>,
+    #[pyo3(default = 3.0)]
+    trim_sigma: f64,
+}
+
+/// The fit and budget options of a measurement or of `verify`.
+struct Budget {
     diameter_range_mm: Option<(f64, f64)>,
     correct_bias: bool,
     calibration_part: bool,
@@ -46,24 +73,97 @@ fn options(
     repeatability_mm: Option<f64>,
     encoder_sigma_deg: Option<f64>,
     trim_sigma: f64,
-) -> PyResult<MeasureOptions> {
-    if !trim_sigma.is_finite() {
+}
+
+/// The parameters of `measure_sphere` and `measure_ball_bar`.
+const fn measure_params(name: &'static str) -> Params {
+    Params {
+        name,
+        positional: &["calibration", "scan_dir"],
+        required: 2,
+        keyword: &[
+            "cloud",
+            "diameter_range_mm",
+            "correct_bias",
+            "calibration_part",
+            "stripe_sigma_px",
+            "repeatability_mm",
+            "encoder_sigma_deg",
+            "trim_sigma",
+        ],
+    }
+}
+
+const MEASURE_SPHERE: Params = measure_params("measure_sphere");
+const MEASURE_BALL_BAR: Params = measure_params("measure_ball_bar");
+const MEASURE_PLANE: Params = Params {
+    name: "measure_plane",
+    positional: &["calibration", "scan_dir"],
+    required: 2,
+    keyword: &[
+        "cloud",
+        "calibration_part",
+        "stripe_sigma_px",
+        "repeatability_mm",
+        "encoder_sigma_deg",
+        "trim_sigma",
+    ],
+};
+const VERIFY: Params = Params {
+    name: "verify",
+    positional: &["calibration", "folder"],
+    required: 2,
+    keyword: &[
+        "artefacts",
+        "correct_bias",
+        "stripe_sigma_px",
+        "repeatability_mm",
+        "encoder_sigma_deg",
+        "progress",
+    ],
+};
+
+fn options(py: Python<'_>, b: &Budget) -> PyResult<MeasureOptions> {
+    if !b.trim_sigma.is_finite() {
         return Err(invalid_input(py, "trim_sigma must be finite"));
     }
     let mut o = MeasureOptions {
         uncertainty: UncertaintyOptions {
-            calibration: calibration_part,
-            stripe_sigma_px,
-            repeatability_mm,
-            encoder_sigma_deg,
+            calibration: b.calibration_part,
+            stripe_sigma_px: b.stripe_sigma_px,
+            repeatability_mm: b.repeatability_mm,
+            encoder_sigma_deg: b.encoder_sigma_deg,
             ..Default::default()
         },
-        correct_bias,
+        correct_bias: b.correct_bias,
         ..Default::default()
     };
-    o.fit.trim_sigma = trim_sigma;
-    o.fit.diameter_range_mm = diameter_range_mm.map(|(a, b)| [a, b]);
+    o.fit.trim_sigma = b.trim_sigma;
+    o.fit.diameter_range_mm = b.diameter_range_mm.map(|(a, b)| [a, b]);
     Ok(o)
+}
+
+/// [`measure`] of `shape` with the arguments of `p`'s function.
+fn measure_bound(
+    py: Python<'_>,
+    shape: Shape,
+    p: &Params,
+    args: &Bound<'_, PyTuple>,
+    kwargs: Option<&Bound<'_, PyDict>>,
+) -> PyResult<Py<PyAny>> {
+    let a: MeasureArgs = bind_as(p, args, kwargs)?;
+    let b = Budget {
+        diameter_range_mm: a.diameter_range_mm,
+        // no curved-surface bias on a plane
+        correct_bias: a.correct_bias && !matches!(shape, Shape::Plane),
+        calibration_part: a.calibration_part,
+        stripe_sigma_px: a.stripe_sigma_px,
+        repeatability_mm: a.repeatability_mm,
+        encoder_sigma_deg: a.encoder_sigma_deg,
+        trim_sigma: a.trim_sigma,
+    };
+    let o = options(py, &b)?;
+    measure(py, shape, &a.calibration, a.scan_dir, a.cloud.as_ref(), o)
 }
 
 /// The measurement of `shape` in a scan's points, as JSON.
@@ -81,7 +181,6 @@ fn measure_shape(
     })
 }
 
-#[allow(clippy::too_many_arguments)]
 fn measure(
     py: Python<'_>,
     shape: Shape,
@@ -172,92 +271,57 @@ fn measure_profile_scan(
 }
 
 #[pyfunction]
-#[pyo3(signature = (calibration, scan_dir, *, cloud = None, diameter_range_mm = None, correct_bias = true, calibration_part = true, stripe_sigma_px = None, repeatability_mm = None, encoder_sigma_deg = None, trim_sigma = 3.0))]
-#[allow(clippy::too_many_arguments)]
+#[pyo3(signature = (*args, **kwargs), text_signature = "(calibration, scan_dir, *, cloud=None, diameter_range_mm=None, correct_bias=True, calibration_part=True, stripe_sigma_px=None, repeatability_mm=None, encoder_sigma_deg=None, trim_sigma=3.0)")]
 pub fn measure_sphere(
     py: Python<'_>,
-    calibration: &Bound<'_, PyAny>,
-    scan_dir: PathBuf,
-    cloud: Option<&Bound<'_, PyCloud>>,
-    diameter_range_mm: Option<(f64, f64)>,
-    correct_bias: bool,
-    calibration_part: bool,
-    stripe_sigma_px: Option<f64>,
-    repeatability_mm: Option<f64>,
-    encoder_sigma_deg: Option<f64>,
-    trim_sigma: f64,
+    args: &Bound<'_, PyTuple>,
+    kwargs: Option<&Bound<'_, PyDict>>,
 ) -> PyResult<Py<PyAny>> {
-    let o = options(
-        py,
-        diameter_range_mm,
-        correct_bias,
-        calibration_part,
-        stripe_sigma_px,
-        repeatability_mm,
-        encoder_sigma_deg,
-        trim_sigma,
-    )?;
-    measure(py, Shape::Sphere, calibration, scan_dir, cloud, o)
+    measure_bound(py, Shape::Sphere, &MEASURE_SPHERE, args, kwargs)
 }
 
 /// Measures a ball bar's two spheres in a scan and their centres' distance, each with
 /// its budget (as `measure_sphere`; the distance's calibration and robot parts are
 /// correlated between the spheres as the chain says).
 #[pyfunction]
-#[pyo3(signature = (calibration, scan_dir, *, cloud = None, diameter_range_mm = None, correct_bias = true, calibration_part = true, stripe_sigma_px = None, repeatability_mm = None, encoder_sigma_deg = None, trim_sigma = 3.0))]
-#[allow(clippy::too_many_arguments)]
+#[pyo3(signature = (*args, **kwargs), text_signature = "(calibration, scan_dir, *, cloud=None, diameter_range_mm=None, correct_bias=True, calibration_part=True, stripe_sigma_px=None, repeatability_mm=None, encoder_sigma_deg=None, trim_sigma=3.0)")]
 pub fn measure_ball_bar(
     py: Python<'_>,
-    calibration: &Bound<'_, PyAny>,
-    scan_dir: PathBuf,
-    cloud: Option<&Bound<'_, PyCloud>>,
-    diameter_range_mm: Option<(f64, f64)>,
-    correct_bias: bool,
-    calibration_part: bool,
-    stripe_sigma_px: Option<f64>,
-    repeatability_mm: Option<f64>,
-    encoder_sigma_deg: Option<f64>,
-    trim_sigma: f64,
+    args: &Bound<'_, PyTuple>,
+    kwargs: Option<&Bound<'_, PyDict>>,
 ) -> PyResult<Py<PyAny>> {
-    let o = options(
-        py,
-        diameter_range_mm,
-        correct_bias,
-        calibration_part,
-        stripe_sigma_px,
-        repeatability_mm,
-        encoder_sigma_deg,
-        trim_sigma,
-    )?;
-    measure(py, Shape::BallBar, calibration, scan_dir, cloud, o)
+    measure_bound(py, Shape::BallBar, &MEASURE_BALL_BAR, args, kwargs)
 }
 
 /// Measures the plane in a scan: flatness, offset and tilts with their budgets.
 #[pyfunction]
-#[pyo3(signature = (calibration, scan_dir, *, cloud = None, calibration_part = true, stripe_sigma_px = None, repeatability_mm = None, encoder_sigma_deg = None, trim_sigma = 3.0))]
-#[allow(clippy::too_many_arguments)]
+#[pyo3(signature = (*args, **kwargs), text_signature = "(calibration, scan_dir, *, cloud=None, calibration_part=True, stripe_sigma_px=None, repeatability_mm=None, encoder_sigma_deg=None, trim_sigma=3.0)")]
 pub fn measure_plane(
     py: Python<'_>,
-    calibration: &Bound<'_, PyAny>,
-    scan_dir: PathBuf,
-    cloud: Option<&Bound<'_, PyCloud>>,
-    calibration_part: bool,
-    stripe_sigma_px: Option<f64>,
-    repeatability_mm: Option<f64>,
-    encoder_sigma_deg: Option<f64>,
-    trim_sigma: f64,
+    args: &Bound<'_, PyTuple>,
+    kwargs: Option<&Bound<'_, PyDict>>,
 ) -> PyResult<Py<PyAny>> {
-    let o = options(
-        py,
-        None,
-        false,
-        calibration_part,
-        stripe_sigma_px,
-        repeatability_mm,
-        encoder_sigma_deg,
-        trim_sigma,
-    )?;
-    measure(py, Shape::Plane, calibration, scan_dir, cloud, o)
+    measure_bound(py, Shape::Plane, &MEASURE_PLANE, args, kwargs)
+}
+
+/// `verify`'s folder and callback (its budget keywords are a [`BudgetArgs`]).
+#[derive(FromPyObject)]
+#[pyo3(from_item_all)]
+struct VerifyArgs<'py> {
+    calibration: Bound<'py, PyAny>,
+    folder: PathBuf,
+    #[pyo3(default)]
+    artefacts: Option<PathBuf>,
+    #[pyo3(default)]
+    progress: Option<Py<PyAny>>,
+    #[pyo3(default = true)]
+    correct_bias: bool,
+    #[pyo3(default)]
+    stripe_sigma_px: Option<f64>,
+    #[pyo3(default)]
+    repeatability_mm: Option<f64>,
+    #[pyo3(default)]
+    encoder_sigma_deg: Option<f64>,
 }
 
 /// The VDI/VDE 2634-2 style acceptance test on a folder holding `artefacts.json` (or
@@ -268,19 +332,32 @@ pub fn measure_plane(
 /// `progress(stage, done, total)` is called per chunk of frames; an exception raised
 /// by it (or Ctrl-C) stops the run.
 #[pyfunction]
-#[pyo3(signature = (calibration, folder, *, artefacts = None, correct_bias = true, stripe_sigma_px = None, repeatability_mm = None, encoder_sigma_deg = None, progress = None))]
-#[allow(clippy::too_many_arguments)]
+#[pyo3(signature = (*args, **kwargs), text_signature = "(calibration, folder, *, artefacts=None, correct_bias=True, stripe_sigma_px=None, repeatability_mm=None, encoder_sigma_deg=None, progress=None)")]
 pub fn verify(
     py: Python<'_>,
-    calibration: &Bound<'_, PyAny>,
-    folder: PathBuf,
-    artefacts: Option<PathBuf>,
-    correct_bias: bool,
-    stripe_sigma_px: Option<f64>,
-    repeatability_mm: Option<f64>,
-    encoder_sigma_deg: Option<f64>,
-    progress: Option<Py<PyAny>>,
+    args: &Bound<'_, PyTuple>,
+    kwargs: Option<&Bound<'_, PyDict>>,
 ) -> PyResult<Py<PyAny>> {
+    let VerifyArgs {
+        calibration,
+        folder,
+        artefacts,
+        progress,
+        correct_bias,
+        stripe_sigma_px,
+        repeatability_mm,
+        encoder_sigma_deg,
+    } = bind_as(&VERIFY, args, kwargs)?;
+    let budget = Budget {
+        diameter_range_mm: None,
+        correct_bias,
+        calibration_part: true,
+        stripe_sigma_px,
+        repeatability_mm,
+        encoder_sigma_deg,
+        trim_sigma: 3.0,
+    };
+    let calibration = &calibration;
     let which: std::result::Result<Calibration, ProfilerCalibration> =
         match calibration.cast::<PyProfilerCalibration>() {
             Ok(p) => Err(p.get().inner.clone()),
@@ -292,16 +369,7 @@ pub fn verify(
                 .clone()),
         };
     let opts = VerifyOptions {
-        measure: options(
-            py,
-            None,
-            correct_bias,
-            true,
-            stripe_sigma_px,
-            repeatability_mm,
-            encoder_sigma_deg,
-            3.0,
-        )?,
+        measure: options(py, &budget)?,
         reconstruct: ReconstructOptions::default(),
         artefacts,
     };

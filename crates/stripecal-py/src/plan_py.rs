@@ -6,6 +6,9 @@ use crate::pool::Detach;
 use std::path::PathBuf;
 
 use pyo3::prelude::*;
+use pyo3::types::{PyDict, PyTuple};
+
+use crate::args::{bind_as, Params};
 
 use stripecal::calib::joint::FreeBlocks;
 use stripecal::model::{Calibration, Rig};
@@ -52,6 +55,42 @@ fn nominal_of(py: Python<'_>, obj: &Bound<'_, PyAny>) -> PyResult<Calibration> {
     py.detach_pool(|| read_nominal(&path)).py_err(py)
 }
 
+/// `plan_poses`' parameters (see [`bind_as`]).
+const PLAN_POSES: Params = Params {
+    name: "plan_poses",
+    positional: &["rig", "nominal", "joints"],
+    required: 3,
+    keyword: &[
+        "sigma_px",
+        "standoff_mm",
+        "margin_px",
+        "fix",
+        "robot",
+        "pose_noise",
+    ],
+};
+
+/// `plan_poses`' arguments, with their defaults.
+#[derive(FromPyObject)]
+#[pyo3(from_item_all)]
+struct PlanArgs<'py> {
+    rig: Bound<'py, PyAny>,
+    nominal: Bound<'py, PyAny>,
+    joints: Bound<'py, PyAny>,
+    #[pyo3(default = (0.05, 0.1))]
+    sigma_px: (f64, f64),
+    #[pyo3(default)]
+    standoff_mm: Option<f64>,
+    #[pyo3(default = 10.0)]
+    margin_px: f64,
+    #[pyo3(default)]
+    fix: Vec<String>,
+    #[pyo3(default = "fixed".into())]
+    robot: String,
+    #[pyo3(default)]
+    pose_noise: Option<(f64, f64)>,
+}
+
 /// The predicted one-sigma of every calibration parameter, and of a point on the laser
 /// plane at the stand-off, for the robot poses `joints` `(M, dof)` (degrees) of the
 /// rig's robot around the nominal calibration (calibration.json or truth.json). Returns
@@ -62,20 +101,24 @@ fn nominal_of(py: Python<'_>, obj: &Bound<'_, PyAny>) -> PyResult<Calibration> {
 /// usable poses (naming why each other one is not) or a wrong joint count,
 /// `DegenerateError` naming the parameters the poses do not determine.
 #[pyfunction]
-#[pyo3(signature = (rig, nominal, joints, *, sigma_px = (0.05, 0.1), standoff_mm = None, margin_px = 10.0, fix = Vec::new(), robot = "fixed", pose_noise = None))]
-#[allow(clippy::too_many_arguments)]
+#[pyo3(signature = (*args, **kwargs), text_signature = "(rig, nominal, joints, *, sigma_px=(0.05, 0.1), standoff_mm=None, margin_px=10.0, fix=..., robot=\"fixed\", pose_noise=None)")]
 pub fn plan_poses<'py>(
     py: Python<'py>,
-    rig: &Bound<'py, PyAny>,
-    nominal: &Bound<'py, PyAny>,
-    joints: &Bound<'py, PyAny>,
-    sigma_px: (f64, f64),
-    standoff_mm: Option<f64>,
-    margin_px: f64,
-    fix: Vec<String>,
-    robot: &str,
-    pose_noise: Option<(f64, f64)>,
+    args: &Bound<'py, PyTuple>,
+    kwargs: Option<&Bound<'py, PyDict>>,
 ) -> PyResult<Bound<'py, PyAny>> {
+    let PlanArgs {
+        rig,
+        nominal,
+        joints,
+        sigma_px,
+        standoff_mm,
+        margin_px,
+        fix,
+        robot,
+        pose_noise,
+    } = bind_as(&PLAN_POSES, args, kwargs)?;
+    let (rig, nominal, joints, robot) = (&rig, &nominal, &joints, robot.as_str());
     if let Some((t, r)) = pose_noise {
         if !(t.is_finite() && r.is_finite() && t > 0.0 && r > 0.0) {
             return Err(invalid_input(

@@ -6,7 +6,9 @@ use crate::pool::Detach;
 use std::path::{Path, PathBuf};
 
 use pyo3::prelude::*;
-use pyo3::types::PyDict;
+use pyo3::types::{PyDict, PyTuple};
+
+use crate::args::{bind_as, Params};
 use stripecal::io::{
     profiler_calibration_from_json, profiler_calibration_to_json, read_profile,
     read_profiler_calibration as core_read_profiler_calibration,
@@ -190,22 +192,63 @@ pub struct PyProfilerCalibration {
     pub inner: ProfilerCalibration,
 }
 
+/// `ProfilerCalibration`'s parameters (see [`bind_as`]).
+const PROFILERCALIBRATION: Params = Params {
+    name: "ProfilerCalibration",
+    positional: &[
+        "hand_sensor",
+        "sphere_center_mm",
+        "sphere_diameter_mm",
+        "robot",
+        "profile_rms_mm",
+        "views_used",
+        "uncertainty",
+        "extra",
+    ],
+    required: 3,
+    keyword: &[],
+};
+
+/// `ProfilerCalibration`'s arguments, with their defaults.
+#[derive(FromPyObject)]
+#[pyo3(from_item_all)]
+struct ProfilerCalibrationArgs<'py> {
+    hand_sensor: Bound<'py, PyAny>,
+    sphere_center_mm: Bound<'py, PyAny>,
+    sphere_diameter_mm: f64,
+    #[pyo3(default)]
+    robot: Option<Bound<'py, PyRobot>>,
+    #[pyo3(default)]
+    profile_rms_mm: f64,
+    #[pyo3(default)]
+    views_used: usize,
+    #[pyo3(default)]
+    uncertainty: Option<Bound<'py, PyDict>>,
+    #[pyo3(default)]
+    extra: Option<Bound<'py, PyDict>>,
+}
+
 #[pymethods]
 impl PyProfilerCalibration {
     #[new]
-    #[pyo3(signature = (hand_sensor, sphere_center_mm, sphere_diameter_mm, robot = None, profile_rms_mm = 0.0, views_used = 0, uncertainty = None, extra = None))]
-    #[allow(clippy::too_many_arguments)]
+    #[pyo3(signature = (*args, **kwargs), text_signature = "(hand_sensor, sphere_center_mm, sphere_diameter_mm, robot=None, profile_rms_mm=0.0, views_used=0, uncertainty=None, extra=None)")]
     fn new(
         py: Python<'_>,
-        hand_sensor: &Bound<'_, PyAny>,
-        sphere_center_mm: &Bound<'_, PyAny>,
-        sphere_diameter_mm: f64,
-        robot: Option<&Bound<'_, PyRobot>>,
-        profile_rms_mm: f64,
-        views_used: usize,
-        uncertainty: Option<&Bound<'_, PyDict>>,
-        extra: Option<&Bound<'_, PyDict>>,
+        args: &Bound<'_, PyTuple>,
+        kwargs: Option<&Bound<'_, PyDict>>,
     ) -> PyResult<Self> {
+        let ProfilerCalibrationArgs {
+            hand_sensor,
+            sphere_center_mm,
+            sphere_diameter_mm,
+            robot,
+            profile_rms_mm,
+            views_used,
+            uncertainty,
+            extra,
+        } = bind_as(&PROFILERCALIBRATION, args, kwargs)?;
+        let (hand_sensor, sphere_center_mm) = (&hand_sensor, &sphere_center_mm);
+        let (robot, uncertainty, extra) = (robot.as_ref(), uncertainty.as_ref(), extra.as_ref());
         if !(sphere_diameter_mm.is_finite() && sphere_diameter_mm > 0.0) {
             return Err(invalid_input(
                 py,

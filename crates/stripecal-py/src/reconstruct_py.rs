@@ -8,7 +8,9 @@ use std::path::PathBuf;
 
 use nalgebra::Vector3;
 use pyo3::prelude::*;
-use pyo3::types::{PyDict, PyList, PySequence};
+use pyo3::types::{PyDict, PyList, PySequence, PyTuple};
+
+use crate::args::{bind_as, Params};
 
 use stripecal::io::{write_ply_with_comments, PlyFormat};
 use stripecal::model::image::AnyImage;
@@ -206,9 +208,7 @@ fn options(
 /// `drop_flags` bits. Runs in parallel with the GIL released. Errors name the frame.
 #[pyfunction]
 #[pyo3(signature = (calibration, images, joints, direction = "auto", min_ray_plane_angle_deg = 2.0, drop_flags = 0, channel = "gray"))]
-#[allow(clippy::too_many_arguments)]
 pub fn reconstruct(
-    py: Python<'_>,
     calibration: &Bound<'_, PyCalibration>,
     images: &Bound<'_, PyAny>,
     joints: &Bound<'_, PyAny>,
@@ -217,6 +217,7 @@ pub fn reconstruct(
     drop_flags: u8,
     channel: &str,
 ) -> PyResult<PyCloud> {
+    let py = calibration.py();
     let opts = options(py, direction, min_ray_plane_angle_deg, drop_flags)?;
     let channel = StripeChannel::from_name(channel).py_err(py)?;
     let q = f64_array(joints, "joints")?;
@@ -305,6 +306,55 @@ pub fn reconstruct(
     Ok(PyCloud { inner: sp })
 }
 
+/// `reconstruct_scan`'s parameters (see [`bind_as`]).
+const RECONSTRUCT_SCAN: Params = Params {
+    name: "reconstruct_scan",
+    positional: &[
+        "calibration",
+        "scan_dir",
+        "direction",
+        "min_ray_plane_angle_deg",
+        "drop_flags",
+        "progress",
+        "on_bad_image",
+        "covariance",
+        "stripe_sigma_px",
+        "repeatability_mm",
+        "encoder_sigma_deg",
+        "channel",
+    ],
+    required: 2,
+    keyword: &[],
+};
+
+/// `reconstruct_scan`'s arguments, with their defaults.
+#[derive(FromPyObject)]
+#[pyo3(from_item_all)]
+struct ScanArgs<'py> {
+    calibration: Bound<'py, PyAny>,
+    scan_dir: PathBuf,
+    #[pyo3(default = "auto".into())]
+    direction: String,
+    #[pyo3(default = 2.0)]
+    min_ray_plane_angle_deg: f64,
+    #[pyo3(default)]
+    drop_flags: u8,
+    #[pyo3(default)]
+    progress: Option<Py<PyAny>>,
+    #[pyo3(default = "stop".into())]
+    on_bad_image: String,
+    #[pyo3(default)]
+    covariance: bool,
+    #[pyo3(default)]
+    stripe_sigma_px: Option<f64>,
+    #[pyo3(default)]
+    repeatability_mm: Option<f64>,
+    #[pyo3(default)]
+    encoder_sigma_deg: Option<f64>,
+    #[pyo3(default)]
+    channel: Option<String>,
+}
+
 /// Reconstructs a scan folder (scan.csv + images, spec/DATASET.md) with a calibration.
 /// `direction` "auto" takes the scan's rig.json hint, else the laser plane's.
 ///
@@ -333,23 +383,32 @@ pub fn reconstruct(
 /// robot's figures (`repeatability_mm`, `encoder_sigma_deg`; default those of the
 /// calibration's robot, if any).
 #[pyfunction]
-#[pyo3(signature = (calibration, scan_dir, direction = "auto", min_ray_plane_angle_deg = 2.0, drop_flags = 0, progress = None, on_bad_image = "stop", covariance = false, stripe_sigma_px = None, repeatability_mm = None, encoder_sigma_deg = None, channel = None))]
-#[allow(clippy::too_many_arguments)]
+#[pyo3(signature = (*args, **kwargs), text_signature = "(calibration, scan_dir, direction=\"auto\", min_ray_plane_angle_deg=2.0, drop_flags=0, progress=None, on_bad_image=\"stop\", covariance=False, stripe_sigma_px=None, repeatability_mm=None, encoder_sigma_deg=None, channel=None)")]
 pub fn reconstruct_scan(
     py: Python<'_>,
-    calibration: &Bound<'_, PyAny>,
-    scan_dir: PathBuf,
-    direction: &str,
-    min_ray_plane_angle_deg: f64,
-    drop_flags: u8,
-    progress: Option<Py<PyAny>>,
-    on_bad_image: &str,
-    covariance: bool,
-    stripe_sigma_px: Option<f64>,
-    repeatability_mm: Option<f64>,
-    encoder_sigma_deg: Option<f64>,
-    channel: Option<&str>,
+    args: &Bound<'_, PyTuple>,
+    kwargs: Option<&Bound<'_, PyDict>>,
 ) -> PyResult<PyCloud> {
+    let ScanArgs {
+        calibration,
+        scan_dir,
+        direction,
+        min_ray_plane_angle_deg,
+        drop_flags,
+        progress,
+        on_bad_image,
+        covariance,
+        stripe_sigma_px,
+        repeatability_mm,
+        encoder_sigma_deg,
+        channel,
+    } = bind_as(&RECONSTRUCT_SCAN, args, kwargs)?;
+    let (calibration, direction, on_bad_image, channel) = (
+        &calibration,
+        direction.as_str(),
+        on_bad_image.as_str(),
+        channel.as_deref(),
+    );
     let unc = UncertaintyOptions {
         stripe_sigma_px,
         repeatability_mm,

@@ -18,6 +18,7 @@ use stripecal::io::{
 use stripecal::model::geometry::Plane;
 use stripecal::model::{Calibration, Mount, NamedCovariance, Quality, QualityCheck};
 
+use crate::args::{bind_as, Params};
 use crate::camera::PyCamera;
 use crate::convert::{
     fixed, iso_to_py, json_to_py, map_to_py, nd, opt_dict_to_map, py_to_iso, rows_of,
@@ -162,22 +163,68 @@ impl PyCalibration {
     }
 }
 
+/// `Calibration`'s parameters (see [`bind_as`]).
+const CALIBRATION: Params = Params {
+    name: "Calibration",
+    positional: &[
+        "camera",
+        "laser_plane",
+        "hand_cam",
+        "base_board",
+        "robot",
+        "quality",
+        "uncertainty",
+        "extra",
+    ],
+    required: 4,
+    keyword: &[],
+};
+
+/// `Calibration`'s arguments, with their defaults.
+#[derive(FromPyObject)]
+#[pyo3(from_item_all)]
+struct CalibrationArgs<'py> {
+    camera: Bound<'py, PyCamera>,
+    laser_plane: Bound<'py, PyAny>,
+    hand_cam: Bound<'py, PyAny>,
+    base_board: Bound<'py, PyAny>,
+    #[pyo3(default)]
+    robot: Option<Bound<'py, PyRobot>>,
+    #[pyo3(default)]
+    quality: Option<Bound<'py, PyDict>>,
+    #[pyo3(default)]
+    uncertainty: Option<Bound<'py, PyDict>>,
+    #[pyo3(default)]
+    extra: Option<Bound<'py, PyDict>>,
+}
+
 #[pymethods]
 impl PyCalibration {
     #[new]
-    #[pyo3(signature = (camera, laser_plane, hand_cam, base_board, robot = None, quality = None, uncertainty = None, extra = None))]
-    #[allow(clippy::too_many_arguments)]
+    #[pyo3(signature = (*args, **kwargs), text_signature = "(camera, laser_plane, hand_cam, base_board, robot=None, quality=None, uncertainty=None, extra=None)")]
     fn new(
         py: Python<'_>,
-        camera: &Bound<'_, PyCamera>,
-        laser_plane: &Bound<'_, PyAny>,
-        hand_cam: &Bound<'_, PyAny>,
-        base_board: &Bound<'_, PyAny>,
-        robot: Option<&Bound<'_, PyRobot>>,
-        quality: Option<&Bound<'_, PyDict>>,
-        uncertainty: Option<&Bound<'_, PyDict>>,
-        extra: Option<&Bound<'_, PyDict>>,
+        args: &Bound<'_, PyTuple>,
+        kwargs: Option<&Bound<'_, PyDict>>,
     ) -> PyResult<Self> {
+        let CalibrationArgs {
+            camera,
+            laser_plane,
+            hand_cam,
+            base_board,
+            robot,
+            quality,
+            uncertainty,
+            extra,
+        } = bind_as(&CALIBRATION, args, kwargs)?;
+        let (camera, laser_plane, hand_cam, base_board) =
+            (&camera, &laser_plane, &hand_cam, &base_board);
+        let (robot, quality, uncertainty, extra) = (
+            robot.as_ref(),
+            quality.as_ref(),
+            uncertainty.as_ref(),
+            extra.as_ref(),
+        );
         let robot = robot.map(|r| r.get().inner.clone());
         // the records among `extra`'s keys, as a file's are read
         let (records, mut extra) =

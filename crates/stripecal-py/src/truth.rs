@@ -8,6 +8,7 @@ use pyo3::types::{PyDict, PyTuple};
 use stripecal::io::{truth_from_json, truth_to_json, write_truth};
 use stripecal::model::{Sphere, Truth};
 
+use crate::args::{bind_as, Params};
 use crate::camera::PyCamera;
 use crate::convert::{fixed, iso_to_py, map_to_py, nd, opt_dict_to_map, py_to_iso};
 use crate::errors::{invalid_input, ResultExt};
@@ -53,22 +54,63 @@ pub struct PyTruth {
     pub inner: Truth,
 }
 
+/// `Truth`'s parameters (see [`bind_as`]).
+const TRUTH: Params = Params {
+    name: "Truth",
+    positional: &[
+        "camera",
+        "laser_plane",
+        "hand_cam",
+        "base_board",
+        "robot",
+        "sphere",
+        "working_range_mm",
+        "extra",
+    ],
+    required: 4,
+    keyword: &[],
+};
+
+/// `Truth`'s arguments, with their defaults.
+#[derive(FromPyObject)]
+#[pyo3(from_item_all)]
+struct TruthArgs<'py> {
+    camera: Bound<'py, PyCamera>,
+    laser_plane: Bound<'py, PyAny>,
+    hand_cam: Bound<'py, PyAny>,
+    base_board: Bound<'py, PyAny>,
+    #[pyo3(default)]
+    robot: Option<Bound<'py, PyRobot>>,
+    #[pyo3(default)]
+    sphere: Option<Bound<'py, PyDict>>,
+    #[pyo3(default)]
+    working_range_mm: Option<(f64, f64)>,
+    #[pyo3(default)]
+    extra: Option<Bound<'py, PyDict>>,
+}
+
 #[pymethods]
 impl PyTruth {
     #[new]
-    #[pyo3(signature = (camera, laser_plane, hand_cam, base_board, robot = None, sphere = None, working_range_mm = None, extra = None))]
-    #[allow(clippy::too_many_arguments)]
+    #[pyo3(signature = (*args, **kwargs), text_signature = "(camera, laser_plane, hand_cam, base_board, robot=None, sphere=None, working_range_mm=None, extra=None)")]
     fn new(
         py: Python<'_>,
-        camera: &Bound<'_, PyCamera>,
-        laser_plane: &Bound<'_, PyAny>,
-        hand_cam: &Bound<'_, PyAny>,
-        base_board: &Bound<'_, PyAny>,
-        robot: Option<&Bound<'_, PyRobot>>,
-        sphere: Option<&Bound<'_, PyDict>>,
-        working_range_mm: Option<(f64, f64)>,
-        extra: Option<&Bound<'_, PyDict>>,
+        args: &Bound<'_, PyTuple>,
+        kwargs: Option<&Bound<'_, PyDict>>,
     ) -> PyResult<Self> {
+        let TruthArgs {
+            camera,
+            laser_plane,
+            hand_cam,
+            base_board,
+            robot,
+            sphere,
+            working_range_mm,
+            extra,
+        } = bind_as(&TRUTH, args, kwargs)?;
+        let (camera, laser_plane, hand_cam, base_board) =
+            (&camera, &laser_plane, &hand_cam, &base_board);
+        let (robot, sphere, extra) = (robot.as_ref(), sphere.as_ref(), extra.as_ref());
         Ok(PyTruth {
             inner: Truth {
                 camera: camera.get().inner.clone(),
