@@ -51,6 +51,31 @@ def test_a_calibration_built_from_another_keeps_its_records() -> None:
     assert bench.mount == "bench" and bench.is_bench and bench.extra["bench"] is True
 
 
+def test_the_summary_and_the_stripe_channel_are_typed_records() -> None:
+    import json
+
+    path = Path(__file__).parent.parent / "crates/stripecal/tests/data/held_v1.json"
+    c = stripecal.load_calibration(path)
+    s = c.summary
+    assert s is not None and set(s) <= _keys("CalibrationSummary")
+    assert {k: c.extra[k] for k in s} == s  # type: ignore[literal-required]
+    assert c.stripe_channel is None and c.stripe_channel_scores is None
+    scores = {"gray": 12.0, "red": 340.0, "green": 5.0, "blue": 0.0}
+    extra = {**c.extra, "stripe_channel": "red", "stripe_channel_scores": scores}
+    d = stripecal.Calibration(c.camera, c.laser_plane, c.hand_cam, c.base_board, c.robot,
+                              c.quality, c.uncertainty, extra)
+    assert d.stripe_channel == "red" and d.stripe_channel_scores == scores
+    assert list(d.stripe_channel_scores) == list(scores)
+    keys = list(json.loads(d.to_json()))
+    assert keys[-2:] == ["stripe_channel", "stripe_channel_scores"]
+    back = stripecal.Calibration.from_json(d.to_json())
+    assert back.stripe_channel == "red" and back.stripe_channel_scores == scores
+    # a channel this version does not know stays in `extra`, as the file has it
+    odd = stripecal.Calibration(c.camera, c.laser_plane, c.hand_cam, c.base_board, c.robot,
+                                extra={"stripe_channel": "purple"})
+    assert odd.stripe_channel is None and odd.extra["stripe_channel"] == "purple"
+
+
 def test_many_keyword_callables_keep_their_python_signatures() -> None:
     import inspect
 
@@ -75,3 +100,12 @@ def test_many_keyword_callables_keep_their_python_signatures() -> None:
     with pytest.raises(OverflowError):
         stripecal.reconstruct_scan("nowhere", "nowhere", drop_flags=300)
 
+
+def test_the_twins_truth_keys_are_typed() -> None:
+    from stripecal import sim
+
+    twin = sim.Twin(sim.preset("hp3-paper", seed=0))
+    extra = twin.truth().extra
+    assert set(extra) <= _keys("TruthExtra"), sorted(set(extra) - _keys("TruthExtra"))
+    assert {"laser_emitter_mm", "stripe_direction", "table", "plate", "sim_config"} <= set(extra)
+    assert set(extra["plate"]) == _keys("TruthPlate") and set(extra["table"]) == _keys("TwinPlane")

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import typing
 from pathlib import Path
 
 import numpy as np
@@ -10,6 +11,7 @@ import pytest
 
 import stripecal
 import stripecal.sim as sim
+import stripecal.types
 
 
 def small(seed: int = 0, **knobs: object) -> dict:
@@ -106,6 +108,8 @@ def test_reading_noise_moves_the_readings_not_the_images(tmp_path: Path) -> None
     images = stripecal.load_truth(tmp_path / "noisy" / "calib" / "truth.json").extra["images"]
     np.testing.assert_allclose(np.array([im["q_deg"] for im in images]), exact, atol=1e-9)
     np.testing.assert_allclose(np.array([im["q_reading_deg"] for im in images]), noisy, atol=1e-9)
+    # every key of a view's truth is one of the typed record's
+    assert set(images[0]) <= set(typing.get_type_hints(stripecal.types.TruthImage))
     for name in ["images/view_001_board.png", "images/view_002_laser.png"]:
         assert (tmp_path / "noisy" / "calib" / name).read_bytes() == (tmp_path / "exact" / "calib" / name).read_bytes()
 

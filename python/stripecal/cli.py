@@ -348,21 +348,21 @@ def print_calibration(cal: stripecal.Calibration) -> None:
     from stripecal.report import parameter_rows, stripe_extraction_cells  # plain Python; matplotlib only for figures
 
     cam = cal.camera
-    extra = cal.extra
-    print(f"method {extra.get('method', '?')}, camera model {cam.distortion_model}, "
+    summary = cal.summary
+    print(f"method {summary['method'] if summary else '?'}, camera model {cam.distortion_model}, "
           f"{cal.quality['views_used']} views used")
     print("\n  parameter                    value +- 1 sigma")
     for name, value, sigma, _ in parameter_rows(cal, None):
         print(f"  {name:<22}{_fmt_sigma(value, sigma or None)}")
     q = cal.quality
-    smm = extra.get("stripe_rms_mm")
+    smm = summary["stripe_rms_mm"] if summary else None
     stripe = (f", stripe {q['stripe_rms_px']:.4f} px ({smm:.4f} mm)" if cal.laser_plane is not None and smm is not None
               else " (no stripe points)")
     print(f"\n  residual RMS: target points {q['target_rms_px']:.4f} px{stripe}")
-    channel = extra.get("stripe_channel")
-    if isinstance(channel, str):
-        scores = extra.get("stripe_channel_scores")
-        how = ("auto: " + ", ".join(f"{k} {v:.0f}" for k, v in scores.items()) if isinstance(scores, dict) else "rig.json")
+    channel = cal.stripe_channel
+    if channel is not None:
+        scores = cal.stripe_channel_scores
+        how = ("auto: " + ", ".join(f"{k} {v:.0f}" for k, v in scores.items()) if scores is not None else "rig.json")
         print(f"  stripe found in the {channel} channel ({how})")
     views = cal.views
     if views:
@@ -371,7 +371,7 @@ def print_calibration(cal: stripecal.Calibration) -> None:
         for v in views:
             crms = v["circle_rms_px"]
             srms = v["stripe_rms_px"]
-            off = v.get("stripe_off_plane")  # absent from files written before it existed
+            off = v["stripe_off_plane"]
             found, left, sat = stripe_extraction_cells(v)
             note = v["note"] or ("OUTLIER" if v["outlier"] else "")
             print(f"  {v['view']:>4}  {'yes' if v['used'] else 'no':>4}  {v['circles']:>13}  {found:>12}  {left:>8}"
@@ -391,18 +391,18 @@ def print_calibration(cal: stripecal.Calibration) -> None:
     rn = cal.robot_pose_noise
     if rn is not None and rn["translation_mm"] is not None and rn["rotation_deg"] is not None:
         floor = [k for k, v in rn["at_floor"].items() if v]
-        k = rn.get("image_factor")
+        k = rn["image_factor"]
         image = f"; the images' own part {k:.3g} x their pose precision" if k is not None else ""
         print(f"\n  robot-pose noise: {rn['translation_mm']:.3g} mm, {rn['rotation_deg']:.3g} deg{image}"
               f" ({'at floor: ' + ', '.join(floor) if floor else 'estimated'})")
-        km, kd = rn.get("kinematic_mm"), rn.get("kinematic_deg")
+        km, kd = rn["kinematic_mm"], rn["kinematic_deg"]
         if km is not None and kd is not None:
             print(f"    DH errors of {km:.3g} mm / {kd:.3g} deg would explain it: their effect on X and Z is in the sigmas"
                   " (--robot auto estimates them)")
         tests = ", ".join(f"{v['view']}: {v['test']:.1f}" for v in rn["views"] if v["test"] is not None)
         if tests:
             print(f"    per-view pose test (above 4: the pose is off by far more than the others'): {tests}")
-        for lv in rn.get("left_out", []):
+        for lv in rn["left_out"]:
             t = "?" if lv["test"] is None else f"{lv['test']:.1f}"
             tm, rd = lv["translation_mm"], lv["rotation_deg"]
             print(f"    view {lv['view']} LEFT OUT: its pose test {t} (corrected by "
@@ -418,8 +418,8 @@ def print_calibration(cal: stripecal.Calibration) -> None:
         for f in rc["fixed"]:
             print(f"    held {f['name']}: {f['reason']}")
     print_leave_one_out(cal)
-    print_checks(q.get("checks", []), q.get("accepted_poor", False))
-    for w in extra.get("warnings", []):
+    print_checks(q["checks"], q["accepted_poor"])
+    for w in cal.warnings:
         print(f"  warning: {w}")
 
 

@@ -274,7 +274,9 @@ def write_report(
         if f:
             figures.append(f)
     q = cal.quality
-    e = cal.extra
+    summary = cal.summary
+    method = summary["method"] if summary else "?"
+    stripe_mm = summary["stripe_rms_mm"] if summary else None
     rows = parameter_rows(cal, truth)
     tr = []
     for name, value, sigma, true in rows:
@@ -289,12 +291,12 @@ def write_report(
             return "" if x is None else f"{x:.4f}"
         bad = ' style="color:#b00"' if v["outlier"] or not v["used"] else ""
         found, left, sat = stripe_extraction_cells(v)
-        off = v.get("stripe_off_plane")
+        off = v["stripe_off_plane"]
         vr.append(f"<tr{bad}><td>{v['view']}</td><td>{'yes' if v['used'] else 'no'}</td><td>{v['circles']}</td>"
                   f"<td>{found}</td><td>{left}</td><td>{'' if off is None else off}</td><td>{sat}</td>"
                   f"<td>{v['stripe_points']}</td><td>{f4(v['circle_rms_px'])}</td>"
                   f"<td>{f4(v['stripe_rms_px'])}</td><td>{html.escape(str(v['note'] or ''))}</td></tr>")
-    warn = "".join(f"<li>{html.escape(str(w))}</li>" for w in e.get("warnings", []))
+    warn = "".join(f"<li>{html.escape(str(w))}</li>" for w in cal.warnings)
     loo_html = _leave_one_out_html(cal)
     extra_sections = "".join(f"<h2>{html.escape(h)}</h2><pre>{html.escape(t)}</pre>" for h, t in sections)
     imgs = "".join(f'<figure><img src="{f}" alt="{f}"><figcaption>{f}</figcaption></figure>' for f in figures)
@@ -304,9 +306,9 @@ def write_report(
 td,th{{border:1px solid #ccc;padding:2px 8px;text-align:right}} td:first-child{{text-align:left}}
 img{{max-width:100%}} figure{{margin:1em 0}}</style></head><body>
 <h1>{html.escape(title)}</h1>
-<p>method <b>{html.escape(str(e.get('method', '?')))}</b>, camera model {html.escape(cal.camera.distortion_model)},
+<p>method <b>{html.escape(method)}</b>, camera model {html.escape(cal.camera.distortion_model)},
 {q['views_used']} views used. Residual RMS: target points <b>{q['target_rms_px']:.4f} px</b>,
-stripe <b>{q['stripe_rms_px']:.4f} px</b> ({float(e.get('stripe_rms_mm') or float('nan')):.4f} mm){'' if cal.laser_plane is not None else ' (laser plane not estimated: ' + _no_plane_reason(cal) + ')'}.</p>
+stripe <b>{q['stripe_rms_px']:.4f} px</b> ({float(stripe_mm or float('nan')):.4f} mm){'' if cal.laser_plane is not None else ' (laser plane not estimated: ' + _no_plane_reason(cal) + ')'}.</p>
 {checks_html(cal.quality)}
 {('<h2>Warnings</h2><ul>' + warn + '</ul>') if warn else ''}
 <h2>Parameters</h2>
@@ -335,7 +337,7 @@ def write_html(out: Path, doc: str) -> Path:
 def checks_html(q: Union[CalibrationQuality, ProfilerQuality]) -> str:
     """The quality gates' verdicts of a calibration's ``quality`` (a camera's or a line
     profiler's), and a banner when a failed calibration was kept."""
-    checks = q.get("checks", [])
+    checks = q["checks"]
     if not checks:
         return ""
     rows = []
@@ -346,7 +348,7 @@ def checks_html(q: Union[CalibrationQuality, ProfilerQuality]) -> str:
                     f"<td>{html.escape(views)}</td><td style=\"text-align:left\">{html.escape(c['message'])}</td></tr>")
     banner = ('<p style="color:#fff;background:#b00;padding:0.5em"><b>ACCEPTED POOR</b>: this calibration failed '
               "a quality check and was kept with --accept-poor. Do not use it to accept or reject parts.</p>"
-              if q.get("accepted_poor") else "")
+              if q["accepted_poor"] else "")
     return (f"<h2>Quality checks</h2>{banner}<table><tr><th>check</th><th>verdict</th><th>views</th>"
             f"<th>figures</th></tr>{''.join(rows)}</table>")
 
@@ -363,15 +365,15 @@ def _robot_pose_noise_html(cal: stripecal.Calibration) -> str:
         return "" if x is None else format(x, fmt)
 
     floor = [k for k, v in rn["at_floor"].items() if v]
-    k = rn.get("image_factor")
-    km, kd = rn.get("kinematic_mm"), rn.get("kinematic_deg")
+    k = rn["image_factor"]
+    km, kd = rn["kinematic_mm"], rn["kinematic_deg"]
     rows = []
     for v in rn["views"]:
         t = v["test"]
         bad = ' style="color:#b00"' if t is not None and t > 4.0 else ""
         rows.append(f"<tr{bad}><td>{v['view']}</td><td>{num(v['translation_mm'], '.4f')}</td>"
                     f"<td>{num(v['rotation_deg'], '.5f')}</td><td>{num(t, '.2f')}</td><td></td></tr>")
-    for v in rn.get("left_out", []):
+    for v in rn["left_out"]:
         rows.append(f"<tr style=\"color:#b00\"><td>{v['view']}</td><td>{num(v['translation_mm'], '.4f')}</td>"
                     f"<td>{num(v['rotation_deg'], '.5f')}</td><td>{num(v['test'], '.2f')}</td><td>left out</td></tr>")
     text = (f"<p>Each view's robot pose is corrected by its own small transform; the corrections' spread is the "

@@ -22,9 +22,9 @@ Typing notes:
   always writes may be missing from someone else's file, and unknown keys are kept.
 - Constructor arguments that take such a record accept the record or any ``dict`` of
   JSON-like values (``...Input`` aliases): the extension needs a real ``dict``.
-- Two maps stay untyped (string keys to ``Any``) on purpose: :data:`SimConfig` (the twin's free-form,
-  nested configuration, validated by the Rust side) and ``Truth.extra`` (simulator
-  specific keys of truth.json).
+- One map stays untyped (string keys to ``Any``) on purpose: :data:`SimConfig` (the
+  twin's free-form, nested configuration, validated by the Rust side).
+  ``Truth.extra`` is a :class:`TruthExtra`.
 """
 
 from typing import Any, Dict, List, Optional, TypedDict, Union
@@ -50,6 +50,7 @@ __all__ = [
     "CalibrationExtraInput",
     "CalibrationQuality",
     "CalibrationQualityInput",
+    "CalibrationSummary",
     "CalibrationUncertainty",
     "CalibrationUncertaintyInput",
     "CalibrationView",
@@ -105,6 +106,11 @@ __all__ = [
     "SphereTruth",
     "StripeExtraction",
     "StripeLeftOut",
+    "TruthArtefactPlane",
+    "TruthArtefactSphere",
+    "TruthExtra",
+    "TruthImage",
+    "TruthPlate",
     "TwinDhRow",
     "TwinPlane",
     "TwinSphere",
@@ -315,6 +321,30 @@ class ResidualSigma(TypedDict):
     """Of a target point's residual (per coordinate)."""
     stripe: float
     """Of a stripe point's distance from its predicted line."""
+
+
+class _CalibrationSummaryKeys(TypedDict):
+    method: str
+    """``"one-stage"`` or ``"paper"``."""
+    centre_model: str
+    """The circle-centre model (e.g. ``"conic-exact"``)."""
+    stripe_rms_mm: Optional[float]
+    """RMS of the stripe points' distance from the laser plane, mm (None: no stripe
+    points)."""
+    residual_sigma_px: ResidualSigma
+    """Residual standard deviations estimated by the adjustment."""
+    stripe_off_plane: int
+    """Stripe points rejected as off the board plane, all views."""
+
+
+class CalibrationSummary(_CalibrationSummaryKeys, total=False):
+    """How a calibration was made (``Calibration.summary``; calibration.json's
+    ``method``, ``centre_model``, ``base_board_orientation``, ``stripe_rms_mm``,
+    ``residual_sigma_px``, ``stripe_off_plane``)."""
+
+    base_board_orientation: str
+    """``"first view"`` when no view's image fixed the board frame's orientation and
+    the first view's labelling did (docs/conventions.md); absent otherwise."""
 
 
 class StripeLeftOut(TypedDict):
@@ -1027,6 +1057,99 @@ class TwinPlane(TypedDict):
     """Unit normal ``[x, y, z]`` (towards the sensor)."""
     d_mm: float
     """Offset, mm."""
+
+
+class TruthPlate(TypedDict):
+    """The twin's board plate (truth.json's ``plate``), base frame."""
+
+    normal: List[float]
+    """Unit normal ``[x, y, z]`` (towards the sensor)."""
+    d_mm: float
+    """Offset, mm."""
+    extent_mm: List[float]
+    """The plate's extent in board coordinates ``[x0, x1, y0, y1]``, mm."""
+
+
+class TruthArtefactSphere(TypedDict):
+    """One sphere of a verification artefact (truth.json's ``spheres``)."""
+
+    name: str
+    """``"A"`` or ``"B"``."""
+    center_mm: List[float]
+    """Centre ``[x, y, z]``, base frame, mm."""
+    diameter_mm: float
+    """Diameter, mm."""
+
+
+class TruthArtefactPlane(TypedDict):
+    """The plane of a verification artefact (truth.json's ``plane``), base frame."""
+
+    normal: List[float]
+    """Unit normal ``[x, y, z]``."""
+    d_mm: float
+    """Offset, mm."""
+    flatness_mm: float
+    """Its true flatness (0), mm."""
+
+
+class TruthImage(TypedDict, total=False):
+    """One image's truth (truth.json's ``images``): a calibration view's (``board_image``,
+    ``laser_image``, ``q_deg``, ``q_reading_deg`` with reading noise, ``standoff_mm``,
+    ``tilt_deg``, ``base_cam``, ``circles``, ``stripe``) or a scan frame's (``image``,
+    ``stripe``)."""
+
+    board_image: str
+    """The board image's file, relative to the dataset."""
+    laser_image: str
+    """The laser image's file, relative to the dataset."""
+    image: str
+    """A scan frame's image file, relative to the scan."""
+    q_deg: List[float]
+    """The true joint angles, degrees."""
+    q_reading_deg: List[float]
+    """The joint readings written (with their noise), degrees."""
+    standoff_mm: float
+    """Stand-off along the optical axis to the board plane, mm."""
+    tilt_deg: float
+    """Angle between the optical axis and the board normal, degrees."""
+    base_cam: PoseRecord
+    """The true ``T_base_cam`` of the view."""
+    circles: List[object]
+    """The true target points as the renderer drew them (per point: its grid index and
+    pixel position)."""
+    stripe: Dict[str, object]
+    """The true stripe: ``direction`` and its ``points`` (with ``columns`` naming their
+    fields in a scan frame's truth)."""
+
+
+class TruthExtra(TypedDict, total=False):
+    """The twin's keys of truth.json beyond the contract's (``Truth.extra``): which are
+    present depends on what was rendered (a calibration dataset, a scan, a verification
+    scan); a truth.json written elsewhere may hold others."""
+
+    laser_emitter_mm: List[float]
+    """The laser's emitter ``[x, y, z]``, camera frame, mm."""
+    stripe_direction: str
+    """``"rows"`` or ``"cols"``: how the stripe runs in the images."""
+    table: TwinPlane
+    """The table plane under the board and the parts."""
+    plate: TruthPlate
+    """The board plate."""
+    sim_config: SimConfig
+    """The twin's whole configuration (knobs at their defaults included; groups of
+    modes that are off left out)."""
+    images: List[TruthImage]
+    """Per image, in the dataset's or scan's order."""
+    artefact: str
+    """A verification scan's artefact name."""
+    spheres: List[TruthArtefactSphere]
+    """A verification scan's spheres."""
+    length_mm: float
+    """A ball bar's true length (the spheres' centre distance), mm."""
+    plane: TruthArtefactPlane
+    """A verification scan's plane."""
+    depth_mm: float
+    """A verification scan's depth along the optical axis, mm."""
 
 
 class ProfilerCounts(TypedDict):

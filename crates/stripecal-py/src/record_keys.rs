@@ -18,7 +18,7 @@ use stripecal::model::kinematics::Robot;
 use stripecal::model::{
     AdjustmentSummary, BoardScaleCheck, Calibration, CalibrationRecords, DhCorrection,
     LaserBoardFigure, LeaveOneOut, LooFold, LooView, Mount, RobotCalibration, RobotPoseNoise,
-    RobotPoseView, StripeExtraction, ViewRecord,
+    RobotPoseView, StripeChannel, StripeChannelChoice, StripeExtraction, ViewRecord,
 };
 
 /// The keys of a JSON object (none for another value).
@@ -130,6 +130,10 @@ fn sample() -> PyResult<Calibration> {
             fixed: vec![(String::new(), String::new())],
         }),
         held_blocks: Some(vec![String::new()]),
+        stripe_channel: Some(StripeChannelChoice {
+            channel: StripeChannel::Red,
+            scores: Some(vec![(StripeChannel::Gray, 0.0)]),
+        }),
     };
     Ok(Calibration {
         camera,
@@ -157,6 +161,10 @@ pub fn record_keys() -> PyResult<BTreeMap<&'static str, Vec<String>>> {
     let extra = Value::Object(calibration_extra_keys(&c));
     out.insert("CalibrationExtra", keys(&extra));
     if let Some(s) = &r.summary {
+        out.insert(
+            "CalibrationSummary",
+            keys(&Value::Object(summary_to_json(s))),
+        );
         out.insert(
             "ResidualSigma",
             keys(&summary_to_json(s)["residual_sigma_px"]),

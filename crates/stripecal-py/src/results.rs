@@ -9,7 +9,7 @@ use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyList, PyTuple};
 use stripecal::io::{
     board_scale_to_json, calibration_extra_keys, calibration_records_from, leave_one_out_to_json,
-    robot_calibration_to_json, robot_pose_noise_to_json, view_record_to_json,
+    robot_calibration_to_json, robot_pose_noise_to_json, summary_to_json, view_record_to_json,
 };
 use stripecal::io::{
     calibration_from_json, calibration_leave_one_out, calibration_to_json, take_bench_flag,
@@ -339,6 +339,52 @@ impl PyCalibration {
     #[getter]
     fn warnings(&self) -> Vec<String> {
         self.inner.records.warnings.clone()
+    }
+
+    /// How the calibration was made (calibration.json's `method`, `centre_model`,
+    /// `base_board_orientation` (when set), `stripe_rms_mm`, `residual_sigma_px`,
+    /// `stripe_off_plane`); None when the file has none.
+    #[getter]
+    fn summary<'py>(&self, py: Python<'py>) -> PyResult<Option<Bound<'py, PyAny>>> {
+        self.inner
+            .records
+            .summary
+            .as_ref()
+            .map(|s| json_to_py(py, &serde_json::Value::Object(summary_to_json(s))))
+            .transpose()
+    }
+
+    /// The signal the stripes were found in (`"gray"`, `"red"`, `"green"` or
+    /// `"blue"`; calibration.json's `stripe_channel`); None when rig.json's
+    /// `stripe.channel` is gray (or the file has none).
+    #[getter]
+    fn stripe_channel(&self) -> Option<&'static str> {
+        self.inner
+            .records
+            .stripe_channel
+            .as_ref()
+            .map(|c| c.channel.name())
+    }
+
+    /// With `stripe.channel: auto`, each signal's score (summed stripe peak-to-noise
+    /// ratio over the laser images looked at) by name (`stripe_channel_scores`); None
+    /// otherwise.
+    #[getter]
+    fn stripe_channel_scores<'py>(&self, py: Python<'py>) -> PyResult<Option<Bound<'py, PyDict>>> {
+        let Some(scores) = self
+            .inner
+            .records
+            .stripe_channel
+            .as_ref()
+            .and_then(|c| c.scores.as_ref())
+        else {
+            return Ok(None);
+        };
+        let d = PyDict::new(py);
+        for (c, x) in scores {
+            d.set_item(c.name(), *x)?;
+        }
+        Ok(Some(d))
     }
 
     /// Per-view figures of the calibration (`extra["views"]`): a list of dicts with

@@ -9,7 +9,7 @@ use super::atomic::{read_text, write_atomic};
 use super::json::{
     append_extra, invalid_message, num, parse, pose_value, to_pretty, vec3_value, Obj,
 };
-use super::records::records_value;
+use super::records::{records_after_extra, records_value};
 use super::records_read::records_from;
 use super::rig::{distortion_model_from, robot_from, robot_value};
 use super::sensor::sensor_kind_of;
@@ -414,6 +414,7 @@ pub fn calibration_extra_keys(c: &Calibration) -> Map<String, Value> {
         m.insert(BENCH_KEY.into(), Value::Bool(true));
     }
     append_extra(&mut m, &c.extra);
+    records_after_extra(&mut m, &c.records);
     m
 }
 

@@ -194,6 +194,27 @@ pub(super) fn records_value(m: &mut Map<String, Value>, r: &CalibrationRecords) 
     }
 }
 
+/// Appends the records calibration.json holds after the keys of a calibration's
+/// `extra` (where the code before their types wrote them, so a file keeps its bytes):
+/// `stripe_channel` and `stripe_channel_scores` (when present; a record replaces an
+/// `extra` key of its name).
+pub(super) fn records_after_extra(m: &mut Map<String, Value>, r: &CalibrationRecords) {
+    if let Some(s) = &r.stripe_channel {
+        m.insert("stripe_channel".into(), Value::from(s.channel.name()));
+        if let Some(scores) = &s.scores {
+            m.insert(
+                "stripe_channel_scores".into(),
+                Value::Object(
+                    scores
+                        .iter()
+                        .map(|(c, x)| (c.name().to_string(), finite_or_null(*x)))
+                        .collect(),
+                ),
+            );
+        }
+    }
+}
+
 /// calibration.json's `board_scale` and `leave_one_out` keys (extra keys) of the checks
 /// that ran.
 pub fn self_checks_extra(

@@ -21,7 +21,7 @@ use crate::model::Calibration;
 use crate::model::{
     AdjustmentSummary, BoardScaleCheck, CalibrationRecords, DhCorrection, LaserBoardFigure,
     LeaveOneOut, LooFold, LooView, RejectCounts, RobotCalibration, RobotPoseNoise, RobotPoseView,
-    StripeExtraction, ViewRecord,
+    StripeChannel, StripeChannelChoice, StripeExtraction, ViewRecord,
 };
 
 /// The top-level keys of the adjustment summary ([`AdjustmentSummary`]).
@@ -99,6 +99,13 @@ pub(super) fn records_from(
     take(&["robot_calibration"], robot_calibration.is_some());
     let held_blocks = root.opt("held_blocks").and_then(|v| strings(&v));
     take(&["held_blocks"], held_blocks.is_some());
+    let stripe_channel = root
+        .opt("stripe_channel")
+        .and_then(|_| stripe_channel_from(root).ok());
+    if let Some(c) = &stripe_channel {
+        take(&["stripe_channel"], true);
+        take(&["stripe_channel_scores"], c.scores.is_some());
+    }
     let records = CalibrationRecords {
         summary,
         views,
@@ -108,6 +115,7 @@ pub(super) fn records_from(
         robot_pose_noise,
         robot_calibration,
         held_blocks,
+        stripe_channel,
     };
     let known: Vec<&str> = fixed.iter().copied().chain(read).collect();
     Ok((records, root.extra(&known)))
@@ -147,6 +155,26 @@ fn summary_from(root: &Obj<'_>) -> Result<AdjustmentSummary> {
         residual_sigma_px: (num(&s, "circle")?, num(&s, "stripe")?),
         stripe_off_plane: root.count("stripe_off_plane")?,
     })
+}
+
+/// `stripe_channel` and `stripe_channel_scores` (see [`super::records::records_after_extra`]).
+fn stripe_channel_from(root: &Obj<'_>) -> Result<StripeChannelChoice> {
+    let channel = StripeChannel::from_name(root.req("stripe_channel")?.str()?)?;
+    let scores = root
+        .opt_obj("stripe_channel_scores")?
+        .map(|o| {
+            o.map()
+                .iter()
+                .map(|(k, v)| {
+                    let score = v
+                        .as_f64()
+                        .ok_or_else(|| o.err(format!("{k}: expected a number")))?;
+                    Ok((StripeChannel::from_name(k)?, score))
+                })
+                .collect::<Result<Vec<_>>>()
+        })
+        .transpose()?;
+    Ok(StripeChannelChoice { channel, scores })
 }
 
 /// One entry of `views` (see [`super::view_record_to_json`]).

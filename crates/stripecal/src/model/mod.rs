@@ -33,6 +33,7 @@ pub(crate) use results::calibration_number;
 pub use results::{
     AdjustmentSummary, Calibration, CalibrationRecords, CameraSigma, Cloud, DhCorrection,
     NamedCovariance, PlaneSigma, PoseSigma, Quality, RobotCalibration, RobotPoseNoise,
-    RobotPoseView, Sphere, SphereFit, Truth, Uncertainty, ViewRecord, ROBOT_POSE_TEST_LIMIT,
+    RobotPoseView, Sphere, SphereFit, StripeChannelChoice, Truth, Uncertainty, ViewRecord,
+    ROBOT_POSE_TEST_LIMIT,
 };
 pub use stripe_extraction::{RejectCounts, StripeExtraction};

@@ -168,6 +168,23 @@ pub struct CalibrationRecords {
     /// The blocks held at a prior calibration's values (`held_blocks`, `--from`; `None`:
     /// none held).
     pub held_blocks: Option<Vec<String>>,
+    /// The signal the stripes were found in, when not gray (`stripe_channel`,
+    /// `stripe_channel_scores`).
+    pub stripe_channel: Option<StripeChannelChoice>,
+}
+
+/// The signal a calibration's stripes were found in (calibration.json's
+/// `stripe_channel`, written when rig.json's `stripe.channel` is not gray), and with
+/// `stripe.channel: auto` each signal's score (`stripe_channel_scores`: the summed
+/// stripe peak-to-noise ratio over the laser images looked at).
+#[derive(Debug, Clone, PartialEq)]
+pub struct StripeChannelChoice {
+    /// The signal used (never [`StripeChannel::Auto`]: what `auto` chose).
+    ///
+    /// [`StripeChannel::Auto`]: super::StripeChannel::Auto
+    pub channel: super::StripeChannel,
+    /// `(signal, score)` in the order written, when `auto` chose the signal.
+    pub scores: Option<Vec<(super::StripeChannel, f64)>>,
 }
 
 /// A sphere (truth of a scan).

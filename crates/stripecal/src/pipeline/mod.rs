@@ -318,21 +318,16 @@ pub fn calibrate_dataset_loaded(
     rep.views.sort_by_key(|s| s.view);
     if ds.rig.stripe_channel != crate::model::StripeChannel::Gray {
         // the signal the stripes were found in (rig.json's, or what `auto` chose)
-        rep.calibration.extra.insert(
-            "stripe_channel".into(),
-            serde_json::Value::from(channel.0.name()),
-        );
-        if let Some(scores) = channel.1 {
-            let m: serde_json::Map<String, serde_json::Value> =
+        rep.calibration.records.stripe_channel = Some(crate::model::StripeChannelChoice {
+            channel: channel.0,
+            scores: channel.1.map(|scores| {
                 crate::vision::stripe::colour::SCORED
                     .iter()
                     .zip(scores)
-                    .map(|(c, s)| (c.name().to_string(), serde_json::Value::from(s.round())))
-                    .collect();
-            rep.calibration
-                .extra
-                .insert("stripe_channel_scores".into(), serde_json::Value::Object(m));
-        }
+                    .map(|(c, s)| (*c, s.round()))
+                    .collect()
+            }),
+        });
     }
     warnings.append(&mut rep.warnings);
     rep.warnings = warnings;

@@ -277,3 +277,65 @@ fn a_bench_calibration_loads_as_the_bench_mount() {
     assert_eq!(extra, ["board_flatness"]);
     check_written_back(&j, &c);
 }
+
+#[test]
+fn a_colour_calibrations_stripe_channel_loads_as_its_record_and_keeps_its_place() {
+    // the keys as the code before the typed record wrote them: after the other extra keys
+    let (mut j, _) = load("held_v1.json");
+    let m = j.as_object_mut().unwrap();
+    m.insert(
+        "board_stripe_bias".into(),
+        serde_json::json!({"applied": false, "reason": "a test"}),
+    );
+    m.insert("stripe_channel".into(), "red".into());
+    m.insert(
+        "stripe_channel_scores".into(),
+        serde_json::json!({"gray": 12.0, "red": 340.0, "green": 5.0, "blue": 0.0}),
+    );
+    let text = serde_json::to_string_pretty(&j).unwrap();
+    let c = stripecal::io::calibration_from_json(std::path::Path::new("t.json"), &text).unwrap();
+    let s = c.records.stripe_channel.as_ref().expect("stripe_channel");
+    assert_eq!(s.channel, stripecal::model::StripeChannel::Red);
+    let names: Vec<(&str, f64)> = s
+        .scores
+        .as_ref()
+        .expect("scores")
+        .iter()
+        .map(|(c, x)| (c.name(), *x))
+        .collect();
+    assert_eq!(
+        names,
+        [
+            ("gray", 12.0),
+            ("red", 340.0),
+            ("green", 5.0),
+            ("blue", 0.0)
+        ]
+    );
+    assert!(!c.extra.contains_key("stripe_channel"));
+    assert!(!c.extra.contains_key("stripe_channel_scores"));
+    check_written_back(&j, &c);
+    let back: Value = serde_json::from_str(&calibration_to_json(&c)).unwrap();
+    let keys: Vec<&str> = back
+        .as_object()
+        .unwrap()
+        .keys()
+        .map(|k| k.as_str())
+        .collect();
+    assert_eq!(
+        keys[keys.len() - 3..],
+        [
+            "board_stripe_bias",
+            "stripe_channel",
+            "stripe_channel_scores"
+        ]
+    );
+    // a channel this version does not know stays in `extra`, as the file has it
+    let mut odd = j.clone();
+    odd["stripe_channel"] = "purple".into();
+    let text = serde_json::to_string_pretty(&odd).unwrap();
+    let c = stripecal::io::calibration_from_json(std::path::Path::new("t.json"), &text).unwrap();
+    assert!(c.records.stripe_channel.is_none());
+    assert_eq!(c.extra["stripe_channel"], "purple");
+    assert!(c.extra.contains_key("stripe_channel_scores"));
+}
