@@ -808,7 +808,7 @@ def cmd_plan(args: argparse.Namespace) -> int:
         pose_noise = (mm, deg)
     plan = stripecal.plan_poses(args.rig, args.nominal, joints, sigma_px=(args.noise_px, args.stripe_noise_px),
                                 standoff_mm=args.standoff, robot=args.robot, pose_noise=pose_noise)
-    pn = plan.get("pose_noise_mm_deg")
+    pn = plan["pose_noise_mm_deg"]
     noise = f"; robot-pose noise {pn[0]:.3g} mm, {pn[1]:.3g} deg" if pn is not None else ""
     print(f"{len(plan['poses'])} poses, {plan['usable']} usable; detection noise {plan['sigma_px'][0]:g} px "
           f"(targets), {plan['sigma_px'][1]:g} px (stripe){noise}\n")

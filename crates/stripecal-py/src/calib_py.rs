@@ -262,9 +262,9 @@ struct CalibrateArgs<'py> {
 /// calibration.json path): `fix` names the blocks held at its values (`"camera"`,
 /// `"laser_plane"`, `"hand_cam"`, `"base_board"`); `laser_only=True` holds all but the
 /// laser plane. `estimate_board_scale=True` frees the board's printed scale (the robot
-/// fixes it); otherwise it is checked (`extra["board_scale"]`, a warning when rig.json
+/// fixes it); otherwise it is checked (the result's `board_scale`, a warning when rig.json
 /// disagrees by more than 3 sigma and `board_scale_tolerance`). `leave_one_out=True`
-/// (default) computes the leave-one-view-out figure (`extra["leave_one_out"]`).
+/// (default) computes the leave-one-view-out figure (the result's `leave_one_out`).
 ///
 /// Quality gates: a calibration that fails one (views that disagree and cannot be left
 /// out, undetermined parameters, no convergence) raises `CalibrationQualityError`
@@ -282,12 +282,12 @@ struct CalibrateArgs<'py> {
 /// method) corrects the laser stripe's sub-pixel bias on the board before the final
 /// adjustment (the sheet's thickness from the stripe widths, the model of
 /// `measure_sphere`'s correction on a plane) and adds what the correction leaves to the
-/// covariance (`extra["board_stripe_bias"]`).
+/// covariance (calibration.json's `board_stripe_bias`).
 ///
 /// Returns a `Calibration` with quality, one-sigma `uncertainty`, per-view figures
 /// (`views`) and the run's residuals. Views whose board is not found, and views whose
 /// robot pose disagrees with their board pose, are left out with a warning naming them
-/// (in `extra["warnings"]`). Raises `InvalidInputError` for fewer than 3 usable views
+/// (the result's `warnings`). Raises `InvalidInputError` for fewer than 3 usable views
 /// or no usable laser image, `DegenerateError` for pose sets or stripes that do not
 /// determine the result, `FormatError`/`OSError` for unreadable files. The GIL is
 /// released while it runs; a Ctrl-C (SIGINT) during the run raises `KeyboardInterrupt`

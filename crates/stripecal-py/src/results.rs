@@ -387,7 +387,7 @@ impl PyCalibration {
         Ok(Some(d))
     }
 
-    /// Per-view figures of the calibration (`extra["views"]`): a list of dicts with
+    /// Per-view figures of the calibration (calibration.json's `views`): a list of dicts with
     /// `view`, `used`, `circles`, `stripe_points`, `circle_rms_px`, `stripe_rms_px`,
     /// `outlier` and `note` (empty when the file has none).
     #[getter]
@@ -400,7 +400,7 @@ impl PyCalibration {
         Ok(list.into_any())
     }
 
-    /// The leave-one-view-out figures (`extra["leave_one_out"]`): `views` (per view:
+    /// The leave-one-view-out figures (calibration.json's `leave_one_out`): `views` (per view:
     /// `view`, `points`, `board_rms_px`, `board_rms_mm`, `stripe_points`,
     /// `stripe_rms_mm`) and their medians; None when not computed.
     #[getter]
@@ -413,7 +413,7 @@ impl PyCalibration {
             .transpose()
     }
 
-    /// The board's scale against the robot (`extra["board_scale"]`): `scale`, `sigma`,
+    /// The board's scale against the robot (calibration.json's `board_scale`): `scale`, `sigma`,
     /// `declared_mm`, `implied_mm`, `estimated`, `disagrees`, `tolerance`; None when not
     /// computed.
     #[getter]
@@ -426,7 +426,7 @@ impl PyCalibration {
             .transpose()
     }
 
-    /// The robot-pose noise the adjustment estimated (`extra["robot_pose_noise"]`):
+    /// The robot-pose noise the adjustment estimated (calibration.json's `robot_pose_noise`):
     /// `translation_mm` and `rotation_deg` (one-sigma per component of the flange pose),
     /// `image_factor` (the part of each view's pose error its own image makes, in units
     /// of the image's own pose uncertainty), `at_floor` (`translation`, `rotation`,
@@ -444,7 +444,7 @@ impl PyCalibration {
             .transpose()
     }
 
-    /// The robot calibration (`extra["robot_calibration"]`, `--robot`): `mode`,
+    /// The robot calibration (calibration.json's `robot_calibration`, `--robot`): `mode`,
     /// `estimated` (`name`, `correction`, `sigma`) and `fixed` (`name`, `reason`); None
     /// when the robot was held. The refined DH rows are `robot`.
     #[getter]

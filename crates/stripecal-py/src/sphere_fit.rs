@@ -82,16 +82,16 @@ impl PySphereFit {
 
     /// The fit's one-sigma of the diameter, mm: its random part only (the points'
     /// scatter; calibration and robot errors are not in it, `measure_sphere` has the
-    /// measurement's uncertainty). `extra["fit_diameter_sigma_mm"]`, or an older file's
-    /// `extra["diameter_sigma_mm"]`; None when absent.
+    /// measurement's uncertainty). The file's `fit_diameter_sigma_mm`, or an older file's
+    /// `diameter_sigma_mm`; None when absent.
     #[getter]
     fn fit_diameter_sigma_mm(&self) -> Option<f64> {
         self.inner.fit_diameter_sigma_mm()
     }
 
     /// The fit's one-sigma of the centre, shape (3,), mm: its random part only (as
-    /// `fit_diameter_sigma_mm`). `extra["fit_center_sigma_mm"]`, or an older file's
-    /// `extra["center_sigma_mm"]`; None when absent.
+    /// `fit_diameter_sigma_mm`). The file's `fit_center_sigma_mm`, or an older file's
+    /// `center_sigma_mm`; None when absent.
     #[getter]
     fn fit_center_sigma_mm<'py>(&self, py: Python<'py>) -> PyResult<Option<Bound<'py, PyAny>>> {
         match self.inner.fit_center_sigma_mm() {
