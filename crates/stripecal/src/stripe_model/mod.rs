@@ -14,7 +14,9 @@ mod plane;
 pub(crate) mod profile;
 
 pub(crate) use plane::{board_point_profile, board_point_scale, Board as BoardSurface};
-pub(crate) use profile::{extractor_response, plane_basis, point_profile, PointProfile, Rig};
+pub(crate) use profile::{
+    extractor_response, plane_basis, point_profile, PointProfile, Rig, SphereSurface,
+};
 
 /// Sheet offsets sampled on each side of the plane, at least (`2 M + 1` samples over
 /// `+-4 sigma`; more where they would lie more than half the pixel kernel's sigma apart

@@ -268,17 +268,16 @@ pub(crate) const GH5: [(f64, f64); 5] = [
     (2.856_970_013_872_806, 0.011_257_411_327_720_69),
 ];
 
-/// The samples of one stripe point on scan line `line`, near the camera-frame point
-/// `p_near` (the measured point), for sheet sigma `sigma` (mm) and PSF sigma `psf` (px):
+/// The samples of one stripe point of the sphere `sphere` on scan line `line`, near the
+/// camera-frame point `p_near` (the measured point), for sheet sigma `sigma` (mm) and PSF
+/// sigma `psf` (px):
 /// the scan line itself and its neighbours at `line + x sqrt(psf^2 + 1/12)` (`x` the
 /// 5-point Gauss-Hermite nodes; the across-line blur of the PSF and of the pixel box,
 /// with their second moment), weighted. `false` when the scan line itself cannot be
 /// modelled.
-#[allow(clippy::too_many_arguments)]
 pub(crate) fn point_profile(
     rig: &Rig<'_>,
-    c: &Vector3<f64>,
-    r: f64,
+    sphere: &SphereSurface<'_>,
     line: f64,
     p_near: &Vector3<f64>,
     sigma: f64,
@@ -286,6 +285,7 @@ pub(crate) fn point_profile(
     out: &mut PointProfile,
 ) -> bool {
     out.samples.clear();
+    let (c, r) = (sphere.c, sphere.r);
     let q = p_near - c;
     let phi0 = q.dot(&rig.e2).atan2(q.dot(&rig.e1));
     // The scan line itself: the t = 0 quantities.
@@ -315,7 +315,7 @@ pub(crate) fn point_profile(
     out.a0 = s0.a;
     out.g = s0.da_dt.abs();
     out.slope = s0.slope;
-    sample_lines(rig, &SphereSurface { c, r }, line, s0.phi, sigma, psf, out);
+    sample_lines(rig, sphere, line, s0.phi, sigma, psf, out);
     true
 }
 

@@ -24,7 +24,7 @@ use rayon::prelude::*;
 use crate::model::geometry::Iso3;
 use crate::reconstruct::ScanPoints;
 
-use crate::stripe_model::{extractor_response, point_profile, PointProfile, Rig};
+use crate::stripe_model::{extractor_response, point_profile, PointProfile, Rig, SphereSurface};
 
 /// Points used for the emitter fit, at most.
 pub const EMITTER_POINTS: usize = 1500;
@@ -52,7 +52,7 @@ fn log_peaks(
         .map_init(
             || (PointProfile::default(), Vec::new()),
             |(prof, buf), (c, p, line)| {
-                if !point_profile(rig, c, r, *line, p, sigma, psf, prof) {
+                if !point_profile(rig, &SphereSurface { c, r }, *line, p, sigma, psf, prof) {
                     return None;
                 }
                 let pk = extractor_response(prof, psf, rig.stripe, buf)?.2;

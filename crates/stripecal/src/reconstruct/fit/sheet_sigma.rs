@@ -39,7 +39,7 @@ use crate::error::{Error, Result};
 use crate::model::geometry::Iso3;
 use crate::reconstruct::ScanPoints;
 
-use crate::stripe_model::{extractor_response, point_profile, PointProfile, Rig};
+use crate::stripe_model::{extractor_response, point_profile, PointProfile, Rig, SphereSurface};
 
 /// Points used for the width fit, at most.
 pub const WIDTH_POINTS: usize = 2500;
@@ -84,7 +84,7 @@ fn model_widths(rig: &Rig<'_>, r: f64, pts: &[WidthPoint], s: f64, b: f64) -> Ve
         .map_init(
             || (PointProfile::default(), Vec::new()),
             |(prof, buf), q| {
-                if !point_profile(rig, &q.c, r, q.line, &q.p, s, b, prof) {
+                if !point_profile(rig, &SphereSurface { c: &q.c, r }, q.line, &q.p, s, b, prof) {
                     return None;
                 }
                 extractor_response(prof, b, rig.stripe, buf).map(|x| x.1)
@@ -215,7 +215,15 @@ fn width_points(
         }
         let c = (cam_base[f] * nalgebra::Point3::from(*sphere.0)).coords;
         // The geometry at t = 0 does not depend on the sheet sigma.
-        if !point_profile(rig, &c, r, line, &p, 0.1, 0.0, &mut prof) {
+        if !point_profile(
+            rig,
+            &SphereSurface { c: &c, r },
+            line,
+            &p,
+            0.1,
+            0.0,
+            &mut prof,
+        ) {
             continue;
         }
         pts.push(WidthPoint {

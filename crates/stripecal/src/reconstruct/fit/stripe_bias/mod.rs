@@ -238,9 +238,9 @@ use super::{FitOptions, SphereFitResult};
 
 pub use correct::correct_sphere_bias;
 #[cfg(test)]
-pub(crate) use diagnostics::predicted_bias_px;
+pub(crate) use diagnostics::{predicted_bias_px, ModelInputs};
 #[cfg(test)]
-pub(crate) use noise::{predicted_noise_shift_px, NoiseShift};
+pub(crate) use noise::{predicted_noise_shift_px, NoiseDraws, NoiseShift};
 pub use systematic::{SystematicKind, SystematicPart};
 
 pub use crate::stripe_model::{neglected_share, HALF_SAMPLES};

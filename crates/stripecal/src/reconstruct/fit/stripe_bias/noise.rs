@@ -14,41 +14,44 @@
 use nalgebra::Vector3;
 
 use crate::error::Result;
-use crate::model::camera::Camera;
-use crate::model::geometry::{Iso3, Plane};
 use crate::numerics::rng::SplitMix64;
-use crate::reconstruct::ScanPoints;
 use crate::vision::stripe::profile_centre;
 
-use super::diagnostics::per_modelled_point;
-use super::StripeBiasOptions;
+use super::diagnostics::{per_modelled_point, ModelInputs};
 use crate::stripe_model::profile::scan_line_values;
 
+/// The noise the model's profiles are drawn with: white Gaussian noise of `gray`
+/// (standard deviation, in the units of [`ScanPoints::intensity`]) over `pairs`
+/// antithetic pairs seeded by `seed`.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct NoiseDraws {
+    pub gray: f64,
+    pub pairs: usize,
+    pub seed: u64,
+}
+
 /// The model's mean noise-induced centre shift per point (px along the scan line), for
-/// white Gaussian noise of `noise_gray` (standard deviation, in the units of
-/// [`ScanPoints::intensity`]) over `pairs` antithetic pairs seeded by `seed`; `None`
-/// where the model fails or the extractor rejects every noisy copy. The sphere and the
-/// other arguments as [`super::diagnostics::predicted_bias_px`].
-#[allow(clippy::too_many_arguments)]
+/// the noise `draws`; `None` where the model fails or the extractor rejects every noisy
+/// copy. The scan, the sphere and the sigmas as
+/// [`super::diagnostics::predicted_bias_px`].
 pub(crate) fn predicted_noise_shift_px(
-    points: &ScanPoints,
-    base_cam: &[Iso3],
-    camera: &Camera,
-    plane: &Plane,
+    inputs: &ModelInputs<'_>,
     sphere: (&Vector3<f64>, f64),
-    sheet_sigma_mm: f64,
-    psf_sigma_px: f64,
-    opts: &StripeBiasOptions,
-    noise_gray: f64,
-    pairs: usize,
-    seed: u64,
+    (sigma, psf): (f64, f64),
+    draws: NoiseDraws,
 ) -> Result<Vec<Option<NoiseShift>>> {
+    let NoiseDraws {
+        gray: noise_gray,
+        pairs,
+        seed,
+    } = draws;
+    let points = inputs.points;
     per_modelled_point(
-        (points, base_cam, camera, plane, opts),
+        inputs,
         sphere,
-        (sheet_sigma_mm, psf_sigma_px),
+        (sigma, psf),
         |rig, i, prof, (buf, noisy): &mut (Vec<f64>, Vec<f64>)| {
-            scan_line_values(prof, psf_sigma_px, rig.stripe, buf)?;
+            scan_line_values(prof, psf, rig.stripe, buf)?;
             let (_, _, peak) = profile_centre(buf, rig.stripe)?;
             let measured = points.intensity.get(i).copied().unwrap_or(0.0) as f64;
             if !(measured > 0.0 && peak > 0.0) {

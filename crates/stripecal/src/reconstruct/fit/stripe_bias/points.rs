@@ -9,7 +9,7 @@ use crate::model::geometry::Iso3;
 use crate::reconstruct::triangulate::Triangulator;
 use crate::reconstruct::ScanPoints;
 
-use crate::stripe_model::{extractor_response, point_profile, PointProfile, Rig};
+use crate::stripe_model::{extractor_response, point_profile, PointProfile, Rig, SphereSurface};
 
 /// Everything per point the correction needs: the camera-frame point, the scan line,
 /// the measured along-line coordinate, and whether its stripe profile holds a saturated
@@ -77,7 +77,8 @@ pub(crate) fn corrections(
                 }
                 let t = &cam_base[*f];
                 let c = (t * nalgebra::Point3::from(*sphere.0)).coords;
-                if !point_profile(rig, &c, sphere.1, g.line, &g.p_cam, sigma, psf, prof) {
+                let surf = SphereSurface { c: &c, r: sphere.1 };
+                if !point_profile(rig, &surf, g.line, &g.p_cam, sigma, psf, prof) {
                     return None;
                 }
                 let (delta, _, _) = extractor_response(prof, psf, rig.stripe, buf)?;

@@ -31,7 +31,15 @@ fn bias_at(p: Vector3<f64>, nrm: Vector3<f64>, r: f64, s: f64, b: f64) -> (f64, 
     let c = p - nrm.normalize() * r;
     let line = cam.project(&p).unwrap().y;
     let mut prof = PointProfile::default();
-    assert!(point_profile(&rig, &c, r, line, &p, s, b, &mut prof));
+    assert!(point_profile(
+        &rig,
+        &SphereSurface { c: &c, r },
+        line,
+        &p,
+        s,
+        b,
+        &mut prof
+    ));
     let (d, w, _) = extractor_response(&prof, b, &so, &mut Vec::new()).unwrap();
     (d, w)
 }
@@ -221,7 +229,15 @@ fn synthetic_scan_with_bias(
                     let Some(s0) = section_point(&rig, &c, r, 0.0, line, pphi) else {
                         continue;
                     };
-                    if point_profile(&rig, &c, r, line, &s0.p, s, b, &mut prof) {
+                    if point_profile(
+                        &rig,
+                        &SphereSurface { c: &c, r },
+                        line,
+                        &s0.p,
+                        s,
+                        b,
+                        &mut prof,
+                    ) {
                         if let Some((d, w, peak)) = extractor_response(&prof, b, &so, &mut buf) {
                             let u = prof.a0 + d;
                             let q = tri.point_cam_mm(u, line).unwrap() + t;
@@ -520,7 +536,14 @@ fn the_diagnostics_recover_the_synthetic_bias() {
         emitter_cam_mm: Some((pl.normal * pl.d).into()),
         ..Default::default()
     };
-    let pred = predicted_bias_px(&sp, &poses, &cam, &pl, (&c, r), s, b, &opts).unwrap();
+    let inputs = ModelInputs {
+        points: &sp,
+        base_cam: &poses,
+        camera: &cam,
+        plane: &pl,
+        opts: &opts,
+    };
+    let pred = predicted_bias_px(&inputs, (&c, r), (s, b)).unwrap();
     let mut n = 0;
     for (i, d) in pred.iter().enumerate() {
         let Some(d) = d else { continue };
@@ -528,8 +551,12 @@ fn the_diagnostics_recover_the_synthetic_bias() {
         n += 1;
     }
     assert!(n > sp.len() / 2, "{n} of {} modelled", sp.len());
-    let shifts =
-        predicted_noise_shift_px(&sp, &poses, &cam, &pl, (&c, r), s, b, &opts, 0.0, 2, 1).unwrap();
+    let draws = NoiseDraws {
+        gray: 0.0,
+        pairs: 2,
+        seed: 1,
+    };
+    let shifts = predicted_noise_shift_px(&inputs, (&c, r), (s, b), draws).unwrap();
     let m = shifts.iter().flatten().count();
     assert!(m > sp.len() / 2, "{m} of {}", sp.len());
     for x in shifts.iter().flatten() {
