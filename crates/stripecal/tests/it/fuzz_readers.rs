@@ -28,6 +28,7 @@ use stripecal::model::{
     Calibration, Cloud, NamedCovariance, Quality, Rig, RobotReading, ScanFrame, Sphere, SphereFit,
     StripeDirection, Truth, View,
 };
+use stripecal::model::camera::Projection;
 use stripecal::{Board, Camera, DhJoint, DistortionModel, Error, Iso3, Plane, Robot};
 
 fn config(default_cases: usize) -> ProptestConfig {
@@ -724,6 +725,7 @@ fn arb_camera() -> impl Strategy<Value = Camera> {
             v0,
             model,
             distortion,
+            projection: Projection::Brown5,
         })
 }
 

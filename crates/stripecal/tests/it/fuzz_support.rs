@@ -17,6 +17,7 @@ use stripecal::model::{
     Calibration, Cloud, NamedCovariance, Quality, RobotReading, ScanFrame, View,
 };
 use stripecal::numerics::rng::SplitMix64;
+use stripecal::model::camera::Projection;
 use stripecal::{Camera, DistortionModel, Error, Iso3, Plane, Robot};
 
 /// The fixed seed of the campaign (`STRIPECAL_FUZZ_SEED` overrides it).
@@ -141,6 +142,7 @@ pub fn camera() -> Camera {
         v0: 262.6,
         model: DistortionModel::Radial1,
         distortion: [0.0002, 0.0, 0.0, 0.0, 0.0],
+        projection: Projection::Brown5,
     }
 }
 
