@@ -61,7 +61,6 @@ fn coefficients(k: &[f64]) -> [f64; 5] {
     std::array::from_fn(|i| k.get(i).copied().unwrap_or(0.0))
 }
 
-
 /// Distortion `[k1, k2, p1, p2, k3]` of normalised `(x, y)` and its Jacobian
 /// `[[dxd/dx, dxd/dy], [dyd/dx, dyd/dy]]` (module docs for the formula).
 ///
@@ -153,7 +152,6 @@ pub fn project_generic<T: Scalar>(cam: &[T; 9], p: &[T; 3]) -> [T; 2] {
     let (d, _) = distort_generic(&distortion_of(cam), x, y);
     to_pixel_generic(cam, d)
 }
-
 
 #[cfg(test)]
 mod tests {

@@ -114,6 +114,19 @@ pub struct Camera {
     pub projection: Projection,
 }
 
+/// The pinhole numbers of a camera ([`Camera::new`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Intrinsics {
+    /// Focal length along u, in pixels.
+    pub fu: f64,
+    /// Focal length along v, in pixels.
+    pub fv: f64,
+    /// Principal point, u (pixels).
+    pub u0: f64,
+    /// Principal point, v (pixels).
+    pub v0: f64,
+}
+
 /// Maximum Newton iterations of [`Camera::undistort`].
 const UNDISTORT_MAX_ITER: usize = 30;
 /// Convergence tolerance of [`Camera::undistort`] in normalised coordinates
@@ -121,28 +134,57 @@ const UNDISTORT_MAX_ITER: usize = 30;
 const UNDISTORT_TOL: f64 = 1e-14;
 
 impl Camera {
-    /// A camera with checked values (positive size and focal lengths, finite numbers).
-    #[allow(clippy::too_many_arguments)]
+    /// A `brown5` camera with checked values (positive size and focal lengths, finite
+    /// numbers); [`Camera::with_projection`] gives it another model.
     pub fn new(
         width: u32,
         height: u32,
-        fu: f64,
-        fv: f64,
-        u0: f64,
-        v0: f64,
+        k: Intrinsics,
         model: DistortionModel,
-        distortion: [f64; 5],
+        distortion: [f64; MAX_DISTORTION],
     ) -> Result<Camera> {
         let cam = Camera {
             width,
             height,
-            fu,
-            fv,
-            u0,
-            v0,
+            fu: k.fu,
+            fv: k.fv,
+            u0: k.u0,
+            v0: k.v0,
             model,
             distortion,
             projection: Projection::Brown5,
+        };
+        cam.validate()?;
+        Ok(cam)
+    }
+
+    /// The pinhole part.
+    pub fn intrinsics(&self) -> Intrinsics {
+        Intrinsics {
+            fu: self.fu,
+            fv: self.fv,
+            u0: self.u0,
+            v0: self.v0,
+        }
+    }
+
+    /// This camera with another model and its coefficients (checked: as many as the
+    /// model has, finite).
+    pub fn with_projection(&self, projection: Projection, coefficients: &[f64]) -> Result<Camera> {
+        let n = projection.model().distortion_count();
+        if coefficients.len() != n || n > MAX_DISTORTION {
+            return Err(Error::InvalidInput(format!(
+                "camera model {} takes {n} distortion coefficients, not {}",
+                projection.name(),
+                coefficients.len()
+            )));
+        }
+        let mut distortion = [0.0; MAX_DISTORTION];
+        distortion[..n].copy_from_slice(coefficients);
+        let cam = Camera {
+            distortion,
+            projection,
+            ..self.clone()
         };
         cam.validate()?;
         Ok(cam)
@@ -170,7 +212,10 @@ impl Camera {
             ));
         }
         let n = self.projection.model().distortion_count();
-        if self.distortion[n.min(MAX_DISTORTION)..].iter().any(|&k| k != 0.0) {
+        if self.distortion[n.min(MAX_DISTORTION)..]
+            .iter()
+            .any(|&k| k != 0.0)
+        {
             return Err(Error::InvalidInput(format!(
                 "camera model {} has {n} distortion coefficients: the others must be 0",
                 self.projection.name()
@@ -545,10 +590,12 @@ mod tests {
         let base = Camera::new(
             768,
             576,
-            1271.65,
-            1322.52,
-            346.14,
-            262.60,
+            Intrinsics {
+                fu: 1271.65,
+                fv: 1322.52,
+                u0: 346.14,
+                v0: 262.60,
+            },
             DistortionModel::Radial1,
             [0.0002, 0.0, 0.0, 0.0, 0.0],
         )
@@ -656,10 +703,12 @@ mod tests {
         let cam = Camera::new(
             100,
             100,
-            100.0,
-            100.0,
-            50.0,
-            50.0,
+            Intrinsics {
+                fu: 100.0,
+                fv: 100.0,
+                u0: 50.0,
+                v0: 50.0,
+            },
             DistortionModel::Radial1,
             [-0.5, 0.0, 0.0, 0.0, 0.0],
         )
@@ -674,10 +723,12 @@ mod tests {
         assert!(Camera::new(
             0,
             10,
-            1.0,
-            1.0,
-            0.0,
-            0.0,
+            Intrinsics {
+                fu: 1.0,
+                fv: 1.0,
+                u0: 0.0,
+                v0: 0.0
+            },
             DistortionModel::Radial1,
             [0.0; 5]
         )
@@ -685,10 +736,12 @@ mod tests {
         assert!(Camera::new(
             10,
             10,
-            -1.0,
-            1.0,
-            0.0,
-            0.0,
+            Intrinsics {
+                fu: -1.0,
+                fv: 1.0,
+                u0: 0.0,
+                v0: 0.0
+            },
             DistortionModel::Radial1,
             [0.0; 5]
         )
@@ -696,10 +749,12 @@ mod tests {
         assert!(Camera::new(
             10,
             10,
-            1.0,
-            1.0,
-            f64::NAN,
-            0.0,
+            Intrinsics {
+                fu: 1.0,
+                fv: 1.0,
+                u0: f64::NAN,
+                v0: 0.0
+            },
             DistortionModel::Radial1,
             [0.0; 5]
         )
