@@ -23,12 +23,12 @@ use proptest::prelude::*;
 use proptest::test_runner::{Config as ProptestConfig, RngSeed};
 use serde_json::{Map, Value};
 use stripecal::io::{self, PlyFormat};
+use stripecal::model::camera::Projection;
 use stripecal::model::image::{AnyGray, GrayImage};
 use stripecal::model::{
     Calibration, Cloud, NamedCovariance, Quality, Rig, RobotReading, ScanFrame, Sphere, SphereFit,
     StripeDirection, Truth, View,
 };
-use stripecal::model::camera::Projection;
 use stripecal::{Board, Camera, DhJoint, DistortionModel, Error, Iso3, Plane, Robot};
 
 fn config(default_cases: usize) -> ProptestConfig {

@@ -12,12 +12,12 @@ use std::time::Duration;
 
 use nalgebra::{Translation3, UnitQuaternion, Vector3};
 use stripecal::io::{self, PlyFormat, PoseColumns};
+use stripecal::model::camera::Projection;
 use stripecal::model::image::{AnyGray, GrayImage};
 use stripecal::model::{
     Calibration, Cloud, NamedCovariance, Quality, RobotReading, ScanFrame, View,
 };
 use stripecal::numerics::rng::SplitMix64;
-use stripecal::model::camera::Projection;
 use stripecal::{Camera, DistortionModel, Error, Iso3, Plane, Robot};
 
 /// The fixed seed of the campaign (`STRIPECAL_FUZZ_SEED` overrides it).
