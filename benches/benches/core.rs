@@ -5,17 +5,19 @@ use criterion::{criterion_group, criterion_main, Criterion, Throughput};
 use nalgebra::Vector3;
 use std::hint::black_box;
 
-use stripecal::{Camera, DistortionModel, Robot};
+use stripecal::{Camera, DistortionModel, Intrinsics, Robot};
 use stripecal_sim::{SimConfig, Twin};
 
 fn camera() -> Camera {
     Camera::new(
         768,
         576,
-        1271.65,
-        1322.52,
-        346.14,
-        262.60,
+        Intrinsics {
+            fu: 1271.65,
+            fv: 1322.52,
+            u0: 346.14,
+            v0: 262.60,
+        },
         DistortionModel::OpenCv5,
         [-0.3, 0.1, 1e-3, 1e-3, 0.0],
     )

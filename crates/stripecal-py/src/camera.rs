@@ -3,7 +3,7 @@
 use crate::pool::Detach;
 use nalgebra::{Vector2, Vector3};
 use pyo3::prelude::*;
-use stripecal::model::camera::{Camera, DistortionModel};
+use stripecal::model::camera::{Camera, DistortionModel, Intrinsics};
 use stripecal::Error;
 
 use crate::convert::{fixed, nd, positive_u32, rows_of, rows_to_py};
@@ -62,9 +62,15 @@ impl PyCamera {
             None => [0.0; 5],
             Some(d) => fixed::<5>(d, "distortion")?,
         };
-        Camera::new(width, height, fu, fv, u0, v0, model, distortion)
-            .py_err(py)
-            .map(PyCamera::new_py)
+        Camera::new(
+            width,
+            height,
+            Intrinsics { fu, fv, u0, v0 },
+            model,
+            distortion,
+        )
+        .py_err(py)
+        .map(PyCamera::new_py)
     }
 
     /// Image width in pixels (columns).

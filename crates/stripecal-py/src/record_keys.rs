@@ -12,7 +12,7 @@ use stripecal::io::{
     board_scale_to_json, calibration_extra_keys, leave_one_out_to_json, robot_calibration_to_json,
     robot_pose_noise_to_json, summary_to_json, view_record_to_json,
 };
-use stripecal::model::camera::{Camera, DistortionModel};
+use stripecal::model::camera::{Camera, DistortionModel, Intrinsics};
 use stripecal::model::geometry::{Iso3, Plane};
 use stripecal::model::kinematics::Robot;
 use stripecal::model::{
@@ -34,10 +34,12 @@ fn sample() -> PyResult<Calibration> {
     let camera = Camera::new(
         64,
         48,
-        100.0,
-        100.0,
-        32.0,
-        24.0,
+        Intrinsics {
+            fu: 100.0,
+            fv: 100.0,
+            u0: 32.0,
+            v0: 24.0,
+        },
         DistortionModel::Radial1,
         [0.0; 5],
     )

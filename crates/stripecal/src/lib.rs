@@ -34,6 +34,6 @@ pub mod vision;
 
 pub use error::{BadFrame, Error, Result};
 pub use model::board::{Board, BoardKind};
-pub use model::camera::{Camera, DistortionModel};
+pub use model::camera::{Camera, DistortionModel, Intrinsics};
 pub use model::geometry::{Iso3, Plane};
 pub use model::kinematics::{DhJoint, Robot};

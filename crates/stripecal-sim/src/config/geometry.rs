@@ -5,7 +5,7 @@ use nalgebra::Vector3;
 use serde::{Deserialize, Serialize};
 
 use stripecal::model::geometry::{iso_from_rotvec, iso_to_rotvec, Iso3, Plane};
-use stripecal::{Camera, DistortionModel};
+use stripecal::{Camera, DistortionModel, Intrinsics};
 
 use super::SimConfig;
 use crate::SimError;
@@ -52,10 +52,12 @@ impl SimConfig {
         Camera::new(
             c.width,
             c.height,
-            c.fu,
-            c.fv,
-            c.u0,
-            c.v0,
+            Intrinsics {
+                fu: c.fu,
+                fv: c.fv,
+                u0: c.u0,
+                v0: c.v0,
+            },
             model,
             c.distortion,
         )

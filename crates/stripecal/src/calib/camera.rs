@@ -22,7 +22,7 @@ use crate::calib::zhang::{pose_from_homography, zhang_intrinsics};
 use crate::calib::ViewObs;
 use crate::error::{Error, Result};
 use crate::model::board::Board;
-use crate::model::camera::{Camera, DistortionModel, PARAM_NAMES};
+use crate::model::camera::{Camera, DistortionModel, Intrinsics, PARAM_NAMES};
 use crate::model::geometry::{
     iso_from_rotvec, iso_to_rotvec, matrix_to_rotvec, rotvec_to_matrix, Iso3,
 };
@@ -267,7 +267,18 @@ pub fn calibrate_camera(
     let scale = 0.5 * (width as f64 + height as f64);
     let k0 = zhang_intrinsics(&hs, None, scale)?;
     let initial_intrinsics = [k0.fu, k0.fv, k0.u0, k0.v0];
-    let base = Camera::new(width, height, k0.fu, k0.fv, k0.u0, k0.v0, model, [0.0; 5])?;
+    let base = Camera::new(
+        width,
+        height,
+        Intrinsics {
+            fu: k0.fu,
+            fv: k0.fv,
+            u0: k0.u0,
+            v0: k0.v0,
+        },
+        model,
+        [0.0; 5],
+    )?;
     let mut free = vec![0, 1, 2, 3];
     for (i, f) in model.free_coefficients().iter().enumerate() {
         if *f {
@@ -535,10 +546,12 @@ mod tests {
         let cam = Camera::new(
             1024,
             768,
-            900.0,
-            900.5,
-            515.3,
-            380.8,
+            Intrinsics {
+                fu: 900.0,
+                fv: 900.5,
+                u0: 515.3,
+                v0: 380.8,
+            },
             DistortionModel::OpenCv5,
             [-0.25, 0.12, 1e-3, -2e-3, 0.01],
         )

@@ -407,10 +407,12 @@ mod tests {
         let base = Camera::new(
             1024,
             768,
-            900.0,
-            900.5,
-            515.3,
-            380.8,
+            crate::model::camera::Intrinsics {
+                fu: 900.0,
+                fv: 900.5,
+                u0: 515.3,
+                v0: 380.8,
+            },
             DistortionModel::OpenCv5,
             [-0.25, 0.12, 1e-3, -2e-3, 0.01],
         )

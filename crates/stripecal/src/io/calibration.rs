@@ -14,7 +14,7 @@ use super::records_read::records_from;
 use super::rig::{distortion_model_from, robot_from, robot_value};
 use super::sensor::sensor_kind_of;
 use crate::error::{Error, Result};
-use crate::model::camera::Camera;
+use crate::model::camera::{Camera, Projection};
 use crate::model::geometry::{Iso3, Plane};
 use crate::model::kinematics::Robot;
 use crate::model::{
@@ -87,6 +87,7 @@ pub(super) fn camera_from(c: &Obj<'_>) -> Result<Camera> {
         v0,
         model,
         distortion,
+        projection: Projection::Brown5,
     };
     cam.validate().map_err(|e| c.err(invalid_message(e)))?;
     Ok(cam)

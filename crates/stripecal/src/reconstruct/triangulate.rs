@@ -5,6 +5,8 @@
 use nalgebra::{Matrix3, Vector3};
 
 use crate::error::{Error, Result};
+#[cfg(test)]
+use crate::model::camera::Intrinsics;
 use crate::model::camera::{Camera, UndistortTrack};
 use crate::model::geometry::{Iso3, Plane};
 use crate::model::Calibration;
@@ -248,10 +250,12 @@ pub(super) mod tests {
         Camera::new(
             768,
             576,
-            1271.65,
-            1322.52,
-            346.14,
-            262.6,
+            Intrinsics {
+                fu: 1271.65,
+                fv: 1322.52,
+                u0: 346.14,
+                v0: 262.6,
+            },
             DistortionModel::OpenCv5,
             k,
         )
@@ -331,10 +335,12 @@ pub(super) mod tests {
         let cam = Camera::new(
             1024,
             768,
-            900.0,
-            900.5,
-            515.3,
-            380.8,
+            Intrinsics {
+                fu: 900.0,
+                fv: 900.5,
+                u0: 515.3,
+                v0: 380.8,
+            },
             DistortionModel::OpenCv5,
             [-0.25, 0.12, 0.0, 0.0, 0.01],
         )

@@ -108,7 +108,9 @@ use stripecal::numerics;
 use stripecal::pipeline;
 use stripecal::reconstruct::{self, FitOptions, ReconstructOptions, ScanPoints, Triangulator};
 use stripecal::vision;
-use stripecal::{Board, BoardKind, Camera, DhJoint, DistortionModel, Error, Iso3, Plane, Robot};
+use stripecal::{
+    Board, BoardKind, Camera, DhJoint, DistortionModel, Error, Intrinsics, Iso3, Plane, Robot,
+};
 
 // ---------------------------------------------------------------- harness
 
@@ -383,7 +385,18 @@ fn must_err_or_finite<T: Debug>(name: &str, r: stripecal::Result<T>) {
 fn camera_methods_take_hostile_values() {
     for &x in &BAD {
         let r = probe("Camera::new", move || {
-            Camera::new(768, 576, x, 1.0, x, 0.0, DistortionModel::Radial1, [x; 5])
+            Camera::new(
+                768,
+                576,
+                Intrinsics {
+                    fu: x,
+                    fv: 1.0,
+                    u0: x,
+                    v0: 0.0,
+                },
+                DistortionModel::Radial1,
+                [x; 5],
+            )
         });
         finite_or_err("Camera::new", &r);
         if !x.is_finite() || x <= 0.0 {
@@ -392,7 +405,18 @@ fn camera_methods_take_hostile_values() {
     }
     must_err(
         "Camera::new 0x0",
-        &Camera::new(0, 0, 1.0, 1.0, 0.0, 0.0, DistortionModel::Radial1, [0.0; 5]),
+        &Camera::new(
+            0,
+            0,
+            Intrinsics {
+                fu: 1.0,
+                fv: 1.0,
+                u0: 0.0,
+                v0: 0.0,
+            },
+            DistortionModel::Radial1,
+            [0.0; 5],
+        ),
     );
     let mut cams = vec![camera()];
     for k in [
@@ -409,10 +433,12 @@ fn camera_methods_take_hostile_values() {
     let tiny = Camera::new(
         1,
         1,
-        1e-3,
-        1e-3,
-        0.0,
-        0.0,
+        Intrinsics {
+            fu: 1e-3,
+            fv: 1e-3,
+            u0: 0.0,
+            v0: 0.0,
+        },
         DistortionModel::Radial2,
         [0.0; 5],
     )

@@ -23,6 +23,7 @@ use proptest::prelude::*;
 use proptest::test_runner::{Config as ProptestConfig, RngSeed};
 use serde_json::{Map, Value};
 use stripecal::io::{self, PlyFormat};
+use stripecal::model::camera::Projection;
 use stripecal::model::image::{AnyGray, GrayImage};
 use stripecal::model::{
     Calibration, Cloud, NamedCovariance, Quality, Rig, RobotReading, ScanFrame, Sphere, SphereFit,
@@ -724,6 +725,7 @@ fn arb_camera() -> impl Strategy<Value = Camera> {
             v0,
             model,
             distortion,
+            projection: Projection::Brown5,
         })
 }
 

@@ -12,6 +12,7 @@ use std::time::Duration;
 
 use nalgebra::{Translation3, UnitQuaternion, Vector3};
 use stripecal::io::{self, PlyFormat, PoseColumns};
+use stripecal::model::camera::Projection;
 use stripecal::model::image::{AnyGray, GrayImage};
 use stripecal::model::{
     Calibration, Cloud, NamedCovariance, Quality, RobotReading, ScanFrame, View,
@@ -141,6 +142,7 @@ pub fn camera() -> Camera {
         v0: 262.6,
         model: DistortionModel::Radial1,
         distortion: [0.0002, 0.0, 0.0, 0.0, 0.0],
+        projection: Projection::Brown5,
     }
 }
 

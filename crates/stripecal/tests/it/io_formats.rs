@@ -12,7 +12,7 @@ use stripecal::model::{
     Calibration, Cloud, Dataset, NamedCovariance, Quality, Rig, RobotReading, Scan, ScanFrame,
     Sphere, SphereFit, StripeChannel, StripeDirection, Truth, View,
 };
-use stripecal::{Board, BoardKind, Camera, DistortionModel, Error, Iso3, Plane, Robot};
+use stripecal::{Board, BoardKind, Camera, DistortionModel, Error, Intrinsics, Iso3, Plane, Robot};
 
 // ---------------------------------------------------------------- helpers
 
@@ -90,10 +90,12 @@ fn camera() -> Camera {
     Camera::new(
         768,
         576,
-        1271.6543210987,
-        1322.52,
-        346.14,
-        262.6,
+        Intrinsics {
+            fu: 1271.6543210987,
+            fv: 1322.52,
+            u0: 346.14,
+            v0: 262.6,
+        },
         DistortionModel::Radial1,
         [0.00021, 0.0, 0.0, 0.0, 0.0],
     )

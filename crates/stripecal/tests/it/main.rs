@@ -14,6 +14,7 @@ mod calib_robot;
 mod calib_robot_noise;
 mod calib_sheet;
 mod calib_targets;
+mod camera_model_toy;
 mod chessboard_real;
 mod common;
 mod fuzz_mutation;

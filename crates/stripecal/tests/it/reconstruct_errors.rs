@@ -7,7 +7,7 @@ use std::path::Path;
 
 use nalgebra::Vector3;
 use stripecal::io::{save_gray_png, write_scan_csv};
-use stripecal::model::camera::{Camera, DistortionModel};
+use stripecal::model::camera::{Camera, DistortionModel, Intrinsics};
 use stripecal::model::geometry::{iso_from_rotvec, Plane};
 use stripecal::model::image::{AnyGray, GrayImage};
 use stripecal::model::image::{AnyView, ImageView};
@@ -26,10 +26,12 @@ fn calibration() -> Calibration {
         camera: Camera::new(
             W as u32,
             H as u32,
-            120.0,
-            120.0,
-            31.5,
-            23.5,
+            Intrinsics {
+                fu: 120.0,
+                fv: 120.0,
+                u0: 31.5,
+                v0: 23.5,
+            },
             DistortionModel::Radial1,
             [0.01, 0.0, 0.0, 0.0, 0.0],
         )

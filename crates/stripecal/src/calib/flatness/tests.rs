@@ -10,10 +10,12 @@ fn camera() -> Camera {
     Camera::new(
         768,
         576,
-        1271.65,
-        1322.52,
-        346.14,
-        262.6,
+        crate::model::camera::Intrinsics {
+            fu: 1271.65,
+            fv: 1322.52,
+            u0: 346.14,
+            v0: 262.6,
+        },
         crate::DistortionModel::Radial1,
         [0.0002, 0.0, 0.0, 0.0, 0.0],
     )

@@ -118,7 +118,7 @@ mod tests {
     use crate::calib::conic::{predict_centre, CentreModel};
     use crate::calib::laser_plane::stripe_line_in_view;
     use crate::calib::CircleObs;
-    use crate::model::camera::{Camera, DistortionModel};
+    use crate::model::camera::{Camera, DistortionModel, Intrinsics};
     use crate::model::geometry::{iso_from_rotvec, Plane};
 
     struct Bench {
@@ -134,10 +134,12 @@ mod tests {
         let cam = Camera::new(
             768,
             576,
-            1270.0,
-            1320.0,
-            380.0,
-            290.0,
+            Intrinsics {
+                fu: 1270.0,
+                fv: 1320.0,
+                u0: 380.0,
+                v0: 290.0,
+            },
             DistortionModel::Radial2,
             [0.05, -0.02, 0.0, 0.0, 0.0],
         )

@@ -621,7 +621,19 @@ mod tests {
     }
 
     fn synth(model: DistortionModel, k: [f64; 5]) -> Synth {
-        let cam = Camera::new(768, 576, 1270.0, 1320.0, 380.0, 290.0, model, k).unwrap();
+        let cam = Camera::new(
+            768,
+            576,
+            crate::model::camera::Intrinsics {
+                fu: 1270.0,
+                fv: 1320.0,
+                u0: 380.0,
+                v0: 290.0,
+            },
+            model,
+            k,
+        )
+        .unwrap();
         let plane = Plane::new(Vector3::new(0.629, -0.0492, 0.7759), 79.87).unwrap();
         let x = iso_from_rotvec(
             &Vector3::new(-0.3087, 0.2362, 3.0369),

@@ -591,10 +591,12 @@ mod tests {
         Camera::new(
             768,
             576,
-            1270.0,
-            1320.0,
-            384.0,
-            288.0,
+            crate::model::camera::Intrinsics {
+                fu: 1270.0,
+                fv: 1320.0,
+                u0: 384.0,
+                v0: 288.0,
+            },
             DistortionModel::Radial1,
             [0.05, 0.0, 0.0, 0.0, 0.0],
         )

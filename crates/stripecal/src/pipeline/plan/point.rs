@@ -232,10 +232,12 @@ mod tests {
         let cam = Camera::new(
             1024,
             768,
-            1500.0,
-            1490.0,
-            515.0,
-            380.0,
+            crate::model::camera::Intrinsics {
+                fu: 1500.0,
+                fv: 1490.0,
+                u0: 515.0,
+                v0: 380.0,
+            },
             DistortionModel::OpenCv5,
             [-0.2, 0.1, 1e-3, -1e-3, 0.02],
         )

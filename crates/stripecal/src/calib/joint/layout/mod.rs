@@ -487,17 +487,19 @@ fn retract_block(kind: BlockKind, r: Range<usize>, p: &[f64], dp: &[f64], out: &
 mod tests {
     use super::*;
     use crate::calib::joint::{FreeBlocks, JointStart};
-    use crate::model::camera::{Camera, DistortionModel};
+    use crate::model::camera::{Camera, DistortionModel, Intrinsics};
     use crate::model::geometry::Plane;
 
     fn start(model: DistortionModel) -> JointStart {
         let camera = Camera::new(
             768,
             576,
-            1270.0,
-            1320.0,
-            380.0,
-            290.0,
+            Intrinsics {
+                fu: 1270.0,
+                fv: 1320.0,
+                u0: 380.0,
+                v0: 290.0,
+            },
             model,
             [0.05, -0.01, 1e-3, -2e-3, 0.002],
         )

@@ -1,32 +1,43 @@
-//! The camera model of spec/DATASET.md: pinhole, no skew, OpenCV-order distortion.
+//! The camera of spec/DATASET.md: pinhole, no skew, a distortion of the normalised
+//! coordinates given by the camera's model ([`CameraModel`], one file per model:
+//! [`models`] for the seam and its registry, [`brown5`] for the contract's model).
 //!
-//! ## Model
+//! ## Camera
 //!
 //! For a point `p = (xc, yc, zc)` in the camera frame:
 //!
 //! ```text
-//! xn = xc / zc,  yn = yc / zc,  r2 = xn^2 + yn^2
-//! radial = 1 + k1 r2 + k2 r2^2 + k3 r2^3
-//! xd = xn radial + 2 p1 xn yn + p2 (r2 + 2 xn^2)
-//! yd = yn radial + p1 (r2 + 2 yn^2) + 2 p2 xn yn
+//! xn = xc / zc,  yn = yc / zc
+//! (xd, yd) = distort(k; xn, yn)        (the model's)
 //! u = fu xd + u0,  v = fv yd + v0
 //! ```
 //!
-//! Distortion coefficients are stored as `[k1, k2, p1, p2, k3]` for every model; the
-//! [`DistortionModel`] says which of them a calibration may estimate (the others stay
-//! as given, normally 0).
+//! The default model, `brown5`, is OpenCV's five-coefficient distortion
+//! `[k1, k2, p1, p2, k3]`; its [`DistortionModel`] says which of them a calibration may
+//! estimate (the others stay as given, normally 0). A camera stores its model's
+//! coefficients in `distortion` (at most [`MAX_DISTORTION`], the rest 0).
 //!
 //! Camera parameters, where a vector of them is used (Jacobians, adjustment), are in the
-//! order [`PARAM_NAMES`]: `fu, fv, u0, v0, k1, k2, p1, p2, k3`.
+//! order of the model's [`CameraModel::param_names`]: `fu, fv, u0, v0`, then the
+//! coefficients; for `brown5` that is [`PARAM_NAMES`]:
+//! `fu, fv, u0, v0, k1, k2, p1, p2, k3`.
 //!
 //! Pixel coordinates: the centre of the top-left pixel is `(0, 0)`.
 
-use nalgebra::{Matrix2, Matrix2x3, SMatrix, Vector2, Vector3};
+pub mod brown5;
+pub mod models;
+
+pub use brown5::{
+    distort_generic, distortion_coefficient_jacobian, distortion_of, project_generic,
+    to_pixel_generic,
+};
+pub use models::{model_names, projection, register, CameraModel, Projection, MAX_DISTORTION};
+
+use nalgebra::{Matrix2, Matrix2x3, Matrix2xX, Vector2, Vector3};
 
 use crate::error::{Error, Result};
-use crate::numerics::dual::Scalar;
 
-/// Names of the camera parameters, in the order of every parameter vector.
+/// Names of the `brown5` camera's parameters, in the order of its parameter vector.
 pub const PARAM_NAMES: [&str; 9] = ["fu", "fv", "u0", "v0", "k1", "k2", "p1", "p2", "k3"];
 
 /// Which distortion coefficients a model estimates.
@@ -79,102 +90,6 @@ impl std::fmt::Display for DistortionModel {
     }
 }
 
-// ---------------------------------------------------------------------------------
-// The model, generic over the scalar (f64 for values, dual numbers for Jacobians): the
-// one implementation of the distortion and the pinhole projection.
-
-/// Distortion `[k1, k2, p1, p2, k3]` of normalised `(x, y)` and its Jacobian
-/// `[[dxd/dx, dxd/dy], [dyd/dx, dyd/dy]]` (module docs for the formula).
-///
-/// With `k2 = p1 = p2 = k3 = 0` exactly (value and derivatives) it takes a k1-only path
-/// that performs the same operations minus the vanishing terms: the same values bit for
-/// bit, at a fraction of the cost for dual numbers.
-#[inline(always)]
-pub fn distort_generic<T: Scalar>(k: &[T; 5], x: T, y: T) -> ([T; 2], [[T; 2]; 2]) {
-    if k[1].is_zero() && k[2].is_zero() && k[3].is_zero() && k[4].is_zero() {
-        distort_k1(k[0], x, y)
-    } else {
-        distort_full(k, x, y)
-    }
-}
-
-/// [`distort_generic`] with `k2 = p1 = p2 = k3 = 0` (`radial1`): the same operations
-/// without the terms that vanish, so the same values bit for bit.
-#[inline(always)]
-fn distort_k1<T: Scalar>(k1: T, x: T, y: T) -> ([T; 2], [[T; 2]; 2]) {
-    let one = T::from_f64(1.0);
-    let r2 = x * x + y * y;
-    let radial = one + r2 * k1;
-    let dradial = k1;
-    let xy = x * y;
-    let xd = x * radial;
-    let yd = y * radial;
-    let cross = (xy * dradial).scale(2.0);
-    let j00 = radial + (x * x * dradial).scale(2.0);
-    let j11 = radial + (y * y * dradial).scale(2.0);
-    ([xd, yd], [[j00, cross], [cross, j11]])
-}
-
-/// The full five-coefficient formula of [`distort_generic`].
-#[inline(always)]
-fn distort_full<T: Scalar>(k: &[T; 5], x: T, y: T) -> ([T; 2], [[T; 2]; 2]) {
-    let [k1, k2, p1, p2, k3] = *k;
-    let one = T::from_f64(1.0);
-    let r2 = x * x + y * y;
-    let radial = one + r2 * (k1 + r2 * (k2 + r2 * k3));
-    let dradial = k1 + r2 * (k2.scale(2.0) + k3.scale(3.0) * r2);
-    let xy = x * y;
-    let xd = x * radial + p1.scale(2.0) * xy + p2 * (r2 + (x * x).scale(2.0));
-    let yd = y * radial + p1 * (r2 + (y * y).scale(2.0)) + p2.scale(2.0) * xy;
-    let cross = (xy * dradial + p1 * x + p2 * y).scale(2.0);
-    let j00 = radial + (x * x * dradial).scale(2.0) + (p1 * y).scale(2.0) + (p2 * x).scale(6.0);
-    let j11 = radial + (y * y * dradial).scale(2.0) + (p1 * y).scale(6.0) + (p2 * x).scale(2.0);
-    ([xd, yd], [[j00, cross], [cross, j11]])
-}
-
-/// `d(xd, yd) / d(k1, k2, p1, p2, k3)` at normalised `(xn, yn)` (the distortion is
-/// linear in its coefficients, so this does not depend on them).
-#[inline]
-pub fn distortion_coefficient_jacobian(xn: f64, yn: f64) -> SMatrix<f64, 2, 5> {
-    let r2 = xn * xn + yn * yn;
-    let r4 = r2 * r2;
-    SMatrix::<f64, 2, 5>::new(
-        xn * r2,
-        xn * r4,
-        2.0 * xn * yn,
-        r2 + 2.0 * xn * xn,
-        xn * r4 * r2,
-        yn * r2,
-        yn * r4,
-        r2 + 2.0 * yn * yn,
-        2.0 * xn * yn,
-        yn * r4 * r2,
-    )
-}
-
-/// The distortion coefficients of a parameter vector in [`PARAM_NAMES`] order.
-#[inline]
-pub fn distortion_of<T: Scalar>(cam: &[T; 9]) -> [T; 5] {
-    [cam[4], cam[5], cam[6], cam[7], cam[8]]
-}
-
-/// Pixel of distorted normalised coordinates `d`: `(fu xd + u0, fv yd + v0)`, `cam` in
-/// [`PARAM_NAMES`] order.
-#[inline]
-pub fn to_pixel_generic<T: Scalar>(cam: &[T; 9], d: [T; 2]) -> [T; 2] {
-    [cam[0] * d[0] + cam[2], cam[1] * d[1] + cam[3]]
-}
-
-/// Pinhole projection with distortion of a camera-frame point `p` (no check that it is
-/// in front: see [`Camera::normalize`]), `cam` in [`PARAM_NAMES`] order.
-#[inline]
-pub fn project_generic<T: Scalar>(cam: &[T; 9], p: &[T; 3]) -> [T; 2] {
-    let x = p[0] / p[2];
-    let y = p[1] / p[2];
-    let (d, _) = distort_generic(&distortion_of(cam), x, y);
-    to_pixel_generic(cam, d)
-}
-
 /// A calibrated camera: image size, intrinsics and distortion.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Camera {
@@ -192,8 +107,24 @@ pub struct Camera {
     pub v0: f64,
     /// The distortion model (which coefficients are estimated).
     pub model: DistortionModel,
-    /// `[k1, k2, p1, p2, k3]`.
-    pub distortion: [f64; 5],
+    /// The model's distortion coefficients (`brown5`: `[k1, k2, p1, p2, k3]`), the
+    /// slots past the model's count 0.
+    pub distortion: [f64; MAX_DISTORTION],
+    /// The projection model (default `brown5`).
+    pub projection: Projection,
+}
+
+/// The pinhole numbers of a camera ([`Camera::new`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Intrinsics {
+    /// Focal length along u, in pixels.
+    pub fu: f64,
+    /// Focal length along v, in pixels.
+    pub fv: f64,
+    /// Principal point, u (pixels).
+    pub u0: f64,
+    /// Principal point, v (pixels).
+    pub v0: f64,
 }
 
 /// Maximum Newton iterations of [`Camera::undistort`].
@@ -203,27 +134,57 @@ const UNDISTORT_MAX_ITER: usize = 30;
 const UNDISTORT_TOL: f64 = 1e-14;
 
 impl Camera {
-    /// A camera with checked values (positive size and focal lengths, finite numbers).
-    #[allow(clippy::too_many_arguments)]
+    /// A `brown5` camera with checked values (positive size and focal lengths, finite
+    /// numbers); [`Camera::with_projection`] gives it another model.
     pub fn new(
         width: u32,
         height: u32,
-        fu: f64,
-        fv: f64,
-        u0: f64,
-        v0: f64,
+        k: Intrinsics,
         model: DistortionModel,
-        distortion: [f64; 5],
+        distortion: [f64; MAX_DISTORTION],
     ) -> Result<Camera> {
         let cam = Camera {
             width,
             height,
-            fu,
-            fv,
-            u0,
-            v0,
+            fu: k.fu,
+            fv: k.fv,
+            u0: k.u0,
+            v0: k.v0,
             model,
             distortion,
+            projection: Projection::Brown5,
+        };
+        cam.validate()?;
+        Ok(cam)
+    }
+
+    /// The pinhole part.
+    pub fn intrinsics(&self) -> Intrinsics {
+        Intrinsics {
+            fu: self.fu,
+            fv: self.fv,
+            u0: self.u0,
+            v0: self.v0,
+        }
+    }
+
+    /// This camera with another model and its coefficients (checked: as many as the
+    /// model has, finite).
+    pub fn with_projection(&self, projection: Projection, coefficients: &[f64]) -> Result<Camera> {
+        let n = projection.model().distortion_count();
+        if coefficients.len() != n || n > MAX_DISTORTION {
+            return Err(Error::InvalidInput(format!(
+                "camera model {} takes {n} distortion coefficients, not {}",
+                projection.name(),
+                coefficients.len()
+            )));
+        }
+        let mut distortion = [0.0; MAX_DISTORTION];
+        distortion[..n].copy_from_slice(coefficients);
+        let cam = Camera {
+            distortion,
+            projection,
+            ..self.clone()
         };
         cam.validate()?;
         Ok(cam)
@@ -250,10 +211,51 @@ impl Camera {
                 "principal point and distortion must be finite".into(),
             ));
         }
+        let n = self.projection.model().distortion_count();
+        if self.distortion[n.min(MAX_DISTORTION)..]
+            .iter()
+            .any(|&k| k != 0.0)
+        {
+            return Err(Error::InvalidInput(format!(
+                "camera model {} has {n} distortion coefficients: the others must be 0",
+                self.projection.name()
+            )));
+        }
         Ok(())
     }
 
-    /// The parameter vector `[fu, fv, u0, v0, k1, k2, p1, p2, k3]`.
+    /// The model's distortion coefficients.
+    #[inline]
+    pub fn coefficients(&self) -> &[f64] {
+        let n = self.projection.model().distortion_count();
+        &self.distortion[..n]
+    }
+
+    /// The model's parameter vector (`fu, fv, u0, v0`, then its coefficients;
+    /// [`CameraModel::param_names`] order).
+    pub fn model_params(&self) -> Vec<f64> {
+        let mut v = vec![self.fu, self.fv, self.u0, self.v0];
+        v.extend_from_slice(self.coefficients());
+        v
+    }
+
+    /// A copy of this camera with parameters from a vector in the model's order
+    /// ([`Self::model_params`]).
+    pub fn with_model_params(&self, p: &[f64]) -> Camera {
+        let mut distortion = [0.0; MAX_DISTORTION];
+        distortion[..p.len() - 4].copy_from_slice(&p[4..]);
+        Camera {
+            fu: p[0],
+            fv: p[1],
+            u0: p[2],
+            v0: p[3],
+            distortion,
+            ..self.clone()
+        }
+    }
+
+    /// The parameter vector `[fu, fv, u0, v0, k1, k2, p1, p2, k3]` (the stored
+    /// coefficients: `brown5`'s layout).
     pub fn params(&self) -> [f64; 9] {
         let k = self.distortion;
         [
@@ -276,19 +278,29 @@ impl Camera {
     /// Applies the distortion to normalised coordinates ([`distort_generic`]).
     #[inline]
     pub fn distort(&self, xn: f64, yn: f64) -> (f64, f64) {
-        let (d, _) = distort_generic(&self.distortion, xn, yn);
-        (d[0], d[1])
+        match self.projection {
+            Projection::Brown5 => {
+                let (d, _) = distort_generic(&self.distortion, xn, yn);
+                (d[0], d[1])
+            }
+            Projection::Other(m) => m.distort(self.coefficients(), xn, yn).0,
+        }
     }
 
     /// The distortion and its 2x2 Jacobian with respect to `(xn, yn)`
     /// ([`distort_generic`]).
     #[inline]
     pub fn distort_with_jacobian(&self, xn: f64, yn: f64) -> ((f64, f64), Matrix2<f64>) {
-        let (d, j) = distort_generic(&self.distortion, xn, yn);
-        (
-            (d[0], d[1]),
-            Matrix2::new(j[0][0], j[0][1], j[1][0], j[1][1]),
-        )
+        match self.projection {
+            Projection::Brown5 => {
+                let (d, j) = distort_generic(&self.distortion, xn, yn);
+                (
+                    (d[0], d[1]),
+                    Matrix2::new(j[0][0], j[0][1], j[1][0], j[1][1]),
+                )
+            }
+            Projection::Other(m) => m.distort(self.coefficients(), xn, yn),
+        }
     }
 
     /// Normalised coordinates of a point in the camera frame; error if `zc <= 0` or
@@ -403,12 +415,13 @@ impl Camera {
     }
 
     /// Projection with its Jacobians: the pixel, d(u,v)/d(point) (2x3) and
-    /// d(u,v)/d(params) (2x9, columns in [`PARAM_NAMES`] order); errors as
+    /// d(u,v)/d(params) (2 x the model's parameter count, columns in
+    /// [`CameraModel::param_names`] order: [`PARAM_NAMES`] for `brown5`); errors as
     /// [`Self::project`] (also when a Jacobian is not finite).
     pub fn project_with_jacobians(
         &self,
         p: &Vector3<f64>,
-    ) -> Result<(Vector2<f64>, Matrix2x3<f64>, SMatrix<f64, 2, 9>)> {
+    ) -> Result<(Vector2<f64>, Matrix2x3<f64>, Matrix2xX<f64>)> {
         let (xn, yn) = Self::normalize(p)?;
         let ((xd, yd), jd) = self.distort_with_jacobian(xn, yn);
         let uv = self.to_pixel(xd, yd);
@@ -417,13 +430,14 @@ impl Camera {
         let jn = Matrix2x3::new(iz, 0.0, -xn * iz, 0.0, iz, -yn * iz);
         let f = Matrix2::new(self.fu, 0.0, 0.0, self.fv);
         let jp = f * jd * jn;
-        let mut jc = SMatrix::<f64, 2, 9>::zeros();
+        let model = self.projection.model();
+        let mut jc = Matrix2xX::<f64>::zeros(model.param_count());
         jc[(0, 0)] = xd;
         jc[(1, 1)] = yd;
         jc[(0, 2)] = 1.0;
         jc[(1, 3)] = 1.0;
-        let dk = distortion_coefficient_jacobian(xn, yn);
-        for i in 0..5 {
+        let dk = model.distortion_jacobian(self.coefficients(), xn, yn);
+        for i in 0..model.distortion_count() {
             jc[(0, 4 + i)] = self.fu * dk[(0, i)];
             jc[(1, 4 + i)] = self.fv * dk[(1, i)];
         }
@@ -451,8 +465,8 @@ impl Camera {
     /// [`Camera::undistort`] for one point of a sequence of neighbouring points, each
     /// Newton iteration started at the previous point's solution held in `track` (made by
     /// [`UndistortTrack::new`] for this camera): neighbouring points converge in 1-2
-    /// steps. Without distortion the point is returned as it is; for radial-only models
-    /// (`p1 = p2 = 0`) a 1D Newton iteration on the scale `r_n / r_d`
+    /// steps. Without distortion the point is returned as it is; for radial-only `brown5`
+    /// cameras (`p1 = p2 = 0`) a 1D Newton iteration on the scale `r_n / r_d`
     /// ([`Camera::undistort_radial_scale`]) with the 2D one as fallback, otherwise the 2D
     /// one ([`Camera::undistort_from`], from the previous solution when it is near).
     /// Both stop at ~1e-15 relative. `None` where the model folds (as
@@ -493,7 +507,8 @@ impl Camera {
     /// neighbouring stripe point converges in one or two steps) to `|ds| <= 1e-15 s`.
     /// `None` where it does not converge in 20 steps or the model folds there
     /// (`f'(s) <= 0`, the radial factor `<= 0`): the general 2D solver then decides.
-    /// Meaningless for a model with tangential terms ([`UndistortTrack::new`] tells).
+    /// Meaningless for a `brown5` camera with tangential terms and for other models
+    /// ([`UndistortTrack::new`] tells).
     #[inline]
     pub fn undistort_radial_scale(&self, xd: f64, yd: f64, s0: f64) -> Option<f64> {
         let [k1, k2, _, _, k3] = self.distortion;
@@ -553,13 +568,15 @@ impl UndistortTrack {
     pub fn new(camera: &Camera) -> UndistortTrack {
         UndistortTrack {
             no_distortion: camera.distortion.iter().all(|&k| k == 0.0),
-            radial_only: camera.distortion[2] == 0.0 && camera.distortion[3] == 0.0,
+            radial_only: camera.projection.is_brown5()
+                && camera.distortion[2] == 0.0
+                && camera.distortion[3] == 0.0,
             scale: 1.0,
             xy: None,
         }
     }
 
-    /// Whether the camera's model is radial-only (`p1 = p2 = 0`): the 1D iteration.
+    /// Whether the camera is a radial-only `brown5` (`p1 = p2 = 0`): the 1D iteration.
     pub fn is_radial_only(&self) -> bool {
         self.radial_only
     }
@@ -568,47 +585,17 @@ impl UndistortTrack {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::numerics::dual::Dual;
-
-    #[test]
-    fn k1_only_distortion_equals_the_full_formula_bit_for_bit() {
-        for k1 in [-0.31, 0.0, 0.05] {
-            for (x, y) in [(0.0, 0.0), (0.3, -0.2), (-0.45, 0.37), (1e-9, 2.0)] {
-                let k = [k1, 0.0, 0.0, 0.0, 0.0];
-                assert_eq!(distort_generic(&k, x, y), distort_full(&k, x, y));
-                // Duals: a varying k1, constant zero others, varying point.
-                type D = Dual<3>;
-                let kd = [
-                    D::var(k1, 0),
-                    D::cst(0.0),
-                    D::cst(0.0),
-                    D::cst(0.0),
-                    D::cst(0.0),
-                ];
-                let (xd, yd) = (D::var(x, 1), D::var(y, 2));
-                assert_eq!(distort_generic(&kd, xd, yd), distort_full(&kd, xd, yd));
-            }
-        }
-        // A varying zero coefficient is not "absent": the full formula is used.
-        let kd = [
-            Dual::<2>::var(0.1, 0),
-            Dual::var(0.0, 1),
-            Dual::cst(0.0),
-            Dual::cst(0.0),
-            Dual::cst(0.0),
-        ];
-        let (d, _) = distort_generic(&kd, Dual::cst(0.3), Dual::cst(0.4));
-        assert!(d[0].d[1] != 0.0, "d xd / d k2 must be r^4 x");
-    }
 
     fn cameras() -> Vec<Camera> {
         let base = Camera::new(
             768,
             576,
-            1271.65,
-            1322.52,
-            346.14,
-            262.60,
+            Intrinsics {
+                fu: 1271.65,
+                fv: 1322.52,
+                u0: 346.14,
+                v0: 262.60,
+            },
             DistortionModel::Radial1,
             [0.0002, 0.0, 0.0, 0.0, 0.0],
         )
@@ -716,10 +703,12 @@ mod tests {
         let cam = Camera::new(
             100,
             100,
-            100.0,
-            100.0,
-            50.0,
-            50.0,
+            Intrinsics {
+                fu: 100.0,
+                fv: 100.0,
+                u0: 50.0,
+                v0: 50.0,
+            },
             DistortionModel::Radial1,
             [-0.5, 0.0, 0.0, 0.0, 0.0],
         )
@@ -734,10 +723,12 @@ mod tests {
         assert!(Camera::new(
             0,
             10,
-            1.0,
-            1.0,
-            0.0,
-            0.0,
+            Intrinsics {
+                fu: 1.0,
+                fv: 1.0,
+                u0: 0.0,
+                v0: 0.0
+            },
             DistortionModel::Radial1,
             [0.0; 5]
         )
@@ -745,10 +736,12 @@ mod tests {
         assert!(Camera::new(
             10,
             10,
-            -1.0,
-            1.0,
-            0.0,
-            0.0,
+            Intrinsics {
+                fu: -1.0,
+                fv: 1.0,
+                u0: 0.0,
+                v0: 0.0
+            },
             DistortionModel::Radial1,
             [0.0; 5]
         )
@@ -756,10 +749,12 @@ mod tests {
         assert!(Camera::new(
             10,
             10,
-            1.0,
-            1.0,
-            f64::NAN,
-            0.0,
+            Intrinsics {
+                fu: 1.0,
+                fv: 1.0,
+                u0: f64::NAN,
+                v0: 0.0
+            },
             DistortionModel::Radial1,
             [0.0; 5]
         )

@@ -1,0 +1,110 @@
+//! Issue 40, acceptance 4 (the seam's half that is done): a camera model added from
+//! outside the library is this one file plus its registration (`mod camera_model_toy;` in
+//! `main.rs` and one `register` call). A one-coefficient division model,
+//! `(xd, yd) = (x, y) / (1 + lambda r^2)`: 5 camera parameters instead of brown5's 9. The
+//! camera projects, unprojects and differentiates through it. Calibrating a twin rendered
+//! with it needs the adjustment's residuals to dispatch too (docs/architecture.md, "A new
+//! camera model").
+
+use nalgebra::{Matrix2, Matrix2xX, Vector2, Vector3};
+use stripecal::model::camera::{projection, register, CameraModel, Projection};
+use stripecal::{Camera, DistortionModel, Intrinsics};
+
+/// `(xd, yd) = s (x, y)`, `s = 1 / (1 + lambda r^2)`.
+struct Division;
+
+impl CameraModel for Division {
+    fn name(&self) -> &'static str {
+        "toy-division"
+    }
+
+    fn distortion_names(&self) -> &'static [&'static str] {
+        &["lambda"]
+    }
+
+    fn distort(&self, k: &[f64], x: f64, y: f64) -> ((f64, f64), Matrix2<f64>) {
+        let l = k[0];
+        let s = 1.0 / (1.0 + l * (x * x + y * y));
+        let q = -2.0 * l * s * s;
+        let j = Matrix2::new(s + q * x * x, q * x * y, q * x * y, s + q * y * y);
+        ((x * s, y * s), j)
+    }
+
+    fn distortion_jacobian(&self, k: &[f64], x: f64, y: f64) -> Matrix2xX<f64> {
+        let r2 = x * x + y * y;
+        let s = 1.0 / (1.0 + k[0] * r2);
+        Matrix2xX::from_column_slice(&[-x * r2 * s * s, -y * r2 * s * s])
+    }
+}
+
+static DIVISION: Division = Division;
+
+fn camera() -> Camera {
+    let p = register(&DIVISION).unwrap();
+    let k = Intrinsics {
+        fu: 1271.65,
+        fv: 1322.52,
+        u0: 346.14,
+        v0: 262.6,
+    };
+    Camera::new(768, 576, k, DistortionModel::Radial1, [0.0; 5])
+        .unwrap()
+        .with_projection(p, &[0.2])
+        .unwrap()
+}
+
+#[test]
+fn a_model_from_outside_is_found_by_name_and_has_its_own_parameter_count() {
+    let cam = camera();
+    assert_eq!(projection("toy-division").unwrap(), cam.projection);
+    assert_ne!(cam.projection, Projection::Brown5);
+    let m = cam.projection.model();
+    assert_eq!(m.param_count(), 5);
+    assert_eq!(m.param_names(), ["fu", "fv", "u0", "v0", "lambda"]);
+    assert_eq!(cam.model_params(), [1271.65, 1322.52, 346.14, 262.6, 0.2]);
+    // Its coefficients are its own: a second one is refused.
+    assert!(cam.with_projection(cam.projection, &[0.1, 0.0]).is_err());
+}
+
+#[test]
+fn the_camera_projects_unprojects_and_differentiates_through_it() {
+    let cam = camera();
+    let p = Vector3::new(-60.0, 35.0, 200.0);
+    let (xn, yn) = (p.x / p.z, p.y / p.z);
+    let s = 1.0 / (1.0 + 0.2 * (xn * xn + yn * yn));
+    let uv = cam.project(&p).unwrap();
+    assert!((uv - Vector2::new(cam.fu * xn * s + cam.u0, cam.fv * yn * s + cam.v0)).norm() < 1e-9);
+    // Round trip over the image.
+    let mut worst: f64 = 0.0;
+    for iv in 0..=12 {
+        for iu in 0..=16 {
+            let px = Vector2::new(iu as f64 * 767.0 / 16.0, iv as f64 * 575.0 / 12.0);
+            let back = cam.project(&(cam.unproject(&px).unwrap() * 137.0)).unwrap();
+            worst = worst.max((back - px).norm());
+        }
+    }
+    assert!(worst < 1e-6, "round trip {worst:e} px");
+    // Jacobians against central differences: 2 x 3 and 2 x 5.
+    let (_, jp, jc) = cam.project_with_jacobians(&p).unwrap();
+    assert_eq!(jc.ncols(), 5);
+    for k in 0..3 {
+        let h = 1e-4 * p.norm();
+        let (mut a, mut b) = (p, p);
+        a[k] += h;
+        b[k] -= h;
+        let fd = (cam.project(&a).unwrap() - cam.project(&b).unwrap()) / (2.0 * h);
+        assert!((fd - jp.column(k)).norm() < 1e-6 * jp.column(k).norm().max(1e-3));
+    }
+    let q = cam.model_params();
+    for k in 0..5 {
+        let h = if k < 4 { 1e-6 * q[k].abs() } else { 1e-6 };
+        let (mut a, mut b) = (q.clone(), q.clone());
+        a[k] += h;
+        b[k] -= h;
+        let fd = (cam.with_model_params(&a).project(&p).unwrap()
+            - cam.with_model_params(&b).project(&p).unwrap())
+            / (2.0 * h);
+        let scale = jc.column(k).norm().max(1e-3);
+        assert!((fd - jc.column(k)).norm() < 1e-6 * scale, "d/dp{k}");
+    }
+}
