@@ -76,6 +76,17 @@ pub(super) fn camera_from(c: &Obj<'_>) -> Result<Camera> {
     let fv = c.positive_f64("fv")?;
     let u0 = c.f64("u0")?;
     let v0 = c.f64("v0")?;
+    // `camera.model` (absent: brown5, as every file written so far): this version reads
+    // and writes brown5's five coefficients only; another model is refused by name
+    // rather than read as brown5 (docs/architecture.md, "camera model").
+    if let Some(m) = c.opt("model") {
+        let name = m.str()?;
+        if name != "brown5" {
+            return Err(m.err(format!(
+                "camera model '{name}' is not one this version reads (brown5 only)"
+            )));
+        }
+    }
     let model = distortion_model_from(&c.req("distortion_model")?)?;
     let distortion = c.req("distortion")?.f64_array::<5>()?;
     let cam = Camera {
@@ -95,6 +106,10 @@ pub(super) fn camera_from(c: &Obj<'_>) -> Result<Camera> {
 
 pub(super) fn camera_value(c: &Camera) -> Value {
     let mut m = Map::new();
+    if !c.projection.is_brown5() {
+        // never written as brown5 (a reader refuses the name it does not know)
+        m.insert("model".into(), Value::from(c.projection.name()));
+    }
     m.insert("width".into(), Value::from(c.width));
     m.insert("height".into(), Value::from(c.height));
     m.insert("fu".into(), num(c.fu));

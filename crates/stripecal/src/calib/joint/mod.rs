@@ -426,6 +426,15 @@ pub fn joint_adjustment(
 ) -> Result<JointResult> {
     board.validate()?;
     start.camera.validate()?;
+    if !start.camera.projection.is_brown5() {
+        // the residuals, the circle-centre models and their Jacobians are brown5's
+        // (docs/architecture.md, "camera model"): another model would be adjusted with
+        // brown5's formula and give a wrong number
+        return Err(Error::InvalidInput(format!(
+            "the one-stage adjustment models brown5 cameras only; the starting camera's model is '{}'",
+            start.camera.projection.name()
+        )));
+    }
     let mut warnings = Vec::new();
     let terms = Terms::collect(views, board, &mut warnings)?;
     let free = free_blocks(&terms, start, opts)?;
