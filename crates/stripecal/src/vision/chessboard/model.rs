@@ -202,13 +202,13 @@ pub(crate) fn normal_linear(
         let (ux, uy) = (q[0] * inv_r, q[1] * inv_r);
         let j = [1.0, m, ux, m * ux, uy, m * uy];
         let mut k = 0;
-        for a in 0..6 {
-            let wa = q[3] * j[a];
-            for c in a..6 {
-                tri[k] += wa * j[c];
+        for (a, &ja) in j.iter().enumerate() {
+            let wa = q[3] * ja;
+            for &jc in &j[a..] {
+                tri[k] += wa * jc;
                 k += 1;
             }
-            b[a] += q[3] * r * j[a];
+            b[a] += q[3] * r * ja;
         }
     }
     let mut h = SMatrix::<f64, 6, 6>::zeros();
