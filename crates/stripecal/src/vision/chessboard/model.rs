@@ -47,10 +47,18 @@ pub(crate) fn window(
         (c[1] - r - 0.5).ceil() as i64,
         (c[1] + r + 0.5).floor() as i64,
     );
+    // (r - 0.5 - 1e-9)^2: below it, r + 0.5 - d > 1 with margin for rounding
+    let inner2 = (r - 0.5 - 1e-9).max(0.0).powi(2);
     for y in y0.max(0)..=y1.min(g.h as i64 - 1) {
         for x in x0.max(0)..=x1.min(g.w as i64 - 1) {
             let (dx, dy) = (x as f64 - c[0], y as f64 - c[1]);
-            let w = (r + 0.5 - (dx * dx + dy * dy).sqrt()).clamp(0.0, 1.0);
+            let d2 = dx * dx + dy * dy;
+            // well inside the disc the weight is exactly 1 (no square root needed)
+            let w = if d2 < inner2 {
+                1.0
+            } else {
+                (r + 0.5 - d2.sqrt()).clamp(0.0, 1.0)
+            };
             if w <= 0.0 {
                 continue;
             }
@@ -177,11 +185,51 @@ pub(crate) fn normal(th: &Vec11, px: &[[f64; 4]], inv_r: f64) -> (Mat, Vec11, f6
     (h, b, cost, wsum)
 }
 
-pub(crate) fn cost_of(th: &Vec11, px: &[[f64; 4]], inv_r: f64) -> f64 {
+/// The linear block of [`normal`] alone (rows and columns 5..11: contrast and
+/// illumination), for the start of a fit: the same sums, without the derivatives of
+/// the edges.
+pub(crate) fn normal_linear(
+    th: &Vec11,
+    px: &[[f64; 4]],
+    inv_r: f64,
+) -> (SMatrix<f64, 6, 6>, SVector<f64, 6>) {
+    let mut tri = [0f64; 21];
+    let mut b = SVector::<f64, 6>::zeros();
+    let md = Model::new(th, inv_r);
+    for q in px {
+        let (f, m) = md.value(q[0], q[1]);
+        let r = q[2] - f;
+        let (ux, uy) = (q[0] * inv_r, q[1] * inv_r);
+        let j = [1.0, m, ux, m * ux, uy, m * uy];
+        let mut k = 0;
+        for (a, &ja) in j.iter().enumerate() {
+            let wa = q[3] * ja;
+            for &jc in &j[a..] {
+                tri[k] += wa * jc;
+                k += 1;
+            }
+            b[a] += q[3] * r * ja;
+        }
+    }
+    let mut h = SMatrix::<f64, 6, 6>::zeros();
+    let mut k = 0;
+    for a in 0..6 {
+        for c in a..6 {
+            h[(a, c)] = tri[k];
+            h[(c, a)] = tri[k];
+            k += 1;
+        }
+    }
+    (h, b)
+}
+
+/// The weighted squared residual of the window `px` for `th`, with every offset
+/// shifted by `-shift` (the window re-centred on a trial centre).
+pub(crate) fn cost_of(th: &Vec11, px: &[[f64; 4]], inv_r: f64, shift: [f64; 2]) -> f64 {
     let md = Model::new(th, inv_r);
     px.iter()
         .map(|q| {
-            let (f, _) = md.value(q[0], q[1]);
+            let (f, _) = md.value(q[0] - shift[0], q[1] - shift[1]);
             q[3] * (q[2] - f).powi(2)
         })
         .sum()

@@ -55,7 +55,7 @@ use std::collections::HashSet;
 use super::checks::{quadrants, validate, worst_sector};
 use super::image::Gray;
 use super::lattice::{cross, norm, Local};
-use super::model::{cost_of, normal, window, Mat, Vec11, NP};
+use super::model::{cost_of, normal, normal_linear, window, Mat, Vec11, NP};
 use super::stripe::{dark_sector_stripe, faint_line, residual_stripe, stripe_mask};
 
 /// A converged fit: parameters, final window pixels, normal matrix, cost, weight sum.
@@ -182,9 +182,7 @@ fn fit(
     }
     // linear part first: contrast and illumination for the starting geometry
     {
-        let (h, b, _, _) = normal(&th, &px, inv_r);
-        let hl = h.fixed_view::<6, 6>(5, 5).into_owned();
-        let bl = b.fixed_rows::<6>(5).into_owned();
+        let (hl, bl) = normal_linear(&th, &px, inv_r);
         let sol = hl.cholesky()?.solve(&bl);
         for k in 0..6 {
             th[5 + k] = sol[k];
@@ -212,11 +210,7 @@ fn fit(
             let mut t2 = th + delta;
             // the centre moved: keep the offsets relative to the trial centre
             t2[4] = t2[4].clamp(-3.0, 3.0);
-            let trial: Vec<[f64; 4]> = px
-                .iter()
-                .map(|q| [q[0] - delta[0], q[1] - delta[1], q[2], q[3]])
-                .collect();
-            let c2 = cost_of(&t2, &trial, inv_r);
+            let c2 = cost_of(&t2, &px, inv_r, [delta[0], delta[1]]);
             if c2.is_finite() && c2 <= cost {
                 lambda = (lambda / 3.0).max(1e-9);
                 accepted = Some((t2, delta));
