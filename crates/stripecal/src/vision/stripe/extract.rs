@@ -8,7 +8,7 @@ use super::chains::{Chains, Decision};
 use super::peak::{line_subpixel, ColumnLine, Params, RowLine, Sub};
 use super::ridge::{scan_columns, scan_line, LineCand, LineReject, RidgePixel, Run};
 use super::smooth::{scale_of, smooth_along};
-use super::survey::{survey, Survey};
+use super::survey::{survey, Survey, SurveyScratch};
 use super::{
     RejectCounts, StripeDirection, StripeOptions, StripePoint, FLAG_AMBIGUOUS, FLAG_OBLIQUE,
 };
@@ -38,6 +38,8 @@ pub struct StripeExtractor {
     alts: Vec<StripePoint>,
     rejected: RejectCounts,
     survey: Survey,
+    /// The survey's buffers.
+    surveyed: SurveyScratch,
     along: usize,
     ridge: usize,
 }
@@ -60,6 +62,7 @@ impl StripeExtractor {
             alts: Vec::new(),
             rejected: RejectCounts::default(),
             survey: Survey::default(),
+            surveyed: SurveyScratch::default(),
             along: 1,
         })
     }
@@ -106,7 +109,7 @@ impl StripeExtractor {
         img: &ImageView<'_, T>,
         out: &mut Vec<StripePoint>,
     ) -> Result<StripeDirection> {
-        self.survey = survey(img, &self.opts, self.opts.direction);
+        self.survey = survey(img, &self.opts, self.opts.direction, &mut self.surveyed);
         let mut opts = self.opts.clone();
         if self.opts.adapt_to_line {
             self.survey.adapt(&mut opts);
