@@ -128,7 +128,13 @@ fn main() {
         let mut pts = Vec::new();
         for (i, f) in frames.iter().enumerate() {
             ex.extract_into(AnyView::U8(ImageView::from_slice(&f.data, f.width, f.height).unwrap()), &mut pts).unwrap();
-            out += &format!("# scan frame {i}: {} points {:?}\n", pts.len(), ex.rejected());
+            out += &format!(
+                "# scan frame {i}: {} points {:?} {:?} along {:?}\n",
+                pts.len(),
+                ex.rejected(),
+                ex.survey(),
+                ex.adapted()
+            );
             for p in &pts {
                 out += &point_line(&format!("s{i}"), p);
             }
