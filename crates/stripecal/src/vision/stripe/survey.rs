@@ -119,7 +119,9 @@ impl Survey {
     }
 }
 
-/// Reusable buffers of the survey (kept by the extractor between images).
+/// Reusable buffers of the survey (kept by the extractor between images), and the state
+/// of a survey of the rows fused into the extractor's pass over them
+/// ([`SurveyScratch::rows_begin`]).
 #[derive(Debug, Clone, Default)]
 pub(crate) struct SurveyScratch {
     /// A gathered column.
@@ -129,7 +131,12 @@ pub(crate) struct SurveyScratch {
     /// Per axis (rows, columns): the sampled lines' widths and the speckle ratios.
     rows: Samples,
     cols: Samples,
+    /// The fused survey's settings: `(min_height, limit, sat_level, lines)`.
+    fused: (f32, usize, f32, usize),
 }
+
+/// The peak of a sampled line: `(position, height above the median, width, saturated)`.
+type Peak = (usize, f32, usize, bool);
 
 /// Widths, saturated count and speckle ratios of one axis's sampled lines.
 #[derive(Debug, Clone, Default)]
@@ -137,6 +144,109 @@ struct Samples {
     widths: Vec<usize>,
     sat: usize,
     ratios: Vec<f64>,
+    /// The peak of the line sampled last (its neighbour is compared with it).
+    last: Option<Peak>,
+}
+
+impl Samples {
+    fn clear(&mut self) {
+        self.widths.clear();
+        self.ratios.clear();
+        self.sat = 0;
+        self.last = None;
+    }
+
+    /// A sampled line's peak.
+    #[inline]
+    fn sampled(&mut self, p: Option<Peak>) {
+        if let Some((_, _, w, sat)) = p {
+            self.widths.push(w);
+            self.sat += sat as usize;
+        }
+        self.last = p;
+    }
+
+    /// The peak of the neighbour of the line sampled last (asked for only where that
+    /// one held a peak): a speckle ratio where both hold the line.
+    #[inline]
+    fn neighbour(&mut self, p: Option<Peak>) {
+        if let (Some((pa, ha, wa, sa)), Some((pb, hb, _, sb))) = (self.last, p) {
+            if pa.abs_diff(pb) <= 2 + wa && !sa && !sb {
+                self.ratios.push(f64::from((ha - hb).abs() / (0.5 * (ha + hb))));
+            }
+        }
+    }
+}
+
+impl SurveyScratch {
+    /// Starts a survey of the rows of an image of `h` rows, fused into a pass over its
+    /// rows in order ([`SurveyScratch::row`] for every row, then
+    /// [`SurveyScratch::rows_finish`]): the survey [`survey`] makes with `Cols`.
+    pub(crate) fn rows_begin<T: RidgePixel>(&mut self, opts: &StripeOptions, h: usize) {
+        self.rows.clear();
+        self.fused = (
+            4.0 * opts.min_contrast * T::SCALE,
+            4 * opts.max_width_px.ceil() as usize,
+            <T as Pixel>::MAX,
+            h,
+        );
+    }
+
+    /// Row `y` (rows in increasing order): looked at where the survey samples it.
+    #[inline]
+    pub(crate) fn row<T: RidgePixel>(&mut self, y: usize, row: &[T]) {
+        let (min_height, limit, sat_level, h) = self.fused;
+        if y < STEP / 2 || y >= h {
+            return;
+        }
+        let k = (y - STEP / 2) % STEP;
+        // a sampled row (below the last row), or the neighbour of one that held a peak
+        let sampled = k == 0 && y + 1 < h;
+        if !(sampled || (k == 1 && self.rows.last.is_some())) {
+            return;
+        }
+        let p = line_peak_dispatch(row, &mut self.guess, min_height, limit, sat_level);
+        if sampled {
+            self.rows.sampled(p);
+        } else {
+            self.rows.neighbour(p);
+        }
+    }
+
+    /// The survey of the rows seen since [`SurveyScratch::rows_begin`].
+    pub(crate) fn rows_finish(&mut self) -> Survey {
+        summary(&mut self.rows, true)
+    }
+}
+
+/// [`line_peak`], with AVX2 where the CPU has it (the same result).
+#[inline]
+fn line_peak_dispatch<P: RidgePixel>(
+    vals: &[P],
+    guess: &mut u32,
+    min_height: f32,
+    limit: usize,
+    sat_level: f32,
+) -> Option<Peak> {
+    #[cfg(target_arch = "x86_64")]
+    if super::ridge::has_avx2() {
+        // SAFETY: the CPU supports AVX2 (checked just above), the only requirement for
+        // calling a `#[target_feature(enable = "avx2")]` function.
+        return unsafe { line_peak_avx2(vals, guess, min_height, limit, sat_level) };
+    }
+    line_peak(vals, guess, min_height, limit, sat_level)
+}
+
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+fn line_peak_avx2<P: RidgePixel>(
+    vals: &[P],
+    guess: &mut u32,
+    min_height: f32,
+    limit: usize,
+    sat_level: f32,
+) -> Option<Peak> {
+    line_peak(vals, guess, min_height, limit, sat_level)
 }
 
 /// How many of `vals` are at most `t` (vectorised: byte counters per block of 128).
@@ -211,7 +321,7 @@ fn line_peak<P: RidgePixel>(
     min_height: f32,
     limit: usize,
     sat_level: f32,
-) -> Option<(usize, f32, usize, bool)> {
+) -> Option<Peak> {
     if vals.len() < 3 {
         return None;
     }
@@ -257,21 +367,14 @@ fn sample<S>(
     n_lines: usize,
     s: &mut Samples,
     scratch: &mut S,
-    mut get: impl FnMut(usize, &mut S) -> Option<(usize, f32, usize, bool)>,
+    mut get: impl FnMut(usize, &mut S) -> Option<Peak>,
 ) {
-    s.widths.clear();
-    s.ratios.clear();
-    s.sat = 0;
+    s.clear();
     for l in (STEP / 2..n_lines.saturating_sub(1)).step_by(STEP) {
-        let Some((pa, ha, wa, sa)) = get(l, scratch) else {
-            continue;
-        };
-        s.widths.push(wa);
-        s.sat += sa as usize;
-        if let Some((pb, hb, _, sb)) = get(l + 1, scratch) {
-            if pa.abs_diff(pb) <= 2 + wa && !sa && !sb {
-                s.ratios.push(f64::from((ha - hb).abs() / (0.5 * (ha + hb))));
-            }
+        let p = get(l, scratch);
+        s.sampled(p);
+        if p.is_some() {
+            s.neighbour(get(l + 1, scratch));
         }
     }
 }
@@ -331,6 +434,7 @@ fn survey_generic<T: RidgePixel>(
         guess,
         rows: sr,
         cols: sc,
+        ..
     } = scratch;
     let rows = |s: &mut Samples, guess: &mut u32| {
         sample(h, s, guess, |y, guess| {
@@ -373,10 +477,17 @@ fn survey_generic<T: RidgePixel>(
             }
         }
     };
+    summary(picked, along_columns)
+}
+
+/// The survey from one axis's samples (the median width, the saturated share, the
+/// speckle index).
+fn summary(picked: &mut Samples, along_columns: bool) -> Survey {
     let Samples {
         widths,
         sat,
         ratios,
+        ..
     } = picked;
     let n = widths.len();
     let Some(width) = median_usize(widths) else {
