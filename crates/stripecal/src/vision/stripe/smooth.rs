@@ -37,7 +37,7 @@ struct DivBy {
 const NUM_BITS: u32 = 22;
 
 impl DivBy {
-    #[inline]
+    #[inline(always)]
     fn new(d: u32) -> DivBy {
         debug_assert!((1..=32).contains(&d));
         let l = 32 - (d - 1).leading_zeros(); // ceil(log2 d)
@@ -57,8 +57,39 @@ impl DivBy {
 }
 
 /// The image `img` averaged over `n` scan lines across `dir`'s scan lines, into `out`
-/// (`width * height` 16-bit pixels, row-major).
+/// (`width * height` 16-bit pixels, row-major). Compiled a second time with AVX2,
+/// chosen at run time where the CPU has it (integer arithmetic: the same result).
 pub(super) fn smooth_along<T: Pixel>(
+    img: &ImageView<'_, T>,
+    dir: StripeDirection,
+    n: usize,
+    out: &mut Vec<u16>,
+    acc: &mut Vec<u32>,
+) {
+    #[cfg(target_arch = "x86_64")]
+    if super::ridge::has_avx2() {
+        // SAFETY: the CPU supports AVX2 (checked just above), the only requirement for
+        // calling a `#[target_feature(enable = "avx2")]` function.
+        unsafe { smooth_along_avx2(img, dir, n, out, acc) };
+        return;
+    }
+    smooth_along_generic(img, dir, n, out, acc)
+}
+
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+fn smooth_along_avx2<T: Pixel>(
+    img: &ImageView<'_, T>,
+    dir: StripeDirection,
+    n: usize,
+    out: &mut Vec<u16>,
+    acc: &mut Vec<u32>,
+) {
+    smooth_along_generic(img, dir, n, out, acc)
+}
+
+#[inline(always)]
+fn smooth_along_generic<T: Pixel>(
     img: &ImageView<'_, T>,
     dir: StripeDirection,
     n: usize,
