@@ -29,7 +29,7 @@ import numpy as np  # noqa: E402
 import numpy.typing as npt  # noqa: E402
 
 
-def argmax_centroid(img: npt.NDArray[np.uint8]) -> npt.NDArray[np.float32]:
+def argmax_centroid(img: npt.NDArray[np.uint8]) -> npt.NDArray[np.float64]:
     """Per row: the column of the brightest pixel refined by the centroid of it and its
     two neighbours (``u = k + (I[k+1] - I[k-1]) / (I[k-1] + I[k] + I[k+1])``)."""
     h, w = img.shape
@@ -39,7 +39,7 @@ def argmax_centroid(img: npt.NDArray[np.uint8]) -> npt.NDArray[np.float32]:
     b = img[r, k].astype(np.float32)
     c = img[r, k + 1].astype(np.float32)
     s = np.maximum(a + b + c, 1.0)
-    u: npt.NDArray[np.float32] = k + (c - a) / s
+    u: npt.NDArray[np.float64] = k + (c - a) / s  # (int64 + float32: float64)
     return u
 
 

@@ -21,7 +21,7 @@ use std::hint::black_box;
 use std::io::Write;
 use stripecal::model::image::{AnyGray, AnyView, GrayImage, ImageView};
 use stripecal::model::{StripeChannel, StripeDirection};
-use stripecal::reconstruct::{Reconstructor, ReconstructOptions};
+use stripecal::reconstruct::{ReconstructOptions, Reconstructor};
 use stripecal::vision::stripe::{stripe_signal, StripeExtractor, StripeOptions, StripePoint};
 use stripecal_sim::{SimConfig, Twin};
 
@@ -127,7 +127,11 @@ fn main() {
         .unwrap();
         let mut pts = Vec::new();
         for (i, f) in frames.iter().enumerate() {
-            ex.extract_into(AnyView::U8(ImageView::from_slice(&f.data, f.width, f.height).unwrap()), &mut pts).unwrap();
+            ex.extract_into(
+                AnyView::U8(ImageView::from_slice(&f.data, f.width, f.height).unwrap()),
+                &mut pts,
+            )
+            .unwrap();
             out += &format!(
                 "# scan frame {i}: {} points {:?} {:?} along {:?}\n",
                 pts.len(),
@@ -200,14 +204,20 @@ fn main() {
         for (i, f) in frames.iter().enumerate() {
             write_npy(&tmp.join(format!("frame{i:02}.npy")), f);
         }
-        let script = concat!(env!("CARGO_MANIFEST_DIR"), "/../scripts/bench_stripe_numpy.py");
+        let script = concat!(
+            env!("CARGO_MANIFEST_DIR"),
+            "/../scripts/bench_stripe_numpy.py"
+        );
         let mut ex = StripeExtractor::new(StripeOptions {
             direction: dir,
             ..Default::default()
         })
         .unwrap();
         let mut out = Vec::new();
-        let views: Vec<AnyView> = frames.iter().map(|f| AnyView::U8(ImageView::from_slice(&f.data, f.width, f.height).unwrap())).collect();
+        let views: Vec<AnyView> = frames
+            .iter()
+            .map(|f| AnyView::U8(ImageView::from_slice(&f.data, f.width, f.height).unwrap()))
+            .collect();
         let mut n_pts = 0;
         for v in &views {
             ex.extract_into(*v, &mut out).unwrap();
@@ -231,7 +241,11 @@ fn main() {
                 .arg(script)
                 .arg(&tmp)
                 .arg(secs.to_string())
-                .arg(if dir == StripeDirection::Rows { "rows" } else { "cols" })
+                .arg(if dir == StripeDirection::Rows {
+                    "rows"
+                } else {
+                    "cols"
+                })
                 .output()
                 .unwrap();
             let s = String::from_utf8_lossy(&o.stdout);
@@ -345,7 +359,10 @@ fn main() {
     }
     if wanted("scan") {
         let (frames, dir) = scan_frames(&twin);
-        let views: Vec<AnyView> = frames.iter().map(|f| AnyView::U8(ImageView::from_slice(&f.data, f.width, f.height).unwrap())).collect();
+        let views: Vec<AnyView> = frames
+            .iter()
+            .map(|f| AnyView::U8(ImageView::from_slice(&f.data, f.width, f.height).unwrap()))
+            .collect();
         let mut ex = StripeExtractor::new(StripeOptions {
             direction: dir,
             ..Default::default()

@@ -172,7 +172,8 @@ impl Samples {
     fn neighbour(&mut self, p: Option<Peak>) {
         if let (Some((pa, ha, wa, sa)), Some((pb, hb, _, sb))) = (self.last, p) {
             if pa.abs_diff(pb) <= 2 + wa && !sa && !sb {
-                self.ratios.push(f64::from((ha - hb).abs() / (0.5 * (ha + hb))));
+                self.ratios
+                    .push(f64::from((ha - hb).abs() / (0.5 * (ha + hb))));
             }
         }
     }
@@ -255,9 +256,7 @@ fn count_le<P: RidgePixel>(vals: &[P], t: P) -> usize {
     let mut n = 0usize;
     let mut blocks = vals.chunks_exact(128);
     for b in &mut blocks {
-        n += b
-            .iter()
-            .fold(0u8, |a, &v| a.wrapping_add((v <= t) as u8)) as usize;
+        n += b.iter().fold(0u8, |a, &v| a.wrapping_add((v <= t) as u8)) as usize;
     }
     n + blocks.remainder().iter().filter(|&&v| v <= t).count()
 }
