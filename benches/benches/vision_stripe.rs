@@ -1,7 +1,8 @@
 //! Criterion benchmark of laser-stripe extraction on a 768 x 576 twin laser image
 //! (`hp3-paper`, view 0, noise 1 gray level, PSF 0.7 px), single-threaded, beside a
 //! plain memory read of the same image (the physical limit: every pixel read once).
-//! Throughput is in images: criterion's "elem/s" is images per second.
+//! Throughput is in images: criterion's "elem/s" is images per second. The scan-frame
+//! case extracts 12 frames of the twin's ball scan per iteration.
 //! Run: `cargo bench -p stripecal-benches --bench vision_stripe`; figures go to
 //! BENCHMARKS.md ("Vision: stripes").
 
@@ -95,6 +96,33 @@ fn stripes(c: &mut Criterion) {
             })
         });
     }
+    // The twin's ball-scan frames (12 spread over the scan), one extractor kept from
+    // frame to frame as line software and `reconstruct_scan` use it: time per frame.
+    let qs = twin.scan_poses().unwrap();
+    let frames: Vec<AnyGray> = (0..12)
+        .map(|i| {
+            let k = (2 * i + 1) * qs.len() / 24;
+            twin.render_scan_frame(&qs[k], k)
+                .unwrap()
+                .laser_image
+                .unwrap()
+        })
+        .collect();
+    let views: Vec<_> = frames.iter().map(|f| f.view().unwrap()).collect();
+    let mut ex = StripeExtractor::new(cols.clone()).unwrap();
+    let mut out = Vec::new();
+    g.throughput(Throughput::Elements(views.len() as u64));
+    g.bench_function("extract_into_scan_frames_768x576", |b| {
+        b.iter(|| {
+            let mut n = 0;
+            for v in &views {
+                ex.extract_into(black_box(*v), &mut out).unwrap();
+                n += out.len();
+            }
+            n
+        })
+    });
+    g.throughput(Throughput::Elements(1));
     let stripe = extract_stripe(img, &cols).unwrap();
     let bview = board.view().unwrap();
     g.bench_function("flag_reflectance_edges_768x576", |b| {

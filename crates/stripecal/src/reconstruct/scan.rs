@@ -136,21 +136,25 @@ pub fn reconstruct_scan(
         return Err(Error::Cancelled);
     }
     let mut done = 0;
+    // One reconstructor (its stripe extractor's buffers) and one points buffer per frame
+    // of a chunk, kept from chunk to chunk: the extraction allocates nothing per frame.
+    let mut workers: Vec<(Reconstructor, ScanPoints)> = (0..chunk.min(n))
+        .map(|_| (proto.clone(), ScanPoints::default()))
+        .collect();
     for (c, frames) in scan.frames.chunks(chunk).enumerate() {
         let parts: Vec<Result<FramePart>> = frames
             .par_iter()
+            .zip(workers.par_iter_mut())
             .enumerate()
-            .map_init(
-                || proto.clone(),
-                |rec, (k, f)| frame_points(rec, &source, f, c * chunk + k),
-            )
+            .map(|(k, (f, (rec, sp)))| frame_points(rec, sp, &source, f, c * chunk + k))
             .collect();
         for (k, part) in parts.into_iter().enumerate() {
             let i = c * chunk + k;
             match part? {
-                Ok((sp, depth)) => {
+                Ok(depth) => {
+                    let sp = &workers[k].1;
                     kept.push((i, depth, sp.dropped));
-                    out.append(&sp);
+                    out.append(sp);
                 }
                 Err(reason) if skip => skipped.push(bad(i, &frames[k], reason)),
                 Err(reason) => return Err(Error::BadImage(bad(i, &frames[k], reason))),
@@ -235,13 +239,16 @@ struct FrameSource<'a> {
     stripe: &'a StripeOptions,
 }
 
-/// A frame's points and its image's bit depth, or why its image cannot be used.
-type FramePart = std::result::Result<(ScanPoints, u8), String>;
+/// A frame's image's bit depth (its points in the worker's buffer), or why its image
+/// cannot be used.
+type FramePart = std::result::Result<u8, String>;
 
-/// Frame `i` (`f`) reconstructed with `rec`: its points and bit depth, or why its image
-/// cannot be used; errors (naming the frame's scan.csv line and image) stop the run.
+/// Frame `i` (`f`) reconstructed with `rec` into `sp` (cleared first): its bit depth, or
+/// why its image cannot be used; errors (naming the frame's scan.csv line and image)
+/// stop the run.
 fn frame_points(
     rec: &mut Reconstructor,
+    sp: &mut ScanPoints,
     source: &FrameSource<'_>,
     f: &ScanFrame,
     i: usize,
@@ -256,8 +263,8 @@ fn frame_points(
         Ok(v) => v,
         Err(e) => return Ok(Err(e.to_string())),
     };
-    let mut sp = ScanPoints::default();
-    rec.frame_reading(view, &f.reading, i as u32, &mut sp)
+    sp.clear();
+    rec.frame_reading(view, &f.reading, i as u32, sp)
         .map_err(|e| match e {
             Error::InvalidInput(m) => Error::InvalidInput(format!(
                 "{m} (scan.csv line {}, image {})",
@@ -266,7 +273,7 @@ fn frame_points(
             )),
             other => other,
         })?;
-    Ok(Ok((sp, img.bit_depth())))
+    Ok(Ok(img.bit_depth()))
 }
 
 /// The bit depth most of the `kept` frames `(index, depth, drops)` have (a tie: the first

@@ -8,12 +8,23 @@ use super::chains::{Chains, Decision};
 use super::peak::{line_subpixel, ColumnLine, Params, RowLine, Sub};
 use super::ridge::{scan_columns, scan_line, LineCand, LineReject, RidgePixel, Run};
 use super::smooth::{scale_of, smooth_along};
-use super::survey::{survey, Survey};
+use super::survey::{survey, Survey, SurveyScratch};
 use super::{
     RejectCounts, StripeDirection, StripeOptions, StripePoint, FLAG_AMBIGUOUS, FLAG_OBLIQUE,
 };
 use crate::error::Result;
 use crate::model::image::{AnyView, ImageView};
+
+/// Where the ridge candidates of the scan lines come from.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Cands {
+    /// The ridge pass over the image.
+    Scan,
+    /// The auto decision's: the columns' all, the rows' it sampled.
+    FromAuto,
+    /// Found already (the fused pass).
+    Ready,
+}
 
 /// Auto direction: every `AUTO_STEP`-th row and column is sampled.
 const AUTO_STEP: usize = 4;
@@ -38,6 +49,11 @@ pub struct StripeExtractor {
     alts: Vec<StripePoint>,
     rejected: RejectCounts,
     survey: Survey,
+    /// The survey's buffers.
+    surveyed: SurveyScratch,
+    /// `Cols`: survey the rows in the ridge pass (the last image kept the options'
+    /// ridge distance and was not smoothed).
+    fuse: bool,
     along: usize,
     ridge: usize,
 }
@@ -60,6 +76,8 @@ impl StripeExtractor {
             alts: Vec::new(),
             rejected: RejectCounts::default(),
             survey: Survey::default(),
+            surveyed: SurveyScratch::default(),
+            fuse: true,
             along: 1,
         })
     }
@@ -106,19 +124,33 @@ impl StripeExtractor {
         img: &ImageView<'_, T>,
         out: &mut Vec<StripePoint>,
     ) -> Result<StripeDirection> {
-        self.survey = survey(img, &self.opts, self.opts.direction);
+        let cols = self.opts.direction == StripeDirection::Cols;
+        let fused = cols && self.fuse;
+        self.survey = if fused {
+            self.fused_pass(img)
+        } else {
+            survey(img, &self.opts, self.opts.direction, &mut self.surveyed)
+        };
         let mut opts = self.opts.clone();
         if self.opts.adapt_to_line {
             self.survey.adapt(&mut opts);
         }
         self.ridge = opts.ridge_px;
         self.along = self.survey.along_line(&self.opts);
-        let (dir, auto) = match opts.direction {
+        // the fused pass's candidates stand where the survey keeps the ridge distance and
+        // asks for no smoothing; the next image is surveyed first where this one was not
+        // like that
+        let as_set = self.along == 1 && self.ridge == self.opts.ridge_px;
+        if cols {
+            self.fuse = as_set;
+        }
+        let (dir, cands) = match opts.direction {
             StripeDirection::Auto => (
                 auto_direction(img, &opts, &mut self.cands, &mut self.rows),
-                true,
+                Cands::FromAuto,
             ),
-            d => (d, false),
+            _ if fused && as_set => (opts.direction, Cands::Ready),
+            d => (d, Cands::Scan),
         };
         if self.along > 1 {
             let mut sm = std::mem::take(&mut self.smooth);
@@ -127,13 +159,32 @@ impl StripeExtractor {
             let view = ImageView::from_slice(&sm, img.width(), img.height())?;
             // the smoothed image is on the 16-bit scale: peaks back to the input's
             let back = 1.0 / scale_of::<T>() as f32;
-            self.passes(&view, dir, false, &opts, out, back);
+            self.passes(&view, dir, Cands::Scan, &opts, out, back);
             self.smooth = sm;
             self.acc = acc;
         } else {
-            self.passes(img, dir, auto, &opts, out, 1.0);
+            self.passes(img, dir, cands, &opts, out, 1.0);
         }
         Ok(dir)
+    }
+
+    /// `Cols` with the survey fused into the ridge pass: one pass over the rows, each
+    /// row surveyed where the survey samples it ([`survey`]: the same survey) and its
+    /// ridge candidates found with the options' ridge distance, while the row is in the
+    /// cache. Returns the survey; the candidates are in `self.cands`.
+    fn fused_pass<T: RidgePixel>(&mut self, img: &ImageView<'_, T>) -> Survey {
+        let h = img.height();
+        let p = Params::new::<T>(&self.opts);
+        let thr = T::from_u32_clamped(p.min_contrast.ceil().max(1.0) as u32);
+        self.cands.clear();
+        self.cands.resize(h, LineCand::default());
+        self.surveyed.rows_begin::<T>(&self.opts, h);
+        for (y, cand) in self.cands.iter_mut().enumerate() {
+            let row = img.row(y);
+            self.surveyed.row(y, row);
+            scan_line(row, p.d, thr, cand);
+        }
+        self.surveyed.rows_finish()
     }
 
     /// The ridge search, the decision per scan line and the sub-pixel centres on `img`
@@ -143,7 +194,7 @@ impl StripeExtractor {
         &mut self,
         img: &ImageView<'_, T>,
         dir: StripeDirection,
-        auto: bool,
+        cands: Cands,
         opts: &StripeOptions,
         out: &mut Vec<StripePoint>,
         back: f32,
@@ -151,7 +202,10 @@ impl StripeExtractor {
         let p = Params::new::<T>(opts);
         let thr = T::from_u32_clamped(p.min_contrast.ceil().max(1.0) as u32);
         let mut rej = RejectCounts::default();
-        if dir == StripeDirection::Rows {
+        let auto = cands == Cands::FromAuto;
+        if cands == Cands::Ready {
+            // (found by the fused pass)
+        } else if dir == StripeDirection::Rows {
             if !auto {
                 // (the auto decision leaves the column candidates in `cands`)
                 self.cands.clear();

@@ -353,10 +353,14 @@ fn residual_sums<'r, T: Pixel>(
     res: &'r mut Vec<f32>,
 ) -> (&'r [f32], &'r [f32], &'r [f32]) {
     let m = px.len();
-    res.clear();
-    res.resize(3 * m + 2, 0.0);
-    let (vals, pre) = res.split_at_mut(m);
+    // (every entry is written below: no clearing)
+    if res.len() < 3 * m + 2 {
+        res.resize(3 * m + 2, 0.0);
+    }
+    let (vals, pre) = res[..3 * m + 2].split_at_mut(m);
     let (pre0, pre1) = pre.split_at_mut(m + 1);
+    pre0[0] = 0.0;
+    pre1[0] = 0.0;
     for (k, (o, v)) in vals.iter_mut().zip(px).enumerate() {
         *o = v.to_f32() - bg.at((x0 + k) as f32);
     }
@@ -453,7 +457,6 @@ pub(super) fn subpixel<T: Pixel>(
     let (xmin, xmax) = (flanks.0 + p.flank, flanks.1 - 1);
     let (l, r) = (win.l - xmin as f32, win.r - xmin as f32);
     let last = xmax - xmin;
-    let sums = residual_sums(&seg[xmin..=xmax], &win.bg, xmin, res);
     if longest >= PLATEAU_PX {
         // A saturated plateau: its top is clipped, so its middle is where the two
         // edges' half-maximum crossings put it (as line profilers take it).
@@ -466,6 +469,7 @@ pub(super) fn subpixel<T: Pixel>(
             flags,
         });
     }
+    let sums = residual_sums(&seg[xmin..=xmax], &win.bg, xmin, res);
     let c = window_centroid(sums, 0.5 * (l + r), h, w, last)?;
     let mut cf = c as f64;
     if p.method == StripeMethod::Gaussian {

@@ -371,7 +371,7 @@ pub(super) fn scan_columns_generic<T: RidgePixel>(
 /// for the x86-64 baseline (SSE2); the ridge passes are compiled a second time with AVX2
 /// enabled (32 byte lanes) and chosen here at run time.
 #[inline]
-fn has_avx2() -> bool {
+pub(super) fn has_avx2() -> bool {
     #[cfg(target_arch = "x86_64")]
     {
         std::arch::is_x86_feature_detected!("avx2")

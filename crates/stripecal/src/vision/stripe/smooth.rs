@@ -22,9 +22,74 @@ pub(super) fn scale_of<T: Pixel>() -> u32 {
     }
 }
 
+/// Division by a small count `d` (1..=31) as a multiplication and a shift, exact for
+/// every numerator below `2^22` (Granlund and Montgomery's round-up method: with
+/// `l = ceil(log2 d)` and `m = floor(2^(22 + l) / d) + 1`, `floor(x / d) = (x m) >>
+/// (22 + l)`). The averages' numerators are below `31 * 65535 + 15 < 2^21`. A division
+/// instruction per pixel cost more than the rest of the extraction of a frame.
+#[derive(Debug, Clone, Copy)]
+struct DivBy {
+    m: u64,
+    shift: u32,
+}
+
+/// Numerators of [`DivBy`] are below `2^NUM_BITS`.
+const NUM_BITS: u32 = 22;
+
+impl DivBy {
+    #[inline(always)]
+    fn new(d: u32) -> DivBy {
+        debug_assert!((1..=32).contains(&d));
+        let l = 32 - (d - 1).leading_zeros(); // ceil(log2 d)
+        let shift = NUM_BITS + l;
+        DivBy {
+            m: (1u64 << shift) / u64::from(d) + 1,
+            shift,
+        }
+    }
+
+    /// `x / d` rounded down, for `x < 2^22`.
+    #[inline(always)]
+    fn div(self, x: u32) -> u32 {
+        debug_assert!(x < 1 << NUM_BITS);
+        ((u64::from(x) * self.m) >> self.shift) as u32
+    }
+}
+
 /// The image `img` averaged over `n` scan lines across `dir`'s scan lines, into `out`
-/// (`width * height` 16-bit pixels, row-major).
+/// (`width * height` 16-bit pixels, row-major). Compiled a second time with AVX2,
+/// chosen at run time where the CPU has it (integer arithmetic: the same result).
 pub(super) fn smooth_along<T: Pixel>(
+    img: &ImageView<'_, T>,
+    dir: StripeDirection,
+    n: usize,
+    out: &mut Vec<u16>,
+    acc: &mut Vec<u32>,
+) {
+    #[cfg(target_arch = "x86_64")]
+    if super::ridge::has_avx2() {
+        // SAFETY: the CPU supports AVX2 (checked just above), the only requirement for
+        // calling a `#[target_feature(enable = "avx2")]` function.
+        unsafe { smooth_along_avx2(img, dir, n, out, acc) };
+        return;
+    }
+    smooth_along_generic(img, dir, n, out, acc)
+}
+
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+fn smooth_along_avx2<T: Pixel>(
+    img: &ImageView<'_, T>,
+    dir: StripeDirection,
+    n: usize,
+    out: &mut Vec<u16>,
+    acc: &mut Vec<u32>,
+) {
+    smooth_along_generic(img, dir, n, out, acc)
+}
+
+#[inline(always)]
+fn smooth_along_generic<T: Pixel>(
     img: &ImageView<'_, T>,
     dir: StripeDirection,
     n: usize,
@@ -36,6 +101,8 @@ pub(super) fn smooth_along<T: Pixel>(
     out.resize(w * h, 0);
     let k = (n / 2) as isize;
     let scale = scale_of::<T>();
+    // the counts of a window: 1..=n (fewer at the border)
+    let divs: [DivBy; 32] = std::array::from_fn(|d| DivBy::new((d as u32).max(1)));
     if dir == StripeDirection::Rows {
         // scan lines are columns: average along the rows (the line runs along them)
         for y in 0..h {
@@ -59,7 +126,7 @@ pub(super) fn smooth_along<T: Pixel>(
                     s -= row[sub as usize].to_u32();
                     cnt -= 1;
                 }
-                *ox = ((s * scale + cnt / 2) / cnt) as u16;
+                *ox = divs[cnt as usize].div(s * scale + cnt / 2) as u16;
             }
         }
     } else {
@@ -88,8 +155,9 @@ pub(super) fn smooth_along<T: Pixel>(
                 }
                 cnt -= 1;
             }
+            let (div, half) = (divs[cnt as usize], cnt / 2);
             for (o, a) in out[y * w..(y + 1) * w].iter_mut().zip(acc.iter()) {
-                *o = ((a * scale + cnt / 2) / cnt) as u16;
+                *o = div.div(a * scale + half) as u16;
             }
         }
     }
@@ -98,6 +166,21 @@ pub(super) fn smooth_along<T: Pixel>(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The multiply-shift division equals the division on every numerator of the
+    /// averages, for every count (the largest numerators and a stride through the rest).
+    #[test]
+    fn div_by_equals_division() {
+        let top = 31 * 65535 + 15;
+        for d in 1..=31u32 {
+            let dv = DivBy::new(d);
+            let check = |x: u32| assert_eq!(dv.div(x), x / d, "{x} / {d}");
+            (0..5000).for_each(check);
+            (top - 5000..=top).for_each(check);
+            ((1u32 << NUM_BITS) - 5000..1u32 << NUM_BITS).for_each(check);
+            (0..top).step_by(97).for_each(check);
+        }
+    }
 
     #[test]
     fn averages_across_the_scan_lines_and_keeps_full_scale() {

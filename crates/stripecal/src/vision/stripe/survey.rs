@@ -119,65 +119,263 @@ impl Survey {
     }
 }
 
-/// The peak of one sampled line: `(position, height above the median, width,
-/// saturated)`, or `None` without a clear peak.
-fn line_peak<T: RidgePixel>(
-    line: &mut impl Iterator<Item = T>,
-    buf: &mut Vec<u32>,
+/// Reusable buffers of the survey (kept by the extractor between images), and the state
+/// of a survey of the rows fused into the extractor's pass over them
+/// ([`SurveyScratch::rows_begin`]).
+#[derive(Debug, Clone, Default)]
+pub(crate) struct SurveyScratch {
+    /// A gathered column.
+    line: Vec<u16>,
+    /// The median of the line sampled last (where the next one's search starts).
+    guess: u32,
+    /// Per axis (rows, columns): the sampled lines' widths and the speckle ratios.
+    rows: Samples,
+    cols: Samples,
+    /// The fused survey's settings: `(min_height, limit, sat_level, lines)`.
+    fused: (f32, usize, f32, usize),
+}
+
+/// The peak of a sampled line: `(position, height above the median, width, saturated)`.
+type Peak = (usize, f32, usize, bool);
+
+/// Widths, saturated count and speckle ratios of one axis's sampled lines.
+#[derive(Debug, Clone, Default)]
+struct Samples {
+    widths: Vec<usize>,
+    sat: usize,
+    ratios: Vec<f64>,
+    /// The peak of the line sampled last (its neighbour is compared with it).
+    last: Option<Peak>,
+}
+
+impl Samples {
+    fn clear(&mut self) {
+        self.widths.clear();
+        self.ratios.clear();
+        self.sat = 0;
+        self.last = None;
+    }
+
+    /// A sampled line's peak.
+    #[inline]
+    fn sampled(&mut self, p: Option<Peak>) {
+        if let Some((_, _, w, sat)) = p {
+            self.widths.push(w);
+            self.sat += sat as usize;
+        }
+        self.last = p;
+    }
+
+    /// The peak of the neighbour of the line sampled last (asked for only where that
+    /// one held a peak): a speckle ratio where both hold the line.
+    #[inline]
+    fn neighbour(&mut self, p: Option<Peak>) {
+        if let (Some((pa, ha, wa, sa)), Some((pb, hb, _, sb))) = (self.last, p) {
+            if pa.abs_diff(pb) <= 2 + wa && !sa && !sb {
+                self.ratios
+                    .push(f64::from((ha - hb).abs() / (0.5 * (ha + hb))));
+            }
+        }
+    }
+}
+
+impl SurveyScratch {
+    /// Starts a survey of the rows of an image of `h` rows, fused into a pass over its
+    /// rows in order ([`SurveyScratch::row`] for every row, then
+    /// [`SurveyScratch::rows_finish`]): the survey [`survey`] makes with `Cols`.
+    pub(crate) fn rows_begin<T: RidgePixel>(&mut self, opts: &StripeOptions, h: usize) {
+        self.rows.clear();
+        self.fused = (
+            4.0 * opts.min_contrast * T::SCALE,
+            4 * opts.max_width_px.ceil() as usize,
+            <T as Pixel>::MAX,
+            h,
+        );
+    }
+
+    /// Row `y` (rows in increasing order): looked at where the survey samples it.
+    #[inline]
+    pub(crate) fn row<T: RidgePixel>(&mut self, y: usize, row: &[T]) {
+        let (min_height, limit, sat_level, h) = self.fused;
+        if y < STEP / 2 || y >= h {
+            return;
+        }
+        let k = (y - STEP / 2) % STEP;
+        // a sampled row (below the last row), or the neighbour of one that held a peak
+        let sampled = k == 0 && y + 1 < h;
+        if !(sampled || (k == 1 && self.rows.last.is_some())) {
+            return;
+        }
+        let p = line_peak_dispatch(row, &mut self.guess, min_height, limit, sat_level);
+        if sampled {
+            self.rows.sampled(p);
+        } else {
+            self.rows.neighbour(p);
+        }
+    }
+
+    /// The survey of the rows seen since [`SurveyScratch::rows_begin`].
+    pub(crate) fn rows_finish(&mut self) -> Survey {
+        summary(&mut self.rows, true)
+    }
+}
+
+/// [`line_peak`], with AVX2 where the CPU has it (the same result).
+#[inline]
+fn line_peak_dispatch<P: RidgePixel>(
+    vals: &[P],
+    guess: &mut u32,
     min_height: f32,
     limit: usize,
-) -> Option<(usize, f32, usize, bool)> {
-    buf.clear();
-    buf.extend(line.map(|v| v.as_u32()));
-    if buf.len() < 3 {
+    sat_level: f32,
+) -> Option<Peak> {
+    #[cfg(target_arch = "x86_64")]
+    if super::ridge::has_avx2() {
+        // SAFETY: the CPU supports AVX2 (checked just above), the only requirement for
+        // calling a `#[target_feature(enable = "avx2")]` function.
+        return unsafe { line_peak_avx2(vals, guess, min_height, limit, sat_level) };
+    }
+    line_peak(vals, guess, min_height, limit, sat_level)
+}
+
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+fn line_peak_avx2<P: RidgePixel>(
+    vals: &[P],
+    guess: &mut u32,
+    min_height: f32,
+    limit: usize,
+    sat_level: f32,
+) -> Option<Peak> {
+    line_peak(vals, guess, min_height, limit, sat_level)
+}
+
+/// How many of `vals` are at most `t` (vectorised: byte counters per block of 128).
+#[inline(always)]
+fn count_le<P: RidgePixel>(vals: &[P], t: P) -> usize {
+    let mut n = 0usize;
+    let mut blocks = vals.chunks_exact(128);
+    for b in &mut blocks {
+        n += b.iter().fold(0u8, |a, &v| a.wrapping_add((v <= t) as u8)) as usize;
+    }
+    n + blocks.remainder().iter().filter(|&&v| v <= t).count()
+}
+
+/// The element at index `mid` of `vals` sorted (what `select_nth_unstable(mid)` puts
+/// there; `vmax` the largest value): the smallest `t` with more than `mid` values at most
+/// `t`, found by counting, first outwards from `guess` (the median of the line sampled
+/// before: neighbouring lines share their background) and then by bisection. `guess`
+/// changes the work, never the result.
+#[inline(always)]
+fn nth_value<P: RidgePixel>(vals: &[P], mid: usize, vmax: u32, guess: u32) -> u32 {
+    // whether the value sought is at most `t`
+    let le = |t: u32| count_le(vals, P::from_u32_clamped(t)) > mid;
+    let g = guess.min(vmax);
+    // the value lies in lo..=hi
+    let (mut lo, mut hi);
+    if le(g) {
+        (lo, hi) = (0, g);
+        let mut step = 1u32;
+        while hi > 0 {
+            let c = hi.saturating_sub(step);
+            if le(c) {
+                hi = c;
+                step = step.saturating_mul(2);
+            } else {
+                lo = c + 1;
+                break;
+            }
+        }
+    } else {
+        // (le(vmax) holds: every value is at most vmax)
+        (lo, hi) = (g + 1, vmax);
+        let mut step = 1u32;
+        while lo < hi {
+            let c = lo.saturating_add(step - 1).min(hi);
+            if le(c) {
+                hi = c;
+                break;
+            }
+            lo = c + 1;
+            step = step.saturating_mul(2);
+        }
+    }
+    while lo < hi {
+        let m = lo + (hi - lo) / 2;
+        if le(m) {
+            hi = m;
+        } else {
+            lo = m + 1;
+        }
+    }
+    lo
+}
+
+/// The peak of one sampled line: `(position, height above the median, width,
+/// saturated)`, or `None` without a clear peak. `sat_level`: full scale of the image.
+#[inline(always)]
+fn line_peak<P: RidgePixel>(
+    vals: &[P],
+    guess: &mut u32,
+    min_height: f32,
+    limit: usize,
+    sat_level: f32,
+) -> Option<Peak> {
+    if vals.len() < 3 {
         return None;
     }
-    let (pk, &vmax) = buf
-        .iter()
-        .enumerate()
-        .max_by_key(|(i, v)| (**v, usize::MAX - i))?;
-    let mut sorted = buf.clone();
-    let mid = sorted.len() / 2;
-    let (_, &mut med, _) = sorted.select_nth_unstable(mid);
+    // the brightest value and its first pixel: the blocks' maxima (vectorised), then
+    // the first pixel at the largest in the first block that holds it
+    let mut vmax = P::ZERO;
+    let mut at_block = 0;
+    for (k, b) in vals.chunks(32).enumerate() {
+        let m = b.iter().fold(P::ZERO, |a, &v| a.max(v));
+        if m > vmax || k == 0 {
+            vmax = m;
+            at_block = k;
+        }
+    }
+    let pk = 32 * at_block + vals[32 * at_block..].iter().position(|&v| v == vmax)?;
+    let vmax = vmax.as_u32();
+    let med = nth_value(vals, vals.len() / 2, vmax, *guess);
+    *guess = med;
     let height = vmax as f32 - med as f32;
     if height < min_height {
         return None;
     }
     let half = med as f32 + 0.5 * height;
+    let at = |i: usize| vals[i].as_u32() as f32;
     let mut a = pk;
-    while a > 0 && buf[a - 1] as f32 >= half && pk - a < limit {
+    while a > 0 && at(a - 1) >= half && pk - a < limit {
         a -= 1;
     }
     let mut b = pk;
-    while b + 1 < buf.len() && buf[b + 1] as f32 >= half && b - pk < limit {
+    while b + 1 < vals.len() && at(b + 1) >= half && b - pk < limit {
         b += 1;
     }
-    let sat = vmax as f32 >= <T as Pixel>::MAX;
+    let sat = vmax as f32 >= sat_level;
     // the middle of the run (a plateau's argmax is its first pixel)
     Some(((a + b) / 2, height, b - a + 1, sat))
 }
 
-/// Peaks of the sampled lines and of their neighbours: `(width, saturated, speckle
-/// ratio of the pair if both hold the line)`.
-fn sample(
+/// Peaks of the sampled lines and of their neighbours into `s`: widths, saturated
+/// count, speckle ratios of the pairs that both hold the line. `get(l, scratch)` is the
+/// peak of line `l`.
+#[inline(always)]
+fn sample<S>(
     n_lines: usize,
-    mut get: impl FnMut(usize, &mut Vec<u32>) -> Option<(usize, f32, usize, bool)>,
-) -> (Vec<usize>, usize, Vec<f64>) {
-    let (mut widths, mut sat, mut ratios) = (Vec::new(), 0usize, Vec::new());
-    let mut buf = Vec::new();
+    s: &mut Samples,
+    scratch: &mut S,
+    mut get: impl FnMut(usize, &mut S) -> Option<Peak>,
+) {
+    s.clear();
     for l in (STEP / 2..n_lines.saturating_sub(1)).step_by(STEP) {
-        let Some((pa, ha, wa, sa)) = get(l, &mut buf) else {
-            continue;
-        };
-        widths.push(wa);
-        sat += sa as usize;
-        if let Some((pb, hb, _, sb)) = get(l + 1, &mut buf) {
-            if pa.abs_diff(pb) <= 2 + wa && !sa && !sb {
-                ratios.push(f64::from((ha - hb).abs() / (0.5 * (ha + hb))));
-            }
+        let p = get(l, scratch);
+        s.sampled(p);
+        if p.is_some() {
+            s.neighbour(get(l + 1, scratch));
         }
     }
-    (widths, sat, ratios)
 }
 
 fn median_usize(v: &mut [usize]) -> Option<f64> {
@@ -190,48 +388,108 @@ fn median_usize(v: &mut [usize]) -> Option<f64> {
 }
 
 /// Surveys the line of `img` (module docs); `dir` is the scan direction when known
-/// (`Cols`: the rows cross the line), `Auto` to decide it here too.
+/// (`Cols`: the rows cross the line), `Auto` to decide it here too. `scratch` holds the
+/// buffers between images. Compiled a second time with AVX2, chosen at run time where
+/// the CPU has it (the same results: integer counts and the same `f32` arithmetic).
 pub(crate) fn survey<T: RidgePixel>(
     img: &ImageView<'_, T>,
     opts: &StripeOptions,
     dir: StripeDirection,
+    scratch: &mut SurveyScratch,
+) -> Survey {
+    #[cfg(target_arch = "x86_64")]
+    if super::ridge::has_avx2() {
+        // SAFETY: the CPU supports AVX2 (checked just above), the only requirement for
+        // calling a `#[target_feature(enable = "avx2")]` function.
+        return unsafe { survey_avx2(img, opts, dir, scratch) };
+    }
+    survey_generic(img, opts, dir, scratch)
+}
+
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+fn survey_avx2<T: RidgePixel>(
+    img: &ImageView<'_, T>,
+    opts: &StripeOptions,
+    dir: StripeDirection,
+    scratch: &mut SurveyScratch,
+) -> Survey {
+    survey_generic(img, opts, dir, scratch)
+}
+
+#[inline(always)]
+fn survey_generic<T: RidgePixel>(
+    img: &ImageView<'_, T>,
+    opts: &StripeOptions,
+    dir: StripeDirection,
+    scratch: &mut SurveyScratch,
 ) -> Survey {
     let (w, h) = (img.width(), img.height());
     let min_height = 4.0 * opts.min_contrast * T::SCALE;
     let limit = 4 * opts.max_width_px.ceil() as usize;
-    let rows = || {
-        sample(h, |y, buf| {
-            line_peak::<T>(&mut img.row(y).iter().copied(), buf, min_height, limit)
+    let sat_level = <T as Pixel>::MAX;
+    let SurveyScratch {
+        line,
+        guess,
+        rows: sr,
+        cols: sc,
+        ..
+    } = scratch;
+    let rows = |s: &mut Samples, guess: &mut u32| {
+        sample(h, s, guess, |y, guess| {
+            line_peak(img.row(y), guess, min_height, limit, sat_level)
         })
     };
-    let cols = || {
-        sample(w, |x, buf| {
-            line_peak::<T>(&mut (0..h).map(|y| img.get(x, y)), buf, min_height, limit)
+    let cols = |s: &mut Samples, line: &mut Vec<u16>, guess: &mut u32| {
+        let mut st = (line, guess);
+        sample(w, s, &mut st, |x, (line, guess)| {
+            line.clear();
+            line.extend((0..h).map(|y| img.get(x, y).as_u32() as u16));
+            line_peak(line, guess, min_height, limit, sat_level)
         })
     };
-    let (along_columns, (mut widths, sat, mut ratios)) = match dir {
-        StripeDirection::Cols => (true, rows()),
-        StripeDirection::Rows => (false, cols()),
+    let (along_columns, picked) = match dir {
+        StripeDirection::Cols => {
+            rows(sr, guess);
+            (true, &mut *sr)
+        }
+        StripeDirection::Rows => {
+            cols(sc, line, guess);
+            (false, &mut *sc)
+        }
         StripeDirection::Auto => {
-            let (r, c) = (rows(), cols());
+            rows(sr, guess);
+            cols(sc, line, guess);
             // the axis that crosses the line on more of its samples; at a like rate
             // (a diagonal line) the one that crosses it more narrowly
-            let rate_r = r.0.len() as f64 / (h / STEP).max(1) as f64;
-            let rate_c = c.0.len() as f64 / (w / STEP).max(1) as f64;
-            let (mut wr, mut wc) = (r.0.clone(), c.0.clone());
-            let narrower_rows = match (median_usize(&mut wr), median_usize(&mut wc)) {
+            let rate_r = sr.widths.len() as f64 / (h / STEP).max(1) as f64;
+            let rate_c = sc.widths.len() as f64 / (w / STEP).max(1) as f64;
+            // (the medians sort the widths in place: the median taken below is the same)
+            let narrower_rows = match (median_usize(&mut sr.widths), median_usize(&mut sc.widths)) {
                 (Some(a), Some(b)) => a <= b,
                 (a, _) => a.is_some(),
             };
             if rate_r > 1.5 * rate_c || (rate_c <= 1.5 * rate_r && narrower_rows) {
-                (true, r)
+                (true, &mut *sr)
             } else {
-                (false, c)
+                (false, &mut *sc)
             }
         }
     };
+    summary(picked, along_columns)
+}
+
+/// The survey from one axis's samples (the median width, the saturated share, the
+/// speckle index).
+fn summary(picked: &mut Samples, along_columns: bool) -> Survey {
+    let Samples {
+        widths,
+        sat,
+        ratios,
+        ..
+    } = picked;
     let n = widths.len();
-    let Some(width) = median_usize(&mut widths) else {
+    let Some(width) = median_usize(widths) else {
         return Survey {
             along_columns,
             ..Survey::default()
@@ -248,7 +506,7 @@ pub(crate) fn survey<T: RidgePixel>(
     };
     Survey {
         width_px: width,
-        saturated_share: sat as f64 / n.max(1) as f64,
+        saturated_share: *sat as f64 / n.max(1) as f64,
         speckle_index,
         along_columns,
     }
