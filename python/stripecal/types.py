@@ -76,8 +76,15 @@ __all__ = [
     "PoseRecord",
     "PoseSigma",
     "ProfilerAdjustment",
+    "ProfilerCalibrationAdjustment",
+    "ProfilerCentreSpread",
     "ProfilerCounts",
+    "ProfilerDiameterCheck",
+    "ProfilerExtra",
     "ProfilerExtraInput",
+    "ProfilerLeaveOneOut",
+    "ProfilerLeaveOneOutView",
+    "ProfilerMirrorTest",
     "ProfilerPose",
     "ProfilerQuality",
     "ProfilerRobot",
@@ -88,6 +95,7 @@ __all__ = [
     "ProfilerTruthView",
     "ProfilerUncertainty",
     "ProfilerUncertaintyInput",
+    "ProfilerView",
     "ProfilerViewCounts",
     "QualityCheck",
     "ResidualSigma",
@@ -308,10 +316,6 @@ class ProfilerUncertainty(TypedDict, total=False):
 ProfilerUncertaintyInput = Union[ProfilerUncertainty, Dict[str, object]]
 """What ``ProfilerCalibration(uncertainty=...)`` accepts: the record or any dict of
 JSON-like values (stored as given)."""
-
-ProfilerExtraInput = Dict[str, object]
-"""What ``ProfilerCalibration(extra=...)`` accepts: any dict of JSON-like values (the
-other top-level keys of calibration.json, written back as given)."""
 
 
 class ResidualSigma(TypedDict):
@@ -726,6 +730,110 @@ class CalibrationExtra(TypedDict, total=False):
 
 CalibrationExtraInput = Union[CalibrationExtra, Dict[str, object]]
 """What ``Calibration(extra=...)`` accepts: the record or any dict of JSON-like values."""
+
+
+class ProfilerCalibrationAdjustment(TypedDict):
+    """The adjustment's figures of a profiler calibration
+    (``ProfilerCalibration.adjustment``, calibration.json's ``adjustment``)."""
+
+    sigma_mm: Optional[float]
+    """A-posteriori sigma of a point's distance from the sphere, mm."""
+    points_used: int
+    """The sphere points the adjustment used."""
+    iterations: int
+    view_variance_factor: Optional[float]
+    """The view-clustered variance factor the sigmas carry (>= 1)."""
+
+
+class ProfilerView(TypedDict):
+    """One view of a profiler calibration, used or not (``ProfilerCalibration.views``)."""
+
+    view: int
+    line: int
+    """The line of views.csv."""
+    profile: str
+    """The profile file."""
+    used: bool
+    points: int
+    gaps: int
+    arc_points: int
+    sphere_points: int
+    rejected: int
+    rms_mm: Optional[float]
+    """RMS distance from the sphere, mm (None: not used)."""
+    side: Optional[float]
+    """The side of the laser plane the sphere's centre was on (+1 / -1)."""
+    centre_in_sensor_mm: Optional[List[Optional[float]]]
+    """The sphere's centre in the sensor frame, mm."""
+    note: Optional[str]
+    """Why the view was not used."""
+
+
+class ProfilerCentreSpread(TypedDict):
+    """The sphere centres' spread in the sensor frame, mm."""
+
+    x: Optional[float]
+    y: Optional[float]
+    z: Optional[float]
+    across_plane: Optional[float]
+
+
+class ProfilerMirrorTest(TypedDict):
+    """The fit against its mirror image through the laser plane
+    (``ProfilerCalibration.mirror``)."""
+
+    ssr_chosen_mm2: Optional[float]
+    ssr_mirror_mm2: Optional[float]
+    delta_chi2: Optional[float]
+    passed: bool
+    centre_spread_mm: ProfilerCentreSpread
+
+
+class ProfilerDiameterCheck(TypedDict):
+    """The declared sphere diameter against the profiles' (``ProfilerCalibration.diameter_check``)."""
+
+    declared_mm: Optional[float]
+    estimate_mm: Optional[float]
+    sigma_mm: Optional[float]
+    disagrees: bool
+
+
+class ProfilerLeaveOneOutView(TypedDict):
+    """One view held out (``ProfilerLeaveOneOut["views"]``)."""
+
+    view: int
+    points: int
+    rms_mm: Optional[float]
+    """Held-out RMS distance from the sphere the other views predict, mm."""
+    disagrees: bool
+
+
+class ProfilerLeaveOneOut(TypedDict):
+    """The leave-one-view-out figures of a profiler calibration
+    (``ProfilerCalibration.leave_one_out``)."""
+
+    median_rms_mm: Optional[float]
+    views: List[ProfilerLeaveOneOutView]
+
+
+class ProfilerExtra(TypedDict, total=False):
+    """The other top-level keys of a profiler's calibration.json
+    (``ProfilerCalibration.extra``); each also has its typed getter."""
+
+    robot_calibration: RobotCalibration
+    sphere_diameter_estimated: bool
+    adjustment: ProfilerCalibrationAdjustment
+    views: List[ProfilerView]
+    mirror: ProfilerMirrorTest
+    diameter_check: ProfilerDiameterCheck
+    leave_one_out: ProfilerLeaveOneOut
+    warnings: List[str]
+
+
+ProfilerExtraInput = Union[ProfilerExtra, Dict[str, object]]
+"""What ``ProfilerCalibration(extra=...)`` accepts: the record or any dict of JSON-like
+values (the other top-level keys of calibration.json: the records it holds become the
+calibration's, the rest is written back as given)."""
 
 
 CameraParamSigma = TypedDict(
