@@ -184,7 +184,7 @@ def test_centres_in_one_plane_fail_the_mirror_check_naming_the_plane(
     assert [c["name"] for c in e.value.checks] == ["mirror"]
     # the figures are there for inspection, and the spread names the coordinate held
     cal = stripecal.calibrate(twins[mode], accept_poor=True)
-    spread = cal.extra["mirror"]["centre_spread_mm"]  # type: ignore[index]
+    spread = cal.mirror["centre_spread_mm"]  # type: ignore[index]
     held = {"same_standoff": "z", "same_place": "x", "same_offset": "y"}[mode]
     assert spread[held] < 0.01 and min(v for k, v in spread.items() if k in "xyz" and k != held) > 5.0, spread
 

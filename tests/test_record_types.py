@@ -76,6 +76,35 @@ def test_the_summary_and_the_stripe_channel_are_typed_records() -> None:
     assert odd.stripe_channel is None and odd.extra["stripe_channel"] == "purple"
 
 
+def test_a_profiler_calibrations_records_are_typed() -> None:
+    # a file written before the typed records: every record through its getter, the
+    # same as the file's key; ProfilerCalibration(..., extra=its extra) keeps them
+    import json
+
+    path = Path(__file__).parent.parent / "crates/stripecal/tests/data/profiler_v1.json"
+    text = path.read_text()
+    j = json.loads(text)
+    c = stripecal.ProfilerCalibration.from_json(text)
+    # the records' bytes written back in their place (the pose's rotation vector goes
+    # through a rotation matrix, as before the records)
+    tail = '\n  "robot_calibration"'
+    assert c.to_json()[c.to_json().index(tail):] == text[text.index(tail):]
+    assert list(json.loads(c.to_json())) == list(j)
+    assert c.views == j["views"] and len(c.views) == 10
+    assert c.adjustment == j["adjustment"] and c.mirror == j["mirror"]
+    assert c.diameter_check == j["diameter_check"] and c.leave_one_out == j["leave_one_out"]
+    assert c.robot_calibration == j["robot_calibration"]
+    assert c.sphere_diameter_estimated is False and c.warnings == []
+    assert c.extra == {k: j[k] for k in _core.record_keys()["ProfilerExtra"] if k in j}
+    d = stripecal.ProfilerCalibration(c.hand_sensor, c.sphere_center_mm, c.sphere_diameter_mm,
+                                      c.robot, extra={**c.extra, "warnings": ["w"], "later": 1})
+    assert d.views == c.views and d.mirror == c.mirror and d.warnings == ["w"]
+    assert d.robot_calibration == c.robot_calibration and d.extra["later"] == 1
+    odd = stripecal.ProfilerCalibration(c.hand_sensor, c.sphere_center_mm, 80.0,
+                                        extra={"mirror": "not a record"})
+    assert odd.mirror is None and odd.extra == {"mirror": "not a record"}
+
+
 def test_many_keyword_callables_keep_their_python_signatures() -> None:
     import inspect
 

@@ -239,3 +239,44 @@ def test_simulate_writes_the_verification_artefacts(tmp_path: Path) -> None:
     assert [s["name"] for s in scans] == ["bar_1", "plate_1"]
     assert scans[0]["poses"].shape[1] == 6 and scans[1]["plane"] is not None
     assert twin.write(tmp_path / "off")["verify_dir"] is None
+
+
+def _typed_dict(tp):
+    """The TypedDict inside an annotation (Optional[X], List[X]...), or None."""
+    import typing
+
+    if typing.is_typeddict(tp):
+        return tp
+    for a in typing.get_args(tp):
+        t = _typed_dict(a)
+        if t is not None:
+            return t
+    return None
+
+
+def _check_keys(value, td, where):
+    import typing
+
+    hints = typing.get_type_hints(td)
+    # a DH row writes beta_deg only for a parallel joint
+    optional = {"beta_deg"} if td is stripecal.types.SimDh else set()
+    assert set(hints) - optional <= set(value) <= set(hints), (where, sorted(set(value) ^ set(hints)))
+    for k, v in value.items():
+        inner = _typed_dict(hints[k])
+        items = v if isinstance(v, list) else [v]
+        for x in items:
+            if isinstance(x, dict):
+                assert inner is not None, f"{where}.{k} is a group of knobs without a TypedDict"
+                _check_keys(x, inner, f"{where}.{k}")
+
+
+def test_sim_config_typeddicts_name_the_twins_knobs():
+    # every group of knobs of every preset's full configuration (the Rust twin's config
+    # as it serialises) has exactly the keys of its TypedDict in stripecal.types
+    from stripecal.types import SimConfig
+
+    for name in sim.presets():
+        _check_keys(sim.preset(name), SimConfig, name)
+    # the groups left null by the presets (a board pose, a DH row with beta_deg)
+    cfg = sim.preset("hp3-paper", base_board={"rotation_vector": [0, 0, 0], "translation_mm": [0, 0, 300]})
+    _check_keys(cfg, SimConfig, "base_board")

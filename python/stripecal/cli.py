@@ -18,7 +18,7 @@ import sys
 import tempfile
 import threading
 import time
-from typing import Any, Callable, Dict, List, Optional, Sequence, Tuple
+from typing import Any, Callable, Dict, List, Optional, Sequence, Tuple, cast
 
 import numpy as np
 
@@ -46,18 +46,20 @@ def _add_info(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     p.set_defaults(func=cmd_info)
 
 
-def _set_path(d: SimConfig, dotted: str, value: Any) -> None:
+def _set_path(d: Dict[str, object], dotted: str, value: object) -> None:
     keys = dotted.split(".")
     for k in keys[:-1]:
-        d = d.setdefault(k, {})
-        if not isinstance(d, dict):
+        g = d.setdefault(k, {})
+        if not isinstance(g, dict):
             raise stripecal.InvalidInputError(f"--set {dotted}: {k} is not a group of knobs")
+        d = g
     d[keys[-1]] = value
 
 
 def _overrides(args: argparse.Namespace) -> SimConfig:
-    """The configuration overrides named by the simulate/demo options."""
-    over: SimConfig = {}
+    """The configuration overrides named by the simulate/demo options (knobs named on
+    the command line: the twin checks them, naming the knob)."""
+    over: Dict[str, object] = {}
     if getattr(args, "config", None):
         with open(args.config, encoding="utf-8") as f:
             try:
@@ -101,7 +103,7 @@ def _overrides(args: argparse.Namespace) -> SimConfig:
         except json.JSONDecodeError:
             value = text  # a bare string, e.g. camera.distortion_model=opencv5
         _set_path(over, key, value)
-    return over
+    return cast(SimConfig, over)
 
 
 def _add_knobs(p: argparse.ArgumentParser) -> None:

@@ -18,30 +18,25 @@ from __future__ import annotations
 import html
 import os
 from pathlib import Path
-from typing import Any, List, Mapping, Optional, Union
+from typing import Any, Optional, Union
 
 import stripecal
-from stripecal.cli_profiler import _list, _map, _num, mirror_text, parameter_rows
+from stripecal.cli_profiler import mirror_text, parameter_rows
 from stripecal.report import _pyplot, _save, checks_html, write_html
 
 _Path = Union[str, "os.PathLike[str]"]
 
 
-def _views(cal: stripecal.ProfilerCalibration) -> List[Mapping[str, object]]:
-    v = cal.extra.get("views")
-    return [_map(x) for x in _list(v)]
-
-
 def _rms_figure(plt: Any, cal: stripecal.ProfilerCalibration, out: Path) -> Optional[str]:
-    views = [v for v in _views(cal) if v.get("used")]
+    views = [v for v in cal.views if v["used"]]
     if not views:
         return None
-    loo_views = _map(cal.extra.get("leave_one_out")).get("views")
-    loo = {int(str(_map(x).get("view"))): _num(_map(x).get("rms_mm")) for x in _list(loo_views)}
-    ids = [int(str(v.get("view"))) for v in views]
+    held = cal.leave_one_out
+    loo = {x["view"]: x["rms_mm"] for x in (held["views"] if held else [])}
+    ids = [v["view"] for v in views]
     fig, ax = plt.subplots(figsize=(8, 3.2))
     xs = range(len(ids))
-    ax.bar([x - 0.2 for x in xs], [_num(v.get("rms_mm")) or 0.0 for v in views], 0.4, label="in the fit")
+    ax.bar([x - 0.2 for x in xs], [v["rms_mm"] or 0.0 for v in views], 0.4, label="in the fit")
     if loo:
         ax.bar([x + 0.2 for x in xs], [loo.get(i) or 0.0 for i in ids], 0.4, label="held out")
     ax.set_xticks(list(xs))
@@ -54,11 +49,11 @@ def _rms_figure(plt: Any, cal: stripecal.ProfilerCalibration, out: Path) -> Opti
 
 def _centres_figure(plt: Any, cal: stripecal.ProfilerCalibration, out: Path) -> Optional[str]:
     pts = []  # (centre, side): the side recorded (+1 / -1; y >= 0 for a view without one)
-    for v in _views(cal):
-        c = v.get("centre_in_sensor_mm")
-        if v.get("used") and isinstance(c, list) and len(c) == 3:
-            p = [float(c[0]), float(c[1]), float(c[2])]
-            s = _num(v.get("side"))
+    for v in cal.views:
+        c = v["centre_in_sensor_mm"]
+        if v["used"] and c is not None and len(c) == 3 and None not in c:
+            p = [float(x or 0.0) for x in c]
+            s = v["side"]
             pts.append((p, (p[1] >= 0) if s is None else (s > 0)))
     if not pts:
         return None
@@ -86,29 +81,27 @@ def write_profiler_report(out_dir: _Path, calibration: stripecal.ProfilerCalibra
     cal = calibration
     figures = [f for f in (_rms_figure(plt, cal, out), _centres_figure(plt, cal, out)) if f]
     q = cal.quality
-    e = cal.extra
     prm = "".join(f"<tr><td>{html.escape(n)}</td><td>{v:.6f}</td><td>{'' if s is None else f'{float(s):.3g}'}</td></tr>"
                   for n, v, s in parameter_rows(cal))
     vr = []
-    for v in _views(cal):
-        bad = ' style="color:#b00"' if not v.get("used") else ""
-        rms = _num(v.get("rms_mm"))
-        vr.append(f"<tr{bad}><td>{v.get('view')}</td><td>{'yes' if v.get('used') else 'no'}</td><td>{v.get('points')}</td>"
-                  f"<td>{v.get('gaps')}</td><td>{v.get('sphere_points')}</td><td>{v.get('rejected')}</td>"
-                  f"<td>{'' if rms is None else f'{rms:.4f}'}</td><td style=\"text-align:left\">{html.escape(str(v.get('note') or ''))}</td></tr>")
-    warnings = e.get("warnings")
-    warn = "".join(f"<li>{html.escape(str(w))}</li>" for w in _list(warnings))
-    m = _map(e.get("mirror"))
-    dc = _map(e.get("diameter_check"))
-    loo = _map(e.get("leave_one_out"))
+    for v in cal.views:
+        bad = ' style="color:#b00"' if not v["used"] else ""
+        rms = v["rms_mm"]
+        vr.append(f"<tr{bad}><td>{v['view']}</td><td>{'yes' if v['used'] else 'no'}</td><td>{v['points']}</td>"
+                  f"<td>{v['gaps']}</td><td>{v['sphere_points']}</td><td>{v['rejected']}</td>"
+                  f"<td>{'' if rms is None else f'{rms:.4f}'}</td><td style=\"text-align:left\">{html.escape(str(v['note'] or ''))}</td></tr>")
+    warn = "".join(f"<li>{html.escape(str(w))}</li>" for w in cal.warnings)
+    m = cal.mirror
+    dc = cal.diameter_check
+    loo = cal.leave_one_out
     facts = []
     if m:
         facts.append(mirror_text(m))
     if dc:
-        facts.append(f"diameter check: declared {_num(dc.get('declared_mm'))} mm, the profiles say {_num(dc.get('estimate_mm'))} "
-                     f"+- {_num(dc.get('sigma_mm'))} mm{' (DISAGREES)' if dc.get('disagrees') else ''}")
+        facts.append(f"diameter check: declared {dc['declared_mm']} mm, the profiles say {dc['estimate_mm']} "
+                     f"+- {dc['sigma_mm']} mm{' (DISAGREES)' if dc['disagrees'] else ''}")
     if loo:
-        facts.append(f"leave-one-view-out: median held-out profile RMS {_num(loo.get('median_rms_mm'))} mm")
+        facts.append(f"leave-one-view-out: median held-out profile RMS {loo['median_rms_mm']} mm")
     imgs = "".join(f'<figure><img src="{f}" alt="{f}"><figcaption>{f}</figcaption></figure>' for f in figures)
     doc = f"""<!DOCTYPE html>
 <html><head><meta charset="utf-8"><title>{html.escape(title)}</title>

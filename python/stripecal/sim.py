@@ -74,7 +74,7 @@ from __future__ import annotations
 import copy
 import json
 import os
-from typing import Any, Callable, List, Optional, Tuple, Union, cast
+from typing import Any, Callable, Dict, List, Optional, Tuple, Union, cast
 
 import numpy as np
 import numpy.typing as npt
@@ -113,7 +113,7 @@ def preset(name: str = "hp3-paper", overrides: Optional[SimConfig] = None, **kno
     """The full configuration of preset ``name`` with ``overrides`` (a nested dict) and
     top-level ``knobs`` (e.g. ``seed=3``, ``imaging={"noise_gray": 2}``) merged over it.
     Nested dicts merge key by key; anything else replaces."""
-    merged: SimConfig = dict(overrides or {})
+    merged: Dict[str, object] = dict(overrides or {})
     merged.update(knobs)
     text = sim_config(name, json.dumps(merged) if merged else None)
     cfg: SimConfig = json.loads(text)

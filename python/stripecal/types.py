@@ -22,12 +22,11 @@ Typing notes:
   always writes may be missing from someone else's file, and unknown keys are kept.
 - Constructor arguments that take such a record accept the record or any ``dict`` of
   JSON-like values (``...Input`` aliases): the extension needs a real ``dict``.
-- One map stays untyped (string keys to ``Any``) on purpose: :data:`SimConfig` (the
-  twin's free-form, nested configuration, validated by the Rust side).
-  ``Truth.extra`` is a :class:`TruthExtra`.
+- :class:`SimConfig` (the twin's nested configuration, validated by the Rust side) is
+  one ``total=False`` TypedDict per group of knobs. ``Truth.extra`` is a :class:`TruthExtra`.
 """
 
-from typing import Any, Dict, List, Optional, TypedDict, Union
+from typing import Dict, List, Optional, TypedDict, Union
 
 import numpy as np
 import numpy.typing as npt
@@ -76,8 +75,15 @@ __all__ = [
     "PoseRecord",
     "PoseSigma",
     "ProfilerAdjustment",
+    "ProfilerCalibrationAdjustment",
+    "ProfilerCentreSpread",
     "ProfilerCounts",
+    "ProfilerDiameterCheck",
+    "ProfilerExtra",
     "ProfilerExtraInput",
+    "ProfilerLeaveOneOut",
+    "ProfilerLeaveOneOutView",
+    "ProfilerMirrorTest",
     "ProfilerPose",
     "ProfilerQuality",
     "ProfilerRobot",
@@ -88,6 +94,7 @@ __all__ = [
     "ProfilerTruthView",
     "ProfilerUncertainty",
     "ProfilerUncertaintyInput",
+    "ProfilerView",
     "ProfilerViewCounts",
     "QualityCheck",
     "ResidualSigma",
@@ -96,8 +103,25 @@ __all__ = [
     "RobotPoseNoise",
     "RobotPoseNoiseView",
     "ScanLinesWithoutPoint",
+    "SimBench",
+    "SimBenchScan",
+    "SimBoard",
+    "SimBow",
+    "SimCamera",
     "SimConfig",
+    "SimDh",
+    "SimFloor",
+    "SimImaging",
+    "SimPlane",
     "SimPose",
+    "SimPoseCfg",
+    "SimPoses",
+    "SimProfiler",
+    "SimRobot",
+    "SimScan",
+    "SimVerify",
+    "SimVerifyMpe",
+    "SimVerifyUncertainty",
     "SkippedFrame",
     "SphereFitExtra",
     "SphereFitExtraInput",
@@ -308,10 +332,6 @@ class ProfilerUncertainty(TypedDict, total=False):
 ProfilerUncertaintyInput = Union[ProfilerUncertainty, Dict[str, object]]
 """What ``ProfilerCalibration(uncertainty=...)`` accepts: the record or any dict of
 JSON-like values (stored as given)."""
-
-ProfilerExtraInput = Dict[str, object]
-"""What ``ProfilerCalibration(extra=...)`` accepts: any dict of JSON-like values (the
-other top-level keys of calibration.json, written back as given)."""
 
 
 class ResidualSigma(TypedDict):
@@ -728,6 +748,110 @@ CalibrationExtraInput = Union[CalibrationExtra, Dict[str, object]]
 """What ``Calibration(extra=...)`` accepts: the record or any dict of JSON-like values."""
 
 
+class ProfilerCalibrationAdjustment(TypedDict):
+    """The adjustment's figures of a profiler calibration
+    (``ProfilerCalibration.adjustment``, calibration.json's ``adjustment``)."""
+
+    sigma_mm: Optional[float]
+    """A-posteriori sigma of a point's distance from the sphere, mm."""
+    points_used: int
+    """The sphere points the adjustment used."""
+    iterations: int
+    view_variance_factor: Optional[float]
+    """The view-clustered variance factor the sigmas carry (>= 1)."""
+
+
+class ProfilerView(TypedDict):
+    """One view of a profiler calibration, used or not (``ProfilerCalibration.views``)."""
+
+    view: int
+    line: int
+    """The line of views.csv."""
+    profile: str
+    """The profile file."""
+    used: bool
+    points: int
+    gaps: int
+    arc_points: int
+    sphere_points: int
+    rejected: int
+    rms_mm: Optional[float]
+    """RMS distance from the sphere, mm (None: not used)."""
+    side: Optional[float]
+    """The side of the laser plane the sphere's centre was on (+1 / -1)."""
+    centre_in_sensor_mm: Optional[List[Optional[float]]]
+    """The sphere's centre in the sensor frame, mm."""
+    note: Optional[str]
+    """Why the view was not used."""
+
+
+class ProfilerCentreSpread(TypedDict):
+    """The sphere centres' spread in the sensor frame, mm."""
+
+    x: Optional[float]
+    y: Optional[float]
+    z: Optional[float]
+    across_plane: Optional[float]
+
+
+class ProfilerMirrorTest(TypedDict):
+    """The fit against its mirror image through the laser plane
+    (``ProfilerCalibration.mirror``)."""
+
+    ssr_chosen_mm2: Optional[float]
+    ssr_mirror_mm2: Optional[float]
+    delta_chi2: Optional[float]
+    passed: bool
+    centre_spread_mm: ProfilerCentreSpread
+
+
+class ProfilerDiameterCheck(TypedDict):
+    """The declared sphere diameter against the profiles' (``ProfilerCalibration.diameter_check``)."""
+
+    declared_mm: Optional[float]
+    estimate_mm: Optional[float]
+    sigma_mm: Optional[float]
+    disagrees: bool
+
+
+class ProfilerLeaveOneOutView(TypedDict):
+    """One view held out (``ProfilerLeaveOneOut["views"]``)."""
+
+    view: int
+    points: int
+    rms_mm: Optional[float]
+    """Held-out RMS distance from the sphere the other views predict, mm."""
+    disagrees: bool
+
+
+class ProfilerLeaveOneOut(TypedDict):
+    """The leave-one-view-out figures of a profiler calibration
+    (``ProfilerCalibration.leave_one_out``)."""
+
+    median_rms_mm: Optional[float]
+    views: List[ProfilerLeaveOneOutView]
+
+
+class ProfilerExtra(TypedDict, total=False):
+    """The other top-level keys of a profiler's calibration.json
+    (``ProfilerCalibration.extra``); each also has its typed getter."""
+
+    robot_calibration: RobotCalibration
+    sphere_diameter_estimated: bool
+    adjustment: ProfilerCalibrationAdjustment
+    views: List[ProfilerView]
+    mirror: ProfilerMirrorTest
+    diameter_check: ProfilerDiameterCheck
+    leave_one_out: ProfilerLeaveOneOut
+    warnings: List[str]
+
+
+ProfilerExtraInput = Union[ProfilerExtra, Dict[str, object]]
+"""What ``ProfilerCalibration(extra=...)`` accepts: the record or any dict of JSON-like
+values (the other top-level keys of calibration.json: the records it holds become the
+calibration's, the rest is written back as given)."""
+
+
 CameraParamSigma = TypedDict(
     "CameraParamSigma",
     {"fu": float, "fv": float, "u0": float, "v0": float, "k1": float, "k2": float,
@@ -1013,10 +1137,277 @@ class CircleDetection(TypedDict):
 
 # --- sim: the digital twin ------------------------------------------------------------
 
-# An untyped map on purpose: the twin's configuration is a free-form nested JSON object
-# (dozens of knobs in groups, validated key by key by the Rust side), so it is one alias.
-SimConfig = Dict[str, Any]  # free-form: the twin's nested configuration JSON
-"""A twin configuration: nested dict of knobs (see :mod:`stripecal.sim`)."""
+# The twin's configuration, one TypedDict per group of knobs (the Rust twin's config
+# structs; tests/test_sim.py checks their keys against a full configuration). All are
+# total=False: overrides name only the knobs they change.
+
+
+class SimCamera(TypedDict, total=False):
+    """The twin's true camera (``SimConfig["camera"]``)."""
+
+    width: int
+    height: int
+    fu: float
+    fv: float
+    u0: float
+    v0: float
+    distortion_model: str
+    distortion: List[float]
+
+
+class SimPlane(TypedDict, total=False):
+    """The true laser plane ``n . p = d`` in the camera frame."""
+
+    normal: List[float]
+    d_mm: float
+
+
+class SimPoseCfg(TypedDict, total=False):
+    """A pose: rotation vector (rad) and translation (mm)."""
+
+    rotation_vector: List[float]
+    translation_mm: List[float]
+
+
+class SimDh(TypedDict, total=False):
+    """One DH row of the nominal robot (``beta_deg`` for a parallel joint)."""
+
+    theta0_deg: float
+    alpha_deg: float
+    a_mm: float
+    d_mm: float
+    beta_deg: float
+
+
+class SimRobot(TypedDict, total=False):
+    """The nominal robot (rig.json's)."""
+
+    name: str
+    joints: List[SimDh]
+
+
+class SimBoard(TypedDict, total=False):
+    """The calibration target."""
+
+    kind: str
+    rows: int
+    cols: int
+    pitch_mm: float
+    circle_diameter_mm: float
+    marker_diameter_mm: float
+    markers: List[List[int]]
+    dark_circles: bool
+    square_mm: Optional[float]
+    plate_margin_mm: float
+    plate_thickness_mm: float
+
+
+class SimPoses(TypedDict, total=False):
+    """How the calibration views are planned."""
+
+    count: int
+    home_q_deg: List[float]
+    standoff_mm: List[float]
+    max_tilt_deg: float
+    max_roll_deg: float
+    max_joint_delta_deg: float
+    margin_px: float
+    max_laser_incidence_deg: float
+    explicit_q_deg: Optional[List[List[float]]]
+    stripe_beside_pattern: bool
+    reading_noise_deg: float
+    spread: str
+
+
+class SimImaging(TypedDict, total=False):
+    """The renderer's optics, lighting and noise."""
+
+    bit_depth: int
+    supersample: int
+    ambient: float
+    laser_ambient: float
+    single_image: bool
+    single_image_ambient: float
+    plate_reflectance: float
+    circle_reflectance: float
+    table_reflectance: float
+    sphere_reflectance: float
+    vignetting: float
+    psf_sigma_px: float
+    noise_gray: float
+    full_well_e: float
+    laser_peak: float
+    laser_sigma_mm: float
+    laser_emitter_mm: Optional[List[float]]
+    speckle_contrast: float
+    speckle_grain_px: float
+    reflection_ratio: float
+    reflection_offset_px: List[float]
+    colour: bool
+    laser_colour: str
+    ambient_rgb: List[float]
+    plate_rgb: Optional[List[float]]
+    ink_rgb: Optional[List[float]]
+
+
+class SimScan(TypedDict, total=False):
+    """The sphere scan (and the table beside it)."""
+
+    enabled: bool
+    sphere_diameter_mm: float
+    sphere_offset_mm: List[float]
+    step_mm: float
+    margin_mm: float
+    top_depth_mm: float
+    max_frames: int
+    table: bool
+    table_offset_mm: List[float]
+
+
+class SimVerifyUncertainty(TypedDict, total=False):
+    """The certificate's expanded uncertainties (k = 2), mm."""
+
+    diameter: float
+    form: float
+    length: float
+    flatness: float
+
+
+class SimVerifyMpe(TypedDict, total=False):
+    """The maximum permissible errors, mm."""
+
+    probing_form: float
+    probing_size: float
+    sphere_spacing: float
+    flatness: float
+
+
+class SimVerify(TypedDict, total=False):
+    """The verification artefacts (ball bar, plate) and their certificate."""
+
+    enabled: bool
+    bar_length_mm: float
+    sphere_diameter_mm: float
+    bar_positions: int
+    plate_positions: int
+    plate_size_mm: List[float]
+    plate_inset_mm: float
+    plate_reflectance: float
+    step_mm: float
+    margin_mm: float
+    certificate_exact: bool
+    uncertainty_k2_mm: SimVerifyUncertainty
+    mpe_mm: SimVerifyMpe
+
+
+class SimBow(TypedDict, total=False):
+    """A bowed board in some bench views."""
+
+    views: List[int]
+    sag_mm: float
+    axis_deg: float
+
+
+class SimFloor(TypedDict, total=False):
+    """The bench's floor in the images."""
+
+    enabled: bool
+    reflectance: float
+    camera_pitch_deg: float
+
+
+class SimBenchScan(TypedDict, total=False):
+    """The bench mode's sphere scan."""
+
+    enabled: bool
+    sphere_diameter_mm: float
+    center_depth_mm: Optional[float]
+    step_mm: float
+    margin_mm: float
+    max_frames: int
+
+
+class SimBench(TypedDict, total=False):
+    """The bench mode: a fixed sensor, the board placed by hand."""
+
+    enabled: bool
+    views: int
+    standoff_mm: Optional[List[float]]
+    max_tilt_deg: float
+    partial_views: int
+    min_imaged: float
+    partial_keep_markers: bool
+    margin_px: float
+    min_stripe_mm: float
+    bow: SimBow
+    floor: SimFloor
+    scan: SimBenchScan
+
+
+class SimProfiler(TypedDict, total=False):
+    """The profiler mode: a line profiler measuring a reference sphere."""
+
+    enabled: bool
+    line_length_mm: float
+    spacing_mm: float
+    z_min_mm: float
+    z_max_mm: float
+    noise_z_mm: float
+    gap_fraction: float
+    spike_fraction: float
+    spike_min_mm: float
+    spike_max_mm: float
+    invalid_z: Optional[float]
+    intensity: bool
+    sphere_diameter_mm: float
+    sphere_center_mm: List[float]
+    stand_height_mm: float
+    stand_diameter_mm: float
+    diameter_declared: bool
+    hand_sensor: SimPoseCfg
+    views: int
+    standoff_min_mm: float
+    standoff_max_mm: float
+    place_max_mm: float
+    offset_min_frac: float
+    offset_max_frac: float
+    tilt_min_deg: float
+    tilt_max_deg: float
+    spin_max_deg: float
+    degenerate: str
+    near_degenerate_mm: float
+    max_joint_delta_deg: float
+    poses: str
+    pose_columns: str
+    scan_frames: int
+    scan_step_mm: float
+
+
+class SimConfig(TypedDict, total=False):
+    """A twin configuration (see :mod:`stripecal.sim`): the groups of knobs the Rust
+    twin validates; a full one from :func:`stripecal.sim.preset`, overrides naming only
+    what they change."""
+
+    preset: str
+    seed: int
+    camera: SimCamera
+    laser_plane: SimPlane
+    hand_cam: SimPoseCfg
+    base_board: Optional[SimPoseCfg]
+    robot: SimRobot
+    dh_errors: List[List[float]]
+    robot_error: SimDh
+    board: SimBoard
+    poses: SimPoses
+    imaging: SimImaging
+    scan: SimScan
+    working_range_mm: List[float]
+    stripe_direction: str
+    stripe_channel: Optional[str]
+    pose_columns: Optional[str]
+    verify: SimVerify
+    bench: SimBench
+    profiler: SimProfiler
 
 
 class SimPose(TypedDict):
@@ -1311,8 +1702,8 @@ class ProfilerTruth(TypedDict, total=False):
     """The table plane, base frame (``normal`` up)."""
     stand: ProfilerStand
     """The sphere's stand."""
-    profiler: SimConfig
-    """The profiler knobs the twin used (the ``profiler`` part of a :data:`SimConfig`)."""
+    profiler: SimProfiler
+    """The profiler knobs the twin used (the ``profiler`` part of a :class:`SimConfig`)."""
     seed: int
     """The twin's seed."""
     views: List[ProfilerTruthView]

@@ -6,19 +6,21 @@ use crate::pool::Detach;
 use std::path::{Path, PathBuf};
 
 use pyo3::prelude::*;
-use pyo3::types::{PyDict, PyTuple};
+use pyo3::types::{PyDict, PyList, PyTuple};
 
 use crate::args::{bind_as, Params};
 use stripecal::io::{
-    profiler_calibration_from_json, profiler_calibration_to_json, read_profile,
-    read_profiler_calibration as core_read_profiler_calibration,
+    diameter_check_to_json, mirror_to_json, profiler_adjustment_to_json,
+    profiler_calibration_extra_keys, profiler_calibration_from_json, profiler_calibration_to_json,
+    profiler_loo_to_json, profiler_records_split, profiler_view_to_json, read_profile,
+    read_profiler_calibration as core_read_profiler_calibration, robot_calibration_to_json,
     write_profiler_calibration as core_write_profiler_calibration,
 };
 use stripecal::model::{
     Profile, ProfileDataset, ProfilerCalibration, ProfilerQuality, RobotReading,
 };
 
-use crate::convert::{fixed, iso_to_py, map_to_py, nd, opt_dict_to_map, py_to_iso};
+use crate::convert::{fixed, iso_to_py, json_to_py, map_to_py, nd, opt_dict_to_map, py_to_iso};
 use crate::errors::{invalid_input, ResultExt};
 use crate::results::{checks_to_py, covariance_to_py};
 use crate::rig::{joints_array, poses_array};
@@ -255,10 +257,14 @@ impl PyProfilerCalibration {
                 format!("sphere_diameter_mm must be finite and positive, got {sphere_diameter_mm}"),
             ));
         }
+        let robot = robot.map(|r| r.get().inner.clone());
+        // the records `extra` holds (views, mirror, ...) become the calibration's records
+        let (records, extra) =
+            profiler_records_split(&opt_dict_to_map(extra, "extra")?, robot.as_ref());
         Ok(PyProfilerCalibration {
             inner: ProfilerCalibration {
                 hand_sensor: py_to_iso(hand_sensor, "hand_sensor")?,
-                robot: robot.map(|r| r.get().inner.clone()),
+                robot,
                 sphere_center_mm: fixed::<3>(sphere_center_mm, "sphere_center_mm")?.into(),
                 sphere_diameter_mm,
                 quality: ProfilerQuality {
@@ -268,7 +274,8 @@ impl PyProfilerCalibration {
                 },
                 uncertainty: opt_dict_to_map(uncertainty, "uncertainty")?,
                 covariance: None,
-                extra: opt_dict_to_map(extra, "extra")?,
+                records,
+                extra,
             },
         })
     }
@@ -330,10 +337,96 @@ impl PyProfilerCalibration {
         covariance_to_py(py, self.inner.covariance.as_ref())
     }
 
-    /// Other top-level keys of calibration.json (JSON-like dict).
+    /// calibration.json's top-level keys after the fixed ones (JSON-like dict): the
+    /// records (`views`, `adjustment`, `mirror`, ...; read them through their getters)
+    /// and any key this version does not know.
     #[getter]
     fn extra<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
-        map_to_py(py, &self.inner.extra)
+        map_to_py(py, &profiler_calibration_extra_keys(&self.inner))
+    }
+
+    /// rig.json's sphere diameter was null, so the adjustment estimated it
+    /// (calibration.json's `sphere_diameter_estimated`); None when the file has none.
+    #[getter]
+    fn sphere_diameter_estimated(&self) -> Option<bool> {
+        self.inner.records.sphere_diameter_estimated
+    }
+
+    /// The adjustment's figures (calibration.json's `adjustment`): `sigma_mm`,
+    /// `points_used`, `iterations`, `view_variance_factor`; None when the file has none.
+    #[getter]
+    fn adjustment<'py>(&self, py: Python<'py>) -> PyResult<Option<Bound<'py, PyAny>>> {
+        let r = &self.inner.records;
+        r.adjustment
+            .as_ref()
+            .map(|a| json_to_py(py, &profiler_adjustment_to_json(a)))
+            .transpose()
+    }
+
+    /// Every view, used or not (calibration.json's `views`): `view`, `line`, `profile`,
+    /// `used`, `points`, `gaps`, `arc_points`, `sphere_points`, `rejected`, `rms_mm`,
+    /// `side`, `centre_in_sensor_mm`, `note` (empty when the file has none).
+    #[getter]
+    fn views<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
+        let list = PyList::empty(py);
+        for v in self.inner.records.views.as_deref().unwrap_or_default() {
+            list.append(json_to_py(py, &profiler_view_to_json(v))?)?;
+        }
+        Ok(list.into_any())
+    }
+
+    /// The mirror test (calibration.json's `mirror`): `ssr_chosen_mm2`,
+    /// `ssr_mirror_mm2`, `delta_chi2`, `passed`, `centre_spread_mm` (`x`, `y`, `z`,
+    /// `across_plane`); None when the file has none.
+    #[getter]
+    fn mirror<'py>(&self, py: Python<'py>) -> PyResult<Option<Bound<'py, PyAny>>> {
+        let r = &self.inner.records;
+        r.mirror
+            .as_ref()
+            .map(|m| json_to_py(py, &mirror_to_json(m)))
+            .transpose()
+    }
+
+    /// The declared diameter against the profiles' (calibration.json's
+    /// `diameter_check`): `declared_mm`, `estimate_mm`, `sigma_mm`, `disagrees`; None
+    /// when not run.
+    #[getter]
+    fn diameter_check<'py>(&self, py: Python<'py>) -> PyResult<Option<Bound<'py, PyAny>>> {
+        let r = &self.inner.records;
+        r.diameter_check
+            .as_ref()
+            .map(|d| json_to_py(py, &diameter_check_to_json(d)))
+            .transpose()
+    }
+
+    /// The leave-one-view-out figures (calibration.json's `leave_one_out`):
+    /// `median_rms_mm` and `views` (per view `view`, `points`, `rms_mm`, `disagrees`);
+    /// None when not computed.
+    #[getter]
+    fn leave_one_out<'py>(&self, py: Python<'py>) -> PyResult<Option<Bound<'py, PyAny>>> {
+        let r = &self.inner.records;
+        r.leave_one_out
+            .as_ref()
+            .map(|l| json_to_py(py, &profiler_loo_to_json(l)))
+            .transpose()
+    }
+
+    /// What the robot calibration did (calibration.json's `robot_calibration`): `mode`,
+    /// `estimated` (`name`, `correction`, `sigma`), `fixed` (`name`, `reason`); None
+    /// without one.
+    #[getter]
+    fn robot_calibration<'py>(&self, py: Python<'py>) -> PyResult<Option<Bound<'py, PyAny>>> {
+        let r = &self.inner.records;
+        r.robot_calibration
+            .as_ref()
+            .map(|rc| json_to_py(py, &robot_calibration_to_json(rc)))
+            .transpose()
+    }
+
+    /// What the user should know about the calibration (calibration.json `warnings`).
+    #[getter]
+    fn warnings(&self) -> Vec<String> {
+        self.inner.records.warnings.clone()
     }
 
     /// Writes calibration.json (atomically).

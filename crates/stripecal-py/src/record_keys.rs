@@ -9,8 +9,8 @@ use std::collections::BTreeMap;
 use pyo3::prelude::*;
 use serde_json::{Map, Value};
 use stripecal::io::{
-    board_scale_to_json, calibration_extra_keys, leave_one_out_to_json, robot_calibration_to_json,
-    robot_pose_noise_to_json, summary_to_json, view_record_to_json,
+    board_scale_to_json, calibration_extra_keys, leave_one_out_to_json, profiler_records_to_json,
+    robot_calibration_to_json, robot_pose_noise_to_json, summary_to_json, view_record_to_json,
 };
 use stripecal::model::camera::{Camera, DistortionModel, Intrinsics};
 use stripecal::model::geometry::{Iso3, Plane};
@@ -19,6 +19,10 @@ use stripecal::model::{
     AdjustmentSummary, BoardScaleCheck, Calibration, CalibrationRecords, DhCorrection,
     LaserBoardFigure, LeaveOneOut, LooFold, LooView, Mount, RobotCalibration, RobotPoseNoise,
     RobotPoseView, StripeChannel, StripeChannelChoice, StripeExtraction, ViewRecord,
+};
+use stripecal::model::{
+    DiameterCheckRecord, MirrorRecord, ProfilerAdjustmentRecord, ProfilerLooRecord,
+    ProfilerLooView, ProfilerRecords, ProfilerViewRecord,
 };
 
 /// The keys of a JSON object (none for another value).
@@ -152,6 +156,58 @@ fn sample() -> PyResult<Calibration> {
     })
 }
 
+/// A profiler calibration's records, each with its optional parts.
+fn profiler_sample(robot_calibration: Option<RobotCalibration>) -> ProfilerRecords {
+    ProfilerRecords {
+        robot_calibration,
+        sphere_diameter_estimated: Some(false),
+        adjustment: Some(ProfilerAdjustmentRecord {
+            sigma_mm: 0.0,
+            points_used: 0,
+            iterations: 0,
+            view_variance_factor: 1.0,
+        }),
+        views: Some(vec![ProfilerViewRecord {
+            view: 0,
+            line: 0,
+            profile: String::new(),
+            used: true,
+            points: 0,
+            gaps: 0,
+            arc_points: 0,
+            sphere_points: 0,
+            rejected: 0,
+            rms_mm: Some(0.0),
+            side: Some(1.0),
+            centre_in_sensor_mm: Some([0.0; 3]),
+            note: Some(String::new()),
+        }]),
+        mirror: Some(MirrorRecord {
+            ssr_chosen_mm2: 0.0,
+            ssr_mirror_mm2: 0.0,
+            delta_chi2: 0.0,
+            passed: true,
+            centre_spread_mm: [0.0; 4],
+        }),
+        diameter_check: Some(DiameterCheckRecord {
+            declared_mm: 0.0,
+            estimate_mm: 0.0,
+            sigma_mm: 0.0,
+            disagrees: false,
+        }),
+        leave_one_out: Some(ProfilerLooRecord {
+            median_rms_mm: 0.0,
+            views: vec![ProfilerLooView {
+                view: 0,
+                points: 0,
+                rms_mm: 0.0,
+                disagrees: false,
+            }],
+        }),
+        warnings: vec![String::new()],
+    }
+}
+
 /// `{TypedDict name: [keys]}`: the keys the core writes each calibration.json record
 /// with (`CalibrationExtra`: the top-level keys of the records, a subset of the
 /// TypedDict's, which also names keys without a typed record).
@@ -206,5 +262,22 @@ pub fn record_keys() -> PyResult<BTreeMap<&'static str, Vec<String>>> {
         out.insert("DhCorrection", keys(&rc["estimated"][0]));
         out.insert("DhFixed", keys(&rc["fixed"][0]));
     }
+    let p = Value::Object(profiler_records_to_json(&profiler_sample(
+        r.robot_calibration.clone(),
+    )));
+    out.insert("ProfilerExtra", keys(&p));
+    out.insert("ProfilerCalibrationAdjustment", keys(&p["adjustment"]));
+    out.insert("ProfilerView", keys(&p["views"][0]));
+    out.insert("ProfilerMirrorTest", keys(&p["mirror"]));
+    out.insert(
+        "ProfilerCentreSpread",
+        keys(&p["mirror"]["centre_spread_mm"]),
+    );
+    out.insert("ProfilerDiameterCheck", keys(&p["diameter_check"]));
+    out.insert("ProfilerLeaveOneOut", keys(&p["leave_one_out"]));
+    out.insert(
+        "ProfilerLeaveOneOutView",
+        keys(&p["leave_one_out"]["views"][0]),
+    );
     Ok(out)
 }

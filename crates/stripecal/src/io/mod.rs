@@ -28,6 +28,7 @@ mod profile;
 mod profile_dataset;
 mod profile_rig;
 mod profiler_calibration;
+mod profiler_records;
 mod records;
 mod records_read;
 mod rig;
@@ -60,8 +61,12 @@ pub use profile_rig::{
     profile_rig_from_json, profile_rig_to_json, read_profile_rig, write_profile_rig,
 };
 pub use profiler_calibration::{
-    profiler_calibration_from_json, profiler_calibration_to_json, read_profiler_calibration,
-    write_profiler_calibration,
+    profiler_calibration_extra_keys, profiler_calibration_from_json, profiler_calibration_to_json,
+    read_profiler_calibration, write_profiler_calibration,
+};
+pub use profiler_records::{
+    diameter_check_to_json, mirror_to_json, profiler_adjustment_to_json, profiler_loo_to_json,
+    profiler_records_split, profiler_records_to_json, profiler_view_to_json, PROFILER_RECORD_KEYS,
 };
 pub use records::{
     board_scale_to_json, calibration_extra, leave_one_out_to_json, robot_calibration_extra,

@@ -33,6 +33,7 @@ use super::calibration::{
     CALIBRATION_FORMAT,
 };
 use super::json::{append_extra, num, parse, pose_value, to_pretty, Obj};
+use super::profiler_records::{profiler_records_from, profiler_records_to_json};
 use super::rig::{robot_from, robot_value};
 use super::sensor::sensor_kind_of;
 use crate::error::{Error, Result};
@@ -86,9 +87,12 @@ pub fn profiler_calibration_from_json(path: &Path, text: &str) -> Result<Profile
         accepted_poor: q.opt_bool("accepted_poor")?.unwrap_or(false),
     };
     let sphere = sphere_from(&root.obj("sphere")?)?;
+    let robot = root.opt_obj("robot")?.map(|r| robot_from(&r)).transpose()?;
+    let (records, read) = profiler_records_from(&root, robot.as_ref());
+    let known: Vec<&str> = KEYS.iter().copied().chain(read).collect();
     Ok(ProfilerCalibration {
         hand_sensor: root.obj("hand_cam")?.pose()?,
-        robot: root.opt_obj("robot")?.map(|r| robot_from(&r)).transpose()?,
+        robot,
         sphere_center_mm: sphere.center_mm,
         sphere_diameter_mm: sphere.diameter_mm,
         quality,
@@ -100,7 +104,8 @@ pub fn profiler_calibration_from_json(path: &Path, text: &str) -> Result<Profile
             .opt_obj("covariance")?
             .map(|c| covariance_from(&c))
             .transpose()?,
-        extra: root.extra(&KEYS),
+        records,
+        extra: root.extra(&known),
     })
 }
 
@@ -131,8 +136,17 @@ pub fn profiler_calibration_to_json(c: &ProfilerCalibration) -> String {
         m.insert("covariance".into(), covariance_value(cov));
     }
     m.insert("sphere".into(), sphere_value(&sphere_of(c)));
-    append_extra(&mut m, &c.extra);
+    append_extra(&mut m, &profiler_calibration_extra_keys(c));
     to_pretty(&Value::Object(m))
+}
+
+/// calibration.json's keys after a profiler calibration's fixed ones: its records
+/// (`views`, `adjustment`, `mirror`, ...; see [`super::profiler_records`]), then the
+/// keys of `extra` (a record wins over an `extra` key of its name).
+pub fn profiler_calibration_extra_keys(c: &ProfilerCalibration) -> Map<String, Value> {
+    let mut m = profiler_records_to_json(&c.records);
+    append_extra(&mut m, &c.extra);
+    m
 }
 
 fn sphere_of(c: &ProfilerCalibration) -> Sphere {
@@ -227,6 +241,7 @@ mod tests {
                 parameters: names.iter().map(|s| s.to_string()).collect(),
                 matrix: DMatrix::from_row_slice(2, 2, &[1e-6, 2e-8, 2e-8, 1.6e-5]),
             }),
+            records: Default::default(),
             extra,
         }
     }

@@ -35,12 +35,12 @@ const SUMMARY_KEYS: [&str; 6] = [
 ];
 
 /// A number, NaN when `null` or absent.
-fn num(o: &Obj<'_>, key: &str) -> Result<f64> {
+pub(super) fn num(o: &Obj<'_>, key: &str) -> Result<f64> {
     Ok(o.opt(key).map(|v| v.f64()).transpose()?.unwrap_or(f64::NAN))
 }
 
 /// A number, `None` when `null`, absent or not finite.
-fn opt_num(o: &Obj<'_>, key: &str) -> Result<Option<f64>> {
+pub(super) fn opt_num(o: &Obj<'_>, key: &str) -> Result<Option<f64>> {
     Ok(o.opt(key)
         .map(|v| v.f64())
         .transpose()?
@@ -136,7 +136,7 @@ pub fn calibration_records_from(
 }
 
 /// An array of strings, `None` when it is not one.
-fn strings(v: &super::json::Val<'_>) -> Option<Vec<String>> {
+pub(super) fn strings(v: &super::json::Val<'_>) -> Option<Vec<String>> {
     v.arr()
         .ok()?
         .iter()
@@ -239,7 +239,7 @@ fn board_scale_from(b: &Obj<'_>) -> Result<BoardScaleCheck> {
 
 /// `robot_calibration` (see [`super::robot_calibration_extra`]) with the calibration's
 /// refined `robot`.
-fn robot_calibration_from(o: &Obj<'_>, robot: &Robot) -> Result<RobotCalibration> {
+pub(super) fn robot_calibration_from(o: &Obj<'_>, robot: &Robot) -> Result<RobotCalibration> {
     let mut estimated = Vec::new();
     for item in o.req("estimated")?.arr()? {
         let e = item.obj()?;

@@ -25,8 +25,9 @@ pub use dataset::{
 };
 pub use mount::Mount;
 pub use profile::{
-    Profile, ProfileDataset, ProfileRig, ProfileScan, ProfileView, ProfilerCalibration,
-    ProfilerQuality, SensorKind,
+    DiameterCheckRecord, MirrorRecord, Profile, ProfileDataset, ProfileRig, ProfileScan,
+    ProfileView, ProfilerAdjustmentRecord, ProfilerCalibration, ProfilerLooRecord, ProfilerLooView,
+    ProfilerQuality, ProfilerRecords, ProfilerViewRecord, SensorKind,
 };
 pub use quality::{QualityCheck, QualityFailure};
 pub(crate) use results::calibration_number;

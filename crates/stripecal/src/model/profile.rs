@@ -16,7 +16,7 @@ use nalgebra::Vector3;
 use crate::model::dataset::RobotReading;
 use crate::model::geometry::Iso3;
 use crate::model::kinematics::Robot;
-use crate::model::{NamedCovariance, QualityCheck};
+use crate::model::{NamedCovariance, QualityCheck, RobotCalibration};
 
 /// The `sensor.kind` of rig.json.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
@@ -117,7 +117,109 @@ pub struct ProfilerCalibration {
     /// The covariance of the estimated numbers (names `hand_cam.rotation_vector[0]`,
     /// `sphere.center_mm[0]`, `sphere.diameter_mm`, the DH corrections' names).
     pub covariance: Option<NamedCovariance>,
-    /// Any other top-level keys (views, leave-one-out, warnings...), kept on load and
+    /// What the calibration reports about itself (views, adjustment, mirror test,
+    /// diameter check, leave-one-out, robot calibration, warnings).
+    pub records: ProfilerRecords,
+    /// Any other top-level keys (ones this version does not know), kept on load and
     /// written back on save.
     pub extra: serde_json::Map<String, serde_json::Value>,
+}
+
+/// What a profiler calibration reports about itself: calibration.json's keys after the
+/// fixed ones, in the order written (`robot_calibration`, `sphere_diameter_estimated`,
+/// `adjustment`, `views`, `mirror`, `diameter_check`, `leave_one_out`, `warnings`).
+/// Each is `None` (or empty) when the file has none.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct ProfilerRecords {
+    /// What the robot calibration did (`robot_calibration`).
+    pub robot_calibration: Option<RobotCalibration>,
+    /// rig.json's diameter was `null`, so the adjustment estimated it
+    /// (`sphere_diameter_estimated`).
+    pub sphere_diameter_estimated: Option<bool>,
+    /// The adjustment's figures (`adjustment`).
+    pub adjustment: Option<ProfilerAdjustmentRecord>,
+    /// Every view of the dataset, used or not (`views`).
+    pub views: Option<Vec<ProfilerViewRecord>>,
+    /// The mirror test (`mirror`).
+    pub mirror: Option<MirrorRecord>,
+    /// The declared diameter against the profiles' (`diameter_check`).
+    pub diameter_check: Option<DiameterCheckRecord>,
+    /// The leave-one-view-out figures (`leave_one_out`).
+    pub leave_one_out: Option<ProfilerLooRecord>,
+    /// What the user should know (`warnings`; empty: none written).
+    pub warnings: Vec<String>,
+}
+
+/// A profiler calibration's `adjustment`.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ProfilerAdjustmentRecord {
+    /// The a-posteriori sigma of a point's distance from the sphere, mm.
+    pub sigma_mm: f64,
+    pub points_used: usize,
+    pub iterations: usize,
+    /// The view-clustered variance factor the sigmas carry (>= 1).
+    pub view_variance_factor: f64,
+}
+
+/// One view of a profiler calibration's `views`.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ProfilerViewRecord {
+    pub view: usize,
+    /// The line of views.csv.
+    pub line: usize,
+    /// The profile file (`profile`).
+    pub profile: String,
+    pub used: bool,
+    pub points: usize,
+    pub gaps: usize,
+    pub arc_points: usize,
+    pub sphere_points: usize,
+    pub rejected: usize,
+    /// RMS distance from the sphere, mm (`None`: not used).
+    pub rms_mm: Option<f64>,
+    /// The side of the laser plane the sphere's centre was on (+1 / -1).
+    pub side: Option<f64>,
+    /// The sphere's centre in the sensor frame, mm (`centre_in_sensor_mm`).
+    pub centre_in_sensor_mm: Option<[f64; 3]>,
+    /// Why the view was not used.
+    pub note: Option<String>,
+}
+
+/// A profiler calibration's `mirror`: the fit against its mirror image through the
+/// laser plane.
+#[derive(Debug, Clone, PartialEq)]
+pub struct MirrorRecord {
+    pub ssr_chosen_mm2: f64,
+    pub ssr_mirror_mm2: f64,
+    pub delta_chi2: f64,
+    pub passed: bool,
+    /// The sphere centres' spread in the sensor frame, mm: x, y, z, across the plane
+    /// (`centre_spread_mm`).
+    pub centre_spread_mm: [f64; 4],
+}
+
+/// A profiler calibration's `diameter_check`.
+#[derive(Debug, Clone, PartialEq)]
+pub struct DiameterCheckRecord {
+    pub declared_mm: f64,
+    pub estimate_mm: f64,
+    pub sigma_mm: f64,
+    pub disagrees: bool,
+}
+
+/// A profiler calibration's `leave_one_out`.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ProfilerLooRecord {
+    pub median_rms_mm: f64,
+    pub views: Vec<ProfilerLooView>,
+}
+
+/// One view of a profiler's `leave_one_out.views`.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ProfilerLooView {
+    pub view: usize,
+    pub points: usize,
+    /// Held-out RMS distance from the sphere the other views predict, mm.
+    pub rms_mm: f64,
+    pub disagrees: bool,
 }

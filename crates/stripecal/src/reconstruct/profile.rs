@@ -249,6 +249,7 @@ mod tests {
             quality: ProfilerQuality::default(),
             uncertainty: Default::default(),
             covariance: None,
+            records: Default::default(),
             extra: Default::default(),
         }
     }

@@ -22,6 +22,7 @@ mod fuzz_public_api;
 mod fuzz_readers;
 mod fuzz_support;
 mod io_earlier_files;
+mod io_earlier_profiler;
 mod io_formats;
 mod io_poses;
 mod layers;

@@ -96,6 +96,7 @@ fn profiler_sphere_error_within_its_budget() {
         },
         uncertainty: Default::default(),
         covariance: Some(covariance()),
+        records: Default::default(),
         extra: Default::default(),
     };
     let named = truth.covariance.clone().unwrap();

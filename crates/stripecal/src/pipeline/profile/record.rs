@@ -1,6 +1,6 @@
 //! A profiler calibration's record: the numbers, their one-sigmas and the figures the
-//! calibration reports about itself (views, mirror test, diameter check, leave-one-out),
-//! as the contract's keys plus extra keys of calibration.json.
+//! calibration reports about itself (views, mirror test, diameter check, leave-one-out:
+//! its [`ProfilerRecords`]), as calibration.json writes them.
 
 use serde_json::{json, Map, Value};
 
@@ -8,8 +8,12 @@ use super::checks::{centres_in_sensor, DiameterCheck, MirrorTest};
 use super::loo::ProfileLoo;
 use super::ProfileViewStatus;
 use crate::calib::joint::profile::{ProfileFit, ProfileViewObs};
-use crate::io::{robot_calibration_extra, robot_uncertainty, warnings_to_json};
-use crate::model::{ProfileRig, ProfilerCalibration, ProfilerQuality, QualityCheck};
+use crate::io::robot_uncertainty;
+use crate::model::{
+    DiameterCheckRecord, MirrorRecord, ProfileRig, ProfilerAdjustmentRecord, ProfilerCalibration,
+    ProfilerLooRecord, ProfilerLooView, ProfilerQuality, ProfilerRecords, ProfilerViewRecord,
+    QualityCheck,
+};
 
 /// A number, `null` when not finite (`Value::from` does that).
 fn num(x: f64) -> Value {
@@ -74,67 +78,65 @@ pub(super) fn calibration(
         sphere.insert("diameter_mm".into(), num(sd("sphere.diameter_mm")));
     }
     u.insert("sphere".into(), Value::Object(sphere));
-    let mut extra = Map::new();
     if let Some(rc) = &fit.robot {
         u.insert("robot".into(), robot_uncertainty(rc));
-        extra.extend(robot_calibration_extra(rc));
     }
-    extra.insert(
-        "sphere_diameter_estimated".into(),
-        Value::Bool(rig.diameter_mm.is_none()),
-    );
-    extra.insert(
-        "adjustment".into(),
-        json!({"sigma_mm": num(fit.sigma_mm), "points_used": fit.points_used(),
-               "iterations": fit.iterations,
-               "view_variance_factor": num(fit.view_variance_factor)}),
-    );
-    extra.insert(
-        "views".into(),
-        Value::Array(
-            status
+    let views = status
+        .iter()
+        .map(|s| ProfilerViewRecord {
+            view: s.view,
+            line: s.line,
+            profile: s.file.clone(),
+            used: s.used,
+            points: s.points,
+            gaps: s.gaps,
+            arc_points: s.arc_points,
+            sphere_points: s.sphere_points,
+            rejected: s.rejected,
+            rms_mm: s.rms_mm,
+            side: s.side,
+            centre_in_sensor_mm: s.centre_in_sensor.map(|c| [c.x, c.y, c.z]),
+            note: s.note.clone(),
+        })
+        .collect();
+    let records = ProfilerRecords {
+        robot_calibration: fit.robot.clone(),
+        sphere_diameter_estimated: Some(rig.diameter_mm.is_none()),
+        adjustment: Some(ProfilerAdjustmentRecord {
+            sigma_mm: fit.sigma_mm,
+            points_used: fit.points_used(),
+            iterations: fit.iterations,
+            view_variance_factor: fit.view_variance_factor,
+        }),
+        views: Some(views),
+        mirror: Some(MirrorRecord {
+            ssr_chosen_mm2: mirror.ssr_chosen_mm2,
+            ssr_mirror_mm2: mirror.ssr_mirror_mm2,
+            delta_chi2: mirror.delta_chi2,
+            passed: mirror.passed,
+            centre_spread_mm: mirror.spread_mm,
+        }),
+        diameter_check: diameter.map(|d| DiameterCheckRecord {
+            declared_mm: d.declared_mm,
+            estimate_mm: d.estimate_mm,
+            sigma_mm: d.sigma_mm,
+            disagrees: d.disagrees,
+        }),
+        leave_one_out: loo.map(|l| ProfilerLooRecord {
+            median_rms_mm: l.median_rms_mm,
+            views: l
+                .views
                 .iter()
-                .map(|s| {
-                    json!({
-                        "view": s.view, "line": s.line, "profile": s.file, "used": s.used,
-                        "points": s.points, "gaps": s.gaps, "arc_points": s.arc_points,
-                        "sphere_points": s.sphere_points, "rejected": s.rejected,
-                        "rms_mm": s.rms_mm.map_or(Value::Null, num),
-                        "side": s.side.map_or(Value::Null, num),
-                        "centre_in_sensor_mm": s.centre_in_sensor
-                            .map_or(Value::Null, |c| json!([c.x, c.y, c.z])),
-                        "note": s.note,
-                    })
+                .map(|v| ProfilerLooView {
+                    view: v.view,
+                    points: v.points,
+                    rms_mm: v.rms_mm,
+                    disagrees: v.disagrees,
                 })
                 .collect(),
-        ),
-    );
-    let [x, y, z, n] = mirror.spread_mm;
-    extra.insert(
-        "mirror".into(),
-        json!({"ssr_chosen_mm2": num(mirror.ssr_chosen_mm2),
-               "ssr_mirror_mm2": num(mirror.ssr_mirror_mm2),
-               "delta_chi2": num(mirror.delta_chi2), "passed": mirror.passed,
-               "centre_spread_mm": {"x": x, "y": y, "z": z, "across_plane": n}}),
-    );
-    if let Some(d) = diameter {
-        extra.insert(
-            "diameter_check".into(),
-            json!({"declared_mm": d.declared_mm, "estimate_mm": num(d.estimate_mm),
-                   "sigma_mm": num(d.sigma_mm), "disagrees": d.disagrees}),
-        );
-    }
-    if let Some(l) = loo {
-        extra.insert(
-            "leave_one_out".into(),
-            json!({"median_rms_mm": l.median_rms_mm,
-                   "views": l.views.iter().map(|v| json!({"view": v.view, "points": v.points,
-                       "rms_mm": num(v.rms_mm), "disagrees": v.disagrees})).collect::<Vec<_>>()}),
-        );
-    }
-    if !warnings.is_empty() {
-        extra.insert("warnings".into(), warnings_to_json(warnings));
-    }
+        }),
+        warnings: warnings.to_vec(),
+    };
     ProfilerCalibration {
         hand_sensor: fit.hand_sensor,
         robot: fit
@@ -152,6 +154,7 @@ pub(super) fn calibration(
         },
         uncertainty: u,
         covariance: Some(fit.covariance.clone()),
-        extra,
+        records,
+        extra: Map::new(),
     }
 }

@@ -62,6 +62,7 @@ pub(crate) fn profiler_calibration() -> ProfilerCalibration {
             parameters: names,
             matrix,
         }),
+        records: Default::default(),
         extra: Default::default(),
     }
 }
