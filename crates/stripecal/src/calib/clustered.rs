@@ -104,6 +104,20 @@ impl ViewShare {
         let y = ch.solve(&gd);
         Some((&agg - &agd * x, &gg - &agd * y))
     }
+
+    /// The view's own columns' Gauss-Newton step given the global columns' step `dg`:
+    /// `-A_dd^-1 (g_d + A_dg dg)` (empty without own columns); `None` when the view's
+    /// own block is singular.
+    pub fn own_step(&self, dg: &DVector<f64>) -> Option<DVector<f64>> {
+        let (ng, pv) = (self.ng, self.own.len());
+        if pv == 0 {
+            return Some(DVector::zeros(0));
+        }
+        let adg = self.a.view((ng, 0), (pv, ng));
+        let add = self.a.view((ng, ng), (pv, pv)).into_owned();
+        let rhs = self.g.rows(ng, pv) + adg * dg;
+        Some(-add.cholesky()?.solve(&rhs))
+    }
 }
 
 /// A view whose share of some direction's information exceeds this determines that

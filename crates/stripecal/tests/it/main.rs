@@ -8,6 +8,7 @@ mod calib_camera;
 mod calib_gates;
 mod calib_honesty;
 mod calib_joint;
+mod calib_loo_step;
 mod calib_real_cells;
 mod calib_rendered;
 mod calib_robot;

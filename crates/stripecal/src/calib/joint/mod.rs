@@ -75,6 +75,7 @@ mod bench;
 mod chain;
 mod covariance;
 mod finish;
+mod fold;
 mod kinematic;
 mod layout;
 mod predict;
@@ -90,6 +91,7 @@ mod robot_solve;
 
 pub use self::bench::bench_adjustment;
 pub(crate) use self::covariance::camera_name;
+pub use self::fold::{one_step_folds, stepped_from, FoldSolution};
 pub use self::robot::{
     flange_twists, point_gradients as dh_point_gradients, DhKind, DhParam, RobotMode,
 };

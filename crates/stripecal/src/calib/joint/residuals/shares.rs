@@ -15,6 +15,13 @@ impl JointProblem<'_> {
     /// and prior rows, weighted; `A = J^T J`, `g = J^T r`). Their sums are the reduced
     /// normal equations; `None` when a view's own block is singular.
     pub fn view_shares(&self, p: &[f64]) -> Result<Option<Vec<ReducedShare>>> {
+        let acc = self.view_normals_by_view(p)?;
+        Ok(acc.into_iter().map(ViewShare::reduced).collect())
+    }
+
+    /// Each view's share of the normal equations at `p` over the global columns and its
+    /// own per-view columns (its image rows and prior rows, weighted), not reduced.
+    pub fn view_normals_by_view(&self, p: &[f64]) -> Result<Vec<ViewShare>> {
         let (n, m) = (self.num_params(), self.num_residuals());
         let ng = self.layout.num_global();
         let pv = self.layout.per_view_len();
@@ -32,7 +39,7 @@ impl JointProblem<'_> {
                 acc[view].add_row(cols, vals, *ri);
             }
         }
-        Ok(acc.into_iter().map(ViewShare::reduced).collect())
+        Ok(acc)
     }
 
     /// `J^T J_k` (n x p) at `p`: the gradient of the weighted image rows' sum of squares'

@@ -53,8 +53,10 @@
 //! - the emitter, which no calibration holds: taken as uniform within
 //!   +-[`EMITTER_RANGE_MM`] of `n d` along each of the plane's two in-plane axes. The
 //!   same points are moved by the biases predicted for the emitter at each end of each
-//!   range ([`BoardStripeViews::emitter_moved`]) and the adjustment is run again from the
-//!   corrected solution; with `d_+`, `d_-` the changes of the numbers, each axis adds
+//!   range ([`BoardStripeViews::emitter_moved`]) and the corrected solution is moved to
+//!   theirs by two Gauss-Newton steps (`calib::joint::stepped_from`: the points move by
+//!   thousandths of a pixel, so the change is linear in them; the whole adjustment
+//!   where the steps do not apply); with `d_+`, `d_-` the changes of the numbers, each axis adds
 //!   `(d_+ d_+^T + d_- d_-^T) / 6` (the variance `a^2 / 3` of a uniform distribution,
 //!   read at both ends, the response not being quite linear). The emitter's effect is
 //!   not along `D`: on the paper's twin it moves the plane's offset and the hand-eye's

@@ -2,13 +2,17 @@
 //! widened by what the correction leaves (the emitter's assumed range among it).
 
 use super::{correct_board_stripes, BoardStripeCorrection};
-use crate::calib::joint::{joint_adjustment, JointOptions, JointResult, JointStart};
+use crate::calib::joint::{joint_adjustment, stepped_from, JointOptions, JointResult, JointStart};
 use crate::calib::ViewObs;
 use crate::error::Result;
 use crate::model::board::Board;
 use crate::model::geometry::Iso3;
 use crate::pipeline::emitter_carry::EmitterResponse;
 use crate::pipeline::{CalibrateOptions, Method};
+
+/// Gauss-Newton steps from the corrected solution to the emitter-moved one (the first
+/// settles the robot-pose corrections, the second the rest to second order).
+const EMITTER_STEPS: usize = 2;
 
 /// What became of the board stripe-bias correction: applied, or why not.
 pub(in crate::pipeline::calibrate) type BoardStripeOutcome =
@@ -22,8 +26,9 @@ pub(in crate::pipeline::calibrate) type BoardStripeOutcome =
 /// What the correction leaves (the module docs of [`super`]): the model's
 /// neglected terms, `u^2 D D^T` along the change `D` the correction made; the emitter,
 /// whose position the calibration does not know, uniform within the assumed range along
-/// each of the plane's two axes: the adjustment run again with the biases predicted for
-/// the emitter at each end of a range, `d_+` and `d_-` its changes, each axis adding
+/// each of the plane's two axes: the solution moved to the biases predicted for the
+/// emitter at each end of a range (Gauss-Newton steps from the corrected solution:
+/// [`EMITTER_STEPS`]), `d_+` and `d_-` its changes, each axis adding
 /// `(d_+ d_+^T + d_- d_-^T) / 6` (a uniform distribution's variance, `a^2 / 3`, read at
 /// both ends).
 pub(in crate::pipeline::calibrate) fn correct_stripes(
@@ -58,10 +63,16 @@ pub(in crate::pipeline::calibrate) fn correct_stripes(
         corr.summary.neglected_share.powi(2),
     )];
     let from = start_of(&again);
-    // The emitter moved: +e1, -e1, +e2, -e2 (`emitter_moved`'s order).
+    // The emitter moved: +e1, -e1, +e2, -e2 (`emitter_moved`'s order). The same points
+    // moved by other biases (thousandths of a pixel): Gauss-Newton steps from `again`
+    // give the change to first order, without an adjustment each (its re-weighting
+    // rounds and covariance); the adjustment where they do not apply.
     let mut moved = Vec::with_capacity(4);
     for views in &corr.emitter_moved {
-        let alt = joint_adjustment(views, board, &from, jopts)?;
+        let alt = match stepped_from(views, board, &again, jopts, EMITTER_STEPS)? {
+            Some(alt) => alt,
+            None => joint_adjustment(views, board, &from, jopts)?,
+        };
         moved.push(alt.named_difference(&again));
     }
     terms.extend(moved.iter().map(|d| (d.clone(), 1.0 / 6.0)));
