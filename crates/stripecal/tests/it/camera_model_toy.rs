@@ -125,7 +125,9 @@ fn a_calibration_with_another_model_is_written_with_its_name_and_refused_on_read
     std::fs::create_dir_all(&dir).unwrap();
     let file = dir.join("calibration.json");
     std::fs::write(&file, text).unwrap();
-    let err = stripecal::io::read_calibration(&file).unwrap_err().to_string();
+    let err = stripecal::io::read_calibration(&file)
+        .unwrap_err()
+        .to_string();
     std::fs::remove_dir_all(&dir).unwrap();
     assert!(
         err.contains("camera model 'toy-division'") && err.contains("camera.model"),
