@@ -12,6 +12,9 @@ PYTHON="${PYTHON:-python}"
 # `cargo test`, so the two builds share the workspace's compiled dependencies.
 export MATURIN_PEP517_ARGS="${MATURIN_PEP517_ARGS:---profile dev}"
 export PIP_DISABLE_PIP_VERSION_CHECK=1 PIP_ROOT_USER_ACTION=ignore
+# One build from scratch, never rebuilt by this script: incremental compilation's caches
+# would only cost time to write (CARGO_INCREMENTAL=1 in the environment keeps them).
+export CARGO_INCREMENTAL="${CARGO_INCREMENTAL:-0}"
 
 start=$SECONDS
 step() { printf '\n==> %s  (%ss)\n' "$*" "$((SECONDS - start))"; }

@@ -50,12 +50,6 @@ fn sample() -> PyResult<Calibration> {
     .map_err(|e| pyo3::exceptions::PyValueError::new_err(e.to_string()))?;
     let plane = Plane::new(nalgebra::Vector3::z(), 100.0)
         .map_err(|e| pyo3::exceptions::PyValueError::new_err(e.to_string()))?;
-    let pose_view = RobotPoseView {
-        view: 0,
-        translation_mm: 0.0,
-        rotation_deg: 0.0,
-        test: 0.0,
-    };
     let records = CalibrationRecords {
         summary: Some(AdjustmentSummary {
             method: "one-stage".into(),
@@ -87,44 +81,8 @@ fn sample() -> PyResult<Calibration> {
             disagrees: false,
             tolerance: 0.01,
         }),
-        leave_one_out: Some(LeaveOneOut {
-            views: vec![LooView {
-                view: 0,
-                points: 0,
-                board_rms_px: 0.0,
-                board_rms_mm: 0.0,
-                stripe_points: 0,
-                stripe_rms_mm: Some(0.0),
-                disagrees: false,
-                fold: Some(LooFold {
-                    camera: camera.clone(),
-                    plane,
-                    cam_board: Iso3::identity(),
-                }),
-            }],
-            median_board_rms_px: 0.0,
-            median_board_rms_mm: 0.0,
-            median_stripe_rms_mm: Some(0.0),
-            laser_board: Some(LaserBoardFigure {
-                median_mm: 0.0,
-                p95_mm: 0.0,
-                points: 0,
-            }),
-        }),
-        robot_pose_noise: Some(RobotPoseNoise {
-            sigma_translation_mm: 0.0,
-            sigma_rotation_deg: 0.0,
-            translation_at_floor: false,
-            rotation_at_floor: false,
-            floor_translation_mm: 0.0,
-            floor_rotation_deg: 0.0,
-            image_factor: Some(0.0),
-            image_factor_at_floor: false,
-            kinematic_mm: Some(0.0),
-            kinematic_deg: Some(0.0),
-            views: vec![pose_view],
-            left_out: vec![pose_view],
-        }),
+        leave_one_out: Some(sample_leave_one_out(&camera, plane)),
+        robot_pose_noise: Some(sample_robot_pose_noise()),
         robot_calibration: Some(RobotCalibration {
             mode: "auto".into(),
             robot: Robot::hp3(),
@@ -154,6 +112,58 @@ fn sample() -> PyResult<Calibration> {
         records,
         extra: Default::default(),
     })
+}
+
+/// A leave-one-out record with every optional part.
+fn sample_leave_one_out(camera: &Camera, plane: Plane) -> LeaveOneOut {
+    LeaveOneOut {
+        views: vec![LooView {
+            view: 0,
+            points: 0,
+            board_rms_px: 0.0,
+            board_rms_mm: 0.0,
+            stripe_points: 0,
+            stripe_rms_mm: Some(0.0),
+            disagrees: false,
+            fold: Some(LooFold {
+                camera: camera.clone(),
+                plane,
+                cam_board: Iso3::identity(),
+            }),
+        }],
+        median_board_rms_px: 0.0,
+        median_board_rms_mm: 0.0,
+        median_stripe_rms_mm: Some(0.0),
+        laser_board: Some(LaserBoardFigure {
+            median_mm: 0.0,
+            p95_mm: 0.0,
+            points: 0,
+        }),
+    }
+}
+
+/// A robot-pose-noise record with every optional part.
+fn sample_robot_pose_noise() -> RobotPoseNoise {
+    let pose_view = RobotPoseView {
+        view: 0,
+        translation_mm: 0.0,
+        rotation_deg: 0.0,
+        test: 0.0,
+    };
+    RobotPoseNoise {
+        sigma_translation_mm: 0.0,
+        sigma_rotation_deg: 0.0,
+        translation_at_floor: false,
+        rotation_at_floor: false,
+        floor_translation_mm: 0.0,
+        floor_rotation_deg: 0.0,
+        image_factor: Some(0.0),
+        image_factor_at_floor: false,
+        kinematic_mm: Some(0.0),
+        kinematic_deg: Some(0.0),
+        views: vec![pose_view],
+        left_out: vec![pose_view],
+    }
 }
 
 /// A profiler calibration's records, each with its optional parts.
