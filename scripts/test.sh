@@ -25,15 +25,33 @@ step "the wheel's and the tests' builds share their dependencies (crates/workspa
 step "pip install -e '.[test]'  (builds stripecal._core with maturin)"
 "$PYTHON" -m pip install --quiet -e '.[test]'
 
+# The Rust tests and the Python tests run side by side: each alone leaves a core idle
+# while it links, and at the end of each test binary and of pytest's last module (the
+# machine's cores are then shared by four jobs instead of two). pytest's output is kept
+# in a file and printed after the Rust tests'; the script fails if either fails.
+#
 # The core's and the twin's unit tests and their one integration-test binary each (the
 # pyo3 crate has no test binary). Examples and criterion benches are not built here:
 # `cargo clippy --all-targets` builds them before every submission (CONTRIBUTING.md).
-step "cargo test  (stripecal, stripecal-sim: unit and integration tests)"
-cargo test --quiet -p stripecal -p stripecal-sim --lib --tests
+# pytest: one worker per core, each taking whole test modules (--dist loadfile), so that
+# a module's fixtures still render their twin once.
+pylog="$(mktemp)"
+trap 'rm -f "$pylog"' EXIT
+step "pytest started in the background  (a test module per worker, one worker per core)"
+"$PYTHON" -m pytest -q -n auto --dist loadfile > "$pylog" 2>&1 &
+pytest_pid=$!
 
-# One worker per core, each taking whole test modules (--dist loadfile), so that a
-# module's fixtures still render their twin once: 314 s serial -> 225 s on 2 cores.
-step "pytest  (a test module per worker, one worker per core)"
-"$PYTHON" -m pytest -q -n auto --dist loadfile
+step "cargo test  (stripecal, stripecal-sim: unit and integration tests)"
+rust=0
+cargo test --quiet -p stripecal -p stripecal-sim --lib --tests || rust=$?
+
+step "pytest  (its output)"
+py=0
+wait "$pytest_pid" || py=$?
+cat "$pylog"
+if [ "$rust" -ne 0 ] || [ "$py" -ne 0 ]; then
+    step "FAILED: cargo test exit $rust, pytest exit $py"
+    exit 1
+fi
 
 step "all tests passed"
