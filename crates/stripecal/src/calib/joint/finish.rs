@@ -85,19 +85,12 @@ pub(super) fn finish(
             unobservable.join(", ")
         ));
     }
-    // Held transforms are returned as given (not through their rotation vectors).
-    let transform = |free: bool, block: Block, held: &Iso3| {
-        if free {
-            layout.transform(&res.params, block)
-        } else {
-            *held
-        }
-    };
+    let (hand_cam, base_board) = estimated_transforms(layout, &res.params, start, free);
     Ok(JointResult {
         camera,
         plane,
-        hand_cam: transform(free.hand_cam, Block::HandCam, &start.hand_cam),
-        base_board: transform(free.base_board, Block::BaseBoard, &start.base_board),
+        hand_cam,
+        base_board,
         board_scale: s.scale,
         free,
         sigma,
@@ -135,13 +128,7 @@ fn estimated_sensor(
     free: FreeBlocks,
     s: &JointParams,
 ) -> Result<(Camera, Option<Plane>)> {
-    let camera = start.camera.with_params(&s.cam);
-    camera.validate()?;
-    let plane = if free.laser_plane {
-        Some(Plane::new(s.plane_n, s.plane_d)?)
-    } else {
-        start.plane
-    };
+    let (camera, plane) = camera_and_plane(start, free, s)?;
     if !(s.scale.is_finite() && s.scale > 0.0) {
         return Err(Error::Degenerate(format!(
             "the board scale went to {} in the adjustment",
@@ -149,6 +136,44 @@ fn estimated_sensor(
         )));
     }
     Ok((camera, plane))
+}
+
+/// The camera (validated) and laser plane of decoded parameters `s` (the starting plane
+/// when held).
+pub(super) fn camera_and_plane(
+    start: &JointStart,
+    free: FreeBlocks,
+    s: &JointParams,
+) -> Result<(Camera, Option<Plane>)> {
+    let camera = start.camera.with_params(&s.cam);
+    camera.validate()?;
+    let plane = if free.laser_plane {
+        Some(Plane::new(s.plane_n, s.plane_d)?)
+    } else {
+        start.plane
+    };
+    Ok((camera, plane))
+}
+
+/// `(hand_cam, base_board)` of parameter vector `q`; held transforms are returned as
+/// given (not through their rotation vectors).
+pub(super) fn estimated_transforms(
+    layout: &ParamLayout,
+    q: &[f64],
+    start: &JointStart,
+    free: FreeBlocks,
+) -> (Iso3, Iso3) {
+    let transform = |free: bool, block: Block, held: &Iso3| {
+        if free {
+            layout.transform(q, block)
+        } else {
+            *held
+        }
+    };
+    (
+        transform(free.hand_cam, Block::HandCam, &start.hand_cam),
+        transform(free.base_board, Block::BaseBoard, &start.base_board),
+    )
 }
 
 /// The covariance of an adjustment's parameters as reported.

@@ -28,7 +28,8 @@
 
 use nalgebra::{DMatrix, DVector};
 
-use super::layout::{Block, ParamLayout};
+use super::finish;
+use super::layout::ParamLayout;
 use super::residuals::{JointProblem, Terms};
 use super::{FreeBlocks, JointOptions, JointResult, JointStart, RobotMode};
 use crate::calib::ViewObs;
@@ -286,25 +287,13 @@ fn fold_solution(
     q: &[f64],
 ) -> Result<FoldSolution> {
     let s = layout.decode(q);
-    let camera = start.camera.with_params(&s.cam);
-    camera.validate()?;
-    let plane = if free.laser_plane {
-        Some(Plane::new(s.plane_n, s.plane_d)?)
-    } else {
-        start.plane
-    };
-    let transform = |free: bool, block: Block, held: &Iso3| {
-        if free {
-            layout.transform(q, block)
-        } else {
-            *held
-        }
-    };
+    let (camera, plane) = finish::camera_and_plane(start, free, &s)?;
+    let (hand_cam, base_board) = finish::estimated_transforms(layout, q, start, free);
     Ok(FoldSolution {
         camera,
         plane,
-        hand_cam: transform(free.hand_cam, Block::HandCam, &start.hand_cam),
-        base_board: transform(free.base_board, Block::BaseBoard, &start.base_board),
+        hand_cam,
+        base_board,
         board_scale: s.scale,
     })
 }
