@@ -280,8 +280,18 @@ impl StripeExtractor {
                     out.push(a);
                     self.alts.push(b);
                 }
-                (Ok(a), _) => out.push(a),
-                (Err(_), Some(Ok(b))) => out.push(b),
+                // the scan line stays undecided: one peak failing its centre (a
+                // plateau too long, a window off the image) does not make the other
+                // the stripe
+                (Ok(mut a), Some(Err(_))) => {
+                    a.flags |= FLAG_AMBIGUOUS;
+                    out.push(a)
+                }
+                (Ok(a), None) => out.push(a),
+                (Err(_), Some(Ok(mut b))) => {
+                    b.flags |= FLAG_AMBIGUOUS;
+                    out.push(b)
+                }
                 (Err(e), _) => count(&mut rej, e),
             }
         }

@@ -36,7 +36,8 @@
 //!    by the line's continuity ([`chains`]): the one on the heaviest chain of peaks
 //!    through the neighbouring scan lines; a scan line that chain cannot decide gives
 //!    no point, or both with [`FLAG_AMBIGUOUS`] when [`StripeOptions::keep_ambiguous`]
-//!    (the calibration's board-plane consensus then tells which).
+//!    (the calibration's board-plane consensus then tells which; where one of the two
+//!    gives no centre, the other alone, still flagged).
 //! 3. **Local background** from two flanks of `flank_px` pixels just outside the centre
 //!    window, linear between them (it follows the board texture and shading locally).
 //!    Flanks that disagree or are not flat mean a reflectance change under the stripe:
@@ -107,7 +108,8 @@ pub const FLAG_OBLIQUE: u8 = 16;
 /// The scan line held two comparable peaks that the line's continuity did not decide
 /// between, and both were kept ([`StripeOptions::keep_ambiguous`]): one of the two
 /// points of the scan line is not the stripe (a calibration's board-plane consensus
-/// tells which).
+/// tells which). Where one of the two gives no centre, the other is kept alone with
+/// this flag: it may be the one that is not the stripe.
 pub const FLAG_AMBIGUOUS: u8 = 32;
 /// Flags that warn of a biased centre: leave such points out of calibration.
 pub const FLAG_BIASED: u8 = FLAG_EDGE | FLAG_UNEVEN_BACKGROUND | FLAG_OBLIQUE;
@@ -181,7 +183,7 @@ pub struct StripeOptions {
     /// Adapt to the line's width and saturation ([`survey`]): a line wider than about
     /// `2 * ridge_px - 4` px is found with the ridge distance `ceil(width / 2) + 3`,
     /// widths up to `1.5 * width + 4` are accepted and, on a saturated line, plateaus
-    /// as long as its width (`ridge_px`, `max_width_px` and `max_saturated_px` are the
+    /// as long (`ridge_px`, `max_width_px` and `max_saturated_px` are the
     /// least these become; a narrow, unsaturated line is extracted with them as set).
     pub adapt_to_line: bool,
     /// Scan lines averaged along the line before the centre (1: none; 0: auto, from

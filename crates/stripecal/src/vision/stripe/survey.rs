@@ -24,8 +24,8 @@
 //! ## What follows
 //!
 //! - The widths accepted: up to `max(max_width_px, 1.5 * width + 4)` (at most
-//!   [`MAX_WIDTH_PX`]), and on a wide saturated line plateaus up to
-//!   `max(max_saturated_px, width)`.
+//!   [`MAX_WIDTH_PX`]), and on a wide saturated line plateaus up to the same
+//!   `max(max_saturated_px, 1.5 * width + 4)` (a plateau is narrower than its line).
 //! - The ridge distance: `ridge_px` while `ceil(width / 2) <= ridge_px` (at that
 //!   distance from its peak the line is at or below half its height: the ridge test
 //!   finds it), else `ceil(width / 2) + 3` (at most [`MAX_RIDGE_PX`]); a line up to
@@ -96,10 +96,12 @@ impl Survey {
         let wide = (1.5 * self.width_px + 4.0) as f32;
         opts.max_width_px = opts.max_width_px.max(wide.min(MAX_WIDTH_PX));
         if self.saturated_wide() {
-            let plateau = self.width_px.ceil() as usize;
-            opts.max_saturated_px = opts
-                .max_saturated_px
-                .max(plateau.min(MAX_WIDTH_PX as usize));
+            // a plateau is narrower than its line, whose widths the accepted widths
+            // bound: the line widens along its length, and a bound at the median width
+            // rejected its wider part (172 scan lines of a twin view of a saturated
+            // line with a reflection beside it: 7 trusted board points before, 148 now)
+            let plateau = wide.min(MAX_WIDTH_PX).ceil() as usize;
+            opts.max_saturated_px = opts.max_saturated_px.max(plateau);
         }
     }
 
