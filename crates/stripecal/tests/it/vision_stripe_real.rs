@@ -9,18 +9,46 @@
 //!
 //! | condition | bias | RMS | note |
 //! |---|---|---|---|
-//! | saturated, 18 px plateau | +0.036 | 0.087 | centres from the plateau's edges |
-//! | speckle 0.3, 2 px grain | +0.008 | 0.307 | the speckle's own centroid noise, correlated over about 4 scan lines: averaging 5 scan lines along the line leaves it at 0.31, 21 lines at 0.26 while flagging most points near the circles |
+//! | saturated, 18 px plateau | +0.037 | 0.086 | centres from the plateau's edges (0.087 over 413 points before the plateaus trusted followed the widths accepted: 434 now) |
+//! | speckle 0.3, 2 px grain | +0.008 | 0.307 | the speckle's own centroid noise (below) |
 //! | reflection at 60 % | +0.010 | 0.033 on the line's own points | 2 of 1072 points are the reflection where the line itself is dark (a dark circle): the board plane's consensus removes them in a calibration |
 //! | ambient light 0.4 | +0.009 | 0.031 | |
-//! | all together (13 px plateau) | +0.12 | 0.42 on the line's own points | the speckle on the plateau's edges: errors up to 1 px over stretches of 10 scan lines |
+//! | all together (13 px plateau) | +0.12 | 0.43 on the line's own points | 306 points from 3 of the 5 views (below) |
+//!
+//! Speckle (a study of the points of these views against their truth): the centre's
+//! error along the line is correlated like the twin's speckle field, about
+//! `exp(-lag^2 / 16)` (0.56 at 3 scan lines, 0.14 at 6, 0.01 at 8): about 7 scan lines
+//! per independent error, so 0.31 px comes down to 0.1 px only over about 70
+//! neighbouring trusted points. On the board the trusted points come in runs of 20-25
+//! scan lines between the circles (about half the board's scan lines are flagged near
+//! a circle): a robust local line through the trusted centres over 21-61 scan lines
+//! leaves 0.19-0.21 px, over 81 0.15 px. Smoothing the image over 15 scan lines instead
+//! of 5 leaves 0.29 px with half the trusted points (more flagged near the circles),
+//! over 31 almost none; a centroid window of 1.5 or 2 line widths instead of 1, 0.28 px
+//! with 10-15 % fewer trusted points (a synthetic straight line: the same 10 %; the
+//! window does not matter much because the speckle moves the line's own light). None of
+//! these moves the mean error of a view's points, which is what a plane is left with:
+//! per view -0.10, +0.08, +0.02, -0.01, +0.03 px over 166-247 points, as expected from
+//! 0.31 px and one independent error per 7 points.
+//!
+//! All together: the mean is that of the line's points that remain, not a bias of the
+//! extraction. Saturated line plus reflection: in two views the line's own scan lines
+//! are lost (one to the ridge distance, set from the median width of 10 px, too short
+//! where the line is widest: 172 scan lines without a peak; a
+//! minimum ridge distance of 10 px brings back 129 points there at -0.03 px, and the
+//! figure to +0.06 / 0.39 px) or left ambiguous against the reflection; of the 306
+//! points, 42 on an oblique view are +0.48 px (RMS 0.77), the rest +0.06 px. Without
+//! the 5-line smoothing the same views give +0.02 / 0.40 px. With a few hundred points
+//! correlated over 7-10 scan lines, a figure's mean is uncertain by about 0.05 px.
 //!
 //! A 15-pose calibration: saturated + reflection + ambient meets every wave-one target
-//! (plane 0.003 mm); with speckle 0.3 the plane is 0.013-0.027 mm off depending on
-//! the points the selection keeps (target 0.01; 0.014 with speckle alone), camera,
-//! hand-eye and robot-world within their targets: the speckle's centre errors,
-//! correlated along the line over about 4 scan lines (10 on a saturated line's edges),
-//! are what a calibration with speckle is left with.
+//! (plane 0.0016 mm; 0.003 before the plateaus trusted followed the widths accepted);
+//! with speckle 0.3 the plane is 0.013-0.027 mm off depending on the points the
+//! selection keeps (0.018 mm, its stated d sigma 0.019 mm, when this was last run;
+//! target 0.01; 0.014 with speckle alone), camera, hand-eye and robot-world within
+//! their targets: the speckle's centre errors, correlated along the line over about 7
+//! scan lines (10 on a saturated line's edges), are what a calibration with speckle is
+//! left with.
 //!
 //! Renders are the cost here: each condition renders its five calibration views once.
 //! `cargo test -p stripecal --test it vision_stripe_real:: -- --nocapture` prints the figures.
