@@ -22,8 +22,13 @@ pub struct CameraCfg {
     pub v0: f64,
     /// `radial1`, `radial2` or `opencv5`: the model written to rig.json.
     pub distortion_model: String,
-    /// `[k1, k2, p1, p2, k3]`.
+    /// `[k1, k2, p1, p2, k3]`; another `model`'s coefficients first, the rest 0.
     pub distortion: [f64; 5],
+    /// The projection model by its registered name
+    /// ([`stripecal::model::camera::projection`]); absent: `brown5`. Another model
+    /// renders the twin through it (rig.json still says `distortion_model`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub model: Option<String>,
 }
 
 /// A rigid transform as in the spec's files.
@@ -49,7 +54,7 @@ impl SimConfig {
         let c = &self.camera;
         let model = DistortionModel::from_name(&c.distortion_model)
             .map_err(|e| SimError::Config(format!("camera.distortion_model: {e}")))?;
-        Camera::new(
+        let cam = Camera::new(
             c.width,
             c.height,
             Intrinsics {
@@ -61,7 +66,27 @@ impl SimConfig {
             model,
             c.distortion,
         )
-        .map_err(|e| SimError::Config(format!("camera: {e}")))
+        .map_err(|e| SimError::Config(format!("camera: {e}")))?;
+        let Some(name) = &c.model else {
+            return Ok(cam);
+        };
+        let p = stripecal::model::camera::projection(name)
+            .map_err(|e| SimError::Config(format!("camera.model: {e}")))?;
+        if p.is_brown5() {
+            return Ok(cam);
+        }
+        let n = p.model().distortion_count();
+        cam.with_projection(p, &c.distortion[..n])
+            .map_err(|e| SimError::Config(format!("camera.model: {e}")))
+            .and_then(|cam| {
+                if c.distortion[n..].iter().any(|&k| k != 0.0) {
+                    Err(SimError::Config(format!(
+                        "camera.distortion: model {name} has {n} coefficients, the others must be 0"
+                    )))
+                } else {
+                    Ok(cam)
+                }
+            })
     }
 
     /// The true laser plane (camera frame).

@@ -96,6 +96,10 @@ impl SimConfig {
     /// everything else replaces); unknown keys are an error.
     pub fn with_overrides(&self, overrides: &serde_json::Value) -> Result<SimConfig, SimError> {
         let mut base = serde_json::to_value(self).map_err(|e| SimError::Config(e.to_string()))?;
+        // A knob written only when set (truth.json as before it existed) is a knob too.
+        if let Some(c) = base.get_mut("camera").and_then(|c| c.as_object_mut()) {
+            c.entry("model").or_insert(serde_json::Value::Null);
+        }
         merge(&mut base, overrides, "")?;
         let cfg: SimConfig = serde_json::from_value(base)
             .map_err(|e| SimError::Config(format!("invalid configuration: {e}")))?;

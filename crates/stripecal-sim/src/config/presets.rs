@@ -58,6 +58,7 @@ impl SimConfig {
                 v0: 262.60,
                 distortion_model: "radial1".into(),
                 distortion: [0.0002, 0.0, 0.0, 0.0, 0.0],
+                model: None,
             },
             laser_plane: PlaneCfg {
                 normal: [0.6290, -0.0492, 0.7759],
@@ -174,6 +175,7 @@ impl SimConfig {
             v0: 380.8,
             distortion_model: "radial2".into(),
             distortion: [-0.25, 0.12, 0.0, 0.0, 0.0],
+            model: None,
         };
         c.poses.count = 15;
         c.poses.standoff_mm = [95.0, 125.0];

@@ -16,13 +16,16 @@ use nalgebra::{Vector2, Vector3};
 use rayon::prelude::*;
 
 use crate::calib::clustered::ViewShare;
-use crate::calib::conic::{centre_generic_n, quadrature_nodes, CentreModel, CentreScalar};
+use crate::calib::conic::{
+    centre_any_model, centre_any_model_with_jacobians, centre_generic_n, quadrature_nodes,
+    CentreModel, CentreScalar,
+};
 use crate::calib::homography::fit_homography;
 use crate::calib::zhang::{pose_from_homography, zhang_intrinsics};
 use crate::calib::ViewObs;
 use crate::error::{Error, Result};
 use crate::model::board::Board;
-use crate::model::camera::{Camera, DistortionModel, Intrinsics, PARAM_NAMES};
+use crate::model::camera::{Camera, DistortionModel, Intrinsics, Projection};
 use crate::model::geometry::{
     iso_from_rotvec, iso_to_rotvec, matrix_to_rotvec, rotvec_to_matrix, Iso3,
 };
@@ -80,8 +83,10 @@ pub struct CameraCalibration {
     pub rms_px: f64,
     /// Per used view (same order as `poses`): RMS 2D residual, px.
     pub per_view_rms_px: Vec<f64>,
-    /// One-sigma per camera parameter in [`PARAM_NAMES`] order (0 for fixed ones, NaN
-    /// for unobservable ones).
+    /// One-sigma per camera parameter in the model's
+    /// [`crate::model::camera::CameraModel::param_names`] order (`brown5`:
+    /// [`crate::model::camera::PARAM_NAMES`]; a model with fewer parameters leaves the
+    /// last slots 0), 0 for fixed ones, NaN for unobservable ones.
     pub camera_sigma: [f64; 9],
     /// One-sigma of each pose (same order as `poses`).
     pub pose_sigma: Vec<PoseSigma>,
@@ -106,7 +111,7 @@ struct Obs {
 
 struct CamProblem<'a> {
     base: &'a Camera,
-    free: Vec<usize>, // indices into the 9 camera params
+    free: Vec<usize>, // indices into the model's camera parameters
     nviews: usize,
     obs: Vec<Obs>,
     model: CentreModel,
@@ -116,6 +121,18 @@ impl CamProblem<'_> {
     fn ncam(&self) -> usize {
         self.free.len()
     }
+    /// The camera of the parameters `p` (any model).
+    fn camera(&self, p: &[f64]) -> Camera {
+        if self.base.projection.is_brown5() {
+            return self.base.with_params(&self.cam_params(p));
+        }
+        let mut c = self.base.model_params();
+        for (k, &i) in self.free.iter().enumerate() {
+            c[i] = p[k];
+        }
+        self.base.with_model_params(&c)
+    }
+    /// `brown5`'s parameter vector of `p`.
     fn cam_params(&self, p: &[f64]) -> [f64; 9] {
         let mut c = self.base.params();
         for (k, &i) in self.free.iter().enumerate() {
@@ -149,6 +166,52 @@ impl CamProblem<'_> {
             [p[o + 3], p[o + 4], p[o + 5]],
         )
     }
+    /// [`LeastSquares::residuals_and_jacobian_rows`] for a model other than `brown5`:
+    /// the analytic Jacobians of [`centre_any_model_with_jacobians`].
+    fn rows_any_model(&self, p: &[f64], r: &mut [f64], rows: &mut JacobianRows) -> Result<()> {
+        let cam = self.camera(p);
+        let nc = self.ncam();
+        let width = nc + 6;
+        let r0: Vec<_> = (0..self.nviews)
+            .map(|v| {
+                let o = nc + 6 * v;
+                rotvec_to_matrix(&Vector3::new(p[o], p[o + 1], p[o + 2]))
+            })
+            .collect();
+        let (cols, vals) = rows.parts_mut();
+        r.par_chunks_mut(2)
+            .zip(cols.par_chunks_mut(2 * width))
+            .zip(vals.par_chunks_mut(2 * width))
+            .zip(self.obs.par_iter())
+            .try_for_each(|(((r, cols), vals), o)| -> Result<()> {
+                let q = nc + 6 * o.view;
+                let t0 = [p[q + 3], p[q + 4], p[q + 5]];
+                let (uv, jc, jp) = centre_any_model_with_jacobians(
+                    &cam,
+                    &r0[o.view],
+                    &t0,
+                    o.centre,
+                    o.radius,
+                    self.model,
+                )?;
+                for a in 0..2 {
+                    r[a] = uv[a] - if a == 0 { o.u } else { o.v };
+                    let (c, v) = (
+                        &mut cols[a * width..(a + 1) * width],
+                        &mut vals[a * width..(a + 1) * width],
+                    );
+                    for (k, &i) in self.free.iter().enumerate() {
+                        c[k] = k;
+                        v[k] = jc[(a, i)];
+                    }
+                    for k in 0..6 {
+                        c[nc + k] = q + k;
+                        v[nc + k] = jp[(a, k)];
+                    }
+                }
+                Ok(())
+            })
+    }
 }
 
 impl LeastSquares for CamProblem<'_> {
@@ -161,11 +224,21 @@ impl LeastSquares for CamProblem<'_> {
     fn residuals(&self, p: &[f64], r: &mut [f64]) -> Result<()> {
         let c = self.cam_params(p);
         let poses: Vec<_> = (0..self.nviews).map(|v| self.pose(p, v)).collect();
-        let preds: Vec<[f64; 2]> = self
-            .obs
-            .par_iter()
-            .map(|o| self.predict(&c, &poses[o.view], o))
-            .collect::<Result<_>>()?;
+        let preds: Vec<[f64; 2]> = if self.base.projection.is_brown5() {
+            self.obs
+                .par_iter()
+                .map(|o| self.predict(&c, &poses[o.view], o))
+                .collect::<Result<_>>()?
+        } else {
+            let cam = self.camera(p);
+            self.obs
+                .par_iter()
+                .map(|o| {
+                    let (rot, t) = &poses[o.view];
+                    centre_any_model(&cam, rot, t, o.centre, o.radius, self.model)
+                })
+                .collect::<Result<_>>()?
+        };
         for (k, (o, uv)) in self.obs.iter().zip(&preds).enumerate() {
             r[2 * k] = uv[0] - o.u;
             r[2 * k + 1] = uv[1] - o.v;
@@ -185,6 +258,9 @@ impl LeastSquares for CamProblem<'_> {
         r: &mut [f64],
         rows: &mut JacobianRows,
     ) -> Result<()> {
+        if !self.base.projection.is_brown5() {
+            return self.rows_any_model(p, r, rows);
+        }
         type D = Dual<15>;
         let c = self.cam_params(p);
         let mut cd: [D; 9] = std::array::from_fn(|i| D::cst(c[i]));
@@ -260,6 +336,23 @@ pub fn calibrate_camera(
     model: DistortionModel,
     opts: &CameraOptions,
 ) -> Result<CameraCalibration> {
+    calibrate_camera_model(views, board, width, height, Projection::Brown5, model, opts)
+}
+
+/// [`calibrate_camera`] for a camera of the projection model `projection` (its
+/// coefficients start at 0; `model` says which `brown5` estimates, others estimate all
+/// theirs: [`crate::model::camera::CameraModel::free_coefficients`]). A model other
+/// than `brown5` predicts with [`centre_any_model`]: the conic or naive centre models,
+/// or any with a target of points ([`CentreModel::ConicExact`] on circles is an error).
+pub fn calibrate_camera_model(
+    views: &[ViewObs],
+    board: &Board,
+    width: u32,
+    height: u32,
+    projection: Projection,
+    model: DistortionModel,
+    opts: &CameraOptions,
+) -> Result<CameraCalibration> {
     check_inputs(views, board, width, height)?;
     let mut warnings = Vec::new();
     let used = view_homographies(views, board, opts.min_circles, &mut warnings)?;
@@ -279,8 +372,21 @@ pub fn calibrate_camera(
         model,
         [0.0; 5],
     )?;
+    let base = if projection.is_brown5() {
+        base
+    } else {
+        base.with_projection(
+            projection,
+            &vec![0.0; projection.model().distortion_count()],
+        )?
+    };
     let mut free = vec![0, 1, 2, 3];
-    for (i, f) in model.free_coefficients().iter().enumerate() {
+    for (i, f) in projection
+        .model()
+        .free_coefficients(model)
+        .iter()
+        .enumerate()
+    {
         if *f {
             free.push(4 + i);
         }
@@ -297,7 +403,7 @@ pub fn calibrate_camera(
         p0
     };
     let res = levenberg_marquardt(&problem, &p0, &opts.lm)?;
-    let camera = base.with_params(&problem.cam_params(&res.params));
+    let camera = problem.camera(&res.params);
     camera.validate()?;
     Ok(collect_result(
         &problem,
@@ -395,7 +501,8 @@ fn start_problem<'a>(
     opts: &CameraOptions,
 ) -> Result<(CamProblem<'a>, Vec<f64>)> {
     let mut obs = Vec::new();
-    let mut p0: Vec<f64> = free.iter().map(|&i| base.params()[i]).collect();
+    let start = base.model_params();
+    let mut p0: Vec<f64> = free.iter().map(|&i| start[i]).collect();
     for (vi, (v, h)) in used.iter().enumerate() {
         let pose = pose_from_homography(h, kmat)?;
         let (rv, t) = iso_to_rotvec(&pose);
@@ -510,7 +617,7 @@ fn collect_result(
         .iter()
         .map(|&i| {
             if i < nc {
-                PARAM_NAMES[free[i]].to_string()
+                problem.base.projection.model().param_names()[free[i]].to_string()
             } else {
                 let v = (i - nc) / 6;
                 let q = (i - nc) % 6;

@@ -40,7 +40,7 @@
 //!   parameter `s` that moves `T_cam_board`, `dw/ds = vee(R0^T dR/ds)` and
 //!   `dv/ds = dt/ds`.
 
-use nalgebra::{SMatrix, Vector2, Vector3};
+use nalgebra::{Matrix2xX, Matrix3, SMatrix, Vector2, Vector3};
 
 use crate::error::{Error, Result};
 use crate::model::camera::{
@@ -261,6 +261,39 @@ pub fn centre_generic_n<T: CentreScalar>(
     nodes: usize,
 ) -> Result<[T; 2]> {
     let k = distortion_of(cam);
+    let (e, shape) = undistorted_image(rot, t, centre, radius, model)?;
+    let (d, _) = distort_generic(&k, e[0], e[1]);
+    let (xd, yd) = match shape {
+        None => (d[0], d[1]),
+        Some([l00, l10, l11]) => {
+            let table = node_table(nodes);
+            let off = T::centroid_offset(&k, &[e[0], e[1], l00, l10, l11], &d, &table);
+            (d[0] + off[0], d[1] + off[1])
+        }
+    };
+    let uv = to_pixel_generic(cam, [xd, yd]);
+    if !(uv[0].value().is_finite() && uv[1].value().is_finite()) {
+        let (cx, cy) = centre;
+        return Err(Error::Degenerate(format!(
+            "circle at board ({cx:.3}, {cy:.3}) images at a non-finite pixel"
+        )));
+    }
+    Ok(uv)
+}
+
+/// The circle's image before distortion, in normalised coordinates: the projected
+/// centre (`Naive`, and any point target: radius 0) or the projected conic's centre `e`
+/// (`Conic`), with, for `ConicExact`, the factor `[l00, l10, l11]` of its shape
+/// `Q = L L^T` (module docs). Errors as [`centre_generic_n`].
+#[inline(always)]
+#[allow(clippy::type_complexity)]
+fn undistorted_image<T: Scalar>(
+    rot: &[[T; 3]; 3],
+    t: &[T; 3],
+    centre: (f64, f64),
+    radius: f64,
+    model: CentreModel,
+) -> Result<([T; 2], Option<[T; 3]>)> {
     // A point target (a chessboard corner, radius 0) images as its projection: no
     // perspective or distortion bias, and no conic to take the centre of.
     let model = if radius == 0.0 {
@@ -276,54 +309,129 @@ pub fn centre_generic_n<T: CentreScalar>(
             "circle at board ({cx:.3}, {cy:.3}) is not in front of the camera"
         )));
     }
-    let (xd, yd) = match model {
-        CentreModel::Naive => {
-            let (d, _) = distort_generic(&k, p[0] / p[2], p[1] / p[2]);
-            (d[0], d[1])
-        }
-        CentreModel::Conic | CentreModel::ConicExact => {
-            let r2 = radius * radius;
-            // dual conic entries
-            let cs = |i: usize, j: usize| -> T {
-                (rot[i][0] * rot[j][0] + rot[i][1] * rot[j][1]).scale(r2) - p[i] * p[j]
-            };
-            let c22 = cs(2, 2);
-            if c22.value().is_nan() || c22.value() >= 0.0 {
-                return Err(Error::Degenerate(format!(
-                    "circle at board ({cx:.3}, {cy:.3}) does not image as an ellipse \
-                     (it crosses the camera's focal plane)"
-                )));
-            }
-            let ex = cs(0, 2) / c22;
-            let ey = cs(1, 2) / c22;
-            let (d, _) = distort_generic(&k, ex, ey);
-            if model == CentreModel::Conic {
-                (d[0], d[1])
-            } else {
-                let q00 = -cs(0, 0) / c22 + ex * ex;
-                let q01 = -cs(0, 1) / c22 + ex * ey;
-                let q11 = -cs(1, 1) / c22 + ey * ey;
-                if !(q00.value() > 0.0 && q00.value() * q11.value() - q01.value().powi(2) > 0.0) {
-                    return Err(Error::Degenerate(format!(
-                        "circle at board ({cx:.3}, {cy:.3}): projected conic is not an ellipse"
-                    )));
-                }
-                let l00 = q00.sqrt();
-                let l10 = q01 / l00;
-                let l11 = (q11 - l10 * l10).sqrt();
-                let table = node_table(nodes);
-                let off = T::centroid_offset(&k, &[ex, ey, l00, l10, l11], &d, &table);
-                (d[0] + off[0], d[1] + off[1])
-            }
+    if model == CentreModel::Naive {
+        return Ok(([p[0] / p[2], p[1] / p[2]], None));
+    }
+    let r2 = radius * radius;
+    // dual conic entries
+    let cs = |i: usize, j: usize| -> T {
+        (rot[i][0] * rot[j][0] + rot[i][1] * rot[j][1]).scale(r2) - p[i] * p[j]
+    };
+    let c22 = cs(2, 2);
+    if c22.value().is_nan() || c22.value() >= 0.0 {
+        return Err(Error::Degenerate(format!(
+            "circle at board ({cx:.3}, {cy:.3}) does not image as an ellipse \
+             (it crosses the camera's focal plane)"
+        )));
+    }
+    let ex = cs(0, 2) / c22;
+    let ey = cs(1, 2) / c22;
+    if model == CentreModel::Conic {
+        return Ok(([ex, ey], None));
+    }
+    let q00 = -cs(0, 0) / c22 + ex * ex;
+    let q01 = -cs(0, 1) / c22 + ex * ey;
+    let q11 = -cs(1, 1) / c22 + ey * ey;
+    if !(q00.value() > 0.0 && q00.value() * q11.value() - q01.value().powi(2) > 0.0) {
+        return Err(Error::Degenerate(format!(
+            "circle at board ({cx:.3}, {cy:.3}): projected conic is not an ellipse"
+        )));
+    }
+    let l00 = q00.sqrt();
+    let l10 = q01 / l00;
+    let l11 = (q11 - l10 * l10).sqrt();
+    Ok(([ex, ey], Some([l00, l10, l11])))
+}
+
+// ---------------------------------------------------------------------------------
+// Any camera model: the model's distortion through its trait (f64).
+
+/// [`centre_generic_n`] for a camera of any model ([`crate::model::camera::CameraModel`]:
+/// its distortion and point Jacobian, in f64), `rot`, `t` being `T_cam_board`. The exact
+/// centroid takes [`QUADRATURE_POINTS`] nodes (a model's distortion need not be
+/// polynomial: the trapezoidal rule is then spectrally accurate, not exact).
+pub fn centre_any_model(
+    cam: &Camera,
+    rot: &[[f64; 3]; 3],
+    t: &[f64; 3],
+    centre: (f64, f64),
+    radius: f64,
+    model: CentreModel,
+) -> Result<[f64; 2]> {
+    let (e, shape) = undistorted_image(rot, t, centre, radius, model)?;
+    let ((dx, dy), _) = cam.distort_with_jacobian(e[0], e[1]);
+    let (xd, yd) = match shape {
+        None => (dx, dy),
+        Some([l00, l10, l11]) => {
+            let table = node_table(QUADRATURE_POINTS);
+            let off = centroid_offset_any(cam, &[e[0], e[1], l00, l10, l11], &[dx, dy], &table);
+            (dx + off[0], dy + off[1])
         }
     };
-    let uv = to_pixel_generic(cam, [xd, yd]);
-    if !(uv[0].value().is_finite() && uv[1].value().is_finite()) {
+    let uv = cam.to_pixel(xd, yd);
+    if !(uv.x.is_finite() && uv.y.is_finite()) {
+        let (cx, cy) = centre;
         return Err(Error::Degenerate(format!(
             "circle at board ({cx:.3}, {cy:.3}) images at a non-finite pixel"
         )));
     }
-    Ok(uv)
+    Ok([uv.x, uv.y])
+}
+
+/// [`centroid_offset`] through the camera's model (f64).
+fn centroid_offset_any(cam: &Camera, e: &[f64; 5], d: &[f64; 2], table: &[(f64, f64)]) -> [f64; 2] {
+    let [ex, ey, l00, l10, l11] = *e;
+    let (mut a, mut mx, mut my) = (0.0, 0.0, 0.0);
+    for &(s, c) in table.iter() {
+        let x = ex + l00 * c;
+        let y = ey + l10 * c + l11 * s;
+        let dx = -l00 * s;
+        let dy = -l10 * s + l11 * c;
+        let ((qx, qy), j) = cam.distort_with_jacobian(x, y);
+        let bx = qx - d[0];
+        let by = qy - d[1];
+        let tx = j[(0, 0)] * dx + j[(0, 1)] * dy;
+        let ty = j[(1, 0)] * dx + j[(1, 1)] * dy;
+        a += bx * ty - by * tx;
+        mx += bx * bx * ty;
+        my -= by * by * tx;
+    }
+    [mx / a, my / a]
+}
+
+/// [`centre_any_model`] with its Jacobians: d(u, v)/d(camera parameters) (2 x the
+/// model's parameter count, [`crate::model::camera::CameraModel::param_names`] order)
+/// and d(u, v)/d(delta) for the pose increment `delta = (w, v)` (module docs) at the pose
+/// `(r0, t0)`. The `Naive` and `Conic` models, and point targets with any: the exact
+/// centroid's derivatives need the model's second derivatives, which the trait does not
+/// give ([`Error::InvalidInput`]).
+pub fn centre_any_model_with_jacobians(
+    cam: &Camera,
+    r0: &Matrix3<f64>,
+    t0: &[f64; 3],
+    centre: (f64, f64),
+    radius: f64,
+    model: CentreModel,
+) -> Result<(Vector2<f64>, Matrix2xX<f64>, SMatrix<f64, 2, 6>)> {
+    type D = Dual<6>;
+    let w: [D; 3] = std::array::from_fn(|i| D::var(0.0, i));
+    let rot = rot_times_exp_first_order(r0, &w);
+    let t: [D; 3] = std::array::from_fn(|i| D::var(t0[i], 3 + i));
+    let (e, shape) = undistorted_image(&rot, &t, centre, radius, model)?;
+    if shape.is_some() {
+        return Err(Error::InvalidInput(format!(
+            "the {} centre model needs brown5's camera (camera model {}): choose the conic \
+             or naive centre model, or a target of points",
+            model.name(),
+            cam.projection.name()
+        )));
+    }
+    let (xn, yn) = (e[0].v, e[1].v);
+    let (uv, jp, jc) = cam.project_with_jacobians(&Vector3::new(xn, yn, 1.0))?;
+    // d(u, v)/d(xn, yn) is d(u, v)/d(point) at z = 1 (its first two columns).
+    let de = SMatrix::<f64, 2, 6>::from_fn(|a, i| e[a].d[i]);
+    let d_pose = jp.fixed_view::<2, 2>(0, 0) * de;
+    Ok((uv, jc, d_pose))
 }
 
 // ---------------------------------------------------------------------------------
@@ -351,6 +459,17 @@ pub fn predict_centre(
 ) -> Result<Vector2<f64>> {
     let r = cam_board.rotation.to_rotation_matrix().into_inner();
     let t = cam_board.translation.vector;
+    if !cam.projection.is_brown5() {
+        let uv = centre_any_model(
+            cam,
+            &rows_f64(&r),
+            &[t.x, t.y, t.z],
+            (centre.x, centre.y),
+            radius,
+            model,
+        )?;
+        return Ok(Vector2::new(uv[0], uv[1]));
+    }
     let uv = centre_generic(
         &cam.params(),
         &rows_f64(&r),
@@ -371,6 +490,13 @@ pub fn predict_centre_with_jacobians(
     radius: f64,
     model: CentreModel,
 ) -> Result<CentrePrediction> {
+    if !cam.projection.is_brown5() {
+        return Err(Error::InvalidInput(format!(
+            "predict_centre_with_jacobians takes brown5's 9 parameters, not camera model {}'s \
+             (centre_any_model_with_jacobians does)",
+            cam.projection.name()
+        )));
+    }
     type D = Dual<15>;
     let r0 = cam_board.rotation.to_rotation_matrix().into_inner();
     let t0 = cam_board.translation.vector;
