@@ -96,3 +96,58 @@ impl JointProblem<'_> {
         Ok(Some(g))
     }
 }
+
+/// One view's share of the normal equations from the rows of one residual group, over
+/// the global columns and the view's own (unreduced, at the problem's weights): `a =
+/// J^T J`, `b = J^T r`, `ss = r^T r`, and its number of rows.
+#[derive(Debug, Clone)]
+pub(in crate::calib::joint) struct GroupShare {
+    pub a: DMatrix<f64>,
+    pub b: nalgebra::DVector<f64>,
+    pub ss: f64,
+    pub rows: usize,
+}
+
+impl JointProblem<'_> {
+    /// Each view's share of the normal equations at `p` per residual group
+    /// (`[view][group]`, [`super::Group`] order), over the global columns and the view's
+    /// own: what the leave-one-out's folds re-weight when they re-estimate the variance
+    /// components without a view.
+    pub(in crate::calib::joint) fn view_group_normals(
+        &self,
+        p: &[f64],
+    ) -> Result<Vec<Vec<GroupShare>>> {
+        let (n, m) = (self.num_params(), self.num_residuals());
+        let width = self.row_width();
+        let local = self.layout.num_global() + self.layout.per_view_len();
+        debug_assert_eq!(width, local);
+        let mut r = vec![0.0; m];
+        let mut rows = JacobianRows::new(m, width, n);
+        self.residuals_and_jacobian_rows(p, &mut r, &mut rows)?;
+        let groups = self.groups();
+        let empty = GroupShare {
+            a: DMatrix::zeros(local, local),
+            b: nalgebra::DVector::zeros(local),
+            ss: 0.0,
+            rows: 0,
+        };
+        let mut acc = vec![vec![empty; super::GROUPS]; self.terms.a.len()];
+        let (_, vals) = rows.parts_mut();
+        for &(view, i0, i1) in &self.view_runs {
+            let mut s = i0;
+            while s < i1 {
+                let g = groups[s];
+                let e = (s..i1).find(|&i| groups[i] != g).unwrap_or(i1);
+                let j = DMatrix::from_row_slice(e - s, width, &vals[s * width..e * width]);
+                let rr = nalgebra::DVector::from_column_slice(&r[s..e]);
+                let share = &mut acc[view][g as usize];
+                share.a += j.tr_mul(&j);
+                share.b += j.tr_mul(&rr);
+                share.ss += rr.norm_squared();
+                share.rows += e - s;
+                s = e;
+            }
+        }
+        Ok(acc)
+    }
+}

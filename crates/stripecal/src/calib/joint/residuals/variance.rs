@@ -158,24 +158,7 @@ impl JointProblem<'_> {
             1.0 / new[Group::Circle as usize],
             1.0 / new[Group::Stripe as usize],
         );
-        let (res_r, res_t) = robot_noise::resolution(&st.info, sigma_px).unwrap_or((0.0, 0.0));
-        let own = |absolute: f64, res: f64| {
-            if res > 0.0 {
-                absolute.min(RESOLUTION_CAP * res)
-            } else {
-                absolute
-            }
-        };
-        let floors = Floors {
-            rotation_rad: self
-                .robot_figures
-                .rotation_rad
-                .max(own(ABSOLUTE_FLOOR_DEG.to_radians(), res_r)),
-            translation_mm: self
-                .robot_figures
-                .translation_mm
-                .max(own(ABSOLUTE_FLOOR_MM, res_t)),
-        };
+        let floors = self.robot_floors(&st.info, sigma_px);
         let mut at_floor = [false; 3];
         let groups = if self.image_pose { 3 } else { 2 };
         for (k, (g, floor)) in [
@@ -187,14 +170,7 @@ impl JointProblem<'_> {
         .take(groups)
         .enumerate()
         {
-            let old = 1.0 / new[g as usize];
-            let mut s = sig[g as usize].unwrap_or(old).max(floor);
-            // A change within the dead band is below what the component resolves: the
-            // sigma stays (floored), and the solver is not kept from stopping by a sigma
-            // creeping near its floor.
-            if (s / old - 1.0).abs() <= ROBOT_SIGMA_DEAD_BAND {
-                s = old.max(floor);
-            }
+            let s = robot_sigma_update(1.0 / new[g as usize], sig[g as usize], floor);
             if s > 0.0 && s.is_finite() {
                 at_floor[k] = s <= floor * (1.0 + ROBOT_SIGMA_DEAD_BAND);
                 new[g as usize] = 1.0 / s;
@@ -203,6 +179,34 @@ impl JointProblem<'_> {
         st.floors = floors;
         st.at_floor = (at_floor[0], at_floor[1]);
         st.image_at_floor = at_floor[2];
+    }
+
+    /// The robot-pose sigmas' floors in force (the robot's figures and the adjustment's
+    /// own, capped by the images' resolution; [`super::super::robot_noise`]) with the
+    /// views' image information `info` and the image groups' sigmas `sigma_px`.
+    pub(in crate::calib::joint) fn robot_floors(
+        &self,
+        info: &[[Matrix6<f64>; 2]],
+        sigma_px: (f64, f64),
+    ) -> Floors {
+        let (res_r, res_t) = robot_noise::resolution(info, sigma_px).unwrap_or((0.0, 0.0));
+        let own = |absolute: f64, res: f64| {
+            if res > 0.0 {
+                absolute.min(RESOLUTION_CAP * res)
+            } else {
+                absolute
+            }
+        };
+        Floors {
+            rotation_rad: self
+                .robot_figures
+                .rotation_rad
+                .max(own(ABSOLUTE_FLOOR_DEG.to_radians(), res_r)),
+            translation_mm: self
+                .robot_figures
+                .translation_mm
+                .max(own(ABSOLUTE_FLOOR_MM, res_t)),
+        }
     }
 
     /// The image part's prior factors from the views' image information just stored
@@ -264,5 +268,18 @@ impl JointProblem<'_> {
                 .map(|&g| new[g as usize] / old[g as usize])
                 .collect(),
         )
+    }
+}
+
+/// A robot-pose group's new sigma from its re-estimate `sig` (`None`: no redundancy)
+/// and its sigma `old`: at least `floor`; a change within [`ROBOT_SIGMA_DEAD_BAND`] is
+/// below what the component resolves: the sigma stays (floored), and the solver is not
+/// kept from stopping by a sigma creeping near its floor.
+pub(in crate::calib::joint) fn robot_sigma_update(old: f64, sig: Option<f64>, floor: f64) -> f64 {
+    let s = sig.unwrap_or(old).max(floor);
+    if (s / old - 1.0).abs() <= ROBOT_SIGMA_DEAD_BAND {
+        old.max(floor)
+    } else {
+        s
     }
 }
