@@ -15,11 +15,12 @@ pub(crate) mod profile;
 
 pub(crate) use plane::{board_point_profile, board_point_scale, Board as BoardSurface};
 pub(crate) use profile::{
-    extractor_response, plane_basis, point_profile, PointProfile, Rig, SphereSurface,
+    extractor_response, plane_basis, point_geometry, point_profile, point_section,
+    profile_for_emitter, PointGeometry, PointProfile, Rig, SphereSurface,
 };
 
 /// Sheet offsets sampled on each side of the plane, at least (`2 M + 1` samples over
-/// `+-4 sigma`; more where they would lie more than half the pixel kernel's sigma apart
+/// `+-4 sigma`; more where they would lie more than [`profile::sample_spacing_px`] apart
 /// in the image).
 pub const HALF_SAMPLES: usize = 10;
 

@@ -133,8 +133,11 @@ pub(crate) struct Section {
 }
 
 /// Newton's method on the scan line stops when the point is this close to it (px) and
-/// takes its last step linearly.
-pub(crate) const NEWTON_LAST_STEP_PX: f64 = 1e-6;
+/// takes its last step linearly. What the linear step leaves is of the order of the
+/// step's square over the section's image radius (hundreds of pixels): below 1e-10 px,
+/// and the derivatives taken at the iterate are within ~1e-7 of their value at the
+/// solution (it was 1e-6 px, which cost a second projection at most offsets).
+pub(crate) const NEWTON_LAST_STEP_PX: f64 = 1e-4;
 
 pub(crate) fn section_point(
     rig: &Rig<'_>,
@@ -167,7 +170,7 @@ pub(crate) fn section_point(
             return None;
         }
         if f.abs() < NEWTON_LAST_STEP_PX {
-            // The last Newton step taken linearly (its square is below 1e-12 px), the
+            // The last Newton step taken linearly (its square is below 1e-8 px), the
             // derivatives at this iterate. dP/dt at fixed phi: n + (h / rho) radial; then
             // d phi / dt from the line constraint.
             let last = -f / df;
@@ -285,18 +288,108 @@ pub(crate) fn point_profile(
     out: &mut PointProfile,
 ) -> bool {
     out.samples.clear();
+    let Some(s0) = point_section(rig, sphere, line, p_near, sigma, psf) else {
+        return false;
+    };
+    out.a0 = s0.a;
+    out.g = s0.da_dt.abs();
+    out.slope = s0.slope;
+    sample_lines(rig, sphere, line, s0.phi, sigma, psf, out);
+    true
+}
+
+/// [`point_profile`]'s `t = 0` section of the point, `None` where it is not modelled (the
+/// section fails, the point is unlit, lit or seen beyond the limits, or the extractor's
+/// support for the modelled width reaches the outline): its `g = |da/dt|` and slope
+/// without the profile's samples.
+pub(crate) fn point_section(
+    rig: &Rig<'_>,
+    sphere: &SphereSurface<'_>,
+    line: f64,
+    p_near: &Vector3<f64>,
+    sigma: f64,
+    psf: f64,
+) -> Option<Section> {
     let (c, r) = (sphere.c, sphere.r);
     let q = p_near - c;
     let phi0 = q.dot(&rig.e2).atan2(q.dot(&rig.e1));
     // The scan line itself: the t = 0 quantities.
-    let Some(s0) = section_point(rig, c, r, 0.0, line, phi0) else {
-        return false;
-    };
+    let s0 = section_point(rig, c, r, 0.0, line, phi0)?;
     let to_e = rig.emitter - s0.p;
     if shading(rig, c, r, &s0.p) <= 0.0
         || (s0.p - c).dot(&to_e) < rig.min_cos * r * to_e.norm()
         || (c - s0.p).dot(&s0.p) < rig.min_cos_view * r * s0.p.norm()
     {
+        return None;
+    }
+    if let Some(margin) = rig.outline_margin_px {
+        let width = 2.3548 * ((s0.da_dt * sigma).powi(2) + psf * psf + 1.0 / 12.0).sqrt();
+        if !clear_of_outline(
+            rig,
+            c,
+            r,
+            line,
+            s0.a,
+            support_px(rig.stripe, width) + margin,
+        ) {
+            return None;
+        }
+    }
+    Some(s0)
+}
+
+/// The part of a sphere point's modelled profile that does not depend on the emitter
+/// ([`point_geometry`]): the `t = 0` point and quantities, and per neighbouring scan line
+/// its sections at the sheet offsets of [`sample_lines`] (continued until the section
+/// fails or faces away from the camera), each with its weight but for the shading. The
+/// emitter's fit and its sensitivity terms model the same points, sphere and sigmas
+/// under several emitters: [`profile_for_emitter`] builds each one's profile from this
+/// without solving a section again, the same samples in the same order as
+/// [`point_profile`].
+#[derive(Debug, Clone, Default)]
+pub(crate) struct PointGeometry {
+    p0: Vector3<f64>,
+    a0: f64,
+    g: f64,
+    slope: f64,
+    /// The sections: `(a, p, dt omega, |da/dt|, the sheet's Gaussian; 1 at t = 0)`.
+    samples: Vec<GeoSample>,
+    /// Per neighbouring scan line: the index of its `t = 0` section and the ends of its
+    /// two runs outwards (`[t0 + 1, mid)` towards `-t`, `[mid, end)` towards `+t`).
+    lines: Vec<(usize, usize, usize)>,
+}
+
+#[derive(Debug, Clone, Copy)]
+struct GeoSample {
+    a: f64,
+    p: Vector3<f64>,
+    dt_om: f64,
+    da: f64,
+    gauss: f64,
+}
+
+/// [`point_profile`]'s emitter-independent part into `out` (module docs of
+/// [`PointGeometry`]); `false` when the point cannot be modelled whatever the emitter.
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn point_geometry(
+    rig: &Rig<'_>,
+    sphere: &SphereSurface<'_>,
+    line: f64,
+    p_near: &Vector3<f64>,
+    sigma: f64,
+    psf: f64,
+    scratch: &mut Vec<(f64, f64)>,
+    out: &mut PointGeometry,
+) -> bool {
+    out.samples.clear();
+    out.lines.clear();
+    let (c, r) = (sphere.c, sphere.r);
+    let q = p_near - c;
+    let phi0 = q.dot(&rig.e2).atan2(q.dot(&rig.e1));
+    let Some(s0) = section_point(rig, c, r, 0.0, line, phi0) else {
+        return false;
+    };
+    if !facing(c, r, &s0.p) || (c - s0.p).dot(&s0.p) < rig.min_cos_view * r * s0.p.norm() {
         return false;
     }
     if let Some(margin) = rig.outline_margin_px {
@@ -312,16 +405,109 @@ pub(crate) fn point_profile(
             return false;
         }
     }
+    out.p0 = s0.p;
     out.a0 = s0.a;
     out.g = s0.da_dt.abs();
     out.slope = s0.slope;
-    sample_lines(rig, sphere, line, s0.phi, sigma, psf, out);
+    // As `sample_lines`, the shading left out (the sections' continuation stops where
+    // the point no longer faces the camera; the emitter's side is decided per emitter).
+    sub_lines(psf, out.g * sigma, out.slope, scratch);
+    let (m, dt) = sheet_offsets(sigma, out.g, psf);
+    for &(x, om) in scratch.iter() {
+        let Some(z0) = section_point(rig, c, r, 0.0, line + x, s0.phi) else {
+            continue;
+        };
+        if !facing(c, r, &z0.p) {
+            continue;
+        }
+        let dt_om = dt * om;
+        let start = out.samples.len();
+        out.samples.push(GeoSample {
+            a: z0.a,
+            p: z0.p,
+            dt_om,
+            da: z0.da_dt.abs(),
+            gauss: 1.0,
+        });
+        let mut mid = start + 1;
+        for dir in [-1.0f64, 1.0] {
+            let mut next = Continuation::new(z0.phi);
+            for k in 1..=m {
+                let t = dir * k as f64 * dt;
+                let Some(s) = section_point(rig, c, r, t, line + x, next.predict()) else {
+                    break;
+                };
+                if !facing(c, r, &s.p) {
+                    break;
+                }
+                next.push(s.phi);
+                let z = t / sigma;
+                out.samples.push(GeoSample {
+                    a: s.a,
+                    p: s.p,
+                    dt_om,
+                    da: s.da_dt.abs(),
+                    gauss: (-0.5 * z * z).exp(),
+                });
+            }
+            if dir < 0.0 {
+                mid = out.samples.len();
+            }
+        }
+        out.lines.push((start, mid, out.samples.len()));
+    }
     true
+}
+
+/// The profile of a point whose emitter-independent part is `geo` ([`point_geometry`])
+/// for `rig`'s emitter: what [`point_profile`] gives for the same inputs. `false` when
+/// the point cannot be modelled (its `t = 0` point unlit or lit beyond the incidence
+/// limit).
+pub(crate) fn profile_for_emitter(
+    rig: &Rig<'_>,
+    sphere: &SphereSurface<'_>,
+    geo: &PointGeometry,
+    out: &mut PointProfile,
+) -> bool {
+    out.samples.clear();
+    let (c, r) = (sphere.c, sphere.r);
+    let to_e = rig.emitter - geo.p0;
+    if shading(rig, c, r, &geo.p0) <= 0.0 || (geo.p0 - c).dot(&to_e) < rig.min_cos * r * to_e.norm()
+    {
+        return false;
+    }
+    out.a0 = geo.a0;
+    out.g = geo.g;
+    out.slope = geo.slope;
+    for &(start, mid, end) in &geo.lines {
+        let z0 = &geo.samples[start];
+        let w0 = shading(rig, c, r, &z0.p);
+        if w0 <= 0.0 {
+            continue;
+        }
+        out.samples.push((z0.a, z0.dt_om * w0 * z0.da));
+        for run in [start + 1..mid, mid..end] {
+            for s in &geo.samples[run] {
+                let w = shading(rig, c, r, &s.p);
+                if w <= 0.0 {
+                    break;
+                }
+                out.samples.push((s.a, s.dt_om * w * s.da * s.gauss));
+            }
+        }
+    }
+    true
+}
+
+/// Does point `p` of the sphere `(c, r)` face the camera ([`shading`]'s first test)?
+#[inline]
+fn facing(c: &Vector3<f64>, r: f64, p: &Vector3<f64>) -> bool {
+    ((p - c) / r).dot(&(-p)) > 0.0
 }
 
 /// The samples of a stripe point whose `t = 0` quantities (`a0`, `g`, `slope`) are in
 /// `out`: on the scan line and the neighbouring ones the blur mixes in ([`sub_lines`]),
-/// sheet offsets at most half the pixel kernel's sigma apart in the image, each weighted
+/// sheet offsets at most [`sample_spacing_px`] apart in the image ([`sheet_offsets`]), each weighted
 /// by the Gaussian sheet, the shading and `|da/dt|`, continued outwards in `t` from the
 /// surface parameter `hint` until the surface is no longer seen or lit.
 pub(crate) fn sample_lines<S: Surface>(
@@ -334,9 +520,7 @@ pub(crate) fn sample_lines<S: Surface>(
     out: &mut PointProfile,
 ) {
     sub_lines(psf, out.g * sigma, out.slope, &mut out.lines);
-    let sl = (psf * psf + 1.0 / 12.0).sqrt();
-    let m = ((4.0 * sigma * out.g / (0.5 * sl)).ceil() as usize).clamp(HALF_SAMPLES, 400);
-    let dt = 4.0 * sigma / m as f64;
+    let (m, dt) = sheet_offsets(sigma, out.g, psf);
     for &(x, om) in &out.lines {
         let Some(s0) = surf.section(rig, 0.0, line + x, hint) else {
             continue;
@@ -350,24 +534,90 @@ pub(crate) fn sample_lines<S: Surface>(
         out.samples.push((s0.a, dt * om * w0 * s0.da_dt.abs()));
         for dir in [-1.0f64, 1.0] {
             // Newton's start for the next offset: the surface parameter extrapolated
-            // linearly from the last two (one iteration fewer than from the last alone).
-            let (mut h, mut step) = (s0.phi, 0.0);
+            // from the last ones ([`Continuation`]).
+            let mut next = Continuation::new(s0.phi);
             for k in 1..=m {
                 let t = dir * k as f64 * dt;
-                let Some(s) = surf.section(rig, t, line + x, h + step) else {
+                let Some(s) = surf.section(rig, t, line + x, next.predict()) else {
                     break;
                 };
                 let w = surf.shading(rig, &s.p);
                 if w <= 0.0 {
                     break;
                 }
-                (h, step) = (s.phi, s.phi - h);
+                next.push(s.phi);
                 let z = t / sigma;
                 out.samples
                     .push((s.a, dt * om * w * s.da_dt.abs() * (-0.5 * z * z).exp()));
             }
         }
     }
+}
+
+/// Newton's start for the surface parameter at the next sheet offset of a continuation
+/// outwards in `t` (equal steps): extrapolated quadratically from the last three (the
+/// start then lies within [`NEWTON_LAST_STEP_PX`] of the scan line at most offsets, and
+/// one projection solves the section), linearly from the last two, or the last one.
+struct Continuation {
+    h: f64,
+    d1: f64,
+    d0: f64,
+    known: usize,
+}
+
+impl Continuation {
+    fn new(h: f64) -> Continuation {
+        Continuation {
+            h,
+            d1: 0.0,
+            d0: 0.0,
+            known: 0,
+        }
+    }
+
+    #[inline]
+    fn predict(&self) -> f64 {
+        match self.known {
+            0 => self.h,
+            1 => self.h + self.d1,
+            _ => self.h + 2.0 * self.d1 - self.d0,
+        }
+    }
+
+    #[inline]
+    fn push(&mut self, h: f64) {
+        self.d0 = self.d1;
+        self.d1 = h - self.h;
+        self.h = h;
+        self.known += 1;
+    }
+}
+
+/// The sheet offsets sampled on each side of the plane: `(M, dt)`, `t_k = k dt`,
+/// `k = -M..=M` over `+-4 sigma`, at least [`HALF_SAMPLES`], and more where they would
+/// lie more than [`sample_spacing_px`] apart in the image (`|da/dt| = g` px / mm).
+pub(crate) fn sheet_offsets(sigma: f64, g: f64, psf: f64) -> (usize, f64) {
+    let m = ((4.0 * sigma * g / sample_spacing_px(psf)).ceil() as usize).clamp(HALF_SAMPLES, 400);
+    (m, 4.0 * sigma / m as f64)
+}
+
+/// The largest image spacing of the sheet-offset samples (px) for a PSF of sigma `psf`
+/// px: the samples, each spread with the pixel kernel `K` (the pixel box convolved with
+/// the PSF's Gaussian, sigma `s = sqrt(psf^2 + 1/12)`), sum to the profile's integral
+/// over the sheet but for aliases of relative size `|K^(1 / h)| <= exp(-2 pi^2 psf^2 /
+/// h^2)` at spacing `h` (Poisson summation; the box's `sinc` only lowers it). The
+/// spacing is the one where that bound is 1e-6 (`h = 1.196 psf`), kept within `[0.5 s,
+/// 0.75 s]`: 0.75 s (the cap) for PSFs from 0.23 px (the twin's is 0.7 px), 0.5 s (the
+/// spacing before this bound, the floor) below 0.13 px, where a sharper kernel needs
+/// denser samples than the bound alone gives (the box's edges). On the twin ball
+/// (hp3-paper, seed 1) 0.75 s instead of 0.5 s, with [`NEWTON_LAST_STEP_PX`] 1e-4 px, moved
+/// the corrected diameter by 1.9e-7 mm and the centre by at most 8e-8 mm (its standard
+/// uncertainty 4.1e-4 mm).
+pub(crate) fn sample_spacing_px(psf: f64) -> f64 {
+    let s = (psf * psf + 1.0 / 12.0).sqrt();
+    // exp(-2 pi^2 psf^2 / h^2) = 1e-6: h = pi psf sqrt(2 / ln 1e6).
+    let alias = std::f64::consts::PI * psf * (2.0 / 1e6f64.ln()).sqrt();
+    alias.clamp(0.5 * s, 0.75 * s)
 }
 
 /// The neighbouring scan lines (offsets px, weights summing to 1) the across-line blur

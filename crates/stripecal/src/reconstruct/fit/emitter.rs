@@ -9,7 +9,8 @@
 //! `sum (ln I_i - ln P_i(E) - k)^2` over a subsample of at most [`EMITTER_POINTS`] points
 //! (`I_i` the extractor's peak height, `P_i` the modelled profile's peak read by the same
 //! code, `k` the unknown power x reflectance x gain, eliminated as the mean), with
-//! numerical derivatives (1 mm steps). Saturated points are left out. Standard
+//! numerical derivatives (1 mm steps; the emitter moves only the shading, so each point's
+//! sections are solved once for the whole fit). Saturated points are left out. Standard
 //! uncertainties from `s^2 (J^T J)^-1` (`s^2` the residual variance).
 //!
 //! Neglected: vignetting and a non-uniform reflectance or sheet power along the line (they
@@ -24,7 +25,10 @@ use rayon::prelude::*;
 use crate::model::geometry::Iso3;
 use crate::reconstruct::ScanPoints;
 
-use crate::stripe_model::{extractor_response, point_profile, PointProfile, Rig, SphereSurface};
+use crate::stripe_model::{
+    extractor_response, point_geometry, profile_for_emitter, PointGeometry, PointProfile, Rig,
+    SphereSurface,
+};
 
 /// Points used for the emitter fit, at most.
 pub const EMITTER_POINTS: usize = 1500;
@@ -40,19 +44,48 @@ pub struct EmitterEstimate {
     pub points: usize,
 }
 
-/// Log peak heights of the model for `emitter`.
-fn log_peaks(
+/// Per point of the emitter fit, its profile's emitter-independent part (`None` where it
+/// cannot be modelled): the fit's emitters then need no section solved again.
+fn geometries(
     rig: &Rig<'_>,
     pts: &[(Vector3<f64>, Vector3<f64>, f64)],
     r: f64,
     sigma: f64,
     psf: f64,
+) -> Vec<Option<PointGeometry>> {
+    pts.par_iter()
+        .map_init(Vec::new, |scratch, (c, p, line)| {
+            let mut geo = PointGeometry::default();
+            point_geometry(
+                rig,
+                &SphereSurface { c, r },
+                *line,
+                p,
+                sigma,
+                psf,
+                scratch,
+                &mut geo,
+            )
+            .then_some(geo)
+        })
+        .collect()
+}
+
+/// Log peak heights of the model for `rig`'s emitter, from the points' geometries.
+fn log_peaks(
+    rig: &Rig<'_>,
+    pts: &[(Vector3<f64>, Vector3<f64>, f64)],
+    geo: &[Option<PointGeometry>],
+    r: f64,
+    psf: f64,
 ) -> Vec<Option<f64>> {
     pts.par_iter()
+        .zip(geo)
         .map_init(
             || (PointProfile::default(), Vec::new()),
-            |(prof, buf), (c, p, line)| {
-                if !point_profile(rig, &SphereSurface { c, r }, *line, p, sigma, psf, prof) {
+            |(prof, buf), ((c, _, _), geo)| {
+                let geo = geo.as_ref()?;
+                if !profile_for_emitter(rig, &SphereSurface { c, r }, geo, prof) {
                     return None;
                 }
                 let pk = extractor_response(prof, psf, rig.stripe, buf)?.2;
@@ -91,10 +124,11 @@ pub(super) fn estimate_emitter(
     }
     let e0 = rig.emitter;
     let (e1, e2) = crate::stripe_model::plane_basis(&rig.n);
+    let geo = geometries(rig, &pts, sphere.1, sigma, psf);
     let at = |x: &Vector2<f64>| {
         let mut r2 = rig.clone();
         r2.emitter = e0 + e1 * x[0] + e2 * x[1];
-        log_peaks(&r2, &pts, sphere.1, sigma, psf)
+        log_peaks(&r2, &pts, &geo, sphere.1, psf)
     };
     let mut x = Vector2::zeros();
     let h = 1.0;

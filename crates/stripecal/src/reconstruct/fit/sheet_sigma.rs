@@ -39,7 +39,9 @@ use crate::error::{Error, Result};
 use crate::model::geometry::Iso3;
 use crate::reconstruct::ScanPoints;
 
-use crate::stripe_model::{extractor_response, point_profile, PointProfile, Rig, SphereSurface};
+use crate::stripe_model::{
+    extractor_response, point_profile, point_section, PointProfile, Rig, SphereSurface,
+};
 
 /// Points used for the width fit, at most.
 pub const WIDTH_POINTS: usize = 2500;
@@ -204,7 +206,6 @@ fn width_points(
     }
     let step = n.div_ceil(WIDTH_POINTS).max(1);
     let r = sphere.1;
-    let mut prof = PointProfile::default();
     let mut pts = Vec::new();
     for i in (0..n).step_by(step) {
         let w = points.width_px[i] as f64;
@@ -215,24 +216,16 @@ fn width_points(
         }
         let c = (cam_base[f] * nalgebra::Point3::from(*sphere.0)).coords;
         // The geometry at t = 0 does not depend on the sheet sigma.
-        if !point_profile(
-            rig,
-            &SphereSurface { c: &c, r },
-            line,
-            &p,
-            0.1,
-            0.0,
-            &mut prof,
-        ) {
+        let Some(s0) = point_section(rig, &SphereSurface { c: &c, r }, line, &p, 0.1, 0.0) else {
             continue;
-        }
+        };
         pts.push(WidthPoint {
             c,
             p,
             line,
             w,
-            g: prof.g,
-            m: prof.slope,
+            g: s0.da_dt.abs(),
+            m: s0.slope,
         });
     }
     Ok(pts)

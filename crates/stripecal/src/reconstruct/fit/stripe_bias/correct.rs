@@ -4,7 +4,9 @@
 
 use nalgebra::Vector3;
 
-use super::points::{corrected_points, corrections, point_geo, ScanGeometry};
+use super::points::{
+    corrected_points, corrections, corrections_for_emitters, point_geo, ScanGeometry,
+};
 use super::systematic::{assumed_emitter_part, estimate_part, model_part, rss};
 use super::{
     neglected_share, sphere_rig, SphereBiasCorrection, StripeBiasOptions, SystematicKind,
@@ -222,6 +224,18 @@ impl SphereScan<'_> {
         corrections(rig, &self.geometry, idx, sphere, sigma, psf)
     }
 
+    /// [`Self::corrections`] for each of the `emitters` (camera frame) in turn.
+    fn corrections_for_emitters(
+        &self,
+        rig: &Rig<'_>,
+        idx: &[usize],
+        sphere: (&Vector3<f64>, f64),
+        (sigma, psf): (f64, f64),
+        emitters: &[Vector3<f64>],
+    ) -> Vec<Vec<Option<[f64; 3]>>> {
+        corrections_for_emitters(rig, &self.geometry, idx, sphere, sigma, psf, emitters)
+    }
+
     /// The sheet and PSF sigmas (widths) and the emitter (brightness), from the
     /// uncorrected fit's inliers; the emitter estimate is `rig`'s emitter when made and
     /// accepted.
@@ -367,7 +381,20 @@ impl SphereScan<'_> {
         let corr_sub = |rig: &Rig<'_>, sigma: f64, psf: f64| {
             self.corrections(rig, &sub, (&sphere.0, sphere.1), (sigma, psf))
         };
-        let nominal = corr_sub(rig, sigma, psf);
+        // The nominal model and the emitter's alternatives (its assumed range's ends, or
+        // +-1 standard uncertainty of its estimate, along each in-plane axis): one
+        // section solve per point for all five.
+        let axes = [rig.e1, rig.e2];
+        let ends = emitter_estimate.map_or([range_mm; 2], |e| e.sd_mm);
+        let mut emitters = vec![emitter];
+        for (dir, end) in axes.iter().zip(ends) {
+            emitters.push(emitter + dir * end);
+            emitters.push(emitter + dir * (-end));
+        }
+        let mut by_emitter = self
+            .corrections_for_emitters(rig, &sub, (&sphere.0, sphere.1), (sigma, psf), &emitters)
+            .into_iter();
+        let nominal = by_emitter.next().expect("the nominal emitter");
         // (diameter, centre) of the alternative minus the nominal.
         let compare = |alt: &[Option<[f64; 3]>]| -> Option<(f64, Vector3<f64>)> {
             let (mut pa, mut pb) = (Vec::new(), Vec::new());
@@ -384,30 +411,15 @@ impl SphereScan<'_> {
         };
         // The systematic parts, signed, one per source ([`systematic`]).
         let mut parts = Vec::new();
-        let axes = [rig.e1, rig.e2];
-        match emitter_estimate {
-            // Assumed: the two ends of +-range along each axis.
-            None => {
-                for (k, dir) in axes.iter().enumerate() {
-                    let at = |s: f64| {
-                        let mut r2 = rig.clone();
-                        r2.emitter = emitter + dir * (s * range_mm);
-                        compare(&corr_sub(&r2, sigma, psf))
-                    };
-                    parts.extend(assumed_emitter_part(k as u32, at(1.0), at(-1.0)));
-                }
-            }
-            // Estimated: +-1 standard uncertainty along each axis.
-            Some(e) => {
-                for (k, (dir, sd)) in axes.iter().zip(e.sd_mm).enumerate() {
-                    let at = |s: f64| {
-                        let mut r2 = rig.clone();
-                        r2.emitter = emitter + dir * (s * sd);
-                        compare(&corr_sub(&r2, sigma, psf))
-                    };
-                    parts.extend(estimate_part(k as u32, at(1.0), at(-1.0)));
-                }
-            }
+        for k in 0..2u32 {
+            let plus = compare(&by_emitter.next().expect("plus end"));
+            let minus = compare(&by_emitter.next().expect("minus end"));
+            parts.extend(match emitter_estimate {
+                // Assumed: the two ends of +-range along each axis.
+                None => assumed_emitter_part(k, plus, minus),
+                // Estimated: +-1 standard uncertainty along each axis.
+                Some(_) => estimate_part(k, plus, minus),
+            });
         }
         // Sheet and PSF sigmas: +-1 standard uncertainty each.
         for (k, (ds, dp)) in [(sheet.sheet_sigma_sd_mm, 0.0), (0.0, sheet.psf_sigma_sd_px)]

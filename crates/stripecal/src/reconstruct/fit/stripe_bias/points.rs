@@ -9,7 +9,10 @@ use crate::model::geometry::Iso3;
 use crate::reconstruct::triangulate::Triangulator;
 use crate::reconstruct::ScanPoints;
 
-use crate::stripe_model::{extractor_response, point_profile, PointProfile, Rig, SphereSurface};
+use crate::stripe_model::{
+    extractor_response, point_geometry, point_profile, profile_for_emitter, PointGeometry,
+    PointProfile, Rig, SphereSurface,
+};
 
 /// Everything per point the correction needs: the camera-frame point, the scan line,
 /// the measured along-line coordinate, and whether its stripe profile holds a saturated
@@ -81,23 +84,97 @@ pub(crate) fn corrections(
                 if !point_profile(rig, &surf, g.line, &g.p_cam, sigma, psf, prof) {
                     return None;
                 }
-                let (delta, _, _) = extractor_response(prof, psf, rig.stripe, buf)?;
-                let uv = |a: f64| {
-                    if rig.along == 0 {
-                        (a, g.line)
-                    } else {
-                        (g.line, a)
-                    }
-                };
-                let (u1, v1) = uv(g.a_meas);
-                let (u2, v2) = uv(g.a_meas - delta);
-                let p1 = tri.point_cam_mm(u1, v1)?;
-                let p2 = tri.point_cam_mm(u2, v2)?;
-                let b = t.inverse_transform_vector(&(p1 - p2));
-                Some([b.x, b.y, b.z])
+                correction(rig, tri, g, t, prof, psf, buf)
             },
         )
         .collect()
+}
+
+/// The corrections of the points `idx` as [`corrections`] gives them, for each of the
+/// `emitters` in turn (`rig`'s own emitter replaced; camera frame): each point's sections
+/// are solved once for all of them ([`point_geometry`]).
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn corrections_for_emitters(
+    rig: &Rig<'_>,
+    scan: &ScanGeometry<'_>,
+    idx: &[usize],
+    sphere: (&Vector3<f64>, f64),
+    sigma: f64,
+    psf: f64,
+    emitters: &[Vector3<f64>],
+) -> Vec<Vec<Option<[f64; 3]>>> {
+    let (tri, geo, cam_base) = (scan.tri, scan.geo, scan.cam_base);
+    let rigs: Vec<Rig<'_>> = emitters
+        .iter()
+        .map(|e| {
+            let mut r2 = rig.clone();
+            r2.emitter = *e;
+            r2
+        })
+        .collect();
+    let per_point: Vec<Vec<Option<[f64; 3]>>> = idx
+        .par_iter()
+        .map_init(
+            || {
+                (
+                    PointGeometry::default(),
+                    Vec::new(),
+                    PointProfile::default(),
+                    Vec::new(),
+                )
+            },
+            |(pg, scratch, prof, buf), &i| {
+                let (g, f) = &geo[i];
+                let t = &cam_base[*f];
+                let c = (t * nalgebra::Point3::from(*sphere.0)).coords;
+                let surf = SphereSurface { c: &c, r: sphere.1 };
+                if g.saturated
+                    || !point_geometry(rig, &surf, g.line, &g.p_cam, sigma, psf, scratch, pg)
+                {
+                    return vec![None; rigs.len()];
+                }
+                rigs.iter()
+                    .map(|r2| {
+                        if !profile_for_emitter(r2, &surf, pg, prof) {
+                            return None;
+                        }
+                        correction(r2, tri, g, t, prof, psf, buf)
+                    })
+                    .collect()
+            },
+        )
+        .collect();
+    (0..emitters.len())
+        .map(|k| per_point.iter().map(|v| v[k]).collect())
+        .collect()
+}
+
+/// The 3D correction (base frame) of point `g` of the frame `T_cam_base = t` from its
+/// modelled profile `prof`: the extractor's response on it, the measured pixel moved back
+/// by it and both triangulated.
+fn correction(
+    rig: &Rig<'_>,
+    tri: &Triangulator,
+    g: &PointGeo,
+    t: &Iso3,
+    prof: &PointProfile,
+    psf: f64,
+    buf: &mut Vec<f64>,
+) -> Option<[f64; 3]> {
+    let (delta, _, _) = extractor_response(prof, psf, rig.stripe, buf)?;
+    let uv = |a: f64| {
+        if rig.along == 0 {
+            (a, g.line)
+        } else {
+            (g.line, a)
+        }
+    };
+    let (u1, v1) = uv(g.a_meas);
+    let (u2, v2) = uv(g.a_meas - delta);
+    let p1 = tri.point_cam_mm(u1, v1)?;
+    let p2 = tri.point_cam_mm(u2, v2)?;
+    let b = t.inverse_transform_vector(&(p1 - p2));
+    Some([b.x, b.y, b.z])
 }
 
 /// The points `idx` minus their corrections (skipping the unmodelled).

@@ -567,3 +567,65 @@ fn the_diagnostics_recover_the_synthetic_bias() {
     assert_eq!((f.mean, f.median), (25.75, 3.0));
     assert!(NoiseShift::of(&mut []).is_none());
 }
+
+/// The emitter's fit and sensitivity terms model a point's profile from its sections
+/// solved once ([`point_geometry`], [`profile_for_emitter`]): the same samples, in the
+/// same order, as [`point_profile`] for every emitter, whether the emitter leaves the
+/// whole profile lit, cuts it or leaves the point unmodelled.
+#[test]
+fn profiles_from_the_shared_geometry_equal_the_direct_ones() {
+    let cam = camera([0.0; 5]);
+    let pl = plane();
+    let so = StripeOptions::default();
+    let mut rig = Rig::new(
+        &cam,
+        &pl,
+        pl.normal * pl.d,
+        StripeDirection::Cols,
+        &so,
+        89.0,
+    );
+    rig.outline_margin_px = Some(OUTLINE_MARGIN_PX);
+    let r = 12.7;
+    let (mut checked, mut refused) = (0, 0);
+    for (nrm, s, b) in [
+        (Vector3::new(0.3, -0.2, -1.0), 0.12, 0.7),
+        (Vector3::new(-0.5, 0.1, -1.0), 0.2, 0.3),
+        (Vector3::new(0.1, 0.6, -1.0), 0.08, 0.0),
+    ] {
+        let p = p0();
+        let c = p - nrm.normalize() * r;
+        let surf = SphereSurface { c: &c, r };
+        let line = cam.project(&p).unwrap().y;
+        let mut geo = PointGeometry::default();
+        let ok = point_geometry(&rig, &surf, line, &p, s, b, &mut Vec::new(), &mut geo);
+        for (de1, de2) in [
+            (0.0, 0.0),
+            (30.0, -10.0),
+            (-60.0, 40.0),
+            (150.0, 0.0),
+            (0.0, -400.0),
+        ] {
+            let mut r2 = rig.clone();
+            r2.emitter = rig.emitter + rig.e1 * de1 + rig.e2 * de2;
+            let (mut direct, mut shared) = (PointProfile::default(), PointProfile::default());
+            let a = point_profile(&r2, &surf, line, &p, s, b, &mut direct);
+            let b2 = ok && profile_for_emitter(&r2, &surf, &geo, &mut shared);
+            assert_eq!(a, b2, "emitter {de1} {de2}");
+            if a {
+                assert_eq!(direct.samples, shared.samples);
+                assert_eq!(
+                    (direct.a0, direct.g, direct.slope),
+                    (shared.a0, shared.g, shared.slope)
+                );
+                checked += 1;
+            } else {
+                refused += 1;
+            }
+        }
+    }
+    assert!(
+        checked >= 8 && refused >= 1,
+        "{checked} checked, {refused} refused"
+    );
+}
