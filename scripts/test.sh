@@ -35,10 +35,11 @@ step "pip install -e '.[test]'  (builds stripecal._core with maturin)"
 # `cargo clippy --all-targets` builds them before every submission (CONTRIBUTING.md).
 # pytest: one worker per core, each taking whole test modules (--dist loadfile), so that
 # a module's fixtures still render their twin once.
+# --durations: the 15 slowest tests and set-ups are listed, to see where CI time goes.
 pylog="$(mktemp)"
 trap 'rm -f "$pylog"' EXIT
 step "pytest started in the background  (a test module per worker, one worker per core)"
-"$PYTHON" -m pytest -q -n auto --dist loadfile > "$pylog" 2>&1 &
+"$PYTHON" -m pytest -q -n auto --dist loadfile --durations=15 > "$pylog" 2>&1 &
 pytest_pid=$!
 
 step "cargo test  (stripecal, stripecal-sim: unit and integration tests)"

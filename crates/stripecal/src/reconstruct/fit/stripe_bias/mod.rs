@@ -194,8 +194,6 @@
 //!   diameter's, and the moved emitter 23 % of the centre's. The twin's sheet is Gaussian
 //!   and its ball Lambertian, as the model assumes; a real sheet or surface that is not
 //!   can leave more than the twin can show (see the assumptions).
-//!   as the model assumes; a real sheet or surface that is not can leave more
-//!   than the twin can show (see the assumptions).
 //!
 //! The sensitivity terms are computed on a subsample of at most [`SENSITIVITY_POINTS`]
 //! points, as differences from the nominal model on the same subsample and points.
