@@ -40,6 +40,8 @@ def twin(tmp_path_factory: pytest.TempPathFactory) -> Tuple[Path, Path, Dict]:
         seed=SEED,
         poses={"count": 15},
         imaging={"noise_gray": 1.0, "psf_sigma_px": 0.7},
+        # The scan's tests need a few frames over the ball, not the whole sweep.
+        scan={"max_frames": 12},
     )
     sim.Twin(cfg).write(root / "twin")
     bench = root / "bench"
@@ -284,6 +286,7 @@ def test_a_grid_without_markers_is_not_refused_on_the_bench(tmp_path: Path) -> N
         seed=5,
         poses={"count": 8},
         imaging={"noise_gray": 1.0, "psf_sigma_px": 0.7},
+        scan={"enabled": False},
     )
     cfg["board"]["markers"] = []
     sim.Twin(cfg).write(tmp_path / "twin")

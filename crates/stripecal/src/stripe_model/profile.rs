@@ -298,6 +298,32 @@ pub(crate) fn point_profile(
     true
 }
 
+/// Whether the extractor's support for the width modelled at the `t = 0` section `s0`,
+/// widened by the rig's outline margin, stays clear of the sphere's outline (always, when
+/// the rig sets no margin).
+fn support_clear(
+    rig: &Rig<'_>,
+    c: &Vector3<f64>,
+    r: f64,
+    line: f64,
+    s0: &Section,
+    sigma: f64,
+    psf: f64,
+) -> bool {
+    let Some(margin) = rig.outline_margin_px else {
+        return true;
+    };
+    let width = 2.3548 * ((s0.da_dt * sigma).powi(2) + psf * psf + 1.0 / 12.0).sqrt();
+    clear_of_outline(
+        rig,
+        c,
+        r,
+        line,
+        s0.a,
+        support_px(rig.stripe, width) + margin,
+    )
+}
+
 /// [`point_profile`]'s `t = 0` section of the point, `None` where it is not modelled (the
 /// section fails, the point is unlit, lit or seen beyond the limits, or the extractor's
 /// support for the modelled width reaches the outline): its `g = |da/dt|` and slope
@@ -322,18 +348,8 @@ pub(crate) fn point_section(
     {
         return None;
     }
-    if let Some(margin) = rig.outline_margin_px {
-        let width = 2.3548 * ((s0.da_dt * sigma).powi(2) + psf * psf + 1.0 / 12.0).sqrt();
-        if !clear_of_outline(
-            rig,
-            c,
-            r,
-            line,
-            s0.a,
-            support_px(rig.stripe, width) + margin,
-        ) {
-            return None;
-        }
+    if !support_clear(rig, c, r, line, &s0, sigma, psf) {
+        return None;
     }
     Some(s0)
 }
@@ -392,18 +408,8 @@ pub(crate) fn point_geometry(
     if !facing(c, r, &s0.p) || (c - s0.p).dot(&s0.p) < rig.min_cos_view * r * s0.p.norm() {
         return false;
     }
-    if let Some(margin) = rig.outline_margin_px {
-        let width = 2.3548 * ((s0.da_dt * sigma).powi(2) + psf * psf + 1.0 / 12.0).sqrt();
-        if !clear_of_outline(
-            rig,
-            c,
-            r,
-            line,
-            s0.a,
-            support_px(rig.stripe, width) + margin,
-        ) {
-            return false;
-        }
+    if !support_clear(rig, c, r, line, &s0, sigma, psf) {
+        return false;
     }
     out.p0 = s0.p;
     out.a0 = s0.a;
