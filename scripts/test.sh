@@ -37,9 +37,9 @@ step "pip install -e '.[test]'  (builds stripecal._core with maturin)"
 # a module's fixtures still render their twin once.
 # --durations: the 15 slowest tests and set-ups are listed, to see where CI time goes.
 # The Rust tests' build and run are the longer of the two (a fresh clone's run: pytest
-# done at 643 s, the Rust tests at 928 s), so pytest runs at a lower priority (nice 6; at nice 10 pytest became the tail by 52 s):
-# it takes what the Rust build leaves idle (its links, its single-crate tail) instead of
-# half the cores.
+# done at 643 s, the Rust tests at 928 s), so pytest runs at a lower priority: it takes
+# what the Rust build leaves idle (its links, its single-crate tail) instead of half the
+# cores. At nice 10 pytest became the tail (Rust 862 s, pytest 914 s); nice 6 is between.
 pylog="$(mktemp)"
 trap 'rm -f "$pylog"' EXIT
 step "pytest started in the background  (a test module per worker, one worker per core)"
