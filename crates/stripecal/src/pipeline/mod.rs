@@ -108,6 +108,10 @@ impl Method {
 pub struct CalibrateOptions {
     /// Distortion model (default: the rig's).
     pub distortion: Option<DistortionModel>,
+    /// The camera's projection model (default brown5, the contract's; another
+    /// registered one, [`crate::model::camera::register`], is calibrated through its
+    /// trait; rig.json does not name one yet).
+    pub camera_model: crate::model::camera::Projection,
     pub method: Method,
     /// Huber loss in the one-stage adjustment.
     pub robust: bool,
@@ -160,6 +164,7 @@ impl Default for CalibrateOptions {
     fn default() -> Self {
         CalibrateOptions {
             distortion: None,
+            camera_model: crate::model::camera::Projection::Brown5,
             method: Method::OneStage,
             robust: false,
             centre_model: CentreModel::ConicExact,

@@ -327,8 +327,9 @@ pub struct TransformSigma {
 /// One-sigma of every estimated number.
 #[derive(Debug, Clone, PartialEq)]
 pub struct JointSigma {
-    /// Camera parameters in [`crate::model::camera::PARAM_NAMES`] order (0 for fixed
-    /// ones, NaN unobservable).
+    /// Camera parameters over the camera block's nine slots: the model's parameters in
+    /// its order (brown5: [`crate::model::camera::PARAM_NAMES`]), then unused slots (0
+    /// for fixed ones and unused slots, NaN unobservable).
     pub camera: [f64; 9],
     /// Components of the plane's unit normal.
     pub plane_normal: Vector3<f64>,
@@ -428,15 +429,6 @@ pub fn joint_adjustment(
 ) -> Result<JointResult> {
     board.validate()?;
     start.camera.validate()?;
-    if !start.camera.projection.is_brown5() {
-        // the residuals, the circle-centre models and their Jacobians are brown5's
-        // (docs/architecture.md, "camera model"): another model would be adjusted with
-        // brown5's formula and give a wrong number
-        return Err(Error::InvalidInput(format!(
-            "the one-stage adjustment models brown5 cameras only; the starting camera's model is '{}'",
-            start.camera.projection.name()
-        )));
-    }
     let mut warnings = Vec::new();
     let terms = Terms::collect(views, board, &mut warnings)?;
     let free = free_blocks(&terms, start, opts)?;
@@ -792,10 +784,9 @@ mod tests {
         }
     }
 
-    #[test]
-    fn jacobian_matches_central_differences() {
-        let s = synth(DistortionModel::OpenCv5, [-0.2, 0.1, 1e-3, -1e-3, 0.02]);
-        let start = perturbed_start(&s);
+    /// Every 9th circle and 7th stripe point of `s`'s views, moved off their predictions
+    /// (residuals away from zero), as the finite-difference tests' terms.
+    fn fd_terms(s: &Synth) -> Terms {
         let mut circles = Vec::new();
         let mut stripes = Vec::new();
         let board = Board::hp3_paper();
@@ -822,17 +813,24 @@ mod tests {
                 });
             }
         }
-        // Every block free, the board scale too (away from 1, so that `t / s` matters).
-        let free = FreeBlocks {
-            board_scale: true,
-            ..FreeBlocks::default()
-        };
-        let terms = Terms {
+        Terms {
             a,
             used: (0..s.views.len()).collect(),
             circles,
             stripes,
             q: vec![None; s.views.len()],
+        }
+    }
+
+    #[test]
+    fn jacobian_matches_central_differences() {
+        let s = synth(DistortionModel::OpenCv5, [-0.2, 0.1, 1e-3, -1e-3, 0.02]);
+        let start = perturbed_start(&s);
+        let terms = fd_terms(&s);
+        // Every block free, the board scale too (away from 1, so that `t / s` matters).
+        let free = FreeBlocks {
+            board_scale: true,
+            ..FreeBlocks::default()
         };
         // Without and with the robot-pose corrections, these away from the identity
         // (the prior rows' inverse right Jacobian then matters); X held too, its slots'
@@ -923,6 +921,89 @@ mod tests {
                  FD difference {worst:.2e}"
             );
         }
+    }
+
+    /// A one-coefficient division model, `(xd, yd) = (x, y) / (1 + lambda r^2)`, for the
+    /// adjustment of a camera of another model than brown5.
+    struct Division;
+
+    impl crate::model::camera::CameraModel for Division {
+        fn name(&self) -> &'static str {
+            "joint-test-division"
+        }
+        fn distortion_names(&self) -> &'static [&'static str] {
+            &["lambda"]
+        }
+        fn distort(&self, k: &[f64], x: f64, y: f64) -> ((f64, f64), nalgebra::Matrix2<f64>) {
+            let s = 1.0 / (1.0 + k[0] * (x * x + y * y));
+            let q = -2.0 * k[0] * s * s;
+            let j = nalgebra::Matrix2::new(s + q * x * x, q * x * y, q * x * y, s + q * y * y);
+            ((x * s, y * s), j)
+        }
+        fn distortion_jacobian(&self, k: &[f64], x: f64, y: f64) -> nalgebra::Matrix2xX<f64> {
+            let r2 = x * x + y * y;
+            let s = 1.0 / (1.0 + k[0] * r2);
+            nalgebra::Matrix2xX::from_column_slice(&[-x * r2 * s * s, -y * r2 * s * s])
+        }
+    }
+
+    static DIVISION: Division = Division;
+
+    /// The rows of a camera of another model (through its trait: circles with the
+    /// first-order conic centre, stripe points) match central differences, with the
+    /// robot-pose corrections and their image part; the camera's columns are the model's
+    /// five parameters.
+    #[test]
+    fn jacobian_of_another_camera_model_matches_central_differences() {
+        let s = synth(DistortionModel::Radial1, [0.05, 0.0, 0.0, 0.0, 0.0]);
+        let mut start = perturbed_start(&s);
+        let model = crate::model::camera::register(&DIVISION).unwrap();
+        start.camera = start.camera.with_projection(model, &[0.08]).unwrap();
+        let terms = fd_terms(&s);
+        let free = FreeBlocks {
+            board_scale: true,
+            ..FreeBlocks::default()
+        };
+        let noise = layout::PoseNoise::RobotAndImage;
+        let layout = ParamLayout::new(&start, &free, 1.03, &terms.used, noise, None);
+        let opts = JointOptions {
+            centre_model: CentreModel::Conic,
+            variance_components: false,
+            initial_sigma_px: (0.5, 2.0),
+            initial_robot_sigma: (0.2, 0.05),
+            ..JointOptions::default()
+        };
+        let pr = JointProblem::new(&start.camera, &layout, terms.clone(), &opts);
+        let mut p = start.camera.model_params();
+        assert_eq!(p.len(), 5);
+        p.extend_from_slice(&[0.01, -0.02, start.plane.unwrap().d]);
+        for t in [&start.hand_cam, &start.base_board] {
+            let (rv, tr) = iso_to_rotvec(t);
+            p.extend_from_slice(&[rv.x, rv.y, rv.z, tr.x, tr.y, tr.z]);
+        }
+        p.push(1.03);
+        for k in 0..terms.a.len() {
+            let k = k as f64;
+            p.extend_from_slice(&[0.02 * k, -0.01, 0.03, 0.3, -0.2 * k, 0.1]);
+            p.extend_from_slice(&[0.01, 0.02 * k, -0.01, -0.1 * k, 0.2, 0.05]);
+        }
+        assert_eq!(p.len(), layout.num_params());
+        let step = |j: usize| {
+            if j < 5 {
+                1e-5 * p[j].abs().max(1e-2)
+            } else {
+                1e-6
+            }
+        };
+        let worst = crate::numerics::lm::assert_jacobian_matches_fd(
+            &pr,
+            &p,
+            step,
+            1e-9,
+            1e-5,
+            "joint, division model",
+        );
+        println!("division model: largest relative FD difference {worst:.2e}");
     }
 
     #[test]

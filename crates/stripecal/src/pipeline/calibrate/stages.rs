@@ -6,7 +6,7 @@ use super::board_scale::{check_board_scale, warning as board_scale_warning};
 use super::loo::leave_one_out;
 use super::report::SelfChecks;
 use super::{CalibrateOptions, Method};
-use crate::calib::camera::{calibrate_camera, CameraCalibration, CameraOptions};
+use crate::calib::camera::{calibrate_camera_model, CameraCalibration, CameraOptions};
 use crate::calib::conic::CentreModel;
 use crate::calib::joint::{JointOptions, JointResult, RobotMode, RobotOptions};
 use crate::calib::laser_plane::{fit_laser_plane, LaserPlaneFit};
@@ -41,7 +41,15 @@ pub(super) fn camera_stage(
         cam_opts.lm.ftol = 1e-8;
         cam_opts.lm.xtol = 1e-8;
     }
-    calibrate_camera(views, &rig.board, rig.width, rig.height, model, &cam_opts)
+    calibrate_camera_model(
+        views,
+        &rig.board,
+        rig.width,
+        rig.height,
+        opts.camera_model,
+        model,
+        &cam_opts,
+    )
 }
 
 /// The laser plane's first estimate from the views' stripe points (`None` when no view

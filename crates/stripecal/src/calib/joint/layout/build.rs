@@ -6,11 +6,14 @@ use nalgebra::Vector3;
 use super::{Block, BlockDef, BlockKind, ParamLayout, PlaneChart, PoseNoise, SphereStart, SLOTS};
 use crate::calib::joint::robot::RobotBlock;
 use crate::calib::joint::{FreeBlocks, JointOptions, JointStart};
-use crate::model::camera::PARAM_NAMES;
+use crate::model::camera::{MAX_DISTORTION, PARAM_NAMES};
 use crate::model::geometry::{iso_to_rotvec, Iso3};
 
 /// What [`ParamLayout::build`] registers: each block's estimated values and the start.
 struct BuildSpec<'a> {
+    /// The camera's nine slots: names (the model's parameters, then unused slots) and
+    /// which are estimated.
+    cam_names: Vec<String>,
     cam_free: Vec<bool>,
     plane_free: bool,
     free: FreeBlocks,
@@ -98,6 +101,7 @@ impl ParamLayout {
         base[9 + 3..9 + 3 + 6].copy_from_slice(&[rv.x, rv.y, rv.z, tr.x, tr.y, tr.z]);
         base[SLOTS - 1] = 1.0;
         let spec = BuildSpec {
+            cam_names: PARAM_NAMES.iter().map(|s| s.to_string()).collect(),
             cam_free: vec![false; 9],
             plane_free: false,
             free: FreeBlocks {
@@ -122,6 +126,7 @@ impl ParamLayout {
 
     fn build(spec: BuildSpec<'_>, view_ids: &[usize]) -> ParamLayout {
         let BuildSpec {
+            cam_names,
             cam_free,
             plane_free,
             free,
@@ -137,7 +142,7 @@ impl ParamLayout {
             BlockDef {
                 block: Block::Camera,
                 kind: BlockKind::Euclidean,
-                names: PARAM_NAMES.iter().map(|s| s.to_string()).collect(),
+                names: cam_names,
                 free: cam_free,
                 per_view: false,
                 slotless: false,
@@ -253,16 +258,19 @@ impl BuildSpec<'_> {
         robot: Option<RobotBlock>,
         board_poses: Option<&'a [Iso3]>,
     ) -> BuildSpec<'a> {
+        // the model's parameters in the first slots (brown5: all nine), the rest held
+        let model = start.camera.projection.model();
+        let coefficients = model.free_coefficients(start.camera.model);
         let mut cam_free = vec![free.camera; 4];
         cam_free.extend(
-            start
-                .camera
-                .model
-                .free_coefficients()
-                .iter()
-                .map(|&f| f && free.camera),
+            (0..MAX_DISTORTION)
+                .map(|i| free.camera && coefficients.get(i).copied().unwrap_or(false)),
         );
+        let mut cam_names: Vec<String> =
+            model.param_names().iter().map(|s| s.to_string()).collect();
+        cam_names.extend((cam_names.len()..PARAM_NAMES.len()).map(|i| format!("unused_{i}")));
         BuildSpec {
+            cam_names,
             cam_free,
             plane_free: free.laser_plane && start.plane.is_some(),
             free: *free,

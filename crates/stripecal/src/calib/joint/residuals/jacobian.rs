@@ -7,7 +7,9 @@ use rayon::prelude::*;
 
 use super::line::{parallel_error, stripe_line};
 use super::{DSlots, JointProblem};
-use crate::calib::conic::{centre_generic_n, quadrature_nodes};
+use crate::calib::conic::{
+    centre_any_model, centre_any_model_with_jacobians, centre_generic_n, quadrature_nodes,
+};
 use crate::calib::joint::chain::cam_board;
 use crate::calib::joint::layout::{Block, JointParams, SLOTS};
 use crate::calib::joint::robot_noise;
@@ -168,7 +170,8 @@ impl JointProblem<'_> {
     /// Weighted circle residuals `rc` and their Jacobian rows `vc` (2 rows of
     /// [`Self::row_width`] values per circle): duals over (camera 9, pose increment 6),
     /// chained to `X`, `Z` and the board scale, and through `X`'s to the view's
-    /// correction.
+    /// correction. A camera of another model than brown5: its centre and analytic
+    /// Jacobians through the model's trait ([`Self::circle_rows_any_model`]).
     pub(super) fn circle_rows(
         &self,
         s: &JointParams,
@@ -177,10 +180,11 @@ impl JointProblem<'_> {
         vc: &mut [f64],
     ) -> Result<()> {
         type D15 = Dual<15>;
+        if !self.base.projection.is_brown5() {
+            return self.circle_rows_any_model(s, views, rc, vc);
+        }
         let w = self.row_width();
-        let ng = self.layout.num_global();
         let col_of = self.layout.columns();
-        let sx = self.layout.slots(Block::HandCam).start;
         // Fixed camera parameters are constants (zero coefficients then cost nothing).
         let c15: [D15; 9] = std::array::from_fn(|i| {
             if col_of[i].is_some() {
@@ -190,7 +194,6 @@ impl JointProblem<'_> {
             }
         });
         let w15: [D15; 3] = std::array::from_fn(|i| D15::var(0.0, 9 + i));
-        let rcols = self.layout.robot_columns();
         let wc = self.wc();
         let nodes = quadrature_nodes(self.base.model);
         rc.par_chunks_mut(2)
@@ -217,7 +220,6 @@ impl JointProblem<'_> {
                 };
                 out[0] = wc * (value[0] - c.u);
                 out[1] = wc * (value[1] - c.v);
-                let ch = &views.chains[c.view];
                 for (a, ua) in uv.iter().enumerate() {
                     let row = &mut jrow[a * w..(a + 1) * w];
                     for (slot, col) in col_of.iter().enumerate().take(9) {
@@ -225,33 +227,103 @@ impl JointProblem<'_> {
                             row[*col] = wc * ua.d[slot];
                         }
                     }
-                    let (mut gx, mut gz) = ([0.0; 6], [0.0; 6]);
-                    for kk in 0..CHAIN {
-                        let acc: f64 = (0..6).map(|q| ua.d[9 + q] * ch[q][kk]).sum();
-                        if kk < 6 {
-                            gx[kk] = acc;
-                        } else if kk < 12 {
-                            gz[kk - 6] = acc;
-                        }
-                        if let Some(col) = col_of[sx + kk] {
-                            row[col] = wc * acc;
-                        }
-                    }
-                    if let Some(m) = views.maps.get(c.view) {
-                        let d = robot_noise::correction_columns(&gx, m);
-                        for (o, v) in row[ng..ng + 6].iter_mut().zip(d) {
-                            *o = wc * v;
-                        }
-                    }
-                    robot_columns(&views.robot, c.view, &gx, wc, &mut row[rcols.clone()]);
-                    if views.bench {
-                        for (o, v) in row[ng..ng + 6].iter_mut().zip(gz) {
-                            *o = wc * v;
-                        }
-                    }
+                    let pose: [f64; 6] = std::array::from_fn(|q| ua.d[9 + q]);
+                    self.pose_columns(views, c.view, &pose, wc, row);
                 }
                 Ok(())
             })
+    }
+
+    /// [`Self::circle_rows`] for a camera of another model than brown5: the centre and
+    /// its derivatives over the model's parameters and the pose increment from
+    /// [`centre_any_model_with_jacobians`] (the `naive` and `conic` centre models, and
+    /// any for point targets).
+    fn circle_rows_any_model(
+        &self,
+        s: &JointParams,
+        views: &ViewLinearisation,
+        rc: &mut [f64],
+        vc: &mut [f64],
+    ) -> Result<()> {
+        let w = self.row_width();
+        let col_of = self.layout.columns();
+        let cam = self.base.with_params(&s.cam);
+        let wc = self.wc();
+        rc.par_chunks_mut(2)
+            .zip(vc.par_chunks_mut(2 * w))
+            .zip(self.terms.circles.par_iter())
+            .try_for_each(|((out, jrow), c)| -> Result<()> {
+                let (rot, t) = &views.board_poses[c.view];
+                let r0 = Matrix3::from_fn(|i, j| rot[i][j]);
+                let (uv, jc, jp) = centre_any_model_with_jacobians(
+                    &cam,
+                    &r0,
+                    t,
+                    c.centre,
+                    c.radius,
+                    self.jacobian_model,
+                )?;
+                let value = if self.jacobian_model == self.model {
+                    [uv.x, uv.y]
+                } else {
+                    centre_any_model(&cam, rot, t, c.centre, c.radius, self.model)?
+                };
+                out[0] = wc * (value[0] - c.u);
+                out[1] = wc * (value[1] - c.v);
+                for a in 0..2 {
+                    let row = &mut jrow[a * w..(a + 1) * w];
+                    for (slot, col) in col_of.iter().enumerate().take(jc.ncols()) {
+                        if let Some(col) = col {
+                            row[*col] = wc * jc[(a, slot)];
+                        }
+                    }
+                    let pose: [f64; 6] = std::array::from_fn(|q| jp[(a, q)]);
+                    self.pose_columns(views, c.view, &pose, wc, row);
+                }
+                Ok(())
+            })
+    }
+
+    /// A circle row's columns from its derivatives over the view's board-pose increment
+    /// `(w, v)`: chained to `X`, `Z` and the board scale, through `X`'s to the view's
+    /// correction and the robot block, and on the bench to the view's board pose.
+    fn pose_columns(
+        &self,
+        views: &ViewLinearisation,
+        view: usize,
+        pose: &[f64; 6],
+        wc: f64,
+        row: &mut [f64],
+    ) {
+        let ng = self.layout.num_global();
+        let col_of = self.layout.columns();
+        let sx = self.layout.slots(Block::HandCam).start;
+        let ch = &views.chains[view];
+        let (mut gx, mut gz) = ([0.0; 6], [0.0; 6]);
+        for kk in 0..CHAIN {
+            let acc: f64 = (0..6).map(|q| pose[q] * ch[q][kk]).sum();
+            if kk < 6 {
+                gx[kk] = acc;
+            } else if kk < 12 {
+                gz[kk - 6] = acc;
+            }
+            if let Some(col) = col_of[sx + kk] {
+                row[col] = wc * acc;
+            }
+        }
+        if let Some(m) = views.maps.get(view) {
+            let d = robot_noise::correction_columns(&gx, m);
+            for (o, v) in row[ng..ng + 6].iter_mut().zip(d) {
+                *o = wc * v;
+            }
+        }
+        let rcols = self.layout.robot_columns();
+        robot_columns(&views.robot, view, &gx, wc, &mut row[rcols]);
+        if views.bench {
+            for (o, v) in row[ng..ng + 6].iter_mut().zip(gz) {
+                *o = wc * v;
+            }
+        }
     }
 
     /// Weighted stripe residuals `rs` and their Jacobian rows `vs` ([`Self::row_width`]
@@ -259,7 +331,8 @@ impl JointProblem<'_> {
     ///
     /// Chain rule: `d res = n^T (d pi/d P (d p0 + s d dir) + d pi/d camera)`, the line's
     /// derivatives (plane, `X`, `Z` slots) from the per-view duals, the projection's by
-    /// a small dual over `(x, y, k1..k3)` at the point.
+    /// a small dual over `(x, y, k1..k3)` at the point (another model than brown5: its
+    /// trait's analytic derivatives).
     pub(super) fn stripe_rows(
         &self,
         s: &JointParams,
@@ -276,6 +349,8 @@ impl JointProblem<'_> {
         let sz = self.layout.slots(Block::BaseBoard).start;
         let rcols = self.layout.robot_columns();
         let ws = self.ws();
+        let cam = self.base.with_params(&s.cam);
+        let other = (!cam.projection.is_brown5()).then(|| cam.projection.model());
         rs.par_iter_mut()
             .zip(vs.par_chunks_mut(w))
             .enumerate()
@@ -286,31 +361,55 @@ impl JointProblem<'_> {
                 };
                 let p0f = [p0[0].v, p0[1].v, p0[2].v];
                 let dirf = [dir[0].v, dir[1].v, dir[2].v];
-                let (sf, normal) = self.cached_foot_point(k, &s.cam, &p0f, &dirf)?;
+                let (sf, normal) = self.cached_foot_point(k, &cam, &p0f, &dirf)?;
                 let pf: [f64; 3] = std::array::from_fn(|i| p0f[i] + sf * dirf[i]);
                 let (x, y) = (pf[0] / pf[2], pf[1] / pf[2]);
-                let kd: [D7; 5] = std::array::from_fn(|i| {
-                    if col_of[4 + i].is_some() {
-                        D7::var(s.cam[4 + i], 2 + i)
-                    } else {
-                        D7::cst(s.cam[4 + i])
-                    }
-                });
-                let (d, _) = distort_generic(&kd, D7::var(x, 0), D7::var(y, 1));
+                // the distorted point, its derivatives over (x, y) and the coefficients
+                let (dv, dxy, dk) = if let Some(m) = other {
+                    let coef = cam.coefficients();
+                    let ((xd, yd), j) = m.distort(coef, x, y);
+                    let jk = m.distortion_jacobian(coef, x, y);
+                    let dk: [[f64; 2]; 5] = std::array::from_fn(|i| {
+                        if i < jk.ncols() {
+                            [jk[(0, i)], jk[(1, i)]]
+                        } else {
+                            [0.0; 2]
+                        }
+                    });
+                    (
+                        [xd, yd],
+                        [[j[(0, 0)], j[(0, 1)]], [j[(1, 0)], j[(1, 1)]]],
+                        dk,
+                    )
+                } else {
+                    let kd: [D7; 5] = std::array::from_fn(|i| {
+                        if col_of[4 + i].is_some() {
+                            D7::var(s.cam[4 + i], 2 + i)
+                        } else {
+                            D7::cst(s.cam[4 + i])
+                        }
+                    });
+                    let (d, _) = distort_generic(&kd, D7::var(x, 0), D7::var(y, 1));
+                    (
+                        [d[0].v, d[1].v],
+                        [[d[0].d[0], d[0].d[1]], [d[1].d[0], d[1].d[1]]],
+                        std::array::from_fn(|i| [d[0].d[2 + i], d[1].d[2 + i]]),
+                    )
+                };
                 let (fu, fv) = (s.cam[0], s.cam[1]);
-                let res = normal[0] * (fu * d[0].v + s.cam[2] - st.u)
-                    + normal[1] * (fv * d[1].v + s.cam[3] - st.v);
+                let res = normal[0] * (fu * dv[0] + s.cam[2] - st.u)
+                    + normal[1] * (fv * dv[1] + s.cam[3] - st.v);
                 let (g0, g1) = (normal[0] * fu, normal[1] * fv);
-                let drx = g0 * d[0].d[0] + g1 * d[1].d[0];
-                let dry = g0 * d[0].d[1] + g1 * d[1].d[1];
+                let drx = g0 * dxy[0][0] + g1 * dxy[1][0];
+                let dry = g0 * dxy[0][1] + g1 * dxy[1][1];
                 let dp = [drx / pf[2], dry / pf[2], -(drx * x + dry * y) / pf[2]];
                 let mut full = [0.0; SLOTS];
-                full[0] = normal[0] * d[0].v;
-                full[1] = normal[1] * d[1].v;
+                full[0] = normal[0] * dv[0];
+                full[1] = normal[1] * dv[1];
                 full[2] = normal[0];
                 full[3] = normal[1];
                 for i in 0..5 {
-                    full[4 + i] = g0 * d[0].d[2 + i] + g1 * d[1].d[2 + i];
+                    full[4 + i] = g0 * dk[i][0] + g1 * dk[i][1];
                 }
                 for (slot, o) in full.iter_mut().enumerate().skip(sp) {
                     *o = (0..3)

@@ -4,7 +4,7 @@
 use nalgebra::Vector3;
 
 use crate::error::{Error, Result};
-use crate::model::camera::project_generic;
+use crate::model::camera::{project_generic, Camera};
 use crate::numerics::dual::{Dual, Scalar};
 use crate::numerics::mat3::{cross, dot};
 
@@ -41,9 +41,9 @@ pub(super) fn stripe_line<T: Scalar>(
 
 /// Foot point of `target` on the image of the 3D line `p0 + s dir`: `s*`, and the unit
 /// normal of the image curve there. Gauss-Newton along the line from the distortion-free
-/// closest point.
+/// closest point; brown5 inlined (duals), another model through its trait.
 pub(super) fn foot_point(
-    cam: &[f64; 9],
+    cam: &Camera,
     p0: &[f64; 3],
     dir: &[f64; 3],
     target: [f64; 2],
@@ -51,8 +51,8 @@ pub(super) fn foot_point(
 ) -> Result<(f64, [f64; 2])> {
     // Start: closest point of the 3D line to the distortion-free viewing ray.
     let r = Vector3::new(
-        (target[0] - cam[2]) / cam[0],
-        (target[1] - cam[3]) / cam[1],
+        (target[0] - cam.u0) / cam.fu,
+        (target[1] - cam.v0) / cam.fv,
         1.0,
     )
     .normalize();
@@ -66,7 +66,9 @@ pub(super) fn foot_point(
     } else {
         0.0
     };
-    let cd: [Dual<1>; 9] = std::array::from_fn(|i| Dual::cst(cam[i]));
+    let params = cam.params();
+    let cd: [Dual<1>; 9] = std::array::from_fn(|i| Dual::cst(params[i]));
+    let brown5 = cam.projection.is_brown5();
     let mut normal = [0.0, 0.0];
     for it in 0..30 {
         let sd = Dual::<1>::var(s, 0);
@@ -76,9 +78,16 @@ pub(super) fn foot_point(
                 "a view's stripe line passes behind the camera".into(),
             ));
         }
-        let uv = project_generic(&cd, &p);
-        let res = [uv[0].v - target[0], uv[1].v - target[1]];
-        let j = [uv[0].d[0], uv[1].d[0]];
+        let (uv, j) = if brown5 {
+            let uv = project_generic(&cd, &p);
+            ([uv[0].v, uv[1].v], [uv[0].d[0], uv[1].d[0]])
+        } else {
+            let pv = Vector3::new(p[0].v, p[1].v, p[2].v);
+            let (uv, jp, _) = cam.project_with_jacobians(&pv)?;
+            let j = jp * Vector3::from(*dir);
+            ([uv.x, uv.y], [j.x, j.y])
+        };
+        let res = [uv[0] - target[0], uv[1] - target[1]];
         let jj = j[0] * j[0] + j[1] * j[1];
         if jj.is_nan() || jj <= 1e-300 || !jj.is_finite() {
             return Err(Error::Degenerate(

@@ -7,16 +7,18 @@ use rayon::prelude::*;
 
 use super::line::{foot_point, parallel_error, stripe_line};
 use super::JointProblem;
-use crate::calib::conic::{centre_generic_n, quadrature_nodes};
+use nalgebra::Vector3;
+
+use crate::calib::conic::{centre_any_model, centre_generic_n, quadrature_nodes};
 use crate::error::Result;
-use crate::model::camera::project_generic;
+use crate::model::camera::{project_generic, Camera};
 
 impl JointProblem<'_> {
     /// Stripe foot point from the warm-start cache, which it updates.
     pub(super) fn cached_foot_point(
         &self,
         k: usize,
-        cam: &[f64; 9],
+        cam: &Camera,
         p0: &[f64; 3],
         dir: &[f64; 3],
     ) -> Result<(f64, [f64; 2])> {
@@ -30,6 +32,8 @@ impl JointProblem<'_> {
     /// f64 residuals (unweighted): circles (2 each) then stripe points.
     pub(super) fn raw_residuals(&self, p: &[f64], r: &mut [f64]) -> Result<()> {
         let s = self.decode(p);
+        let cam = self.base.with_params(&s.cam);
+        let brown5 = cam.projection.is_brown5();
         let a = self.flanges(&s);
         let poses = s.view_poses(&a);
         let board_poses = s.circle_poses(&a);
@@ -44,15 +48,19 @@ impl JointProblem<'_> {
             .zip(self.terms.circles.par_iter())
             .try_for_each(|(out, c)| -> Result<()> {
                 let (rot, t) = &board_poses[c.view];
-                let uv = centre_generic_n(
-                    &s.cam,
-                    rot,
-                    t,
-                    c.centre,
-                    c.radius,
-                    self.model,
-                    quadrature_nodes(self.base.model),
-                )?;
+                let uv = if brown5 {
+                    centre_generic_n(
+                        &s.cam,
+                        rot,
+                        t,
+                        c.centre,
+                        c.radius,
+                        self.model,
+                        quadrature_nodes(self.base.model),
+                    )?
+                } else {
+                    centre_any_model(&cam, rot, t, c.centre, c.radius, self.model)?
+                };
                 out[0] = uv[0] - c.u;
                 out[1] = uv[1] - c.v;
                 Ok(())
@@ -64,9 +72,14 @@ impl JointProblem<'_> {
                 let Some((p0, dir)) = lines[st.view] else {
                     return Err(parallel_error(st.view));
                 };
-                let (sf, normal) = self.cached_foot_point(k, &s.cam, &p0, &dir)?;
+                let (sf, normal) = self.cached_foot_point(k, &cam, &p0, &dir)?;
                 let pt: [f64; 3] = std::array::from_fn(|i| p0[i] + sf * dir[i]);
-                let uv = project_generic(&s.cam, &pt);
+                let uv = if brown5 {
+                    project_generic(&s.cam, &pt)
+                } else {
+                    let uv = cam.project(&Vector3::from(pt))?;
+                    [uv.x, uv.y]
+                };
                 *out = normal[0] * (uv[0] - st.u) + normal[1] * (uv[1] - st.v);
                 Ok(())
             })?;
