@@ -172,8 +172,15 @@ LOO_PHRASE = re.compile(r"leave[- ]one[- ](view[- ])?out", re.IGNORECASE)
 # more than 5 honest sigmas off fails the calibration, so the set is calibrated with
 # --estimate-board-scale, as a user would after that failure. (Before, with the scale held,
 # ours was 5 % worse than OpenCV in mm on the board and this set was a strict xfail.)
+# rosi_10x10's printed pitch is in doubt as well (realdata/README.md: 25.4 mm in the
+# source, 24.8-25.0 implied by the robot), and issue 38 has its figures taken with the
+# scale free too: with it held, the 0.84 % the robot implies goes into the per-view pose
+# corrections, which a held-out view is predicted without (1.39 px against 1.12 free).
 CLI_SETS = ["rosi_10x10", "visp_franka"]
-CLI_OPTIONS = {"rosi_10x10": [], "visp_franka": ["--estimate-board-scale"]}
+CLI_OPTIONS = {"rosi_10x10": ["--estimate-board-scale"], "visp_franka": ["--estimate-board-scale"]}
+# Issue 38, acceptance 2: the held-out chain error (median px) within 10 % of the default
+# before the robot-pose noise model (1.15 and 6.47 px), as well as no worse than OpenCV's.
+BEFORE_POSE_NOISE_PX = {"rosi_10x10": 1.15, "visp_franka": 6.47}
 
 
 @pytest.mark.parametrize("name", CLI_SETS)
@@ -218,6 +225,7 @@ def test_calibrate_cli_leave_one_out_no_worse_than_opencv(
           f"median mm {loo['median_board_rms_mm']:.3f} vs {ref['median_board_rms_mm']:.3f}")
     assert loo["median_board_rms_px"] <= ref["median_board_rms_px"]
     assert loo["median_board_rms_mm"] <= ref["median_board_rms_mm"]
+    assert loo["median_board_rms_px"] <= 1.1 * BEFORE_POSE_NOISE_PX[name]
 
 
 def _with_board(root: Path, ds: Path, board: Dict[str, Any]) -> Path:
