@@ -9,6 +9,11 @@ With several N the folders are rendered first, then the calibrations run interle
 (N1, N2, N1, N2, ...), best of --repeat each; CPU time of the process beside the wall
 time. The hp3-paper twin, noise 1 gray level, PSF 0.7 px (bench_calibrate.py's), default
 options otherwise (the board's stripe-bias correction on).
+
+    python scripts/bench_leave_one_out.py 15 60 --cache /tmp/twins   # render once, reuse
+
+--cache DIR keeps the rendered folders in DIR/N (rendered when absent), so that two
+builds can be timed on the same folders (each run with its own PYTHONPATH).
 """
 import argparse
 import os
@@ -21,10 +26,15 @@ import stripecal.sim
 ap = argparse.ArgumentParser()
 ap.add_argument("views", type=int, nargs="+")
 ap.add_argument("--repeat", type=int, default=5)
+ap.add_argument("--cache", metavar="DIR", help="keep the rendered folders in DIR/N")
 a = ap.parse_args()
 dirs = {}
 for n in a.views:
-    d = tempfile.mkdtemp()
+    d = os.path.join(a.cache, str(n)) if a.cache else tempfile.mkdtemp()
+    if a.cache and os.path.exists(os.path.join(d, "calib", "rig.json")):
+        dirs[n] = d + "/calib"
+        continue
+    os.makedirs(d, exist_ok=True)
     cfg = stripecal.sim.preset(
         "hp3-paper",
         poses={"count": n},

@@ -23,11 +23,9 @@ mod terms;
 mod values;
 mod variance;
 
-pub(super) use shares::GroupShare;
 pub(super) use terms::Terms;
 #[cfg(test)]
 pub(super) use terms::{CircleTerm, StripeTerm};
-pub(super) use variance::robot_sigma_update;
 
 use std::sync::atomic::{AtomicBool, AtomicU64, AtomicUsize, Ordering};
 use std::sync::Mutex;

@@ -184,11 +184,7 @@ impl JointProblem<'_> {
     /// The robot-pose sigmas' floors in force (the robot's figures and the adjustment's
     /// own, capped by the images' resolution; [`super::super::robot_noise`]) with the
     /// views' image information `info` and the image groups' sigmas `sigma_px`.
-    pub(in crate::calib::joint) fn robot_floors(
-        &self,
-        info: &[[Matrix6<f64>; 2]],
-        sigma_px: (f64, f64),
-    ) -> Floors {
+    fn robot_floors(&self, info: &[[Matrix6<f64>; 2]], sigma_px: (f64, f64)) -> Floors {
         let (res_r, res_t) = robot_noise::resolution(info, sigma_px).unwrap_or((0.0, 0.0));
         let own = |absolute: f64, res: f64| {
             if res > 0.0 {
@@ -275,7 +271,7 @@ impl JointProblem<'_> {
 /// and its sigma `old`: at least `floor`; a change within [`ROBOT_SIGMA_DEAD_BAND`] is
 /// below what the component resolves: the sigma stays (floored), and the solver is not
 /// kept from stopping by a sigma creeping near its floor.
-pub(in crate::calib::joint) fn robot_sigma_update(old: f64, sig: Option<f64>, floor: f64) -> f64 {
+fn robot_sigma_update(old: f64, sig: Option<f64>, floor: f64) -> f64 {
     let s = sig.unwrap_or(old).max(floor);
     if (s / old - 1.0).abs() <= ROBOT_SIGMA_DEAD_BAND {
         old.max(floor)
