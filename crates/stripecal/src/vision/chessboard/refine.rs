@@ -113,12 +113,22 @@ fn orthogonality_start(
 ) -> Option<[f64; 2]> {
     let mut c = start;
     let s2 = 2.0 * (0.5 * r).powi(2);
+    let mut wx: Vec<f64> = Vec::with_capacity(2 * r as usize + 3);
     for _ in 0..10 {
         let (mut a, mut b, mut d, mut bx, mut by) = (0.0, 0.0, 0.0, 0.0, 0.0);
         let (x0, x1) = ((c[0] - r).ceil() as i64, (c[0] + r).floor() as i64);
         let (y0, y1) = ((c[1] - r).ceil() as i64, (c[1] + r).floor() as i64);
+        let (xa, xb) = (x0.max(1), x1.min(g.w as i64 - 2));
+        // the Gaussian weight is separable: one exp per column and one per row
+        wx.clear();
+        wx.extend((xa..=xb).map(|x| {
+            let dx = x as f64 - c[0];
+            (-(dx * dx) / s2).exp()
+        }));
         for y in y0.max(1)..=y1.min(g.h as i64 - 2) {
-            for x in x0.max(1)..=x1.min(g.w as i64 - 2) {
+            let dy = y as f64 - c[1];
+            let wy = (-(dy * dy) / s2).exp();
+            for (x, &wxx) in (xa..=xb).zip(&wx) {
                 if !mask.is_empty() {
                     let (mx, my) = (
                         (2.0 * c[0] - x as f64).round(),
@@ -133,8 +143,7 @@ fn orthogonality_start(
                 let (xu, yu) = (x as usize, y as usize);
                 let gx = 0.5 * (g.at(xu + 1, yu) - g.at(xu - 1, yu)) as f64;
                 let gy = 0.5 * (g.at(xu, yu + 1) - g.at(xu, yu - 1)) as f64;
-                let (dx, dy) = (x as f64 - c[0], y as f64 - c[1]);
-                let w = (-(dx * dx + dy * dy) / s2).exp();
+                let w = wxx * wy;
                 let (gxx, gxy, gyy) = (w * gx * gx, w * gx * gy, w * gy * gy);
                 a += gxx;
                 b += gxy;
@@ -189,13 +198,14 @@ fn fit(
         }
     }
     let mut lambda = 1e-3;
+    // the window is centred on the start (th's centre): its normal equations, then
+    // after every accepted step those of the window re-centred on the new estimate
+    // (the parameters are relative to the centre: shifting the window keeps them)
+    let (mut h, mut b, mut cost, mut wsum) = normal(&th, &px, inv_r);
     for _ in 0..40 {
-        window(g, [th[0], th[1]], r, mask, &mut px);
         if px.len() < 20 {
             return None;
         }
-        // the parameters are relative to the centre: shifting the window keeps them
-        let (h, b, cost, _) = normal(&th, &px, inv_r);
         let mut accepted = None;
         for _ in 0..8 {
             let mut ha = h;
@@ -222,12 +232,12 @@ fn fit(
             break;
         };
         th = t2;
+        window(g, [th[0], th[1]], r, mask, &mut px);
+        (h, b, cost, wsum) = normal(&th, &px, inv_r);
         if delta[0].hypot(delta[1]) < 2e-4 && delta[2].abs() < 2e-4 && delta[3].abs() < 2e-4 {
             break;
         }
     }
-    window(g, [th[0], th[1]], r, mask, &mut px);
-    let (h, _, cost, wsum) = normal(&th, &px, inv_r);
     th.iter()
         .all(|v| v.is_finite())
         .then_some((th, px, h, cost, wsum))
