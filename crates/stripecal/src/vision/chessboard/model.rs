@@ -206,7 +206,7 @@ impl Model {
     }
 
     /// Model value and its gradient with respect to the 11 parameters.
-    #[inline]
+    #[inline(always)]
     pub fn eval(&self, dx: f64, dy: f64) -> (f64, Vec11) {
         let (th, k, inv_r) = (&self.th, self.k, self.inv_r);
         let (s1a, c1a, s2a, c2a) = (self.s1a, self.c1a, self.s2a, self.c2a);
@@ -239,38 +239,111 @@ impl Model {
     }
 }
 
-/// Normal equations of the window: `(J^T W J, J^T W r, cost, weight sum)`.
-pub(crate) fn normal(th: &Vec11, px: &[[f64; 4]], inv_r: f64) -> (Mat, Vec11, f64, f64) {
-    // upper triangle of J^T W J, row by row
-    let mut tri = [0f64; NP * (NP + 1) / 2];
-    let mut b = Vec11::zeros();
-    let (mut cost, mut wsum) = (0.0, 0.0);
-    let md = Model::new(th, inv_r);
-    for q in px {
-        let (f, j) = md.eval(q[0], q[1]);
-        let r = q[2] - f;
+/// Running sums of the normal equations.
+struct Sums {
+    /// Upper triangle of `J^T W J`, row by row.
+    tri: [f64; NP * (NP + 1) / 2],
+    b: Vec11,
+    cost: f64,
+    wsum: f64,
+}
+
+impl Sums {
+    fn new() -> Sums {
+        Sums {
+            tri: [0.0; NP * (NP + 1) / 2],
+            b: Vec11::zeros(),
+            cost: 0.0,
+            wsum: 0.0,
+        }
+    }
+
+    /// One pixel of weight `w`, residual `r`, model gradient `j`.
+    #[inline(always)]
+    fn add(&mut self, w: f64, r: f64, j: &Vec11) {
         let mut k = 0;
         for a in 0..NP {
-            let wa = q[3] * j[a];
+            let wa = w * j[a];
             for c in a..NP {
-                tri[k] += wa * j[c];
+                self.tri[k] += wa * j[c];
                 k += 1;
             }
         }
-        b.axpy(q[3] * r, &j, 1.0);
-        cost += q[3] * r * r;
-        wsum += q[3];
+        self.b.axpy(w * r, j, 1.0);
+        self.cost += w * r * r;
+        self.wsum += w;
     }
-    let mut h = Mat::zeros();
-    let mut k = 0;
-    for a in 0..NP {
-        for c in a..NP {
-            h[(a, c)] = tri[k];
-            h[(c, a)] = tri[k];
-            k += 1;
+
+    fn finish(self) -> (Mat, Vec11, f64, f64) {
+        let mut h = Mat::zeros();
+        let mut k = 0;
+        for a in 0..NP {
+            for c in a..NP {
+                h[(a, c)] = self.tri[k];
+                h[(c, a)] = self.tri[k];
+                k += 1;
+            }
+        }
+        (h, self.b, self.cost, self.wsum)
+    }
+}
+
+/// Normal equations of the window: `(J^T W J, J^T W r, cost, weight sum)`.
+pub(crate) fn normal(th: &Vec11, px: &[[f64; 4]], inv_r: f64) -> (Mat, Vec11, f64, f64) {
+    let mut s = Sums::new();
+    let md = Model::new(th, inv_r);
+    for q in px {
+        let (f, j) = md.eval(q[0], q[1]);
+        s.add(q[3], q[2] - f, &j);
+    }
+    s.finish()
+}
+
+/// A Levenberg-Marquardt trial in one pass: [`normal`] of `th` over `new` (the window
+/// centred on `th`'s centre) and the cost of `th` over `old` (the window of the
+/// previous estimate, centred on `c_old`, every offset shifted by `c - c_old`), the
+/// trial's test. Both windows are row-major; a pixel in both is
+/// evaluated once.
+pub(crate) fn normal_trial(
+    th: &Vec11,
+    old: &[[f64; 4]],
+    c_old: [f64; 2],
+    new: &[[f64; 4]],
+    inv_r: f64,
+) -> ((Mat, Vec11, f64, f64), f64) {
+    let md = Model::new(th, inv_r);
+    let c = [th[0], th[1]];
+    let shift = [c[0] - c_old[0], c[1] - c_old[1]];
+    // (row, column) of a window pixel (coordinates are not negative: truncation
+    // rounds, without a call to `round`)
+    let key = |q: &[f64; 4], c: [f64; 2]| ((q[1] + c[1] + 0.5) as i64, (q[0] + c[0] + 0.5) as i64);
+    let (mut i, mut k) = (0, 0);
+    let mut trial = 0.0;
+    let mut s = Sums::new();
+    loop {
+        match (old.get(i), new.get(k)) {
+            (None, None) => break,
+            (Some(qo), Some(qn)) if key(qo, c_old) == key(qn, c) => {
+                let (f, j) = md.eval(qn[0], qn[1]);
+                trial += qo[3] * (qo[2] - f).powi(2);
+                s.add(qn[3], qn[2] - f, &j);
+                i += 1;
+                k += 1;
+            }
+            (Some(qo), qn) if qn.is_none_or(|qn| key(qo, c_old) < key(qn, c)) => {
+                let (f, _) = md.value(qo[0] - shift[0], qo[1] - shift[1]);
+                trial += qo[3] * (qo[2] - f).powi(2);
+                i += 1;
+            }
+            (_, Some(qn)) => {
+                let (f, j) = md.eval(qn[0], qn[1]);
+                s.add(qn[3], qn[2] - f, &j);
+                k += 1;
+            }
+            (Some(_), None) => unreachable!(),
         }
     }
-    (h, b, cost, wsum)
+    (s.finish(), trial)
 }
 
 /// The linear block of [`normal`] alone (rows and columns 5..11: contrast and

@@ -55,7 +55,7 @@ use std::collections::HashSet;
 use super::checks::{quadrants, validate, worst_sector};
 use super::image::Gray;
 use super::lattice::{cross, norm, Local};
-use super::model::{cost_of, normal, normal_linear, window, Mat, Vec11, NP};
+use super::model::{cost_of, normal, normal_linear, normal_trial, window, Mat, Vec11, NP};
 use super::stripe::{dark_sector_stripe, faint_line, residual_stripe, stripe_mask};
 
 /// A converged fit: parameters, final window pixels, normal matrix, cost, weight sum.
@@ -198,11 +198,13 @@ fn fit(
         }
     }
     let mut lambda = 1e-3;
-    // the window is centred on the start (th's centre): its normal equations, then
-    // after every accepted step those of the window re-centred on the new estimate
+    // the window is centred on the start (th's centre): its normal equations; each
+    // trial's pass gives those of the window re-centred on it with its cost test
     // (the parameters are relative to the centre: shifting the window keeps them)
     let (mut h, mut b, mut cost, mut wsum) = normal(&th, &px, inv_r);
-    for _ in 0..40 {
+    let mut px2 = Vec::with_capacity(px.capacity());
+    let converged = |d: &Vec11| d[0].hypot(d[1]) < 2e-4 && d[2].abs() < 2e-4 && d[3].abs() < 2e-4;
+    'lm: for _ in 0..40 {
         if px.len() < 20 {
             return None;
         }
@@ -218,25 +220,39 @@ fn fit(
             };
             let delta = ch.solve(&b);
             let mut t2 = th + delta;
-            // the centre moved: keep the offsets relative to the trial centre
             t2[4] = t2[4].clamp(-3.0, 3.0);
-            let c2 = cost_of(&t2, &px, inv_r, [delta[0], delta[1]]);
+            if converged(&delta) {
+                // the last step (below 2e-4 px and rad): its cost over the window
+                // shifted with it; the normal equations stay those of the previous
+                // estimate (for the covariance, 2e-4 px away)
+                let c2 = cost_of(&t2, &px, inv_r, [delta[0], delta[1]]);
+                if c2.is_finite() && c2 <= cost {
+                    for q in px.iter_mut() {
+                        q[0] -= delta[0];
+                        q[1] -= delta[1];
+                    }
+                    th = t2;
+                    cost = c2;
+                    break 'lm;
+                }
+                lambda *= 4.0;
+                continue;
+            }
+            window(g, [t2[0], t2[1]], r, mask, &mut px2);
+            let (nrm, c2) = normal_trial(&t2, &px, [th[0], th[1]], &px2, inv_r);
             if c2.is_finite() && c2 <= cost {
                 lambda = (lambda / 3.0).max(1e-9);
-                accepted = Some((t2, delta));
+                accepted = Some((t2, nrm));
                 break;
             }
             lambda *= 4.0;
         }
-        let Some((t2, delta)) = accepted else {
+        let Some((t2, nrm)) = accepted else {
             break;
         };
         th = t2;
-        window(g, [th[0], th[1]], r, mask, &mut px);
-        (h, b, cost, wsum) = normal(&th, &px, inv_r);
-        if delta[0].hypot(delta[1]) < 2e-4 && delta[2].abs() < 2e-4 && delta[3].abs() < 2e-4 {
-            break;
-        }
+        std::mem::swap(&mut px, &mut px2);
+        (h, b, cost, wsum) = nrm;
     }
     th.iter()
         .all(|v| v.is_finite())
