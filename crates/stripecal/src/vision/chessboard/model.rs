@@ -103,7 +103,7 @@ impl ErfTable {
     #[inline]
     pub fn erf_exp(&self, x: f64) -> (f64, f64) {
         let a = x.abs();
-        if !(a < 6.0) {
+        if a.is_nan() || a >= 6.0 {
             return (x.signum(), 0.0);
         }
         let u = a * TAB_SCALE;
