@@ -11,7 +11,9 @@
 //! - `loop CASE SECONDS`: detections of one case (`twin`, `visp`, `big`) for `perf`;
 //! - `dump FILE`: every detected corner (case, image, row, col, u, v, quality) to FILE;
 //! - `diff FILE_A FILE_B`: the largest and RMS position difference of two dumps;
-//! - `png DIR`: writes the twin images as `DIR/twin_7x10.png`, `DIR/big_28x17.png`.
+//! - `png DIR`: writes the twin images as `DIR/twin_7x10.png`, `DIR/big_28x17.png`;
+//! - `truth FILE`: the true corners of the twin images (`twin`, `big`) in the format of
+//!   `dump`, for `diff` against a dump (the error against the truth).
 
 use std::collections::HashMap;
 use std::hint::black_box;
@@ -21,6 +23,7 @@ use stripecal::io::{load_gray, read_rig, save_gray_png};
 use stripecal::model::image::AnyGray;
 use stripecal::vision::chessboard::{detect_chessboard, ChessboardOptions};
 use stripecal::Board;
+use stripecal_sim::truth::target_truth;
 use stripecal_sim::{SimConfig, Twin};
 
 fn cpu_ns() -> u64 {
@@ -203,6 +206,25 @@ fn main() {
                     (ss / n.max(1) as f64).sqrt()
                 );
             }
+        }
+        "truth" => {
+            let mut s = String::new();
+            for (name, over) in [("twin", serde_json::json!({})), ("big", big_overrides())] {
+                let cfg = SimConfig::preset("hp3-chessboard")
+                    .unwrap()
+                    .with_overrides(&over)
+                    .unwrap();
+                let twin = Twin::new(cfg).unwrap();
+                let poses = twin.calibration_poses().unwrap();
+                let scene = twin.scene(&poses[0].q_deg, false).unwrap();
+                for t in target_truth(&scene, &twin.camera, 0.0) {
+                    s += &format!(
+                        "{name} view0 {} {} {:.9} {:.9} 1 0\n",
+                        t.row, t.col, t.u, t.v
+                    );
+                }
+            }
+            std::fs::write(&args[1], s).unwrap();
         }
         "png" => {
             let dir = PathBuf::from(&args[1]);

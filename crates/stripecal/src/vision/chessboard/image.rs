@@ -46,7 +46,8 @@ impl Gray {
         if !(x >= 0.0 && y >= 0.0 && x <= (self.w - 1) as f64 && y <= (self.h - 1) as f64) {
             return None;
         }
-        let (x0, y0) = (x.floor() as usize, y.floor() as usize);
+        // not negative here: truncation is the floor (without a call to `floor`)
+        let (x0, y0) = (x as usize, y as usize);
         let (x1, y1) = ((x0 + 1).min(self.w - 1), (y0 + 1).min(self.h - 1));
         let (fx, fy) = ((x - x0 as f64) as f32, (y - y0 as f64) as f32);
         let r0 = self.px[y0 * self.w + x0] * (1.0 - fx) + self.px[y0 * self.w + x1] * fx;

@@ -47,10 +47,10 @@
 //!   shift along v (on the benchmark's synthetic image SB is 0.06 px RMS from the
 //!   truth, this detector 0.004 px).
 //! - Speed (`benches/benches/vision_targets.rs`, `benches/examples/chess_prof.rs`,
-//!   `scripts/bench_chessboard.py`; BENCHMARKS.md): about 12 ms CPU for a 768 x 576 image
+//!   `scripts/bench_chessboard.py`; BENCHMARKS.md): about 9 ms CPU for a 768 x 576 image
 //!   of 70 corners, one thread, several times faster than `findChessboardCornersSB` but
-//!   4-15x slower than `findChessboardCorners` + `cornerSubPix`; about 0.1 ms per
-//!   corner refinement, most of it the model fit's passes over its window.
+//!   2.4-9x slower than `findChessboardCorners` + `cornerSubPix`; about 0.1 ms per
+//!   corner, most of it the model fit's passes over its window.
 //!
 //! ## Mirror images
 //!

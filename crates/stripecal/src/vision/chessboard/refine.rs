@@ -55,7 +55,7 @@ use std::collections::HashSet;
 use super::checks::{quadrants, validate, worst_sector};
 use super::image::Gray;
 use super::lattice::{cross, norm, Local};
-use super::model::{cost_of, normal, normal_linear, window, Mat, Vec11, NP};
+use super::model::{cost_of, normal, normal_linear, normal_trial, window, Mat, Vec11, NP};
 use super::stripe::{dark_sector_stripe, faint_line, residual_stripe, stripe_mask};
 
 /// A converged fit: parameters, final window pixels, normal matrix, cost, weight sum.
@@ -113,12 +113,22 @@ fn orthogonality_start(
 ) -> Option<[f64; 2]> {
     let mut c = start;
     let s2 = 2.0 * (0.5 * r).powi(2);
+    let mut wx: Vec<f64> = Vec::with_capacity(2 * r as usize + 3);
     for _ in 0..10 {
         let (mut a, mut b, mut d, mut bx, mut by) = (0.0, 0.0, 0.0, 0.0, 0.0);
         let (x0, x1) = ((c[0] - r).ceil() as i64, (c[0] + r).floor() as i64);
         let (y0, y1) = ((c[1] - r).ceil() as i64, (c[1] + r).floor() as i64);
+        let (xa, xb) = (x0.max(1), x1.min(g.w as i64 - 2));
+        // the Gaussian weight is separable: one exp per column and one per row
+        wx.clear();
+        wx.extend((xa..=xb).map(|x| {
+            let dx = x as f64 - c[0];
+            (-(dx * dx) / s2).exp()
+        }));
         for y in y0.max(1)..=y1.min(g.h as i64 - 2) {
-            for x in x0.max(1)..=x1.min(g.w as i64 - 2) {
+            let dy = y as f64 - c[1];
+            let wy = (-(dy * dy) / s2).exp();
+            for (x, &wxx) in (xa..=xb).zip(&wx) {
                 if !mask.is_empty() {
                     let (mx, my) = (
                         (2.0 * c[0] - x as f64).round(),
@@ -133,8 +143,7 @@ fn orthogonality_start(
                 let (xu, yu) = (x as usize, y as usize);
                 let gx = 0.5 * (g.at(xu + 1, yu) - g.at(xu - 1, yu)) as f64;
                 let gy = 0.5 * (g.at(xu, yu + 1) - g.at(xu, yu - 1)) as f64;
-                let (dx, dy) = (x as f64 - c[0], y as f64 - c[1]);
-                let w = (-(dx * dx + dy * dy) / s2).exp();
+                let w = wxx * wy;
                 let (gxx, gxy, gyy) = (w * gx * gx, w * gx * gy, w * gy * gy);
                 a += gxx;
                 b += gxy;
@@ -189,13 +198,16 @@ fn fit(
         }
     }
     let mut lambda = 1e-3;
-    for _ in 0..40 {
-        window(g, [th[0], th[1]], r, mask, &mut px);
+    // the window is centred on the start (th's centre): its normal equations; each
+    // trial's pass gives those of the window re-centred on it with its cost test
+    // (the parameters are relative to the centre: shifting the window keeps them)
+    let (mut h, mut b, mut cost, mut wsum) = normal(&th, &px, inv_r);
+    let mut px2 = Vec::with_capacity(px.capacity());
+    let converged = |d: &Vec11| d[0].hypot(d[1]) < 2e-4 && d[2].abs() < 2e-4 && d[3].abs() < 2e-4;
+    'lm: for _ in 0..40 {
         if px.len() < 20 {
             return None;
         }
-        // the parameters are relative to the centre: shifting the window keeps them
-        let (h, b, cost, _) = normal(&th, &px, inv_r);
         let mut accepted = None;
         for _ in 0..8 {
             let mut ha = h;
@@ -208,26 +220,40 @@ fn fit(
             };
             let delta = ch.solve(&b);
             let mut t2 = th + delta;
-            // the centre moved: keep the offsets relative to the trial centre
             t2[4] = t2[4].clamp(-3.0, 3.0);
-            let c2 = cost_of(&t2, &px, inv_r, [delta[0], delta[1]]);
+            if converged(&delta) {
+                // the last step (below 2e-4 px and rad): its cost over the window
+                // shifted with it; the normal equations stay those of the previous
+                // estimate (for the covariance, 2e-4 px away)
+                let c2 = cost_of(&t2, &px, inv_r, [delta[0], delta[1]]);
+                if c2.is_finite() && c2 <= cost {
+                    for q in px.iter_mut() {
+                        q[0] -= delta[0];
+                        q[1] -= delta[1];
+                    }
+                    th = t2;
+                    cost = c2;
+                    break 'lm;
+                }
+                lambda *= 4.0;
+                continue;
+            }
+            window(g, [t2[0], t2[1]], r, mask, &mut px2);
+            let (nrm, c2) = normal_trial(&t2, &px, [th[0], th[1]], &px2, inv_r);
             if c2.is_finite() && c2 <= cost {
                 lambda = (lambda / 3.0).max(1e-9);
-                accepted = Some((t2, delta));
+                accepted = Some((t2, nrm));
                 break;
             }
             lambda *= 4.0;
         }
-        let Some((t2, delta)) = accepted else {
+        let Some((t2, nrm)) = accepted else {
             break;
         };
         th = t2;
-        if delta[0].hypot(delta[1]) < 2e-4 && delta[2].abs() < 2e-4 && delta[3].abs() < 2e-4 {
-            break;
-        }
+        std::mem::swap(&mut px, &mut px2);
+        (h, b, cost, wsum) = nrm;
     }
-    window(g, [th[0], th[1]], r, mask, &mut px);
-    let (h, _, cost, wsum) = normal(&th, &px, inv_r);
     th.iter()
         .all(|v| v.is_finite())
         .then_some((th, px, h, cost, wsum))
