@@ -42,6 +42,8 @@ pub struct ViewShare {
     own: Range<usize>,
     a: DMatrix<f64>,
     g: DVector<f64>,
+    /// Scratch: a row's columns as local indices ([`Self::add_row`]).
+    local: Vec<Option<usize>>,
 }
 
 impl ViewShare {
@@ -53,24 +55,24 @@ impl ViewShare {
             own,
             a: DMatrix::zeros(n, n),
             g: DVector::zeros(n),
+            local: Vec::new(),
         }
     }
 
     /// Adds one (weighted) row: its columns, values and residual; other views' columns
     /// are ignored (they have none).
     pub fn add_row(&mut self, cols: &[usize], vals: &[f64], r: f64) {
-        let local: Vec<Option<usize>> = cols
-            .iter()
-            .map(|&c| {
-                if c < self.ng {
-                    Some(c)
-                } else if self.own.contains(&c) {
-                    Some(self.ng + c - self.own.start)
-                } else {
-                    None
-                }
-            })
-            .collect();
+        let mut local = std::mem::take(&mut self.local);
+        local.clear();
+        local.extend(cols.iter().map(|&c| {
+            if c < self.ng {
+                Some(c)
+            } else if self.own.contains(&c) {
+                Some(self.ng + c - self.own.start)
+            } else {
+                None
+            }
+        }));
         for (x, (lx, vx)) in local.iter().zip(vals).enumerate() {
             let (Some(lx), true) = (lx, *vx != 0.0) else {
                 continue;
@@ -85,6 +87,7 @@ impl ViewShare {
                 }
             }
         }
+        self.local = local;
     }
 
     /// `(M_v, s_v)`: `A_gg - A_gd A_dd^-1 A_dg` and `g_g - A_gd A_dd^-1 g_d`; `None` when

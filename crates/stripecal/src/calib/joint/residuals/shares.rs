@@ -65,6 +65,9 @@ impl JointProblem<'_> {
         self.residuals_and_jacobian_rows(p, &mut r, &mut rows)?;
         let mut g = DMatrix::zeros(n, k);
         let po = self.prior_offset();
+        // per row: its correction columns' (index, value) in the row's order, and the
+        // row's value along each motion
+        let (mut corr, mut along): (Vec<(usize, f64)>, Vec<f64>) = (Vec::new(), Vec::new());
         for &(view, i0, i1) in self.view_runs.iter().filter(|r| r.1 < po) {
             let Some(tw) = twists.get(view) else { continue };
             let own = ng + view * pv;
@@ -72,17 +75,15 @@ impl JointProblem<'_> {
                 let (cols, vals) = rows.row(i);
                 // The row's value along each motion: its correction columns times the
                 // motion's twist.
-                let dcols: Vec<usize> = (0..6).map(|q| own + q).collect();
-                let along: Vec<f64> = (0..k)
-                    .map(|j| {
-                        cols.iter()
-                            .zip(vals)
-                            .filter_map(|(c, v)| {
-                                dcols.iter().position(|d| d == c).map(|q| v * tw[j][q])
-                            })
-                            .sum()
-                    })
-                    .collect();
+                corr.clear();
+                corr.extend(
+                    cols.iter()
+                        .zip(vals)
+                        .filter(|(c, _)| (own..own + 6).contains(*c))
+                        .map(|(c, v)| (c - own, *v)),
+                );
+                along.clear();
+                along.extend((0..k).map(|j| corr.iter().map(|&(q, v)| v * tw[j][q]).sum::<f64>()));
                 for (c, v) in cols.iter().zip(vals) {
                     if *v == 0.0 {
                         continue;
