@@ -10,7 +10,10 @@
 //! (`I_i` the extractor's peak height, `P_i` the modelled profile's peak read by the same
 //! code, `k` the unknown power x reflectance x gain, eliminated as the mean), with
 //! numerical derivatives (1 mm steps; the emitter moves only the shading, so each point's
-//! sections are solved once for the whole fit). Saturated points are left out. Standard
+//! sections are solved once for the whole fit; each iteration tries the step with the
+//! previous iteration's derivatives first, and where that step is below the tolerance,
+//! 0.05 mm, it is the last and the derivative runs at the solution are saved). Saturated
+//! points are left out. Standard
 //! uncertainties from `s^2 (J^T J)^-1` (`s^2` the residual variance).
 //!
 //! Neglected: vignetting and a non-uniform reflectance or sheet power along the line (they
@@ -135,53 +138,89 @@ pub(super) fn estimate_emitter(
     let mut cov = Matrix2::zeros();
     let mut rms = 0.0;
     let mut used = 0;
+    // The last iteration's derivative columns per point (`None`: not modelled).
+    let mut last_j: Option<Vec<Option<(f64, f64)>>> = None;
     for _ in 0..10 {
         let f0 = at(&x);
-        let fa = at(&(x + Vector2::new(h, 0.0)));
-        let fb = at(&(x + Vector2::new(0.0, h)));
-        // Residuals with the mean removed, over the points all three model.
-        let mut rows = Vec::new();
-        for k in 0..pts.len() {
-            if let (Some(a), Some(b), Some(c)) = (f0[k], fa[k], fb[k]) {
-                rows.push((obs[k] - a, (b - a) / h, (c - a) / h));
+        // With the last iteration's derivatives first (module docs): where that step is
+        // below the tolerance it is the last, and the derivative runs are saved.
+        if let Some(j) = &last_j {
+            let rows: Vec<(f64, f64, f64)> = (0..pts.len())
+                .filter_map(|k| {
+                    let (a, (ja, jb)) = (f0[k]?, j[k]?);
+                    Some((obs[k] - a, ja, jb))
+                })
+                .collect();
+            if let Some(st) = gn_step(&rows).filter(|st| st.dx.norm() < 0.05) {
+                (cov, rms, used) = (st.cov, st.rms, rows.len());
+                x += st.dx;
+                break;
             }
         }
-        if rows.len() < 50 {
-            return None;
-        }
-        let m = rows.len() as f64;
-        let mr = rows.iter().map(|r| r.0).sum::<f64>() / m;
-        let ma = rows.iter().map(|r| r.1).sum::<f64>() / m;
-        let mb = rows.iter().map(|r| r.2).sum::<f64>() / m;
-        let mut jtj = Matrix2::zeros();
-        let mut jtr = Vector2::zeros();
-        let mut ss = 0.0;
-        for r in &rows {
-            let j = Vector2::new(r.1 - ma, r.2 - mb);
-            let res = r.0 - mr;
-            jtj += j * j.transpose();
-            jtr += j * res;
-            ss += res * res;
-        }
-        let inv = jtj.try_inverse()?;
-        let dx = inv * jtr;
-        let var = ss / (m - 3.0).max(1.0);
-        cov = inv * var;
-        rms = (ss / m).sqrt();
-        used = rows.len();
-        let dx = dx.map(|v| v.clamp(-20.0, 20.0));
-        x += dx;
+        let fa = at(&(x + Vector2::new(h, 0.0)));
+        let fb = at(&(x + Vector2::new(0.0, h)));
+        let j: Vec<Option<(f64, f64)>> = (0..pts.len())
+            .map(|k| Some(((fa[k]? - f0[k]?) / h, (fb[k]? - f0[k]?) / h)))
+            .collect();
+        // Residuals with the mean removed, over the points all three model.
+        let rows: Vec<(f64, f64, f64)> = (0..pts.len())
+            .filter_map(|k| {
+                let (a, (ja, jb)) = (f0[k]?, j[k]?);
+                Some((obs[k] - a, ja, jb))
+            })
+            .collect();
+        let st = gn_step(&rows)?;
+        (cov, rms, used) = (st.cov, st.rms, rows.len());
+        x += st.dx;
         if x.norm() > 200.0 {
             return None;
         }
-        if dx.norm() < 0.05 {
+        if st.dx.norm() < 0.05 {
             break;
         }
+        last_j = Some(j);
     }
     Some(EmitterEstimate {
         emitter_cam_mm: e0 + e1 * x[0] + e2 * x[1],
         sd_mm: [cov[(0, 0)].max(0.0).sqrt(), cov[(1, 1)].max(0.0).sqrt()],
         rms_log: rms,
         points: used,
+    })
+}
+
+/// One Gauss-Newton step of the emitter fit.
+struct Step {
+    dx: Vector2<f64>,
+    cov: Matrix2<f64>,
+    rms: f64,
+}
+
+/// The step (clamped to 20 mm per axis) for the rows `(residual, d/dx, d/dy)`, the
+/// mean (the unknown `k`) removed from each column; `None` with fewer than 50 rows or a
+/// singular normal matrix.
+fn gn_step(rows: &[(f64, f64, f64)]) -> Option<Step> {
+    if rows.len() < 50 {
+        return None;
+    }
+    let m = rows.len() as f64;
+    let mr = rows.iter().map(|r| r.0).sum::<f64>() / m;
+    let ma = rows.iter().map(|r| r.1).sum::<f64>() / m;
+    let mb = rows.iter().map(|r| r.2).sum::<f64>() / m;
+    let mut jtj = Matrix2::zeros();
+    let mut jtr = Vector2::zeros();
+    let mut ss = 0.0;
+    for r in rows {
+        let j = Vector2::new(r.1 - ma, r.2 - mb);
+        let res = r.0 - mr;
+        jtj += j * j.transpose();
+        jtr += j * res;
+        ss += res * res;
+    }
+    let inv = jtj.try_inverse()?;
+    let var = ss / (m - 3.0).max(1.0);
+    Some(Step {
+        dx: (inv * jtr).map(|v| v.clamp(-20.0, 20.0)),
+        cov: inv * var,
+        rms: (ss / m).sqrt(),
     })
 }

@@ -18,7 +18,11 @@
 //!   the width the extractor's own code measures on the modelled profile
 //!   ([`super::stripe_bias`]: the real profile is not Gaussian, and a half-maximum width
 //!   read on pixels is not `2.3548` sigmas), with numerical derivatives; residuals
-//!   beyond 4 robust sigmas are dropped after the first pass.
+//!   beyond 4 robust sigmas are dropped after the first pass. Each iteration tries the
+//!   step with the previous iteration's derivatives first: where that step is below the
+//!   tolerance (`1e-5 s`, `1e-4` px) it is the last one, and the two derivative runs of
+//!   the model at the solution are saved (the covariance then comes from the previous
+//!   iterate's derivatives, one step of the converging fit away).
 //! - Standard uncertainties: `sigma_W^2 (J^T J)^-1` at the solution (`sigma_W^2` the
 //!   residual variance), over a subsample of at most [`WIDTH_POINTS`] points (the
 //!   subsample makes them conservative).
@@ -98,6 +102,7 @@ fn model_widths(rig: &Rig<'_>, r: f64, pts: &[WidthPoint], s: f64, b: f64) -> Ve
 /// Estimates (or takes) the sheet and PSF sigmas from the widths of `points` on the
 /// sphere `(centre, radius)` (base frame); `geo[i]`: the point in the camera frame, its
 /// scan line and frame. See the module docs.
+#[allow(clippy::too_many_arguments)]
 pub(super) fn estimate_sheet_sigma(
     rig: &Rig<'_>,
     points: &ScanPoints,
@@ -106,6 +111,7 @@ pub(super) fn estimate_sheet_sigma(
     sphere: (&Vector3<f64>, f64),
     sheet_sigma_mm: Option<f64>,
     psf_sigma_px: Option<f64>,
+    max_points: usize,
 ) -> Result<SheetSigmaEstimate> {
     check_given(sheet_sigma_mm, psf_sigma_px)?;
     if let (Some(s), Some(b)) = (sheet_sigma_mm, psf_sigma_px) {
@@ -120,7 +126,7 @@ pub(super) fn estimate_sheet_sigma(
             g_range: [0.0, 0.0],
         });
     }
-    let pts = width_points(rig, points, geo, cam_base, sphere)?;
+    let pts = width_points(rig, points, geo, cam_base, sphere, max_points)?;
     if pts.len() < 30 {
         return Err(refusal(format!(
             "{} points with widths (30 needed)",
@@ -197,6 +203,7 @@ fn width_points(
     geo: &[(Vector3<f64>, f64, usize)],
     cam_base: &[Iso3],
     sphere: (&Vector3<f64>, f64),
+    max_points: usize,
 ) -> Result<Vec<WidthPoint>> {
     let n = points.len();
     if points.width_px.len() != n {
@@ -204,7 +211,7 @@ fn width_points(
             "ScanPoints without widths: the sheet thickness cannot be estimated".into(),
         ));
     }
-    let step = n.div_ceil(WIDTH_POINTS).max(1);
+    let step = n.div_ceil(max_points.max(1)).max(1);
     let r = sphere.1;
     let mut pts = Vec::new();
     for i in (0..n).step_by(step) {
@@ -322,20 +329,10 @@ fn gauss_newton(
     let mut cov = Matrix2::zeros();
     let mut rms = 0.0;
     let mut used = 0;
+    // The last iteration's per-point Jacobian rows (`None`: not modelled).
+    let mut last_j: Option<Vec<Option<Vector2<f64>>>> = None;
     for it in 0..GN_ITERATIONS {
         let w0 = model_widths(rig, r, pts, s, b);
-        let hs = 0.01 * s;
-        let hb = 0.01 * b.max(0.1);
-        let ws = if sheet_free {
-            model_widths(rig, r, pts, s + hs, b)
-        } else {
-            vec![None; pts.len()]
-        };
-        let wb = if psf_free {
-            model_widths(rig, r, pts, s, b + hb)
-        } else {
-            vec![None; pts.len()]
-        };
         let res: Vec<Option<f64>> = pts
             .iter()
             .zip(&w0)
@@ -352,52 +349,61 @@ fn gauss_newton(
                 }
             }
         }
-        let mut jtj = Matrix2::zeros();
-        let mut jtr = Vector2::zeros();
-        let (mut ss, mut k) = (0.0, 0usize);
-        for i in 0..pts.len() {
-            let Some(ri) = res[i] else { continue };
-            if !keep[i] {
-                continue;
+        // With the last iteration's Jacobian first (module docs, "Refinement"): where
+        // that step is below the tolerance it is the last, and the derivative runs at
+        // this iterate are not needed.
+        if let Some(j) = &last_j {
+            let step = gn_step(&res, j, &keep, (sheet_free, psf_free));
+            if let Some(st) = step.filter(|st| converged(st, s)) {
+                (cov, rms, used) = (st.cov, st.rms, st.used);
+                s = (s + st.dx[0]).max(0.5 * s);
+                b = (b + st.dx[1]).max(0.0);
+                break;
             }
-            let js = match (sheet_free, ws[i], w0[i]) {
-                (true, Some(a), Some(m)) => (a - m) / hs,
-                (true, _, _) => continue,
-                _ => 0.0,
-            };
-            let jb = match (psf_free, wb[i], w0[i]) {
-                (true, Some(a), Some(m)) => (a - m) / hb,
-                (true, _, _) => continue,
-                _ => 0.0,
-            };
-            let j = Vector2::new(js, jb);
-            jtj += j * j.transpose();
-            jtr += j * ri;
-            ss += ri * ri;
-            k += 1;
         }
-        if k < 30 {
+        let hs = 0.01 * s;
+        let hb = 0.01 * b.max(0.1);
+        let ws = if sheet_free {
+            model_widths(rig, r, pts, s + hs, b)
+        } else {
+            vec![None; pts.len()]
+        };
+        let wb = if psf_free {
+            model_widths(rig, r, pts, s, b + hb)
+        } else {
+            vec![None; pts.len()]
+        };
+        let j: Vec<Option<Vector2<f64>>> = (0..pts.len())
+            .map(|i| {
+                let m = w0[i]?;
+                let js = match (sheet_free, ws[i]) {
+                    (true, Some(a)) => (a - m) / hs,
+                    (true, None) => return None,
+                    _ => 0.0,
+                };
+                let jb = match (psf_free, wb[i]) {
+                    (true, Some(a)) => (a - m) / hb,
+                    (true, None) => return None,
+                    _ => 0.0,
+                };
+                Some(Vector2::new(js, jb))
+            })
+            .collect();
+        let Some(st) = gn_step(&res, &j, &keep, (sheet_free, psf_free)) else {
             return Err(refusal(format!(
-                "{k} points with modelled widths (30 needed)"
+                "{} points with modelled widths (30 needed)",
+                (0..pts.len())
+                    .filter(|&i| keep[i] && res[i].is_some() && j[i].is_some())
+                    .count()
             )));
-        }
-        let dx = solve(&jtj, &jtr);
-        rms = (ss / k as f64).sqrt();
-        used = k;
-        let nfree = sheet_free as usize + psf_free as usize;
-        let var = ss / (k - nfree).max(1) as f64;
-        let mut jj = jtj;
-        for q in 0..2 {
-            if jj[(q, q)] == 0.0 {
-                jj[(q, q)] = 1.0;
-            }
-        }
-        cov = jj.try_inverse().unwrap_or_else(Matrix2::zeros) * var;
-        s = (s + dx[0]).max(0.5 * s);
-        b = (b + dx[1]).max(0.0);
-        if dx[0].abs() < 1e-5 * s && dx[1].abs() < 1e-4 {
+        };
+        (cov, rms, used) = (st.cov, st.rms, st.used);
+        s = (s + st.dx[0]).max(0.5 * s);
+        b = (b + st.dx[1]).max(0.0);
+        if converged(&st, s) {
             break;
         }
+        last_j = Some(j);
     }
     Ok(WidthFit {
         s,
@@ -406,4 +412,58 @@ fn gauss_newton(
         rms,
         used,
     })
+}
+
+/// One Gauss-Newton step of the width fit: the step, the covariance, the RMS of the
+/// residuals and the points used.
+struct GnStep {
+    dx: Vector2<f64>,
+    cov: Matrix2<f64>,
+    rms: f64,
+    used: usize,
+}
+
+/// The Gauss-Newton step for the residuals `res` and Jacobian rows `j` over the `keep`
+/// points both have; `None` with fewer than 30 such points.
+fn gn_step(
+    res: &[Option<f64>],
+    j: &[Option<Vector2<f64>>],
+    keep: &[bool],
+    (sheet_free, psf_free): (bool, bool),
+) -> Option<GnStep> {
+    let mut jtj = Matrix2::zeros();
+    let mut jtr = Vector2::zeros();
+    let (mut ss, mut k) = (0.0, 0usize);
+    for i in 0..res.len() {
+        let (Some(ri), Some(ji), true) = (res[i], j[i], keep[i]) else {
+            continue;
+        };
+        jtj += ji * ji.transpose();
+        jtr += ji * ri;
+        ss += ri * ri;
+        k += 1;
+    }
+    if k < 30 {
+        return None;
+    }
+    let dx = solve(&jtj, &jtr);
+    let nfree = sheet_free as usize + psf_free as usize;
+    let var = ss / (k - nfree).max(1) as f64;
+    let mut jj = jtj;
+    for q in 0..2 {
+        if jj[(q, q)] == 0.0 {
+            jj[(q, q)] = 1.0;
+        }
+    }
+    Some(GnStep {
+        dx,
+        cov: jj.try_inverse().unwrap_or_else(Matrix2::zeros) * var,
+        rms: (ss / k as f64).sqrt(),
+        used: k,
+    })
+}
+
+/// Is the step `st` below the fit's tolerance (`s` the sheet sigma after it)?
+fn converged(st: &GnStep, s: f64) -> bool {
+    st.dx[0].abs() < 1e-5 * s && st.dx[1].abs() < 1e-4
 }

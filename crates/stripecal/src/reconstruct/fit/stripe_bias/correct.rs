@@ -5,7 +5,8 @@
 use nalgebra::Vector3;
 
 use super::points::{
-    corrected_points, corrections, corrections_for_emitters, point_geo, ScanGeometry,
+    corrected_points, corrections, corrections_for_emitters, corrections_from_deltas, deltas,
+    point_geo, ScanGeometry,
 };
 use super::systematic::{assumed_emitter_part, estimate_part, model_part, rss};
 use super::{
@@ -17,7 +18,9 @@ use crate::model::camera::Camera;
 use crate::model::geometry::{Iso3, Plane};
 use crate::model::StripeDirection;
 use crate::reconstruct::fit::emitter::{estimate_emitter, EmitterEstimate};
-use crate::reconstruct::fit::sheet_sigma::{estimate_sheet_sigma, SheetSigmaEstimate};
+use crate::reconstruct::fit::sheet_sigma::{
+    estimate_sheet_sigma, SheetSigmaEstimate, WIDTH_POINTS,
+};
 use crate::reconstruct::fit::{fit_sphere, FitOptions, SphereFitResult};
 use crate::reconstruct::triangulate::Triangulator;
 use crate::reconstruct::{stripe_direction_from_plane, ScanPoints};
@@ -29,6 +32,12 @@ const MIN_MODELLED: usize = 10;
 
 /// Largest number of correct-and-refit rounds.
 const MAX_ROUNDS: usize = 8;
+
+/// The width fit's points in the first of the sheet's two passes when the emitter is
+/// estimated ([`super`] docs, "The model on subsamples"): that pass only starts the
+/// emitter's fit; the second pass, whose sigmas are used, takes
+/// [`WIDTH_POINTS`].
+const FIRST_PASS_WIDTH_POINTS: usize = WIDTH_POINTS / 4;
 
 /// The curved-surface bias correction of a sphere scan (module docs).
 ///
@@ -269,6 +278,11 @@ impl SphereScan<'_> {
                 sphere0,
                 opts.sheet_sigma_mm,
                 opts.psf_sigma_px,
+                if estimate_e && pass == 0 {
+                    FIRST_PASS_WIDTH_POINTS
+                } else {
+                    WIDTH_POINTS
+                },
             )
             .map_err(|e| match e {
                 Error::Degenerate(m) => {
@@ -318,7 +332,8 @@ impl SphereScan<'_> {
         let mut rounds = 0;
         while rounds < MAX_ROUNDS {
             rounds += 1;
-            corr = self.corrections(rig, cand, (&sphere.0, sphere.1), (sigma, psf));
+            let d = deltas(rig, &self.geometry, cand, (&sphere.0, sphere.1), sigma, psf);
+            corr = corrections_from_deltas(rig, &self.geometry, cand, &d);
             let good: Vec<usize> = cand
                 .iter()
                 .zip(&corr)

@@ -149,6 +149,54 @@ pub(crate) fn corrections_for_emitters(
         .collect()
 }
 
+/// The predicted biases (px along the scan line) of the points `idx` for a sphere (base
+/// frame) and model parameters, as [`corrections`] takes them; `None` per point where the
+/// model fails.
+pub(crate) fn deltas(
+    rig: &Rig<'_>,
+    scan: &ScanGeometry<'_>,
+    idx: &[usize],
+    sphere: (&Vector3<f64>, f64),
+    sigma: f64,
+    psf: f64,
+) -> Vec<Option<f64>> {
+    let (geo, cam_base) = (scan.geo, scan.cam_base);
+    idx.par_iter()
+        .map_init(
+            || (PointProfile::default(), Vec::new()),
+            |(prof, buf), &i| {
+                let (g, f) = &geo[i];
+                if g.saturated {
+                    return None;
+                }
+                let c = (cam_base[*f] * nalgebra::Point3::from(*sphere.0)).coords;
+                let surf = SphereSurface { c: &c, r: sphere.1 };
+                if !point_profile(rig, &surf, g.line, &g.p_cam, sigma, psf, prof) {
+                    return None;
+                }
+                extractor_response(prof, psf, rig.stripe, buf).map(|x| x.0)
+            },
+        )
+        .collect()
+}
+
+/// The 3D corrections (base frame) of the points `idx` whose predicted biases are
+/// `deltas` (px along the scan line; `None`: not modelled).
+pub(crate) fn corrections_from_deltas(
+    rig: &Rig<'_>,
+    scan: &ScanGeometry<'_>,
+    idx: &[usize],
+    deltas: &[Option<f64>],
+) -> Vec<Option<[f64; 3]>> {
+    idx.iter()
+        .zip(deltas)
+        .map(|(&i, d)| {
+            let (g, f) = &scan.geo[i];
+            shifted(rig, scan.tri, g, &scan.cam_base[*f], (*d)?)
+        })
+        .collect()
+}
+
 /// The 3D correction (base frame) of point `g` of the frame `T_cam_base = t` from its
 /// modelled profile `prof`: the extractor's response on it, the measured pixel moved back
 /// by it and both triangulated.
@@ -162,6 +210,19 @@ fn correction(
     buf: &mut Vec<f64>,
 ) -> Option<[f64; 3]> {
     let (delta, _, _) = extractor_response(prof, psf, rig.stripe, buf)?;
+    shifted(rig, tri, g, t, delta)
+}
+
+/// The 3D correction (base frame) of point `g` of the frame `T_cam_base = t` whose
+/// predicted bias along its scan line is `delta` px: the measured pixel moved back by it
+/// and both triangulated.
+fn shifted(
+    rig: &Rig<'_>,
+    tri: &Triangulator,
+    g: &PointGeo,
+    t: &Iso3,
+    delta: f64,
+) -> Option<[f64; 3]> {
     let uv = |a: f64| {
         if rig.along == 0 {
             (a, g.line)
