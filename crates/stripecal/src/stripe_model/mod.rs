@@ -10,17 +10,19 @@
 //! board). It uses only `model/` and `vision::stripe`'s extractor, so it sits with
 //! `calib/`, below both.
 
+pub(crate) mod image;
 mod plane;
 pub(crate) mod profile;
 
+pub(crate) use image::extractor_response;
 pub(crate) use plane::{board_point_profile, board_point_scale, Board as BoardSurface};
 pub(crate) use profile::{
-    extractor_response, plane_basis, point_geometry, point_profile, point_section,
-    profile_for_emitter, PointGeometry, PointProfile, Rig, SphereSurface,
+    plane_basis, point_geometry, point_profile, point_section, profile_for_emitter, PointGeometry,
+    PointProfile, Rig, SphereSurface,
 };
 
 /// Sheet offsets sampled on each side of the plane, at least (`2 M + 1` samples over
-/// `+-4 sigma`; more where they would lie more than [`profile::sample_spacing_px`] apart
+/// `+-4 sigma`; more where they would lie more than [`image::sample_spacing_px`] apart
 /// in the image).
 pub const HALF_SAMPLES: usize = 10;
 

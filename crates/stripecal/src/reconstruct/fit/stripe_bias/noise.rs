@@ -18,7 +18,7 @@ use crate::numerics::rng::SplitMix64;
 use crate::vision::stripe::profile_centre;
 
 use super::diagnostics::{per_modelled_point, ModelInputs};
-use crate::stripe_model::profile::scan_line_values;
+use crate::stripe_model::image::scan_line_values;
 
 /// The noise the model's profiles are drawn with: white Gaussian noise of `gray`
 /// (standard deviation, in the units of [`ScanPoints::intensity`]) over `pairs`

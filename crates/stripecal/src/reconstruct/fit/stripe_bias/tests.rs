@@ -6,6 +6,7 @@ use crate::model::StripeDirection;
 use crate::reconstruct::triangulate::tests::camera;
 use crate::reconstruct::triangulate::Triangulator;
 use crate::reconstruct::ScanPoints;
+use crate::stripe_model::image::*;
 use crate::stripe_model::profile::*;
 use crate::vision::stripe::profile_centre;
 use crate::vision::stripe::FLAG_SATURATED;
