@@ -150,13 +150,25 @@ fn smooth_along_generic<T: Pixel>(
         }
         for y in 0..h {
             let add = y as isize + k;
+            let sub = y as isize - k - 1;
+            if (add as usize) < h && sub >= 0 {
+                // inside the image: the window moves by a row, the count stays; one pass
+                // (the same integer sums as the passes below)
+                let (ra, rs) = (img.row(add as usize), img.row(sub as usize));
+                let (div, half) = (divs[cnt as usize], cnt / 2);
+                let o = &mut out[y * w..(y + 1) * w];
+                for (((o, a), va), vs) in o.iter_mut().zip(acc.iter_mut()).zip(ra).zip(rs) {
+                    *a = *a + va.to_u32() - vs.to_u32();
+                    *o = div.div(*a * scale + half) as u16;
+                }
+                continue;
+            }
             if (add as usize) < h {
                 for (a, v) in acc.iter_mut().zip(img.row(add as usize)) {
                     *a += v.to_u32();
                 }
                 cnt += 1;
             }
-            let sub = y as isize - k - 1;
             if sub >= 0 {
                 for (a, v) in acc.iter_mut().zip(img.row(sub as usize)) {
                     *a -= v.to_u32();
