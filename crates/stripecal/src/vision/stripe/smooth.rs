@@ -105,8 +105,11 @@ fn smooth_along_generic<T: Pixel>(
     acc: &mut Vec<u32>,
 ) {
     let (w, h) = (img.width(), img.height());
-    out.clear();
-    out.resize(w * h, 0);
+    // (every pixel is written below: the buffer of the last image is not cleared)
+    if out.len() != w * h {
+        out.clear();
+        out.resize(w * h, 0);
+    }
     let k = (n / 2) as isize;
     let scale = scale_of::<T>();
     // the counts of a window: 1..=n (fewer at the border)
