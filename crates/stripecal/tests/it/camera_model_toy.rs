@@ -141,18 +141,15 @@ fn a_calibration_with_another_model_is_written_with_its_name_and_refused_on_read
     );
 }
 
-/// A twin rendered through the toy model (the chessboard: its corners are points, which
-/// any model predicts exactly; 6 views of 384 x 288 px) calibrates: every parameter
-/// within 4 of its one-sigmas (the calibration's own, from the detected corners' scatter)
-/// of the truth (lambda too: brown5's k1 on these images is near -lambda, not +lambda).
-#[test]
-fn a_twin_rendered_with_the_model_calibrates_through_it() {
+/// The hp3-chessboard twin rendered through the toy model (384 x 288 px, `count` views,
+/// no scan) and written into a temporary folder.
+fn toy_twin(seed: u64, count: usize) -> (Twin, tempfile::TempDir) {
     register(&DIVISION).unwrap();
     let cfg = SimConfig::preset("hp3-chessboard")
         .unwrap()
         .with_overrides(&serde_json::json!({
-            "seed": 3,
-            "poses": {"count": 6},
+            "seed": seed,
+            "poses": {"count": count},
             "scan": {"enabled": false},
             "camera": {"width": 384, "height": 288, "fu": 635.8, "fv": 661.3, "u0": 173.1,
                        "v0": 131.3, "distortion_model": "radial1",
@@ -160,9 +157,19 @@ fn a_twin_rendered_with_the_model_calibrates_through_it() {
         }))
         .unwrap();
     let twin = Twin::new(cfg).unwrap();
-    assert_eq!(twin.camera.projection.name(), "toy-division");
     let dir = tempfile::tempdir().unwrap();
     twin.write(dir.path(), &mut |_, _, _| {}).unwrap();
+    (twin, dir)
+}
+
+/// A twin rendered through the toy model (the chessboard: its corners are points, which
+/// any model predicts exactly; 6 views of 384 x 288 px) calibrates: every parameter
+/// within 4 of its one-sigmas (the calibration's own, from the detected corners' scatter)
+/// of the truth (lambda too: brown5's k1 on these images is near -lambda, not +lambda).
+#[test]
+fn a_twin_rendered_with_the_model_calibrates_through_it() {
+    let (twin, dir) = toy_twin(3, 6);
+    assert_eq!(twin.camera.projection.name(), "toy-division");
     let ds = Dataset::load(dir.path().join("calib")).unwrap();
     let (views, _) = observe_dataset(&ds, &CalibrateOptions::default()).unwrap();
     assert_eq!(views.len(), 6);
@@ -198,20 +205,7 @@ fn a_twin_rendered_with_the_model_calibrates_through_it() {
 #[test]
 fn the_one_stage_calibration_adjusts_a_camera_of_the_model() {
     let toy = register(&DIVISION).unwrap();
-    let cfg = SimConfig::preset("hp3-chessboard")
-        .unwrap()
-        .with_overrides(&serde_json::json!({
-            "seed": 5,
-            "poses": {"count": 8},
-            "scan": {"enabled": false},
-            "camera": {"width": 384, "height": 288, "fu": 635.8, "fv": 661.3, "u0": 173.1,
-                       "v0": 131.3, "distortion_model": "radial1",
-                       "distortion": [0.2, 0.0, 0.0, 0.0, 0.0], "model": "toy-division"},
-        }))
-        .unwrap();
-    let twin = Twin::new(cfg).unwrap();
-    let dir = tempfile::tempdir().unwrap();
-    twin.write(dir.path(), &mut |_, _, _| {}).unwrap();
+    let (twin, dir) = toy_twin(5, 8);
     let opts = CalibrateOptions {
         camera_model: toy,
         ..Default::default()
