@@ -5,7 +5,7 @@
 //! gates' checks beside it.
 
 use super::board_scale::gate as board_scale_gate;
-use super::board_stripe::{correct_stripes, BoardStripeCorrection};
+use super::board_stripe::correct_stripes;
 use super::gates::{converged, determined, pose_outliers, view_residuals};
 use super::held::Held;
 use super::labels::{resolve_labellings, Labelled};
@@ -16,11 +16,9 @@ use super::stages::{camera_stage, joint_options, self_checks};
 use super::stripe_select::select_stripes;
 use super::views::{check_usable, kept, mark_used, median_standoff};
 use super::{CalibrateOptions, CalibrationReport, Method, ViewStatus};
-use crate::calib::joint::{joint_adjustment, JointOptions, JointResult, JointStart, RobotMode};
+use crate::calib::joint::{joint_adjustment, JointResult, JointStart, RobotMode};
 use crate::calib::ViewObs;
 use crate::error::{Error, Result};
-use crate::model::board::Board;
-use crate::model::geometry::Iso3;
 use crate::model::{QualityCheck, Rig, RobotPoseView};
 
 /// The robot pipeline (module docs) without the final verdict: the calibration and the
@@ -97,15 +95,11 @@ pub(super) fn calibrate_robot(
         obs: used_obs,
         poses: used_poses,
     } = used;
-    let (mut adj, used_obs, board_stripe) = board_stripe_stage(
-        adj,
-        used_obs,
-        &used_poses,
-        board,
-        &jopts,
-        opts,
-        &mut warnings,
-    )?;
+    let (mut adj, used_obs, board_stripe) =
+        correct_stripes(adj, used_obs, &used_poses, board, &jopts, opts)?;
+    if let Some(Err(why)) = &board_stripe {
+        warnings.push(format!("board stripe-bias correction not applied: {why}"));
+    }
     if let Some(n) = adj.robot_noise.as_mut() {
         n.left_out = pose_left_out;
     }
@@ -144,39 +138,6 @@ pub(super) fn calibrate_robot(
         build_report(stage, rig, opts, status, warnings),
         gate_checks,
     ))
-}
-
-/// The board stripe-bias correction's outcome: applied, or why not.
-type StripeOutcome = std::result::Result<BoardStripeCorrection, String>;
-
-/// The board's stripe bias corrected before the final adjustment ([`correct_stripes`]),
-/// where its model applies (brown5 cameras); a correction asked for and not applied is
-/// a warning that says why.
-fn board_stripe_stage(
-    adj: JointResult,
-    used_obs: Vec<ViewObs>,
-    used_poses: &[Iso3],
-    board: &Board,
-    jopts: &JointOptions,
-    opts: &CalibrateOptions,
-    warnings: &mut Vec<String>,
-) -> Result<(JointResult, Vec<ViewObs>, Option<StripeOutcome>)> {
-    let (adj, used_obs, outcome) = if adj.camera.projection.is_brown5() {
-        correct_stripes(adj, used_obs, used_poses, board, jopts, opts)?
-    } else {
-        // the stripe-bias model projects through brown5's formula
-        let why = format!(
-            "the stripe-bias model knows brown5 cameras only (this camera's model is '{}')",
-            adj.camera.projection.name()
-        );
-        let asked =
-            opts.board_stripe_bias && opts.method == Method::OneStage && adj.plane.is_some();
-        (adj, used_obs, asked.then_some(Err(why)))
-    };
-    if let Some(Err(why)) = &outcome {
-        warnings.push(format!("board stripe-bias correction not applied: {why}"));
-    }
-    Ok((adj, used_obs, outcome))
 }
 
 /// An error when `--robot` asks for DH corrections the one-stage adjustment cannot

@@ -45,6 +45,14 @@ pub(in crate::pipeline::calibrate) fn correct_stripes(
     else {
         return Ok((adj, used_obs, None));
     };
+    if !adj.camera.projection.is_brown5() {
+        // the stripe-bias model projects through brown5's formula
+        let why = format!(
+            "the stripe-bias model knows brown5 cameras only (this camera's model is '{}')",
+            adj.camera.projection.name()
+        );
+        return Ok((adj, used_obs, Some(Err(why))));
+    }
     let corr = match correct_board_stripes(&used_obs, used_poses, &adj.camera, &plane, &opts.stripe)
     {
         Ok(c) => c,

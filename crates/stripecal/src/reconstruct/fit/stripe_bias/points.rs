@@ -69,25 +69,7 @@ pub(crate) fn corrections(
     sigma: f64,
     psf: f64,
 ) -> Vec<Option<[f64; 3]>> {
-    let (tri, geo, cam_base) = (scan.tri, scan.geo, scan.cam_base);
-    idx.par_iter()
-        .map_init(
-            || (PointProfile::default(), Vec::new()),
-            |(prof, buf), &i| {
-                let (g, f) = &geo[i];
-                if g.saturated {
-                    return None;
-                }
-                let t = &cam_base[*f];
-                let c = (t * nalgebra::Point3::from(*sphere.0)).coords;
-                let surf = SphereSurface { c: &c, r: sphere.1 };
-                if !point_profile(rig, &surf, g.line, &g.p_cam, sigma, psf, prof) {
-                    return None;
-                }
-                correction(rig, tri, g, t, prof, psf, buf)
-            },
-        )
-        .collect()
+    corrections_from_deltas(rig, scan, idx, &deltas(rig, scan, idx, sphere, sigma, psf))
 }
 
 /// The corrections of the points `idx` as [`corrections`] gives them, for each of the
