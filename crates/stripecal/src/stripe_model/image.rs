@@ -102,7 +102,7 @@ pub(crate) fn erf(x: f64) -> f64 {
 /// gives `0.0`; every use here adds it to or compares it with another number).
 #[inline]
 pub(crate) fn floor(x: f64) -> f64 {
-    if !(x.abs() < 4.0e15) {
+    if x.is_nan() || x.abs() >= 4.0e15 {
         return x.floor();
     }
     let t = x as i64 as f64;
