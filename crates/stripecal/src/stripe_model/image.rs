@@ -97,6 +97,22 @@ pub(crate) fn erf(x: f64) -> f64 {
     }
 }
 
+/// `x.floor()` without the library call the baseline x86-64 target makes of it (no
+/// SSE4.1 rounding instruction): the same value for every finite `x` (`-0.0` aside, which
+/// gives `0.0`; every use here adds it to or compares it with another number).
+#[inline]
+pub(crate) fn floor(x: f64) -> f64 {
+    if x.is_nan() || x.abs() >= 4.0e15 {
+        return x.floor();
+    }
+    let t = x as i64 as f64;
+    if t > x {
+        t - 1.0
+    } else {
+        t
+    }
+}
+
 /// What the extractor measures on a modelled profile: `(centre - a0, width, peak)`
 /// (px, px, the model's radiance units).
 pub(crate) fn extractor_response(
@@ -165,8 +181,8 @@ pub(crate) fn scan_line_values(
             if w <= 0.0 {
                 continue;
             }
-            let k0 = ((a - reach - x0).floor().max(0.0)) as usize;
-            let k1 = (((a + reach - x0).ceil()) as usize).min(len - 1);
+            let k0 = (floor(a - reach - x0).max(0.0)) as usize;
+            let k1 = ((-floor(-(a + reach - x0))) as usize).min(len - 1);
             kernel.spread(x0 + k0 as f64 - a, w, &mut buf[k0..=k1]);
         }
     });
@@ -233,7 +249,7 @@ impl PixelKernel {
     fn spread(&self, s0: f64, w: f64, out: &mut [f64]) {
         let per_px = (1.0 / Self::STEP) as usize;
         let x = (s0 + self.reach) / Self::STEP;
-        let i = x.floor();
+        let i = floor(x);
         let last = (i as usize).saturating_add(per_px * out.len().saturating_sub(1));
         if self.table.is_empty() || i < 0.0 || last + 1 >= self.table.len() {
             for (j, v) in out.iter_mut().enumerate() {
@@ -260,7 +276,7 @@ impl PixelKernel {
             return if s.abs() < 0.5 { 1.0 } else { 0.0 };
         }
         let x = (s + self.reach) / Self::STEP;
-        let i = x.floor();
+        let i = floor(x);
         if !(i >= 0.0 && (i as usize) + 1 < self.table.len()) {
             return 0.5 * (erf((s + 0.5) * self.inv) - erf((s - 0.5) * self.inv));
         }

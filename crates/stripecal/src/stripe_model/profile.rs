@@ -248,17 +248,17 @@ pub(crate) fn clear_of_outline(
 /// its shading `cos(incidence) / r_emitter`.
 #[inline]
 pub(crate) fn shading(rig: &Rig<'_>, c: &Vector3<f64>, r: f64, p: &Vector3<f64>) -> f64 {
-    let nrm = (p - c) / r;
-    if nrm.dot(&(-p)) <= 0.0 {
+    // cos / r_e = ((p - c) / r . (E - p) / r_e) / r_e: one division, no square root.
+    let q = p - c;
+    if q.dot(p) >= 0.0 {
         return 0.0;
     }
     let to_e = rig.emitter - p;
-    let re = to_e.norm();
-    let cos = nrm.dot(&to_e) / re;
-    if cos <= 0.0 {
+    let num = q.dot(&to_e);
+    if num <= 0.0 {
         return 0.0;
     }
-    cos / re
+    num / (r * to_e.norm_squared())
 }
 
 /// Gauss-Hermite nodes and weights (5 points, standard normal): the neighbouring scan
@@ -405,7 +405,7 @@ pub(crate) fn point_geometry(
     let Some(s0) = section_point(rig, c, r, 0.0, line, phi0) else {
         return false;
     };
-    if !facing(c, r, &s0.p) || (c - s0.p).dot(&s0.p) < rig.min_cos_view * r * s0.p.norm() {
+    if !facing(c, &s0.p) || (c - s0.p).dot(&s0.p) < rig.min_cos_view * r * s0.p.norm() {
         return false;
     }
     if !support_clear(rig, c, r, line, &s0, sigma, psf) {
@@ -423,7 +423,7 @@ pub(crate) fn point_geometry(
         let Some(z0) = section_point(rig, c, r, 0.0, line + x, s0.phi) else {
             continue;
         };
-        if !facing(c, r, &z0.p) {
+        if !facing(c, &z0.p) {
             continue;
         }
         let dt_om = dt * om;
@@ -443,7 +443,7 @@ pub(crate) fn point_geometry(
                 let Some(s) = section_point(rig, c, r, t, line + x, next.predict()) else {
                     break;
                 };
-                if !facing(c, r, &s.p) {
+                if !facing(c, &s.p) {
                     break;
                 }
                 next.push(s.phi);
@@ -505,10 +505,10 @@ pub(crate) fn profile_for_emitter(
     true
 }
 
-/// Does point `p` of the sphere `(c, r)` face the camera ([`shading`]'s first test)?
+/// Does the sphere's point `p` (centre `c`) face the camera ([`shading`]'s first test)?
 #[inline]
-fn facing(c: &Vector3<f64>, r: f64, p: &Vector3<f64>) -> bool {
-    ((p - c) / r).dot(&(-p)) > 0.0
+fn facing(c: &Vector3<f64>, p: &Vector3<f64>) -> bool {
+    (p - c).dot(p) < 0.0
 }
 
 /// The samples of a stripe point whose `t = 0` quantities (`a0`, `g`, `slope`) are in

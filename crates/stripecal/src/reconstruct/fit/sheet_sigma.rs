@@ -22,7 +22,10 @@
 //!   step with the previous iteration's derivatives first: where that step is below the
 //!   tolerance (`1e-5 s`, `1e-4` px) it is the last one, and the two derivative runs of
 //!   the model at the solution are saved (the covariance then comes from the previous
-//!   iterate's derivatives, one step of the converging fit away).
+//!   iterate's derivatives, one step of the converging fit away). A warm start (the
+//!   sphere correction's second pass, from its first pass's sigmas) starts there instead
+//!   of the linear start and drops the gross outliers at its first iteration: it is
+//!   already near the solution, where the cold start is after one step.
 //! - Standard uncertainties: `sigma_W^2 (J^T J)^-1` at the solution (`sigma_W^2` the
 //!   residual variance), over a subsample of at most [`WIDTH_POINTS`] points (the
 //!   subsample makes them conservative).
@@ -112,6 +115,7 @@ pub(super) fn estimate_sheet_sigma(
     sheet_sigma_mm: Option<f64>,
     psf_sigma_px: Option<f64>,
     max_points: usize,
+    start: Option<(f64, f64)>,
 ) -> Result<SheetSigmaEstimate> {
     check_given(sheet_sigma_mm, psf_sigma_px)?;
     if let (Some(s), Some(b)) = (sheet_sigma_mm, psf_sigma_px) {
@@ -143,13 +147,25 @@ pub(super) fn estimate_sheet_sigma(
     }
     let b = psf_sigma_px.unwrap_or_else(|| x[1].max(0.0).sqrt());
     let sheet_free = sheet_sigma_mm.is_none();
+    // A warm start (a fit of the same sphere's widths before): from there, and the gross
+    // outliers dropped at once (module docs, "Refinement").
+    let (x0, drop_at) = match start {
+        Some((s0, b0)) if s0 > 0.0 && b0 >= 0.0 => (
+            (
+                if sheet_free { s0 } else { s_lin },
+                if psf_free { b0 } else { b },
+            ),
+            0,
+        ),
+        _ => ((s_lin, b), 1),
+    };
     let WidthFit {
         s,
         b,
         cov,
         rms,
         used,
-    } = gauss_newton(rig, sphere.1, &pts, (s_lin, b), (sheet_free, psf_free))?;
+    } = gauss_newton(rig, sphere.1, &pts, x0, (sheet_free, psf_free), drop_at)?;
     let sd_s = if sheet_free {
         cov[(0, 0)].max(0.0).sqrt()
     } else {
@@ -317,13 +333,15 @@ struct WidthFit {
 
 /// Gauss-Newton on the extractor's widths of `pts` on the sphere of radius `r` from
 /// `(s, b)`, the free ones `(sheet_free, psf_free)` estimated (gross outliers dropped
-/// once, at the second iteration).
+/// once, at iteration `drop_at`: the second from the linear start, the first from a warm
+/// one).
 fn gauss_newton(
     rig: &Rig<'_>,
     r: f64,
     pts: &[WidthPoint],
     (mut s, mut b): (f64, f64),
     (sheet_free, psf_free): (bool, bool),
+    drop_at: usize,
 ) -> Result<WidthFit> {
     let mut keep: Vec<bool> = vec![true; pts.len()];
     let mut cov = Matrix2::zeros();
@@ -338,7 +356,7 @@ fn gauss_newton(
             .zip(&w0)
             .map(|(q, m)| m.map(|m| q.w - m))
             .collect();
-        if it == 1 {
+        if it == drop_at {
             // Drop gross outliers once (4 robust sigmas).
             let mut a: Vec<f64> = res.iter().flatten().map(|x| x.abs()).collect();
             if !a.is_empty() {

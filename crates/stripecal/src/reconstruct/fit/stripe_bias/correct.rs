@@ -268,6 +268,7 @@ impl SphereScan<'_> {
         let estimate_e = opts.emitter_cam_mm.is_none() && opts.estimate_emitter;
         let mut emitter_estimate = None;
         let mut sheet;
+        let mut start = None;
         let mut pass = 0;
         loop {
             sheet = estimate_sheet_sigma(
@@ -283,6 +284,8 @@ impl SphereScan<'_> {
                 } else {
                     WIDTH_POINTS
                 },
+                // The second pass from the first's sigmas.
+                start,
             )
             .map_err(|e| match e {
                 Error::Degenerate(m) => {
@@ -291,6 +294,7 @@ impl SphereScan<'_> {
                 other => other,
             })?;
             pass += 1;
+            start = Some((sheet.sheet_sigma_mm, sheet.psf_sigma_px));
             if !estimate_e || pass > 2 {
                 break;
             }
