@@ -22,8 +22,26 @@ step() { printf '\n==> %s  (%ss)\n' "$*" "$((SECONDS - start))"; }
 step "the wheel's and the tests' builds share their dependencies (crates/workspace-hack)"
 "$PYTHON" scripts/check_shared_features.py
 
+# The Rust libraries the wheel links (the core, the twin, their dependencies) are compiled
+# while pip downloads and installs the Python packages: pip builds the extension last, and
+# its cargo then waits for this build's lock and compiles the binding crate alone (the
+# same units: workspace-hack gives this build the wheel's features). A fresh clone's pip
+# spent ~60-90 s downloading with both cores idle.
+step "cargo build of the wheel's Rust libraries, beside pip's downloads"
+prebuild_log="$(mktemp)"
+cargo build --quiet -p stripecal -p stripecal-sim -p workspace-hack --lib > "$prebuild_log" 2>&1 &
+prebuild_pid=$!
+
 step "pip install -e '.[test]'  (builds stripecal._core with maturin)"
 "$PYTHON" -m pip install --quiet -e '.[test]'
+prebuild=0
+wait "$prebuild_pid" || prebuild=$?
+cat "$prebuild_log"
+rm -f "$prebuild_log"
+if [ "$prebuild" -ne 0 ]; then
+    step "FAILED: cargo build exit $prebuild"
+    exit 1
+fi
 
 # The Rust tests and the Python tests run side by side: each alone leaves a core idle
 # while it links, and at the end of each test binary and of pytest's last module (the
