@@ -26,10 +26,9 @@
 //! view 5). The held-out figures are compared with the refits' in the integration tests
 //! (`crates/stripecal/tests/it/calib_loo_step.rs`: within 0.4 % on the twin, robot and
 //! bench). On a real robot set with few views (etna_calib4, 9 views) the linearisation
-//! is not good enough (single views' figures up to 9.7 % from the refits'), so the
-//! pipeline refits on a robot.
+//! is not good enough (single views' figures up to 9.7 % from the refits').
 //!
-//! On a robot the pipeline certifies each fold instead ([`two_step_folds`]): a second
+//! On a robot the pipeline therefore certifies each fold ([`two_step_folds`]): a second
 //! Gauss-Newton step, relinearised where the first ended, and the view's held-out figures
 //! of both; where the second step moves none by more than 1 % the two-step fold stands
 //! for the refit, elsewhere the view is refitted. (A chord second step, the Jacobian
@@ -42,7 +41,7 @@
 //! the emitter's part of the covariance).
 //!
 //! With a robot calibration (its DH rows and selection rounds) or Huber weights the
-//! refits are run instead ([`one_step_folds`] returns `None`).
+//! refits are run instead ([`one_step_folds`] and [`two_step_folds`] return `None`).
 
 use nalgebra::{DMatrix, DVector};
 

@@ -79,6 +79,10 @@ pub enum FoldMethod {
     Certified,
 }
 
+/// A view's held-out figures and its stripe points' distances from the predicted board
+/// plane (mm).
+type Scored = (LooView, Vec<f64>);
+
 /// The largest relative change of a view's held-out figures (board px, board mm, stripe
 /// mm, its stripe points' distances' RMS) by a fold's second Gauss-Newton step at which
 /// the two-step fold stands for the refit; beyond it the view is refitted.
@@ -179,7 +183,7 @@ fn scored_certified(
     full: &JointResult,
     folds: &[[FoldSolution; 2]],
     jopts: &JointOptions,
-) -> Result<(Vec<(LooView, Vec<f64>)>, Vec<usize>)> {
+) -> Result<(Vec<Scored>, Vec<usize>)> {
     let one: Vec<FoldSolution> = folds.iter().map(|f| f[0].clone()).collect();
     let two: Vec<FoldSolution> = folds.iter().map(|f| f[1].clone()).collect();
     let a = scored_steps(used, board, full, &one, jopts)?;
