@@ -1,0 +1,389 @@
+//! The sub-pixel centres of eight scan lines at once: [`super::peak::subpixel`] lane by
+//! lane, the same `f32` operations in the same order on each lane, so each lane's result
+//! is bit for bit the scalar one. One scan line's centre is a chain of dependent steps
+//! (flank means, divisions, half-maximum walks, the iterated window centroid) whose
+//! data-dependent loop exits the CPU mispredicts, so scan lines one after the other
+//! barely overlap; eight in lock step run their chains side by side (the walks of all
+//! lanes read the same segment offsets and vectorise).
+//!
+//! Only the common case runs here: a segment of `SHORT_REACH` pixels either side of the
+//! peak inside the scan line, a peak below full scale (no saturated support, no
+//! plateau), the centroid method. A lane that meets anything else (a failed check, a
+//! walk to the segment's end) is handed back undecided and the caller runs the scalar
+//! code on it, which gives the same answer it always gave (an error included).
+
+use super::peak::{Params, Sub, ROUNDS, SHORT_REACH};
+use super::{StripeMethod, FLAG_LOW_SIGNAL, FLAG_UNEVEN_BACKGROUND};
+
+/// Scan lines computed together.
+pub(super) const LANES: usize = 8;
+/// Pixels of a lane's segment: the peak at index [`SHORT_REACH`] and as many either side
+/// (the scalar code's first, short segment).
+pub(super) const SEG: usize = 2 * SHORT_REACH + 1;
+/// The peak's index in a segment.
+const PK: usize = SHORT_REACH;
+/// Largest flank the lanes handle (the safe indices of a failed lane need room).
+const MAX_FLANK: usize = 4;
+
+/// One `f32` per lane.
+type V = [f32; LANES];
+
+/// Segments of the lanes: `s[k][lane]` is pixel `k` of the lane's segment.
+pub(super) type Segments = [V; SEG];
+
+/// Whether the lanes can take scan lines with these parameters (otherwise every scan
+/// line takes the scalar path).
+pub(super) fn lanes_apply(p: &Params) -> bool {
+    p.method == StripeMethod::Centroid && p.d + 1 <= SHORT_REACH && p.flank <= MAX_FLANK
+}
+
+/// The sub-pixel results of the lanes' segments into `out` (`None`: undecided, run the
+/// scalar code). Requires [`lanes_apply`]. Compiled again for AVX2 where the CPU has it
+/// (element-wise IEEE operations: the same results).
+pub(super) fn subpixel_lanes(s: &Segments, p: &Params, out: &mut [Option<Sub>; LANES]) {
+    debug_assert!(lanes_apply(p));
+    #[cfg(target_arch = "x86_64")]
+    if super::ridge::has_avx2() {
+        // SAFETY: the CPU supports AVX2 (checked just above), the only requirement for
+        // calling a `#[target_feature(enable = "avx2")]` function.
+        unsafe { subpixel_lanes_avx2(s, p, out) };
+        return;
+    }
+    subpixel_lanes_generic(s, p, out)
+}
+
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+fn subpixel_lanes_avx2(s: &Segments, p: &Params, out: &mut [Option<Sub>; LANES]) {
+    subpixel_lanes_generic(s, p, out)
+}
+
+/// The linear background `bl + slope * (x - xl)` of each lane (`Background::at`).
+#[derive(Clone, Copy)]
+struct Bg {
+    xl: V,
+    bl: V,
+    slope: V,
+}
+
+/// `crossing` of the peak module on every lane still `ok`: the position where the
+/// residual falls to `half` walking from the peak by `step`; a lane that walks off the
+/// segment or past `limit` is no longer `ok`.
+#[inline(always)]
+fn crossings(
+    s: &Segments,
+    step: isize,
+    bg: &Bg,
+    half: &V,
+    limit: usize,
+    ok: &mut [bool; LANES],
+) -> V {
+    let mut res = [0f32; LANES];
+    let mut done = [false; LANES];
+    for i in 0..LANES {
+        done[i] = !ok[i];
+    }
+    for j in 1..=SHORT_REACH {
+        let x = (PK as isize + step * (j as isize - 1)) as usize;
+        let nx = (PK as isize + step * j as isize) as usize;
+        let (fx, fnx) = (x as isize as f32, nx as isize as f32);
+        // (the scalar walk tests its length before the pixel)
+        let fail = j - 1 > limit;
+        let mut all = true;
+        for i in 0..LANES {
+            let yn = s[nx][i] - (bg.bl[i] + bg.slope[i] * (fnx - bg.xl[i]));
+            let yx = s[x][i] - (bg.bl[i] + bg.slope[i] * (fx - bg.xl[i]));
+            let q = (yx - half[i]) / (yx - yn);
+            let t = if yx > yn { q } else { 0.5 };
+            let c = fx + step as f32 * t.clamp(0.0, 1.0);
+            let hit = yn <= half[i];
+            let open = !done[i];
+            res[i] = if open && !fail && hit { c } else { res[i] };
+            ok[i] = ok[i] && !(open && fail);
+            done[i] = done[i] || fail || hit;
+            all &= done[i];
+        }
+        if all {
+            return res;
+        }
+    }
+    // walked to the segment's end: the scalar code's border case
+    for i in 0..LANES {
+        ok[i] = ok[i] && done[i];
+    }
+    res
+}
+
+/// Mean, min and max of the `flank` pixels of lane `i` from `k0` (`flank_stats`).
+#[inline(always)]
+fn flank_stats(s: &Segments, i: usize, k0: usize, flank: usize) -> (f32, f32, f32) {
+    let mut sum = 0.0;
+    let mut lo = f32::INFINITY;
+    let mut hi = f32::NEG_INFINITY;
+    for row in &s[k0..k0 + flank] {
+        let v = row[i];
+        sum += v;
+        lo = lo.min(v);
+        hi = hi.max(v);
+    }
+    (sum / flank as f32, lo, hi)
+}
+
+#[inline(always)]
+fn subpixel_lanes_generic(s: &Segments, p: &Params, out: &mut [Option<Sub>; LANES]) {
+    let n = SEG;
+    let d = p.d;
+    let flank = p.flank;
+    let limit = p.limit;
+    let vpk = s[PK];
+    let mut ok = [true; LANES];
+    let mut a = [0f32; LANES];
+    let mut half = [0f32; LANES];
+    let mut bg = Bg {
+        xl: [0.0; LANES],
+        bl: [0.0; LANES],
+        slope: [0.0; LANES],
+    };
+    // `peak_window`: the first guess from the ridge test's flank pixels
+    for i in 0..LANES {
+        let b0 = 0.5 * (s[PK - d][i] + s[PK + d][i]);
+        a[i] = vpk[i] - b0;
+        // (a peak at full scale may have a saturated support: the scalar code)
+        ok[i] = vpk[i] < p.sat_level && !(a[i] < p.min_contrast);
+        bg.bl[i] = b0;
+        half[i] = 0.5 * a[i];
+    }
+    let mut l = crossings(s, -1, &bg, &half, limit, &mut ok);
+    let mut r = crossings(s, 1, &bg, &half, limit, &mut ok);
+    let mut h = [0f32; LANES];
+    let mut f0 = [0usize; LANES];
+    let mut f1 = [0usize; LANES];
+    let mut uneven = [false; LANES];
+    // Both rounds in full on every lane: where the scalar code skips its second round
+    // (the same window), recomputing it gives the same values.
+    for _ in 0..ROUNDS {
+        for i in 0..LANES {
+            let w = r[i] - l[i];
+            ok[i] = ok[i] && w >= p.min_width && w <= p.max_width;
+            let cen = 0.5 * (l[i] + r[i]);
+            h[i] = (p.window * w).max(1.5);
+            let lo = ((cen - h[i] + 0.5) as i32) as i64 - 2;
+            let hi = ((cen + h[i] + 0.5) as i32) as i64 + 2;
+            ok[i] = ok[i] && !(lo < flank as i64 || hi + flank as i64 >= n as i64);
+            // (a lane out already reads safe places; its values are not used)
+            let (lo, hi) = if ok[i] {
+                (lo as usize, hi as usize)
+            } else {
+                (flank, n - 1 - flank)
+            };
+            f0[i] = lo + 1 - flank;
+            f1[i] = hi;
+            let (ml, minl, maxl) = flank_stats(s, i, lo + 1 - flank, flank);
+            let (mr, minr, maxr) = flank_stats(s, i, hi, flank);
+            let xl = lo as f32 - 0.5 * (flank - 1) as f32;
+            let xr = hi as f32 + 0.5 * (flank - 1) as f32;
+            bg.xl[i] = xl;
+            bg.bl[i] = ml;
+            bg.slope[i] = (mr - ml) / (xr - xl);
+            a[i] = vpk[i] - (bg.bl[i] + bg.slope[i] * (PK as f32 - bg.xl[i]));
+            ok[i] = ok[i] && !(a[i] < p.min_contrast);
+            let tol = p.uneven + p.uneven_rel * a[i];
+            let unevenness = (mr - ml).abs().max(maxl - minl).max(maxr - minr);
+            uneven[i] = unevenness > tol;
+            half[i] = 0.5 * a[i];
+        }
+        l = crossings(s, -1, &bg, &half, limit, &mut ok);
+        r = crossings(s, 1, &bg, &half, limit, &mut ok);
+    }
+    let mut w = [0f32; LANES];
+    let mut xmin = [0usize; LANES];
+    let mut last = [0usize; LANES];
+    let mut c0 = [0f32; LANES];
+    let mut top = 0;
+    for i in 0..LANES {
+        w[i] = r[i] - l[i];
+        ok[i] = ok[i] && w[i] >= p.min_width && w[i] <= p.max_width;
+        // residuals over the window's pixels, relative to xmin (`subpixel`)
+        xmin[i] = f0[i] + flank;
+        let xmax = f1[i] - 1;
+        last[i] = xmax.saturating_sub(xmin[i]).min(n - 1);
+        c0[i] = 0.5 * ((l[i] - xmin[i] as f32) + (r[i] - xmin[i] as f32));
+        top = top.max(last[i]);
+    }
+    // `residual_sums`: res[k], pre0[k + 1], pre1[k + 1] of pixel xmin + k
+    let mut res = [[0f32; LANES]; SEG];
+    let mut pre0 = [[0f32; LANES]; SEG + 1];
+    let mut pre1 = [[0f32; LANES]; SEG + 1];
+    let mut a0 = [0f32; LANES];
+    let mut a1 = [0f32; LANES];
+    for k in 0..=top {
+        let kf = k as f32;
+        for i in 0..LANES {
+            let x = xmin[i] + k;
+            let y = s[x.min(n - 1)][i] - (bg.bl[i] + bg.slope[i] * (x as f32 - bg.xl[i]));
+            res[k][i] = y;
+            a0[i] += y;
+            a1[i] += y * kf;
+            pre0[k + 1][i] = a0[i];
+            pre1[k + 1][i] = a1[i];
+        }
+    }
+    // `window_centroid`
+    let mut c = c0;
+    let mut done = [false; LANES];
+    for i in 0..LANES {
+        done[i] = !ok[i];
+    }
+    for _ in 0..6 {
+        let mut all = true;
+        for i in 0..LANES {
+            let (lo, hi) = (c[i] - h[i], c[i] + h[i]);
+            let i0 = ((lo + 0.5) as i32).max(0) as usize;
+            let i1 = (((hi + 0.5) as i32).max(0) as usize).min(last[i]);
+            let mut bad = i1 <= i0;
+            // (safe indices for a lane that fails here or failed before)
+            let (i0, i1) = (i0.min(n - 2), i1.min(n - 1));
+            let mut sum = pre0[i1][i] - pre0[i0 + 1][i];
+            let mut sx = (pre1[i1][i] - pre1[i0 + 1][i]) - c[i] * sum;
+            let w0 = (i0 as f32 + 0.5 - lo).clamp(0.0, 1.0) * res[i0][i];
+            let w1 = (hi - (i1 as f32 - 0.5)).clamp(0.0, 1.0) * res[i1][i];
+            sum += w0 + w1;
+            sx += w0 * (i0 as f32 - c[i]) + w1 * (i1 as f32 - c[i]);
+            bad = bad || sum <= 0.0;
+            let dc = sx / sum;
+            let cn = c[i] + dc;
+            bad = bad || (cn - c0[i]).abs() > w[i];
+            let open = !done[i];
+            ok[i] = ok[i] && !(open && bad);
+            c[i] = if open && !bad { cn } else { c[i] };
+            done[i] = done[i] || bad || dc.abs() < 1e-3;
+            all &= done[i];
+        }
+        if all {
+            break;
+        }
+    }
+    for i in 0..LANES {
+        out[i] = ok[i].then(|| {
+            let cf = c[i] as f64 + xmin[i] as f64;
+            let cc = c[i] + xmin[i] as f32;
+            let mut flags = 0u8;
+            if uneven[i] {
+                flags |= FLAG_UNEVEN_BACKGROUND;
+            }
+            if a[i] < p.low_signal {
+                flags |= FLAG_LOW_SIGNAL;
+            }
+            Sub {
+                c: cf,
+                peak: a[i],
+                width: w[i],
+                support: (cc - f0[i] as f32 + 0.5).max(f1[i] as f32 + flank as f32 - 0.5 - cc),
+                flags,
+            }
+        });
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::super::peak::subpixel;
+    use super::super::StripeOptions;
+    use super::*;
+
+    /// Every lane's result is the scalar `subpixel`'s on the same segment, bit for bit,
+    /// where the lanes decide; where they leave a lane undecided the scalar code is run
+    /// instead (so the only requirement there is that the lanes do not claim a result).
+    /// Profiles: Gaussian lines of many widths and heights, sub-pixel offsets, sloped
+    /// and stepped backgrounds, noise, near-saturated and saturated peaks, 8 and 16 bits.
+    #[test]
+    fn lanes_equal_the_scalar_subpixel_bit_for_bit() {
+        let mut rng = 0x2545_f491_4f6c_dd1du64;
+        let mut next = move || {
+            rng = rng
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            (rng >> 40) as f64 / (1u64 << 24) as f64
+        };
+        let (mut decided, mut total) = (0usize, 0usize);
+        for opts in [
+            StripeOptions::default(),
+            StripeOptions {
+                ridge_px: 9,
+                window_fwhm: 1.7,
+                flank_px: 2,
+                max_width_px: 6.0,
+                ..StripeOptions::default()
+            },
+            StripeOptions {
+                ridge_px: 3,
+                flank_px: 4,
+                uneven_gray: 1.0,
+                ..StripeOptions::default()
+            },
+        ] {
+            for bits16 in [false, true] {
+                let p = if bits16 {
+                    Params::new::<u16>(&opts)
+                } else {
+                    Params::new::<u8>(&opts)
+                };
+                assert!(lanes_apply(&p));
+                let full = if bits16 { 65535.0 } else { 255.0 };
+                for _ in 0..1500 {
+                    let mut segs: Segments = [[0.0; LANES]; SEG];
+                    let mut raw = vec![vec![0u16; SEG]; LANES];
+                    for (i, line) in raw.iter_mut().enumerate() {
+                        let sigma = 0.4 + 4.0 * next();
+                        let centre = PK as f64 + next() - 0.5 + (next() - 0.5) * 2.0;
+                        let amp = full * (0.02 + 1.3 * next());
+                        let base = full * 0.3 * next();
+                        let slope = full * 0.01 * (next() - 0.5);
+                        let step = if next() < 0.2 {
+                            full * 0.2 * next()
+                        } else {
+                            0.0
+                        };
+                        let at = (next() * SEG as f64) as usize;
+                        let noise = full * 0.03 * next();
+                        for (k, v) in line.iter_mut().enumerate() {
+                            let t = (k as f64 - centre) / sigma;
+                            let mut y = base
+                                + slope * k as f64
+                                + amp * (-0.5 * t * t).exp()
+                                + noise * (next() - 0.5);
+                            if k >= at {
+                                y += step;
+                            }
+                            *v = y.round().clamp(0.0, full) as u16;
+                            segs[k][i] = *v as f32;
+                        }
+                    }
+                    let mut out = [None; LANES];
+                    subpixel_lanes(&segs, &p, &mut out);
+                    let mut scratch = Vec::new();
+                    for (i, line) in raw.iter().enumerate() {
+                        total += 1;
+                        let want = if bits16 {
+                            subpixel(line, PK, &p, &mut scratch)
+                        } else {
+                            let l8: Vec<u8> = line.iter().map(|&v| v as u8).collect();
+                            subpixel(&l8, PK, &p, &mut scratch)
+                        };
+                        if let Some(got) = out[i] {
+                            decided += 1;
+                            let want = want.expect("the lanes decided a line the scalar rejects");
+                            assert_eq!(got.c.to_bits(), want.c.to_bits(), "{line:?}");
+                            assert_eq!(got.peak.to_bits(), want.peak.to_bits());
+                            assert_eq!(got.width.to_bits(), want.width.to_bits());
+                            assert_eq!(got.support.to_bits(), want.support.to_bits());
+                            assert_eq!(got.flags, want.flags);
+                        }
+                    }
+                }
+            }
+        }
+        // most lines are decided by the lanes (the others go to the scalar code)
+        assert!(2 * decided > total, "{decided} of {total}");
+    }
+}
