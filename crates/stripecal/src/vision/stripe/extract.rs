@@ -160,11 +160,25 @@ impl StripeExtractor {
         if self.along > 1 {
             let mut sm = std::mem::take(&mut self.smooth);
             let mut acc = std::mem::take(&mut self.acc);
-            smooth_along(img, dir, self.along, &mut sm, &mut acc);
+            let cands = if dir == StripeDirection::Cols {
+                // each smoothed row's ridge candidates while the row is in the cache
+                let p = Params::new::<u16>(&opts);
+                let thr = u16::from_u32_clamped(p.min_contrast.ceil().max(1.0) as u32);
+                self.cands.clear();
+                self.cands.resize(img.height(), LineCand::default());
+                let found = &mut self.cands;
+                smooth_along(img, dir, self.along, &mut sm, &mut acc, |y, row| {
+                    scan_line(row, p.d, thr, &mut found[y])
+                });
+                Cands::Ready
+            } else {
+                smooth_along(img, dir, self.along, &mut sm, &mut acc, |_, _| {});
+                Cands::Scan
+            };
             let view = ImageView::from_slice(&sm, img.width(), img.height())?;
             // the smoothed image is on the 16-bit scale: peaks back to the input's
             let back = 1.0 / scale_of::<T>() as f32;
-            self.passes(&view, dir, Cands::Scan, &opts, out, back);
+            self.passes(&view, dir, cands, &opts, out, back);
             self.smooth = sm;
             self.acc = acc;
         } else {

@@ -114,21 +114,6 @@ fn crossings(
     res
 }
 
-/// Mean, min and max of the `flank` pixels of lane `i` from `k0` (`flank_stats`).
-#[inline(always)]
-fn flank_stats(s: &Segments, i: usize, k0: usize, flank: usize) -> (f32, f32, f32) {
-    let mut sum = 0.0;
-    let mut lo = f32::INFINITY;
-    let mut hi = f32::NEG_INFINITY;
-    for row in &s[k0..k0 + flank] {
-        let v = row[i];
-        sum += v;
-        lo = lo.min(v);
-        hi = hi.max(v);
-    }
-    (sum / flank as f32, lo, hi)
-}
-
 #[inline(always)]
 fn subpixel_lanes_generic(s: &Segments, p: &Params, out: &mut [Option<Sub>; LANES]) {
     let n = SEG;
@@ -162,33 +147,67 @@ fn subpixel_lanes_generic(s: &Segments, p: &Params, out: &mut [Option<Sub>; LANE
     // Both rounds in full on every lane: where the scalar code skips its second round
     // (the same window), recomputing it gives the same values.
     for _ in 0..ROUNDS {
+        // the window (lane-wise arithmetic, vectorised)
+        let mut lo = [0i32; LANES];
+        let mut hi = [0i32; LANES];
         for i in 0..LANES {
             let w = r[i] - l[i];
             ok[i] = ok[i] && w >= p.min_width && w <= p.max_width;
             let cen = 0.5 * (l[i] + r[i]);
             h[i] = (p.window * w).max(1.5);
-            let lo = ((cen - h[i] + 0.5) as i32) as i64 - 2;
-            let hi = ((cen + h[i] + 0.5) as i32) as i64 + 2;
-            ok[i] = ok[i] && !(lo < flank as i64 || hi + flank as i64 >= n as i64);
+            let wl = ((cen - h[i] + 0.5) as i32) as i64 - 2;
+            let wh = ((cen + h[i] + 0.5) as i32) as i64 + 2;
+            ok[i] = ok[i] && !(wl < flank as i64 || wh + flank as i64 >= n as i64);
             // (a lane out already reads safe places; its values are not used)
-            let (lo, hi) = if ok[i] {
-                (lo as usize, hi as usize)
+            lo[i] = if ok[i] { wl as i32 } else { flank as i32 };
+            hi[i] = if ok[i] {
+                wh as i32
             } else {
-                (flank, n - 1 - flank)
+                (n - 1 - flank) as i32
             };
-            f0[i] = lo + 1 - flank;
-            f1[i] = hi;
-            let (ml, minl, maxl) = flank_stats(s, i, lo + 1 - flank, flank);
-            let (mr, minr, maxr) = flank_stats(s, i, hi, flank);
-            let xl = lo as f32 - 0.5 * (flank - 1) as f32;
-            let xr = hi as f32 + 0.5 * (flank - 1) as f32;
+        }
+        // the flank pixels (each lane's own place)
+        let mut fl = [[0f32; LANES]; MAX_FLANK];
+        let mut fr = [[0f32; LANES]; MAX_FLANK];
+        for i in 0..LANES {
+            f0[i] = lo[i] as usize + 1 - flank;
+            f1[i] = hi[i] as usize;
+            for f in 0..flank {
+                fl[f][i] = s[f0[i] + f][i];
+                fr[f][i] = s[f1[i] + f][i];
+            }
+        }
+        // `flank_stats` and the background (vectorised)
+        let mut sl = [0f32; LANES];
+        let mut sr = [0f32; LANES];
+        let (mut minl, mut maxl) = ([f32::INFINITY; LANES], [f32::NEG_INFINITY; LANES]);
+        let (mut minr, mut maxr) = ([f32::INFINITY; LANES], [f32::NEG_INFINITY; LANES]);
+        for f in 0..flank {
+            for i in 0..LANES {
+                let (vl, vr) = (fl[f][i], fr[f][i]);
+                sl[i] += vl;
+                minl[i] = minl[i].min(vl);
+                maxl[i] = maxl[i].max(vl);
+                sr[i] += vr;
+                minr[i] = minr[i].min(vr);
+                maxr[i] = maxr[i].max(vr);
+            }
+        }
+        for i in 0..LANES {
+            let ml = sl[i] / flank as f32;
+            let mr = sr[i] / flank as f32;
+            let xl = lo[i] as f32 - 0.5 * (flank - 1) as f32;
+            let xr = hi[i] as f32 + 0.5 * (flank - 1) as f32;
             bg.xl[i] = xl;
             bg.bl[i] = ml;
             bg.slope[i] = (mr - ml) / (xr - xl);
             a[i] = vpk[i] - (bg.bl[i] + bg.slope[i] * (PK as f32 - bg.xl[i]));
             ok[i] = ok[i] && !(a[i] < p.min_contrast);
             let tol = p.uneven + p.uneven_rel * a[i];
-            let unevenness = (mr - ml).abs().max(maxl - minl).max(maxr - minr);
+            let unevenness = (mr - ml)
+                .abs()
+                .max(maxl[i] - minl[i])
+                .max(maxr[i] - minr[i]);
             uneven[i] = unevenness > tol;
             half[i] = 0.5 * a[i];
         }
@@ -199,7 +218,6 @@ fn subpixel_lanes_generic(s: &Segments, p: &Params, out: &mut [Option<Sub>; LANE
     let mut xmin = [0usize; LANES];
     let mut last = [0usize; LANES];
     let mut c0 = [0f32; LANES];
-    let mut top = 0;
     for i in 0..LANES {
         w[i] = r[i] - l[i];
         ok[i] = ok[i] && w[i] >= p.min_width && w[i] <= p.max_width;
@@ -208,48 +226,76 @@ fn subpixel_lanes_generic(s: &Segments, p: &Params, out: &mut [Option<Sub>; LANE
         let xmax = f1[i] - 1;
         last[i] = xmax.saturating_sub(xmin[i]).min(n - 1);
         c0[i] = 0.5 * ((l[i] - xmin[i] as f32) + (r[i] - xmin[i] as f32));
-        top = top.max(last[i]);
     }
-    // `residual_sums`: res[k], pre0[k + 1], pre1[k + 1] of pixel xmin + k
+    // `residual_sums` on the whole segment at once (vectorised): res[x] is pixel x's
+    // residual, pre0[x + 1] and pre1[x + 1] the sums of `y` and `y * k` from xmin to x
+    // (`k = x - xmin`), the same additions in the same order as the scalar sums over
+    // the window's pixels (0 before xmin, where nothing is added)
     let mut res = [[0f32; LANES]; SEG];
     let mut pre0 = [[0f32; LANES]; SEG + 1];
     let mut pre1 = [[0f32; LANES]; SEG + 1];
     let mut a0 = [0f32; LANES];
     let mut a1 = [0f32; LANES];
-    for k in 0..=top {
-        let kf = k as f32;
+    let mut from = [0f32; LANES];
+    for i in 0..LANES {
+        from[i] = xmin[i] as f32;
+    }
+    for x in 0..SEG {
+        let xf = x as f32;
         for i in 0..LANES {
-            let x = xmin[i] + k;
-            let y = s[x.min(n - 1)][i] - (bg.bl[i] + bg.slope[i] * (x as f32 - bg.xl[i]));
-            res[k][i] = y;
-            a0[i] += y;
-            a1[i] += y * kf;
-            pre0[k + 1][i] = a0[i];
-            pre1[k + 1][i] = a1[i];
+            let y = s[x][i] - (bg.bl[i] + bg.slope[i] * (xf - bg.xl[i]));
+            let on = xf >= from[i];
+            let kf = xf - from[i];
+            res[x][i] = y;
+            a0[i] = if on { a0[i] + y } else { a0[i] };
+            a1[i] = if on { a1[i] + y * kf } else { a1[i] };
+            pre0[x + 1][i] = a0[i];
+            pre1[x + 1][i] = a1[i];
         }
     }
-    // `window_centroid`
+    // `window_centroid` (indices relative to xmin, read at xmin + index)
     let mut c = c0;
     let mut done = [false; LANES];
     for i in 0..LANES {
         done[i] = !ok[i];
     }
     for _ in 0..6 {
+        // the window's ends (vectorised)
+        let (mut lo, mut hi) = ([0f32; LANES], [0f32; LANES]);
+        let (mut i0, mut i1) = ([0usize; LANES], [0usize; LANES]);
+        let (mut j0, mut j1) = ([0usize; LANES], [0usize; LANES]);
+        let mut bad = [false; LANES];
+        for i in 0..LANES {
+            (lo[i], hi[i]) = (c[i] - h[i], c[i] + h[i]);
+            i0[i] = ((lo[i] + 0.5) as i32).max(0) as usize;
+            i1[i] = (((hi[i] + 0.5) as i32).max(0) as usize).min(last[i]);
+            bad[i] = i1[i] <= i0[i];
+            // (safe indices for a lane that fails here or failed before)
+            j0[i] = (xmin[i] + i0[i]).min(n - 1);
+            j1[i] = (xmin[i] + i1[i]).min(n - 1);
+        }
+        // the sums at them (each lane's own place)
+        let (mut p0a, mut p0b, mut p1a, mut p1b) =
+            ([0f32; LANES], [0f32; LANES], [0f32; LANES], [0f32; LANES]);
+        let (mut r0, mut r1) = ([0f32; LANES], [0f32; LANES]);
+        for i in 0..LANES {
+            p0a[i] = pre0[j0[i] + 1][i];
+            p0b[i] = pre0[j1[i]][i];
+            p1a[i] = pre1[j0[i] + 1][i];
+            p1b[i] = pre1[j1[i]][i];
+            r0[i] = res[j0[i]][i];
+            r1[i] = res[j1[i]][i];
+        }
+        // the centroid step (vectorised)
         let mut all = true;
         for i in 0..LANES {
-            let (lo, hi) = (c[i] - h[i], c[i] + h[i]);
-            let i0 = ((lo + 0.5) as i32).max(0) as usize;
-            let i1 = (((hi + 0.5) as i32).max(0) as usize).min(last[i]);
-            let mut bad = i1 <= i0;
-            // (safe indices for a lane that fails here or failed before)
-            let (i0, i1) = (i0.min(n - 2), i1.min(n - 1));
-            let mut sum = pre0[i1][i] - pre0[i0 + 1][i];
-            let mut sx = (pre1[i1][i] - pre1[i0 + 1][i]) - c[i] * sum;
-            let w0 = (i0 as f32 + 0.5 - lo).clamp(0.0, 1.0) * res[i0][i];
-            let w1 = (hi - (i1 as f32 - 0.5)).clamp(0.0, 1.0) * res[i1][i];
+            let mut sum = p0b[i] - p0a[i];
+            let mut sx = (p1b[i] - p1a[i]) - c[i] * sum;
+            let w0 = (i0[i] as f32 + 0.5 - lo[i]).clamp(0.0, 1.0) * r0[i];
+            let w1 = (hi[i] - (i1[i] as f32 - 0.5)).clamp(0.0, 1.0) * r1[i];
             sum += w0 + w1;
-            sx += w0 * (i0 as f32 - c[i]) + w1 * (i1 as f32 - c[i]);
-            bad = bad || sum <= 0.0;
+            sx += w0 * (i0[i] as f32 - c[i]) + w1 * (i1[i] as f32 - c[i]);
+            let mut bad = bad[i] || sum <= 0.0;
             let dc = sx / sum;
             let cn = c[i] + dc;
             bad = bad || (cn - c0[i]).abs() > w[i];
