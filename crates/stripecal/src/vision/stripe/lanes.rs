@@ -34,7 +34,7 @@ pub(super) type Segments = [V; SEG];
 /// Whether the lanes can take scan lines with these parameters (otherwise every scan
 /// line takes the scalar path).
 pub(super) fn lanes_apply(p: &Params) -> bool {
-    p.method == StripeMethod::Centroid && p.d + 1 <= SHORT_REACH && p.flank <= MAX_FLANK
+    p.method == StripeMethod::Centroid && p.d < SHORT_REACH && p.flank <= MAX_FLANK
 }
 
 /// The sub-pixel results of the lanes' segments into `out` (`None`: undecided, run the
@@ -98,9 +98,9 @@ fn crossings(
             let c = fx + step as f32 * t.clamp(0.0, 1.0);
             let hit = yn <= half[i];
             let open = !done[i];
-            res[i] = if open && !fail && hit { c } else { res[i] };
-            ok[i] = ok[i] && !(open && fail);
-            done[i] = done[i] || fail || hit;
+            res[i] = if open & !fail & hit { c } else { res[i] };
+            ok[i] &= !(open & fail);
+            done[i] |= fail | hit;
             all &= done[i];
         }
         if all {
@@ -109,7 +109,7 @@ fn crossings(
     }
     // walked to the segment's end: the scalar code's border case
     for i in 0..LANES {
-        ok[i] = ok[i] && done[i];
+        ok[i] &= done[i];
     }
     res
 }
@@ -134,7 +134,9 @@ fn subpixel_lanes_generic(s: &Segments, p: &Params, out: &mut [Option<Sub>; LANE
         let b0 = 0.5 * (s[PK - d][i] + s[PK + d][i]);
         a[i] = vpk[i] - b0;
         // (a peak at full scale may have a saturated support: the scalar code)
-        ok[i] = vpk[i] < p.sat_level && !(a[i] < p.min_contrast);
+        // (the scalar test: `a < min_contrast` rejects)
+        let weak = a[i] < p.min_contrast;
+        ok[i] = (vpk[i] < p.sat_level) & !weak;
         bg.bl[i] = b0;
         half[i] = 0.5 * a[i];
     }
@@ -152,12 +154,12 @@ fn subpixel_lanes_generic(s: &Segments, p: &Params, out: &mut [Option<Sub>; LANE
         let mut hi = [0i32; LANES];
         for i in 0..LANES {
             let w = r[i] - l[i];
-            ok[i] = ok[i] && w >= p.min_width && w <= p.max_width;
+            ok[i] &= (w >= p.min_width) & (w <= p.max_width);
             let cen = 0.5 * (l[i] + r[i]);
             h[i] = (p.window * w).max(1.5);
             let wl = ((cen - h[i] + 0.5) as i32) as i64 - 2;
             let wh = ((cen + h[i] + 0.5) as i32) as i64 + 2;
-            ok[i] = ok[i] && !(wl < flank as i64 || wh + flank as i64 >= n as i64);
+            ok[i] &= !((wl < flank as i64) | (wh + flank as i64 >= n as i64));
             // (a lane out already reads safe places; its values are not used)
             lo[i] = if ok[i] { wl as i32 } else { flank as i32 };
             hi[i] = if ok[i] {
@@ -202,7 +204,8 @@ fn subpixel_lanes_generic(s: &Segments, p: &Params, out: &mut [Option<Sub>; LANE
             bg.bl[i] = ml;
             bg.slope[i] = (mr - ml) / (xr - xl);
             a[i] = vpk[i] - (bg.bl[i] + bg.slope[i] * (PK as f32 - bg.xl[i]));
-            ok[i] = ok[i] && !(a[i] < p.min_contrast);
+            let weak = a[i] < p.min_contrast;
+            ok[i] &= !weak;
             let tol = p.uneven + p.uneven_rel * a[i];
             let unevenness = (mr - ml)
                 .abs()
@@ -220,7 +223,7 @@ fn subpixel_lanes_generic(s: &Segments, p: &Params, out: &mut [Option<Sub>; LANE
     let mut c0 = [0f32; LANES];
     for i in 0..LANES {
         w[i] = r[i] - l[i];
-        ok[i] = ok[i] && w[i] >= p.min_width && w[i] <= p.max_width;
+        ok[i] &= (w[i] >= p.min_width) & (w[i] <= p.max_width);
         // residuals over the window's pixels, relative to xmin (`subpixel`)
         xmin[i] = f0[i] + flank;
         let xmax = f1[i] - 1;
@@ -295,14 +298,14 @@ fn subpixel_lanes_generic(s: &Segments, p: &Params, out: &mut [Option<Sub>; LANE
             let w1 = (hi[i] - (i1[i] as f32 - 0.5)).clamp(0.0, 1.0) * r1[i];
             sum += w0 + w1;
             sx += w0 * (i0[i] as f32 - c[i]) + w1 * (i1[i] as f32 - c[i]);
-            let mut bad = bad[i] || sum <= 0.0;
+            let mut bad = bad[i] | (sum <= 0.0);
             let dc = sx / sum;
             let cn = c[i] + dc;
-            bad = bad || (cn - c0[i]).abs() > w[i];
+            bad |= (cn - c0[i]).abs() > w[i];
             let open = !done[i];
-            ok[i] = ok[i] && !(open && bad);
-            c[i] = if open && !bad { cn } else { c[i] };
-            done[i] = done[i] || bad || dc.abs() < 1e-3;
+            ok[i] &= !(open & bad);
+            c[i] = if open & !bad { cn } else { c[i] };
+            done[i] |= bad | (dc.abs() < 1e-3);
             all &= done[i];
         }
         if all {
