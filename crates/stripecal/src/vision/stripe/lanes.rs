@@ -114,12 +114,84 @@ fn crossings(
     res
 }
 
+/// The lanes between the phases of [`subpixel_lanes_generic`]: which are still `ok`, the
+/// peak's height over the background `a`, the half maximum, the background, the
+/// half-maximum crossings `l` and `r`, the centroid window's half width `h`, the first
+/// pixels of the left and right flanks `f0` and `f1`, and the flanks' unevenness flag.
+struct State {
+    ok: [bool; LANES],
+    a: V,
+    half: V,
+    bg: Bg,
+    l: V,
+    r: V,
+    h: V,
+    f0: [usize; LANES],
+    f1: [usize; LANES],
+    uneven: [bool; LANES],
+}
+
+/// The window's residual sums (`residual_sums` of the peak module) on the whole segment
+/// at once: `res[x]` pixel x's residual, `pre0[x + 1]` and `pre1[x + 1]` the sums of `y`
+/// and `y * k` from `xmin` to x (`k = x - xmin`).
+struct Sums {
+    res: [V; SEG],
+    pre0: [V; SEG + 1],
+    pre1: [V; SEG + 1],
+}
+
 #[inline(always)]
 fn subpixel_lanes_generic(s: &Segments, p: &Params, out: &mut [Option<Sub>; LANES]) {
+    let mut st = first_guess(s, p);
+    // Both rounds in full on every lane: where the scalar code skips its second round
+    // (the same window), recomputing it gives the same values.
+    for _ in 0..ROUNDS {
+        round(s, p, &mut st);
+    }
     let n = SEG;
+    let mut w = [0f32; LANES];
+    let mut xmin = [0usize; LANES];
+    let mut last = [0usize; LANES];
+    let mut c0 = [0f32; LANES];
+    for i in 0..LANES {
+        w[i] = st.r[i] - st.l[i];
+        st.ok[i] &= (w[i] >= p.min_width) & (w[i] <= p.max_width);
+        // residuals over the window's pixels, relative to xmin (`subpixel`)
+        xmin[i] = st.f0[i] + p.flank;
+        let xmax = st.f1[i] - 1;
+        last[i] = xmax.saturating_sub(xmin[i]).min(n - 1);
+        c0[i] = 0.5 * ((st.l[i] - xmin[i] as f32) + (st.r[i] - xmin[i] as f32));
+    }
+    let sums = residual_sums(s, &st.bg, &xmin);
+    let c = window_centroid(&sums, &mut st, (&xmin, &last), &c0, &w);
+    for i in 0..LANES {
+        out[i] = st.ok[i].then(|| {
+            let cf = c[i] as f64 + xmin[i] as f64;
+            let cc = c[i] + xmin[i] as f32;
+            let mut flags = 0u8;
+            if st.uneven[i] {
+                flags |= FLAG_UNEVEN_BACKGROUND;
+            }
+            if st.a[i] < p.low_signal {
+                flags |= FLAG_LOW_SIGNAL;
+            }
+            Sub {
+                c: cf,
+                peak: st.a[i],
+                width: w[i],
+                support: (cc - st.f0[i] as f32 + 0.5)
+                    .max(st.f1[i] as f32 + p.flank as f32 - 0.5 - cc),
+                flags,
+            }
+        });
+    }
+}
+
+/// `peak_window`'s first guess from the ridge test's flank pixels, and its half-maximum
+/// crossings.
+#[inline(always)]
+fn first_guess(s: &Segments, p: &Params) -> State {
     let d = p.d;
-    let flank = p.flank;
-    let limit = p.limit;
     let vpk = s[PK];
     let mut ok = [true; LANES];
     let mut a = [0f32; LANES];
@@ -129,7 +201,6 @@ fn subpixel_lanes_generic(s: &Segments, p: &Params, out: &mut [Option<Sub>; LANE
         bl: [0.0; LANES],
         slope: [0.0; LANES],
     };
-    // `peak_window`: the first guess from the ridge test's flank pixels
     for i in 0..LANES {
         let b0 = 0.5 * (s[PK - d][i] + s[PK + d][i]);
         a[i] = vpk[i] - b0;
@@ -140,100 +211,102 @@ fn subpixel_lanes_generic(s: &Segments, p: &Params, out: &mut [Option<Sub>; LANE
         bg.bl[i] = b0;
         half[i] = 0.5 * a[i];
     }
-    let mut l = crossings(s, -1, &bg, &half, limit, &mut ok);
-    let mut r = crossings(s, 1, &bg, &half, limit, &mut ok);
-    let mut h = [0f32; LANES];
-    let mut f0 = [0usize; LANES];
-    let mut f1 = [0usize; LANES];
-    let mut uneven = [false; LANES];
-    // Both rounds in full on every lane: where the scalar code skips its second round
-    // (the same window), recomputing it gives the same values.
-    for _ in 0..ROUNDS {
-        // the window (lane-wise arithmetic, vectorised)
-        let mut lo = [0i32; LANES];
-        let mut hi = [0i32; LANES];
-        for i in 0..LANES {
-            let w = r[i] - l[i];
-            ok[i] &= (w >= p.min_width) & (w <= p.max_width);
-            let cen = 0.5 * (l[i] + r[i]);
-            h[i] = (p.window * w).max(1.5);
-            let wl = ((cen - h[i] + 0.5) as i32) as i64 - 2;
-            let wh = ((cen + h[i] + 0.5) as i32) as i64 + 2;
-            ok[i] &= !((wl < flank as i64) | (wh + flank as i64 >= n as i64));
-            // (a lane out already reads safe places; its values are not used)
-            lo[i] = if ok[i] { wl as i32 } else { flank as i32 };
-            hi[i] = if ok[i] {
-                wh as i32
-            } else {
-                (n - 1 - flank) as i32
-            };
-        }
-        // the flank pixels (each lane's own place)
-        let mut fl = [[0f32; LANES]; MAX_FLANK];
-        let mut fr = [[0f32; LANES]; MAX_FLANK];
-        for i in 0..LANES {
-            f0[i] = lo[i] as usize + 1 - flank;
-            f1[i] = hi[i] as usize;
-            for f in 0..flank {
-                fl[f][i] = s[f0[i] + f][i];
-                fr[f][i] = s[f1[i] + f][i];
-            }
-        }
-        // `flank_stats` and the background (vectorised)
-        let mut sl = [0f32; LANES];
-        let mut sr = [0f32; LANES];
-        let (mut minl, mut maxl) = ([f32::INFINITY; LANES], [f32::NEG_INFINITY; LANES]);
-        let (mut minr, mut maxr) = ([f32::INFINITY; LANES], [f32::NEG_INFINITY; LANES]);
-        for f in 0..flank {
-            for i in 0..LANES {
-                let (vl, vr) = (fl[f][i], fr[f][i]);
-                sl[i] += vl;
-                minl[i] = minl[i].min(vl);
-                maxl[i] = maxl[i].max(vl);
-                sr[i] += vr;
-                minr[i] = minr[i].min(vr);
-                maxr[i] = maxr[i].max(vr);
-            }
-        }
-        for i in 0..LANES {
-            let ml = sl[i] / flank as f32;
-            let mr = sr[i] / flank as f32;
-            let xl = lo[i] as f32 - 0.5 * (flank - 1) as f32;
-            let xr = hi[i] as f32 + 0.5 * (flank - 1) as f32;
-            bg.xl[i] = xl;
-            bg.bl[i] = ml;
-            bg.slope[i] = (mr - ml) / (xr - xl);
-            a[i] = vpk[i] - (bg.bl[i] + bg.slope[i] * (PK as f32 - bg.xl[i]));
-            let weak = a[i] < p.min_contrast;
-            ok[i] &= !weak;
-            let tol = p.uneven + p.uneven_rel * a[i];
-            let unevenness = (mr - ml)
-                .abs()
-                .max(maxl[i] - minl[i])
-                .max(maxr[i] - minr[i]);
-            uneven[i] = unevenness > tol;
-            half[i] = 0.5 * a[i];
-        }
-        l = crossings(s, -1, &bg, &half, limit, &mut ok);
-        r = crossings(s, 1, &bg, &half, limit, &mut ok);
+    let l = crossings(s, -1, &bg, &half, p.limit, &mut ok);
+    let r = crossings(s, 1, &bg, &half, p.limit, &mut ok);
+    State {
+        ok,
+        a,
+        half,
+        bg,
+        l,
+        r,
+        h: [0.0; LANES],
+        f0: [0; LANES],
+        f1: [0; LANES],
+        uneven: [false; LANES],
     }
-    let mut w = [0f32; LANES];
-    let mut xmin = [0usize; LANES];
-    let mut last = [0usize; LANES];
-    let mut c0 = [0f32; LANES];
+}
+
+/// One round of `peak_window`: the window from the crossings, the flank pixels, the
+/// background through them (`flank_stats`), the peak's height and the new crossings.
+#[inline(always)]
+fn round(s: &Segments, p: &Params, st: &mut State) {
+    let (n, flank) = (SEG, p.flank);
+    let vpk = s[PK];
+    // the window (lane-wise arithmetic, vectorised)
+    let mut lo = [0i32; LANES];
+    let mut hi = [0i32; LANES];
     for i in 0..LANES {
-        w[i] = r[i] - l[i];
-        ok[i] &= (w[i] >= p.min_width) & (w[i] <= p.max_width);
-        // residuals over the window's pixels, relative to xmin (`subpixel`)
-        xmin[i] = f0[i] + flank;
-        let xmax = f1[i] - 1;
-        last[i] = xmax.saturating_sub(xmin[i]).min(n - 1);
-        c0[i] = 0.5 * ((l[i] - xmin[i] as f32) + (r[i] - xmin[i] as f32));
+        let w = st.r[i] - st.l[i];
+        st.ok[i] &= (w >= p.min_width) & (w <= p.max_width);
+        let cen = 0.5 * (st.l[i] + st.r[i]);
+        st.h[i] = (p.window * w).max(1.5);
+        let wl = ((cen - st.h[i] + 0.5) as i32) as i64 - 2;
+        let wh = ((cen + st.h[i] + 0.5) as i32) as i64 + 2;
+        st.ok[i] &= !((wl < flank as i64) | (wh + flank as i64 >= n as i64));
+        // (a lane out already reads safe places; its values are not used)
+        lo[i] = if st.ok[i] { wl as i32 } else { flank as i32 };
+        hi[i] = if st.ok[i] {
+            wh as i32
+        } else {
+            (n - 1 - flank) as i32
+        };
     }
-    // `residual_sums` on the whole segment at once (vectorised): res[x] is pixel x's
-    // residual, pre0[x + 1] and pre1[x + 1] the sums of `y` and `y * k` from xmin to x
-    // (`k = x - xmin`), the same additions in the same order as the scalar sums over
-    // the window's pixels (0 before xmin, where nothing is added)
+    // the flank pixels (each lane's own place)
+    let mut fl = [[0f32; LANES]; MAX_FLANK];
+    let mut fr = [[0f32; LANES]; MAX_FLANK];
+    for i in 0..LANES {
+        st.f0[i] = lo[i] as usize + 1 - flank;
+        st.f1[i] = hi[i] as usize;
+        for f in 0..flank {
+            fl[f][i] = s[st.f0[i] + f][i];
+            fr[f][i] = s[st.f1[i] + f][i];
+        }
+    }
+    // `flank_stats` and the background (vectorised)
+    let mut sl = [0f32; LANES];
+    let mut sr = [0f32; LANES];
+    let (mut minl, mut maxl) = ([f32::INFINITY; LANES], [f32::NEG_INFINITY; LANES]);
+    let (mut minr, mut maxr) = ([f32::INFINITY; LANES], [f32::NEG_INFINITY; LANES]);
+    for f in 0..flank {
+        for i in 0..LANES {
+            let (vl, vr) = (fl[f][i], fr[f][i]);
+            sl[i] += vl;
+            minl[i] = minl[i].min(vl);
+            maxl[i] = maxl[i].max(vl);
+            sr[i] += vr;
+            minr[i] = minr[i].min(vr);
+            maxr[i] = maxr[i].max(vr);
+        }
+    }
+    for i in 0..LANES {
+        let ml = sl[i] / flank as f32;
+        let mr = sr[i] / flank as f32;
+        let xl = lo[i] as f32 - 0.5 * (flank - 1) as f32;
+        let xr = hi[i] as f32 + 0.5 * (flank - 1) as f32;
+        st.bg.xl[i] = xl;
+        st.bg.bl[i] = ml;
+        st.bg.slope[i] = (mr - ml) / (xr - xl);
+        st.a[i] = vpk[i] - (st.bg.bl[i] + st.bg.slope[i] * (PK as f32 - st.bg.xl[i]));
+        let weak = st.a[i] < p.min_contrast;
+        st.ok[i] &= !weak;
+        let tol = p.uneven + p.uneven_rel * st.a[i];
+        let unevenness = (mr - ml)
+            .abs()
+            .max(maxl[i] - minl[i])
+            .max(maxr[i] - minr[i]);
+        st.uneven[i] = unevenness > tol;
+        st.half[i] = 0.5 * st.a[i];
+    }
+    st.l = crossings(s, -1, &st.bg, &st.half, p.limit, &mut st.ok);
+    st.r = crossings(s, 1, &st.bg, &st.half, p.limit, &mut st.ok);
+}
+
+/// [`Sums`] of the lanes' windows from `xmin` (vectorised: the same additions in the same
+/// order as the scalar sums over the window's pixels, 0 before `xmin`, where nothing is
+/// added).
+#[inline(always)]
+fn residual_sums(s: &Segments, bg: &Bg, xmin: &[usize; LANES]) -> Sums {
     let mut res = [[0f32; LANES]; SEG];
     let mut pre0 = [[0f32; LANES]; SEG + 1];
     let mut pre1 = [[0f32; LANES]; SEG + 1];
@@ -256,11 +329,26 @@ fn subpixel_lanes_generic(s: &Segments, p: &Params, out: &mut [Option<Sub>; LANE
             pre1[x + 1][i] = a1[i];
         }
     }
-    // `window_centroid` (indices relative to xmin, read at xmin + index)
-    let mut c = c0;
+    Sums { res, pre0, pre1 }
+}
+
+/// `window_centroid`: the iterated centroid of a window of half width `st.h` from `c0`
+/// (indices relative to `xmin`, read at `xmin + index`, at most `last`); a lane whose
+/// step fails or moves more than the width `w` from `c0` is no longer `ok`.
+#[inline(always)]
+fn window_centroid(
+    sums: &Sums,
+    st: &mut State,
+    (xmin, last): (&[usize; LANES], &[usize; LANES]),
+    c0: &V,
+    w: &V,
+) -> V {
+    let (n, h) = (SEG, st.h);
+    let Sums { res, pre0, pre1 } = sums;
+    let mut c = *c0;
     let mut done = [false; LANES];
     for i in 0..LANES {
-        done[i] = !ok[i];
+        done[i] = !st.ok[i];
     }
     for _ in 0..6 {
         // the window's ends (vectorised)
@@ -303,7 +391,7 @@ fn subpixel_lanes_generic(s: &Segments, p: &Params, out: &mut [Option<Sub>; LANE
             let cn = c[i] + dc;
             bad |= (cn - c0[i]).abs() > w[i];
             let open = !done[i];
-            ok[i] &= !(open & bad);
+            st.ok[i] &= !(open & bad);
             c[i] = if open & !bad { cn } else { c[i] };
             done[i] |= bad | (dc.abs() < 1e-3);
             all &= done[i];
@@ -312,26 +400,7 @@ fn subpixel_lanes_generic(s: &Segments, p: &Params, out: &mut [Option<Sub>; LANE
             break;
         }
     }
-    for i in 0..LANES {
-        out[i] = ok[i].then(|| {
-            let cf = c[i] as f64 + xmin[i] as f64;
-            let cc = c[i] + xmin[i] as f32;
-            let mut flags = 0u8;
-            if uneven[i] {
-                flags |= FLAG_UNEVEN_BACKGROUND;
-            }
-            if a[i] < p.low_signal {
-                flags |= FLAG_LOW_SIGNAL;
-            }
-            Sub {
-                c: cf,
-                peak: a[i],
-                width: w[i],
-                support: (cc - f0[i] as f32 + 0.5).max(f1[i] as f32 + flank as f32 - 0.5 - cc),
-                flags,
-            }
-        });
-    }
+    c
 }
 
 #[cfg(test)]
