@@ -346,10 +346,7 @@ fn window_centroid(
     let (n, h) = (SEG, st.h);
     let Sums { res, pre0, pre1 } = sums;
     let mut c = *c0;
-    let mut done = [false; LANES];
-    for i in 0..LANES {
-        done[i] = !st.ok[i];
-    }
+    let mut done = st.ok.map(|o| !o);
     for _ in 0..6 {
         // the window's ends (vectorised)
         let (mut lo, mut hi) = ([0f32; LANES], [0f32; LANES]);
