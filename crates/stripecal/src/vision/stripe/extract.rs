@@ -5,7 +5,8 @@
 //! and the oblique flag; and the automatic choice of the scan direction.
 
 use super::chains::{Chains, Decision};
-use super::peak::{line_subpixel, ColumnLine, Params, RowLine, Sub};
+use super::lanes::{lanes_apply, subpixel_lanes, Segments, LANES, SEG};
+use super::peak::{line_subpixel, ColumnLine, Params, RowLine, Sub, SHORT_REACH};
 use super::ridge::{scan_columns, scan_line, LineCand, LineReject, RidgePixel, Run};
 use super::smooth::{scale_of, smooth_along};
 use super::survey::{survey, Survey, SurveyScratch};
@@ -47,6 +48,9 @@ pub struct StripeExtractor {
     decisions: Vec<Decision>,
     /// The second points of ambiguous scan lines.
     alts: Vec<StripePoint>,
+    /// Per scan line: the sub-pixel result the lanes found (its segment's first pixel
+    /// and the result; `None`: the scalar code runs).
+    found: Vec<Option<(usize, Sub)>>,
     rejected: RejectCounts,
     survey: Survey,
     /// The survey's buffers.
@@ -74,6 +78,7 @@ impl StripeExtractor {
             chains: Chains::default(),
             decisions: Vec::new(),
             alts: Vec::new(),
+            found: Vec::new(),
             rejected: RejectCounts::default(),
             survey: Survey::default(),
             surveyed: SurveyScratch::default(),
@@ -155,11 +160,25 @@ impl StripeExtractor {
         if self.along > 1 {
             let mut sm = std::mem::take(&mut self.smooth);
             let mut acc = std::mem::take(&mut self.acc);
-            smooth_along(img, dir, self.along, &mut sm, &mut acc);
+            let cands = if dir == StripeDirection::Cols {
+                // each smoothed row's ridge candidates while the row is in the cache
+                let p = Params::new::<u16>(&opts);
+                let thr = u16::from_u32_clamped(p.min_contrast.ceil().max(1.0) as u32);
+                self.cands.clear();
+                self.cands.resize(img.height(), LineCand::default());
+                let found = &mut self.cands;
+                smooth_along(img, dir, self.along, &mut sm, &mut acc, |y, row| {
+                    scan_line(row, p.d, thr, &mut found[y])
+                });
+                Cands::Ready
+            } else {
+                smooth_along(img, dir, self.along, &mut sm, &mut acc, |_, _| {});
+                Cands::Scan
+            };
             let view = ImageView::from_slice(&sm, img.width(), img.height())?;
             // the smoothed image is on the 16-bit scale: peaks back to the input's
             let back = 1.0 / scale_of::<T>() as f32;
-            self.passes(&view, dir, Cands::Scan, &opts, out, back);
+            self.passes(&view, dir, cands, &opts, out, back);
             self.smooth = sm;
             self.acc = acc;
         } else {
@@ -256,6 +275,7 @@ impl StripeExtractor {
             &mut self.decisions,
         );
         self.alts.clear();
+        self.lanes(img, dir, &p);
         for l in 0..self.decisions.len() {
             let (pk, alt, reflection) = match self.decisions[l] {
                 Decision::Peak(pk, r) => (pk, None, r),
@@ -271,7 +291,10 @@ impl StripeExtractor {
             };
             rej.reflections += reflection as usize;
             rej.ambiguous += alt.is_some() as usize;
-            let first = self.centre(img, dir, l, pk, &p, back);
+            let first = match self.found.get(l).copied().flatten() {
+                Some((a, s)) if alt.is_none() => Ok(place(dir, l, a, &s, back)),
+                _ => self.centre(img, dir, l, pk, &p, back),
+            };
             let second = alt.map(|b| self.centre(img, dir, l, b, &p, back));
             match (first, second) {
                 (Ok(mut a), Some(Ok(mut b))) => {
@@ -326,15 +349,59 @@ impl StripeExtractor {
             let w = img.width();
             line_subpixel(&mut RowLine(img.row(l)), &mut self.seg, w, pk, p)
         };
-        let s = res?;
-        let pos = a as f64 + s.c;
-        let mut pt = if dir == StripeDirection::Rows {
-            point(l as f64, pos, &s)
-        } else {
-            point(pos, l as f64, &s)
+        Ok(place(dir, l, a, &res?, back))
+    }
+
+    /// The sub-pixel results of the scan lines with a single peak, eight at a time
+    /// ([`super::lanes`]), into `self.found` (the scan lines the lanes leave undecided,
+    /// and those near the ends of their line, are left to [`Self::centre`]).
+    fn lanes<T: RidgePixel>(&mut self, img: &ImageView<'_, T>, dir: StripeDirection, p: &Params) {
+        self.found.clear();
+        if !lanes_apply(p) {
+            return;
+        }
+        self.found.resize(self.decisions.len(), None);
+        let rows = dir == StripeDirection::Rows;
+        let n = if rows { img.height() } else { img.width() };
+        let mut segs: Segments = [[0.0; LANES]; SEG];
+        let mut at = [(0usize, 0usize); LANES];
+        let mut k = 0;
+        let mut out = [None; LANES];
+        let mut flush = |k: usize,
+                         segs: &Segments,
+                         at: &[(usize, usize); LANES],
+                         found: &mut [Option<(usize, Sub)>]| {
+            subpixel_lanes(segs, p, &mut out);
+            for (&(l, a), r) in at[..k].iter().zip(&out) {
+                found[l] = r.map(|s| (a, s));
+            }
         };
-        pt.peak *= back;
-        Ok(pt)
+        for (l, d) in self.decisions.iter().enumerate() {
+            let Decision::Peak(pk, _) = *d else { continue };
+            if pk < SHORT_REACH || pk + SHORT_REACH >= n {
+                continue;
+            }
+            let a = pk - SHORT_REACH;
+            if rows {
+                for (j, s) in segs.iter_mut().enumerate() {
+                    s[k] = img.get(l, a + j).to_f32();
+                }
+            } else {
+                for (s, v) in segs.iter_mut().zip(&img.row(l)[a..a + SEG]) {
+                    s[k] = v.to_f32();
+                }
+            }
+            at[k] = (l, a);
+            k += 1;
+            if k == LANES {
+                flush(k, &segs, &at, &mut self.found);
+                k = 0;
+            }
+        }
+        if k > 0 {
+            // (the lanes past k hold the last batch's lines, decided again and unused)
+            flush(k, &segs, &at, &mut self.found);
+        }
     }
 
     /// `Cols` direction: the candidates of every image row into `self.cands` (rows the
@@ -359,6 +426,20 @@ impl StripeExtractor {
             }
         }
     }
+}
+
+/// The stripe point of scan line `l` from the sub-pixel result `s` on its segment that
+/// starts at pixel `a`, its peak scaled by `back`.
+#[inline]
+fn place(dir: StripeDirection, l: usize, a: usize, s: &Sub, back: f32) -> StripePoint {
+    let pos = a as f64 + s.c;
+    let mut pt = if dir == StripeDirection::Rows {
+        point(l as f64, pos, s)
+    } else {
+        point(pos, l as f64, s)
+    };
+    pt.peak *= back;
+    pt
 }
 
 /// The stripe point at `(u, v)` of a sub-pixel result.

@@ -75,6 +75,7 @@ pub mod colour;
 mod edges;
 mod extract;
 mod gauss;
+mod lanes;
 mod line;
 mod peak;
 mod ridge;

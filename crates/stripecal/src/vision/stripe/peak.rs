@@ -10,9 +10,9 @@ use crate::model::image::{ImageView, Pixel};
 
 /// Half length of the segment first copied around a peak, px (enough for stripes up to
 /// about 6 px wide; wider ones get a second, longer copy).
-const SHORT_REACH: usize = 16;
+pub(super) const SHORT_REACH: usize = 16;
 /// Rounds of window sizing and background estimation.
-const ROUNDS: usize = 2;
+pub(super) const ROUNDS: usize = 2;
 /// A saturated run at least this long is a plateau: the centre comes from its edges.
 pub(super) const PLATEAU_PX: usize = 2;
 /// A plateau's background counts as uneven beyond this share of its height.
@@ -23,18 +23,18 @@ const PLATEAU_UNEVEN_REL: f32 = 0.25;
 pub(super) struct Params {
     pub d: usize,
     pub min_contrast: f32,
-    min_width: f32,
-    max_width: f32,
-    window: f32,
-    flank: usize,
-    max_sat: usize,
-    sat_level: f32,
-    low_signal: f32,
-    uneven: f32,
-    uneven_rel: f32,
-    method: StripeMethod,
+    pub min_width: f32,
+    pub max_width: f32,
+    pub window: f32,
+    pub flank: usize,
+    pub max_sat: usize,
+    pub sat_level: f32,
+    pub low_signal: f32,
+    pub uneven: f32,
+    pub uneven_rel: f32,
+    pub method: StripeMethod,
     /// Longest half-width walk, px.
-    limit: usize,
+    pub limit: usize,
     /// Half length of the segment around the peak that sub-pixel work may read.
     pub reach: usize,
 }

@@ -65,23 +65,26 @@ impl DivBy {
 }
 
 /// The image `img` averaged over `n` scan lines across `dir`'s scan lines, into `out`
-/// (`width * height` 16-bit pixels, row-major). Compiled a second time with AVX2,
-/// chosen at run time where the CPU has it (integer arithmetic: the same result).
+/// (`width * height` 16-bit pixels, row-major). `Cols`: each smoothed row goes to
+/// `on_row(y, row)` as soon as it is written (while it is in the cache; `Rows` calls
+/// it for none). Compiled a second time with AVX2, chosen at run time where the CPU
+/// has it (integer arithmetic: the same result).
 pub(super) fn smooth_along<T: Pixel>(
     img: &ImageView<'_, T>,
     dir: StripeDirection,
     n: usize,
     out: &mut Vec<u16>,
     acc: &mut Vec<u32>,
+    on_row: impl FnMut(usize, &[u16]),
 ) {
     #[cfg(target_arch = "x86_64")]
     if super::ridge::has_avx2() {
         // SAFETY: the CPU supports AVX2 (checked just above), the only requirement for
         // calling a `#[target_feature(enable = "avx2")]` function.
-        unsafe { smooth_along_avx2(img, dir, n, out, acc) };
+        unsafe { smooth_along_avx2(img, dir, n, out, acc, on_row) };
         return;
     }
-    smooth_along_generic(img, dir, n, out, acc)
+    smooth_along_generic(img, dir, n, out, acc, on_row)
 }
 
 #[cfg(target_arch = "x86_64")]
@@ -92,8 +95,9 @@ fn smooth_along_avx2<T: Pixel>(
     n: usize,
     out: &mut Vec<u16>,
     acc: &mut Vec<u32>,
+    on_row: impl FnMut(usize, &[u16]),
 ) {
-    smooth_along_generic(img, dir, n, out, acc)
+    smooth_along_generic(img, dir, n, out, acc, on_row)
 }
 
 #[inline(always)]
@@ -103,6 +107,7 @@ fn smooth_along_generic<T: Pixel>(
     n: usize,
     out: &mut Vec<u16>,
     acc: &mut Vec<u32>,
+    mut on_row: impl FnMut(usize, &[u16]),
 ) {
     let (w, h) = (img.width(), img.height());
     // (every pixel is written below: the buffer of the last image is not cleared)
@@ -164,6 +169,7 @@ fn smooth_along_generic<T: Pixel>(
                     *a = *a + va.to_u32() - vs.to_u32();
                     *o = div.div(*a * scale + half) as u16;
                 }
+                on_row(y, o);
                 continue;
             }
             if (add as usize) < h {
@@ -182,6 +188,7 @@ fn smooth_along_generic<T: Pixel>(
             for (o, a) in out[y * w..(y + 1) * w].iter_mut().zip(acc.iter()) {
                 *o = div.div(a * scale + half) as u16;
             }
+            on_row(y, &out[y * w..(y + 1) * w]);
         }
     }
 }
@@ -214,7 +221,7 @@ mod tests {
             .collect();
         let v = ImageView::from_slice(&img, w, h).unwrap();
         let (mut out, mut acc) = (Vec::new(), Vec::new());
-        smooth_along(&v, StripeDirection::Cols, 3, &mut out, &mut acc);
+        smooth_along(&v, StripeDirection::Cols, 3, &mut out, &mut acc, |_, _| {});
         for y in 0..h {
             for x in 0..w {
                 let ys: Vec<usize> = (y.saturating_sub(1)..=(y + 1).min(h - 1)).collect();
@@ -224,7 +231,7 @@ mod tests {
             }
             assert_eq!(out[y * w + 3], 65535);
         }
-        smooth_along(&v, StripeDirection::Rows, 3, &mut out, &mut acc);
+        smooth_along(&v, StripeDirection::Rows, 3, &mut out, &mut acc, |_, _| {});
         for y in 0..h {
             for x in 0..w {
                 let xs: Vec<usize> = (x.saturating_sub(1)..=(x + 1).min(w - 1)).collect();

@@ -326,18 +326,29 @@ fn line_peak<P: RidgePixel>(
     if vals.len() < 3 {
         return None;
     }
-    // the brightest value and its first pixel: the blocks' maxima (vectorised), then
-    // the first pixel at the largest in the first block that holds it
-    let mut vmax = P::ZERO;
-    let mut at_block = 0;
-    for (k, b) in vals.chunks(32).enumerate() {
-        let m = b.iter().fold(P::ZERO, |a, &v| a.max(v));
-        if m > vmax || k == 0 {
-            vmax = m;
-            at_block = k;
+    // the brightest value (lane-wise maxima over blocks of 32, vectorised, one
+    // reduction at the end) and its first pixel: the first block that holds it (a
+    // vectorised equality test per block), then the pixel in it
+    let mut lanes = [P::ZERO; 32];
+    let mut blocks = vals.chunks_exact(32);
+    for b in &mut blocks {
+        for (m, &v) in lanes.iter_mut().zip(b) {
+            *m = (*m).max(v);
         }
     }
-    let pk = 32 * at_block + vals[32 * at_block..].iter().position(|&v| v == vmax)?;
+    let vmax = blocks
+        .remainder()
+        .iter()
+        .chain(&lanes)
+        .fold(P::ZERO, |a, &v| a.max(v));
+    let mut pk = None;
+    for (k, b) in vals.chunks(32).enumerate() {
+        if b.iter().fold(false, |a, &v| a | (v == vmax)) {
+            pk = b.iter().position(|&v| v == vmax).map(|i| 32 * k + i);
+            break;
+        }
+    }
+    let pk = pk?;
     let vmax = vmax.as_u32();
     let med = nth_value(vals, vals.len() / 2, vmax, *guess);
     *guess = med;
