@@ -12,8 +12,7 @@
 //!
 //! `cargo test -p stripecal --test it calib_honesty:: -- --nocapture` prints the figures.
 
-use std::path::{Path, PathBuf};
-
+use crate::common::realdata;
 use stripecal::calib::joint::RobotMode;
 use stripecal::calib::ViewObs;
 use stripecal::model::geometry::iso_to_rotvec;
@@ -23,16 +22,6 @@ use stripecal::pipeline::{
 };
 use stripecal_sim::rng::Rng;
 use stripecal_sim::{noisy_observations, SimConfig, Twin};
-
-fn realdata() -> Option<PathBuf> {
-    let p = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../../shared/realdata");
-    if p.is_dir() {
-        Some(p)
-    } else {
-        println!("skipped: {} does not exist", p.display());
-        None
-    }
-}
 
 fn no_loo() -> CalibrateOptions {
     CalibrateOptions {

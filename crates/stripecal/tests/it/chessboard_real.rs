@@ -5,24 +5,15 @@
 //! - `etna_calib3`: 16 dark views of a 7 x 6 board, 1280 x 1024, a laser line in the
 //!   same image: as many as possible; the count and the refusals are printed.
 
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::time::Instant;
 
+use crate::common::realdata;
 use stripecal::io::{load_gray, read_rig};
 use stripecal::model::image::AnyGray;
 use stripecal::vision::chessboard::{detect_chessboard, ChessboardOptions};
 use stripecal::vision::target::TargetDetection;
 use stripecal::{Board, Result};
-
-fn realdata() -> Option<PathBuf> {
-    let p = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../../shared/realdata");
-    if p.is_dir() {
-        Some(p)
-    } else {
-        println!("skipped: {} does not exist", p.display());
-        None
-    }
-}
 
 /// Checks the contract's orientation on a complete detection: the image direction of
 /// increasing col crossed with that of increasing row is positive (u right, v down),

@@ -1,7 +1,9 @@
 //! Helpers shared by the calibration tests on rendered twins: the errors of a
-//! calibration against the twin's truth.
+//! calibration against the twin's truth; where the real data sets are.
 
 #![allow(dead_code)]
+
+use std::path::{Path, PathBuf};
 
 use stripecal::model::geometry::Plane;
 use stripecal::model::Calibration;
@@ -137,4 +139,16 @@ pub fn target_views() -> usize {
         .ok()
         .and_then(|s| s.parse().ok())
         .unwrap_or(DEFAULT_TARGET_VIEWS)
+}
+
+/// The real data sets (`../shared/realdata` beside the repository), or `None` (printed:
+/// the test is skipped) where they are not.
+pub fn realdata() -> Option<PathBuf> {
+    let p = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../../shared/realdata");
+    if p.is_dir() {
+        Some(p)
+    } else {
+        println!("skipped: {} does not exist", p.display());
+        None
+    }
 }
