@@ -81,21 +81,9 @@ pub fn one_step_folds(
     full: &JointResult,
     opts: &JointOptions,
 ) -> Result<Option<Vec<FoldSolution>>> {
-    if views.len() < 4 {
-        return Ok(None);
-    }
-    let Some(mut at) = Linearised::new(views, board, full, opts)? else {
+    let Some(at) = settled(views, board, full, opts)? else {
         return Ok(None);
     };
-    // The per-view columns at the full solution: Gauss-Newton steps of the whole problem
-    // (the global columns barely move: the full solution is their optimum).
-    if at.layout.per_view_len() > 0 && !at.bench {
-        for _ in 0..SETTLE_STEPS {
-            if !at.step()? {
-                return Ok(None);
-            }
-        }
-    }
     let Some(reduced) = at.problem().view_shares(&at.p)? else {
         return Ok(None);
     };
@@ -129,19 +117,9 @@ pub fn two_step_folds(
     full: &JointResult,
     opts: &JointOptions,
 ) -> Result<Option<Vec<[FoldSolution; 2]>>> {
-    if views.len() < 4 {
-        return Ok(None);
-    }
-    let Some(mut at) = Linearised::new(views, board, full, opts)? else {
+    let Some(at) = settled(views, board, full, opts)? else {
         return Ok(None);
     };
-    if at.layout.per_view_len() > 0 && !at.bench {
-        for _ in 0..SETTLE_STEPS {
-            if !at.step()? {
-                return Ok(None);
-            }
-        }
-    }
     let problem = at.problem();
     let shares = problem.view_normals_by_view(&at.p)?;
     let Some(reduced) = reduce(&shares) else {
@@ -153,11 +131,10 @@ pub fn two_step_folds(
     let (m, s) = summed(&reduced, ng);
     let mut folds = Vec::with_capacity(views.len());
     for (k, (mk, sk)) in reduced.iter().enumerate() {
-        let Some(ch) = (&m - mk).cholesky() else {
+        // The one step, the other views' own columns with it (the residuals there).
+        let Some(dg) = solve(&m - mk, &(&s - sk)) else {
             return Ok(None);
         };
-        // The one step, the other views' own columns with it (the residuals there).
-        let dg = -ch.solve(&(&s - sk));
         let mut dp = vec![0.0; n];
         dp[..ng].copy_from_slice(dg.as_slice());
         for (v, share) in shares.iter().enumerate().filter(|(v, _)| *v != k) {
@@ -169,17 +146,11 @@ pub fn two_step_folds(
         let mut q1 = at.p.clone();
         at.layout.retract(&at.p, &dp, &mut q1);
         // The second step: the other views' shares relinearised at q1.
-        let Some(again) = problem
-            .view_shares(&q1)?
-            .map(|r| r.into_iter().enumerate().filter(|(v, _)| *v != k))
-        else {
+        let Some(mut again) = problem.view_shares(&q1)? else {
             return Ok(None);
         };
-        let (mut m2, mut s2) = (DMatrix::zeros(ng, ng), DVector::zeros(ng));
-        for (_, (mv, sv)) in again {
-            m2 += mv;
-            s2 += sv;
-        }
+        again.remove(k);
+        let (m2, s2) = summed(&again, ng);
         let Some(dg2) = solve(m2, &s2) else {
             return Ok(None);
         };
@@ -352,6 +323,32 @@ impl Linearised {
         self.p = next;
         Ok(true)
     }
+}
+
+/// The linearisation at the full solution `full` of `views` ([`Linearised`]), with the
+/// per-view columns settled by Gauss-Newton steps of the whole problem (the global
+/// columns barely move: the full solution is their optimum). `None` with fewer than 4
+/// views, where the steps do not apply or a settling step fails.
+fn settled(
+    views: &[ViewObs],
+    board: &Board,
+    full: &JointResult,
+    opts: &JointOptions,
+) -> Result<Option<Linearised>> {
+    if views.len() < 4 {
+        return Ok(None);
+    }
+    let Some(mut at) = Linearised::new(views, board, full, opts)? else {
+        return Ok(None);
+    };
+    if at.layout.per_view_len() > 0 && !at.bench {
+        for _ in 0..SETTLE_STEPS {
+            if !at.step()? {
+                return Ok(None);
+            }
+        }
+    }
+    Ok(Some(at))
 }
 
 /// Every view's share reduced to the global columns; `None` when one's own block is

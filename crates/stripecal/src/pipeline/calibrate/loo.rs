@@ -118,8 +118,7 @@ pub fn leave_one_out_with(
     full: &JointResult,
     method: FoldMethod,
 ) -> Result<Option<LeaveOneOut>> {
-    let jopts = super::stages::joint_options(opts, rig);
-    leave_one_out_by(used, &rig.board, full, &jopts, method)
+    Ok(leave_one_out_refits(used, rig, opts, full, method)?.map(|(l, _)| l))
 }
 
 fn leave_one_out_by(
@@ -205,7 +204,7 @@ fn scored_certified(
 
 /// Whether the second step `b` left every held-out figure of the first `a` within
 /// [`CERTIFY_TOL`] (relative).
-fn certified(a: &(LooView, Vec<f64>), b: &(LooView, Vec<f64>)) -> bool {
+fn certified(a: &Scored, b: &Scored) -> bool {
     let close = |x: f64, y: f64| (x - y).abs() <= CERTIFY_TOL * y.abs().max(x.abs());
     let rms = |d: &[f64]| (d.iter().map(|x| x * x).sum::<f64>() / d.len().max(1) as f64).sqrt();
     let (va, vb) = (&a.0, &b.0);
@@ -227,7 +226,7 @@ fn scored_steps(
     full: &JointResult,
     folds: &[FoldSolution],
     jopts: &JointOptions,
-) -> Result<Vec<(LooView, Vec<f64>)>> {
+) -> Result<Vec<Scored>> {
     let model = jopts.centre_model;
     used.par_iter()
         .zip(folds)
@@ -250,7 +249,7 @@ fn scored_refits(
     full: &JointResult,
     jopts: &JointOptions,
     which: &[usize],
-) -> Result<Vec<(LooView, Vec<f64>)>> {
+) -> Result<Vec<Scored>> {
     let start = JointStart {
         camera: full.camera.clone(),
         plane: full.plane,
@@ -265,7 +264,7 @@ fn scored_refits(
     opts.variance_components = false;
     which
         .par_iter()
-        .map(|&k| -> Result<(LooView, Vec<f64>)> {
+        .map(|&k| -> Result<Scored> {
             let others: Vec<ViewObs> = used
                 .iter()
                 .enumerate()
