@@ -494,26 +494,18 @@ fn placements(sites: &[((i64, i64), State)], board: &Board, det_a: f64) -> (Vec<
             mlo = (mlo.0.min(i), mlo.1.min(j));
             mhi = (mhi.0.max(i), mhi.1.max(j));
         }
+        let range = (
+            (lo.0 - mlo.0)..=(hi.0 - mhi.0),
+            (lo.1 - mlo.1)..=(hi.1 - mhi.1),
+        );
         let mut fits_here = 0;
-        for ti in (lo.0 - mlo.0)..=(hi.0 - mhi.0) {
-            for tj in (lo.1 - mlo.1)..=(hi.1 - mhi.1) {
-                let ok = mapped.iter().zip(sites).all(|(&(i, j), &(_, s))| {
-                    match board.from_lattice(i + ti, j + tj) {
-                        None => false,
-                        Some((r, c)) => match s {
-                            State::Marker => board.is_marker(r, c),
-                            State::Ordinary => !board.is_marker(r, c),
-                            State::Unknown => true,
-                        },
-                    }
-                });
-                if ok {
-                    fits_here += 1;
-                    // image directions of increasing board i and j: A M^-1; its
-                    // determinant has the sign of det(A) det(M)
-                    if det_a * det_m > 0.0 {
-                        placements.push((*m, (ti, tj)));
-                    }
+        for (ti, tj) in translations(&mapped, sites, board, range) {
+            if fits(&mapped, sites, board, (ti, tj)) {
+                fits_here += 1;
+                // image directions of increasing board i and j: A M^-1; its
+                // determinant has the sign of det(A) det(M)
+                if det_a * det_m > 0.0 {
+                    placements.push((*m, (ti, tj)));
                 }
             }
         }
@@ -522,6 +514,55 @@ fn placements(sites: &[((i64, i64), State)], board: &Board, det_a: f64) -> (Vec<
         }
     }
     (placements, mirrored)
+}
+
+/// Whether the sites, mapped to `mapped` and moved by `(ti, tj)`, all land on board
+/// points of their state.
+fn fits(
+    mapped: &[(i64, i64)],
+    sites: &[((i64, i64), State)],
+    board: &Board,
+    (ti, tj): (i64, i64),
+) -> bool {
+    mapped.iter().zip(sites).all(
+        |(&(i, j), &(_, s))| match board.from_lattice(i + ti, j + tj) {
+            None => false,
+            Some((r, c)) => match s {
+                State::Marker => board.is_marker(r, c),
+                State::Ordinary => !board.is_marker(r, c),
+                State::Unknown => true,
+            },
+        },
+    )
+}
+
+/// The translations to try, ascending: every one in `range` (which keeps the mapped
+/// sites' bounding box on the board's); with a marker among the sites only those that put
+/// it on one of the board's markers (the others cannot fit), so that a large board
+/// (rig.json declaring 1000 x 1000 circles, say) costs its markers, not its area.
+fn translations(
+    mapped: &[(i64, i64)],
+    sites: &[((i64, i64), State)],
+    board: &Board,
+    (ri, rj): (std::ops::RangeInclusive<i64>, std::ops::RangeInclusive<i64>),
+) -> Vec<(i64, i64)> {
+    let Some(k) = sites.iter().position(|s| s.1 == State::Marker) else {
+        return ri
+            .flat_map(|ti| rj.clone().map(move |tj| (ti, tj)))
+            .collect();
+    };
+    let mut out: Vec<(i64, i64)> = board
+        .markers
+        .iter()
+        .map(|m| {
+            let (i, j) = board.lattice(m[0], m[1]);
+            (i - mapped[k].0, j - mapped[k].1)
+        })
+        .filter(|(ti, tj)| ri.contains(ti) && rj.contains(tj))
+        .collect();
+    out.sort_unstable();
+    out.dedup();
+    out
 }
 
 /// Why no placement fits (`mirrored` placements fit as a mirror image).
@@ -584,4 +625,49 @@ fn alternatives(
         }
     }
     Ok(alternatives)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The translations tried with a marker among the sites keep every one that fits
+    /// (those of the whole range that fit), in the same order.
+    #[test]
+    fn marker_anchored_translations_keep_every_fit() {
+        let board = Board::circles(40, 50, 5.0, 2.5, 3.5).unwrap();
+        // a 4 x 5 patch at the marker corner and one away from it, seen in every map
+        for (r0, c0) in [(0usize, 0usize), (7, 9)] {
+            let sites: Vec<((i64, i64), State)> = (r0..r0 + 4)
+                .flat_map(|r| (c0..c0 + 5).map(move |c| (r, c)))
+                .map(|(r, c)| {
+                    let s = if board.is_marker(r, c) {
+                        State::Marker
+                    } else {
+                        State::Ordinary
+                    };
+                    (board.lattice(r, c), s)
+                })
+                .collect();
+            for m in &LATTICE_MAPS {
+                let mapped: Vec<(i64, i64)> =
+                    sites.iter().map(|&(c, _)| place(m, (0, 0), c)).collect();
+                let range = (-200..=200, -200..=200);
+                let all: Vec<(i64, i64)> = range
+                    .0
+                    .clone()
+                    .flat_map(|ti| range.1.clone().map(move |tj| (ti, tj)))
+                    .filter(|&t| fits(&mapped, &sites, &board, t))
+                    .collect();
+                let tried: Vec<(i64, i64)> = translations(&mapped, &sites, &board, range)
+                    .into_iter()
+                    .filter(|&t| fits(&mapped, &sites, &board, t))
+                    .collect();
+                assert_eq!(tried, all, "patch at {r0}, {c0}, map {m:?}");
+                if r0 == 0 && *m == LATTICE_MAPS[0] {
+                    assert_eq!(all, vec![(0, 0)]);
+                }
+            }
+        }
+    }
 }
