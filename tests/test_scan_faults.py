@@ -462,11 +462,12 @@ def cpu_seconds(pid: int) -> float:
 
 @posix_only
 def test_sigint_during_calibrate_writes_nothing(twin, tmp_path) -> None:  # type: ignore[no-untyped-def]
-    """The calibration runs in the core without a place to stop: the interrupt takes
-    effect when it returns, before anything is written. The dataset has its 3 views 20
-    times over (hard links to the images), so the run takes several times the CPU time
-    of starting Python and importing stripecal (~0.15 s); the signal is sent once 0.8 s
-    of CPU time is spent, i.e. inside the calibration."""
+    """The interrupt stops the calibration at the core's next step (the binding polls
+    for signals while the core runs and sets its cancellation flag), and nothing is
+    written. The dataset has its 3 views 20 times over (hard links to the images), so
+    the run takes several times the CPU time of starting Python and importing stripecal
+    (~0.15 s); the signal is sent once 0.8 s of CPU time is spent, i.e. inside the
+    calibration."""
     data = tmp_path / "calib"
     shutil.copytree(twin["calib"], data)
     repeated_rows(data, "views.csv", 20)

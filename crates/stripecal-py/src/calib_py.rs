@@ -290,8 +290,9 @@ struct CalibrateArgs<'py> {
 /// (the result's `warnings`). Raises `InvalidInputError` for fewer than 3 usable views
 /// or no usable laser image, `DegenerateError` for pose sets or stripes that do not
 /// determine the result, `FormatError`/`OSError` for unreadable files. The GIL is
-/// released while it runs; a Ctrl-C (SIGINT) during the run raises `KeyboardInterrupt`
-/// when the core returns (the result is dropped), not at once.
+/// released while it runs; a Ctrl-C (SIGINT) during the run stops it at the core's next
+/// step (each view's detection, each stage and adjustment: within about a second) and
+/// raises `KeyboardInterrupt`; nothing is returned.
 #[pyfunction]
 #[pyo3(signature = (*args, **kwargs), text_signature = "(dataset, *, distortion=None, method=\"one-stage\", robust=False, centre_model=\"conic-exact\", from_calibration=None, fix=..., laser_only=False, estimate_board_scale=False, board_scale_tolerance=0.01, leave_one_out=True, accept_poor=False, robot_pose_noise=True, robot=\"fixed\", board_stripe_bias=True)")]
 pub fn calibrate(
@@ -383,9 +384,10 @@ pub fn calibrate(
         board_stripe_bias,
         ..Default::default()
     };
+    let cancel = opts.cancel.clone();
     let result = if let Ok(ds) = dataset.cast::<PyDataset>() {
         let ds = &ds.get().inner;
-        py.detach_pool(|| calibrate_dataset_loaded(ds, &opts))
+        py.detach_cancellable(&cancel, || calibrate_dataset_loaded(ds, &opts))?
     } else {
         let path: PathBuf = dataset.extract().map_err(|_| {
             pyo3::exceptions::PyTypeError::new_err(format!(
@@ -393,10 +395,10 @@ pub fn calibrate(
                 crate::convert::type_name(dataset)
             ))
         })?;
-        py.detach_pool(|| calibrate_dataset(&path, &opts))
+        py.detach_cancellable(&cancel, || calibrate_dataset(&path, &opts))?
     };
-    // A Ctrl-C while the core ran (the GIL released, Python could not act on it): the
-    // result is dropped and KeyboardInterrupt raised, so no caller goes on to write it.
+    // A Ctrl-C after the last poll, as the core returned: the result is dropped and
+    // KeyboardInterrupt raised, so no caller goes on to write it.
     py.check_signals()?;
     match result {
         Ok(rep) => Ok(Py::new(py, report_to_py(rep))?.into_any()),

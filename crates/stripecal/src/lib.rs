@@ -23,6 +23,7 @@
 //! Data flows one way: images -> vision -> calib -> calibration.json -> reconstruct.
 
 pub mod calib;
+pub mod cancel;
 pub mod error;
 pub mod io;
 pub mod model;
@@ -32,6 +33,7 @@ pub mod reconstruct;
 pub(crate) mod stripe_model;
 pub mod vision;
 
+pub use cancel::Cancel;
 pub use error::{BadFrame, Error, Result};
 pub use model::board::{Board, BoardKind};
 pub use model::camera::{Camera, DistortionModel, Intrinsics};

@@ -158,6 +158,10 @@ pub struct CalibrateOptions {
     /// On the bench: views whose board sags by more than this (mm, and by more than 3
     /// sigma) are named and left out (`calibrate/flat_views.rs`; default 0.02).
     pub max_board_sag_mm: f64,
+    /// Checked between the pipeline's steps (each view's detection, each stage, each
+    /// adjustment): once set, the run returns [`Error::Cancelled`] at the next check
+    /// (within about a second) and nothing else. Not a setting: never compared.
+    pub cancel: crate::cancel::Cancel,
 }
 
 impl Default for CalibrateOptions {
@@ -184,6 +188,7 @@ impl Default for CalibrateOptions {
             robot: crate::calib::joint::RobotMode::Fixed,
             board_stripe_bias: true,
             max_board_sag_mm: 0.02,
+            cancel: crate::cancel::Cancel::default(),
         }
     }
 }

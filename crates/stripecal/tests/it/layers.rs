@@ -11,6 +11,7 @@ use std::path::{Path, PathBuf};
 /// rank in docs/architecture.md. A folder imports its own rank and those below, never
 /// above. A new folder is one entry here (and one line of the doc).
 const RANKS: &[(&str, u32)] = &[
+    ("cancel", 0),
     ("error", 0),
     ("model", 0),
     ("numerics", 0),

@@ -27,6 +27,7 @@ mod io_earlier_profiler;
 mod io_formats;
 mod io_poses;
 mod layers;
+mod pipeline_cancel;
 mod plan_poses;
 mod reconstruct;
 mod reconstruct_errors;

@@ -35,6 +35,7 @@ pub(in crate::pipeline) fn calibrate_unjudged(
 ) -> Result<(CalibrationReport, Vec<QualityCheck>)> {
     check_poses_finite(views)?;
     super::held::check_from_size(rig, opts)?;
+    opts.cancel.check()?;
     // `--from` without `--fix`: the file's camera and plane as a prior.
     if let Some(from) = opts
         .from

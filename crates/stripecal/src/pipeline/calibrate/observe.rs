@@ -101,7 +101,10 @@ pub(in crate::pipeline) fn observe(ds: &Dataset, opts: &CalibrateOptions) -> Res
         .views
         .par_iter()
         .enumerate()
-        .map(|(i, v)| observe_view(ds, i, v, opts, &stripe_opts, channel.0, &lossy))
+        .map(|(i, v)| {
+            opts.cancel.check()?;
+            observe_view(ds, i, v, opts, &stripe_opts, channel.0, &lossy)
+        })
         .collect();
     let mut o = Observed {
         obs: Vec::new(),

@@ -35,12 +35,14 @@ pub(super) fn calibrate_robot(
     let mut status: Vec<ViewStatus> = views.iter().map(ViewStatus::observed).collect();
     // 2. Camera.
     let camcal = camera_stage(views, rig, opts)?;
+    opts.cancel.check()?;
     warnings.extend(camcal.warnings.iter().cloned());
     // Labellings the images leave open, from the robot poses.
     let (labelled, frame_note) = resolve_labellings(views, &camcal.poses, board, &mut warnings);
     let earlier = note_unlabelled(&labelled, views, &mut status);
     // 3. Stripe points on the board plane.
     let (obs, poses) = select_stripes(&labelled, &camcal.camera, &mut status)?;
+    opts.cancel.check()?;
     // 4. Robot poses against images; AX = ZB from the views that agree.
     let paired = check_pairing(&obs, &poses, &earlier, opts, &mut warnings, &mut status)?;
     warnings.extend(paired.axzb.warnings.iter().cloned());
@@ -64,6 +66,7 @@ pub(super) fn calibrate_robot(
         if let Some(h) = held {
             h.apply(&mut start);
         }
+        opts.cancel.check()?;
         let adj = joint_adjustment(&used.obs, board, &start, &jopts)?;
         Ok((start, adj))
     };
@@ -95,6 +98,7 @@ pub(super) fn calibrate_robot(
         obs: used_obs,
         poses: used_poses,
     } = used;
+    opts.cancel.check()?;
     let (mut adj, used_obs, board_stripe) =
         correct_stripes(adj, used_obs, &used_poses, board, &jopts, opts)?;
     if let Some(Err(why)) = &board_stripe {
@@ -108,6 +112,7 @@ pub(super) fn calibrate_robot(
         warnings.push(w);
     }
     mark_used(&mut status, &used_obs);
+    opts.cancel.check()?;
     let checks = self_checks(&used_obs, board, &adj, &jopts, opts, &mut warnings)?;
     let mut gate_checks = vec![
         paired.check,

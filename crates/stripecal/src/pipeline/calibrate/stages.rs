@@ -175,6 +175,7 @@ pub(super) fn self_checks(
     } else {
         None
     };
+    opts.cancel.check()?;
     let leave_one_out = if opts.leave_one_out {
         leave_one_out(used, board, adj, jopts)?
     } else {

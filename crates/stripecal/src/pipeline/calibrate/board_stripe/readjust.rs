@@ -65,6 +65,7 @@ pub(in crate::pipeline::calibrate) fn correct_stripes(
         base_board: r.base_board,
     };
     let jopts = &jopts.continuing(&adj);
+    opts.cancel.check()?;
     let mut again = joint_adjustment(&corr.corrected, board, &start_of(&adj), jopts)?;
     let mut terms = vec![(
         again.named_difference(&adj),
@@ -77,6 +78,7 @@ pub(in crate::pipeline::calibrate) fn correct_stripes(
     // rounds and covariance); the adjustment where they do not apply.
     let mut moved = Vec::with_capacity(4);
     for views in &corr.emitter_moved {
+        opts.cancel.check()?;
         let alt = match stepped_from(views, board, &again, jopts, EMITTER_STEPS)? {
             Some(alt) => alt,
             None => joint_adjustment(views, board, &from, jopts)?,
