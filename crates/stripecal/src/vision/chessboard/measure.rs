@@ -92,6 +92,22 @@ pub(crate) fn measure_site(
     strict: bool,
     s: &Settings,
 ) -> Result<Saddle, Fail> {
+    let mut near: Vec<f64> = Vec::new();
+    let mut blur: Vec<f64> = Vec::new();
+    for di in -2..=2 {
+        for dj in -2..=2 {
+            if let Some(&k) = m.at.get(&(t.0 + di, t.1 + dj)) {
+                near.push(m.pts[k].contrast);
+                blur.push(m.pts[k].ln_blur);
+            }
+        }
+    }
+    // the fit starts from the median blur of those sites (0 without them)
+    blur.sort_by(f64::total_cmp);
+    let s = &Settings {
+        ln_blur0: blur.get(blur.len() / 2).copied().unwrap_or(0.0),
+        ..*s
+    };
     let sd = refine(
         g,
         l.p,
@@ -101,14 +117,6 @@ pub(crate) fn measure_site(
         strict,
         s,
     )?;
-    let mut near: Vec<f64> = Vec::new();
-    for di in -2..=2 {
-        for dj in -2..=2 {
-            if let Some(&k) = m.at.get(&(t.0 + di, t.1 + dj)) {
-                near.push(m.pts[k].contrast);
-            }
-        }
-    }
     if !near.is_empty() {
         near.sort_by(f64::total_cmp);
         if sd.contrast < 0.4 * near[near.len() / 2] {

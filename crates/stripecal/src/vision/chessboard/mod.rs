@@ -208,6 +208,7 @@ pub fn detect_chessboard(
         max_radius: opts.max_window_radius_px,
         keep_stripe: !opts.drop_stripe_crossed,
         noise: noise as f64,
+        ln_blur0: 0.0,
     };
     let mut m = measure::measure_grid(&g, &best.sites, best.phase, &settings, cap);
     if m.at.len() < 4 {

@@ -75,6 +75,8 @@ pub(crate) struct Saddle {
     /// A bright stripe crosses the window (kept: the stripe pixels and their mirror
     /// images were left out of the fit).
     pub stripe: bool,
+    /// Fitted blur, `ln s` (s in px): the start of the neighbours' fits.
+    pub ln_blur: f64,
 }
 
 /// Why a corner could not be measured.
@@ -102,6 +104,11 @@ pub(crate) struct Settings {
     pub keep_stripe: bool,
     /// Image noise sigma, image units.
     pub noise: f64,
+    /// Start of the fit's blur, `ln s` (s in px): the neighbours' fitted blur where
+    /// known (the blur changes slowly across an image; the start only shortens the
+    /// path to the same minimum), else 0. Not used for the fits of a window with
+    /// stripe pixels left out.
+    pub ln_blur0: f64,
 }
 
 /// Gradient-orthogonality estimate (a few closed-form steps).
@@ -174,6 +181,7 @@ fn fit(
     g: &Gray,
     c0: [f64; 2],
     angles: [f64; 2],
+    ln_blur0: f64,
     r: f64,
     mask: &HashSet<(i32, i32)>,
 ) -> Option<Fitted> {
@@ -183,7 +191,7 @@ fn fit(
     th[1] = c0[1];
     th[2] = angles[0];
     th[3] = angles[1];
-    th[4] = 0.0;
+    th[4] = ln_blur0.clamp(-3.0, 3.0);
     let mut px = Vec::with_capacity(512);
     window(g, c0, r, mask, &mut px);
     if px.len() < 20 {
@@ -320,8 +328,11 @@ pub(crate) fn refine(
     }
     let mask: HashSet<(i32, i32)> = mask.union(&on_dark).copied().collect();
     let angles = [di[1].atan2(di[0]), dj[1].atan2(dj[0])];
+    // a window with stripe pixels left out starts from 0 (a part of the window is
+    // missing: the neighbours' blur can lead such a fit to another minimum)
+    let blur0 = if mask.is_empty() { s.ln_blur0 } else { 0.0 };
     let (mut th, mut px, mut h, mut cost, mut wsum) =
-        fit(g, c0, angles, r, &mask).ok_or(Fail::NotCorner("the saddle fit failed"))?;
+        fit(g, c0, angles, blur0, r, &mask).ok_or(Fail::NotCorner("the saddle fit failed"))?;
     let more: HashSet<(i32, i32)> = residual_stripe(&th, &px, r, s.noise)
         .union(&faint_line(g, [th[0], th[1]], r, light, dark, s.noise))
         .copied()
@@ -332,7 +343,7 @@ pub(crate) fn refine(
             return Err(Fail::Stripe);
         }
         let all: HashSet<(i32, i32)> = mask.union(&more).copied().collect();
-        (th, px, h, cost, wsum) = fit(g, c0, angles, r, &all).ok_or(Fail::Stripe)?;
+        (th, px, h, cost, wsum) = fit(g, c0, angles, 0.0, r, &all).ok_or(Fail::Stripe)?;
     }
     validate(
         &th,
@@ -367,5 +378,6 @@ pub(crate) fn refine(
         contrast: 2.0 * th[6].abs(),
         near_border,
         stripe,
+        ln_blur: th[4],
     })
 }
