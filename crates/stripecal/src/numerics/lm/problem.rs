@@ -157,6 +157,12 @@ impl JacobianRows {
             (&mut self.cols, &mut self.vals)
         }
     }
+    /// The values of rows `i0..i1`, row after row (`width` each): the rows' `J^T`
+    /// stored column-major (`width x (i1 - i0)`).
+    pub fn values(&self, i0: usize, i1: usize) -> &[f64] {
+        let w = self.width;
+        &self.vals[i0 * w..i1 * w]
+    }
     /// Columns and values of row `i`.
     pub fn row(&self, i: usize) -> (&[usize], &[f64]) {
         let w = self.width;
