@@ -53,6 +53,14 @@ pub trait LeastSquares {
     fn jacobian_row_width(&self) -> Option<usize> {
         None
     }
+    /// `Some((ng, pv))` when the columns are `ng` global ones followed by one block of
+    /// `pv` per view and every residual depends on the global columns and at most one
+    /// view's block: the solver then eliminates the blocks view by view (the Schur
+    /// complement; the same steps and leverages to rounding, in time linear in the
+    /// number of views). Default: `None` (dense factorisations).
+    fn view_blocks(&self) -> Option<(usize, usize)> {
+        None
+    }
     /// `true` when the problem accumulates its normal equations itself
     /// ([`LeastSquares::residuals_and_normal_equations`]): for many residuals over few
     /// parameters the solver then never stores the Jacobian. Such a problem must not
