@@ -189,3 +189,79 @@ impl InverseBlocks {
         })
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use faer::linalg::solvers::DenseSolveCore;
+
+    /// A symmetric positive definite normal matrix with 5 global columns and 4 views
+    /// of 3 (no entries between two views' blocks): `J^T J` of block-sparse rows.
+    fn normal_matrix() -> (DMatrix<f64>, Blocks) {
+        let b = Blocks::of(17, (5, 3)).unwrap();
+        let mut a = DMatrix::<f64>::zeros(17, 17);
+        let mut seed = 7u64;
+        let mut next = || {
+            seed = seed
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            (seed >> 11) as f64 / (1u64 << 53) as f64 - 0.5
+        };
+        for v in 0..4 {
+            for _ in 0..12 {
+                let cols: Vec<usize> = (0..5).chain(5 + 3 * v..8 + 3 * v).collect();
+                let vals: Vec<f64> = cols.iter().map(|_| next()).collect();
+                for (x, &cx) in cols.iter().enumerate() {
+                    for (y, &cy) in cols.iter().enumerate() {
+                        a[(cx, cy)] += vals[x] * vals[y];
+                    }
+                }
+            }
+        }
+        (a, b)
+    }
+
+    #[test]
+    fn block_solve_and_inverse_blocks_match_the_dense_ones() {
+        let (a, b) = normal_matrix();
+        let damp: Vec<f64> = (0..17).map(|i| 0.1 * a[(i, i)]).collect();
+        let rhs: Vec<f64> = (0..17).map(|i| (i as f64 * 0.7).sin()).collect();
+        let x = solve(&a, &damp, &rhs, &b).unwrap();
+        let mut ad = a.clone();
+        for (i, d) in damp.iter().enumerate() {
+            ad[(i, i)] += d;
+        }
+        let xd = ad
+            .cholesky()
+            .unwrap()
+            .solve(&DVector::from_column_slice(&rhs));
+        assert!((&x - &xd).amax() <= 1e-12 * xd.amax(), "{x} {xd}");
+        let inv = InverseBlocks::new(|i, j| a[(i, j)], &b).unwrap();
+        let dense = Mat::<f64>::from_fn(17, 17, |i, j| a[(i, j)])
+            .llt(Side::Lower)
+            .unwrap()
+            .inverse();
+        let scale = (0..17).map(|i| dense[(i, i)]).fold(0.0f64, f64::max);
+        for i in 0..17 {
+            for j in 0..17 {
+                match inv.at(i, j) {
+                    Some(v) => assert!((v - dense[(i, j)]).abs() <= 1e-12 * scale, "{i} {j}"),
+                    None => assert!(b.view_of(i).is_some() && b.view_of(i) != b.view_of(j)),
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn a_singular_view_block_is_no_solution() {
+        let (mut a, b) = normal_matrix();
+        for i in 8..11 {
+            for j in 0..17 {
+                a[(i, j)] = 0.0;
+                a[(j, i)] = 0.0;
+            }
+        }
+        assert!(solve(&a, &[0.0; 17], &[1.0; 17], &b).is_none());
+        assert!(InverseBlocks::new(|i, j| a[(i, j)], &b).is_none());
+    }
+}
