@@ -64,15 +64,7 @@ impl ViewShare {
     pub fn add_row(&mut self, cols: &[usize], vals: &[f64], r: f64) {
         let mut local = std::mem::take(&mut self.local);
         local.clear();
-        local.extend(cols.iter().map(|&c| {
-            if c < self.ng {
-                Some(c)
-            } else if self.own.contains(&c) {
-                Some(self.ng + c - self.own.start)
-            } else {
-                None
-            }
-        }));
+        local.extend(cols.iter().map(|&c| self.local_column(c)));
         for (x, (lx, vx)) in local.iter().zip(vals).enumerate() {
             let (Some(lx), true) = (lx, *vx != 0.0) else {
                 continue;
@@ -88,6 +80,55 @@ impl ViewShare {
             }
         }
         self.local = local;
+    }
+
+    /// Adds rows that share their columns `cols` (`w` of them) at once: their values
+    /// `jt` (the rows' `J^T`, `w x len`, each row a column) and residuals `r` (length
+    /// `len`). The same sums as [`Self::add_row`] row by row (in another order: equal to
+    /// rounding), as one `w x w` matrix product instead of a scalar loop per row; the
+    /// lower triangle of the product is mirrored, so the share stays exactly symmetric.
+    pub fn add_rows(&mut self, cols: &[usize], jt: faer::MatRef<'_, f64>, r: &[f64]) {
+        let w = cols.len();
+        let mut local = std::mem::take(&mut self.local);
+        local.clear();
+        local.extend(cols.iter().map(|&c| self.local_column(c)));
+        let mut block = faer::Mat::<f64>::zeros(w, w);
+        let mut gb = faer::Mat::<f64>::zeros(w, 1);
+        let rv = faer::MatRef::from_column_major_slice(r, r.len(), 1);
+        let seq = faer::Par::Seq;
+        faer::linalg::matmul::matmul(
+            block.as_mut(),
+            faer::Accum::Replace,
+            jt,
+            jt.transpose(),
+            1.0,
+            seq,
+        );
+        faer::linalg::matmul::matmul(gb.as_mut(), faer::Accum::Replace, jt, rv, 1.0, seq);
+        for (x, lx) in local.iter().enumerate() {
+            let Some(lx) = *lx else { continue };
+            self.g[lx] += gb[(x, 0)];
+            for (y, ly) in local.iter().enumerate().take(x + 1) {
+                let Some(ly) = *ly else { continue };
+                let v = block[(x, y)];
+                self.a[(lx, ly)] += v;
+                if x != y {
+                    self.a[(ly, lx)] += v;
+                }
+            }
+        }
+        self.local = local;
+    }
+
+    /// Column `c`'s index in the share (`None`: another view's).
+    fn local_column(&self, c: usize) -> Option<usize> {
+        if c < self.ng {
+            Some(c)
+        } else if self.own.contains(&c) {
+            Some(self.ng + c - self.own.start)
+        } else {
+            None
+        }
     }
 
     /// `(M_v, s_v)`: `A_gg - A_gd A_dd^-1 A_dg` and `g_g - A_gd A_dd^-1 g_d`; `None` when

@@ -12,7 +12,10 @@
 //! over runs of rows with the same columns (sparse rows), or by the problem itself
 //! ([`LeastSquares::has_normal_equations`]: no Jacobian stored, for many residuals over
 //! few parameters, without Huber weights or re-weighting); the damped `n x n` system is
-//! solved by Cholesky.
+//! solved by Cholesky, or, when the problem's columns are global ones and one block per
+//! view ([`LeastSquares::view_blocks`]), by eliminating the views' blocks one by one (the
+//! Schur complement: a small Cholesky per view and one over the global columns, linear
+//! in the number of views; the leverages take the inverse's blocks the same way).
 //!
 //! ## Algorithm
 //!
@@ -49,6 +52,7 @@
 mod covariance;
 mod normal;
 mod problem;
+mod schur;
 mod solver;
 
 pub use covariance::{covariance, sigmas};

@@ -8,6 +8,7 @@ use faer::{Accum, Mat, Par};
 use nalgebra::{DMatrix, DVector};
 
 use super::problem::{JacobianRows, LeastSquares};
+use super::schur::{Blocks, InverseBlocks};
 use crate::error::{Error, Result};
 
 pub(super) fn huber_weight(r: f64, huber: Option<f64>) -> f64 {
@@ -53,6 +54,8 @@ pub(super) struct Work {
     /// [`LeastSquares::has_normal_equations`]).
     fused: Option<(DMatrix<f64>, DVector<f64>)>,
     fused_mode: bool,
+    /// The per-view column blocks of sparse rows ([`Blocks`]).
+    blocks: Option<Blocks>,
 }
 
 impl Work {
@@ -72,7 +75,14 @@ impl Work {
             scratch: Vec::new(),
             runs: Vec::new(),
             lev_buf: Mat::zeros(0, 0),
+            blocks: None,
         }
+    }
+
+    /// With the per-view column blocks `blocks` (the leverages of sparse rows then take
+    /// the inverse's blocks, [`InverseBlocks`], instead of the dense inverse).
+    pub(super) fn with_blocks(self, blocks: Option<Blocks>) -> Self {
+        Work { blocks, ..self }
     }
 
     /// The storage of a problem that forms its own normal equations (nothing of size
@@ -258,9 +268,18 @@ impl Work {
         let d: Vec<f64> = (0..n)
             .map(|i| 1.0 / jtj[(i, i)].max(1e-300).sqrt())
             .collect();
-        let scaled = Mat::<f64>::from_fn(n, n, |a, b| jtj[(a, b)] * d[a] * d[b]);
-        let si = scaled.llt(faer::Side::Lower).ok()?.inverse();
-        let inv = Mat::<f64>::from_fn(n, n, |a, b| si[(a, b)] * d[a] * d[b]);
+        let inv = match &self.rows {
+            Some(rows) if !rows.dense && self.blocks.is_some() => {
+                let b = self.blocks.as_ref()?;
+                let si = InverseBlocks::new(|a, b| jtj[(a, b)] * d[a] * d[b], b)?;
+                Inverse::Blocks(si, d)
+            }
+            _ => {
+                let scaled = Mat::<f64>::from_fn(n, n, |a, b| jtj[(a, b)] * d[a] * d[b]);
+                let si = scaled.llt(faer::Side::Lower).ok()?.inverse();
+                Inverse::Dense(Mat::<f64>::from_fn(n, n, |a, b| si[(a, b)] * d[a] * d[b]))
+            }
+        };
         let mut h = vec![0.0; self.m];
         let wanted: Vec<Range<usize>> = wanted
             .iter()
@@ -296,7 +315,7 @@ impl Work {
                 *hi = huber_weight(r[i0 + k], huber) * dot(jt.col(k), x.col(k));
             }
         };
-        if let Some(jt) = dense_t {
+        if let (Some(jt), Inverse::Dense(inv)) = (dense_t, &inv) {
             for g in &wanted {
                 fill(g.start, jt.subcols(g.start, g.len()), inv.as_ref());
             }
@@ -310,8 +329,10 @@ impl Work {
                     if a >= b {
                         continue;
                     }
-                    let block = block
-                        .get_or_insert_with(|| Mat::<f64>::from_fn(w, w, |p, q| inv[(c[p], c[q])]));
+                    if block.is_none() {
+                        block = Some(inv.block(c)?);
+                    }
+                    let block = block.as_ref()?;
                     let jt =
                         faer::MatRef::from_column_major_slice(&rows.vals[a * w..b * w], w, b - a);
                     fill(a, jt, block.as_ref());
@@ -320,6 +341,33 @@ impl Work {
         }
         self.lev_buf = buf;
         h.iter().all(|x| x.is_finite()).then_some(h)
+    }
+}
+
+/// `N^-1`, dense or by the blocks of the per-view columns (Jacobi-scaled, with the
+/// scaling `d`).
+enum Inverse {
+    Dense(Mat<f64>),
+    Blocks(InverseBlocks, Vec<f64>),
+}
+
+impl Inverse {
+    /// The inverse restricted to columns `c` (a row's); `None` when they span two views'
+    /// blocks.
+    fn block(&self, c: &[usize]) -> Option<Mat<f64>> {
+        let w = c.len();
+        match self {
+            Inverse::Dense(inv) => Some(Mat::<f64>::from_fn(w, w, |p, q| inv[(c[p], c[q])])),
+            Inverse::Blocks(si, d) => {
+                let mut out = Mat::<f64>::zeros(w, w);
+                for p in 0..w {
+                    for q in 0..w {
+                        out[(p, q)] = si.at(c[p], c[q])? * d[c[p]] * d[c[q]];
+                    }
+                }
+                Some(out)
+            }
+        }
     }
 }
 

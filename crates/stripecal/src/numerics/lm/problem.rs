@@ -53,6 +53,14 @@ pub trait LeastSquares {
     fn jacobian_row_width(&self) -> Option<usize> {
         None
     }
+    /// `Some((ng, pv))` when the columns are `ng` global ones followed by one block of
+    /// `pv` per view and every residual depends on the global columns and at most one
+    /// view's block: the solver then eliminates the blocks view by view (the Schur
+    /// complement; the same steps and leverages to rounding, in time linear in the
+    /// number of views). Default: `None` (dense factorisations).
+    fn view_blocks(&self) -> Option<(usize, usize)> {
+        None
+    }
     /// `true` when the problem accumulates its normal equations itself
     /// ([`LeastSquares::residuals_and_normal_equations`]): for many residuals over few
     /// parameters the solver then never stores the Jacobian. Such a problem must not
@@ -156,6 +164,12 @@ impl JacobianRows {
         } else {
             (&mut self.cols, &mut self.vals)
         }
+    }
+    /// The values of rows `i0..i1`, row after row (`width` each): the rows' `J^T`
+    /// stored column-major (`width x (i1 - i0)`).
+    pub fn values(&self, i0: usize, i1: usize) -> &[f64] {
+        let w = self.width;
+        &self.vals[i0 * w..i1 * w]
     }
     /// Columns and values of row `i`.
     pub fn row(&self, i: usize) -> (&[usize], &[f64]) {

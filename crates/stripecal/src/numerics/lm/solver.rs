@@ -7,6 +7,7 @@ use nalgebra::{DMatrix, DVector};
 use super::covariance::{covariance, sigmas};
 use super::normal::{cost_of, Work, WEIGHT_TOL};
 use super::problem::LeastSquares;
+use super::schur::{self, Blocks};
 use crate::error::{Error, Result};
 
 /// Options of [`levenberg_marquardt`].
@@ -178,6 +179,8 @@ struct Solver<'a, P: LeastSquares + ?Sized> {
     lambda: f64,
     /// Growth factor of lambda after a rejected step.
     nu: f64,
+    /// The per-view column blocks ([`LeastSquares::view_blocks`]).
+    blocks: Option<Blocks>,
     /// Whether the weights moved at the last re-weighting (no convergence stop then).
     weights_moving: bool,
 }
@@ -189,10 +192,11 @@ impl<'a, P: LeastSquares + ?Sized> Solver<'a, P> {
         let m = problem.num_residuals();
         let p = p0.to_vec();
         let mut r = vec![0.0; m];
+        let blocks = problem.view_blocks().and_then(|b| Blocks::of(n, b));
         let mut work = if problem.has_normal_equations() && opts.huber.is_none() {
             Work::fused(m, n)
         } else {
-            Work::new(m, n, problem.jacobian_row_width())
+            Work::new(m, n, problem.jacobian_row_width()).with_blocks(blocks)
         };
         work.evaluate(problem, &p, &mut r)?;
         if let Some(f) = problem.reweight(&r, &mut |rows| work.leverages(&r, opts.huber, rows)) {
@@ -223,6 +227,7 @@ impl<'a, P: LeastSquares + ?Sized> Solver<'a, P> {
             diag,
             lambda,
             nu: 4.0,
+            blocks,
             weights_moving: false,
         })
     }
@@ -265,20 +270,9 @@ impl<'a, P: LeastSquares + ?Sized> Solver<'a, P> {
     /// Solves the damped system and tries the step.
     fn trial(&mut self) -> Result<Trial> {
         let (n, m, opts) = (self.n, self.m, self.opts);
-        let a = faer::Mat::<f64>::from_fn(n, n, |i, j| {
-            self.jtj[(i, j)]
-                + if i == j {
-                    self.lambda * self.diag[i]
-                } else {
-                    0.0
-                }
-        });
-        let dp = match a.llt(faer::Side::Lower) {
-            Ok(ch) => {
-                let x = ch.solve(faer::Mat::<f64>::from_fn(n, 1, |i, _| -self.g[i]));
-                DVector::from_fn(n, |i, _| x[(i, 0)])
-            }
-            Err(_) => {
+        let dp = match self.damped_step() {
+            Some(dp) => dp,
+            None => {
                 self.lambda *= 10.0;
                 if self.lambda > 1e30 {
                     return Ok(Trial::Stop(StopReason::NoDecrease));
@@ -322,6 +316,24 @@ impl<'a, P: LeastSquares + ?Sized> Solver<'a, P> {
             return Ok(Trial::Stop(StopReason::NoDecrease));
         }
         Ok(Trial::Retry)
+    }
+
+    /// The step of the damped system `(J^T W J + lambda D^2) dp = -g`: by blocks
+    /// ([`schur`]) or one dense Cholesky; `None` when the damped matrix is not positive
+    /// definite.
+    fn damped_step(&self) -> Option<DVector<f64>> {
+        let n = self.n;
+        let damp: Vec<f64> = self.diag.iter().map(|d| self.lambda * d).collect();
+        if let Some(b) = &self.blocks {
+            let rhs: Vec<f64> = self.g.iter().map(|x| -x).collect();
+            return schur::solve(&self.jtj, &damp, &rhs, b);
+        }
+        let a = faer::Mat::<f64>::from_fn(n, n, |i, j| {
+            self.jtj[(i, j)] + if i == j { damp[i] } else { 0.0 }
+        });
+        let ch = a.llt(faer::Side::Lower).ok()?;
+        let x = ch.solve(faer::Mat::<f64>::from_fn(n, 1, |i, _| -self.g[i]));
+        Some(DVector::from_fn(n, |i, _| x[(i, 0)]))
     }
 
     /// Takes the trial point (cost `new_cost`, predicted decrease `pred`, scaled step

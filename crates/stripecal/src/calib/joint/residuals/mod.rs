@@ -316,6 +316,11 @@ impl LeastSquares for JointProblem<'_> {
         // view's correction.
         Some(self.row_width())
     }
+    fn view_blocks(&self) -> Option<(usize, usize)> {
+        // Sparse rows: a row holds the global columns and its view's per-view columns
+        // (the blocks `ng + v pv..`, [`JointProblem::view_normals_by_view`]).
+        (self.robot || self.bench).then(|| (self.layout.num_global(), self.layout.per_view_len()))
+    }
     fn residuals_and_jacobian_rows(
         &self,
         p: &[f64],

@@ -33,10 +33,19 @@ impl JointProblem<'_> {
         let mut acc: Vec<ViewShare> = (0..nv)
             .map(|v| ViewShare::new(ng, ng + v * pv..ng + (v + 1) * pv))
             .collect();
+        // A run's rows share their columns (the global ones and the view's): one
+        // product per stretch of rows with the same columns.
         for &(view, i0, i1) in &self.view_runs {
-            for (i, ri) in r.iter().enumerate().take(i1).skip(i0) {
-                let (cols, vals) = rows.row(i);
-                acc[view].add_row(cols, vals, *ri);
+            let mut a = i0;
+            while a < i1 {
+                let cols = rows.row(a).0;
+                let mut b = a + 1;
+                while b < i1 && rows.row(b).0 == cols {
+                    b += 1;
+                }
+                let jt = faer::MatRef::from_column_major_slice(rows.values(a, b), w, b - a);
+                acc[view].add_rows(cols, jt, &r[a..b]);
+                a = b;
             }
         }
         Ok(acc)
