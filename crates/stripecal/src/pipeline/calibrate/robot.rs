@@ -112,7 +112,6 @@ pub(super) fn calibrate_robot(
         warnings.push(w);
     }
     mark_used(&mut status, &used_obs);
-    opts.cancel.check()?;
     let checks = self_checks(&used_obs, board, &adj, &jopts, opts, &mut warnings)?;
     let mut gate_checks = vec![
         paired.check,

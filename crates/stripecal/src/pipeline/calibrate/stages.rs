@@ -162,6 +162,7 @@ pub(super) fn self_checks(
     if opts.method == Method::Paper {
         return Ok(SelfChecks::default());
     }
+    opts.cancel.check()?;
     let chain_free = adj.free.camera || adj.free.hand_cam || adj.free.base_board;
     let board_scale = if chain_free || adj.free.board_scale {
         let c = check_board_scale(used, board, adj, jopts, opts.board_scale_tolerance)?;
