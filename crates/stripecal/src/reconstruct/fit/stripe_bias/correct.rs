@@ -33,6 +33,22 @@ const MIN_MODELLED: usize = 10;
 /// Largest number of correct-and-refit rounds.
 const MAX_ROUNDS: usize = 8;
 
+/// The predictor's subsample ([`super`] docs, "The rounds started from a predicted
+/// sphere"): every this many-th candidate.
+const PREDICT_STEP: usize = 8;
+
+/// The predictor is not used on fewer candidates than this.
+const PREDICT_MIN_POINTS: usize = 400;
+
+/// The predicted contraction of the rounds at most (else no prediction is used), and at
+/// least (the estimate's floor in the stopping rule).
+const MAX_CONTRACTION: f64 = 0.5;
+const MIN_CONTRACTION: f64 = 0.02;
+
+/// The rounds stop when the sphere lies within this of their fixed point (mm), by the
+/// predicted contraction.
+const CONVERGED_MM: f64 = 1e-5;
+
 /// The width fit's points in the first of the sheet's two passes when the emitter is
 /// estimated ([`super`] docs, "The model on subsamples"): that pass only starts the
 /// emitter's fit; the second pass, whose sigmas are used, takes
@@ -312,9 +328,45 @@ impl SphereScan<'_> {
         Ok((sheet, emitter_estimate))
     }
 
-    /// Correct, refit, repeat (at most [`MAX_ROUNDS`] times, until the sphere moves less
-    /// than 1e-5 mm); errors when the model holds for fewer than half the uncorrected
-    /// fit's unsaturated inliers or fewer than [`MIN_MODELLED`] points.
+    /// The rounds' fixed point and their contraction predicted on a subsample of the
+    /// candidates (every [`PREDICT_STEP`]-th; [`super`] docs, "The rounds started from
+    /// a predicted sphere"): two correct-and-refit rounds of the subsample from
+    /// `sphere0`, the second's sphere and the ratio of the second's move to the first's.
+    /// `None` where the subsample holds fewer than [`PREDICT_MIN_POINTS`] candidates, a
+    /// fit fails or the rounds do not contract below [`MAX_CONTRACTION`].
+    fn predicted(
+        &self,
+        rig: &Rig<'_>,
+        sphere0: (Vector3<f64>, f64),
+        (sigma, psf): (f64, f64),
+        refit_opts: &FitOptions,
+    ) -> Option<((Vector3<f64>, f64), f64)> {
+        let sub: Vec<usize> = self.cand.iter().copied().step_by(PREDICT_STEP).collect();
+        if sub.len() < PREDICT_MIN_POINTS {
+            return None;
+        }
+        let round = |s: (Vector3<f64>, f64)| {
+            let d = deltas(rig, &self.geometry, &sub, (&s.0, s.1), sigma, psf);
+            let corr = corrections_from_deltas(rig, &self.geometry, &sub, &d);
+            let pts = corrected_points(self.points, &sub, &corr);
+            if pts.len() < MIN_MODELLED {
+                return None;
+            }
+            let f = fit_sphere(&pts, refit_opts).ok()?;
+            Some((f.center_mm, 0.5 * f.diameter_mm))
+        };
+        let s1 = round(sphere0)?;
+        let s2 = round(s1)?;
+        let (m1, m2) = (sphere_move(&sphere0, &s1), sphere_move(&s1, &s2));
+        let q = if m1 > 0.0 { m2 / m1 } else { 0.0 };
+        (q < MAX_CONTRACTION).then_some((s2, q))
+    }
+
+    /// Correct, refit, repeat (at most [`MAX_ROUNDS`] times), from the sphere
+    /// [`Self::predicted`] gives (else the uncorrected one), until the sphere moves less
+    /// than 1e-5 mm or lies within [`CONVERGED_MM`] of the rounds' fixed point by the
+    /// predicted contraction; errors when the model holds for fewer than half the
+    /// uncorrected fit's unsaturated inliers or fewer than [`MIN_MODELLED`] points.
     fn correct_and_refit(
         &self,
         rig: &Rig<'_>,
@@ -329,7 +381,12 @@ impl SphereScan<'_> {
         let inliers_unsaturated = (0..n)
             .filter(|&i| uncorrected.inlier[i] && !geo[i].0.saturated)
             .count();
-        let mut sphere = (uncorrected.center_mm, 0.5 * uncorrected.diameter_mm);
+        let sphere0 = (uncorrected.center_mm, 0.5 * uncorrected.diameter_mm);
+        let predicted = self.predicted(rig, sphere0, (sigma, psf), refit_opts);
+        let (mut sphere, contraction) = match predicted {
+            Some((s, q)) => (s, Some(q.max(MIN_CONTRACTION))),
+            None => (sphere0, None),
+        };
         let mut fit = uncorrected.clone();
         let mut corr = Vec::new();
         let mut used = vec![false; n];
@@ -357,11 +414,12 @@ impl SphereScan<'_> {
             for (&i, &k) in good.iter().zip(&fit.inlier) {
                 used[i] = k;
             }
-            let moved = (fit.diameter_mm - 2.0 * sphere.1)
-                .abs()
-                .max((fit.center_mm - sphere.0).norm());
-            sphere = (fit.center_mm, 0.5 * fit.diameter_mm);
-            if moved < 1e-5 {
+            let next = (fit.center_mm, 0.5 * fit.diameter_mm);
+            let moved = sphere_move(&sphere, &next);
+            sphere = next;
+            // The fixed point lies about q / (1 - q) of the last move beyond it.
+            let near = contraction.is_some_and(|q| q / (1.0 - q) * moved < CONVERGED_MM);
+            if moved < 1e-5 || near {
                 break;
             }
         }
@@ -454,6 +512,12 @@ impl SphereScan<'_> {
         }
         parts
     }
+}
+
+/// How far the sphere `b` lies from `a` (both `(centre, radius)`): the larger of the
+/// diameter's and the centre's change, mm.
+fn sphere_move(a: &(Vector3<f64>, f64), b: &(Vector3<f64>, f64)) -> f64 {
+    (2.0 * (b.1 - a.1)).abs().max((b.0 - a.0).norm())
 }
 
 /// The points within [`CANDIDATE_SIGMAS`] robust sigmas of the uncorrected sphere (at least
