@@ -85,7 +85,7 @@ use crate::model::geometry::{Iso3, Plane};
 use crate::stripe_model::{neglected_share, Rig};
 use crate::vision::stripe::StripeOptions;
 use applicable::modelled_direction;
-use bias::predicted_biases;
+use bias::{moved_biases, predicted_biases};
 use moved::moved_views;
 use points::{board_planes, stripe_points, surfaces};
 use sheet::sheet_sigmas;
@@ -196,8 +196,7 @@ pub fn correct_board_stripes(
     // 1. Sheet and PSF sigmas from the widths (g and the slope do not depend on them).
     let (sigma, psf) = sheet_sigmas(&rig, &surfaces(&rig, &boards), &clear)?;
     // 2. The predicted bias per point, for the emitter at `n d` and moved.
-    let deltas = |emitter| predicted_biases(&rig, &boards, &clear, sigma, psf, emitter);
-    let delta = deltas(rig.emitter);
+    let delta = predicted_biases(&rig, &boards, &clear, sigma, psf, rig.emitter);
     // 3. The corrected views: points the model cannot follow left out, the others moved.
     let keep: Vec<bool> = delta.iter().map(Option::is_some).collect();
     let corrected = keep.iter().filter(|k| **k).count();
@@ -209,19 +208,14 @@ pub fn correct_board_stripes(
     // The views with every kept point moved by `d[k]` (the points of `clear` in order).
     let moved = |d: &[Option<f64>]| moved_views(views, &clear, &keep, d, along);
     // The emitter moved by +-EMITTER_RANGE_MM along the plane's two in-plane axes: the
-    // same points moved by the biases predicted there (the nominal bias where the moved
-    // emitter's model fails on a point, so that only the biases differ).
+    // same points moved by the biases predicted there (the change from the nominal
+    // bias modelled on every 4th point of a view and interpolated, none where the
+    // moved emitter's model fails, so that only the biases differ: `moved_biases`).
     let emitter_moved: Vec<Vec<ViewObs>> = [rig.e1, rig.e2]
         .iter()
         .flat_map(|dir| [1.0, -1.0].map(|s| rig.emitter + dir * (s * EMITTER_RANGE_MM)))
-        .map(|e| {
-            let alt: Vec<Option<f64>> = deltas(e)
-                .iter()
-                .zip(&delta)
-                .map(|(a, b)| a.or(*b))
-                .collect();
-            moved(&alt)
-        })
+        .map(|e| moved_biases(&rig, &boards, &clear, &delta, (sigma, psf), e))
+        .map(|alt| moved(&alt))
         .collect();
     let (sum, sum2) = delta
         .iter()
