@@ -115,7 +115,7 @@ impl Work {
                 rows.clear();
                 problem.residuals_and_jacobian_rows(p, r, rows)?;
                 if !rows.dense {
-                    self.runs = runs(rows);
+                    self.runs = rows.runs(0..rows.len());
                 }
             }
             None => {
@@ -268,9 +268,8 @@ impl Work {
         let d: Vec<f64> = (0..n)
             .map(|i| 1.0 / jtj[(i, i)].max(1e-300).sqrt())
             .collect();
-        let inv = match &self.rows {
-            Some(rows) if !rows.dense && self.blocks.is_some() => {
-                let b = self.blocks.as_ref()?;
+        let inv = match (&self.rows, &self.blocks) {
+            (Some(rows), Some(b)) if !rows.dense => {
                 let si = InverseBlocks::new(|a, b| jtj[(a, b)] * d[a] * d[b], b)?;
                 Inverse::Blocks(si, d)
             }
@@ -369,23 +368,6 @@ impl Inverse {
             }
         }
     }
-}
-
-/// The runs `(first, end)` of consecutive sparse rows with the same columns.
-fn runs(rows: &JacobianRows) -> Vec<(usize, usize)> {
-    let m = rows.len();
-    let mut out = Vec::new();
-    let mut i0 = 0;
-    while i0 < m {
-        let c = rows.row(i0).0;
-        let mut i1 = i0 + 1;
-        while i1 < m && rows.row(i1).0 == c {
-            i1 += 1;
-        }
-        out.push((i0, i1));
-        i0 = i1;
-    }
-    out
 }
 
 /// `a . b` of two columns.

@@ -171,6 +171,22 @@ impl JacobianRows {
         let w = self.width;
         &self.vals[i0 * w..i1 * w]
     }
+    /// The runs `(first, end)` of consecutive rows within `rows` that have the same
+    /// columns.
+    pub fn runs(&self, rows: std::ops::Range<usize>) -> Vec<(usize, usize)> {
+        let mut out = Vec::new();
+        let mut i0 = rows.start;
+        while i0 < rows.end {
+            let c = self.row(i0).0;
+            let mut i1 = i0 + 1;
+            while i1 < rows.end && self.row(i1).0 == c {
+                i1 += 1;
+            }
+            out.push((i0, i1));
+            i0 = i1;
+        }
+        out
+    }
     /// Columns and values of row `i`.
     pub fn row(&self, i: usize) -> (&[usize], &[f64]) {
         let w = self.width;

@@ -36,16 +36,9 @@ impl JointProblem<'_> {
         // A run's rows share their columns (the global ones and the view's): one
         // product per stretch of rows with the same columns.
         for &(view, i0, i1) in &self.view_runs {
-            let mut a = i0;
-            while a < i1 {
-                let cols = rows.row(a).0;
-                let mut b = a + 1;
-                while b < i1 && rows.row(b).0 == cols {
-                    b += 1;
-                }
+            for (a, b) in rows.runs(i0..i1) {
                 let jt = faer::MatRef::from_column_major_slice(rows.values(a, b), w, b - a);
-                acc[view].add_rows(cols, jt, &r[a..b]);
-                a = b;
+                acc[view].add_rows(rows.row(a).0, jt, &r[a..b]);
             }
         }
         Ok(acc)

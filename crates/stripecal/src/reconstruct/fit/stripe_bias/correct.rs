@@ -45,8 +45,8 @@ const PREDICT_MIN_POINTS: usize = 400;
 const MAX_CONTRACTION: f64 = 0.5;
 const MIN_CONTRACTION: f64 = 0.02;
 
-/// The rounds stop when the sphere lies within this of their fixed point (mm), by the
-/// predicted contraction.
+/// The rounds stop when the sphere moves by less than this (mm), or lies within this of
+/// their fixed point by the predicted contraction.
 const CONVERGED_MM: f64 = 1e-5;
 
 /// The width fit's points in the first of the sheet's two passes when the emitter is
@@ -364,7 +364,7 @@ impl SphereScan<'_> {
 
     /// Correct, refit, repeat (at most [`MAX_ROUNDS`] times), from the sphere
     /// [`Self::predicted`] gives (else the uncorrected one), until the sphere moves less
-    /// than 1e-5 mm or lies within [`CONVERGED_MM`] of the rounds' fixed point by the
+    /// than [`CONVERGED_MM`] or lies within it of the rounds' fixed point by the
     /// predicted contraction; errors when the model holds for fewer than half the
     /// uncorrected fit's unsaturated inliers or fewer than [`MIN_MODELLED`] points.
     fn correct_and_refit(
@@ -419,7 +419,7 @@ impl SphereScan<'_> {
             sphere = next;
             // The fixed point lies about q / (1 - q) of the last move beyond it.
             let near = contraction.is_some_and(|q| q / (1.0 - q) * moved < CONVERGED_MM);
-            if moved < 1e-5 || near {
+            if moved < CONVERGED_MM || near {
                 break;
             }
         }
