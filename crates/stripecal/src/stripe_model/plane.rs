@@ -84,11 +84,14 @@ impl<'b> Board<'b> {
                 // The last step taken linearly (as the sphere's section does).
                 let last = -f / df;
                 let ds_dt = -jl.dot(&self.dp0_dt.transpose()) / df;
-                let da_dt = ja.dot(&(self.dp0_dt + self.e * ds_dt).transpose());
+                let dp_dt = self.dp0_dt + self.e * ds_dt;
+                let da_dt = ja.dot(&dp_dt.transpose());
                 let da_ds = ja.dot(&self.e.transpose());
                 return Some(Section {
                     phi: s + last,
+                    dphi_dt: ds_dt,
                     p: p + self.e * last,
+                    dp_dt,
                     a: uv[al] + da_ds * last,
                     da_dt,
                     slope: da_ds / df,

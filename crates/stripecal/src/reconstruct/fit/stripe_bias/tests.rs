@@ -630,3 +630,84 @@ fn profiles_from_the_shared_geometry_equal_the_direct_ones() {
         "{checked} checked, {refused} refused"
     );
 }
+
+/// The runs of sections solve every second sheet offset and read the one between from
+/// them where the image of the stripe bends little ([`run_outwards`],
+/// [`Section::halfway`]): at the sheet offsets the model samples (`sheet_offsets`, two
+/// sheet sigmas, the twin's PSF) every section visited lies within 1e-7 px (along the
+/// line) and 1e-8 mm (the point) of the one solved at its own offset, its `|da/dt|`
+/// within 1e-6 relative, on spheres (one seen near its outline) and a board, both
+/// directions, runs of odd and even length.
+#[test]
+fn sections_read_between_solved_ones_match_the_solved_ones() {
+    fn check<S: Surface>(rig: &Rig<'_>, surf: &S, line: f64, hint: f64) -> usize {
+        let s0 = surf
+            .section(rig, 0.0, line, hint)
+            .expect("the t = 0 section");
+        let mut visited = 0;
+        for (sigma, dir) in [(0.12, -1.0), (0.12, 1.0), (0.3, -1.0), (0.3, 1.0)] {
+            let (m, dt) = sheet_offsets(sigma, s0.da_dt.abs(), 0.7);
+            let (mut k, mut last) = (0, s0.phi);
+            run_outwards(rig, surf, line, &s0, (dir, m, dt), |t, s| {
+                k += 1;
+                assert!((t - dir * k as f64 * dt).abs() < 1e-15, "offset {k}: {t}");
+                let Some(direct) = surf.section(rig, t, line, last) else {
+                    return false;
+                };
+                last = direct.phi;
+                // Near the outline two solves of one section from other starts differ in
+                // `da/dt` (its derivatives are taken at Newton's last iterate): that much
+                // is the solver's, not the reading's.
+                let again = surf.section(rig, t, line, s.phi).expect("solved again");
+                let solver = (again.da_dt - direct.da_dt).abs();
+                assert!(
+                    (s.a - direct.a).abs() < 1e-7,
+                    "a at {t}: {} {}",
+                    s.a,
+                    direct.a
+                );
+                assert!((s.p - direct.p).norm() < 1e-8, "p at {t}");
+                assert!(
+                    (s.da_dt - direct.da_dt).abs() < 1e-5 * direct.da_dt.abs() + solver,
+                    "da/dt at {t}: {} {}",
+                    s.da_dt,
+                    direct.da_dt
+                );
+                true
+            });
+            assert!(k >= m.min(HALF_SAMPLES), "{k} offsets visited of {m}");
+            visited += k;
+        }
+        visited
+    }
+    let cam = camera([0.0; 5]);
+    let pl = plane();
+    let so = StripeOptions::default();
+    let rig = Rig::new(
+        &cam,
+        &pl,
+        pl.normal * pl.d,
+        StripeDirection::Cols,
+        &so,
+        89.0,
+    );
+    let p = p0();
+    let line = cam.project(&p).unwrap().y;
+    let mut visited = 0;
+    for nrm in [
+        Vector3::new(0.3, -0.2, -1.0),
+        Vector3::new(-0.5, 0.1, -1.0),
+        Vector3::new(0.1, 0.6, -1.0),
+    ] {
+        let r = 12.7;
+        let c = p - nrm.normalize() * r;
+        let q = p - c;
+        let phi0 = q.dot(&rig.e2).atan2(q.dot(&rig.e1));
+        visited += check(&rig, &SphereSurface { c: &c, r }, line, phi0);
+    }
+    let n_board = Vector3::new(0.1, -0.2, 1.0).normalize();
+    let board = Plane::new(n_board, n_board.dot(&p)).unwrap();
+    let b = crate::stripe_model::BoardSurface::new(&rig, &board).unwrap();
+    visited += check(&rig, &b, line, 0.0);
+    assert!(visited > 16 * HALF_SAMPLES, "{visited} sections");
+}
