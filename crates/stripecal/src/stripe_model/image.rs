@@ -22,18 +22,19 @@ pub(crate) fn sheet_offsets(sigma: f64, g: f64, psf: f64) -> (usize, f64) {
 /// the PSF's Gaussian, sigma `s = sqrt(psf^2 + 1/12)`), sum to the profile's integral
 /// over the sheet but for aliases of relative size `|K^(1 / h)| <= exp(-2 pi^2 psf^2 /
 /// h^2)` at spacing `h` (Poisson summation; the box's `sinc` only lowers it). The
-/// spacing is the one where that bound is 1e-6 (`h = 1.196 psf`), kept within `[0.5 s,
-/// 0.75 s]`: 0.75 s (the cap) for PSFs from 0.23 px (the twin's is 0.7 px), 0.5 s (the
-/// spacing before this bound, the floor) below 0.13 px, where a sharper kernel needs
-/// denser samples than the bound alone gives (the box's edges). On the twin ball
-/// (hp3-paper, seed 1) 0.75 s instead of 0.5 s, with [`super::profile::NEWTON_LAST_STEP_PX`] 1e-4 px, moved
-/// the corrected diameter by 1.9e-7 mm and the centre by at most 8e-8 mm (its standard
-/// uncertainty 4.1e-4 mm).
+/// spacing is the one where that bound is 1e-6 (`h = 1.196 psf`; 0.84 px for the twin's
+/// 0.7 px PSF), at least `0.5 s` (the spacing before this bound, the floor) below
+/// 0.13 px, where a sharper kernel needs denser samples than the bound alone gives (the
+/// box's edges). On the twin ball (hp3-paper, seed 1) the bound itself instead of a cap
+/// at `0.75 s` (a third fewer samples) moved the corrected diameter by +3.1e-7 mm (its
+/// standard uncertainty 4.2e-4 mm), the centre by at most 1.6e-7 mm and the sheet sigma
+/// by +5.4e-7 mm; the cap at `0.75 s` instead of `0.5 s` had moved them by 1.9e-7 and
+/// 8e-8 mm.
 pub(crate) fn sample_spacing_px(psf: f64) -> f64 {
     let s = (psf * psf + 1.0 / 12.0).sqrt();
     // exp(-2 pi^2 psf^2 / h^2) = 1e-6: h = pi psf sqrt(2 / ln 1e6).
     let alias = std::f64::consts::PI * psf * (2.0 / 1e6f64.ln()).sqrt();
-    alias.clamp(0.5 * s, 0.75 * s)
+    alias.max(0.5 * s)
 }
 
 /// The neighbouring scan lines (offsets px, weights summing to 1) the across-line blur
