@@ -4,7 +4,7 @@
 use faer::linalg::solvers::Solve;
 use nalgebra::{DMatrix, DVector};
 
-use super::covariance::{covariance, sigmas};
+use super::covariance::{covariance_by_blocks, sigmas};
 use super::normal::{cost_of, Work, WEIGHT_TOL};
 use super::problem::LeastSquares;
 use super::schur::{self, Blocks};
@@ -396,7 +396,7 @@ impl<'a, P: LeastSquares + ?Sized> Solver<'a, P> {
         let ssr: f64 = r.iter().map(|x| x * x).sum();
         let sigma2 = if m > n { ssr / (m - n) as f64 } else { 0.0 };
         let (covariance, unobservable) = if self.opts.covariance {
-            covariance(&self.jtj, sigma2, self.opts.rank_tol)
+            covariance_by_blocks(&self.jtj, sigma2, self.opts.rank_tol, self.blocks.as_ref())
         } else {
             (DMatrix::zeros(0, 0), Vec::new())
         };
