@@ -43,7 +43,7 @@
 //! the exact model's Jacobian at every second step: held-out figures within 9e-9
 //! relative on the twin (15 and 60 views), 2e-11 on etna_calib3 and etna_calib4, 2.2e-5
 //! on rosi_10x10 (BENCHMARKS.md, issue 41 item 5: the certificate's 1 % and DECISIONS
-//! 3's 5 % are 500 and 2000 times that).
+//! 3's 5 % are 450 and 2,200 times that).
 //!
 //! The same steps move a solution to slightly moved observations ([`stepped_from`]: the
 //! board's stripe points under another emitter's biases, whose change of the numbers is
