@@ -559,7 +559,7 @@ fn free_blocks(terms: &Terms, start: &JointStart, opts: &JointOptions) -> Result
 /// steps are taken with the first-order conic model's Jacobian (the residuals are exact;
 /// an inexact Jacobian only changes the path, at a sixth of the cost), and a last solve
 /// with the exact Jacobian checks convergence (usually it stops at its first
-/// evaluation) and gives the covariance. The variance components are re-estimated
+/// evaluation) and gives the covariance (the earlier solves compute none). The variance components are re-estimated
 /// after every accepted step. Huber, when robust, from the second solve on (the first,
 /// least squares, gives it a start and scale).
 fn solve(
@@ -586,11 +586,14 @@ fn solve(
     }
     let mut res: Option<LmResult> = None;
     let mut iterations = 0;
-    for (model, jacobian_model, huber) in solves {
+    let last = solves.len().saturating_sub(1);
+    for (i, (model, jacobian_model, huber)) in solves.into_iter().enumerate() {
         let mut lm = opts.lm.clone();
         if huber {
             lm.huber = Some(HUBER_SIGMAS);
         }
+        // Only the last solve's covariance is kept: the others' results start it.
+        lm.covariance &= i == last;
         problem.prepare_solve(model, jacobian_model);
         let r = levenberg_marquardt(&*problem, &p, &lm)?;
         iterations += r.iterations;

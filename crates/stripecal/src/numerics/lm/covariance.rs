@@ -3,9 +3,24 @@
 
 use nalgebra::DMatrix;
 
+use super::schur::{self, Blocks};
+
 /// Covariance `sigma2 * jtj^-1` with rank-deficiency detection (module docs): returns
 /// the covariance (NaN rows / columns for unobservable parameters) and their indices.
 pub fn covariance(jtj: &DMatrix<f64>, sigma2: f64, rank_tol: f64) -> (DMatrix<f64>, Vec<usize>) {
+    covariance_by_blocks(jtj, sigma2, rank_tol, None)
+}
+
+/// [`covariance`] of a normal matrix laid out as `blocks` (no entries between two
+/// views' per-view columns): the full-rank inverse by the Schur complement
+/// ([`schur::inverse`]: linear in the views but for the output's size; the same numbers
+/// to rounding), the rank-deficient case as [`covariance`].
+pub(super) fn covariance_by_blocks(
+    jtj: &DMatrix<f64>,
+    sigma2: f64,
+    rank_tol: f64,
+    blocks: Option<&Blocks>,
+) -> (DMatrix<f64>, Vec<usize>) {
     let n = jtj.nrows();
     let d: Vec<f64> = (0..n).map(|i| jtj[(i, i)].max(0.0).sqrt()).collect();
     let mut bad = vec![false; n];
@@ -22,7 +37,11 @@ pub fn covariance(jtj: &DMatrix<f64>, sigma2: f64, rank_tol: f64) -> (DMatrix<f6
     // k` and `lambda_min >= 1 / trace(S^-1)`; when `k trace(S^-1) rank_tol <= 1` no
     // eigenvalue is below `rank_tol lambda_max` and the eigen-decomposition is skipped.
     let certified: Option<DMatrix<f64>> = if good.len() == n {
-        spd_inverse(&scaled).filter(|inv| {
+        match blocks {
+            Some(b) => schur::inverse(|i, j| scaled[(i, j)], b),
+            None => spd_inverse(&scaled),
+        }
+        .filter(|inv| {
             let tr: f64 = (0..n).map(|i| inv[(i, i)]).sum();
             tr.is_finite() && n as f64 * tr * rank_tol <= 1.0
         })

@@ -109,6 +109,9 @@ pub struct JacobianRows {
     /// Sparse: the columns of every row; dense: `0..width` once.
     pub(super) cols: Vec<usize>,
     pub(super) vals: Vec<f64>,
+    /// Whether the columns were written since the rows were made or cleared
+    /// ([`Self::columns_written`]).
+    cols_written: bool,
 }
 
 impl JacobianRows {
@@ -131,6 +134,7 @@ impl JacobianRows {
                 vec![0; len]
             },
             vals: vec![0.0; len],
+            cols_written: false,
         }
     }
     /// Pairs per row.
@@ -149,8 +153,20 @@ impl JacobianRows {
     pub fn is_empty(&self) -> bool {
         self.vals.is_empty()
     }
+    /// Whether an evaluation wrote the columns since the rows were made or cleared
+    /// ([`Self::set_columns_written`]): a problem whose rows' columns are the same at
+    /// every evaluation (a fixed layout) need not write them again into rows it
+    /// evaluated before.
+    pub fn columns_written(&self) -> bool {
+        self.cols_written
+    }
+    /// Records that the columns were written ([`Self::columns_written`]).
+    pub fn set_columns_written(&mut self) {
+        self.cols_written = true;
+    }
     /// Zero-fills every row.
     pub fn clear(&mut self) {
+        self.cols_written = false;
         if !self.dense {
             self.cols.fill(0);
         }

@@ -190,6 +190,54 @@ impl InverseBlocks {
     }
 }
 
+/// The whole inverse of `a` (symmetric, laid out as `b`) by the blocks: [`InverseBlocks`]'s
+/// blocks and, between views `v` and `w`, `X_v G X_w^T` (one `n_d x ng` by `ng x n_d`
+/// product for all pairs), where the dense inverse factors all `ng + nv pv` columns;
+/// `None` when `a` is not positive definite.
+pub(super) fn inverse(a: impl Fn(usize, usize) -> f64, b: &Blocks) -> Option<DMatrix<f64>> {
+    let (s, views) = eliminate(a, |_| 0.0, b)?;
+    let (ng, pv) = (b.ng, b.pv);
+    let n = ng + b.nv * pv;
+    let gg = s.llt(Side::Lower).ok()?.inverse();
+    // X (n_d x ng) stacked over the views, and -X G (the blocks against the global
+    // columns).
+    let x = Mat::<f64>::from_fn(n - ng, ng, |i, j| views[i / pv].x[(i % pv, j)]);
+    let mut xg = Mat::<f64>::zeros(n - ng, ng);
+    matmul(
+        xg.as_mut(),
+        Accum::Replace,
+        x.as_ref(),
+        gg.as_ref(),
+        -1.0,
+        Par::Seq,
+    );
+    // X G X^T, then each view's D_v^-1 on its diagonal block.
+    let mut dd = Mat::<f64>::zeros(n - ng, n - ng);
+    matmul(
+        dd.as_mut(),
+        Accum::Replace,
+        xg.as_ref(),
+        x.transpose(),
+        -1.0,
+        Par::Seq,
+    );
+    for (v, e) in views.iter().enumerate() {
+        let inv = e.llt.inverse();
+        for i in 0..pv {
+            for j in 0..pv {
+                dd[(v * pv + i, v * pv + j)] += inv[(i, j)];
+            }
+        }
+    }
+    Some(DMatrix::from_fn(n, n, |i, j| match (i < ng, j < ng) {
+        (true, true) => gg[(i, j)],
+        (false, true) => xg[(i - ng, j)],
+        (true, false) => xg[(j - ng, i)],
+        // symmetric to rounding: the lower triangle's entry on both sides
+        (false, false) => dd[(i.max(j) - ng, i.min(j) - ng)],
+    }))
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -253,6 +301,28 @@ mod tests {
     }
 
     #[test]
+    fn the_whole_inverse_by_blocks_matches_the_dense_one() {
+        let (a, b) = normal_matrix();
+        let inv = inverse(|i, j| a[(i, j)], &b).unwrap();
+        let dense = Mat::<f64>::from_fn(17, 17, |i, j| a[(i, j)])
+            .llt(Side::Lower)
+            .unwrap()
+            .inverse();
+        let scale = (0..17).map(|i| dense[(i, i)]).fold(0.0f64, f64::max);
+        for i in 0..17 {
+            for j in 0..17 {
+                assert!(
+                    (inv[(i, j)] - dense[(i, j)]).abs() <= 1e-12 * scale,
+                    "{i} {j}"
+                );
+                assert_eq!(inv[(i, j)], inv[(j, i)]);
+            }
+        }
+        // the views' blocks are coupled through the global columns
+        assert!(inv[(5, 8)].abs() > 1e-6 * scale);
+    }
+
+    #[test]
     fn a_singular_view_block_is_no_solution() {
         let (mut a, b) = normal_matrix();
         for i in 8..11 {
@@ -263,5 +333,6 @@ mod tests {
         }
         assert!(solve(&a, &[0.0; 17], &[1.0; 17], &b).is_none());
         assert!(InverseBlocks::new(|i, j| a[(i, j)], &b).is_none());
+        assert!(inverse(|i, j| a[(i, j)], &b).is_none());
     }
 }

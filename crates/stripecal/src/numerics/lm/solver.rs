@@ -4,7 +4,7 @@
 use faer::linalg::solvers::Solve;
 use nalgebra::{DMatrix, DVector};
 
-use super::covariance::{covariance, sigmas};
+use super::covariance::{covariance_by_blocks, sigmas};
 use super::normal::{cost_of, Work, WEIGHT_TOL};
 use super::problem::LeastSquares;
 use super::schur::{self, Blocks};
@@ -31,6 +31,10 @@ pub struct LmOptions {
     /// Relative eigenvalue of the Jacobi-scaled `J^T J` below which a direction is
     /// unobservable.
     pub rank_tol: f64,
+    /// Whether the result carries the covariance (a dense inverse over every
+    /// parameter): `false` for a solve whose result only starts another, which then
+    /// has empty `covariance` and `sigma` and no `unobservable`.
+    pub covariance: bool,
 }
 
 impl Default for LmOptions {
@@ -44,6 +48,7 @@ impl Default for LmOptions {
             huber: None,
             scaling: None,
             rank_tol: 1e-13,
+            covariance: true,
         }
     }
 }
@@ -390,7 +395,11 @@ impl<'a, P: LeastSquares + ?Sized> Solver<'a, P> {
         let r = self.r;
         let ssr: f64 = r.iter().map(|x| x * x).sum();
         let sigma2 = if m > n { ssr / (m - n) as f64 } else { 0.0 };
-        let (covariance, unobservable) = covariance(&self.jtj, sigma2, self.opts.rank_tol);
+        let (covariance, unobservable) = if self.opts.covariance {
+            covariance_by_blocks(&self.jtj, sigma2, self.opts.rank_tol, self.blocks.as_ref())
+        } else {
+            (DMatrix::zeros(0, 0), Vec::new())
+        };
         let sigma = sigmas(&covariance);
         LmResult {
             params: self.p,

@@ -356,6 +356,7 @@ impl LeastSquares for JointProblem<'_> {
                 let vp = &mut vals[self.prior_offset() * w..];
                 robot_noise::prior_rows(&s, &self.robot_weights(), &u, rp, vp, w, ng);
             }
+            let written = rows.columns_written();
             let (cols, _) = rows.parts_mut();
             let block = if self.robot {
                 Block::RobotPose
@@ -366,8 +367,9 @@ impl LeastSquares for JointProblem<'_> {
             let po = self.prior_offset();
             // Without the robot-pose noise there are no prior rows; rows as wide as the
             // vector (the bench's single view with everything else held) are dense and
-            // store no columns.
-            let runs = if cols.is_empty() {
+            // store no columns. The columns are the layout's, the same at every
+            // evaluation: written once into the same rows.
+            let runs = if cols.is_empty() || written {
                 &[][..]
             } else {
                 &self.view_runs[..]
@@ -382,6 +384,7 @@ impl LeastSquares for JointProblem<'_> {
                     row.copy_from_slice(&template);
                 }
             }
+            rows.set_columns_written();
         }
         Ok(())
     }

@@ -22,26 +22,55 @@ impl JointProblem<'_> {
     /// Each view's share of the normal equations at `p` over the global columns and its
     /// own per-view columns (its image rows and prior rows, weighted), not reduced.
     pub fn view_normals_by_view(&self, p: &[f64]) -> Result<Vec<ViewShare>> {
+        let (mut r, mut rows) = self.empty_rows();
+        self.residuals_and_jacobian_rows(p, &mut r, &mut rows)?;
+        Ok(self.view_normals_of_rows(&r, &rows, &self.share_runs(&rows)))
+    }
+
+    /// Zeroed residuals and Jacobian rows of the problem's size, for
+    /// [`LeastSquares::residuals_and_jacobian_rows`] and [`Self::view_normals_of_rows`].
+    pub fn empty_rows(&self) -> (Vec<f64>, JacobianRows) {
         let (n, m) = (self.num_params(), self.num_residuals());
+        (vec![0.0; m], JacobianRows::new(m, self.row_width(), n))
+    }
+
+    /// The stretches `(view, first, end)` of rows of one view with the same columns in
+    /// `rows` (an evaluation's: the columns are the layout's, the same at every
+    /// evaluation).
+    pub fn share_runs(&self, rows: &JacobianRows) -> Vec<(usize, usize, usize)> {
+        self.view_runs
+            .iter()
+            .flat_map(|&(view, i0, i1)| {
+                rows.runs(i0..i1)
+                    .into_iter()
+                    .map(move |(a, b)| (view, a, b))
+            })
+            .collect()
+    }
+
+    /// Each view's share of the normal equations ([`Self::view_normals_by_view`]) from
+    /// residuals `r` and Jacobian rows `rows` evaluated already, `runs` their
+    /// [`Self::share_runs`].
+    pub fn view_normals_of_rows(
+        &self,
+        r: &[f64],
+        rows: &JacobianRows,
+        runs: &[(usize, usize, usize)],
+    ) -> Vec<ViewShare> {
         let ng = self.layout.num_global();
         let pv = self.layout.per_view_len();
         let w = self.row_width();
-        let mut r = vec![0.0; m];
-        let mut rows = JacobianRows::new(m, w, n);
-        self.residuals_and_jacobian_rows(p, &mut r, &mut rows)?;
         let nv = self.terms.a.len();
         let mut acc: Vec<ViewShare> = (0..nv)
             .map(|v| ViewShare::new(ng, ng + v * pv..ng + (v + 1) * pv))
             .collect();
         // A run's rows share their columns (the global ones and the view's): one
         // product per stretch of rows with the same columns.
-        for &(view, i0, i1) in &self.view_runs {
-            for (a, b) in rows.runs(i0..i1) {
-                let jt = faer::MatRef::from_column_major_slice(rows.values(a, b), w, b - a);
-                acc[view].add_rows(rows.row(a).0, jt, &r[a..b]);
-            }
+        for &(view, a, b) in runs {
+            let jt = faer::MatRef::from_column_major_slice(rows.values(a, b), w, b - a);
+            acc[view].add_rows(rows.row(a).0, jt, &r[a..b]);
         }
-        Ok(acc)
+        acc
     }
 
     /// `J^T J_k` (n x p) at `p`: the gradient of the weighted image rows' sum of squares'
