@@ -285,10 +285,7 @@ mod tests {
             .solve(&DVector::from_column_slice(&rhs));
         assert!((&x - &xd).amax() <= 1e-12 * xd.amax(), "{x} {xd}");
         let inv = InverseBlocks::new(|i, j| a[(i, j)], &b).unwrap();
-        let dense = Mat::<f64>::from_fn(17, 17, |i, j| a[(i, j)])
-            .llt(Side::Lower)
-            .unwrap()
-            .inverse();
+        let dense = dense_inverse(&a);
         let scale = (0..17).map(|i| dense[(i, i)]).fold(0.0f64, f64::max);
         for i in 0..17 {
             for j in 0..17 {
@@ -300,14 +297,19 @@ mod tests {
         }
     }
 
+    /// The test matrix's inverse by a dense Cholesky factorisation (the reference).
+    fn dense_inverse(a: &DMatrix<f64>) -> Mat<f64> {
+        Mat::<f64>::from_fn(17, 17, |i, j| a[(i, j)])
+            .llt(Side::Lower)
+            .unwrap()
+            .inverse()
+    }
+
     #[test]
     fn the_whole_inverse_by_blocks_matches_the_dense_one() {
         let (a, b) = normal_matrix();
         let inv = inverse(|i, j| a[(i, j)], &b).unwrap();
-        let dense = Mat::<f64>::from_fn(17, 17, |i, j| a[(i, j)])
-            .llt(Side::Lower)
-            .unwrap()
-            .inverse();
+        let dense = dense_inverse(&a);
         let scale = (0..17).map(|i| dense[(i, i)]).fold(0.0f64, f64::max);
         for i in 0..17 {
             for j in 0..17 {

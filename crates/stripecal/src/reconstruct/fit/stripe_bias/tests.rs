@@ -21,14 +21,7 @@ fn bias_at(p: Vector3<f64>, nrm: Vector3<f64>, r: f64, s: f64, b: f64) -> (f64, 
     let cam = camera([0.0; 5]);
     let pl = plane();
     let so = StripeOptions::default();
-    let rig = Rig::new(
-        &cam,
-        &pl,
-        pl.normal * pl.d,
-        StripeDirection::Cols,
-        &so,
-        89.0,
-    );
+    let rig = twin_rig(&cam, &pl, &so, 89.0);
     let c = p - nrm.normalize() * r;
     let line = cam.project(&p).unwrap().y;
     let mut prof = PointProfile::default();
@@ -43,6 +36,24 @@ fn bias_at(p: Vector3<f64>, nrm: Vector3<f64>, r: f64, s: f64, b: f64) -> (f64, 
     ));
     let (d, w, _) = extractor_response(&prof, b, &so, &mut Vec::new()).unwrap();
     (d, w)
+}
+
+/// The rig of these tests: the emitter at the foot of the plane, scan lines along `v`,
+/// incidence up to `max_incidence_deg`.
+fn twin_rig<'a>(
+    cam: &'a Camera,
+    pl: &Plane,
+    so: &'a StripeOptions,
+    max_incidence_deg: f64,
+) -> Rig<'a> {
+    Rig::new(
+        cam,
+        pl,
+        pl.normal * pl.d,
+        StripeDirection::Cols,
+        so,
+        max_incidence_deg,
+    )
 }
 
 /// A point of the plane on the optical axis.
@@ -191,14 +202,7 @@ fn synthetic_scan_with_bias(
     let cam = camera([0.0; 5]);
     let pl = plane();
     let so = StripeOptions::default();
-    let rig = Rig::new(
-        &cam,
-        &pl,
-        pl.normal * pl.d,
-        StripeDirection::Cols,
-        &so,
-        75.0,
-    );
+    let rig = twin_rig(&cam, &pl, &so, 75.0);
     let tri = Triangulator::new(&cam, &pl, &Iso3::identity(), 0.0).unwrap();
     let c_mid = p0() + Vector3::new(0.0, 0.0, 0.3 * r);
     let h_mid = pl.normal.dot(&c_mid) - pl.d;
@@ -425,14 +429,7 @@ fn the_outline_test_finds_the_sphere_image_edge() {
     let cam = camera([0.0; 5]);
     let pl = plane();
     let so = StripeOptions::default();
-    let rig = Rig::new(
-        &cam,
-        &pl,
-        pl.normal * pl.d,
-        StripeDirection::Cols,
-        &so,
-        75.0,
-    );
+    let rig = twin_rig(&cam, &pl, &so, 75.0);
     let (r, z) = (20.0f64, 400.0f64);
     let c = Vector3::new(0.0, 0.0, z);
     let radius_px = cam.fu * (r / z).asin().tan();
@@ -578,14 +575,7 @@ fn profiles_from_the_shared_geometry_equal_the_direct_ones() {
     let cam = camera([0.0; 5]);
     let pl = plane();
     let so = StripeOptions::default();
-    let mut rig = Rig::new(
-        &cam,
-        &pl,
-        pl.normal * pl.d,
-        StripeDirection::Cols,
-        &so,
-        89.0,
-    );
+    let mut rig = twin_rig(&cam, &pl, &so, 89.0);
     rig.outline_margin_px = Some(OUTLINE_MARGIN_PX);
     let r = 12.7;
     let (mut checked, mut refused) = (0, 0);
@@ -683,14 +673,7 @@ fn sections_read_between_solved_ones_match_the_solved_ones() {
     let cam = camera([0.0; 5]);
     let pl = plane();
     let so = StripeOptions::default();
-    let rig = Rig::new(
-        &cam,
-        &pl,
-        pl.normal * pl.d,
-        StripeDirection::Cols,
-        &so,
-        89.0,
-    );
+    let rig = twin_rig(&cam, &pl, &so, 89.0);
     let p = p0();
     let line = cam.project(&p).unwrap().y;
     let mut visited = 0;
