@@ -628,14 +628,13 @@ pub(crate) fn run_outwards<S: Surface>(
                 // stripe's image bends this sharply (near the outline) the offset
                 // between is solved.
                 let defect = (s2.a - prev.a) - 0.5 * h * (prev.da_dt + s2.da_dt);
-                let mid = if defect.abs() <= MAX_DEFECT_PX {
-                    prev.halfway(&s2, h)
-                } else {
-                    let Some(mid) = surf.section(rig, t1, line, prev.halfway(&s2, h).phi) else {
+                let mut mid = prev.halfway(&s2, h);
+                if defect.abs() > MAX_DEFECT_PX {
+                    let Some(solved) = surf.section(rig, t1, line, mid.phi) else {
                         return;
                     };
-                    mid
-                };
+                    mid = solved;
+                }
                 if !visit(t1, &mid) || !visit(t2, &s2) {
                     return;
                 }
