@@ -162,6 +162,14 @@ pub struct Hit {
     pub laser: f64,
 }
 
+/// What a ray that hits nothing sees.
+const MISS: Hit = Hit {
+    material: SURF_NONE,
+    s: f64::INFINITY,
+    reflectance: 0.0,
+    laser: 0.0,
+};
+
 impl World {
     /// The scene in the camera frame for `T_base_cam`.
     pub fn image_scene(&self, base_cam: &Iso3, laser: Laser) -> ImageScene {
@@ -482,7 +490,7 @@ impl ImageScene {
             if self.table || self.near_silhouette(dir, alpha) {
                 return Footprint::Edge;
             }
-            return Footprint::Uniform(self.shade(dir));
+            return Footprint::Uniform(MISS);
         };
         let p = dir * s;
         let range = p.norm();
@@ -493,13 +501,7 @@ impl ImageScene {
         // Footprint radius on the surface.
         let rho = range * alpha / cos_view;
         for &(c, r) in &self.spheres {
-            let cn = c.norm();
-            if cn <= r {
-                return Footprint::Edge;
-            }
-            let beta = dir.angle(&c);
-            let gamma = (r / cn).asin();
-            if (beta - gamma).abs() < 1.5 * alpha {
+            if near_sphere_outline(dir, alpha, &c, r) {
                 return Footprint::Edge;
             }
         }
@@ -543,7 +545,7 @@ impl ImageScene {
         {
             return Footprint::Smooth;
         }
-        let hit = self.shade(dir);
+        let hit = self.shade_at(dir, surface, s);
         if hit.laser == 0.0 {
             Footprint::Uniform(hit)
         } else {
@@ -554,11 +556,12 @@ impl ImageScene {
     /// Whether a footprint of a ray that hits nothing may hold a silhouette: a sphere's
     /// outline or the free plate's (scenes without a table).
     fn near_silhouette(&self, dir: &Vector3<f64>, alpha: f64) -> bool {
-        for &(c, r) in &self.spheres {
-            let cn = c.norm();
-            if cn <= r || (dir.angle(&c) - (r / cn).asin()).abs() < 1.5 * alpha {
-                return true;
-            }
+        if self
+            .spheres
+            .iter()
+            .any(|(c, r)| near_sphere_outline(dir, alpha, c, *r))
+        {
+            return true;
         }
         self.free.is_some() && self.near_free_outline(dir, alpha)
     }
@@ -583,14 +586,15 @@ impl ImageScene {
     /// Shades one ray.
     #[inline]
     pub fn shade(&self, dir: &Vector3<f64>) -> Hit {
-        let Some((surface, s)) = self.first_hit(dir) else {
-            return Hit {
-                material: SURF_NONE,
-                s: f64::INFINITY,
-                reflectance: 0.0,
-                laser: 0.0,
-            };
-        };
+        match self.first_hit(dir) {
+            Some((surface, s)) => self.shade_at(dir, surface, s),
+            None => MISS,
+        }
+    }
+
+    /// Shades the ray `dir` whose first hit ([`Self::first_hit`]) is `surface` at `s`.
+    #[inline]
+    fn shade_at(&self, dir: &Vector3<f64>, surface: u32, s: f64) -> Hit {
         let p = dir * s;
         let (material, refl) = match surface {
             SURF_PLATE => {
@@ -611,4 +615,27 @@ impl ImageScene {
             laser: self.laser_radiance(surface, &p, refl),
         }
     }
+}
+
+/// Whether the outline of the sphere `(c, r)` may cross the footprint of a ray `dir`
+/// whose rays lie within `alpha` of it: the angle between `dir` and the centre is within
+/// `1.5 alpha` of the outline's `asin(r / |c|)` (or the camera is inside the sphere).
+///
+/// `|cos a - cos b| <= |a - b|`, so where the two cosines already differ by more than
+/// `1.5 alpha` so do the angles: that test needs no inverse trigonometry, and the exact
+/// one runs only near the outline (the answer is the exact test's everywhere).
+#[inline]
+fn near_sphere_outline(dir: &Vector3<f64>, alpha: f64, c: &Vector3<f64>, r: f64) -> bool {
+    let cn = c.norm();
+    if cn <= r {
+        return true;
+    }
+    let margin = 1.5 * alpha;
+    let cos_beta = dir.dot(c) / (dir.norm() * cn);
+    let cos_gamma = (1.0 - (r / cn).powi(2)).max(0.0).sqrt();
+    // the slack covers the rounding of both cosines
+    if (cos_beta - cos_gamma).abs() > margin * (1.0 + 1e-9) + 1e-12 {
+        return false;
+    }
+    (dir.angle(c) - (r / cn).asin()).abs() < margin
 }
