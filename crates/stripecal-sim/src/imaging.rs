@@ -241,8 +241,19 @@ pub fn gaussian_blur(img: &[f64], w: usize, h: usize, sigma: f64) -> Vec<f64> {
         for (j, kv) in k.iter().enumerate() {
             let src = mirror(row as isize + j as isize - r, h);
             let line = &tmp[src * w..(src + 1) * w];
-            for (x, v) in o.iter_mut().enumerate() {
-                *v += kv * line[x];
+            if j == 0 {
+                // The first tap written, not added to the zeros read: a fresh buffer's
+                // pages are then faulted in once, by this write, instead of mapped to
+                // the shared zero page by a read and copied on the write after it (a
+                // TLB flush on every core the process runs on, page by page). The same
+                // sums: `0.0 + x` as before.
+                for (x, v) in o.iter_mut().enumerate() {
+                    *v = 0.0 + kv * line[x];
+                }
+            } else {
+                for (x, v) in o.iter_mut().enumerate() {
+                    *v += kv * line[x];
+                }
             }
         }
     });
