@@ -65,7 +65,7 @@ pub use calibrate::held_out_laser_board;
 pub use calibrate::BENCH_KEY;
 pub use calibrate::{dataset_channel, observe_dataset};
 #[doc(hidden)]
-pub use calibrate::{leave_one_out_refits, leave_one_out_with, FoldMethod};
+pub use calibrate::{leave_one_out_refits, leave_one_out_with, FoldMethod, FoldsSolved};
 use calibrate::{observe, Observed};
 pub use plan::{
     nominal_from_truth, plan_poses, read_nominal, read_plan_rig, PlanOptions, PlannedPose,

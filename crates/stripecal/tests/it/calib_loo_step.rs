@@ -6,7 +6,8 @@
 //! and the medians. The one step is the pipeline's default on the bench; on a robot the
 //! one step alone is not within 5 % on the real set etna_calib4, and the pipeline
 //! certifies each fold by a second, relinearised step (refitting the views whose figures
-//! it moves by more than 1 %): those certified folds are compared with the refits too.
+//! it moves by more than 1 %; a view whose pull on the others is small keeps its one
+//! step): those certified folds are compared with the refits too.
 //!
 //! `cargo test -p stripecal --test it calib_loo_step:: -- --nocapture` prints the figures.
 
@@ -185,15 +186,19 @@ fn certified_folds_agree_with_the_refits_on_a_robot() {
     let opts = CalibrateOptions::default();
     let rep = calibrate_observations(&views, &rig, &opts).unwrap();
     let used = used_views(&rep, &views);
-    let (cert, refitted) =
+    let (cert, solved) =
         leave_one_out_refits(&used, &rig, &opts, &rep.adjustment, FoldMethod::Certified)
             .unwrap()
             .unwrap();
     let refit = leave_one_out_with(&used, &rig, &opts, &rep.adjustment, FoldMethod::Refit)
         .unwrap()
         .unwrap();
-    println!("certified: views refitted {refitted:?}");
-    assert!(refitted.len() < used.len());
+    println!("certified: {solved:?}");
+    assert!(solved.refitted.len() < used.len());
+    // A twin's views pull the others' solution by about a chi-square of the global
+    // columns over the views (below 1.5 here): some folds stand on their one step, and
+    // their figures are held to the refits' below like the others'.
+    assert!(!solved.one_step.is_empty(), "{solved:?}");
     // The pipeline's own figure on a robot is the certified folds'.
     let own = rep.leave_one_out.as_ref().unwrap();
     assert!((own.median_board_rms_px - cert.median_board_rms_px).abs() < 1e-9);
@@ -210,7 +215,7 @@ fn certified_folds_agree_with_the_refits_on_etna_calib4() {
     let (views, _) = observe_dataset(&ds, &opts).unwrap();
     let rep = calibrate_observations(&views, &ds.rig, &opts).unwrap();
     let used = used_views(&rep, &views);
-    let (cert, refitted) = leave_one_out_refits(
+    let (cert, solved) = leave_one_out_refits(
         &used,
         &ds.rig,
         &opts,
@@ -222,9 +227,9 @@ fn certified_folds_agree_with_the_refits_on_etna_calib4() {
     let refit = leave_one_out_with(&used, &ds.rig, &opts, &rep.adjustment, FoldMethod::Refit)
         .unwrap()
         .unwrap();
-    println!(
-        "etna_calib4 certified: views refitted {refitted:?} of {}",
-        used.len()
-    );
+    println!("etna_calib4 certified: {solved:?} of {} views", used.len());
+    // The real set's views pull hard (39-274): no fold may skip its second step here,
+    // where the one step alone was 9.7 % off.
+    assert!(solved.one_step.is_empty(), "{solved:?}");
     assert_agree("etna_calib4, certified", &cert, &refit);
 }

@@ -91,7 +91,9 @@ mod robot_solve;
 
 pub use self::bench::bench_adjustment;
 pub(crate) use self::covariance::camera_name;
-pub use self::fold::{one_step_folds, stepped_from, two_step_folds, FoldSolution};
+pub use self::fold::{
+    one_step_folds, stepped_from, two_step_folds, CertifiedFold, FoldSolution, SMALL_PULL,
+};
 pub use self::robot::{
     flange_twists, point_gradients as dh_point_gradients, DhKind, DhParam, RobotMode,
 };

@@ -30,7 +30,12 @@
 //! certified ([`FoldMethod::Certified`]): a second Gauss-Newton step relinearised where
 //! the first ended ([`crate::calib::joint::two_step_folds`]); where it moves none of the
 //! view's held-out figures by more than [`CERTIFY_TOL`] the two-step fold stands, else
-//! the view is refitted (the refits run in parallel). Against the refits for every view
+//! the view is refitted (the refits run in parallel). A view whose pull on the others'
+//! solution (the one step's Newton decrement) is at most
+//! [`crate::calib::joint::SMALL_PULL`] keeps its one step: the second step's change
+//! grows with the pull, and at that pull it was a tenth of [`CERTIFY_TOL`] or less on
+//! every real set. This keeps the leave-one-out linear in the views where the model fits
+//! its data (a twin's pulls are all below 1.5, none above 1 at 60 views). Against the refits for every view
 //! (BENCHMARKS.md, issue 41 items 1 and 5): worst single figure 2.3 % on rosi_10x10
 //! (no view refitted of 15), 0.9 % on etna_calib3 (3 of 16 refitted), 0.5 % on
 //! etna_calib4 (7 of 9), 0.03 % on visp_franka (0 of 8). Where the steps do not apply (a
@@ -45,8 +50,8 @@ use rayon::prelude::*;
 use super::CalibrateOptions;
 use crate::calib::conic::{predict_centre, CentreModel};
 use crate::calib::joint::{
-    bench_adjustment, joint_adjustment, one_step_folds, two_step_folds, FoldSolution, FreeBlocks,
-    JointOptions, JointResult, JointStart,
+    bench_adjustment, joint_adjustment, one_step_folds, two_step_folds, CertifiedFold,
+    FoldSolution, FreeBlocks, JointOptions, JointResult, JointStart,
 };
 use crate::calib::laser_plane::board_plane_in_cam;
 use crate::calib::ViewObs;
@@ -131,9 +136,19 @@ fn leave_one_out_by(
     Ok(leave_one_out_counted(used, board, full, jopts, method)?.map(|(l, _)| l))
 }
 
-/// [`leave_one_out_with`] and the views whose folds were refitted (every view with
-/// [`FoldMethod::Refit`], or where the steps do not apply; the views the certificate
-/// failed with [`FoldMethod::Certified`]).
+/// How a leave-one-out's folds were solved (view ids, in the views' order).
+#[doc(hidden)]
+#[derive(Debug, Clone, Default, PartialEq, Eq)]
+pub struct FoldsSolved {
+    /// Refitted: every view with [`FoldMethod::Refit`] or where the steps do not apply;
+    /// with [`FoldMethod::Certified`] the views whose certificate failed.
+    pub refitted: Vec<usize>,
+    /// With [`FoldMethod::Certified`]: the folds that stand on their one step, the
+    /// view's pull at most [`crate::calib::joint::SMALL_PULL`] (no second step).
+    pub one_step: Vec<usize>,
+}
+
+/// [`leave_one_out_with`] and how its folds were solved.
 #[doc(hidden)]
 pub fn leave_one_out_refits(
     used: &[ViewObs],
@@ -141,7 +156,7 @@ pub fn leave_one_out_refits(
     opts: &CalibrateOptions,
     full: &JointResult,
     method: FoldMethod,
-) -> Result<Option<(LeaveOneOut, Vec<usize>)>> {
+) -> Result<Option<(LeaveOneOut, FoldsSolved)>> {
     let jopts = super::stages::joint_options(opts, rig);
     leave_one_out_counted(used, &rig.board, full, &jopts, method)
 }
@@ -152,50 +167,70 @@ fn leave_one_out_counted(
     full: &JointResult,
     jopts: &JointOptions,
     method: FoldMethod,
-) -> Result<Option<(LeaveOneOut, Vec<usize>)>> {
+) -> Result<Option<(LeaveOneOut, FoldsSolved)>> {
     if used.len() < MIN_VIEWS {
         return Ok(None);
     }
     let all: Vec<usize> = (0..used.len()).collect();
-    let (scored, refitted) = match method {
+    let (scored, refitted, one_step) = match method {
         FoldMethod::OneStep => match one_step_folds(used, board, full, jopts)? {
-            Some(folds) => (scored_steps(used, board, full, &folds, jopts)?, vec![]),
-            None => (scored_refits(used, board, full, jopts, &all)?, all),
+            Some(folds) => (
+                scored_steps(used, board, full, &folds, jopts)?,
+                vec![],
+                vec![],
+            ),
+            None => (scored_refits(used, board, full, jopts, &all)?, all, vec![]),
         },
-        FoldMethod::Refit => (scored_refits(used, board, full, jopts, &all)?, all),
+        FoldMethod::Refit => (scored_refits(used, board, full, jopts, &all)?, all, vec![]),
         FoldMethod::Certified => match two_step_folds(used, board, full, jopts)? {
-            Some(folds) => scored_certified(used, board, full, &folds, jopts)?,
-            None => (scored_refits(used, board, full, jopts, &all)?, all),
+            Some(folds) => {
+                let one_step = (0..folds.len()).filter(|&k| folds[k].two.is_none());
+                let one_step = one_step.collect();
+                let (scored, failed) = scored_certified(used, board, full, &folds, jopts)?;
+                (scored, failed, one_step)
+            }
+            None => (scored_refits(used, board, full, jopts, &all)?, all, vec![]),
         },
     };
-    let refitted = refitted.iter().map(|&k| used[k].view).collect();
-    Ok(Some((summarised(scored), refitted)))
+    let ids = |ks: Vec<usize>| ks.iter().map(|&k| used[k].view).collect();
+    let solved = FoldsSolved {
+        refitted: ids(refitted),
+        one_step: ids(one_step),
+    };
+    Ok(Some((summarised(scored), solved)))
 }
 
-/// The views' figures from the certified steps (`folds[k]`: without view `k`, after
-/// one and two steps; [`FoldMethod::Certified`]), the refits where the second step
-/// moved a figure by more than [`CERTIFY_TOL`]; with the indices of the refitted
-/// views.
+/// The views' figures from the certified steps (`folds[k]`: without view `k`;
+/// [`FoldMethod::Certified`]): the one step's where the view's pull is small (no second
+/// step: [`crate::calib::joint::SMALL_PULL`]), the two steps' where the second moved no
+/// figure by more than [`CERTIFY_TOL`], the refits elsewhere; with the indices of the
+/// refitted views.
 fn scored_certified(
     used: &[ViewObs],
     board: &Board,
     full: &JointResult,
-    folds: &[[FoldSolution; 2]],
+    folds: &[CertifiedFold],
     jopts: &JointOptions,
 ) -> Result<(Vec<Scored>, Vec<usize>)> {
-    let one: Vec<FoldSolution> = folds.iter().map(|f| f[0].clone()).collect();
-    let two: Vec<FoldSolution> = folds.iter().map(|f| f[1].clone()).collect();
-    let a = scored_steps(used, board, full, &one, jopts)?;
-    let b = scored_steps(used, board, full, &two, jopts)?;
-    let failed: Vec<usize> = a
+    let one: Vec<FoldSolution> = folds.iter().map(|f| f.one.clone()).collect();
+    let mut scored = scored_steps(used, board, full, &one, jopts)?;
+    let stepped: Vec<(usize, &FoldSolution)> = folds
         .iter()
-        .zip(&b)
         .enumerate()
-        .filter(|(_, (x, y))| !certified(x, y))
-        .map(|(k, _)| k)
+        .filter_map(|(k, f)| f.two.as_ref().map(|two| (k, two)))
         .collect();
+    let two: Vec<Scored> = stepped
+        .par_iter()
+        .map(|&(k, fold)| scored_fold(&used[k], board, full, fold, jopts))
+        .collect::<Result<_>>()?;
+    let mut failed = Vec::new();
+    for ((k, _), b) in stepped.iter().zip(two) {
+        if !certified(&scored[*k], &b) {
+            failed.push(*k);
+        }
+        scored[*k] = b;
+    }
     let refits = scored_refits(used, board, full, jopts, &failed)?;
-    let mut scored = b;
     for (k, r) in failed.iter().zip(refits) {
         scored[*k] = r;
     }
@@ -227,17 +262,26 @@ fn scored_steps(
     folds: &[FoldSolution],
     jopts: &JointOptions,
 ) -> Result<Vec<Scored>> {
-    let model = jopts.centre_model;
     used.par_iter()
         .zip(folds)
-        .map(|(v, fold)| {
-            if full.board_poses.is_empty() {
-                return predict_view(v, board, fold, None, model);
-            }
-            let cb = own_board_pose(v, board, fold, bench_pose(full, v.view)?, jopts)?;
-            predict_with_pose(v, board, fold, cb, model)
-        })
+        .map(|(v, fold)| scored_fold(v, board, full, fold, jopts))
         .collect()
+}
+
+/// View `v`'s figures predicted from `fold` (the solution without it).
+fn scored_fold(
+    v: &ViewObs,
+    board: &Board,
+    full: &JointResult,
+    fold: &FoldSolution,
+    jopts: &JointOptions,
+) -> Result<Scored> {
+    let model = jopts.centre_model;
+    if full.board_poses.is_empty() {
+        return predict_view(v, board, fold, None, model);
+    }
+    let cb = own_board_pose(v, board, fold, bench_pose(full, v.view)?, jopts)?;
+    predict_with_pose(v, board, fold, cb, model)
 }
 
 /// The figures of the views `which` (indices into `used`, in their order) from the

@@ -33,6 +33,8 @@ pub use bench::BENCH_KEY;
 pub use dispatch::calibrate_observations;
 pub(super) use dispatch::calibrate_unjudged;
 pub(super) use held::check_from_size;
-pub use loo::{held_out_laser_board, leave_one_out_refits, leave_one_out_with, FoldMethod};
+pub use loo::{
+    held_out_laser_board, leave_one_out_refits, leave_one_out_with, FoldMethod, FoldsSolved,
+};
 pub use observe::{dataset_channel, observe_dataset};
 pub(super) use observe::{observe, Observed};
