@@ -35,6 +35,62 @@ pub(super) fn cost_of(r: &[f64], huber: Option<f64>) -> f64 {
     }
 }
 
+/// Normal equations `J^T W J`, `J^T W r` kept from one evaluation to the next: sparse
+/// rows write only the blocks of their runs' columns, and only those are zeroed before the
+/// next accumulation (the matrix has `(ng + nv pv)^2` entries, the blocks about
+/// `ng^2 + nv (2 ng + pv) pv`: zeroing and checking all of it grew as the views squared).
+#[derive(Debug, Clone, Default)]
+pub(super) struct Normal {
+    pub jtj: DMatrix<f64>,
+    pub g: DVector<f64>,
+    /// The column sets whose blocks were written since the matrix was last zero
+    /// everywhere; `None`: any entry may be nonzero.
+    written: Option<Vec<Vec<usize>>>,
+}
+
+impl Normal {
+    /// Zero normal equations of `n` parameters, when they are not that size.
+    fn sized(&mut self, n: usize) {
+        if self.jtj.nrows() != n || self.jtj.ncols() != n || self.g.len() != n {
+            *self = Normal {
+                jtj: DMatrix::zeros(n, n),
+                g: DVector::zeros(n),
+                written: Some(Vec::new()),
+            };
+        }
+    }
+
+    /// Zero everywhere, by the blocks written since it last was.
+    fn zeroed(&mut self) {
+        match self.written.take() {
+            None => self.jtj.fill(0.0),
+            Some(sets) => {
+                for c in &sets {
+                    for &a in c {
+                        for &b in c {
+                            self.jtj[(a, b)] = 0.0;
+                        }
+                    }
+                }
+            }
+        }
+        self.g.fill(0.0);
+        self.written = Some(Vec::new());
+    }
+
+    /// Whether every entry is finite (the written blocks, when known).
+    fn finite(&self) -> bool {
+        let blocks = match &self.written {
+            None => self.jtj.iter().all(|x| x.is_finite()),
+            Some(sets) => sets.iter().all(|c| {
+                c.iter()
+                    .all(|&a| c.iter().all(|&b| self.jtj[(a, b)].is_finite()))
+            }),
+        };
+        blocks && self.g.iter().all(|x| x.is_finite())
+    }
+}
+
 /// Relative weight change below which re-weighted weights count as settled.
 pub(super) const WEIGHT_TOL: f64 = 1e-3;
 
@@ -50,6 +106,8 @@ pub(super) struct Work {
     runs: Vec<(usize, usize)>,
     /// The leverages' product buffer.
     lev_buf: Mat<f64>,
+    /// The leverages' normal equations.
+    lev_normal: Normal,
     /// The problem's own normal equations at the last evaluation (no Jacobian stored;
     /// [`LeastSquares::has_normal_equations`]).
     fused: Option<(DMatrix<f64>, DVector<f64>)>,
@@ -71,10 +129,12 @@ impl Work {
             } else {
                 Mat::zeros(m, n)
             },
-            jtj_f: Mat::zeros(n, n),
+            // Allocated by the first product of dense storage.
+            jtj_f: Mat::zeros(0, 0),
             scratch: Vec::new(),
             runs: Vec::new(),
             lev_buf: Mat::zeros(0, 0),
+            lev_normal: Normal::default(),
             blocks: None,
         }
     }
@@ -154,13 +214,16 @@ impl Work {
         }
     }
 
-    /// `(J^T W J, J^T W r)`, `W` the Huber IRLS weights at `r` (identity without Huber).
+    /// `(J^T W J, J^T W r)` into `out`, `W` the Huber IRLS weights at `r` (identity
+    /// without Huber).
     pub(super) fn normal_equations(
         &mut self,
         r: &[f64],
         huber: Option<f64>,
-    ) -> Result<(DMatrix<f64>, DVector<f64>)> {
+        out: &mut Normal,
+    ) -> Result<()> {
         let (m, n) = (self.m, self.n);
+        let not_finite = || Error::Degenerate("Jacobian is not finite".into());
         if self.fused_mode {
             let (jtj, g) = self.fused.clone().ok_or_else(|| {
                 Error::InvalidInput(
@@ -169,13 +232,18 @@ impl Work {
                         .into(),
                 )
             })?;
-            if jtj.iter().any(|x| !x.is_finite()) || g.iter().any(|x| !x.is_finite()) {
-                return Err(Error::Degenerate("Jacobian is not finite".into()));
-            }
-            return Ok((jtj, g));
+            *out = Normal {
+                jtj,
+                g,
+                written: None,
+            };
+            return if out.finite() {
+                Ok(())
+            } else {
+                Err(not_finite())
+            };
         }
-        let mut g = DVector::<f64>::zeros(n);
-        let mut jtj = DMatrix::<f64>::zeros(n, n);
+        out.sized(n);
         // sqrt(W) r
         let sw: Vec<f64> = r.iter().map(|&x| huber_weight(x, huber).sqrt()).collect();
         let rw: Vec<f64> = r.iter().zip(&sw).map(|(x, s)| x * s).collect();
@@ -199,8 +267,8 @@ impl Work {
                     };
                     dense_t = Some(faer::MatRef::from_column_major_slice(vals, n, m));
                 } else {
+                    out.zeroed();
                     let (sw, rw) = (&sw[..], &rw[..]);
-                    let out = (&mut jtj, &mut g);
                     accumulate_runs(rows, &self.runs, (sw, rw), huber, &mut self.scratch, out);
                     dense_t = None;
                 }
@@ -224,6 +292,9 @@ impl Work {
             }
         }
         if let Some(jt) = dense_t {
+            if self.jtj_f.nrows() != n {
+                self.jtj_f = Mat::zeros(n, n);
+            }
             faer::linalg::matmul::matmul(
                 self.jtj_f.as_mut(),
                 Accum::Replace,
@@ -235,17 +306,20 @@ impl Work {
             let rv = faer::MatRef::from_column_major_slice(&rw, m, 1);
             let mut gf = Mat::<f64>::zeros(n, 1);
             faer::linalg::matmul::matmul(gf.as_mut(), Accum::Replace, jt, rv, 1.0, Par::Seq);
+            // Every entry written.
+            out.written = None;
             for a in 0..n {
-                g[a] = gf[(a, 0)];
+                out.g[a] = gf[(a, 0)];
                 for b in 0..n {
-                    jtj[(a, b)] = self.jtj_f[(a, b)];
+                    out.jtj[(a, b)] = self.jtj_f[(a, b)];
                 }
             }
         }
-        if jtj.iter().any(|x| !x.is_finite()) || g.iter().any(|x| !x.is_finite()) {
-            return Err(Error::Degenerate("Jacobian is not finite".into()));
+        if out.finite() {
+            Ok(())
+        } else {
+            Err(not_finite())
         }
-        Ok((jtj, g))
     }
 
     /// The leverages of the residuals in `wanted` (row ranges; the others 0) at `r` (see
@@ -263,7 +337,11 @@ impl Work {
         if self.fused_mode {
             return None;
         }
-        let (jtj, _) = self.normal_equations(r, huber).ok()?;
+        let mut normal = std::mem::take(&mut self.lev_normal);
+        let done = self.normal_equations(r, huber, &mut normal);
+        self.lev_normal = normal;
+        done.ok()?;
+        let jtj = &self.lev_normal.jtj;
         let n = self.n;
         let d: Vec<f64> = (0..n)
             .map(|i| 1.0 / jtj[(i, i)].max(1e-300).sqrt())
@@ -392,13 +470,15 @@ fn accumulate_runs(
     (sw, rw): (&[f64], &[f64]),
     huber: Option<f64>,
     scratch: &mut Vec<f64>,
-    (jtj, g): (&mut DMatrix<f64>, &mut DVector<f64>),
+    out: &mut Normal,
 ) {
     let w = rows.width;
     // Runs of rows with the same columns (a view's) are one small product each: their
     // values are the run's J^T stored column-major (w x len); the w x w block is
     // scattered into the n x n matrix.
-    let n = g.len();
+    let n = out.g.len();
+    let written = out.written.get_or_insert_with(Vec::new);
+    let (jtj, g) = (&mut out.jtj, &mut out.g);
     let acc = jtj.as_mut_slice();
     let mut block = Mat::<f64>::zeros(w, w);
     let mut gb = Mat::<f64>::zeros(w, 1);
@@ -427,6 +507,9 @@ fn accumulate_runs(
         );
         faer::linalg::matmul::matmul(gb.as_mut(), Accum::Replace, jt, rv, 1.0, Par::Seq);
         let cols = rows.row(i0).0;
+        if written.last().is_none_or(|c| c[..] != *cols) {
+            written.push(cols.to_vec());
+        }
         for (a, &ca) in cols.iter().enumerate() {
             g[ca] += gb[(a, 0)];
             let col = &mut acc[ca * n..(ca + 1) * n];

@@ -5,7 +5,7 @@ use faer::linalg::solvers::Solve;
 use nalgebra::{DMatrix, DVector};
 
 use super::covariance::{covariance_by_blocks, sigmas};
-use super::normal::{cost_of, Work, WEIGHT_TOL};
+use super::normal::{cost_of, Normal, Work, WEIGHT_TOL};
 use super::problem::LeastSquares;
 use super::schur::{self, Blocks};
 use crate::error::{Error, Result};
@@ -176,8 +176,8 @@ struct Solver<'a, P: LeastSquares + ?Sized> {
     r: Vec<f64>,
     p_try: Vec<f64>,
     r_try: Vec<f64>,
-    jtj: DMatrix<f64>,
-    g: DVector<f64>,
+    /// The normal equations at `p`.
+    ne: Normal,
     cost: f64,
     /// `D^2` of the damping (module docs).
     diag: Vec<f64>,
@@ -207,7 +207,9 @@ impl<'a, P: LeastSquares + ?Sized> Solver<'a, P> {
         if let Some(f) = problem.reweight(&r, &mut |rows| work.leverages(&r, opts.huber, rows)) {
             work.rescale(&f, &mut r);
         }
-        let (jtj, g) = work.normal_equations(&r, opts.huber)?;
+        let mut ne = Normal::default();
+        work.normal_equations(&r, opts.huber, &mut ne)?;
+        let jtj = &ne.jtj;
         let cost = cost_of(&r, opts.huber);
         let diag: Vec<f64> = match &opts.scaling {
             Some(s) => s.iter().map(|x| 1.0 / (x * x)).collect(),
@@ -226,8 +228,7 @@ impl<'a, P: LeastSquares + ?Sized> Solver<'a, P> {
             r,
             p_try: vec![0.0; n],
             r_try: vec![0.0; m],
-            jtj,
-            g,
+            ne,
             cost,
             diag,
             lambda,
@@ -247,9 +248,9 @@ impl<'a, P: LeastSquares + ?Sized> Solver<'a, P> {
         // gradient test
         let gmax = (0..n)
             .map(|i| {
-                let d = self.jtj[(i, i)];
+                let d = self.ne.jtj[(i, i)];
                 if d > 0.0 {
-                    self.g[i].abs() / d.sqrt()
+                    self.ne.g[i].abs() / d.sqrt()
                 } else {
                     0.0
                 }
@@ -260,7 +261,7 @@ impl<'a, P: LeastSquares + ?Sized> Solver<'a, P> {
         }
         if self.opts.scaling.is_none() {
             for (i, d) in self.diag.iter_mut().enumerate() {
-                *d = d.max(self.jtj[(i, i)]);
+                *d = d.max(self.ne.jtj[(i, i)]);
             }
         }
         loop {
@@ -286,7 +287,7 @@ impl<'a, P: LeastSquares + ?Sized> Solver<'a, P> {
             }
         };
         // Decrease predicted by the quadratic model: -g.dp - dp^T JtJ dp / 2.
-        let pred = -self.g.dot(&dp) - 0.5 * dp.dot(&(&self.jtj * &dp));
+        let pred = -self.ne.g.dot(&dp) - 0.5 * dp.dot(&(&self.ne.jtj * &dp));
         // Stop before evaluating a step that cannot gain anything worth having: a
         // predicted relative decrease below `ftol` (MINPACK's test), or below the
         // round-off of the cost itself (`m` terms summed).
@@ -330,14 +331,14 @@ impl<'a, P: LeastSquares + ?Sized> Solver<'a, P> {
         let n = self.n;
         let damp: Vec<f64> = self.diag.iter().map(|d| self.lambda * d).collect();
         if let Some(b) = &self.blocks {
-            let rhs: Vec<f64> = self.g.iter().map(|x| -x).collect();
-            return schur::solve(&self.jtj, &damp, &rhs, b);
+            let rhs: Vec<f64> = self.ne.g.iter().map(|x| -x).collect();
+            return schur::solve(&self.ne.jtj, &damp, &rhs, b);
         }
         let a = faer::Mat::<f64>::from_fn(n, n, |i, j| {
-            self.jtj[(i, j)] + if i == j { damp[i] } else { 0.0 }
+            self.ne.jtj[(i, j)] + if i == j { damp[i] } else { 0.0 }
         });
         let ch = a.llt(faer::Side::Lower).ok()?;
-        let x = ch.solve(faer::Mat::<f64>::from_fn(n, 1, |i, _| -self.g[i]));
+        let x = ch.solve(faer::Mat::<f64>::from_fn(n, 1, |i, _| -self.ne.g[i]));
         Some(DVector::from_fn(n, |i, _| x[(i, 0)]))
     }
 
@@ -364,7 +365,8 @@ impl<'a, P: LeastSquares + ?Sized> Solver<'a, P> {
             self.weights_moving = f.iter().any(|x| (x - 1.0).abs() > WEIGHT_TOL);
             self.work.rescale(&f, &mut self.r);
         }
-        (self.jtj, self.g) = self.work.normal_equations(&self.r, opts.huber)?;
+        self.work
+            .normal_equations(&self.r, opts.huber, &mut self.ne)?;
         self.cost = cost_of(&self.r, opts.huber);
         // The quadratic model predicted the decrease well: close to Gauss-Newton (near
         // the solution of a mildly non-linear problem the damping only slows the
@@ -396,7 +398,12 @@ impl<'a, P: LeastSquares + ?Sized> Solver<'a, P> {
         let ssr: f64 = r.iter().map(|x| x * x).sum();
         let sigma2 = if m > n { ssr / (m - n) as f64 } else { 0.0 };
         let (covariance, unobservable) = if self.opts.covariance {
-            covariance_by_blocks(&self.jtj, sigma2, self.opts.rank_tol, self.blocks.as_ref())
+            covariance_by_blocks(
+                &self.ne.jtj,
+                sigma2,
+                self.opts.rank_tol,
+                self.blocks.as_ref(),
+            )
         } else {
             (DMatrix::zeros(0, 0), Vec::new())
         };
@@ -409,7 +416,7 @@ impl<'a, P: LeastSquares + ?Sized> Solver<'a, P> {
             initial_cost,
             iterations,
             reason,
-            jtj: self.jtj,
+            jtj: self.ne.jtj,
             sigma2,
             covariance,
             sigma,
