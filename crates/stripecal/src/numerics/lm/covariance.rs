@@ -30,16 +30,16 @@ pub(super) fn covariance_by_blocks(
         }
     }
     let good: Vec<usize> = (0..n).filter(|&i| !bad[i]).collect();
-    let scaled = DMatrix::from_fn(good.len(), good.len(), |a, b| {
-        jtj[(good[a], good[b])] / (d[good[a]] * d[good[b]])
-    });
+    let scaled_at = |a: usize, b: usize| jtj[(good[a], good[b])] / (d[good[a]] * d[good[b]]);
     // Cheap certificate of full rank: for the unit-diagonal `S`, `lambda_max <= trace =
     // k` and `lambda_min >= 1 / trace(S^-1)`; when `k trace(S^-1) rank_tol <= 1` no
     // eigenvalue is below `rank_tol lambda_max` and the eigen-decomposition is skipped.
+    // (`S` is read in place by the blocks' inverse: a whole matrix fewer of the views'
+    // squared size.)
     let certified: Option<DMatrix<f64>> = if good.len() == n {
         match blocks {
-            Some(b) => schur::inverse(|i, j| scaled[(i, j)], b),
-            None => spd_inverse(&scaled),
+            Some(b) => schur::inverse(scaled_at, b),
+            None => spd_inverse(&DMatrix::from_fn(n, n, scaled_at)),
         }
         .filter(|inv| {
             let tr: f64 = (0..n).map(|i| inv[(i, i)]).sum();
@@ -48,12 +48,17 @@ pub(super) fn covariance_by_blocks(
     } else {
         None
     };
-    if let Some(inv) = certified {
-        let cov = DMatrix::from_fn(n, n, |a, b| sigma2 * inv[(a, b)] / (d[a] * d[b]));
+    if let Some(mut cov) = certified {
+        for b in 0..n {
+            for a in 0..n {
+                cov[(a, b)] = sigma2 * cov[(a, b)] / (d[a] * d[b]);
+            }
+        }
         return (cov, Vec::new());
     }
+    let scaled = DMatrix::from_fn(good.len(), good.len(), scaled_at);
     if !good.is_empty() {
-        let eig = scaled.clone().symmetric_eigen();
+        let eig = scaled.symmetric_eigen();
         let emax = eig.eigenvalues.iter().cloned().fold(0.0f64, f64::max);
         for (k, &ev) in eig.eigenvalues.iter().enumerate() {
             if ev <= rank_tol * emax {
