@@ -114,16 +114,18 @@ pub fn one_step_folds(
     Ok(Some(folds))
 }
 
-/// The pull below which a fold's one step stands without a second one
-/// ([`CertifiedFold::pull`], in the weighted sum of squares' units: the full solution's
-/// variance components make it a chi-square). Measured with every fold's second step
-/// computed: the second step moved a view's held-out figures by at most 1.0e-3 (relative)
-/// per unit of pull on rosi_10x10, etna_calib3 and etna_calib4 (about 1e-7 on the
-/// twins), so a fold pulled by at most 1 moves its figures by about a tenth of the
-/// certificate's 1 % (`crate::pipeline`'s leave-one-out). On the twins every pull is
-/// below 1.5 (about the 21 global columns over the views), on the real sets most are
-/// 2-270: the second steps, the leave-one-out's quadratic part, are spent where the
-/// one step may be off.
+/// The pull below which a fold's one step stands without a second one. A view's pull on
+/// the others' solution is the one step's decrease of their weighted sum of squares,
+/// `s_k'^T (M - M_k)^-1 s_k'` with `s_k' = s - s_k` (module docs), the first step's
+/// Newton decrement; the full solution's variance components make it a chi-square. The
+/// second step's change is of second order in the first step, so it grows with the
+/// pull. Measured with every fold's second step computed: the second step moved a
+/// view's held-out figures by at most 1.0e-3 (relative) per unit of pull on rosi_10x10,
+/// etna_calib3 and etna_calib4 (about 1e-7 on the twins), so a fold pulled by at most 1
+/// moves its figures by about a tenth of the certificate's 1 % (`crate::pipeline`'s
+/// leave-one-out). On the twins every pull is below 1.5 (about the 21 global columns
+/// over the views), on the real sets most are 2-270: the second steps, the
+/// leave-one-out's quadratic part, are spent where the one step may be off.
 pub const SMALL_PULL: f64 = 1.0;
 
 /// A fold (the calibration without one view) by the certified steps
@@ -135,11 +137,6 @@ pub struct CertifiedFold {
     /// After a second step relinearised where the first ended; `None` where the view's
     /// pull is at most [`SMALL_PULL`] (the one step stands).
     pub two: Option<FoldSolution>,
-    /// How hard the view pulls the others' solution: the one step's decrease of the
-    /// other views' weighted sum of squares, `s_k' (M - M_k)^-1 s_k'` with `s_k' = s -
-    /// s_k` (module docs), the first step's Newton decrement. The second step's change is
-    /// of second order in the first step, so it grows with the pull.
-    pub pull: f64,
 }
 
 /// Each fold after one Gauss-Newton step ([`one_step_folds`]' solution) and, where the
@@ -210,7 +207,6 @@ pub fn two_step_folds(
             folds.push(CertifiedFold {
                 one: fold_solution(&at.layout, &at.start, full.free, &q1)?,
                 two: None,
-                pull,
             });
             continue;
         }
@@ -247,7 +243,6 @@ pub fn two_step_folds(
         folds.push(CertifiedFold {
             one: fold_solution(&at.layout, &at.start, full.free, &q1)?,
             two: Some(fold_solution(&at.layout, &at.start, full.free, &q2)?),
-            pull,
         });
     }
     Ok(Some(folds))

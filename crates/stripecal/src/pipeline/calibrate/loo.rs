@@ -35,8 +35,9 @@
 //! [`crate::calib::joint::SMALL_PULL`] keeps its one step: the second step's change
 //! grows with the pull, and at that pull it was a tenth of [`CERTIFY_TOL`] or less on
 //! every real set. This keeps the leave-one-out linear in the views where the model fits
-//! its data (a twin's pulls are all below 1.5, none above 1 at 60 views). Against the refits for every view
-//! (BENCHMARKS.md, issue 41 items 1 and 5): worst single figure 2.3 % on rosi_10x10
+//! its data (a twin's pulls are all below 1.5, none above 1 at 60 views). Against the
+//! refits for every view (BENCHMARKS.md, issue 41 items 1, 5 and "Issue 41 item 5
+//! met"): worst single figure 2.3 % on rosi_10x10
 //! (no view refitted of 15), 0.9 % on etna_calib3 (3 of 16 refitted), 0.5 % on
 //! etna_calib4 (7 of 9), 0.03 % on visp_franka (0 of 8). Where the steps do not apply (a
 //! robot calibration, Huber weights) every view is refitted.
@@ -184,8 +185,9 @@ fn leave_one_out_counted(
         FoldMethod::Refit => (scored_refits(used, board, full, jopts, &all)?, all, vec![]),
         FoldMethod::Certified => match two_step_folds(used, board, full, jopts)? {
             Some(folds) => {
-                let one_step = (0..folds.len()).filter(|&k| folds[k].two.is_none());
-                let one_step = one_step.collect();
+                let one_step = (0..folds.len())
+                    .filter(|&k| folds[k].two.is_none())
+                    .collect();
                 let (scored, failed) = scored_certified(used, board, full, &folds, jopts)?;
                 (scored, failed, one_step)
             }
