@@ -65,8 +65,7 @@ fn cases(which: &str) -> Vec<Case> {
         out.push(("twin".into(), vec![("view0".into(), img)], b));
     }
     if want("visp") {
-        let dir =
-            Path::new(env!("CARGO_MANIFEST_DIR")).join("../../../shared/realdata/visp_franka");
+        let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../shared/realdata/visp_franka");
         if dir.is_dir() {
             let board = read_rig(dir.join("rig.json")).unwrap().board;
             let mut imgs = Vec::new();
