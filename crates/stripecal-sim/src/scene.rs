@@ -162,6 +162,9 @@ pub struct Hit {
     pub laser: f64,
 }
 
+/// A flat-plate hit: the point `s * dir` and its board coordinates (x, y).
+type PlateXy = (Vector3<f64>, f64, f64);
+
 /// What a ray that hits nothing sees.
 const MISS: Hit = Hit {
     material: SURF_NONE,
@@ -307,7 +310,16 @@ impl ImageScene {
     /// `SURF_PLATE` (plate, printed features not distinguished), `SURF_TABLE` or `SURF_SPHERE`.
     #[inline]
     pub fn first_hit(&self, dir: &Vector3<f64>) -> Option<(u32, f64)> {
+        self.first_hit_xy(dir).map(|(surface, s, _)| (surface, s))
+    }
+
+    /// [`Self::first_hit`], with the point and its board coordinates when the ray hits
+    /// the flat plate (`Some` only for `SURF_PLATE` without a bow): the very values
+    /// [`Self::shade_at`] would compute again.
+    #[inline(always)]
+    fn first_hit_xy(&self, dir: &Vector3<f64>) -> Option<(u32, f64, Option<PlateXy>)> {
         let mut best: Option<(u32, f64)> = None;
+        let mut plate: Option<PlateXy> = None;
         let den = self.plate_n.dot(dir);
         if self.table && den > 1e-12 {
             let s = self.plate_d / den;
@@ -319,6 +331,7 @@ impl ImageScene {
                     let (x, y) = self.board_xy(&p);
                     if self.on_plate(x, y) {
                         best = Some((SURF_PLATE, s));
+                        plate = Some((p, x, y));
                     }
                 }
                 if best.is_none() {
@@ -329,9 +342,13 @@ impl ImageScene {
                 }
             }
         }
+        let a = if self.spheres.is_empty() {
+            0.0
+        } else {
+            dir.norm_squared()
+        };
         for &(c, r) in &self.spheres {
             // |s dir - c|^2 = r^2
-            let a = dir.norm_squared();
             let b = dir.dot(&c);
             let cc = c.norm_squared() - r * r;
             let disc = b * b - a * cc;
@@ -354,7 +371,7 @@ impl ImageScene {
                 }
             }
         }
-        best
+        best.map(|(surface, s)| (surface, s, plate.filter(|_| surface == SURF_PLATE)))
     }
 
     /// Outward (towards the camera side) unit normal of a surface at point p.
@@ -381,9 +398,22 @@ impl ImageScene {
     /// sphere in between.
     #[inline]
     pub fn lit(&self, surface: u32, p: &Vector3<f64>) -> bool {
+        let to_e = self.laser.emitter - p;
+        self.lit_with(surface, p, &self.normal_at(surface, p), &to_e)
+    }
+
+    /// [`Self::lit`] given the normal at p and `emitter - p`.
+    #[inline]
+    fn lit_with(
+        &self,
+        surface: u32,
+        p: &Vector3<f64>,
+        normal: &Vector3<f64>,
+        to_e: &Vector3<f64>,
+    ) -> bool {
         let e = self.laser.emitter;
-        let to_e = e - p;
-        if self.normal_at(surface, p).dot(&to_e) <= 0.0 {
+        let to_e = *to_e;
+        if normal.dot(&to_e) <= 0.0 {
             return false;
         }
         if surface == SURF_FREE_PLATE && self.table && self.plate_blocks(p, &e) {
@@ -433,17 +463,34 @@ impl ImageScene {
     #[inline]
     pub fn laser_radiance(&self, surface: u32, p: &Vector3<f64>, refl: f64) -> f64 {
         let l = &self.laser;
-        let dist = l.plane.signed_distance(p);
-        let z = dist / l.sigma_mm;
-        if z.abs() > 7.0 || l.peak == 0.0 {
+        if l.peak == 0.0 {
             return 0.0;
         }
-        if !self.lit(surface, p) {
+        let dist = l.plane.signed_distance(p);
+        // |dist| > 7.5 sigma (sigma > 0) implies |dist / sigma| > 7, rounding included:
+        // no division for the points far from the sheet
+        if dist.abs() > 7.5 * l.sigma_mm && l.sigma_mm > 0.0 {
+            return 0.0;
+        }
+        self.laser_radiance_near(surface, p, refl, dist)
+    }
+
+    /// [`Self::laser_radiance`] of a point at `dist` from the laser plane (the part
+    /// left out of line: most points are far from the sheet or the laser is off).
+    #[inline(never)]
+    fn laser_radiance_near(&self, surface: u32, p: &Vector3<f64>, refl: f64, dist: f64) -> f64 {
+        let l = &self.laser;
+        let z = dist / l.sigma_mm;
+        if z.abs() > 7.0 {
             return 0.0;
         }
         let to_e = l.emitter - p;
+        let normal = self.normal_at(surface, p);
+        if !self.lit_with(surface, p, &normal, &to_e) {
+            return 0.0;
+        }
         let r = to_e.norm();
-        let cos_inc = self.normal_at(surface, p).dot(&to_e) / r;
+        let cos_inc = normal.dot(&to_e) / r;
         l.peak * refl * cos_inc * (LASER_REF_DISTANCE_MM / r) * (-0.5 * z * z).exp()
     }
 
@@ -586,8 +633,8 @@ impl ImageScene {
     /// Shades one ray.
     #[inline]
     pub fn shade(&self, dir: &Vector3<f64>) -> Hit {
-        match self.first_hit(dir) {
-            Some((surface, s)) => self.shade_at(dir, surface, s),
+        match self.first_hit_xy(dir) {
+            Some((surface, s, plate)) => self.shade_at_xy(dir, surface, s, plate),
             None => MISS,
         }
     }
@@ -595,10 +642,20 @@ impl ImageScene {
     /// Shades the ray `dir` whose first hit ([`Self::first_hit`]) is `surface` at `s`.
     #[inline]
     fn shade_at(&self, dir: &Vector3<f64>, surface: u32, s: f64) -> Hit {
-        let p = dir * s;
+        self.shade_at_xy(dir, surface, s, None)
+    }
+
+    /// [`Self::shade_at`], with the point `dir * s` and its board coordinates when known
+    /// ([`Self::first_hit_xy`]).
+    #[inline(always)]
+    fn shade_at_xy(&self, dir: &Vector3<f64>, surface: u32, s: f64, plate: Option<PlateXy>) -> Hit {
+        let (p, xy) = match plate {
+            Some((p, x, y)) => (p, Some((x, y))),
+            None => (dir * s, None),
+        };
         let (material, refl) = match surface {
             SURF_PLATE => {
-                let (x, y) = self.board_xy(&p);
+                let (x, y) = xy.unwrap_or_else(|| self.board_xy(&p));
                 match self.board.ink_at(x, y) {
                     Some(id) => (SURF_INK0 + id as u32, self.refl[1]),
                     None => (SURF_PLATE, self.refl[0]),

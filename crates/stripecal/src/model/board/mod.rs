@@ -355,40 +355,44 @@ impl Board {
         if self.kind == BoardKind::Chessboard {
             return None;
         }
-        let (r, c) = self.nearest_point(x, y)?;
-        let p = self.center(r, c);
-        let (dx, dy) = (x - p.x, y - p.y);
+        let ((i, j), (r, c)) = self.nearest_point(x, y)?;
+        // the centre of point (r, c): lattice (i, j) times the unit (as `center`)
+        let u = self.lattice_unit_mm();
+        let (dx, dy) = (x - i as f64 * u, y - j as f64 * u);
         let rad = 0.5 * self.diameter(r, c);
         (dx * dx + dy * dy <= rad * rad).then_some((r, c))
     }
 
     /// The grid point nearest to board point `(x, y)` among the lattice sites next to
-    /// it (circle kinds), or `None` outside the grid.
-    fn nearest_point(&self, x: f64, y: f64) -> Option<(usize, usize)> {
+    /// it (circle kinds), or `None` outside the grid: its lattice coordinates and
+    /// `(row, col)`, `((i, j), (row, col))`.
+    #[inline]
+    fn nearest_point(&self, x: f64, y: f64) -> Option<Site> {
         let u = self.lattice_unit_mm();
         let (fi, fj) = (x / u, y / u);
         match self.kind {
             BoardKind::AsymmetricCircles => {
                 // Sites have i + j even: the nearest is among the four around (fi, fj).
-                let (i0, j0) = (fi.floor() as i64, fj.floor() as i64);
-                let mut best: Option<(f64, (usize, usize))> = None;
+                let (i0, j0) = (floor_i64(fi), floor_i64(fj));
+                let mut best: Option<(f64, Site)> = None;
                 for (di, dj) in [(0, 0), (1, 0), (0, 1), (1, 1)] {
                     let (i, j) = (i0.saturating_add(di), j0.saturating_add(dj));
                     if let Some(rc) = self.from_lattice(i, j) {
                         let d = (i as f64 - fi).powi(2) + (j as f64 - fj).powi(2);
                         if best.is_none_or(|(bd, _)| d < bd) {
-                            best = Some((d, rc));
+                            best = Some((d, ((i, j), rc)));
                         }
                     }
                 }
-                best.map(|(_, rc)| rc)
+                best.map(|(_, site)| site)
             }
             _ => {
-                let (i, j) = (fi.round(), fj.round());
-                if !(i >= 0.0 && j >= 0.0) {
+                // `round(f) >= 0` exactly when `f > -0.5` (false for NaN)
+                if !(fi > -0.5 && fj > -0.5) {
                     return None;
                 }
-                self.from_lattice(i as i64, j as i64)
+                let (i, j) = (round_i64(fi), round_i64(fj));
+                self.from_lattice(i, j).map(|rc| ((i, j), rc))
             }
         }
     }
@@ -412,11 +416,12 @@ impl Board {
         match self.kind {
             BoardKind::Chessboard => {
                 let s = self.pitch_mm;
-                let (i, j) = ((x / s).floor(), (y / s).floor());
-                if !(i.is_finite() && j.is_finite()) {
+                let (fx, fy) = (x / s, y / s);
+                // floor keeps (non-)finiteness
+                if !(fx.is_finite() && fy.is_finite()) {
                     return None;
                 }
-                let (i, j) = (i as i64, j as i64);
+                let (i, j) = (floor_i64(fx), floor_i64(fy));
                 self.square_is_dark(i, j)
                     .then(|| ((j + 1) * (self.cols as i64 + 1) + i + 1) as usize)
             }
@@ -494,6 +499,39 @@ impl Board {
                 [-r, x1 + r, -r, last.y + r]
             }
         }
+    }
+}
+
+/// A lattice site with its point: `((i, j), (row, col))`.
+type Site = ((i64, i64), (usize, usize));
+
+/// `x.floor() as i64` (saturating, NaN gives 0) without a library call (the baseline
+/// x86-64 target has no rounding instruction): truncation, one less for a negative
+/// non-integer.
+#[inline]
+fn floor_i64(x: f64) -> i64 {
+    let t = x as i64;
+    // `t as f64` is exact: `t` is the truncation of `x` or saturated (then the
+    // comparison keeps it saturated)
+    if t as f64 > x {
+        t.saturating_sub(1)
+    } else {
+        t
+    }
+}
+
+/// `x.round() as i64` (half away from zero, saturating, NaN gives 0) without a library
+/// call: truncation corrected by the exact fractional part `x - trunc(x)`.
+#[inline]
+fn round_i64(x: f64) -> i64 {
+    let t = x as i64;
+    let f = x - t as f64;
+    if f >= 0.5 {
+        t.saturating_add(1)
+    } else if f <= -0.5 {
+        t.saturating_sub(1)
+    } else {
+        t
     }
 }
 
