@@ -9,6 +9,7 @@
 //! Run: `cargo run --release -p stripecal-benches --example chess_prof -- MODE [ARG]`:
 //! - `time [SECONDS]` (default 2): best and median CPU ms per image, per case;
 //! - `loop CASE SECONDS`: detections of one case (`twin`, `visp`, `big`) for `perf`;
+//! - `reps CASE N`: N detections of each image of one case (`perf stat` counts);
 //! - `dump FILE`: every detected corner (case, image, row, col, u, v, quality) to FILE;
 //! - `diff FILE_A FILE_B`: the largest and RMS position difference of two dumps;
 //! - `png DIR`: writes the twin images as `DIR/twin_7x10.png`, `DIR/big_28x17.png`;
@@ -131,6 +132,17 @@ fn main() {
             let cs = cases(&args[1]);
             let t0 = cpu_ns();
             while ((cpu_ns() - t0) as f64) < secs * 1e9 {
+                for (_, imgs, board) in &cs {
+                    for (_, img) in imgs {
+                        black_box(detect_chessboard(img.view().unwrap(), board, &opts).ok());
+                    }
+                }
+            }
+        }
+        "reps" => {
+            let n: usize = args.get(2).map(|s| s.parse().unwrap()).unwrap_or(100);
+            let cs = cases(&args[1]);
+            for _ in 0..n {
                 for (_, imgs, board) in &cs {
                     for (_, img) in imgs {
                         black_box(detect_chessboard(img.view().unwrap(), board, &opts).ok());

@@ -1,5 +1,9 @@
 //! The blurred X-junction model of [`super::refine`] (see there): its value and
 //! gradient, the window of pixels it is fitted to, and the normal equations.
+//!
+//! The passes over a window run on lanes of [`L`] pixels: loops over a lane index
+//! that the compiler turns into SIMD instructions (hence the index loops).
+#![allow(clippy::needless_range_loop)]
 
 use std::collections::HashSet;
 
@@ -205,8 +209,9 @@ impl Model {
         )
     }
 
-    /// Model value and its gradient with respect to the 11 parameters.
-    #[inline(always)]
+    /// Model value and its gradient with respect to the 11 parameters (one pixel: the
+    /// reference of [`Model::eval_lanes`], which the passes use).
+    #[cfg(test)]
     pub fn eval(&self, dx: f64, dy: f64) -> (f64, Vec11) {
         let (th, k, inv_r) = (&self.th, self.k, self.inv_r);
         let (s1a, c1a, s2a, c2a) = (self.s1a, self.c1a, self.s2a, self.c2a);
@@ -239,71 +244,222 @@ impl Model {
     }
 }
 
-/// Running sums of the normal equations.
+/// Pixels per step of the passes below: the model's gradient and the sums run on lanes
+/// of this many pixels (arrays the compiler maps to SIMD registers), the table look-ups
+/// lane by lane.
+const L: usize = 8;
+type Lane = [f64; L];
+
+impl Model {
+    /// [`Model::eval`] of `L` pixels: the values and the 11 gradients, lane by lane.
+    #[inline(always)]
+    fn eval_lanes(&self, dx: &Lane, dy: &Lane) -> (Lane, [Lane; NP]) {
+        let (th, k, inv_r) = (&self.th, self.k, self.inv_r);
+        let (s1a, c1a, s2a, c2a) = (self.s1a, self.c1a, self.s2a, self.c2a);
+        let mut s1 = [0.0; L];
+        let mut s2 = [0.0; L];
+        for l in 0..L {
+            s1[l] = -s1a * dx[l] + c1a * dy[l];
+            s2[l] = -s2a * dx[l] + c2a * dy[l];
+        }
+        let (mut e1, mut g1, mut e2, mut g2) = ([0.0; L], [0.0; L], [0.0; L], [0.0; L]);
+        for l in 0..L {
+            (e1[l], g1[l]) = self.tab.erf_exp(k * s1[l]);
+            (e2[l], g2[l]) = self.tab.erf_exp(k * s2[l]);
+        }
+        let mut f = [0.0; L];
+        let mut j = [[0.0; L]; NP];
+        for l in 0..L {
+            let (g1, g2) = (TWO_OVER_SQRT_PI * g1[l], TWO_OVER_SQRT_PI * g2[l]);
+            let m = e1[l] * e2[l];
+            let (ux, uy) = (dx[l] * inv_r, dy[l] * inv_r);
+            f[l] = th[5] + th[6] * m + (th[7] + th[8] * m) * ux + (th[9] + th[10] * m) * uy;
+            let a = th[6] + th[8] * ux + th[10] * uy;
+            let dm_ds1 = k * g1 * e2[l];
+            let dm_ds2 = k * g2 * e1[l];
+            j[0][l] = a * (dm_ds1 * s1a + dm_ds2 * s2a) - (th[7] + th[8] * m) * inv_r;
+            j[1][l] = a * (-dm_ds1 * c1a - dm_ds2 * c2a) - (th[9] + th[10] * m) * inv_r;
+            j[2][l] = a * dm_ds1 * -(c1a * dx[l] + s1a * dy[l]);
+            j[3][l] = a * dm_ds2 * -(c2a * dx[l] + s2a * dy[l]);
+            j[4][l] = -a * (s1[l] * dm_ds1 + s2[l] * dm_ds2);
+            j[5][l] = 1.0;
+            j[6][l] = m;
+            j[7][l] = ux;
+            j[8][l] = m * ux;
+            j[9][l] = uy;
+            j[10][l] = m * uy;
+        }
+        (f, j)
+    }
+}
+
+impl Model {
+    /// [`Model::value`] of `L` pixels (the values only).
+    #[inline(always)]
+    fn value_lanes(&self, dx: &Lane, dy: &Lane) -> Lane {
+        let (th, k, inv_r) = (&self.th, self.k, self.inv_r);
+        let mut s1 = [0.0; L];
+        let mut s2 = [0.0; L];
+        for l in 0..L {
+            s1[l] = k * (-self.s1a * dx[l] + self.c1a * dy[l]);
+            s2[l] = k * (-self.s2a * dx[l] + self.c2a * dy[l]);
+        }
+        let mut m = [0.0; L];
+        for l in 0..L {
+            m[l] = self.tab.erf_exp(s1[l]).0 * self.tab.erf_exp(s2[l]).0;
+        }
+        let mut f = [0.0; L];
+        for l in 0..L {
+            let (ux, uy) = (dx[l] * inv_r, dy[l] * inv_r);
+            f[l] =
+                th[5] + th[6] * m[l] + (th[7] + th[8] * m[l]) * ux + (th[9] + th[10] * m[l]) * uy;
+        }
+        f
+    }
+}
+
+/// The window's pixels `L` at a time (offsets shifted by `-shift`, values, weights),
+/// the last step padded with pixels of weight 0 (they add nothing to any sum).
+fn lanes(px: &[[f64; 4]], shift: [f64; 2]) -> impl Iterator<Item = [Lane; 4]> + '_ {
+    px.chunks(L).map(move |c| {
+        let mut q = [[0.0; L]; 4];
+        for (l, p) in c.iter().enumerate() {
+            q[0][l] = p[0] - shift[0];
+            q[1][l] = p[1] - shift[1];
+            q[2][l] = p[2];
+            q[3][l] = p[3];
+        }
+        q
+    })
+}
+
+/// Half a lane: the running sums keep four partial sums each (one register of AVX2, two
+/// of SSE2), added up at the end.
+type Half = [f64; L / 2];
+
+/// The two halves of a lane added.
+#[inline(always)]
+fn halves(p: &Lane) -> Half {
+    let mut h = [0.0; L / 2];
+    for l in 0..L / 2 {
+        h[l] = p[l] + p[l + L / 2];
+    }
+    h
+}
+
+/// Running sums of the normal equations, each as four partial sums.
 struct Sums {
     /// Upper triangle of `J^T W J`, row by row.
-    tri: [f64; NP * (NP + 1) / 2],
-    b: Vec11,
-    cost: f64,
-    wsum: f64,
+    tri: [Half; NP * (NP + 1) / 2],
+    b: [Half; NP],
+    cost: Half,
+    wsum: Half,
 }
 
 impl Sums {
     fn new() -> Sums {
         Sums {
-            tri: [0.0; NP * (NP + 1) / 2],
-            b: Vec11::zeros(),
-            cost: 0.0,
-            wsum: 0.0,
+            tri: [[0.0; L / 2]; NP * (NP + 1) / 2],
+            b: [[0.0; L / 2]; NP],
+            cost: [0.0; L / 2],
+            wsum: [0.0; L / 2],
         }
     }
 
-    /// One pixel of weight `w`, residual `r`, model gradient `j`.
+    /// `L` pixels of weights `w`, residuals `r`, model gradients `j`.
     #[inline(always)]
-    fn add(&mut self, w: f64, r: f64, j: &Vec11) {
-        let mut k = 0;
+    fn add(&mut self, w: &Lane, r: &Lane, j: &[Lane; NP]) {
+        let acc = |s: &mut Half, p: &Lane| {
+            let h = halves(p);
+            for l in 0..L / 2 {
+                s[l] += h[l];
+            }
+        };
+        let mut wj = [[0.0; L]; NP];
         for a in 0..NP {
-            let wa = w * j[a];
-            for c in a..NP {
-                self.tri[k] += wa * j[c];
-                k += 1;
+            for l in 0..L {
+                wj[a][l] = w[l] * j[a][l];
             }
         }
-        self.b.axpy(w * r, j, 1.0);
-        self.cost += w * r * r;
-        self.wsum += w;
+        let mut k = 0;
+        for a in 0..NP {
+            for c in a..NP {
+                let mut p = [0.0; L];
+                for l in 0..L {
+                    p[l] = wj[a][l] * j[c][l];
+                }
+                acc(&mut self.tri[k], &p);
+                k += 1;
+            }
+            let mut p = [0.0; L];
+            for l in 0..L {
+                p[l] = wj[a][l] * r[l];
+            }
+            acc(&mut self.b[a], &p);
+        }
+        let (mut pc, mut pw) = ([0.0; L], [0.0; L]);
+        for l in 0..L {
+            pc[l] = w[l] * r[l] * r[l];
+            pw[l] = w[l];
+        }
+        acc(&mut self.cost, &pc);
+        acc(&mut self.wsum, &pw);
     }
 
     fn finish(self) -> (Mat, Vec11, f64, f64) {
+        let sum = |h: &Half| (h[0] + h[2]) + (h[1] + h[3]);
         let mut h = Mat::zeros();
         let mut k = 0;
         for a in 0..NP {
             for c in a..NP {
-                h[(a, c)] = self.tri[k];
-                h[(c, a)] = self.tri[k];
+                let t = sum(&self.tri[k]);
+                h[(a, c)] = t;
+                h[(c, a)] = t;
                 k += 1;
             }
         }
-        (h, self.b, self.cost, self.wsum)
+        let b = Vec11::from_fn(|a, _| sum(&self.b[a]));
+        (h, b, sum(&self.cost), sum(&self.wsum))
     }
 }
 
 /// Normal equations of the window: `(J^T W J, J^T W r, cost, weight sum)`.
 pub(crate) fn normal(th: &Vec11, px: &[[f64; 4]], inv_r: f64) -> (Mat, Vec11, f64, f64) {
+    #[cfg(target_arch = "x86_64")]
+    if std::arch::is_x86_feature_detected!("avx2") {
+        // SAFETY: the CPU has AVX2 (detected just above)
+        return unsafe { normal_avx2(th, px, inv_r) };
+    }
+    normal_lanes(th, px, inv_r)
+}
+
+/// [`normal_lanes`] compiled for AVX2 (four `f64` lanes per register instead of two;
+/// no fused multiply-adds, so the results are the same bit for bit).
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+unsafe fn normal_avx2(th: &Vec11, px: &[[f64; 4]], inv_r: f64) -> (Mat, Vec11, f64, f64) {
+    normal_lanes(th, px, inv_r)
+}
+
+/// [`normal`] on any CPU.
+#[inline(always)]
+fn normal_lanes(th: &Vec11, px: &[[f64; 4]], inv_r: f64) -> (Mat, Vec11, f64, f64) {
     let mut s = Sums::new();
     let md = Model::new(th, inv_r);
-    for q in px {
-        let (f, j) = md.eval(q[0], q[1]);
-        s.add(q[3], q[2] - f, &j);
+    for [dx, dy, v, w] in lanes(px, [0.0, 0.0]) {
+        let (f, j) = md.eval_lanes(&dx, &dy);
+        let mut r = [0.0; L];
+        for l in 0..L {
+            r[l] = v[l] - f[l];
+        }
+        s.add(&w, &r, &j);
     }
     s.finish()
 }
 
-/// A Levenberg-Marquardt trial in one pass: [`normal`] of `th` over `new` (the window
-/// centred on `th`'s centre) and the cost of `th` over `old` (the window of the
-/// previous estimate, centred on `c_old`, every offset shifted by `c - c_old`), the
-/// trial's test. Both windows are row-major; a pixel in both is
-/// evaluated once.
+/// A Levenberg-Marquardt trial: [`normal`] of `th` over `new` (the window centred on
+/// `th`'s centre) and the cost of `th` over `old` (the window of the previous estimate,
+/// centred on `c_old`, every offset shifted by `c - c_old`), the trial's test.
 pub(crate) fn normal_trial(
     th: &Vec11,
     old: &[[f64; 4]],
@@ -311,39 +467,8 @@ pub(crate) fn normal_trial(
     new: &[[f64; 4]],
     inv_r: f64,
 ) -> ((Mat, Vec11, f64, f64), f64) {
-    let md = Model::new(th, inv_r);
-    let c = [th[0], th[1]];
-    let shift = [c[0] - c_old[0], c[1] - c_old[1]];
-    // (row, column) of a window pixel (coordinates are not negative: truncation
-    // rounds, without a call to `round`)
-    let key = |q: &[f64; 4], c: [f64; 2]| ((q[1] + c[1] + 0.5) as i64, (q[0] + c[0] + 0.5) as i64);
-    let (mut i, mut k) = (0, 0);
-    let mut trial = 0.0;
-    let mut s = Sums::new();
-    loop {
-        match (old.get(i), new.get(k)) {
-            (None, None) => break,
-            (Some(qo), Some(qn)) if key(qo, c_old) == key(qn, c) => {
-                let (f, j) = md.eval(qn[0], qn[1]);
-                trial += qo[3] * (qo[2] - f).powi(2);
-                s.add(qn[3], qn[2] - f, &j);
-                i += 1;
-                k += 1;
-            }
-            (Some(qo), qn) if qn.is_none_or(|qn| key(qo, c_old) < key(qn, c)) => {
-                let (f, _) = md.value(qo[0] - shift[0], qo[1] - shift[1]);
-                trial += qo[3] * (qo[2] - f).powi(2);
-                i += 1;
-            }
-            (_, Some(qn)) => {
-                let (f, j) = md.eval(qn[0], qn[1]);
-                s.add(qn[3], qn[2] - f, &j);
-                k += 1;
-            }
-            (Some(_), None) => unreachable!(),
-        }
-    }
-    (s.finish(), trial)
+    let shift = [th[0] - c_old[0], th[1] - c_old[1]];
+    (normal(th, new, inv_r), cost_of(th, old, inv_r, shift))
 }
 
 /// The linear block of [`normal`] alone (rows and columns 5..11: contrast and
@@ -387,13 +512,38 @@ pub(crate) fn normal_linear(
 /// The weighted squared residual of the window `px` for `th`, with every offset
 /// shifted by `-shift` (the window re-centred on a trial centre).
 pub(crate) fn cost_of(th: &Vec11, px: &[[f64; 4]], inv_r: f64, shift: [f64; 2]) -> f64 {
+    #[cfg(target_arch = "x86_64")]
+    if std::arch::is_x86_feature_detected!("avx2") {
+        // SAFETY: the CPU has AVX2 (detected just above)
+        return unsafe { cost_avx2(th, px, inv_r, shift) };
+    }
+    cost_lanes(th, px, inv_r, shift)
+}
+
+/// [`cost_lanes`] compiled for AVX2 (the same results bit for bit, see [`normal_avx2`]).
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+unsafe fn cost_avx2(th: &Vec11, px: &[[f64; 4]], inv_r: f64, shift: [f64; 2]) -> f64 {
+    cost_lanes(th, px, inv_r, shift)
+}
+
+/// [`cost_of`] on any CPU.
+#[inline(always)]
+fn cost_lanes(th: &Vec11, px: &[[f64; 4]], inv_r: f64, shift: [f64; 2]) -> f64 {
     let md = Model::new(th, inv_r);
-    px.iter()
-        .map(|q| {
-            let (f, _) = md.value(q[0] - shift[0], q[1] - shift[1]);
-            q[3] * (q[2] - f).powi(2)
-        })
-        .sum()
+    let mut cost = [0.0; L / 2];
+    for [dx, dy, v, w] in lanes(px, shift) {
+        let f = md.value_lanes(&dx, &dy);
+        let mut p = [0.0; L];
+        for l in 0..L {
+            p[l] = w[l] * (v[l] - f[l]) * (v[l] - f[l]);
+        }
+        let h = halves(&p);
+        for l in 0..L / 2 {
+            cost[l] += h[l];
+        }
+    }
+    (cost[0] + cost[2]) + (cost[1] + cost[3])
 }
 
 #[cfg(test)]
@@ -434,6 +584,49 @@ mod tests {
         }
     }
 
+    /// The lane passes against plain per-pixel sums (a window of 113 pixels: the last
+    /// lane padded), and the AVX2 build of them against the portable one bit for bit.
+    #[test]
+    fn lane_passes_match_per_pixel_sums() {
+        let th =
+            Vec11::from_column_slice(&[0.2, -0.1, 0.5, 2.0, -0.3, 90.0, 70.0, 2.0, -3.0, 1.5, 0.7]);
+        let inv_r = 1.0 / 6.0;
+        let px: Vec<[f64; 4]> = (-6..=6)
+            .flat_map(|y| (-6..=6).map(move |x| (x, y)))
+            .filter(|&(x, y)| x * x + y * y <= 36)
+            .map(|(x, y)| {
+                let (dx, dy) = (x as f64 - 0.3, y as f64 + 0.2);
+                let v =
+                    100.0 + 60.0 * (0.37 * dx - 0.61 * dy).tanh() + (x * 7 + y * 3) as f64 % 5.0;
+                [dx, dy, v, if x * x + y * y > 30 { 0.5 } else { 1.0 }]
+            })
+            .collect();
+        assert_eq!(px.len() % L, 113 % L);
+        let md = Model::new(&th, inv_r);
+        let (mut h, mut b, mut cost, mut wsum) = (Mat::zeros(), Vec11::zeros(), 0.0, 0.0);
+        let mut cost_s = 0.0;
+        for q in &px {
+            let (f, j) = md.eval(q[0], q[1]);
+            let r = q[2] - f;
+            h += q[3] * j * j.transpose();
+            b += q[3] * r * j;
+            cost += q[3] * r * r;
+            wsum += q[3];
+            let fs = md.value(q[0] - 0.25, q[1] + 0.125).0;
+            cost_s += q[3] * (q[2] - fs).powi(2);
+        }
+        let (hl, bl, cl, wl) = normal(&th, &px, inv_r);
+        assert!((hl - h).norm() <= 1e-12 * h.norm() && (bl - b).norm() <= 1e-12 * b.norm());
+        assert!((cl - cost).abs() <= 1e-12 * cost && (wl - wsum).abs() <= 1e-12 * wsum);
+        let cs = cost_of(&th, &px, inv_r, [0.25, -0.125]);
+        assert!((cs - cost_s).abs() <= 1e-12 * cost_s, "{cs} {cost_s}");
+        // the dispatched build (AVX2 where the CPU has it) and the portable one agree
+        // bit for bit (no fused multiply-adds)
+        let (hp, bp, cp, wp) = normal_lanes(&th, &px, inv_r);
+        assert!(hp == hl && bp == bl && cp == cl && wp == wl);
+        assert_eq!(cost_lanes(&th, &px, inv_r, [0.25, -0.125]), cs);
+    }
+
     #[test]
     fn model_gradient_matches_finite_differences() {
         let th =
@@ -441,7 +634,15 @@ mod tests {
         let inv_r = 1.0 / 6.0;
         for &(x, y) in &[(1.2, 0.7), (-2.0, 1.5), (0.1, -0.3)] {
             let (dx, dy) = (x - th[0], y - th[1]);
-            let (_, j) = Model::new(&th, inv_r).eval(dx, dy);
+            let (f, j) = Model::new(&th, inv_r).eval(dx, dy);
+            // the lanes give the same (the point in lane 5, others elsewhere)
+            let md = Model::new(&th, inv_r);
+            let mut lx: Lane = std::array::from_fn(|l| l as f64 - 3.0);
+            let mut ly: Lane = std::array::from_fn(|l| 0.5 * l as f64 - 1.0);
+            (lx[5], ly[5]) = (dx, dy);
+            let ((fl, jl), vl) = (md.eval_lanes(&lx, &ly), md.value_lanes(&lx, &ly));
+            assert!((fl[5] - f).abs() < 1e-12 && (vl[5] - f).abs() < 1e-12);
+            assert!((0..NP).all(|k| (jl[k][5] - j[k]).abs() < 1e-12));
             for k in 0..NP {
                 let h = 1e-6;
                 let mut tp = th;
