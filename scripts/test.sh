@@ -57,11 +57,13 @@ fi
 # The Rust tests' build and run are the longer of the two (a fresh clone's run: pytest
 # done at 643 s, the Rust tests at 928 s), so pytest runs at a lower priority: it takes
 # what the Rust build leaves idle (its links, its single-crate tail) instead of half the
-# cores. At nice 10 pytest became the tail (Rust 862 s, pytest 914 s); nice 6 is between.
+# cores. At nice 10 pytest became the tail (Rust 862 s, pytest 914 s). After the twin's
+# renderer got cheaper (2026-11-30), nice 6 left the Rust tests the tail (pytest done at
+# 805 s, Rust 876 s) and nice 8 ends both together (Rust 863 s, pytest 869 s; 870 s in all).
 pylog="$(mktemp)"
 trap 'rm -f "$pylog"' EXIT
 step "pytest started in the background  (a test module per worker, one worker per core)"
-nice -n 6 "$PYTHON" -m pytest -q -n auto --dist loadfile --durations=15 > "$pylog" 2>&1 &
+nice -n 8 "$PYTHON" -m pytest -q -n auto --dist loadfile --durations=15 > "$pylog" 2>&1 &
 pytest_pid=$!
 
 step "cargo test  (stripecal, stripecal-sim: unit and integration tests)"
