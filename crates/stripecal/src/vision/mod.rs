@@ -15,3 +15,19 @@ pub mod chessboard;
 pub mod circles;
 pub mod stripe;
 pub mod target;
+
+/// Whether the CPU runs AVX2 (std detects it once and caches it). The library is built
+/// for the x86-64 baseline (SSE2); the hot passes of the stripe extractor and of the
+/// chessboard fit are compiled a second time with AVX2 enabled (32 byte lanes) and
+/// chosen here at run time.
+#[inline]
+pub(crate) fn has_avx2() -> bool {
+    #[cfg(target_arch = "x86_64")]
+    {
+        std::arch::is_x86_feature_detected!("avx2")
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    {
+        false
+    }
+}

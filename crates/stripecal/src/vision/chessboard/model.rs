@@ -291,9 +291,7 @@ impl Model {
         }
         (f, j)
     }
-}
 
-impl Model {
     /// [`Model::value`] of `L` pixels (the values only).
     #[inline(always)]
     fn value_lanes(&self, dx: &Lane, dy: &Lane) -> Lane {
@@ -337,14 +335,18 @@ fn lanes(px: &[[f64; 4]], shift: [f64; 2]) -> impl Iterator<Item = [Lane; 4]> + 
 /// of SSE2), added up at the end.
 type Half = [f64; L / 2];
 
-/// The two halves of a lane added.
+/// Adds a lane's values to the partial sums `s` (its two halves added first).
 #[inline(always)]
-fn halves(p: &Lane) -> Half {
-    let mut h = [0.0; L / 2];
+fn accumulate(s: &mut Half, p: &Lane) {
     for l in 0..L / 2 {
-        h[l] = p[l] + p[l + L / 2];
+        s[l] += p[l] + p[l + L / 2];
     }
-    h
+}
+
+/// The total of the partial sums.
+#[inline(always)]
+fn total(h: &Half) -> f64 {
+    (h[0] + h[2]) + (h[1] + h[3])
 }
 
 /// Running sums of the normal equations, each as four partial sums.
@@ -369,12 +371,6 @@ impl Sums {
     /// `L` pixels of weights `w`, residuals `r`, model gradients `j`.
     #[inline(always)]
     fn add(&mut self, w: &Lane, r: &Lane, j: &[Lane; NP]) {
-        let acc = |s: &mut Half, p: &Lane| {
-            let h = halves(p);
-            for l in 0..L / 2 {
-                s[l] += h[l];
-            }
-        };
         let mut wj = [[0.0; L]; NP];
         for a in 0..NP {
             for l in 0..L {
@@ -388,46 +384,46 @@ impl Sums {
                 for l in 0..L {
                     p[l] = wj[a][l] * j[c][l];
                 }
-                acc(&mut self.tri[k], &p);
+                accumulate(&mut self.tri[k], &p);
                 k += 1;
             }
             let mut p = [0.0; L];
             for l in 0..L {
                 p[l] = wj[a][l] * r[l];
             }
-            acc(&mut self.b[a], &p);
+            accumulate(&mut self.b[a], &p);
         }
         let (mut pc, mut pw) = ([0.0; L], [0.0; L]);
         for l in 0..L {
             pc[l] = w[l] * r[l] * r[l];
             pw[l] = w[l];
         }
-        acc(&mut self.cost, &pc);
-        acc(&mut self.wsum, &pw);
+        accumulate(&mut self.cost, &pc);
+        accumulate(&mut self.wsum, &pw);
     }
 
     fn finish(self) -> (Mat, Vec11, f64, f64) {
-        let sum = |h: &Half| (h[0] + h[2]) + (h[1] + h[3]);
         let mut h = Mat::zeros();
         let mut k = 0;
         for a in 0..NP {
             for c in a..NP {
-                let t = sum(&self.tri[k]);
+                let t = total(&self.tri[k]);
                 h[(a, c)] = t;
                 h[(c, a)] = t;
                 k += 1;
             }
         }
-        let b = Vec11::from_fn(|a, _| sum(&self.b[a]));
-        (h, b, sum(&self.cost), sum(&self.wsum))
+        let b = Vec11::from_fn(|a, _| total(&self.b[a]));
+        (h, b, total(&self.cost), total(&self.wsum))
     }
 }
 
 /// Normal equations of the window: `(J^T W J, J^T W r, cost, weight sum)`.
 pub(crate) fn normal(th: &Vec11, px: &[[f64; 4]], inv_r: f64) -> (Mat, Vec11, f64, f64) {
     #[cfg(target_arch = "x86_64")]
-    if std::arch::is_x86_feature_detected!("avx2") {
-        // SAFETY: the CPU has AVX2 (detected just above)
+    if crate::vision::has_avx2() {
+        // SAFETY: the CPU supports AVX2 (checked just above), the only requirement for
+        // calling a `#[target_feature(enable = "avx2")]` function.
         return unsafe { normal_avx2(th, px, inv_r) };
     }
     normal_lanes(th, px, inv_r)
@@ -437,7 +433,7 @@ pub(crate) fn normal(th: &Vec11, px: &[[f64; 4]], inv_r: f64) -> (Mat, Vec11, f6
 /// no fused multiply-adds, so the results are the same bit for bit).
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2")]
-unsafe fn normal_avx2(th: &Vec11, px: &[[f64; 4]], inv_r: f64) -> (Mat, Vec11, f64, f64) {
+fn normal_avx2(th: &Vec11, px: &[[f64; 4]], inv_r: f64) -> (Mat, Vec11, f64, f64) {
     normal_lanes(th, px, inv_r)
 }
 
@@ -513,8 +509,9 @@ pub(crate) fn normal_linear(
 /// shifted by `-shift` (the window re-centred on a trial centre).
 pub(crate) fn cost_of(th: &Vec11, px: &[[f64; 4]], inv_r: f64, shift: [f64; 2]) -> f64 {
     #[cfg(target_arch = "x86_64")]
-    if std::arch::is_x86_feature_detected!("avx2") {
-        // SAFETY: the CPU has AVX2 (detected just above)
+    if crate::vision::has_avx2() {
+        // SAFETY: the CPU supports AVX2 (checked just above), the only requirement for
+        // calling a `#[target_feature(enable = "avx2")]` function.
         return unsafe { cost_avx2(th, px, inv_r, shift) };
     }
     cost_lanes(th, px, inv_r, shift)
@@ -523,7 +520,7 @@ pub(crate) fn cost_of(th: &Vec11, px: &[[f64; 4]], inv_r: f64, shift: [f64; 2]) 
 /// [`cost_lanes`] compiled for AVX2 (the same results bit for bit, see [`normal_avx2`]).
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2")]
-unsafe fn cost_avx2(th: &Vec11, px: &[[f64; 4]], inv_r: f64, shift: [f64; 2]) -> f64 {
+fn cost_avx2(th: &Vec11, px: &[[f64; 4]], inv_r: f64, shift: [f64; 2]) -> f64 {
     cost_lanes(th, px, inv_r, shift)
 }
 
@@ -538,12 +535,9 @@ fn cost_lanes(th: &Vec11, px: &[[f64; 4]], inv_r: f64, shift: [f64; 2]) -> f64 {
         for l in 0..L {
             p[l] = w[l] * (v[l] - f[l]) * (v[l] - f[l]);
         }
-        let h = halves(&p);
-        for l in 0..L / 2 {
-            cost[l] += h[l];
-        }
+        accumulate(&mut cost, &p);
     }
-    (cost[0] + cost[2]) + (cost[1] + cost[3])
+    total(&cost)
 }
 
 #[cfg(test)]

@@ -43,7 +43,7 @@ pub(super) fn lanes_apply(p: &Params) -> bool {
 pub(super) fn subpixel_lanes(s: &Segments, p: &Params, out: &mut [Option<Sub>; LANES]) {
     debug_assert!(lanes_apply(p));
     #[cfg(target_arch = "x86_64")]
-    if super::ridge::has_avx2() {
+    if crate::vision::has_avx2() {
         // SAFETY: the CPU supports AVX2 (checked just above), the only requirement for
         // calling a `#[target_feature(enable = "avx2")]` function.
         unsafe { subpixel_lanes_avx2(s, p, out) };

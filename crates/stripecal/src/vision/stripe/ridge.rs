@@ -4,6 +4,7 @@
 //! of the next).
 
 use crate::model::image::{ImageView, Pixel};
+use crate::vision::has_avx2;
 
 /// Pixels of a ridge-test block: the vectorised pass tests this many pixels at once, and
 /// only a block holding a response above the threshold is looked at further.
@@ -364,21 +365,6 @@ pub(super) fn scan_columns_generic<T: RidgePixel>(
     }
     for c in cands.iter_mut() {
         c.close();
-    }
-}
-
-/// Whether the CPU runs AVX2 (std detects it once and caches it). The library is built
-/// for the x86-64 baseline (SSE2); the ridge passes are compiled a second time with AVX2
-/// enabled (32 byte lanes) and chosen here at run time.
-#[inline]
-pub(super) fn has_avx2() -> bool {
-    #[cfg(target_arch = "x86_64")]
-    {
-        std::arch::is_x86_feature_detected!("avx2")
-    }
-    #[cfg(not(target_arch = "x86_64"))]
-    {
-        false
     }
 }
 

@@ -78,7 +78,7 @@ pub(super) fn smooth_along<T: Pixel>(
     on_row: impl FnMut(usize, &[u16]),
 ) {
     #[cfg(target_arch = "x86_64")]
-    if super::ridge::has_avx2() {
+    if crate::vision::has_avx2() {
         // SAFETY: the CPU supports AVX2 (checked just above), the only requirement for
         // calling a `#[target_feature(enable = "avx2")]` function.
         unsafe { smooth_along_avx2(img, dir, n, out, acc, on_row) };

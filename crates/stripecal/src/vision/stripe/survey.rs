@@ -232,7 +232,7 @@ fn line_peak_dispatch<P: RidgePixel>(
     sat_level: f32,
 ) -> Option<Peak> {
     #[cfg(target_arch = "x86_64")]
-    if super::ridge::has_avx2() {
+    if crate::vision::has_avx2() {
         // SAFETY: the CPU supports AVX2 (checked just above), the only requirement for
         // calling a `#[target_feature(enable = "avx2")]` function.
         return unsafe { line_peak_avx2(vals, guess, min_height, limit, sat_level) };
@@ -411,7 +411,7 @@ pub(crate) fn survey<T: RidgePixel>(
     scratch: &mut SurveyScratch,
 ) -> Survey {
     #[cfg(target_arch = "x86_64")]
-    if super::ridge::has_avx2() {
+    if crate::vision::has_avx2() {
         // SAFETY: the CPU supports AVX2 (checked just above), the only requirement for
         // calling a `#[target_feature(enable = "avx2")]` function.
         return unsafe { survey_avx2(img, opts, dir, scratch) };
