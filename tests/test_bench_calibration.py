@@ -257,12 +257,17 @@ def test_a_bench_calibration_held_makes_three_robot_views_enough(
 
 
 def test_cli_and_report_on_the_bench(
-    bench_cal: sc.Calibration, twin: Tuple[Path, Path, Dict], tmp_path: Path
+    bench_cal: sc.Calibration, twin: Tuple[Path, Path, Dict], tmp_path: Path,
+    capsys: pytest.CaptureFixture[str],
 ) -> None:
     from stripecal import cli, report
 
     out = tmp_path / "cal.json"
     assert cli.main(["calibrate", str(twin[1]), "-o", str(out)]) == 0
+    # the leave-one-out table says how a bench view is predicted (no robot pose)
+    printed = capsys.readouterr().out
+    assert "leave-one-view-out (each view's board pose from its own target points" in printed
+    assert "from its robot pose" not in printed
     doc = json.loads(out.read_text())
     assert "hand_cam" not in doc and doc["laser_plane"] is not None
     scan = tmp_path / "fixed"

@@ -439,13 +439,17 @@ def print_checks(checks: Sequence[QualityCheck], accepted_poor: bool) -> None:
 
 
 def print_leave_one_out(cal: stripecal.Calibration) -> None:
-    """Prints the leave-one-view-out table: each view predicted from its robot pose by the
-    calibration solved without it."""
+    """Prints the leave-one-view-out table: each view predicted by the calibration solved
+    without it, from its robot pose (on the bench: from its own target points' board pose)."""
     loo = cal.leave_one_out
     if loo is None:
         return
-    print("\n  leave-one-view-out (each view predicted from its robot pose by the calibration"
-          " without it)")
+    if cal.mount == "bench":
+        print("\n  leave-one-view-out (each view's board pose from its own target points with the camera,"
+              " and its stripe against that plane with the laser plane, of the calibration without it)")
+    else:
+        print("\n  leave-one-view-out (each view predicted from its robot pose by the calibration"
+              " without it)")
     print("  view  points  board RMS px  board RMS mm  stripe RMS mm")
     for v in loo["views"]:
         s = v["stripe_rms_mm"]
