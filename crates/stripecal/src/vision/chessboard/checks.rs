@@ -3,7 +3,7 @@
 
 use super::image::Gray;
 use super::lattice::{norm, Local};
-use super::model::{Model, Vec11};
+use super::model::{values, Model, Vec11};
 use super::refine::{Fail, Settings};
 
 /// Angle difference modulo pi, in [0, pi/2].
@@ -69,16 +69,16 @@ pub(crate) fn worst_sector(th: &Vec11, px: &[[f64; 4]], r: f64) -> f64 {
     let (s1a, c1a) = th[2].sin_cos();
     let (s2a, c2a) = th[3].sin_cos();
     let away = (2.0 * th[4].exp() + 0.5).min(0.4 * r);
-    let md = Model::new(th, 1.0 / r);
+    let mut fm = Vec::with_capacity(px.len() + 8);
+    values(th, px, 1.0 / r, &mut fm);
     let mut acc = [[0f64; 2]; 4];
-    for q in px {
+    for (q, &[f, _]) in px.iter().zip(&fm) {
         let s1 = -s1a * q[0] + c1a * q[1];
         let s2 = -s2a * q[0] + c2a * q[1];
         if s1.abs() < away || s2.abs() < away {
             continue;
         }
         let k = (s1 > 0.0) as usize * 2 + (s2 > 0.0) as usize;
-        let (f, _) = md.value(q[0], q[1]);
         acc[k][0] += q[3] * (q[2] - f);
         acc[k][1] += q[3];
     }

@@ -6,15 +6,20 @@ use std::collections::HashSet;
 
 use super::image::Gray;
 use super::lattice::{cross, norm, Local};
-use super::model::{window, Model, Vec11};
+use super::model::{values, window, Vec11};
 
 /// The image pixels of the window samples `px` (offsets `[dx, dy, value, ..]` from `c`)
 /// that pass `keep`.
 fn pixels_where(px: &[[f64; 4]], c: [f64; 2], keep: impl Fn(&[f64; 4]) -> bool) -> Vec<(i32, i32)> {
     px.iter()
         .filter(|q| keep(q))
-        .map(|q| ((q[0] + c[0]).round() as i32, (q[1] + c[1]).round() as i32))
+        .map(|q| pixel_of(q, c))
         .collect()
+}
+
+/// The image pixel of window sample `q` (offsets from `c`).
+fn pixel_of(q: &[f64; 4], c: [f64; 2]) -> (i32, i32) {
+    ((q[0] + c[0]).round() as i32, (q[1] + c[1]).round() as i32)
 }
 
 /// The image pixels of the window of radius `r` around `c` whose samples pass `keep`.
@@ -93,8 +98,15 @@ pub(crate) fn residual_stripe(
     noise: f64,
 ) -> HashSet<(i32, i32)> {
     let thr = (1.5 * th[6].abs()).max(8.0 * noise);
-    let md = Model::new(th, 1.0 / r);
-    let bright = pixels_where(px, [th[0], th[1]], |q| q[2] - md.value(q[0], q[1]).0 > thr);
+    let mut fm = Vec::with_capacity(px.len() + 8);
+    values(th, px, 1.0 / r, &mut fm);
+    let c = [th[0], th[1]];
+    let bright = px
+        .iter()
+        .zip(&fm)
+        .filter(|(q, v)| q[2] - v[0] > thr)
+        .map(|(q, _)| pixel_of(q, c))
+        .collect();
     stripe_of(bright, r)
 }
 
