@@ -201,9 +201,9 @@ impl Model {
     }
 }
 
-/// Pixels per step of the passes below: the model's gradient and the sums run on lanes
-/// of this many pixels (arrays the compiler maps to SIMD registers), the table look-ups
-/// lane by lane.
+/// Pixels per step of the passes below: the model (its `erf`s included), its gradient
+/// and the sums run on lanes of this many pixels (arrays the compiler maps to SIMD
+/// registers).
 const L: usize = 8;
 type Lane = [f64; L];
 
