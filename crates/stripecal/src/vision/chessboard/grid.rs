@@ -81,11 +81,13 @@ impl<'a> Ctx<'a> {
 /// Initial sites of a seed: `(site, candidate)`.
 type Seed = Vec<(Coord, usize)>;
 
-/// The seed around candidate `s`: `(initial sites, phase, score)`, a lower score is
-/// better. A cross (four neighbours in two opposite pairs) scores below 1; boards with
-/// only two rows or columns of corners have none, so an L (two neighbours and the
-/// diagonal corner of the square between them) is tried next, scored 10 higher.
-fn seed(ctx: &Ctx, s: usize) -> Option<(Seed, u8, f64)> {
+/// The geometry of a seed around candidate `s`: its initial sites, the image vectors to
+/// its `+i` and `+j` neighbours (for [`quadrant_phase`], which decides whether it is a
+/// seed at all) and its score, a lower score is better. A cross (four neighbours in
+/// two opposite pairs) scores below 1; boards with only two rows or columns of corners
+/// have none, so an L (two neighbours and the diagonal corner of the square between
+/// them) is tried next, scored 10 higher.
+fn seed(ctx: &Ctx, s: usize) -> Option<(Seed, [[f64; 2]; 2], f64)> {
     let p = ctx.pos[s];
     let mut near: Vec<(f64, usize)> = Vec::new();
     ctx.index.visit(p, MAX_PITCH, |k| {
@@ -108,7 +110,6 @@ fn seed(ctx: &Ctx, s: usize) -> Option<(Seed, u8, f64)> {
         .collect();
     let k = |x: usize| near[x].1;
     if let Some(([a, a2, b, b2], score)) = best_cross(&v) {
-        let phase = quadrant_phase(ctx, s, v[a], v[b])?;
         let sites = vec![
             ((0, 0), s),
             ((1, 0), k(a)),
@@ -116,13 +117,12 @@ fn seed(ctx: &Ctx, s: usize) -> Option<(Seed, u8, f64)> {
             ((0, 1), k(b)),
             ((0, -1), k(b2)),
         ];
-        return Some((sites, phase, score));
+        return Some((sites, [v[a], v[b]], score));
     }
     let (a, b, d, score) = best_l(ctx, s, &v)?;
-    let phase = quadrant_phase(ctx, s, v[a], v[b])?;
     Some((
         vec![((0, 0), s), ((1, 0), k(a)), ((0, 1), k(b)), ((1, 1), d)],
-        phase,
+        [v[a], v[b]],
         10.0 + score,
     ))
 }
@@ -372,27 +372,31 @@ pub(crate) fn leave_one_out(at: &mut HashMap<Coord, usize>, pos: &[[f64; 2]], to
 /// Grids on this level, largest first (at most `max_grids`).
 pub(crate) fn find_grids(ctx: &Ctx, max_grids: usize) -> Vec<Grid> {
     let n = ctx.cands.len();
-    // seeds among the strongest candidates
-    let mut seeds: Vec<(f64, Seed, u8)> = Vec::new();
+    // seeds among the strongest candidates, best first; the colours of a seed's squares
+    // (which decide whether it is one) are looked at only when it is reached (a few
+    // of up to 400 are)
+    let mut seeds: Vec<(f64, Seed, [[f64; 2]; 2])> = Vec::new();
     for s in 0..n.min(400) {
-        if let Some((sites, phase, score)) = seed(ctx, s) {
-            seeds.push((score, sites, phase));
+        if let Some((sites, ab, score)) = seed(ctx, s) {
+            seeds.push((score, sites, ab));
         }
     }
     seeds.sort_by(|a, b| a.0.total_cmp(&b.0));
     let mut used = vec![false; n];
     let mut grids: Vec<Grid> = Vec::new();
     let mut tries = 0;
-    for (_, sites, phase) in &seeds {
+    for (_, sites, [a, b]) in &seeds {
         if tries >= 3 * max_grids + 3 || grids.len() >= max_grids {
             break;
         }
         if sites.iter().any(|&(_, k)| used[k]) {
             continue;
         }
+        let Some(phase) = quadrant_phase(ctx, sites[0].1, *a, *b) else {
+            continue;
+        };
         tries += 1;
         let mut taken = used.clone();
-        let phase = *phase;
         let mut at = grow(ctx, sites, phase, &mut taken);
         let grown = at.len();
         let inconsistent = leave_one_out(&mut at, &ctx.pos, 0.25);
