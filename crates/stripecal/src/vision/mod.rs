@@ -13,6 +13,7 @@
 mod affine;
 pub mod chessboard;
 pub mod circles;
+mod coord;
 pub mod stripe;
 pub mod target;
 

@@ -2,10 +2,8 @@
 //! central part, so a thin bright stripe or a printed line does not change it),
 //! the check of a link between neighbouring corners, and the colour phase of a grid.
 
-use std::collections::HashMap;
-
 use super::image::Gray;
-use super::lattice::{cell_dark, Coord};
+use super::lattice::{cell_dark, Coord, CoordMap};
 
 /// Median of `n x n` bilinear samples of `g` at `c + s e1 + t e2`, `s, t` spread
 /// evenly over `[-half, half]`; `None` when fewer than 3/4 of them fall inside the
@@ -108,7 +106,7 @@ pub(crate) fn check_link(g: &Gray, link: &Link, phase: u8, thr: f32) -> Check {
 /// least `thr`; `None` when no link is decided.
 pub(crate) fn phase_of(
     g: &Gray,
-    at: &HashMap<Coord, usize>,
+    at: &CoordMap<usize>,
     pos: &[[f64; 2]],
     thr: impl Fn(usize, usize) -> f32,
 ) -> Option<(u8, usize, usize)> {

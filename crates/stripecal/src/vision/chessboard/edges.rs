@@ -20,12 +20,10 @@
 //! Only `End` is used to place a partial grid on the board; `Continues` can only refuse
 //! a labelling (a side the labelling puts at the board's edge while squares go on).
 
-use std::collections::{HashMap, HashSet};
-
 use nalgebra::Vector2;
 
 use super::image::Gray;
-use super::lattice::{cell_dark, extent, Coord};
+use super::lattice::{cell_dark, extent, Coord, CoordMap, CoordSet};
 use crate::numerics::robust::median;
 
 /// What lies beyond one side of the grid.
@@ -70,12 +68,12 @@ fn band_median(
 /// colour phase `phase`). `stripe_sites`: lattice sites whose corner a stripe hid.
 pub(crate) fn side_status(
     g: &Gray,
-    at: &HashMap<Coord, usize>,
+    at: &CoordMap<usize>,
     pos: &[[f64; 2]],
     phase: u8,
     side: usize,
     noise: f32,
-    stripe_sites: &HashSet<Coord>,
+    stripe_sites: &CoordSet,
 ) -> Side {
     let Some(&n) = OUTWARD.get(side) else {
         return Side::Unknown;

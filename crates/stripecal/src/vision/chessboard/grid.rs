@@ -16,18 +16,16 @@
 //! Several seeds are grown (best first, from candidates not yet in a grid), so a second
 //! board in the image is seen.
 
-use std::collections::HashMap;
-
 use super::candidates::Cand;
 use super::cells::{check_link, patch_median, Check, Link};
 use super::image::Gray;
-use super::lattice::{extent, norm, predict_any, Buckets, Coord};
+use super::lattice::{extent, norm, predict_any, Buckets, Coord, CoordMap};
 
 /// A grown grid on one level (positions in the level's pixels).
 #[derive(Debug, Clone)]
 pub(crate) struct Grid {
     /// Site -> candidate index.
-    pub at: HashMap<Coord, usize>,
+    pub at: CoordMap<usize>,
     /// Cell `(i, j)` is dark iff `i + j + phase` is even.
     pub phase: u8,
     /// Sites grown before the leave-one-out check, and those it removed.
@@ -234,7 +232,7 @@ fn fits(ext: (i32, i32, i32, i32), t: Coord, cap: i32) -> bool {
 
 /// Checks candidate `k` for site `t`: polarity against the grown neighbours and the
 /// links to its 4-neighbours.
-fn accepts(ctx: &Ctx, at: &HashMap<Coord, usize>, phase: u8, t: Coord, k: usize) -> bool {
+fn accepts(ctx: &Ctx, at: &CoordMap<usize>, phase: u8, t: Coord, k: usize) -> bool {
     let mut pol = 0f32;
     for di in -1..=1 {
         for dj in -1..=1 {
@@ -277,8 +275,8 @@ fn accepts(ctx: &Ctx, at: &HashMap<Coord, usize>, phase: u8, t: Coord, k: usize)
     pass > 0
 }
 
-fn grow(ctx: &Ctx, seed: &Seed, phase: u8, taken: &mut [bool]) -> HashMap<Coord, usize> {
-    let mut at: HashMap<Coord, usize> = HashMap::new();
+fn grow(ctx: &Ctx, seed: &Seed, phase: u8, taken: &mut [bool]) -> CoordMap<usize> {
+    let mut at: CoordMap<usize> = CoordMap::default();
     for &(c, k) in seed {
         at.insert(c, k);
         taken[k] = true;
@@ -347,7 +345,7 @@ fn grow(ctx: &Ctx, seed: &Seed, phase: u8, taken: &mut [bool]) -> HashMap<Coord,
 
 /// Removes sites that their neighbours do not predict (leave-one-out); returns how
 /// many were removed.
-pub(crate) fn leave_one_out(at: &mut HashMap<Coord, usize>, pos: &[[f64; 2]], tol: f64) -> usize {
+pub(crate) fn leave_one_out(at: &mut CoordMap<usize>, pos: &[[f64; 2]], tol: f64) -> usize {
     let mut keys: Vec<Coord> = at.keys().copied().collect();
     keys.sort_unstable();
     let mut bad: Vec<Coord> = Vec::new();

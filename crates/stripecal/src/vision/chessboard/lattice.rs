@@ -2,12 +2,8 @@
 //! of nodes, the local affine model of the lattice around a position, a bucket index
 //! of points, and the chessboard colour of a cell.
 
-use std::collections::HashMap;
-
 use crate::vision::affine::{neighbourhood, spans_plane};
-
-/// Integer lattice coordinates `(i, j)`.
-pub(crate) type Coord = (i32, i32);
+pub(crate) use crate::vision::coord::{Coord, CoordMap, CoordSet};
 
 /// Local affine model of the lattice: image position of a lattice site and the image
 /// vectors of one step along `+i` and `+j`.
@@ -38,12 +34,7 @@ pub(crate) fn cross(a: [f64; 2], b: [f64; 2]) -> f64 {
 /// Weighted affine fit of the sites within Chebyshev radius `rad` of `t` (`t` itself
 /// excluded) to their positions `pos[node]`: the predicted [`Local`] at `t`. `None`
 /// with fewer than 3 sites or collinear ones.
-pub(crate) fn predict(
-    at: &HashMap<Coord, usize>,
-    pos: &[[f64; 2]],
-    t: Coord,
-    rad: i32,
-) -> Option<Local> {
+pub(crate) fn predict(at: &CoordMap<usize>, pos: &[[f64; 2]], t: Coord, rad: i32) -> Option<Local> {
     let mut n = [[0f64; 3]; 3];
     let mut bx = [0f64; 3];
     let mut by = [0f64; 3];
@@ -85,7 +76,7 @@ pub(crate) fn predict(
 }
 
 /// [`predict`] from radius 2, else radius 3.
-pub(crate) fn predict_any(at: &HashMap<Coord, usize>, pos: &[[f64; 2]], t: Coord) -> Option<Local> {
+pub(crate) fn predict_any(at: &CoordMap<usize>, pos: &[[f64; 2]], t: Coord) -> Option<Local> {
     predict(at, pos, t, 2).or_else(|| predict(at, pos, t, 3))
 }
 
@@ -178,7 +169,7 @@ mod tests {
 
     #[test]
     fn predict_recovers_an_affine_lattice() {
-        let mut at = HashMap::new();
+        let mut at = CoordMap::default();
         let mut pos = Vec::new();
         for i in -1..=1 {
             for j in -1..=1 {

@@ -2,20 +2,18 @@
 //! removed, then the grid extended site by site (and across one hidden line) wherever
 //! the lattice predicts a corner that the refinement confirms.
 
-use std::collections::{HashMap, HashSet};
-
 use super::image::Gray;
-use super::lattice::{cell_dark, extent, predict_any, Coord, Local};
+use super::lattice::{cell_dark, extent, predict_any, Coord, CoordMap, CoordSet, Local};
 use super::refine::{refine, Fail, Saddle, Settings};
 
 /// Measured sites and the sites that could not be measured.
 pub(crate) struct Measured {
     /// Site -> index into `pts` / `pos`.
-    pub at: HashMap<Coord, usize>,
+    pub at: CoordMap<usize>,
     pub pts: Vec<Saddle>,
     pub pos: Vec<[f64; 2]>,
     /// Sites tried without success, with the reason and the predicted position.
-    pub failed: HashMap<Coord, (Fail, [f64; 2])>,
+    pub failed: CoordMap<(Fail, [f64; 2])>,
 }
 
 const DIRS: [Coord; 4] = [(1, 0), (-1, 0), (0, 1), (0, -1)];
@@ -136,7 +134,7 @@ fn inside(g: &Gray, p: [f64; 2]) -> bool {
 /// `cap` bounds the extent in either lattice direction.
 pub(crate) fn measure_grid(
     g: &Gray,
-    coarse: &HashMap<Coord, [f64; 2]>,
+    coarse: &CoordMap<[f64; 2]>,
     phase: u8,
     s: &Settings,
     cap: i32,
@@ -144,12 +142,12 @@ pub(crate) fn measure_grid(
     let mut keys: Vec<Coord> = coarse.keys().copied().collect();
     keys.sort_unstable();
     let cpos: Vec<[f64; 2]> = keys.iter().map(|t| coarse[t]).collect();
-    let cat: HashMap<Coord, usize> = keys.iter().enumerate().map(|(k, &t)| (t, k)).collect();
+    let cat: CoordMap<usize> = keys.iter().enumerate().map(|(k, &t)| (t, k)).collect();
     let mut m = Measured {
-        at: HashMap::new(),
+        at: CoordMap::default(),
         pts: Vec::new(),
         pos: Vec::new(),
-        failed: HashMap::new(),
+        failed: CoordMap::default(),
     };
     for (k, &t) in keys.iter().enumerate() {
         let Some(l) = predict_any(&cat, &cpos, t) else {
@@ -172,7 +170,7 @@ pub(crate) fn measure_grid(
 /// Grows the measured grid: free sites next to it, and sites two steps out beyond a
 /// site that failed (a line hidden by a stripe).
 fn extend(g: &Gray, m: &mut Measured, phase: u8, s: &Settings, cap: i32) {
-    let mut tried: HashSet<Coord> = m.failed.keys().copied().collect();
+    let mut tried: CoordSet = m.failed.keys().copied().collect();
     for _round in 0..64 {
         let mut targets: Vec<Coord> = Vec::new();
         for &t in m.at.keys() {

@@ -76,8 +76,6 @@ mod stripe;
 #[cfg(test)]
 mod tests;
 
-use std::collections::HashSet;
-
 use crate::error::{Error, Result};
 use crate::model::board::{Board, BoardKind};
 use crate::model::image::{AnyView, Pixel};
@@ -87,7 +85,7 @@ use crate::vision::target::{
 
 use edges::Side;
 use image::Gray;
-use lattice::{cross, Coord};
+use lattice::{cross, Coord, CoordSet};
 use refine::{Fail, Settings};
 
 /// Options of [`detect_chessboard`].
@@ -250,7 +248,7 @@ fn label_grid(
         swap_axes(m);
     }
     let (di, dj) = if swap { (dj, di) } else { (di, dj) };
-    let stripe_sites: HashSet<Coord> = m
+    let stripe_sites: CoordSet = m
         .failed
         .iter()
         .filter(|(_, (f, _))| *f == Fail::Stripe)

@@ -5,11 +5,10 @@
 //! that the compiler turns into SIMD instructions (hence the index loops).
 #![allow(clippy::needless_range_loop)]
 
-use std::collections::HashSet;
-
 use nalgebra::{SMatrix, SVector};
 
 use super::image::Gray;
+use super::lattice::CoordSet;
 
 pub(crate) const NP: usize = 11;
 pub(crate) type Mat = SMatrix<f64, NP, NP>;
@@ -80,13 +79,7 @@ fn erf_series(x: f64) -> (f64, f64) {
 }
 
 /// Window pixels: `(dx, dy, value, weight)` relative to the centre.
-pub(crate) fn window(
-    g: &Gray,
-    c: [f64; 2],
-    r: f64,
-    mask: &HashSet<(i32, i32)>,
-    out: &mut Vec<[f64; 4]>,
-) {
+pub(crate) fn window(g: &Gray, c: [f64; 2], r: f64, mask: &CoordSet, out: &mut Vec<[f64; 4]>) {
     out.clear();
     let (x0, x1) = (
         (c[0] - r - 0.5).ceil() as i64,

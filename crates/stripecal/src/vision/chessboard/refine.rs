@@ -50,11 +50,9 @@
 //! corner ([`Fail::Stripe`]) or, when kept, its pixels and their mirror images about
 //! the centre (so the window stays symmetric) are left out of the fit.
 
-use std::collections::HashSet;
-
 use super::checks::{quadrants, validate, worst_sector};
 use super::image::Gray;
-use super::lattice::{cross, norm, Local};
+use super::lattice::{cross, norm, CoordSet, Local};
 use super::model::{cost_of, normal, normal_linear, normal_trial, window, Mat, Vec11, NP};
 use super::stripe::{dark_sector_stripe, faint_line, residual_stripe, stripe_mask};
 
@@ -112,12 +110,7 @@ pub(crate) struct Settings {
 }
 
 /// Gradient-orthogonality estimate (a few closed-form steps).
-fn orthogonality_start(
-    g: &Gray,
-    start: [f64; 2],
-    r: f64,
-    mask: &HashSet<(i32, i32)>,
-) -> Option<[f64; 2]> {
+fn orthogonality_start(g: &Gray, start: [f64; 2], r: f64, mask: &CoordSet) -> Option<[f64; 2]> {
     let mut c = start;
     let s2 = 2.0 * (0.5 * r).powi(2);
     let mut wx: Vec<f64> = Vec::with_capacity(2 * r as usize + 3);
@@ -183,7 +176,7 @@ fn fit(
     angles: [f64; 2],
     ln_blur0: f64,
     r: f64,
-    mask: &HashSet<(i32, i32)>,
+    mask: &CoordSet,
 ) -> Option<Fitted> {
     let inv_r = 1.0 / r;
     let mut th = Vec11::zeros();
@@ -326,14 +319,14 @@ pub(crate) fn refine(
     if stripe && !s.keep_stripe {
         return Err(Fail::Stripe);
     }
-    let mask: HashSet<(i32, i32)> = mask.union(&on_dark).copied().collect();
+    let mask: CoordSet = mask.union(&on_dark).copied().collect();
     let angles = [di[1].atan2(di[0]), dj[1].atan2(dj[0])];
     // a window with stripe pixels left out starts from 0 (a part of the window is
     // missing: the neighbours' blur can lead such a fit to another minimum)
     let blur0 = if mask.is_empty() { s.ln_blur0 } else { 0.0 };
     let (mut th, mut px, mut h, mut cost, mut wsum) =
         fit(g, c0, angles, blur0, r, &mask).ok_or(Fail::NotCorner("the saddle fit failed"))?;
-    let more: HashSet<(i32, i32)> = residual_stripe(&th, &px, r, s.noise)
+    let more: CoordSet = residual_stripe(&th, &px, r, s.noise)
         .union(&faint_line(g, [th[0], th[1]], r, light, dark, s.noise))
         .copied()
         .collect();
@@ -342,7 +335,7 @@ pub(crate) fn refine(
         if !s.keep_stripe {
             return Err(Fail::Stripe);
         }
-        let all: HashSet<(i32, i32)> = mask.union(&more).copied().collect();
+        let all: CoordSet = mask.union(&more).copied().collect();
         (th, px, h, cost, wsum) = fit(g, c0, angles, 0.0, r, &all).ok_or(Fail::Stripe)?;
     }
     validate(

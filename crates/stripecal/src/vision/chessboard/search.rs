@@ -1,18 +1,16 @@
 //! The search over pyramid levels: candidates and grids level by level, coarse to
 //! fine, stopping at the first level whose grid has as many corners as the board.
 
-use std::collections::HashMap;
-
 use super::candidates::{self, Cand};
 use super::grid::{self, Grid};
 use super::image::Gray;
-use super::lattice::Coord;
+use super::lattice::CoordMap;
 
 /// A grid found on some level, positions converted to full-resolution pixels.
 #[derive(Debug, Clone)]
 pub(crate) struct Found {
     pub level: usize,
-    pub sites: HashMap<Coord, [f64; 2]>,
+    pub sites: CoordMap<[f64; 2]>,
     pub phase: u8,
     pub grown: usize,
     pub inconsistent: usize,

@@ -2,10 +2,8 @@
 //! light squares, over the dark sectors, or above the fitted model, counted only when
 //! they form a connected piece of line (bright grain and glare come in small clumps).
 
-use std::collections::HashSet;
-
 use super::image::Gray;
-use super::lattice::{cross, norm, Local};
+use super::lattice::{cross, norm, CoordSet, Local};
 use super::model::{values, window, Vec11};
 
 /// The image pixels of the window samples `px` (offsets `[dx, dy, value, ..]` from `c`)
@@ -30,7 +28,7 @@ fn window_pixels_where(
     keep: impl Fn(&[f64; 4]) -> bool,
 ) -> Vec<(i32, i32)> {
     let mut px = Vec::new();
-    window(g, c, r, &HashSet::new(), &mut px);
+    window(g, c, r, &CoordSet::default(), &mut px);
     pixels_where(&px, c, keep)
 }
 
@@ -43,9 +41,9 @@ pub(crate) fn stripe_mask(
     light: f64,
     dark: f64,
     noise: f64,
-) -> HashSet<(i32, i32)> {
+) -> CoordSet {
     if !(light.is_finite() && dark.is_finite()) {
-        return HashSet::new();
+        return CoordSet::default();
     }
     let thr = light + (0.5 * (light - dark)).max(8.0 * noise);
     let bright = window_pixels_where(g, c, r + 1.0, |q| q[2] > thr);
@@ -64,14 +62,14 @@ pub(crate) fn dark_sector_stripe(
     light_ij: Option<bool>,
     light: f64,
     dark: f64,
-) -> HashSet<(i32, i32)> {
+) -> CoordSet {
     let (c, di, dj) = (l.p, l.di, l.dj);
     let det = cross(di, dj);
     let (Some(light_ij), true) = (
         light_ij,
         light.is_finite() && dark.is_finite() && det.abs() > 1e-9,
     ) else {
-        return HashSet::new();
+        return CoordSet::default();
     };
     let thr = 0.5 * (light + dark);
     let (ni, nj) = (norm(di), norm(dj));
@@ -91,12 +89,7 @@ pub(crate) fn dark_sector_stripe(
 /// A stripe seen in the fit's residuals: pixels brighter than the fitted model by 3/4
 /// of the contrast (a stripe over the dark squares that is no brighter than the light
 /// ones), see [`stripe_of`].
-pub(crate) fn residual_stripe(
-    th: &Vec11,
-    px: &[[f64; 4]],
-    r: f64,
-    noise: f64,
-) -> HashSet<(i32, i32)> {
+pub(crate) fn residual_stripe(th: &Vec11, px: &[[f64; 4]], r: f64, noise: f64) -> CoordSet {
     let thr = (1.5 * th[6].abs()).max(8.0 * noise);
     let mut fm = Vec::with_capacity(px.len() + 8);
     values(th, px, 1.0 / r, &mut fm);
@@ -123,8 +116,8 @@ pub(crate) fn faint_line(
     light: f64,
     dark: f64,
     noise: f64,
-) -> HashSet<(i32, i32)> {
-    let mut out = HashSet::new();
+) -> CoordSet {
+    let mut out = CoordSet::default();
     if !(light.is_finite() && dark.is_finite()) {
         return out;
     }
@@ -168,8 +161,8 @@ fn long_and_thin(px: &[(i32, i32)], len: f64, ratio: f64) -> bool {
 
 /// The 8-connected components of a pixel set.
 fn components(px: &[(i32, i32)]) -> Vec<Vec<(i32, i32)>> {
-    let set: HashSet<(i32, i32)> = px.iter().copied().collect();
-    let mut seen: HashSet<(i32, i32)> = HashSet::new();
+    let set: CoordSet = px.iter().copied().collect();
+    let mut seen: CoordSet = CoordSet::default();
     let mut out = Vec::new();
     let mut stack = Vec::new();
     for &p in px {
@@ -202,8 +195,8 @@ fn largest_component(px: &[(i32, i32)]) -> usize {
 /// The pixels grown by one pixel when their largest connected part has at least
 /// `max(8, r)` pixels (a stripe crossing the window has about `4 r`; bright grain,
 /// a few in small clumps); empty otherwise.
-fn stripe_of(px: Vec<(i32, i32)>, r: f64) -> HashSet<(i32, i32)> {
-    let mut out = HashSet::new();
+fn stripe_of(px: Vec<(i32, i32)>, r: f64) -> CoordSet {
+    let mut out = CoordSet::default();
     if (largest_component(&px) as f64) < r.max(8.0) {
         return out;
     }

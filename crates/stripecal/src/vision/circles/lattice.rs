@@ -21,44 +21,12 @@
 //! 5. A second grid grown from the remaining seeds, as large as a quarter of the board
 //!    and not on the first grid's lattice, is a second board: an error.
 
-use std::collections::HashMap;
-
 use super::blobs::Blob;
 use crate::error::{Error, Result};
 use crate::model::board::{Board, BoardKind};
 use crate::vision::affine::{neighbourhood, spans_plane, AffineFit};
 
-/// Lattice coordinates.
-pub(crate) type Coord = (i32, i32);
-
-/// A hasher for lattice coordinates (a multiply-rotate mix; the keys are small
-/// integers from our own growth, so no protection against crafted keys is needed).
-#[derive(Default, Clone, Copy)]
-pub(crate) struct CoordHasher(u64);
-
-impl std::hash::Hasher for CoordHasher {
-    #[inline]
-    fn finish(&self) -> u64 {
-        self.0
-    }
-    #[inline]
-    fn write(&mut self, bytes: &[u8]) {
-        for &b in bytes {
-            self.write_u64(b as u64);
-        }
-    }
-    #[inline]
-    fn write_i32(&mut self, i: i32) {
-        self.write_u64(i as u32 as u64);
-    }
-    #[inline]
-    fn write_u64(&mut self, i: u64) {
-        self.0 = (self.0.rotate_left(5) ^ i).wrapping_mul(0x517c_c1b7_2722_0a95);
-    }
-}
-
-/// Lattice coordinate -> value.
-pub(crate) type CoordMap<V> = HashMap<Coord, V, std::hash::BuildHasherDefault<CoordHasher>>;
+pub(crate) use crate::vision::coord::{Coord, CoordMap};
 
 /// The grown grid: lattice coordinate -> blob index.
 pub(crate) struct Grid {
