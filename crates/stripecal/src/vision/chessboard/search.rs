@@ -56,14 +56,12 @@ fn found(level: usize, g: &Grid, cands: &[Cand]) -> Found {
 /// of every level searched, largest first.
 pub(crate) fn search(g0: &Gray, noise: f32, o: &SearchOpts) -> (Vec<Found>, SearchStats) {
     let mut pyr: Vec<Gray> = Vec::new();
-    let mut cur: Option<Gray> = None;
     for _ in 1..o.levels {
-        let next = cur.as_ref().unwrap_or(g0).half();
+        let next = pyr.last().unwrap_or(g0).half();
         if next.w < 2 * candidates::MARGIN + 8 || next.h < 2 * candidates::MARGIN + 8 {
             break;
         }
-        pyr.push(next.clone());
-        cur = Some(next);
+        pyr.push(next);
     }
     let mut stats = SearchStats::default();
     let mut all: Vec<Found> = Vec::new();
