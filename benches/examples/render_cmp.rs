@@ -9,32 +9,18 @@ use std::path::Path;
 use stripecal_sim::{SimConfig, Twin};
 fn main() {
     let out = std::env::args().nth(1).unwrap();
+    // `n` calibration views, no scan
+    let views = |n: usize| serde_json::json!({"poses": {"count": n}, "scan": {"enabled": false}});
     let cases: Vec<(&str, &str, serde_json::Value)> = vec![
         (
             "paper",
             "hp3-paper",
             serde_json::json!({"poses": {"count": 4}, "scan": {"step_mm": 2.0}}),
         ),
-        (
-            "wide",
-            "hp3-wide",
-            serde_json::json!({"poses": {"count": 3}, "scan": {"enabled": false}}),
-        ),
-        (
-            "chess",
-            "hp3-chessboard",
-            serde_json::json!({"poses": {"count": 4}, "scan": {"enabled": false}}),
-        ),
-        (
-            "asym",
-            "hp3-asymmetric",
-            serde_json::json!({"poses": {"count": 3}, "scan": {"enabled": false}}),
-        ),
-        (
-            "sheet",
-            "hp3-sheet",
-            serde_json::json!({"poses": {"count": 3}, "scan": {"enabled": false}}),
-        ),
+        ("wide", "hp3-wide", views(3)),
+        ("chess", "hp3-chessboard", views(4)),
+        ("asym", "hp3-asymmetric", views(3)),
+        ("sheet", "hp3-sheet", views(3)),
         ("profiler", "hp3-profiler", serde_json::json!({})),
         (
             "verify",

@@ -412,8 +412,7 @@ impl ImageScene {
         to_e: &Vector3<f64>,
     ) -> bool {
         let e = self.laser.emitter;
-        let to_e = *to_e;
-        if normal.dot(&to_e) <= 0.0 {
+        if normal.dot(to_e) <= 0.0 {
             return false;
         }
         if surface == SURF_FREE_PLATE && self.table && self.plate_blocks(p, &e) {
@@ -424,7 +423,7 @@ impl ImageScene {
         for (i, &(c, r)) in self.spheres.iter().enumerate() {
             if own != Some(i) {
                 // segment p -> e against the sphere
-                let dir = to_e;
+                let dir = *to_e;
                 let oc = p - c;
                 let a = dir.norm_squared();
                 let b = oc.dot(&dir);

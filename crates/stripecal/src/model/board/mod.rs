@@ -339,8 +339,15 @@ impl Board {
     #[inline]
     pub fn center(&self, row: usize, col: usize) -> Vector3<f64> {
         let (i, j) = self.lattice(row, col);
+        let (x, y) = self.site_xy(i, j);
+        Vector3::new(x, y, 0.0)
+    }
+
+    /// Board coordinates (mm) of lattice site `(i, j)`: the site times the lattice unit.
+    #[inline]
+    fn site_xy(&self, i: i64, j: i64) -> (f64, f64) {
         let u = self.lattice_unit_mm();
-        Vector3::new(i as f64 * u, j as f64 * u, 0.0)
+        (i as f64 * u, j as f64 * u)
     }
 
     /// All points as `(row, col)` in row-major order.
@@ -356,9 +363,9 @@ impl Board {
             return None;
         }
         let ((i, j), (r, c)) = self.nearest_point(x, y)?;
-        // the centre of point (r, c): lattice (i, j) times the unit (as `center`)
-        let u = self.lattice_unit_mm();
-        let (dx, dy) = (x - i as f64 * u, y - j as f64 * u);
+        // the centre of point (r, c), from its lattice site
+        let (cx, cy) = self.site_xy(i, j);
+        let (dx, dy) = (x - cx, y - cy);
         let rad = 0.5 * self.diameter(r, c);
         (dx * dx + dy * dy <= rad * rad).then_some((r, c))
     }
