@@ -150,10 +150,17 @@ impl StripeExtractor {
             self.fuse = as_set;
         }
         let (dir, cands) = match opts.direction {
-            StripeDirection::Auto => (
-                auto_direction(img, &opts, &mut self.cands, &mut self.rows),
-                Cands::FromAuto,
-            ),
+            StripeDirection::Auto => {
+                // decided with the ridge distance of the line's median width; its
+                // candidates serve the extraction where that is the extraction's
+                let mut decide = opts.clone();
+                if self.opts.adapt_to_line {
+                    decide.ridge_px = self.survey.typical_ridge_px(&self.opts);
+                }
+                let dir = auto_direction(img, &decide, &mut self.cands, &mut self.rows);
+                let reuse = decide.ridge_px == opts.ridge_px;
+                (dir, if reuse { Cands::FromAuto } else { Cands::Scan })
+            }
             _ if fused && as_set => (opts.direction, Cands::Ready),
             d => (d, Cands::Scan),
         };
@@ -782,6 +789,57 @@ mod tests {
             scan_columns(&v16, d, 6 * 257, &mut a);
             scan_columns_generic(&v16, d, 6 * 257, &mut b);
             assert_eq!(a, b);
+        }
+    }
+
+    /// A saturated line (5x full scale) whose plateau widens along its length, from 8 px
+    /// over most of it to 24 px at its end (a line nearer the camera there, or on a
+    /// brighter surface): the survey's wide end sets the ridge distance, so the widest
+    /// scan lines are found too (from the median width alone, a ridge distance of 10 px,
+    /// the last 7 % of the line had no peak), each centre the middle of the plateau's
+    /// edges.
+    #[test]
+    fn a_widening_saturated_line_is_found_where_it_is_widest() {
+        let (w, h) = (160usize, 240usize);
+        let centre = |y: f64| 60.3 + 0.1 * y;
+        let plateau = |y: f64| 8.0 + 16.0 * (y / h as f64).powi(4);
+        let mut img = vec![0u8; w * h];
+        let mut seed = 12345u64;
+        for y in 0..h {
+            let (c, half) = (centre(y as f64), 0.5 * plateau(y as f64));
+            for x in 0..w {
+                seed = seed
+                    .wrapping_mul(6364136223846793005)
+                    .wrapping_add(1442695040888963407);
+                let noise = ((seed >> 40) as f64 / (1u64 << 24) as f64 - 0.5) * 3.0;
+                let t = x as f64 - c;
+                // a smooth box, symmetric about the centre: logistic edges 1.2 px wide
+                let edge = |d: f64| 1.0 / (1.0 + (-d / 1.2).exp());
+                let v = 20.0 + 5.0 * 255.0 * edge(t + half) * edge(half - t) + noise;
+                img[y * w + x] = v.round().clamp(0.0, 255.0) as u8;
+            }
+        }
+        let v = ImageView::from_slice(&img, w, h).unwrap();
+        let s = extract_stripe(AnyView::U8(v), &StripeOptions::default()).unwrap();
+        assert_eq!(s.direction, StripeDirection::Cols);
+        assert!(s.survey.wide_px > s.survey.width_px + 4.0, "{:?}", s.survey);
+        // the widest sixth of the line (plateaus of about 15-24 px)
+        let wide_rows = (200..h - 2).filter(|&y| s.points.iter().any(|p| p.v == y as f64));
+        assert!(wide_rows.count() >= 36, "{:?} {:?}", s.survey, s.rejected);
+        assert!(
+            s.points.len() >= h - 8,
+            "{} {:?}",
+            s.points.len(),
+            s.rejected
+        );
+        for p in &s.points {
+            assert!(
+                (p.u - centre(p.v)).abs() < 0.1,
+                "row {}: {} vs {}",
+                p.v,
+                p.u,
+                centre(p.v)
+            );
         }
     }
 

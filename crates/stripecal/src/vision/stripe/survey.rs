@@ -25,10 +25,18 @@
 //!
 //! - The widths accepted: up to `max(max_width_px, 1.5 * width + 4)` (at most
 //!   [`MAX_WIDTH_PX`]), and on a wide saturated line plateaus up to the same
-//!   `max(max_saturated_px, 1.5 * width + 4)` (a plateau is narrower than its line).
+//!   `max(max_saturated_px, 1.5 * width + 4)` (a plateau is narrower than its line),
+//!   `width` the median width, or on a wide saturated line the wide end of its widths
+//!   (below).
 //! - The ridge distance: `ridge_px` while `ceil(width / 2) <= ridge_px` (at that
 //!   distance from its peak the line is at or below half its height: the ridge test
-//!   finds it), else `ceil(width / 2) + 3` (at most [`MAX_RIDGE_PX`]); a line up to
+//!   finds it), else `ceil(width / 2) + 3` (at most [`MAX_RIDGE_PX`]). On a wide
+//!   saturated line `width` is the wide end of its widths, the 90th percentile of the
+//!   samples (at most twice the median): a line widens along its length, and a
+//!   plateau wider than twice the ridge distance gives no ridge at all (from the median
+//!   width such a line lost its widest scan lines). An unsaturated line has no flat top:
+//!   the ridge test finds it at any distance, and its centres (whose first background
+//!   guess is read at the ridge distance) stay those of its median width. A line up to
 //!   twice the ridge distance wide keeps `ridge_px`, and its extraction is what it
 //!   always was (a wider distance also widens the window the centre is taken over,
 //!   which moved the twin's ball diameter by 0.0015 mm on 7-9 px saturated lines).
@@ -61,6 +69,12 @@ pub const AUTO_ALONG_LINE: usize = 5;
 pub struct Survey {
     /// The line's width across (FWHM, whole pixels; 0: no line seen).
     pub width_px: f64,
+    /// The wide end of the line's widths: the 90th percentile of the sampled widths,
+    /// at most twice [`Survey::width_px`] (px; 0: no line seen). A wide saturated
+    /// line's ridge distance follows it (module docs): a line widens along its length
+    /// (obliquely lit, nearer the camera, a brighter surface), and the widest parts of
+    /// its plateau must still be found.
+    pub wide_px: f64,
     /// Share of the sampled peaks at full scale.
     pub saturated_share: f64,
     /// The speckle index (module docs; 0 without pairs).
@@ -72,7 +86,28 @@ pub struct Survey {
 impl Survey {
     /// The ridge distance for `opts` (module docs).
     pub fn ridge_px(&self, opts: &StripeOptions) -> usize {
-        let w = self.width_px.min(f64::from(MAX_WIDTH_PX));
+        Self::ridge_for(self.followed_px(), opts)
+    }
+
+    /// The width the ridge distance and the widths accepted follow: the wide end of a
+    /// wide saturated line's widths, else the median (module docs).
+    fn followed_px(&self) -> f64 {
+        if self.saturated_wide() {
+            self.wide_px.max(self.width_px)
+        } else {
+            self.width_px
+        }
+    }
+
+    /// The ridge distance for the line's median width (the scan direction's decision
+    /// uses it: a majority of the scan lines decides, as before the wide end of a
+    /// saturated line was taken).
+    pub fn typical_ridge_px(&self, opts: &StripeOptions) -> usize {
+        Self::ridge_for(self.width_px, opts)
+    }
+
+    fn ridge_for(width_px: f64, opts: &StripeOptions) -> usize {
+        let w = width_px.min(f64::from(MAX_WIDTH_PX));
         let half = (0.5 * w).ceil() as usize;
         if half <= opts.ridge_px {
             // the ridge test finds this line as it is: at the distance its neighbours
@@ -93,7 +128,7 @@ impl Survey {
     /// and, on a saturated line, the plateau trusted; never below their values.
     pub fn adapt(&self, opts: &mut StripeOptions) {
         opts.ridge_px = self.ridge_px(opts);
-        let wide = (1.5 * self.width_px + 4.0) as f32;
+        let wide = (1.5 * self.followed_px() + 4.0) as f32;
         opts.max_width_px = opts.max_width_px.max(wide.min(MAX_WIDTH_PX));
         if self.saturated_wide() {
             // a plateau is narrower than its line, whose widths the accepted widths
@@ -391,6 +426,12 @@ fn sample<S>(
     }
 }
 
+/// The `q`-quantile (nearest rank) of values already sorted.
+fn quantile_sorted(v: &[usize], q: f64) -> Option<f64> {
+    let n = v.len();
+    (n > 0).then(|| v[((q * n as f64).ceil() as usize).clamp(1, n) - 1] as f64)
+}
+
 fn median_usize(v: &mut [usize]) -> Option<f64> {
     if v.is_empty() {
         return None;
@@ -517,8 +558,11 @@ fn summary(picked: &mut Samples, along_columns: bool) -> Survey {
     } else {
         0.0
     };
+    // (the median sorted the widths)
+    let wide = quantile_sorted(widths, 0.9).map_or(width, |q| q.min(2.0 * width));
     Survey {
         width_px: width,
+        wide_px: wide,
         saturated_share: *sat as f64 / n.max(1) as f64,
         speckle_index,
         along_columns,
