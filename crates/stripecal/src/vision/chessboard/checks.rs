@@ -69,7 +69,7 @@ pub(crate) fn worst_sector(th: &Vec11, px: &[[f64; 4]], r: f64) -> f64 {
     let (s1a, c1a) = th[2].sin_cos();
     let (s2a, c2a) = th[3].sin_cos();
     let away = (2.0 * th[4].exp() + 0.5).min(0.4 * r);
-    let mut fm = Vec::with_capacity(px.len() + 8);
+    let mut fm = Vec::new();
     values(th, px, 1.0 / r, &mut fm);
     let mut acc = [[0f64; 2]; 4];
     for (q, &[f, _]) in px.iter().zip(&fm) {

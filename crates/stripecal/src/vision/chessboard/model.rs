@@ -417,7 +417,8 @@ pub(crate) fn normal_trial(
     (normal(th, new, inv_r), cost_of(th, old, inv_r, shift))
 }
 
-/// The model's value and `M` ([`Model::value`]) at every pixel of the window `px`.
+/// The model's value and `M` ([`Model::value`]) at every pixel of the window `px`, into
+/// `out` (cleared first; sized here).
 pub(crate) fn values(th: &Vec11, px: &[[f64; 4]], inv_r: f64, out: &mut Vec<[f64; 2]>) {
     #[cfg(target_arch = "x86_64")]
     if crate::vision::has_avx2() {
@@ -440,6 +441,8 @@ fn values_avx2(th: &Vec11, px: &[[f64; 4]], inv_r: f64, out: &mut Vec<[f64; 2]>)
 fn values_lanes(th: &Vec11, px: &[[f64; 4]], inv_r: f64, out: &mut Vec<[f64; 2]>) {
     let md = Model::new(th, inv_r);
     out.clear();
+    // the last lane's padding is written too, then cut off
+    out.reserve(px.len() + L);
     for [dx, dy, _, _] in lanes(px, [0.0, 0.0]) {
         let (f, m) = md.value_lanes(&dx, &dy);
         out.extend((0..L).map(|l| [f[l], m[l]]));
@@ -457,7 +460,7 @@ pub(crate) fn normal_linear(
 ) -> (SMatrix<f64, 6, 6>, SVector<f64, 6>) {
     let mut tri = [0f64; 21];
     let mut b = SVector::<f64, 6>::zeros();
-    let mut fm = Vec::with_capacity(px.len() + L);
+    let mut fm = Vec::new();
     values(th, px, inv_r, &mut fm);
     for (q, &[f, m]) in px.iter().zip(&fm) {
         let r = q[2] - f;

@@ -91,7 +91,7 @@ pub(crate) fn dark_sector_stripe(
 /// ones), see [`stripe_of`].
 pub(crate) fn residual_stripe(th: &Vec11, px: &[[f64; 4]], r: f64, noise: f64) -> CoordSet {
     let thr = (1.5 * th[6].abs()).max(8.0 * noise);
-    let mut fm = Vec::with_capacity(px.len() + 8);
+    let mut fm = Vec::new();
     values(th, px, 1.0 / r, &mut fm);
     let c = [th[0], th[1]];
     let bright = px
